@@ -1,0 +1,30 @@
+# One-command entry points (see README.md). Everything is installed into .venv by these targets.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: setup run test bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+setup: $(STAMP)
+
+## Set up, then render the default scene (26 illuminants × 3 intensity factors) into outputs/macbeth_26/
+run: $(STAMP)
+	$(BIN)/camsim render scenes/macbeth_26.toml
+
+## Set up, then run the test suite
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+## Set up, then run the W1 speed/memory benchmark (prints a JSON line last)
+bench: $(STAMP)
+	$(BIN)/python tools/bench_w1.py
+
+clean:
+	rm -rf $(VENV) outputs/macbeth_26

@@ -1,0 +1,158 @@
+"""The ``camsim`` command line. ``main(argv)`` does the work and returns an exit status; importing does nothing.
+
+User errors (bad names, malformed files, bad values) print one line, ``camsim: error: ...``, and exit with 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from camsim.errors import CamsimError
+from camsim.sensor import PRESETS, STAGES
+
+DEFAULT_OUT = Path("outputs")
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not value > 0 or value != value or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
+    return value
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be ≥ 0, got {text}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="camsim",
+        description=(
+            "Physically grounded camera simulator: spectral scenes through the image-sensor model of "
+            "'Image Sensor Modeling: Color Measurement at Low Light Levels' (2014) into 8-bit DNG raw, "
+            "float EXR and JSON sidecar files."
+        ),
+        epilog="Run 'camsim render --help' for the rendering options.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    render = sub.add_parser(
+        "render",
+        help="render a scene file into DNG, EXR and JSON frames",
+        description=(
+            "Render SCENE.toml: one frame per illuminant and intensity factor. Each frame is written as NAME.dng "
+            "(8-bit raw digital numbers), NAME.exr (float32 DN before quantisation, plus the expected 'clean' "
+            "layer) and NAME.json (every parameter with its unit); OUT/manifest.json lists them all."
+        ),
+    )
+    render.add_argument("scene", metavar="SCENE.toml", help="scene file (see scenes/macbeth_26.toml)")
+    render.add_argument("--intensity", "-F", metavar="F", type=_positive_float, nargs="+", action="extend",
+                        help="intensity factor(s) F (unitless, > 0): the light is F × the scene radiance, "
+                             "whose perfect white is 100 cd/m² at F = 1; F > 1 saturates. Default: the scene's list")
+    render.add_argument("--illuminant", metavar="NAME", nargs="+", action="extend",
+                        help="colour-science illuminant name(s), e.g. D65 FL2 'LED-B1'. Default: the scene's list")
+    render.add_argument("--statistics", choices=("pixel", "paper"),
+                        help="photon statistics: 'pixel' = exact Poisson electrons per pixel (default); "
+                             "'paper' = Eq. 4 literally, Poisson photons per s·m²·sr, far smaller shot noise")
+    render.add_argument("--method", choices=("poisson", "spectral"),
+                        help="sampling: 'poisson' = one draw per pixel and channel (default); "
+                             "'spectral' = per-wavelength-bin draws (N× slower, the paper's literal method)")
+    render.add_argument("--preset", choices=sorted(PRESETS),
+                        help="sensor preset: paper-table1 (Table I, all stages on; default), paper-photon-dark "
+                             "(photon + dark noise only), ideal (photon noise only, output in electrons)")
+    render.add_argument("--disable", metavar="STAGE", choices=STAGES, nargs="+", action="extend", default=[],
+                        help=f"switch sensor stage(s) off: {', '.join(STAGES)}")
+    render.add_argument("--exposure", metavar="SECONDS", type=_positive_float,
+                        help="exposure time T in s (Table I: 1 s)")
+    render.add_argument("--camera", metavar="NAME_OR_CSV",
+                        help="colour-science camera name (default 'Nikon 5100 (NPL)') or a CSV of wavelength_nm, R, G, B")
+    render.add_argument("--seed", type=_seed, help="random seed (integer ≥ 0); same seed ⇒ identical files")
+    render.add_argument("--size", metavar="WxH", help="frame size in pixels for chart scenes, e.g. 4000x3000")
+    render.add_argument("--out", metavar="DIR", type=Path,
+                        help="output directory (default: outputs/SCENE_NAME)")
+    render.add_argument("--workers", metavar="N", type=int, help="threads per frame (default: all cores; "
+                        "the output does not depend on it)")
+    render.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    sub.add_parser("list", help="list the illuminants, cameras, reflectance sets and presets camsim knows")
+    return parser
+
+
+def _apply_overrides(scene, args):
+    from camsim.chart import parse_size
+
+    changes = {}
+    if args.intensity:
+        changes["intensity_factors"] = tuple(args.intensity)
+    if args.illuminant:
+        changes["illuminants"] = tuple(args.illuminant)
+    for key in ("statistics", "method", "seed", "camera"):
+        if getattr(args, key) is not None:
+            changes[key] = getattr(args, key)
+    if args.preset:
+        changes["preset_name"] = args.preset
+    if args.size:
+        if scene.cube is not None:
+            raise CamsimError("--size applies to chart scenes; a cube scene has the size of its cube")
+        changes["width"], changes["height"] = parse_size(args.size)
+    scene = scene.replace(**changes)
+    overrides = {stage: False for stage in args.disable}
+    if args.exposure is not None:
+        overrides["exposure_s"] = args.exposure
+    return scene.with_sensor(**overrides) if overrides else scene
+
+
+def _cmd_render(args) -> int:
+    from camsim.run import render_scene
+    from camsim.scene import load_scene
+
+    scene = _apply_overrides(load_scene(args.scene), args)
+    out = args.out if args.out is not None else DEFAULT_OUT / scene.name
+    if args.workers is not None and args.workers < 1:
+        raise CamsimError(f"--workers must be ≥ 1, got {args.workers}")
+    manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet)
+    print(f"wrote {len(manifest['frames'])} frames (DNG, EXR, JSON) to {out}/ — index: {out / 'manifest.json'}")
+    return 0
+
+
+def _cmd_list(args) -> int:
+    from camsim.spectra import camera_names, illuminant_names, reflectance_set_names
+
+    print("illuminants:", ", ".join(illuminant_names()))
+    print("cameras:", ", ".join(camera_names()))
+    print("reflectance sets:", ", ".join(reflectance_set_names()))
+    print("presets:", ", ".join(PRESETS))
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit status (0 ok, 2 user error)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 2
+    try:
+        if args.command == "render":
+            return _cmd_render(args)
+        return _cmd_list(args)
+    except CamsimError as exc:
+        print(f"camsim: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("camsim: interrupted; completed frames are kept, no partial file is left", file=sys.stderr)
+        return 130
+
+
+def main_entry() -> None:
+    """Console-script entry point."""
+    sys.exit(main())

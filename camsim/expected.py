@@ -1,0 +1,116 @@
+"""Expected values and variances per distinct spectrum (K of them), known before anything is drawn.
+
+These are the model's closed forms (MODEL.md §3–4) used both by the renderer (what to draw) and by the tests
+and sidecars (what the frame should show):
+
+* signal electrons S = T · F · Σ g(λi) Qe_κ(λi);
+* Var S = S under ``pixel`` statistics (Poisson thinning), T² · F · Σ g Qe² under ``paper`` statistics (Eq. 4);
+* dark electrons D ~ Poisson(σ²_dark · T);
+* the clean value E[f_sat(S + D)], exact for Poisson totals, Gaussian-approximated for ``paper`` statistics.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from camsim.sensor import SensorParams
+
+
+@dataclass(frozen=True)
+class ExpectedSignal:
+    """Per-spectrum moments of the collected charge, for one frame.
+
+    Attributes
+    ----------
+    photon_rate : numpy.ndarray, shape (K, N)
+        F · g(λi), photons / (s m² sr) per bin at the frame's intensity factor.
+    qe : numpy.ndarray, shape (3, N)
+        Qe_κ(λi). Unit: e⁻ · m² · sr / photon.
+    signal_e : numpy.ndarray, shape (K, 3)
+        Mean signal electrons S. Unit: e⁻.
+    signal_var_e2 : numpy.ndarray, shape (K, 3)
+        Variance of S under the frame's photon statistics (0 if photon noise is off). Unit: e⁻².
+    dark_e : numpy.ndarray, shape (3,)
+        Mean dark electrons σ²_dark · T (0 if the stage is off). Unit: e⁻.
+    clean_e : numpy.ndarray, shape (K, 3)
+        E[f_sat(S + D)], the expected charge after saturation. Unit: e⁻.
+    """
+
+    photon_rate: np.ndarray
+    qe: np.ndarray
+    signal_e: np.ndarray
+    signal_var_e2: np.ndarray
+    dark_e: np.ndarray
+    clean_e: np.ndarray
+
+    @property
+    def total_var_e2(self) -> np.ndarray:
+        """Variance of S + D before saturation, shape (K, 3). Unit: e⁻²."""
+        return self.signal_var_e2 + self.dark_e
+
+
+def expected_signal(photon_radiance, qe, sensor: SensorParams, intensity_factor: float, statistics: str):
+    """Compute :class:`ExpectedSignal` for K spectra.
+
+    Parameters
+    ----------
+    photon_radiance : numpy.ndarray, shape (K, N)
+        g(λi) at F = 1. Unit: photons / (s m² sr).
+    qe : numpy.ndarray, shape (3, N)
+        Unit: e⁻ · m² · sr / photon.
+    sensor : SensorParams
+    intensity_factor : float
+        F.
+    statistics : {'pixel', 'paper'}
+    """
+    T = sensor.exposure_s
+    rate = intensity_factor * np.asarray(photon_radiance, dtype=np.float64)
+    signal = T * (rate @ qe.T)
+    if not sensor.photon_noise:
+        var = np.zeros_like(signal)
+    elif statistics == "pixel":
+        var = signal.copy()
+    else:
+        var = T * T * (rate @ (qe * qe).T)
+    dark = sensor.dark_mean_e
+    exact_poisson = statistics == "pixel" or not sensor.photon_noise
+    clean = expected_saturated(signal, var, dark, sensor, exact_poisson)
+    return ExpectedSignal(rate, qe, signal, var, dark, clean)
+
+
+def expected_saturated(signal, var, dark, sensor: SensorParams, exact_poisson: bool) -> np.ndarray:
+    """E[min(S + D, full well)] (or E[S + D] when saturation is off), shape (K, 3). Unit: e⁻.
+
+    Exact when the total is Poisson (``pixel`` statistics, or photon noise off so that S is a constant and D
+    Poisson); a Gaussian approximation of S + D otherwise (``paper`` statistics, whose per-bin counts are huge).
+    """
+    mean = signal + dark
+    if not sensor.saturation:
+        return mean
+    c = sensor.full_well_e
+    dark_b = np.broadcast_to(dark, signal.shape)
+    if exact_poisson:
+        if sensor.photon_noise:
+            # S + D ~ Poisson(λ): E[min(X, c)] = λ P(X ≤ m − 1) + c P(X > m), m = floor(c).
+            return _poisson_min(mean, c)
+        # S constant, D ~ Poisson: E[min(S + D, c)] = S + E[min(D, c − S)].
+        room = c - signal
+        return np.where(room <= 0, c, signal + _poisson_min(dark_b, np.maximum(room, 0)))
+    sd = np.sqrt(var + dark_b)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = (mean - c) / sd
+        excess = (mean - c) * stats.norm.cdf(z) + sd * stats.norm.pdf(z)
+    excess = np.where(sd > 0, excess, np.maximum(mean - c, 0))
+    return mean - excess
+
+
+def _poisson_min(lam, c):
+    """E[min(X, c)] for X ~ Poisson(lam), elementwise; ``c`` ≥ 0 may be fractional."""
+    lam = np.asarray(lam, dtype=np.float64)
+    c = np.broadcast_to(np.asarray(c, dtype=np.float64), lam.shape)
+    m = np.floor(c)
+    below = np.where(lam > 0, lam * stats.poisson.cdf(m - 1, lam), 0.0)
+    return below + c * stats.poisson.sf(m, lam)

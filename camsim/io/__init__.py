@@ -1,0 +1,1 @@
+"""Frame and metadata writers and readers (DNG, EXR, JSON), all written atomically."""

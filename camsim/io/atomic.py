@@ -1,0 +1,121 @@
+"""Atomic file writes: a file appears under its final name complete or not at all.
+
+Every writer in :mod:`camsim.io` writes into a temporary file next to the target and renames it onto the target
+with :func:`os.replace` only after the write has finished. A crash, an exception or Ctrl-C in the middle of a write
+therefore never leaves a truncated file under the final name (an older complete file, if any, stays in place).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from camsim.errors import CamsimError
+
+__all__ = ["atomic_path", "write_json_atomic", "write_text_atomic"]
+
+
+def _temp_name(path: Path) -> Path:
+    # Hidden, in the same directory (so os.replace is a same-filesystem rename), and deterministic. The process
+    # id keeps two processes that write the same target from clobbering each other's half-written temporary.
+    return path.with_name(f".{path.name}.{os.getpid()}.partial")
+
+
+def _fsync_path(path: Path, *, directory: bool = False) -> None:
+    flags = os.O_RDONLY | (getattr(os, "O_DIRECTORY", 0) if directory else 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError:
+        if directory:  # some platforms/filesystems cannot open directories; durability is best effort there
+            return
+        raise
+    try:
+        os.fsync(fd)
+    except OSError:
+        if not directory:
+            raise
+    finally:
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """Yield a temporary path to write to; move it onto ``path`` when the ``with`` block succeeds.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Final destination. Its directory must exist.
+
+    Yields
+    ------
+    pathlib.Path
+        ``<dir>/.<name>.<pid>.partial``, in the same directory as ``path``. The body of the ``with`` block must
+        create this file (any stale file of that name is removed first).
+
+    Raises
+    ------
+    CamsimError
+        If the directory of ``path`` does not exist.
+
+    Notes
+    -----
+    On normal exit the temporary file is flushed to disk (``fsync``) and atomically renamed onto ``path`` with
+    :func:`os.replace`, replacing any existing file. On any exception (including ``KeyboardInterrupt``) the
+    temporary file is deleted and the exception re-raised, so neither a partial final file nor a temporary file
+    is left behind.
+    """
+    final = Path(path)
+    if not final.parent.is_dir():
+        raise CamsimError(f"cannot write {final}: directory {final.parent} does not exist")
+    tmp = _temp_name(final)
+    tmp.unlink(missing_ok=True)
+    try:
+        yield tmp
+        _fsync_path(tmp)
+        os.replace(tmp, final)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        raise
+    _fsync_path(final.parent, directory=True)
+
+
+def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
+    """Write ``text`` to ``path`` as UTF-8, atomically (see :func:`atomic_path`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination file.
+    text : str
+        Content, written verbatim (no newline translation, on any platform).
+    """
+    data = text.encode("utf-8")  # encode first: an unencodable string (lone surrogate) creates no file at all
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+
+
+def write_json_atomic(path: str | os.PathLike[str], obj: Any) -> None:
+    """Write ``obj`` as pretty-printed JSON (UTF-8, trailing newline) to ``path``, atomically.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination file.
+    obj : Any
+        JSON-serialisable object. Serialised with ``indent=2, allow_nan=False, ensure_ascii=False``.
+
+    Raises
+    ------
+    ValueError
+        If ``obj`` contains NaN or infinity (not valid JSON). Raised before any file is created.
+    TypeError
+        If ``obj`` contains a value :mod:`json` cannot serialise. Raised before any file is created.
+    """
+    text = json.dumps(obj, indent=2, allow_nan=False, ensure_ascii=False) + "\n"
+    write_text_atomic(path, text)

@@ -1,0 +1,90 @@
+"""Rendering a whole scene: every illuminant × intensity factor, into frame files and a manifest."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+from tqdm import tqdm
+
+from camsim.camera import load_camera
+from camsim.errors import CamsimError
+from camsim.frame_files import FrameInfo, frame_stem, write_frame
+from camsim.io.atomic import write_json_atomic
+from camsim.radiance import scene_radiance
+from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
+from camsim.render import frame_expected, frame_seed_sequence, render_frame
+from camsim.sampling import METHODS
+from camsim.scene import Scene
+from camsim.spectra import illuminant_spd
+
+MANIFEST_NAME = "manifest.json"
+
+
+def check_scene(scene: Scene) -> None:
+    """Fail early, before any frame is written, on names that do not resolve."""
+    if scene.method not in METHODS:
+        raise CamsimError(f"unknown sampling method {scene.method!r}; methods: {', '.join(METHODS)}")
+    for name in scene.illuminants:
+        illuminant_spd(name, scene.grid)
+
+
+def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = None, progress: bool = True) -> dict:
+    """Render every frame of ``scene`` into ``out_dir`` and write ``manifest.json`` there.
+
+    Returns
+    -------
+    dict
+        The manifest: the scene name and, per frame, illuminant, F, seed and file paths relative to ``out_dir``.
+    """
+    check_scene(scene)
+    out_dir = Path(out_dir)
+    camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
+    sensor = scene.sensor
+    scale = {"kind": scene.scale.kind, **dataclasses.asdict(scene.scale)}
+    frames = []
+    jobs = [(ill, f) for ill in scene.illuminants for f in scene.intensity_factors]
+    bar = tqdm(total=len(jobs), desc=f"rendering {scene.name}", unit="frame", disable=not progress)
+    radiance_by_illuminant = {}
+    for illuminant, factor in jobs:
+        if illuminant not in radiance_by_illuminant:
+            radiance_by_illuminant = {illuminant: scene_radiance(scene, illuminant)}
+        radiance = radiance_by_illuminant[illuminant]
+        expected = frame_expected(radiance, camera, scene.scale, sensor, factor, scene.statistics, scene.grid)
+        frame = render_frame(
+            radiance.labels, expected, sensor, statistics=scene.statistics, method=scene.method,
+            rng=frame_seed_sequence(scene.seed, illuminant, factor), workers=workers,
+        )
+        info = FrameInfo(
+            scene=scene.name,
+            illuminant=illuminant,
+            intensity_factor=factor,
+            seed=scene.seed,
+            photon_statistics=scene.statistics,
+            method=scene.method,
+            camera=camera.name,
+            sensitivity_basis=camera.sensitivity_basis,
+            reflectances=radiance.reflectance_set,
+            wavelengths_nm=scene.grid.wavelengths_nm,
+            luminance_cd_m2=scene.luminance_cd_m2,
+            normalisation=scene.normalisation,
+            scale=scale,
+            patch_names=radiance.patch_names,
+            patch_rects=radiance.patch_rects,
+            color_matrix1=color_matrix_xyz_to_camera(expected.qe, scene.grid),
+            as_shot_neutral=as_shot_neutral(illuminant, expected.qe, scene.grid),
+        )
+        files = write_frame(out_dir, frame_stem(scene.name, illuminant, factor), frame, info)
+        frames.append({
+            "illuminant": illuminant,
+            "intensity_factor": factor,
+            "seed": scene.seed,
+            "photon_statistics": scene.statistics,
+            "method": scene.method,
+            "files": files,
+        })
+        bar.update()
+    bar.close()
+    manifest = {"scene": scene.name, "frames": frames}
+    write_json_atomic(out_dir / MANIFEST_NAME, manifest)
+    return manifest

@@ -1,0 +1,202 @@
+"""The image sensor: parameters, presets and one pure array function per physical stage (Eqs. 6–12).
+
+Work stays in electrons until readout; the conversion to digital numbers happens once, in
+:func:`electrons_to_dn`. Every stage can be switched off on its own, and a switched-off stage costs nothing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from camsim.errors import CamsimError
+
+STAGES = ("photon_noise", "dark_current", "saturation", "read_noise", "quantisation")
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    """Sensor model parameters (the paper's Table I by default), with each stage's on/off switch.
+
+    Attributes
+    ----------
+    conversion_gain_v_per_e : float
+        G_Ve⁻, charge-to-voltage conversion. Unit: V / e⁻.
+    analog_gain_dn_per_v : float
+        G, the gain in front of the ADC. Unit: DN / V.
+    dark_current_e_per_s : tuple of 3 float
+        (σ_dark^κ)², mean dark electrons per pixel per second for R, G, B. Unit: e⁻ / s.
+    read_noise_e : float
+        σ_read, standard deviation of the read noise. Unit: e⁻.
+    full_well_e : float
+        Full-well capacity. Unit: e⁻.
+    exposure_s : float
+        Exposure (integration) time T. Unit: s.
+    bits : int
+        ADC resolution nb; digital numbers lie in [0, 2^nb − 1].
+    photon_noise, dark_current, saturation, read_noise, quantisation : bool
+        Stage switches. ``photon_noise`` off gives the mean signal exactly; ``dark_current`` off removes the
+        dark electrons (mean and noise); ``quantisation`` off keeps the float DN (no DNG can then be written).
+    """
+
+    conversion_gain_v_per_e: float = 0.0002
+    analog_gain_dn_per_v: float = 141.67
+    dark_current_e_per_s: tuple = (195.0, 230.0, 218.0)
+    read_noise_e: float = 4.0
+    full_well_e: float = 9000.0
+    exposure_s: float = 1.0
+    bits: int = 8
+    photon_noise: bool = True
+    dark_current: bool = True
+    saturation: bool = True
+    read_noise: bool = True
+    quantisation: bool = True
+
+    def __post_init__(self):
+        dark = tuple(float(v) for v in np.broadcast_to(np.asarray(self.dark_current_e_per_s, float), (3,)))
+        object.__setattr__(self, "dark_current_e_per_s", dark)
+        positive = ("conversion_gain_v_per_e", "analog_gain_dn_per_v", "full_well_e", "exposure_s")
+        for name in positive:
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
+                raise CamsimError(f"sensor parameter {name} must be a positive number, got {value!r}")
+        if not (np.isfinite(self.read_noise_e) and self.read_noise_e >= 0):
+            raise CamsimError(f"sensor parameter read_noise_e must be ≥ 0, got {self.read_noise_e!r}")
+        if not all(np.isfinite(v) and v >= 0 for v in dark):
+            raise CamsimError(f"sensor parameter dark_current_e_per_s must be ≥ 0, got {dark!r}")
+        if not (isinstance(self.bits, int) and 1 <= self.bits <= 16):
+            raise CamsimError(f"sensor parameter bits must be an integer from 1 to 16, got {self.bits!r}")
+        for name in STAGES:
+            if not isinstance(getattr(self, name), bool):
+                raise CamsimError(f"sensor switch {name} must be true or false, got {getattr(self, name)!r}")
+
+    @property
+    def dn_per_electron(self) -> float:
+        """Overall gain G · G_Ve⁻ from electrons to digital numbers. Unit: DN / e⁻."""
+        return self.analog_gain_dn_per_v * self.conversion_gain_v_per_e
+
+    @property
+    def max_dn(self) -> int:
+        """Largest digital number, 2^nb − 1. Unit: DN."""
+        return 2**self.bits - 1
+
+    @property
+    def dark_mean_e(self) -> np.ndarray:
+        """Mean dark electrons per pixel in the exposure, per channel, shape (3,). Unit: e⁻."""
+        if not self.dark_current:
+            return np.zeros(3)
+        return np.asarray(self.dark_current_e_per_s) * self.exposure_s
+
+    @property
+    def black_level_dn(self) -> np.ndarray:
+        """Mean dark level in DN (before quantisation), per channel, shape (3,). Unit: DN."""
+        return self.dark_mean_e * self.dn_per_electron
+
+    def with_stages(self, **switches) -> SensorParams:
+        """A copy with some stage switches changed (``with_stages(dark_current=False)``)."""
+        unknown = set(switches) - set(STAGES)
+        if unknown:
+            raise CamsimError(f"unknown sensor stage(s) {sorted(unknown)}; stages: {', '.join(STAGES)}")
+        return dataclasses.replace(self, **switches)
+
+    def to_dict(self) -> dict:
+        """Parameters with units in their names, JSON-ready."""
+        out = dataclasses.asdict(self)
+        out["dark_current_e_per_s"] = list(self.dark_current_e_per_s)
+        out["dn_per_electron"] = self.dn_per_electron
+        return out
+
+
+#: Named presets. ``paper-table1``: Table I with every stage on (scenario III). ``paper-photon-dark``: photon and
+#: dark noise only (scenario II). ``ideal``: photon noise only, output in electrons (scenario I).
+PRESETS = {
+    "paper-table1": SensorParams(),
+    "paper-photon-dark": SensorParams(saturation=False, read_noise=False, quantisation=False),
+    "ideal": SensorParams(
+        conversion_gain_v_per_e=1.0,
+        analog_gain_dn_per_v=1.0,
+        dark_current=False,
+        saturation=False,
+        read_noise=False,
+        quantisation=False,
+    ),
+}
+
+
+def preset(name: str, **overrides) -> SensorParams:
+    """A named preset, optionally with fields overridden."""
+    if name not in PRESETS:
+        raise CamsimError(f"unknown sensor preset {name!r}; presets: {', '.join(PRESETS)}")
+    fields = {f.name for f in dataclasses.fields(SensorParams)}
+    unknown = set(overrides) - fields
+    if unknown:
+        raise CamsimError(f"unknown sensor parameter(s) {sorted(unknown)}; known: {', '.join(sorted(fields))}")
+    try:
+        return dataclasses.replace(PRESETS[name], **overrides)
+    except TypeError as exc:
+        raise CamsimError(f"bad sensor parameter: {exc}") from None
+
+
+# --- stages: pure array functions -----------------------------------------------------------------------------
+
+
+def saturate_e(electrons: np.ndarray, full_well_e: float, out: np.ndarray | None = None) -> np.ndarray:
+    """f_sat: clip the collected charge at the full well (Eq. 8).
+
+    Unit: e⁻ in, e⁻ out.
+    """
+    return np.minimum(electrons, electrons.dtype.type(full_well_e), out=out)
+
+
+def add_read_noise_e(electrons: np.ndarray, read_noise_e: float, rng: np.random.Generator, scratch=None):
+    """Add white Gaussian read noise N(0, σ_read) in place (Eqs. 7 and 10, referred to the charge domain).
+
+    The paper adds N(0, σ_read · G_Ve⁻) to the voltage; dividing by G_Ve⁻ gives this. Unit: e⁻.
+
+    Parameters
+    ----------
+    electrons : numpy.ndarray, float32 or float64
+        Modified in place.
+    scratch : numpy.ndarray, optional
+        Buffer of the same shape and dtype for the normal draws.
+    """
+    z = scratch if scratch is not None else np.empty_like(electrons)
+    rng.standard_normal(out=z, dtype=z.dtype)
+    z *= z.dtype.type(read_noise_e)
+    electrons += z
+    return electrons
+
+
+def electrons_to_dn(electrons: np.ndarray, dn_per_electron: float, out: np.ndarray | None = None) -> np.ndarray:
+    """Readout and gain: I = G · G_Ve⁻ · e (Eqs. 8, 11 before quantisation). Unit: e⁻ in, DN out."""
+    return np.multiply(electrons, electrons.dtype.type(dn_per_electron), out=out)
+
+
+def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None) -> np.ndarray:
+    """nb-bit quantisation: the integer part of the DN, clipped to [0, 2^nb − 1] (Eq. 11).
+
+    Parameters
+    ----------
+    dn : numpy.ndarray, float
+        Unquantised digital numbers. Unit: DN.
+    out : numpy.ndarray, optional
+        Integer output array (uint8 for nb ≤ 8, uint16 otherwise).
+
+    Returns
+    -------
+    numpy.ndarray
+        Quantised digital numbers. Unit: DN.
+    """
+    floored = np.floor(dn)
+    np.clip(floored, 0, 2**bits - 1, out=floored)
+    if out is None:
+        return floored.astype(np.uint8 if bits <= 8 else np.uint16)
+    out[...] = floored
+    return out
+
+
+def dn_dtype(bits: int):
+    """The smallest unsigned integer type holding ``bits``-bit digital numbers."""
+    return np.uint8 if bits <= 8 else np.uint16

@@ -1,0 +1,186 @@
+"""Float EXR frames: bit-exact pixels and exact string metadata through OpenEXR and OpenImageIO."""
+
+import re
+
+import numpy as np
+import OpenEXR
+import pytest
+
+from camsim.errors import CamsimError
+from camsim.io import exr as exr_mod
+from camsim.io.exr import read_exr, read_exr_oiio, write_exr
+
+H, W = 48, 64
+READERS = [read_exr, read_exr_oiio]
+HEADER = {
+    "camsim:version": "0.1.0",
+    "camsim:gain_e_per_dn": "0.12345678901234567890123456789",  # longer than any float carries
+    "camsim:exposure_s": "1e-300",
+    "camsim:read_noise_e": "-0.000000000000000000000000000001",
+    "camsim:scene": "ColorChecker® – Macbeth, 24 patches; \"quoted\" and\ttabbed",
+    "camsim:spectra_sha256": "9f86d081884c7d659a2feaa0c55ad015a3bf4f1b2b0b822cd15d6c15b0f00a08" * 8,
+    "Z last key": "x",
+}
+
+
+def frames(seed, h=H, w=W):
+    rng = np.random.default_rng(seed)
+    noisy = rng.normal(0.0, 100.0, size=(3, h, w)).astype(np.float32)  # about half negative
+    clean = (rng.random(size=(3, h, w), dtype=np.float32) - 0.25) * np.float32(1e-3)
+    f32 = np.finfo(np.float32)
+    specials = np.array([0.0, -0.0, f32.max, -f32.max, f32.tiny, -f32.tiny, f32.smallest_subnormal, np.inf, -np.inf,
+                         np.nan, 1.0, -1.0], dtype=np.float32)
+    noisy.reshape(-1)[: specials.size] = specials
+    noisy.view(np.uint32).reshape(-1)[specials.size] = 0x7FC12345  # NaN with a payload
+    return noisy, clean
+
+
+def bits(a):
+    return a.view(np.uint32)
+
+
+@pytest.mark.parametrize("reader", READERS)
+@pytest.mark.parametrize(("seed", "h", "w"), [(0, H, W), (1, 1, 1), (2, 17, 3)])
+def test_pixels_and_header_round_trip_bit_exact(tmp_path, reader, seed, h, w):
+    noisy, clean = frames(seed, h, w) if h * w >= 16 else (
+        np.array([-1.5, 0.0, 2.0], np.float32).reshape(3, 1, 1), np.array([3, 4, 5], np.float32).reshape(3, 1, 1))
+    path = tmp_path / "f.exr"
+    write_exr(path, noisy, clean, HEADER)
+    n2, c2, hdr = reader(path)
+    assert n2.dtype == np.float32 and n2.shape == (3, h, w) and c2.dtype == np.float32 and c2.shape == (3, h, w)
+    np.testing.assert_array_equal(bits(n2), bits(noisy))  # bitwise: also -0.0, subnormals, inf, NaN payloads
+    np.testing.assert_array_equal(bits(c2), bits(clean))
+    assert hdr == HEADER
+
+
+def test_both_readers_agree_and_clean_is_optional(tmp_path):
+    noisy, _ = frames(3)
+    path = tmp_path / "noisy_only.exr"
+    write_exr(path, noisy, None, {"camsim:k": "v"})
+    results = [reader(path) for reader in READERS]
+    for n2, c2, hdr in results:
+        np.testing.assert_array_equal(bits(n2), bits(noisy))
+        assert c2 is None and hdr == {"camsim:k": "v"}
+    write_exr(tmp_path / "no_header.exr", noisy, None, {})
+    assert all(reader(tmp_path / "no_header.exr")[2] == {} for reader in READERS)
+
+
+def test_file_layout(tmp_path):
+    noisy, clean = frames(4)
+    path = tmp_path / "f.exr"
+    write_exr(path, np.asfortranarray(noisy), clean[:, :, :].copy(order="F"), HEADER)  # non-C-contiguous input
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        header = dict(f.header())
+        channels = {name: (ch.type(), ch.pixels.copy()) for name, ch in f.channels().items()}
+        n_parts = len(f.parts)
+    assert n_parts == 1
+    assert header["compression"] == OpenEXR.ZIP_COMPRESSION and header["type"] == OpenEXR.scanlineimage
+    assert sorted(channels) == ["B", "G", "R", "clean.B", "clean.G", "clean.R"]
+    assert all(t == OpenEXR.FLOAT for t, _ in channels.values())
+    for i, c in enumerate("RGB"):
+        np.testing.assert_array_equal(bits(channels[c][1]), bits(noisy[i]))
+        np.testing.assert_array_equal(bits(channels["clean." + c][1]), bits(clean[i]))
+
+
+def test_same_input_gives_identical_bytes(tmp_path):
+    noisy, clean = frames(5)
+    write_exr(tmp_path / "a.exr", noisy, clean, HEADER)
+    write_exr(tmp_path / "b.exr", noisy.copy(), clean.copy(), dict(reversed(list(HEADER.items()))))
+    a, b = (tmp_path / "a.exr").read_bytes(), (tmp_path / "b.exr").read_bytes()
+    assert a == b
+    noisy[0, 5, 5] = np.nextafter(noisy[0, 5, 5], np.float32(np.inf))
+    write_exr(tmp_path / "c.exr", noisy, clean, HEADER)
+    assert (tmp_path / "c.exr").read_bytes() != a
+
+
+@pytest.mark.parametrize(("noisy", "clean"), [
+    (np.zeros((3, H, W), np.float64), None), (np.zeros((3, H, W), np.float16), None),
+    (np.zeros((3, H, W), np.int32), None), (np.zeros((H, W, 3), np.float32), None),
+    (np.zeros((4, H, W), np.float32), None), (np.zeros((H, W), np.float32), None),
+    (np.zeros((3, 0, W), np.float32), None), ([[[0.0]]] * 3, None),
+    (np.zeros((3, H, W), np.float32), np.zeros((3, H, W), np.float64)),
+    (np.zeros((3, H, W), np.float32), np.zeros((3, H, W + 1), np.float32)),
+])
+def test_rejects_bad_arrays_without_writing(tmp_path, noisy, clean):
+    path = tmp_path / "bad.exr"
+    with pytest.raises(CamsimError, match=re.escape(str(path))):
+        write_exr(path, noisy, clean, {})
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("header", [
+    {"owner": "me"}, {"comments": "x"}, {"compression": "zip"}, {"oiio:ColorSpace": "lin"}, {"openexr:x": "1"},
+    {"": "x"}, {"camsim:k": 1.5}, {"camsim:k": ""}, {"camsim:k": "a\x00b"}, {3: "x"}, [("camsim:k", "v")],
+])
+def test_rejects_bad_header_without_writing(tmp_path, header):
+    path = tmp_path / "bad.exr"
+    noisy, clean = frames(6)
+    with pytest.raises(CamsimError, match=re.escape(str(path))):
+        write_exr(path, noisy, clean, header)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("reader", READERS)
+@pytest.mark.parametrize("keep", [0.999, 0.5, 0.01])
+def test_truncated_file_is_a_user_error(tmp_path, reader, keep):
+    noisy, clean = frames(7)
+    write_exr(tmp_path / "good.exr", noisy, clean, HEADER)
+    good = (tmp_path / "good.exr").read_bytes()
+    bad = tmp_path / "truncated.exr"
+    bad.write_bytes(good[: int(len(good) * keep)])
+    with pytest.raises(CamsimError, match=re.escape(str(bad))):
+        reader(bad)
+
+
+@pytest.mark.parametrize("reader", READERS)
+def test_text_and_missing_files_are_user_errors(tmp_path, reader):
+    text = tmp_path / "notes.exr"
+    text.write_text("not an image\n")
+    for path in (text, tmp_path / "missing.exr"):
+        with pytest.raises(CamsimError, match=re.escape(str(path))):
+            reader(path)
+
+
+@pytest.mark.parametrize("reader", READERS)
+@pytest.mark.parametrize(("names", "message"), [
+    (["R", "G"], "lacks channel"), (["Y"], "lacks channel"), (["R", "G", "B", "clean.R"], "only some clean"),
+])
+def test_missing_channels_are_user_errors(tmp_path, reader, names, message):
+    path = tmp_path / "foreign.exr"
+    plane = np.ones((H, W), np.float32)
+    with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
+                      {n: plane for n in names}) as f:
+        f.write(str(path))
+    with pytest.raises(CamsimError, match=re.escape(str(path)) + ".*" + message):
+        reader(path)
+
+
+def test_exception_mid_write_leaves_no_file(tmp_path, monkeypatch):
+    noisy, clean = frames(8)
+    final = tmp_path / "f.exr"
+    write_exr(final, noisy, clean, HEADER)
+    before = final.read_bytes()
+
+    class HalfWritingFile:
+        def __init__(self, header, channels):
+            pass
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def write(self, path):
+            with open(path, "wb") as fh:
+                fh.write(b"v/1\x01partial")
+            raise RuntimeError("interrupted")
+
+    monkeypatch.setattr(exr_mod.OpenEXR, "File", HalfWritingFile)
+    with pytest.raises(RuntimeError, match="interrupted"):
+        write_exr(final, -noisy, clean, HEADER)
+    with pytest.raises(RuntimeError, match="interrupted"):
+        write_exr(tmp_path / "new.exr", noisy, clean, HEADER)
+    monkeypatch.undo()
+    assert final.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["f.exr"]

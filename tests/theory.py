@@ -1,0 +1,47 @@
+"""Closed-form model distributions for the tests, written independently of the renderer.
+
+``digital_pmf`` is the exact distribution of one pixel's digital number I = clip(floor(k (min(N, FW) + r)))
+with N ~ Poisson(λ) and r ~ N(0, σ_read²) (MODEL.md §3, ``pixel`` statistics), by summing over N.
+"""
+
+import numpy as np
+from scipy import stats
+
+
+def digital_pmf(lam, dn_per_e, read_noise_e, full_well_e, bits, saturation=True):
+    """P(I = j) for j = 0 … 2^bits − 1, shape (2^bits,)."""
+    n_max = int(lam + 12 * np.sqrt(lam) + 20)
+    n_min = max(0, int(lam - 12 * np.sqrt(lam) - 20))
+    n = np.arange(n_min, n_max + 1)
+    p_n = stats.poisson.pmf(n, lam)
+    charge = np.minimum(n, full_well_e) if saturation else n.astype(float)
+    top = 2**bits - 1
+    edges = np.arange(1, top + 1) / dn_per_e  # I ≥ j  ⇔  e ≥ j / k, for j = 1 … top
+    if read_noise_e > 0:
+        cdf = stats.norm.cdf((edges[None, :] - charge[:, None]) / read_noise_e)
+    else:
+        cdf = (charge[:, None] < edges[None, :]).astype(float)
+    cdf_total = p_n @ cdf  # P(e < j / k), j = 1 … top
+    cdf_total = np.concatenate([cdf_total, [1.0]])
+    return np.diff(np.concatenate([[0.0], cdf_total]))
+
+
+def pmf_moments(pmf):
+    j = np.arange(pmf.size)
+    mean = float(pmf @ j)
+    var = float(pmf @ (j - mean) ** 2)
+    return mean, var
+
+
+def assert_mean_var(samples, mean, var, k=5.0, kurtosis_excess=0.0, what=""):
+    """Sample mean and variance within k standard errors of the model's.
+
+    Standard errors: √(var / n) for the mean, var · √(2 / (n − 1) + κ / n) for the variance (κ: excess kurtosis).
+    """
+    samples = np.asarray(samples, dtype=np.float64).ravel()
+    n = samples.size
+    m, v = samples.mean(), samples.var(ddof=1)
+    se_mean = np.sqrt(var / n) if var > 0 else 1e-12
+    se_var = var * np.sqrt(2.0 / (n - 1) + kurtosis_excess / n) if var > 0 else 1e-12
+    assert abs(m - mean) <= k * se_mean + 1e-9 * abs(mean), f"{what}: mean {m} vs model {mean} (± {se_mean:.3g})"
+    assert abs(v - var) <= k * se_var + 1e-12, f"{what}: variance {v} vs model {var} (± {se_var:.3g})"

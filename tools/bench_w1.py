@@ -1,0 +1,257 @@
+"""W1 speed/memory benchmark of camsim.
+
+Workload W1: the chart of ``scenes/macbeth_26.toml`` under D65 at F = 1, 4000 × 3000 pixels, three channels, the
+``paper-table1`` sensor preset (every noise stage on), ``pixel`` photon statistics, 8-bit output.
+
+What it measures (seconds are wall-clock; MB = 2^20 bytes):
+
+1. The *floor*: the bare numpy Poisson draws the frame needs (one per pixel and channel), on 1 thread (one
+   ``Generator.poisson`` call for the whole frame) and on 2 threads (camsim's row blocks, one generator per block
+   from ``SeedSequence.spawn``, drawn by a 2-thread pool; numpy releases the GIL while drawing).
+2. ``render_frame`` with method ``poisson`` on 1 and 2 workers (no file writing), and render/floor ratios;
+   floor and render timings are interleaved and repeated, ratios use the medians of the same run.
+   Peak RSS of a fresh child process that only sets up and renders W1 on 2 workers (imports included), and its
+   RSS after imports and scene setup, before rendering.
+3. ``write_frame`` (DNG + EXR + JSON sidecar) for that frame into a temporary directory, and the file sizes.
+4. Method ``spectral`` (literal per-bin draws) on a 400 × 300 chart with 2 workers: seconds per megapixel and the
+   time extrapolated to W1.
+5. Method ``auto``, measured like ``poisson``, if ``camsim.sampling.METHODS`` has it (otherwise its keys are null).
+
+Targets: the render (no file writing) within 1.5× of the bare draws, and peak memory under 600 MB.
+
+Run:  python tools/bench_w1.py [--repeats N] [--quick]
+``--quick`` uses a 1000 × 750 frame (smoke test). Progress goes to stderr; the last stdout line is one JSON object.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "scenes" / "macbeth_26.toml"
+FULL_SIZE, QUICK_SIZE, SPECTRAL_SIZE = (4000, 3000), (1000, 750), (400, 300)
+ILLUMINANT, FACTOR, SEED = "D65", 1.0, 0
+TARGET_RATIO, TARGET_RSS_MB = 1.5, 600.0
+MiB = 2**20
+
+
+def progress(message: str) -> None:
+    print(f"[bench_w1] {message}", file=sys.stderr, flush=True)
+
+
+def peak_rss_mb() -> float:
+    """Peak resident set size of this process so far (ru_maxrss is in KiB on Linux)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def setup(width: int, height: int) -> dict:
+    """W1's scene, radiance, camera and expected signal (imports camsim and colour-science)."""
+    from camsim.camera import load_camera
+    from camsim.radiance import scene_radiance
+    from camsim.render import frame_expected
+    from camsim.scene import load_scene
+
+    scene = load_scene(SCENE).replace(width=width, height=height, illuminants=(ILLUMINANT,),
+                                      intensity_factors=(FACTOR,), preset_name="paper-table1", statistics="pixel")
+    radiance = scene_radiance(scene, ILLUMINANT)
+    camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
+    expected = frame_expected(radiance, camera, scene.scale, scene.sensor, FACTOR, "pixel", scene.grid)
+    return {"scene": scene, "radiance": radiance, "camera": camera, "expected": expected}
+
+
+def render(w: dict, method: str, workers: int):
+    from camsim.render import frame_seed_sequence, render_frame
+
+    return render_frame(w["radiance"].labels, w["expected"], w["scene"].sensor, statistics="pixel", method=method,
+                        rng=frame_seed_sequence(SEED, ILLUMINANT, FACTOR), workers=workers)
+
+
+def floor_draws(lam: np.ndarray, threads: int) -> None:
+    """The bare Poisson draws of a frame (lam: shape (3, H, W), float64); results are discarded."""
+    if threads == 1:
+        np.random.default_rng(SEED).poisson(lam)
+        return
+    from camsim.render import BLOCK_PIXELS
+
+    height, width = lam.shape[1:]
+    rows = max(1, BLOCK_PIXELS // width)
+    starts = range(0, height, rows)
+    gens = [np.random.default_rng(s) for s in np.random.SeedSequence(SEED).spawn(len(starts))]
+
+    def draw(i: int) -> None:
+        gens[i].poisson(lam[:, starts[i]:starts[i] + rows])
+
+    with ThreadPoolExecutor(threads) as pool:
+        list(pool.map(draw, range(len(starts))))
+
+
+def timed(fn, *args) -> float:
+    t0 = time.perf_counter()
+    fn(*args)
+    return time.perf_counter() - t0
+
+
+def child_rss(args) -> dict:
+    """Fresh process: set up W1, then render it once on 2 workers; RSS before and after."""
+    start = peak_rss_mb()
+    w = setup(args.width, args.height)
+    after_setup = peak_rss_mb()
+    seconds = timed(render, w, args.method, 2)
+    return {"rss_start_mb": start, "rss_setup_mb": after_setup, "rss_peak_mb": peak_rss_mb(), "render_s": seconds}
+
+
+def frame_info(w: dict, expected, method: str):
+    """The FrameInfo of a frame, built as camsim.run.render_scene does."""
+    import dataclasses
+
+    from camsim.frame_files import FrameInfo
+    from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
+
+    scene, radiance, camera = w["scene"], w["radiance"], w["camera"]
+    return FrameInfo(
+        scene=scene.name, illuminant=ILLUMINANT, intensity_factor=FACTOR, seed=SEED, photon_statistics="pixel",
+        method=method, camera=camera.name, sensitivity_basis=camera.sensitivity_basis,
+        reflectances=radiance.reflectance_set, wavelengths_nm=scene.grid.wavelengths_nm,
+        luminance_cd_m2=scene.luminance_cd_m2, normalisation=scene.normalisation,
+        scale={"kind": scene.scale.kind, **dataclasses.asdict(scene.scale)}, patch_names=radiance.patch_names,
+        patch_rects=radiance.patch_rects, color_matrix1=color_matrix_xyz_to_camera(expected.qe, scene.grid),
+        as_shot_neutral=as_shot_neutral(ILLUMINANT, expected.qe, scene.grid))
+
+
+def child_timing(args) -> dict:
+    """Interleaved floor/render timings, then file writing, then the spectral method on a small chart."""
+    from camsim.frame_files import frame_stem, write_frame
+    from camsim.sampling import METHODS
+
+    w = setup(args.width, args.height)
+    ex, labels = w["expected"], w["radiance"].labels
+    lam = np.stack([(ex.signal_e[:, c] + ex.dark_e[c])[labels] for c in range(3)])  # not timed
+    runs = [("floor_1t", floor_draws, lam, 1), ("poisson_1t", render, w, "poisson", 1),
+            ("floor_2t", floor_draws, lam, 2), ("poisson_2t", render, w, "poisson", 2)]
+    if "auto" in METHODS:
+        runs.append(("auto_2t", render, w, "auto", 2))
+    times = {name: [] for name, *_ in runs}
+    for r in range(args.repeats):
+        for name, fn, *fn_args in runs:
+            progress(f"repeat {r + 1}/{args.repeats}: {name}")
+            times[name].append(timed(fn, *fn_args))
+    del lam
+    frame = render(w, "poisson", 2)
+    info = frame_info(w, frame.expected, "poisson")
+    stem = frame_stem(w["scene"].name, ILLUMINANT, FACTOR)
+    write_times = []
+    with tempfile.TemporaryDirectory(prefix="bench_w1_") as tmp:
+        for r in range(args.repeats):
+            progress(f"repeat {r + 1}/{args.repeats}: write_frame")
+            write_times.append(timed(write_frame, Path(tmp), stem, frame, info))
+        files = write_frame(Path(tmp), stem, frame, info)
+        sizes = {k: (Path(tmp) / files[k]).stat().st_size / MiB for k in ("dng", "exr", "json")}
+    del frame
+    small = setup(*SPECTRAL_SIZE)
+    spectral_times = []
+    for r in range(args.repeats):
+        progress(f"repeat {r + 1}/{args.repeats}: spectral {SPECTRAL_SIZE[0]}x{SPECTRAL_SIZE[1]}")
+        spectral_times.append(timed(render, small, "spectral", 2))
+    return {"times": times, "write": write_times, "sizes": sizes, "spectral": spectral_times}
+
+
+def run_child(name: str, args, *extra: str) -> dict:
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--child", name, "--width", str(args.width),
+           "--height", str(args.height), "--repeats", str(args.repeats), *extra]
+    out = subprocess.run(cmd, check=True, stdout=subprocess.PIPE, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def fmt(xs) -> str:
+    return f"median {statistics.median(xs):7.3f} s   min {min(xs):7.3f} s   (n={len(xs)})"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--repeats", type=int, default=3, help="repeats of each timing (default 3)")
+    parser.add_argument("--quick", action="store_true", help=f"{QUICK_SIZE[0]}x{QUICK_SIZE[1]} frame (smoke test)")
+    parser.add_argument("--child", help=argparse.SUPPRESS)
+    parser.add_argument("--method", default="poisson", help=argparse.SUPPRESS)
+    parser.add_argument("--width", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--height", type=int, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    args.repeats = max(1, args.repeats)
+    if args.child:
+        print(json.dumps({"rss": child_rss, "timing": child_timing}[args.child](args)))
+        return
+    args.width, args.height = QUICK_SIZE if args.quick else FULL_SIZE
+    from camsim.sampling import METHODS
+
+    has_auto = "auto" in METHODS
+    mpix = args.width * args.height / 1e6
+    print(f"W1 benchmark: macbeth_26 chart, D65, F = 1, {args.width} x {args.height} ({mpix:g} MP) x 3 channels, "
+          f"paper-table1, pixel statistics, 8 bit" + ("   [QUICK: reduced frame, not W1]" if args.quick else ""))
+    progress("peak RSS: fresh child rendering with method poisson, 2 workers")
+    rss = {"poisson": run_child("rss", args, "--method", "poisson")}
+    if has_auto:
+        progress("peak RSS: fresh child rendering with method auto, 2 workers")
+        rss["auto"] = run_child("rss", args, "--method", "auto")
+    progress(f"timings: floor and render interleaved, {args.repeats} repeats")
+    t = run_child("timing", args)
+    med = {k: statistics.median(v) for k, v in t["times"].items()}
+    ratio1, ratio2 = med["poisson_1t"] / med["floor_1t"], med["poisson_2t"] / med["floor_2t"]
+    spectral_s_per_mpix = statistics.median(t["spectral"]) / (SPECTRAL_SIZE[0] * SPECTRAL_SIZE[1] / 1e6)
+    full_mpix = FULL_SIZE[0] * FULL_SIZE[1] / 1e6
+
+    print("\n1. Floor: bare numpy Poisson draws, one per pixel and channel")
+    print(f"   1 thread             {fmt(t['times']['floor_1t'])}")
+    print(f"   2 threads            {fmt(t['times']['floor_2t'])}")
+    print("2. camsim render_frame, method poisson (no file writing)")
+    print(f"   workers=1            {fmt(t['times']['poisson_1t'])}   render/floor {ratio1:.2f}x")
+    print(f"   workers=2            {fmt(t['times']['poisson_2t'])}   render/floor {ratio2:.2f}x")
+    if has_auto:
+        print(f"   method auto, w=2     {fmt(t['times']['auto_2t'])}   "
+              f"auto/floor {med['auto_2t'] / med['floor_2t']:.2f}x")
+    p = rss["poisson"]
+    print(f"   memory (fresh process, render on 2 workers): at start {p['rss_start_mb']:.0f} MB, after imports and "
+          f"setup {p['rss_setup_mb']:.0f} MB, peak {p['rss_peak_mb']:.0f} MB "
+          f"(render adds {p['rss_peak_mb'] - p['rss_setup_mb']:.0f} MB)")
+    if has_auto:
+        print(f"   memory, method auto: peak {rss['auto']['rss_peak_mb']:.0f} MB")
+    print("3. write_frame (DNG + EXR + JSON), reported separately")
+    print(f"   write                {fmt(t['write'])}")
+    print(f"   sizes: DNG {t['sizes']['dng']:.1f} MB, EXR {t['sizes']['exr']:.1f} MB, JSON {t['sizes']['json']:.2f} MB")
+    print(f"4. method spectral (per-bin draws) on {SPECTRAL_SIZE[0]} x {SPECTRAL_SIZE[1]}, workers=2")
+    print(f"   render               {fmt(t['spectral'])}   = {spectral_s_per_mpix:.1f} s/MP")
+    print(f"   EXTRAPOLATED to W1 ({full_mpix:g} MP): {spectral_s_per_mpix * full_mpix:.0f} s (not measured)")
+    ok_time, ok_mem = ratio2 <= TARGET_RATIO, p["rss_peak_mb"] < TARGET_RSS_MB
+    print(f"\nTargets: render within {TARGET_RATIO}x of the bare draws (2 threads): {ratio2:.2f}x -> "
+          f"{'MET' if ok_time else 'NOT MET'};  peak memory under {TARGET_RSS_MB:.0f} MB: "
+          f"{p['rss_peak_mb']:.0f} MB -> {'MET' if ok_mem else 'NOT MET'}"
+          + ("   [QUICK frame: targets refer to the full W1 frame]" if args.quick else ""))
+    if not has_auto:
+        print("Method auto is not in camsim.sampling.METHODS: auto keys are null.")
+    print("auto_max_ks is null: the KS comparison of auto against poisson is not computed by this benchmark.")
+    result = {
+        "floor_poisson_1t_s": med["floor_1t"], "floor_poisson_2t_s": med["floor_2t"],
+        "poisson_1t_s": med["poisson_1t"], "poisson_2t_s": med["poisson_2t"],
+        "ratio_poisson_1t": ratio1, "ratio_poisson_2t": ratio2,
+        "auto_2t_s": med.get("auto_2t"),
+        "spectral_s_per_mpix": spectral_s_per_mpix, "spectral_w1_extrapolated_s": spectral_s_per_mpix * full_mpix,
+        "peak_rss_mb_poisson": p["rss_peak_mb"], "peak_rss_mb_setup": p["rss_setup_mb"],
+        "peak_rss_mb_auto": rss["auto"]["rss_peak_mb"] if has_auto else None, "auto_max_ks": None,
+        "write_s": statistics.median(t["write"]), "dng_mb": t["sizes"]["dng"], "exr_mb": t["sizes"]["exr"],
+        "min_s": {k: min(v) for k, v in t["times"].items()},
+        "width": args.width, "height": args.height, "repeats": args.repeats, "quick": args.quick,
+    }
+    print(json.dumps(result))
+
+
+if __name__ == "__main__":
+    main()
