@@ -15,6 +15,15 @@ from camsim.sensor import PRESETS, STAGES
 DEFAULT_OUT = Path("outputs")
 
 
+class _UsageError(Exception):
+    """A command-line usage error, reported on one line like any other user error."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse would print the usage block and exit; camsim prints one line
+        raise _UsageError(f"{message} (see '{self.prog} --help')")
+
+
 def _positive_float(text: str) -> float:
     try:
         value = float(text)
@@ -36,7 +45,7 @@ def _seed(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="camsim",
         description=(
             "Physically grounded camera simulator: spectral scenes through the image-sensor model of "
@@ -95,9 +104,12 @@ def _apply_overrides(scene, args):
         changes["intensity_factors"] = tuple(args.intensity)
     if args.illuminant:
         changes["illuminants"] = tuple(args.illuminant)
-    for key in ("statistics", "method", "seed", "camera"):
+    for key in ("statistics", "method", "seed"):
         if getattr(args, key) is not None:
             changes[key] = getattr(args, key)
+    if args.camera is not None:  # a CSV named on the command line is relative to the working directory
+        is_csv = args.camera.lower().endswith(".csv")
+        changes["camera"] = str(Path(args.camera).resolve()) if is_csv else args.camera
     if args.preset:
         changes["preset_name"] = args.preset
     if args.size:
@@ -137,7 +149,11 @@ def _cmd_list(args) -> int:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 2 user error)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except _UsageError as exc:
+        print(f"camsim: error: {exc}", file=sys.stderr)
+        return 2
     if args.command is None:
         parser.print_help()
         return 2

@@ -11,6 +11,7 @@ from camsim.camera import load_camera
 from camsim.errors import CamsimError
 from camsim.frame_files import FrameInfo, frame_stem, write_frame
 from camsim.io.atomic import write_json_atomic
+from camsim.io.dng import MIN_SIZE
 from camsim.radiance import scene_radiance
 from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
 from camsim.render import frame_expected, frame_seed_sequence, render_frame
@@ -22,11 +23,14 @@ MANIFEST_NAME = "manifest.json"
 
 
 def check_scene(scene: Scene) -> None:
-    """Fail early, before any frame is written, on names that do not resolve."""
+    """Fail early, before any frame is written, on names that do not resolve and sizes that cannot be written."""
     if scene.method not in METHODS:
         raise CamsimError(f"unknown sampling method {scene.method!r}; methods: {', '.join(METHODS)}")
     for name in scene.illuminants:
         illuminant_spd(name, scene.grid)
+    if scene.chart is not None and scene.sensor.quantisation and min(scene.width, scene.height) < MIN_SIZE:
+        raise CamsimError(f"frame {scene.width}x{scene.height} is smaller than {MIN_SIZE}x{MIN_SIZE} pixels, "
+                          "which raw readers (LibRaw) refuse")
 
 
 def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = None, progress: bool = True) -> dict:
@@ -45,12 +49,15 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
     frames = []
     jobs = [(ill, f) for ill in scene.illuminants for f in scene.intensity_factors]
     bar = tqdm(total=len(jobs), desc=f"rendering {scene.name}", unit="frame", disable=not progress)
-    radiance_by_illuminant = {}
+    current = None
     for illuminant, factor in jobs:
-        if illuminant not in radiance_by_illuminant:
-            radiance_by_illuminant = {illuminant: scene_radiance(scene, illuminant)}
-        radiance = radiance_by_illuminant[illuminant]
+        if current != illuminant:  # jobs come grouped by illuminant: its radiance is computed once
+            current, radiance = illuminant, scene_radiance(scene, illuminant)
+            colour_tags = None
         expected = frame_expected(radiance, camera, scene.scale, sensor, factor, scene.statistics, scene.grid)
+        if colour_tags is None:  # Qe depends on the illuminant (anchor), not on F
+            colour_tags = (color_matrix_xyz_to_camera(expected.qe, scene.grid),
+                           as_shot_neutral(illuminant, expected.qe, scene.grid))
         frame = render_frame(
             radiance.labels, expected, sensor, statistics=scene.statistics, method=scene.method,
             rng=frame_seed_sequence(scene.seed, illuminant, factor), workers=workers,
@@ -71,8 +78,8 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
             scale=scale,
             patch_names=radiance.patch_names,
             patch_rects=radiance.patch_rects,
-            color_matrix1=color_matrix_xyz_to_camera(expected.qe, scene.grid),
-            as_shot_neutral=as_shot_neutral(illuminant, expected.qe, scene.grid),
+            color_matrix1=colour_tags[0],
+            as_shot_neutral=colour_tags[1],
         )
         files = write_frame(out_dir, frame_stem(scene.name, illuminant, factor), frame, info)
         frames.append({

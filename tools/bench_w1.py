@@ -6,8 +6,9 @@ Workload W1: the chart of ``scenes/macbeth_26.toml`` under D65 at F = 1, 4000 ×
 What it measures (seconds are wall-clock; MB = 2^20 bytes):
 
 1. The *floor*: the bare numpy Poisson draws the frame needs (one per pixel and channel), on 1 thread (one
-   ``Generator.poisson`` call for the whole frame) and on 2 threads (camsim's row blocks, one generator per block
-   from ``SeedSequence.spawn``, drawn by a 2-thread pool; numpy releases the GIL while drawing).
+   ``Generator.poisson`` call for the whole frame; also, for information, in camsim's row blocks) and on 2 threads
+   (camsim's row blocks, one generator per block from ``SeedSequence.spawn``, drawn by a 2-thread pool; numpy
+   releases the GIL while drawing).
 2. ``render_frame`` with method ``poisson`` on 1 and 2 workers (no file writing), and render/floor ratios;
    floor and render timings are interleaved and repeated, ratios use the medians of the same run.
    Peak RSS of a fresh child process that only sets up and renders W1 on 2 workers (imports included), and its
@@ -77,9 +78,9 @@ def render(w: dict, method: str, workers: int):
                         rng=frame_seed_sequence(SEED, ILLUMINANT, FACTOR), workers=workers)
 
 
-def floor_draws(lam: np.ndarray, threads: int) -> None:
-    """The bare Poisson draws of a frame (lam: shape (3, H, W), float64); results are discarded."""
-    if threads == 1:
+def floor_draws(lam: np.ndarray, threads: int, blocked: bool = True) -> None:
+    """The bare Poisson draws of a frame (lam: shape (3, H, W), float64), in camsim's row blocks or in one call."""
+    if not blocked:
         np.random.default_rng(SEED).poisson(lam)
         return
     from camsim.render import BLOCK_PIXELS
@@ -137,8 +138,9 @@ def child_timing(args) -> dict:
     w = setup(args.width, args.height)
     ex, labels = w["expected"], w["radiance"].labels
     lam = np.stack([(ex.signal_e[:, c] + ex.dark_e[c])[labels] for c in range(3)])  # not timed
-    runs = [("floor_1t", floor_draws, lam, 1), ("poisson_1t", render, w, "poisson", 1),
-            ("floor_2t", floor_draws, lam, 2), ("poisson_2t", render, w, "poisson", 2)]
+    runs = [("floor_1t", floor_draws, lam, 1, False), ("poisson_1t", render, w, "poisson", 1),
+            ("floor_1t_blocked", floor_draws, lam, 1), ("floor_2t", floor_draws, lam, 2),
+            ("poisson_2t", render, w, "poisson", 2)]
     if "auto" in METHODS:
         runs.append(("auto_2t", render, w, "auto", 2))
     times = {name: [] for name, *_ in runs}
@@ -206,14 +208,17 @@ def main() -> None:
     t = run_child("timing", args)
     med = {k: statistics.median(v) for k, v in t["times"].items()}
     ratio1, ratio2 = med["poisson_1t"] / med["floor_1t"], med["poisson_2t"] / med["floor_2t"]
+    ratio1b = med["poisson_1t"] / med["floor_1t_blocked"]
     spectral_s_per_mpix = statistics.median(t["spectral"]) / (SPECTRAL_SIZE[0] * SPECTRAL_SIZE[1] / 1e6)
     full_mpix = FULL_SIZE[0] * FULL_SIZE[1] / 1e6
 
     print("\n1. Floor: bare numpy Poisson draws, one per pixel and channel")
-    print(f"   1 thread             {fmt(t['times']['floor_1t'])}")
+    print(f"   1 thread, one call   {fmt(t['times']['floor_1t'])}")
+    print(f"   1 thread, row blocks {fmt(t['times']['floor_1t_blocked'])}   (no page faults on a whole-frame output)")
     print(f"   2 threads            {fmt(t['times']['floor_2t'])}")
     print("2. camsim render_frame, method poisson (no file writing)")
-    print(f"   workers=1            {fmt(t['times']['poisson_1t'])}   render/floor {ratio1:.2f}x")
+    print(f"   workers=1            {fmt(t['times']['poisson_1t'])}   render/floor {ratio1:.2f}x "
+          f"(vs blocked floor {ratio1b:.2f}x)")
     print(f"   workers=2            {fmt(t['times']['poisson_2t'])}   render/floor {ratio2:.2f}x")
     if has_auto:
         print(f"   method auto, w=2     {fmt(t['times']['auto_2t'])}   "
@@ -242,6 +247,7 @@ def main() -> None:
         "floor_poisson_1t_s": med["floor_1t"], "floor_poisson_2t_s": med["floor_2t"],
         "poisson_1t_s": med["poisson_1t"], "poisson_2t_s": med["poisson_2t"],
         "ratio_poisson_1t": ratio1, "ratio_poisson_2t": ratio2,
+        "floor_poisson_1t_blocked_s": med["floor_1t_blocked"], "ratio_poisson_1t_blocked": ratio1b,
         "auto_2t_s": med.get("auto_2t"),
         "spectral_s_per_mpix": spectral_s_per_mpix, "spectral_w1_extrapolated_s": spectral_s_per_mpix * full_mpix,
         "peak_rss_mb_poisson": p["rss_peak_mb"], "peak_rss_mb_setup": p["rss_setup_mb"],
