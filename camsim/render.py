@@ -8,6 +8,7 @@ of worker threads, and memory for temporaries grows with the block, not with the
 from __future__ import annotations
 
 import os
+import threading
 import zlib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -120,22 +121,28 @@ def render_frame(
     noisy = np.empty((3, height, width), dtype=np.float32)
     digital = np.empty((3, height, width), dtype=dn_dtype(sensor.bits)) if sensor.quantisation else None
 
+    per_thread = threading.local()  # one scratch block per thread, reused: fresh pages cost more than the maths
+    read_noise = sensor.read_noise and sensor.read_noise_e > 0
+
     def run_block(index: int) -> None:
         r0 = starts[index]
         r1 = min(height, r0 + rows)
+        if getattr(per_thread, "scratch", None) is None:
+            per_thread.scratch = np.empty((rows, width), dtype=np.float32)
+            per_thread.work = np.empty(rows * width // 2 + 1, dtype=np.float32)
+        scratch = per_thread.scratch[: r1 - r0]
         block_rng = np.random.Generator(np.random.PCG64(children[index]))
-        electrons = np.empty((3, r1 - r0, width), dtype=np.float32)
-        draw_electrons(labels[r0:r1], expected, sensor, statistics, method, block_rng, electrons)
-        scratch = np.empty_like(electrons[0]) if sensor.read_noise and sensor.read_noise_e > 0 else None
+        block = noisy[:, r0:r1]  # work in place in the output: electrons first, DN at the end
+        draw_electrons(labels[r0:r1], expected, sensor, statistics, method, block_rng, block)
         for c in range(3):
-            e = electrons[c]
+            e = block[c]
             if sensor.saturation:
                 saturate_e(e, sensor.full_well_e, out=e)
-            if scratch is not None:
-                add_read_noise_e(e, sensor.read_noise_e, block_rng, scratch)
-            electrons_to_dn(e, sensor.dn_per_electron, out=noisy[c, r0:r1])
+            if read_noise:
+                add_read_noise_e(e, sensor.read_noise_e, block_rng, scratch, per_thread.work)
+            electrons_to_dn(e, sensor.dn_per_electron, out=e)
             if digital is not None:
-                quantise_dn(noisy[c, r0:r1], sensor.bits, out=digital[c, r0:r1])
+                quantise_dn(e, sensor.bits, out=digital[c, r0:r1], scratch=scratch)
 
     workers = default_workers() if workers is None else max(1, int(workers))
     if workers == 1 or len(starts) == 1:

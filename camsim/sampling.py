@@ -43,29 +43,105 @@ def poisson(rng: np.random.Generator, lam, size=None) -> np.ndarray:
     return out
 
 
+def standard_normal_f32(rng: np.random.Generator, out: np.ndarray, work: np.ndarray) -> np.ndarray:
+    """Fill ``out`` (C-contiguous float32) with standard normal draws: Box–Muller on float32 uniforms.
+
+    Exact transform of uniforms u1, u2 (multiples of 2^-24): z = √(−2 ln(1 − u1)) · (sin, cos)(2π u2), each pair
+    giving two independent normals. Three times faster than numpy's float32 ziggurat here (vectorised log, sqrt,
+    sin, cos); the one price is that |z| ≤ √(48 ln 2) = 5.77, a tail of probability 8e-9 (0.3 expected samples
+    in a whole 12-megapixel three-channel frame).
+
+    Parameters
+    ----------
+    out : numpy.ndarray, float32, C-contiguous
+        Filled in place.
+    work : numpy.ndarray, float32, at least ``out.size // 2`` elements
+        Scratch space.
+    """
+    flat = out.reshape(-1)
+    if not np.shares_memory(flat, out):
+        raise ValueError("standard_normal_f32 needs a C-contiguous output array")
+    half = flat.size // 2
+    rng.random(out=flat, dtype=np.float32)
+    u1, u2, radius = flat[:half], flat[half : 2 * half], work[:half]
+    np.subtract(np.float32(1.0), u1, out=radius)  # in (0, 1]: the logarithm stays finite
+    np.log(radius, out=radius)
+    radius *= np.float32(-2.0)
+    np.sqrt(radius, out=radius)
+    u2 *= np.float32(2.0 * np.pi)
+    np.sin(u2, out=u1)
+    u1 *= radius
+    np.cos(u2, out=u2)
+    u2 *= radius
+    if flat.size % 2:
+        flat[-1] = rng.standard_normal(dtype=np.float32)
+    return out
+
+
 def _dark(rng, out_c, dark_c: float):
     """Add D ~ Poisson(D̄) to one channel in place."""
     if dark_c > 0:
         out_c += rng.poisson(dark_c, size=out_c.shape)
 
 
+#: Below this mean number of pixels per run of equal labels, the label map is drawn pixel by pixel (a gather
+#: of per-pixel means); at or above it, run by run with one scalar mean per run.
+MIN_PIXELS_PER_RUN = 64
+
+
+def label_runs(labels: np.ndarray):
+    """Rectangles of equal label covering a block: ``[(r0, r1, c0, c1, label), ...]``, or None if fragmented.
+
+    Consecutive identical rows form a band; each band is split into runs of equal label. A chart block is a few
+    bands of ~13 runs, so its noise can be drawn with one scalar Poisson mean per rectangle — faster than
+    numpy's per-element means and with no per-pixel mean array at all. A cube (every pixel its own label) gives
+    None, and is drawn pixel by pixel.
+    """
+    height, width = labels.shape
+    budget = labels.size / MIN_PIXELS_PER_RUN  # most runs allowed
+    changes = np.flatnonzero(np.any(labels[1:] != labels[:-1], axis=1)) + 1
+    if changes.size + 1 > budget:
+        return None
+    bands = np.concatenate(([0], changes, [height]))
+    runs = []
+    for r0, r1 in zip(bands[:-1], bands[1:]):
+        row = labels[r0]
+        edges = np.concatenate(([0], np.flatnonzero(row[1:] != row[:-1]) + 1, [width]))
+        runs.extend((int(r0), int(r1), int(c0), int(c1), int(row[c0])) for c0, c1 in zip(edges[:-1], edges[1:]))
+        if len(runs) > budget:
+            return None
+    return runs
+
+
+def _fill_poisson(rng, out_c, labels, runs, lam, scale=None):
+    """out_c = scale · Poisson(lam) with per-label ``lam`` (and ``scale``), run by run when ``runs`` is given."""
+    if runs is None:
+        draws = poisson(rng, lam[labels])
+        out_c[...] = draws if scale is None else scale[labels] * draws
+        return
+    for r0, r1, c0, c1, k in runs:
+        draws = poisson(rng, lam[k], size=(r1 - r0, c1 - c0))
+        out_c[r0:r1, c0:c1] = draws if scale is None else scale[k] * draws
+
+
 def draw_poisson(labels, expected: ExpectedSignal, sensor: SensorParams, statistics: str, rng, out):
     """One draw per pixel and channel (plus one for dark current under ``paper`` statistics)."""
     S = expected.signal_e
     dark = expected.dark_e
+    runs = label_runs(labels) if sensor.photon_noise else None
     for c in range(3):
         out_c = out[c]
         if not sensor.photon_noise:
             out_c[...] = S[:, c].astype(np.float32)[labels]
             _dark(rng, out_c, dark[c])
         elif statistics == "pixel":
-            out_c[...] = poisson(rng, (S[:, c] + dark[c])[labels])
+            _fill_poisson(rng, out_c, labels, runs, S[:, c] + dark[c])
         else:
             var = expected.signal_var_e2[:, c]
             with np.errstate(divide="ignore", invalid="ignore"):
                 step = np.where(S[:, c] > 0, var / S[:, c], 0.0)
                 lam = np.where(step > 0, S[:, c] / step, 0.0)
-            out_c[...] = step[labels] * poisson(rng, lam[labels])
+            _fill_poisson(rng, out_c, labels, runs, lam, step)
             _dark(rng, out_c, dark[c])
     return out
 
@@ -79,7 +155,8 @@ def draw_spectral(labels, expected: ExpectedSignal, sensor: SensorParams, statis
     qe = expected.qe
     n_bins = rate.shape[1]
     flat = labels.ravel()
-    out_flat = out.reshape(3, -1)
+    out_flat = [out[c].reshape(-1) for c in range(3)]  # rows of a C-contiguous plane: views, not copies
+    assert all(np.shares_memory(flat_c, out) for flat_c in out_flat)
     chunk = max(1, 2**19 // (3 * n_bins))
     for start in range(0, flat.size, chunk):
         lab = flat[start : start + chunk]
@@ -90,7 +167,8 @@ def draw_spectral(labels, expected: ExpectedSignal, sensor: SensorParams, statis
         else:
             lam = (T * bins)[:, None, :] * qe[None, :, :]  # (m, 3, N) detected electrons per bin
             signal = poisson(rng, lam).sum(axis=2)
-        out_flat[:, start : start + chunk] = signal.T
+        for c in range(3):
+            out_flat[c][start : start + chunk] = signal[:, c]
     for c in range(3):
         _dark(rng, out[c], expected.dark_e[c])
     return out

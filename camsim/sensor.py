@@ -150,20 +150,28 @@ def saturate_e(electrons: np.ndarray, full_well_e: float, out: np.ndarray | None
     return np.minimum(electrons, electrons.dtype.type(full_well_e), out=out)
 
 
-def add_read_noise_e(electrons: np.ndarray, read_noise_e: float, rng: np.random.Generator, scratch=None):
+def add_read_noise_e(electrons: np.ndarray, read_noise_e: float, rng: np.random.Generator, scratch=None, work=None):
     """Add white Gaussian read noise N(0, σ_read) in place (Eqs. 7 and 10, referred to the charge domain).
 
     The paper adds N(0, σ_read · G_Ve⁻) to the voltage; dividing by G_Ve⁻ gives this. Unit: e⁻.
+    float32 arrays draw with :func:`camsim.sampling.standard_normal_f32` (Box–Muller), float64 with numpy.
 
     Parameters
     ----------
     electrons : numpy.ndarray, float32 or float64
         Modified in place.
     scratch : numpy.ndarray, optional
-        Buffer of the same shape and dtype for the normal draws.
+        C-contiguous buffer of the same shape and dtype for the normal draws.
+    work : numpy.ndarray, optional
+        float32 buffer of at least half that size (Box–Muller's scratch).
     """
+    from camsim.sampling import standard_normal_f32
+
     z = scratch if scratch is not None else np.empty_like(electrons)
-    rng.standard_normal(out=z, dtype=z.dtype)
+    if z.dtype == np.float32:
+        standard_normal_f32(rng, z, work if work is not None else np.empty(z.size // 2, np.float32))
+    else:
+        rng.standard_normal(out=z)
     z *= z.dtype.type(read_noise_e)
     electrons += z
     return electrons
@@ -174,7 +182,7 @@ def electrons_to_dn(electrons: np.ndarray, dn_per_electron: float, out: np.ndarr
     return np.multiply(electrons, electrons.dtype.type(dn_per_electron), out=out)
 
 
-def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None) -> np.ndarray:
+def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None, scratch=None) -> np.ndarray:
     """nb-bit quantisation: the integer part of the DN, clipped to [0, 2^nb − 1] (Eq. 11).
 
     Parameters
@@ -183,17 +191,19 @@ def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None) -> np.
         Unquantised digital numbers. Unit: DN.
     out : numpy.ndarray, optional
         Integer output array (uint8 for nb ≤ 8, uint16 otherwise).
+    scratch : numpy.ndarray, optional
+        Float buffer shaped like ``dn`` for the intermediate floor (avoids a temporary array).
 
     Returns
     -------
     numpy.ndarray
         Quantised digital numbers. Unit: DN.
     """
-    floored = np.floor(dn)
-    np.clip(floored, 0, 2**bits - 1, out=floored)
+    # clip first, then cast: for values in [0, 2^nb − 1] the cast's truncation is the floor (one pass fewer)
+    clipped = np.clip(dn, 0, 2**bits - 1, out=scratch)
     if out is None:
-        return floored.astype(np.uint8 if bits <= 8 else np.uint16)
-    out[...] = floored
+        return clipped.astype(dn_dtype(bits))
+    out[...] = clipped
     return out
 
 

@@ -203,3 +203,39 @@ def test_bits_set_the_full_scale(scene):
     assert frame.digital_dn.dtype == np.uint16 and set(np.unique(white[1])) <= {1018, 1019, 1020, 1021, 1022}
     frame, radiance = render(scene, sensor.with_stages(saturation=False), factor=3.0, seed=1)
     assert np.all(patch_pixels(frame.digital_dn, radiance.patch_rects[WHITE]) == 1023)
+
+
+def test_label_runs_tile_the_block_exactly(scene):
+    from camsim.radiance import scene_radiance
+    from camsim.sampling import label_runs
+
+    labels = scene_radiance(scene, "D65").labels
+    for r0, r1 in ((0, 480), (100, 163), (7, 8)):
+        block = labels[r0:r1]
+        runs = label_runs(block)
+        covered = np.full(block.shape, -1)
+        for a, b, c0, c1, k in runs:
+            assert np.all(covered[a:b, c0:c1] == -1)  # no overlap
+            covered[a:b, c0:c1] = k
+        np.testing.assert_array_equal(covered, block)
+    cube_like = np.arange(64 * 64, dtype=np.uint32).reshape(64, 64)
+    assert label_runs(cube_like) is None  # every pixel its own label: drawn pixel by pixel
+
+
+@pytest.mark.parametrize("statistics", ["pixel", "paper"])
+def test_pixel_by_pixel_path_has_the_same_statistics(scene, monkeypatch, statistics):
+    """The fallback for fragmented label maps (cubes) draws per-pixel means; same model, same moments."""
+    import camsim.sampling
+
+    monkeypatch.setattr(camsim.sampling, "MIN_PIXELS_PER_RUN", 10**9)
+    assert camsim.sampling.label_runs(np.zeros((4, 4), np.uint8)) is None
+    frame, radiance = render(scene, TABLE1.with_stages(quantisation=False), factor=0.1, statistics=statistics,
+                             seed=21)
+    k = TABLE1.dn_per_electron
+    ex = frame.expected
+    for index in (WHITE, 14):
+        x = patch_pixels(frame.noisy_dn, radiance.patch_rects[index])
+        for c in range(3):
+            lam = ex.signal_e[index, c] + ex.dark_e[c]
+            var = ex.signal_var_e2[index, c] + ex.dark_e[c] + TABLE1.read_noise_e**2
+            assert_mean_var(x[c], k * lam, k * k * var, what=f"gather {statistics} ch{c}")
