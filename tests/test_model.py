@@ -5,7 +5,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import WHITE, small_scene
+from conftest import ROOT, WHITE, small_scene
 
 from camsim.camera import AnchorScale, PhysicalScale, absolute_qe, load_camera
 from camsim.chart import ChartGeometry
@@ -149,3 +149,20 @@ def test_chart_label_map():
     assert rects[1][0] > rects[0][0] and rects[6][1] > rects[0][1]
     with pytest.raises(CamsimError, match="too small"):
         geometry.rects(10, 8)
+
+
+SONY = ROOT / ".." / "shared" / "data" / "sfu" / "sony_dxc930_rgb_sensitivities_380_780_4nm.csv"
+
+
+@pytest.mark.skipif(not SONY.is_file(), reason="SFU Sony DXC-930 curves not present in ../shared/data/sfu/")
+def test_paper_camera_from_the_shared_csv():
+    """The paper's Sony DXC-930, read from the shared data (never copied), on its own 4 nm grid."""
+    scene = small_scene(camera=str(SONY.resolve()))
+    camera = load_camera(scene.camera, GRID)
+    assert camera.name == SONY.name
+    data = np.loadtxt(SONY, delimiter=",", skiprows=1)
+    radiance = scene_radiance(scene, "A")
+    expected = frame_expected(radiance, camera, scene.scale, TABLE1, 1.0, "pixel", GRID)
+    # the CSV is on the scene grid: S ∝ Σ L · s exactly (energy basis), no resampling involved
+    direct = radiance.radiance @ data[:, 1:]
+    np.testing.assert_allclose(expected.signal_e / expected.signal_e[:, 1:2], direct / direct[:, 1:2], rtol=1e-9)
