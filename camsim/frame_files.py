@@ -104,7 +104,8 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
         "calibration_illuminant1": CALIBRATION_ILLUMINANT_D65,
         "as_shot_neutral": info.as_shot_neutral.tolist(),
         "patches": patches,
-        "surround": {"signal_e": ex.signal_e[len(patches)].tolist()} if ex.signal_e.shape[0] > len(patches) else None,
+        # a chart's last spectrum is its surround; a cube has no patches and no surround
+        "surround": {"signal_e": ex.signal_e[len(patches)].tolist()} if patches else None,
         "units": {
             "signal_e": "e- (mean signal electrons per pixel in the exposure)",
             "dark_e": "e- (mean dark electrons per pixel in the exposure)",

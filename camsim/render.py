@@ -94,7 +94,7 @@ def render_frame(
     *,
     statistics: str = "pixel",
     method: str = "poisson",
-    rng: np.random.SeedSequence | int | None = None,
+    rng: np.random.Generator | np.random.SeedSequence | int | None = None,
     workers: int | None = None,
 ) -> Frame:
     """Render one frame: per-pixel noise on top of the per-spectrum expected signal.
@@ -108,16 +108,20 @@ def render_frame(
     sensor : SensorParams
     statistics : {'pixel', 'paper'}
     method : {'poisson', 'spectral'}
-    rng : numpy.random.SeedSequence or int, optional
-        Seed of the frame. A SeedSequence (not a Generator) because each row block gets its own child.
+    rng : numpy.random.Generator, numpy.random.SeedSequence or int, optional
+        Seed of the frame. Each row block draws from its own child (``SeedSequence.spawn`` or
+        ``Generator.spawn``), so the output does not depend on the number of threads.
     workers : int, optional
         Threads (default: the number of cores). The output does not depend on it.
     """
-    seed_seq = rng if isinstance(rng, np.random.SeedSequence) else np.random.SeedSequence(rng)
     height, width = labels.shape
     rows = max(1, BLOCK_PIXELS // width)
     starts = list(range(0, height, rows))
-    children = seed_seq.spawn(len(starts))
+    if isinstance(rng, np.random.Generator):
+        generators = rng.spawn(len(starts))
+    else:
+        seed_seq = rng if isinstance(rng, np.random.SeedSequence) else np.random.SeedSequence(rng)
+        generators = [np.random.Generator(np.random.PCG64(child)) for child in seed_seq.spawn(len(starts))]
     noisy = np.empty((3, height, width), dtype=np.float32)
     digital = np.empty((3, height, width), dtype=dn_dtype(sensor.bits)) if sensor.quantisation else None
 
@@ -131,7 +135,7 @@ def render_frame(
             per_thread.scratch = np.empty((rows, width), dtype=np.float32)
             per_thread.work = np.empty(rows * width // 2 + 1, dtype=np.float32)
         scratch = per_thread.scratch[: r1 - r0]
-        block_rng = np.random.Generator(np.random.PCG64(children[index]))
+        block_rng = generators[index]
         block = noisy[:, r0:r1]  # work in place in the output: electrons first, DN at the end
         draw_electrons(labels[r0:r1], expected, sensor, statistics, method, block_rng, block)
         for c in range(3):

@@ -121,3 +121,17 @@ def test_no_dng_without_quantisation(scene, tmp_path):
     assert files["dng"] is None and not list(tmp_path.glob("*.dng"))
     sidecar = json.loads((tmp_path / files["json"]).read_text())
     assert sidecar["stages"]["quantisation"] is False
+
+
+def test_render_frame_accepts_a_generator_seed_or_seed_sequence(scene):
+    from camsim.camera import load_camera
+    from camsim.radiance import scene_radiance
+    from camsim.render import frame_expected, render_frame
+
+    radiance = scene_radiance(scene, "D65")
+    camera = load_camera(scene.camera, scene.grid)
+    expected = frame_expected(radiance, camera, scene.scale, scene.sensor, 0.1, "pixel", scene.grid)
+    frames = [render_frame(radiance.labels, expected, scene.sensor, rng=r)
+              for r in (7, np.random.SeedSequence(7), np.random.default_rng(7), np.random.default_rng(7))]
+    np.testing.assert_array_equal(frames[0].noisy_dn, frames[1].noisy_dn)
+    np.testing.assert_array_equal(frames[2].noisy_dn, frames[3].noisy_dn)
