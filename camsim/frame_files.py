@@ -19,6 +19,7 @@ from camsim.io.dng import write_dng
 from camsim.io.exr import write_exr
 from camsim.rawcolour import CALIBRATION_ILLUMINANT_D65
 from camsim.render import Frame
+from camsim.sensor import STAGES
 
 
 @dataclass(frozen=True)
@@ -93,8 +94,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
         "conversion_gain_v_per_e": sensor.conversion_gain_v_per_e,
         "analog_gain_dn_per_v": sensor.analog_gain_dn_per_v,
         "dark_current_e_per_s": list(sensor.dark_current_e_per_s),
-        "stages": {name: getattr(sensor, name) for name in
-                   ("photon_noise", "dark_current", "saturation", "read_noise", "quantisation")},
+        "stages": {name: getattr(sensor, name) for name in STAGES},
         "luminance_cd_m2": info.luminance_cd_m2,
         "normalisation": info.normalisation,
         "scale": info.scale,

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from camsim.errors import CamsimError
+
 #: Planck constant as in the paper. Unit: J s.
 PLANCK_J_S = 6.626176e-34
 #: Speed of light as in the paper. Unit: m/s.
@@ -52,7 +54,7 @@ def scale_to_luminance(spd: np.ndarray, ybar: np.ndarray, step_nm: float, lumina
     """
     y = luminance_cd_m2(spd, ybar, step_nm)
     if not y > 0:
-        raise ValueError("a spectrum with zero luminance cannot be scaled to a luminance")
+        raise CamsimError("a spectrum with zero luminance on the scene's grid cannot be scaled to a luminance")
     return spd * (luminance / y)
 
 

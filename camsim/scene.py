@@ -210,9 +210,9 @@ def load_scene(path: str | Path) -> Scene:
         raise CamsimError(f"{where}: unknown key(s) in [camera.scale] ({scale_kind}): {', '.join(sorted(unknown))}")
     scale = scale_cls(**{k: _typed(scale_table, k, float, None, where) for k in scale_table if k != "kind"})
 
-    sensor_table = dict(doc.get("sensor", {}))
     if not isinstance(doc.get("sensor", {}), dict):
         raise CamsimError(f"{where}: [sensor] must be a table")
+    sensor_table = dict(doc.get("sensor", {}))
     preset_name = sensor_table.pop("preset", "paper-table1")
     if "dark_current_e_per_s" in sensor_table:
         sensor_table["dark_current_e_per_s"] = tuple(sensor_table["dark_current_e_per_s"])
