@@ -92,6 +92,33 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--workers", metavar="N", type=int, help="threads per frame (default: all cores; "
                         "the output does not depend on it)")
     render.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    analyze = sub.add_parser(
+        "analyze",
+        help="measure patches of rendered frames: statistics, chromaticity ellipses, ΔE, SNR",
+        description=(
+            "Measure every patch of every frame (DNG + sidecar, or EXR) in the given files and folders: per-channel "
+            "mean, variance and standard deviation in DN and e⁻, the xy chromaticity ellipse (PCA, 1 σ), ΔE_ab by "
+            "the paper's 5-step procedure against the same patch at F = 1, and SNR from the model and from the "
+            "pixels. Writes OUT/analysis.csv (one row per frame × patch × channel) and OUT/analysis.json."
+        ),
+    )
+    analyze.add_argument("paths", nargs="+", metavar="DIR_OR_FILES", help="frame files (.dng, .exr) or folders")
+    analyze.add_argument("--subtract-black", action="store_true",
+                         help="subtract the black level (the sidecar's mean dark level, in DN, or --dark's mean) "
+                              "before measuring; the paper does not, which drags dark colours to the black point")
+    analyze.add_argument("--dark", metavar="FILE", type=Path,
+                         help="a dark frame (.dng or .exr) whose per-channel mean is the black level (DN); "
+                              "implies --subtract-black")
+    analyze.add_argument("--source", choices=("dng", "exr"), default="dng",
+                         help="which file of a frame to measure: 'dng' = the quantised digital numbers (default), "
+                              "'exr' = the signal before quantisation")
+    analyze.add_argument("--matrix", choices=("paper", "paper-literal", "least-squares"), default="paper",
+                         help="camera → XYZ matrix: 'paper' = Eq. 15 from the Qe (default), 'paper-literal' = Eq. 16 "
+                              "as printed, 'least-squares' = fitted to the chart's patches")
+    analyze.add_argument("--border", metavar="PIXELS", type=int, default=3,
+                         help="pixels left out along each edge of a patch (default 3)")
+    analyze.add_argument("--out", metavar="DIR", type=Path, help="output folder (default outputs/analysis)")
+    analyze.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no table")
     sub.add_parser("list", help="list the illuminants, cameras, reflectance sets and presets camsim knows")
     return parser
 
@@ -136,6 +163,21 @@ def _cmd_render(args) -> int:
     return 0
 
 
+def _cmd_analyze(args) -> int:
+    from camsim.analysis.analyze import analyse_paths, table, write_outputs
+    from camsim.analysis.patches import AnalysisSettings
+
+    black = "dark-frame" if args.dark is not None else ("sidecar" if args.subtract_black else "none")
+    settings = AnalysisSettings(border_px=args.border, black=black, matrix=args.matrix)
+    results = analyse_paths(args.paths, settings, source=args.source, dark_frame=args.dark, progress=not args.quiet)
+    out = args.out if args.out is not None else DEFAULT_OUT / "analysis"
+    csv_path, json_path = write_outputs(results, settings, out)
+    if not args.quiet:
+        print(table(results))
+    print(f"analysed {len(results)} frames: {csv_path} (one row per frame × patch × channel), {json_path}")
+    return 0
+
+
 def _cmd_list(args) -> int:
     from camsim.spectra import camera_names, illuminant_names, reflectance_set_names
 
@@ -158,9 +200,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        if args.command == "render":
-            return _cmd_render(args)
-        return _cmd_list(args)
+        commands = {"render": _cmd_render, "analyze": _cmd_analyze, "list": _cmd_list}
+        return commands[args.command](args)
     except CamsimError as exc:
         print(f"camsim: error: {exc}", file=sys.stderr)
         return 2

@@ -43,6 +43,7 @@ class FrameInfo:
     patch_rects: list
     color_matrix1: np.ndarray
     as_shot_neutral: np.ndarray
+    patch_xyz: np.ndarray | None = None
 
 
 def frame_stem(scene: str, illuminant: str, intensity_factor: float) -> str:
@@ -66,6 +67,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
                 "dark_e": ex.dark_e.tolist(),
                 "signal_var_e2": ex.signal_var_e2[index].tolist(),
                 "clean_dn": (ex.clean_e[index] * k).tolist(),
+                "xyz_cd_m2": None if info.patch_xyz is None else info.patch_xyz[index].tolist(),
             }
         )
     height, width = frame.labels.shape
@@ -111,6 +113,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
             "dark_e": "e- (mean dark electrons per pixel in the exposure)",
             "signal_var_e2": "e-^2 (variance of the signal electrons under the photon statistics)",
             "clean_dn": "DN (expected value after saturation, before read noise and quantisation)",
+            "xyz_cd_m2": "CIE 1931 XYZ of the patch's light at this F (Y = luminance, cd/m^2)",
             "qe_e_m2_sr_per_photon": "e- m^2 sr / photon, rows R, G, B on wavelengths_nm",
             "rect_xywh": "pixels: x, y of the top-left corner, width, height",
             "exr_channels": "R, G, B: noisy DN before quantisation; clean.R, clean.G, clean.B: expected DN",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+import numpy as np
 from tqdm import tqdm
 
 from camsim.camera import load_camera
@@ -12,14 +13,21 @@ from camsim.errors import CamsimError
 from camsim.frame_files import FrameInfo, frame_stem, write_frame
 from camsim.io.atomic import write_json_atomic
 from camsim.io.dng import MIN_SIZE
+from camsim.photons import KM_LM_PER_W
 from camsim.radiance import scene_radiance
 from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
 from camsim.render import frame_expected, frame_seed_sequence, render_frame
 from camsim.sampling import METHODS
 from camsim.scene import Scene
-from camsim.spectra import illuminant_spd
+from camsim.spectra import cmfs_on_grid, illuminant_spd
 
 MANIFEST_NAME = "manifest.json"
+
+
+def patch_xyz(radiance, grid) -> np.ndarray:
+    """CIE 1931 XYZ of each patch's light at F = 1, shape (patches, 3); Y is the luminance in cd/m²."""
+    n = len(radiance.patch_names)
+    return KM_LM_PER_W * grid.step_nm * (radiance.radiance[:n] @ cmfs_on_grid(grid).T)
 
 
 def check_scene(scene: Scene) -> None:
@@ -57,7 +65,7 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
         expected = frame_expected(radiance, camera, scene.scale, sensor, factor, scene.statistics, scene.grid)
         if colour_tags is None:  # Qe depends on the illuminant (anchor), not on F
             colour_tags = (color_matrix_xyz_to_camera(expected.qe, scene.grid),
-                           as_shot_neutral(illuminant, expected.qe, scene.grid))
+                           as_shot_neutral(illuminant, expected.qe, scene.grid), patch_xyz(radiance, scene.grid))
         frame = render_frame(
             radiance.labels, expected, sensor, statistics=scene.statistics, method=scene.method,
             rng=frame_seed_sequence(scene.seed, illuminant, factor), workers=workers,
@@ -80,6 +88,7 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
             patch_rects=radiance.patch_rects,
             color_matrix1=colour_tags[0],
             as_shot_neutral=colour_tags[1],
+            patch_xyz=factor * colour_tags[2],
         )
         files = write_frame(out_dir, frame_stem(scene.name, illuminant, factor), frame, info)
         frames.append({

@@ -135,3 +135,12 @@ def test_render_frame_accepts_a_generator_seed_or_seed_sequence(scene):
               for r in (7, np.random.SeedSequence(7), np.random.default_rng(7), np.random.default_rng(7))]
     np.testing.assert_array_equal(frames[0].noisy_dn, frames[1].noisy_dn)
     np.testing.assert_array_equal(frames[2].noisy_dn, frames[3].noisy_dn)
+
+
+def test_sidecar_patch_xyz_is_the_lights_colour(rendered):
+    out, manifest = rendered
+    for entry in manifest["frames"]:
+        sidecar = json.loads((out / entry["files"]["json"]).read_text())
+        white = np.array(sidecar["patches"][18]["xyz_cd_m2"])
+        # the ColorChecker white reflects ~ 88–90 % of a 100 cd/m² perfect white, scaled by F
+        assert 85 * entry["intensity_factor"] < white[1] < 92 * entry["intensity_factor"]

@@ -1,0 +1,1 @@
+"""Colour analysis of rendered frames (MODEL.md §6)."""
