@@ -20,10 +20,11 @@ SUMMARY_NAME = "analysis.json"
 FRAME_COLUMNS = ("frame_file", "source", "scene", "illuminant", "intensity_factor", "photon_statistics", "method",
                  "seed")
 PATCH_COLUMNS = ("patch_index", "patch_name", "n_xy_valid", "n_xy_undefined", "ellipse_status", "center_x",
-                 "center_y", "semi_major_xy", "semi_minor_xy", "angle_deg", "size_xy", "delta_e_ab_mean",
+                 "center_y", "semi_major_xy", "semi_minor_xy", "angle_deg", "size_xy", "frac_in_2sigma", "n_distinct_values", "delta_e_ab_mean",
                  "delta_e_ab_std", "n_y_nonpositive", "delta_e_status")
 CHANNEL_COLUMNS = ("channel", "n_pixels", "black_dn", "mean_dn", "var_dn2", "std_dn", "mean_e", "var_e2", "std_e",
-                   "saturated_pixels", "constant", "snr_model", "snr_model_db", "snr_empirical", "snr_empirical_db",
+                   "saturated_pixels", "constant", "snr_model", "snr_model_db", "snr_model_eq13", "snr_model_eq13_db",
+                   "snr_empirical", "snr_empirical_db",
                    "snr_status")
 #: Sidecar values that must agree for two frames to be the same measurement at different F (ΔE reference).
 GROUP_KEYS = ("scene", "illuminant", "photon_statistics", "method", "camera", "reflectances", "stages",

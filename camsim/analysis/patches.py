@@ -80,6 +80,8 @@ def saturation_threshold_dn(frame: LoadedFrame) -> float:
 def patch_samples(pixels: np.ndarray, rect, border: int) -> np.ndarray:
     """Pixels of a patch rectangle less a border, as samples (n, 3)."""
     x, y, w, h = rect
+    if 2 * border >= min(w, h):  # nothing left (and a negative slice end would wrap around)
+        return np.empty((0, pixels.shape[0]), dtype=pixels.dtype)
     block = pixels[:, y + border : y + h - border, x + border : x + w - border]
     return block.reshape(3, -1).T
 
@@ -97,6 +99,22 @@ def reference_labs(frame: LoadedFrame, settings: AnalysisSettings, black_dn, mat
         lab, _ = reference_lab(xyz)
         labs.append(lab)
     return labs
+
+
+def fraction_within(xy: np.ndarray, k_sigma: float) -> float:
+    """Fraction of samples inside the k-σ ellipse of their own covariance (Mahalanobis distance ≤ k).
+
+    For a bivariate Gaussian cloud this is 1 − exp(−k²/2): 0.865 at k = 2. Unit: fraction.
+    """
+    d = xy - xy.mean(axis=0)
+    inverse = np.linalg.inv(np.cov(d.T))
+    return float(np.mean(np.einsum("ni,ij,nj->n", d, inverse, d) <= k_sigma**2))
+
+
+def distinct_values(raw: np.ndarray) -> int:
+    """Number of distinct (R, G, B) digital-number triplets among integer samples (n, 3)."""
+    codes = raw.astype(np.int64)
+    return int(np.unique((codes[:, 0] << 32) | (codes[:, 1] << 16) | codes[:, 2]).size)
 
 
 def analyse_frame(frame: LoadedFrame, settings: AnalysisSettings, black_dn, matrix, ref_labs=None):
@@ -127,11 +145,11 @@ def analyse_frame(frame: LoadedFrame, settings: AnalysisSettings, black_dn, matr
     for index, patch in enumerate(meta["patches"]):
         raw = patch_samples(frame.pixels_dn, patch["rect_xywh"], settings.border_px)
         samples = raw - black_dn
-        model = snr_model(
-            np.asarray(patch["signal_e"]), np.asarray(patch["dark_e"]) if stages["dark_current"] else 0.0,
-            np.asarray(patch["signal_var_e2"]), meta["read_noise_e"] if stages["read_noise"] else 0.0, k,
-            bool(stages["quantisation"]),
-        )
+        terms = (np.asarray(patch["signal_e"]), np.asarray(patch["dark_e"]) if stages["dark_current"] else 0.0,
+                 np.asarray(patch["signal_var_e2"]), meta["read_noise_e"] if stages["read_noise"] else 0.0, k,
+                 bool(stages["quantisation"]) and frame.quantised)  # an EXR holds the values before the ADC
+        model = snr_model(*terms)  # quantisation as the variance it adds: comparable with the pixels' SNR
+        model_eq13 = snr_model(*terms, quantisation_term="mean-square")  # Eq. 13 literally
         channels = []
         for c, name in enumerate(CHANNELS):
             values = samples[:, c]
@@ -152,6 +170,8 @@ def analyse_frame(frame: LoadedFrame, settings: AnalysisSettings, black_dn, matr
                 "constant": bool(n > 0 and np.all(values == values[0])),
                 "snr_model": _finite_or_none(model.snr[c]),
                 "snr_model_db": _finite_or_none(model.snr_db[c]),
+                "snr_model_eq13": _finite_or_none(model_eq13.snr[c]),
+                "snr_model_eq13_db": _finite_or_none(model_eq13.snr_db[c]),
                 "snr_empirical": snr,
                 "snr_empirical_db": snr_db,
                 "snr_status": snr_status,
@@ -159,6 +179,7 @@ def analyse_frame(frame: LoadedFrame, settings: AnalysisSettings, black_dn, matr
         xyz = xyz_from_camera(samples, matrix)
         xy, n_undefined = chromaticity_xy(xyz)
         ellipse = fit_ellipse(xy)
+        within = fraction_within(xy, 2.0) if ellipse.status == "ok" else None
         record = {
             "index": index,
             "name": patch["name"],
@@ -172,6 +193,8 @@ def analyse_frame(frame: LoadedFrame, settings: AnalysisSettings, black_dn, matr
             "semi_minor_xy": ellipse.semi_minor,
             "angle_deg": ellipse.angle_deg,
             "size_xy": ellipse.size,
+            "frac_in_2sigma": within,
+            "n_distinct_values": distinct_values(raw) if frame.quantised else None,
         }
         if ref_labs is None or ref_labs[index] is None:
             record.update(delta_e_ab_mean=None, delta_e_ab_std=None, n_y_nonpositive=None,

@@ -11,6 +11,10 @@ import numpy as np
 
 QUANTISATION_VARIANCE_DN2 = 1.0 / 12.0
 """Variance of the uniform rounding error of an ideal quantiser with 1 DN steps. Unit: DN²."""
+QUANTISATION_MEAN_SQUARE_DN2 = 1.0 / 3.0
+"""Mean square of the paper's quantisation error σ_ADC = I − G·Ṽ (Eq. 12) when I is the integer part: the error is
+uniform on (−1, 0], so E[σ_ADC²] = 1/4 + 1/12. Eq. 13 adds this, bias included. Unit: DN²."""
+QUANTISATION_TERMS = {"variance": QUANTISATION_VARIANCE_DN2, "mean-square": QUANTISATION_MEAN_SQUARE_DN2}
 
 
 @dataclass(frozen=True)
@@ -48,7 +52,8 @@ def _to_db(snr: np.ndarray) -> np.ndarray:
         return 10.0 * np.log10(snr)  # log10(0) = -inf, log10(inf) = inf
 
 
-def snr_model(signal_e, dark_e, signal_var_e2, read_noise_e, dn_per_electron, quantisation: bool) -> SNRModel:
+def snr_model(signal_e, dark_e, signal_var_e2, read_noise_e, dn_per_electron, quantisation: bool,
+              quantisation_term: str = "variance") -> SNRModel:
     """Model SNR of a pixel (Eqs. 13–14), vectorised over broadcastable arrays.
 
     Parameters
@@ -64,7 +69,11 @@ def snr_model(signal_e, dark_e, signal_var_e2, read_noise_e, dn_per_electron, qu
     dn_per_electron : array_like
         Overall gain k. Unit: DN/e⁻. Positive.
     quantisation : bool
-        Add the quantisation-error variance 1/12 DN².
+        Add a quantisation term.
+    quantisation_term : {'variance', 'mean-square'}
+        ``variance``: 1/12 DN², the variance the quantiser adds to the pixel values (what an empirical SNR from
+        pixel samples sees); ``mean-square``: 1/3 DN², Eq. 13 literally, the mean square of Eq. 12's error
+        including its −½ DN bias.
 
     Returns
     -------
@@ -78,7 +87,9 @@ def snr_model(signal_e, dark_e, signal_var_e2, read_noise_e, dn_per_electron, qu
     if np.any(k == 0):
         raise ValueError("dn_per_electron must be positive")
     signal_dn = k * s
-    variance = k**2 * (var_s + d + sigma**2) + (QUANTISATION_VARIANCE_DN2 if quantisation else 0.0)
+    if quantisation_term not in QUANTISATION_TERMS:
+        raise ValueError(f"quantisation_term must be one of {tuple(QUANTISATION_TERMS)}, got {quantisation_term!r}")
+    variance = k**2 * (var_s + d + sigma**2) + (QUANTISATION_TERMS[quantisation_term] if quantisation else 0.0)
     signal_dn, variance = np.broadcast_arrays(signal_dn, variance)
     snr = np.zeros(signal_dn.shape)
     positive = signal_dn > 0

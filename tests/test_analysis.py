@@ -1,0 +1,137 @@
+"""The analysis package on rendered frames, read back from files: SNR, undefined cases, ΔE, the CLI."""
+
+import csv
+import json
+import shutil
+
+import numpy as np
+import pytest
+from conftest import ROOT, small_scene
+
+from camsim.analysis.analyze import analyse_paths
+from camsim.analysis.patches import AnalysisSettings
+from camsim.cli import main
+from camsim.run import render_scene
+
+SCENE = ROOT / "scenes" / "macbeth_26.toml"
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory):
+    out = tmp_path_factory.mktemp("frames")
+    render_scene(small_scene(intensity_factors=(1.0, 0.1, 0.01)), out, progress=False)
+    return out
+
+
+def _snr_se(samples_mean, samples_var, n):
+    """Relative standard error of SNR = m² / v from n samples (mean and variance errors)."""
+    return np.sqrt(4 * samples_var / (n * samples_mean**2) + 2 / (n - 1))
+
+
+@pytest.mark.parametrize("source", ["dng", "exr"])
+def test_model_snr_matches_the_pixels(frames, source):
+    results = analyse_paths([frames], AnalysisSettings(), source=source, progress=False)
+    checked = 0
+    for result in results:
+        assert result["source"] == source
+        for patch in result["patches"]:
+            for ch in patch["channels"]:
+                if ch["saturated_pixels"] or ch["snr_model"] is None or ch["snr_model"] < 1:
+                    continue
+                signal = np.sqrt(ch["snr_model"] * ch["var_dn2"])
+                se = _snr_se(signal, ch["var_dn2"], ch["n_pixels"])
+                assert abs(ch["snr_empirical"] / ch["snr_model"] - 1) < 5 * se, (result["frame_file"], patch["name"])
+                checked += 1
+    assert checked > 150
+
+
+def test_delta_e_is_small_at_f1_and_grows_as_light_falls(frames):
+    results = analyse_paths([frames], AnalysisSettings(), progress=False)
+    by_f = {r["intensity_factor"]: np.mean([p["delta_e_ab_mean"] for p in r["patches"]]) for r in results}
+    assert by_f[1.0] < by_f[0.1] < by_f[0.01]
+    for r in results:
+        assert all(p["delta_e_status"] == "ok" for p in r["patches"])
+
+
+def _render(tmp_path, scene, name="f"):
+    render_scene(scene, tmp_path / name, progress=False)
+    return tmp_path / name
+
+
+def test_undefined_cases_are_counted_not_nan(tmp_path):
+    # 1. black-subtracted, almost no light: X+Y+Z ≤ 0 and Y ≤ 0 samples
+    dark = _render(tmp_path, small_scene(intensity_factors=(1.0, 1e-3)), "dark")
+    results = analyse_paths([dark], AnalysisSettings(black="sidecar"), source="exr", progress=False)
+    low = next(r for r in results if r["intensity_factor"] == 1e-3)
+    assert sum(p["n_xy_undefined"] for p in low["patches"]) > 1000
+    assert sum(p["n_y_nonpositive"] for p in low["patches"]) > 1000
+    # 2. a patch that is one value after quantisation: no noise at all
+    still = small_scene(intensity_factors=(0.5,)).with_sensor(photon_noise=False, dark_current=False,
+                                                              read_noise=False)
+    constant = analyse_paths([_render(tmp_path, still, "still")], AnalysisSettings(), progress=False)[0]
+    assert all(p["ellipse_status"] == "constant" for p in constant["patches"])
+    assert all(ch["constant"] and ch["snr_status"] == "constant" for p in constant["patches"]
+               for ch in p["channels"])
+    # 3. only one channel noisy: the xy samples lie on a line (a projective image of a segment)
+    line = small_scene(intensity_factors=(0.5,)).with_sensor(photon_noise=False, read_noise=False,
+                                                             quantisation=False, dark_current_e_per_s=(0, 0, 218.0))
+    rank1 = analyse_paths([_render(tmp_path, line, "line")], AnalysisSettings(), progress=False)[0]
+    assert all(p["ellipse_status"] == "rank-1" for p in rank1["patches"])
+    # 4. saturation
+    bright = analyse_paths([_render(tmp_path, small_scene(intensity_factors=(3.0,)), "bright")],
+                           AnalysisSettings(), progress=False)[0]
+    assert bright["patches"][18]["channels"][1]["saturated_pixels"] == bright["patches"][18]["channels"][1]["n_pixels"]
+    # 5. a border that leaves no pixel
+    empty = analyse_paths([tmp_path / "bright"], AnalysisSettings(border_px=200), progress=False)[0]
+    assert all(p["ellipse_status"] == "too-few-samples" and p["channels"][0]["mean_dn"] is None
+               for p in empty["patches"])
+    # the CLI writes all of it without NaN (JSON is written with allow_nan=False)
+    for folder in ("dark", "still", "line", "bright"):
+        assert main(["analyze", str(tmp_path / folder), "--subtract-black", "--out", str(tmp_path / f"a-{folder}"),
+                     "-q"]) == 0
+        with open(tmp_path / f"a-{folder}" / "analysis.csv") as handle:
+            cells = [cell.lower() for row in csv.reader(handle) for cell in row]
+        assert not {"nan", "inf", "-inf", "infinity"} & set(cells)
+        summary = json.loads((tmp_path / f"a-{folder}" / "analysis.json").read_text())
+        assert summary["totals"]["patches"] == 24 * summary["totals"]["frames"]
+    totals = json.loads((tmp_path / "a-dark" / "analysis.json").read_text())["totals"]
+    assert totals["xy_undefined_samples"] > 0 and totals["y_nonpositive_samples"] > 0
+
+
+def test_analyze_cli_on_moved_and_renamed_frames(frames, tmp_path, capsys):
+    moved = tmp_path / "elsewhere"
+    moved.mkdir()
+    for suffix in (".dng", ".json"):
+        shutil.copy(frames / f"test_D65_F0.1{suffix}", moved / f"renamed{suffix}")
+    shutil.copy(frames / "test_D65_F1.exr", moved / "reference.exr")  # the EXR carries its own metadata
+    out = tmp_path / "analysis"
+    assert main(["analyze", str(moved), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "renamed.dng" in printed and "reference.exr" in printed
+    lines = (out / "analysis.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    assert len(lines) == 1 + 2 * 24 * 3
+    for column in ("mean_dn", "var_dn2", "mean_e", "std_e", "size_xy", "angle_deg", "delta_e_ab_mean",
+                   "snr_empirical_db", "n_xy_undefined"):
+        assert column in header
+    summary = json.loads((out / "analysis.json").read_text())
+    renamed = next(f for f in summary["frames"] if f["frame_file"].endswith("renamed.dng"))
+    assert all(p["delta_e_status"] == "ok" for p in renamed["patches"])  # reference found by content, not name
+
+
+@pytest.mark.parametrize("case", ["truncated", "no sidecar", "not a frame", "nothing"])
+def test_analyze_bad_input(frames, tmp_path, capsys, case):
+    target = tmp_path / "in"
+    target.mkdir()
+    if case == "truncated":
+        data = (frames / "test_D65_F1.dng").read_bytes()
+        (target / "x.dng").write_bytes(data[: len(data) // 3])
+        shutil.copy(frames / "test_D65_F1.json", target / "x.json")
+    elif case == "no sidecar":
+        shutil.copy(frames / "test_D65_F1.dng", target / "x.dng")
+    elif case == "not a frame":
+        (target / "x.exr").write_text("hello")
+    assert main(["analyze", str(target), "--out", str(tmp_path / "o"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("camsim: error:") and err.count("\n") == 1 and "Traceback" not in err
+    assert not (tmp_path / "o").exists()
