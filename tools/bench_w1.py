@@ -13,7 +13,8 @@ What it measures (seconds are wall-clock; MB = 2^20 bytes):
    floor and render timings are interleaved and repeated, ratios use the medians of the same run.
    Peak RSS of a fresh child process that only sets up and renders W1 on 2 workers (imports included), and its
    RSS after imports and scene setup, before rendering.
-3. ``write_frame`` (DNG + EXR + JSON sidecar) for that frame into a temporary directory, and the file sizes.
+3. ``write_frame`` (DNG + EXR + JSON sidecar) for that frame into a temporary directory, and the file sizes;
+   then ``camsim analyze`` of that DNG + sidecar (all 24 patches, every quantity), against the render time.
 4. Method ``spectral`` (literal per-bin draws) on a 400 × 300 chart with 2 workers: seconds per megapixel and the
    time extrapolated to W1.
 5. Method ``auto``, measured like ``poisson``, if ``camsim.sampling.METHODS`` has it (otherwise its keys are null).
@@ -168,13 +169,28 @@ def child_timing(args) -> dict:
             write_times.append(timed(write_frame, Path(tmp), stem, frame, info))
         files = write_frame(Path(tmp), stem, frame, info)
         sizes = {k: (Path(tmp) / files[k]).stat().st_size / MiB for k in ("dng", "exr", "json")}
+        analysis_times = analysis_timings(Path(tmp) / files["dng"], args.repeats)
     del frame
     small = setup(*SPECTRAL_SIZE)
     spectral_times = []
     for r in range(args.repeats):
         progress(f"repeat {r + 1}/{args.repeats}: spectral {SPECTRAL_SIZE[0]}x{SPECTRAL_SIZE[1]}")
         spectral_times.append(timed(render, small, "spectral", 2))
-    return {"times": times, "write": write_times, "sizes": sizes, "spectral": spectral_times}
+    return {"times": times, "write": write_times, "sizes": sizes, "spectral": spectral_times,
+            "analysis": analysis_times}
+
+
+def analysis_timings(dng: Path, repeats: int) -> list:
+    """``camsim analyze`` of the W1 frame from its DNG + sidecar: all 24 patches, every quantity."""
+    from camsim.analysis.analyze import analyse_paths
+    from camsim.analysis.patches import AnalysisSettings
+
+    analyse_paths([dng], AnalysisSettings(), progress=False)  # warm-up: colour-science's first use
+    out = []
+    for r in range(repeats):
+        progress(f"repeat {r + 1}/{repeats}: analysis")
+        out.append(timed(analyse_paths, [dng], AnalysisSettings(), "dng", None, False))
+    return out
 
 
 def run_child(name: str, args, *extra: str) -> dict:
@@ -241,6 +257,9 @@ def main() -> None:
     print("3. write_frame (DNG + EXR + JSON), reported separately")
     print(f"   write                {fmt(t['write'])}")
     print(f"   sizes: DNG {t['sizes']['dng']:.1f} MB, EXR {t['sizes']['exr']:.1f} MB, JSON {t['sizes']['json']:.2f} MB")
+    print("   analysis of the written frame (DNG + sidecar; statistics, ellipses, ΔE, SNR of all 24 patches)")
+    print(f"   analyze              {fmt(t['analysis'])}   = {statistics.median(t['analysis']) / med['poisson_2t']:.2f}x "
+          f"the 2-worker render, {statistics.median(t['analysis']) / med['poisson_1t']:.2f}x the 1-worker render")
     print(f"4. method spectral (per-bin draws) on {SPECTRAL_SIZE[0]} x {SPECTRAL_SIZE[1]}, workers=2")
     print(f"   render               {fmt(t['spectral'])}   = {spectral_s_per_mpix:.1f} s/MP")
     print(f"   EXTRAPOLATED to W1 ({full_mpix:g} MP): {spectral_s_per_mpix * full_mpix:.0f} s (not measured)")
@@ -261,7 +280,7 @@ def main() -> None:
         "spectral_s_per_mpix": spectral_s_per_mpix, "spectral_w1_extrapolated_s": spectral_s_per_mpix * full_mpix,
         "peak_rss_mb_poisson": p["rss_peak_mb"], "peak_rss_mb_setup": p["rss_setup_mb"],
         "peak_rss_mb_auto": rss["auto"]["rss_peak_mb"] if has_auto else None, "auto_max_ks": None,
-        "write_s": statistics.median(t["write"]), "dng_mb": t["sizes"]["dng"], "exr_mb": t["sizes"]["exr"],
+        "write_s": statistics.median(t["write"]), "analysis_s": statistics.median(t["analysis"]), "dng_mb": t["sizes"]["dng"], "exr_mb": t["sizes"]["exr"],
         "min_s": {k: min(v) for k, v in t["times"].items()},
         "width": args.width, "height": args.height, "repeats": args.repeats, "quick": args.quick,
     }

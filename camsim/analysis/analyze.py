@@ -11,7 +11,7 @@ import numpy as np
 from tqdm import tqdm
 
 from camsim.analysis.frames import find_frames, load_frame
-from camsim.analysis.patches import AnalysisSettings, analyse_frame, frame_matrix, reference_labs
+from camsim.analysis.patches import AnalysisSettings, analyse_frame, frame_matrix
 from camsim.errors import CamsimError
 from camsim.io.atomic import write_json_atomic, write_text_atomic
 
@@ -65,9 +65,10 @@ def analyse_paths(paths, settings: AnalysisSettings, source="dng", dark_frame=No
             black = dark_black
         matrix = frame_matrix(frame, settings.matrix)
         key = group_key(frame.meta)
-        if frame.meta["intensity_factor"] == 1.0 and key not in references:
-            references[key] = reference_labs(frame, settings, black, matrix)
-        patches = analyse_frame(frame, settings, black, matrix, references.get(key))
+        is_reference = frame.meta["intensity_factor"] == 1.0 and key not in references
+        patches, labs = analyse_frame(frame, settings, black, matrix, "self" if is_reference else references.get(key))
+        if is_reference:
+            references[key] = labs
         meta = frame.meta
         results.append({
             "frame_file": str(frame.path),

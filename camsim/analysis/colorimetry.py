@@ -200,7 +200,7 @@ def xyz_from_camera(dn, matrix) -> np.ndarray:
     return dn @ matrix.T
 
 
-def chromaticity_xy(xyz):
+def chromaticity_xy(xyz, weights=None, return_valid=False):
     """CIE xy chromaticity x = X / (X + Y + Z), y = Y / (X + Y + Z) of the samples where it is defined.
 
     Parameters
@@ -208,12 +208,19 @@ def chromaticity_xy(xyz):
     xyz : array_like, shape (..., 3)
         Samples as rows; leading axes are flattened.
 
+    weights : array_like of int, shape (n,), optional
+        Frequency of each row (for distinct samples with counts); ``n_undefined`` then counts samples, not rows.
+    return_valid : bool
+        Also return the boolean mask of the valid rows.
+
     Returns
     -------
     xy : numpy.ndarray, shape (m, 2)
         Chromaticity of the m valid samples, in input order; never NaN.
     n_undefined : int
         Samples excluded because X + Y + Z ≤ 0 or a component is not finite.
+    valid : numpy.ndarray of bool, shape (n,)
+        Only with ``return_valid``.
     """
     xyz = np.asarray(xyz, dtype=np.float64)
     if xyz.shape[-1:] != (3,):
@@ -222,4 +229,5 @@ def chromaticity_xy(xyz):
     total = xyz.sum(axis=1)
     valid = np.all(np.isfinite(xyz), axis=1) & np.isfinite(total) & (total > 0)
     xy = xyz[valid, :2] / total[valid, None]
-    return xy, int(xyz.shape[0] - np.count_nonzero(valid))
+    n_undefined = int(xyz.shape[0] - np.count_nonzero(valid)) if weights is None else int(np.sum(weights[~valid]))
+    return (xy, n_undefined, valid) if return_valid else (xy, n_undefined)

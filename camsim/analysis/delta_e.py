@@ -45,7 +45,7 @@ def _rows(xyz) -> np.ndarray:
     return xyz.reshape(-1, 3)
 
 
-def lab_scaled_to_y100(xyz):
+def lab_scaled_to_y100(xyz, return_valid=False):
     """CIELAB of samples scaled to Y = 100, against D65 at Y = 100 (steps 2–3).
 
     Parameters
@@ -59,6 +59,8 @@ def lab_scaled_to_y100(xyz):
         L*, a*, b* of the m valid samples, in input order (L* = 100 for all of them).
     n_undefined : int
         Samples excluded because Y ≤ 0 or a component is not finite.
+    valid : numpy.ndarray of bool, shape (n,)
+        Only with ``return_valid``: which input rows the Lab values belong to.
     """
     colour = _colour()
     xyz = _rows(xyz)
@@ -72,10 +74,13 @@ def lab_scaled_to_y100(xyz):
     lab = np.asarray(lab, dtype=np.float64).reshape(-1, 3)
     n_undefined = int(xyz.shape[0] - lab.shape[0])
     finite = np.all(np.isfinite(lab), axis=1)  # overflow of huge ratios X/Y: counted, never NaN
+    if return_valid:
+        valid[np.flatnonzero(valid)[~finite]] = False
+        return lab[finite], n_undefined + int(np.count_nonzero(~finite)), valid
     return lab[finite], n_undefined + int(np.count_nonzero(~finite))
 
 
-def reference_lab(xyz_at_f1):
+def reference_lab(xyz_at_f1, weights=None):
     """Reference Lab of a patch: the mean Lab of its F = 1 samples after scaling to Y = 100.
 
     Parameters
@@ -89,8 +94,10 @@ def reference_lab(xyz_at_f1):
     n_undefined : int
         Samples excluded (Y ≤ 0 or non-finite).
     """
-    lab, n_undefined = lab_scaled_to_y100(xyz_at_f1)
-    return (lab.mean(axis=0) if lab.shape[0] else None), n_undefined
+    lab, _, valid = lab_scaled_to_y100(xyz_at_f1, return_valid=True)
+    w = None if weights is None else np.asarray(weights)[valid]
+    n_undefined = int(np.count_nonzero(~valid)) if weights is None else int(np.sum(np.asarray(weights)[~valid]))
+    return (np.average(lab, axis=0, weights=w) if lab.shape[0] else None), n_undefined
 
 
 @dataclass(frozen=True)
@@ -115,7 +122,7 @@ class DeltaE:
     n_undefined: int
 
 
-def delta_e_5step(xyz, reference_lab) -> DeltaE:
+def delta_e_5step(xyz, reference_lab, weights=None) -> DeltaE:
     """The paper's 5-step ΔE_ab of XYZ samples to a reference Lab.
 
     Parameters
@@ -124,6 +131,8 @@ def delta_e_5step(xyz, reference_lab) -> DeltaE:
         XYZ samples of one patch at one F, any common scale.
     reference_lab : array_like, shape (3,)
         From :func:`reference_lab` (the same patch at F = 1).
+    weights : array_like of int, optional
+        Frequency of each row (distinct samples with their counts).
 
     Returns
     -------
@@ -133,11 +142,14 @@ def delta_e_5step(xyz, reference_lab) -> DeltaE:
     ref = np.asarray(reference_lab, dtype=np.float64)
     if ref.shape != (3,) or not np.all(np.isfinite(ref)):
         raise ValueError(f"reference_lab must be 3 finite numbers, got {reference_lab!r}")
-    lab, n_undefined = lab_scaled_to_y100(xyz)
-    n = lab.shape[0]
+    lab, _, valid = lab_scaled_to_y100(xyz, return_valid=True)
+    w = np.ones(lab.shape[0], dtype=np.int64) if weights is None else np.asarray(weights, dtype=np.int64)[valid]
+    n_undefined = int(np.count_nonzero(~valid)) if weights is None else int(np.sum(np.asarray(weights)[~valid]))
+    n = int(w.sum())
     if n == 0:
         return DeltaE(None, None, 0, n_undefined)
     de = np.asarray(colour.delta_E(lab, np.broadcast_to(ref, lab.shape), method="CIE 1976"), dtype=np.float64)
     de = de.reshape(-1)
-    std = float(np.std(de, ddof=1)) if n >= 2 else None
-    return DeltaE(float(de.mean()), std, n, n_undefined)
+    mean = float(np.average(de, weights=w))
+    std = float(np.sqrt(np.sum(w * (de - mean) ** 2) / (n - 1))) if n >= 2 else None
+    return DeltaE(mean, std, n, n_undefined)

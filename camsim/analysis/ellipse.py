@@ -53,14 +53,14 @@ def _major_axis_angle_deg(vector) -> float:
     return angle
 
 
-def _covariance_eigen(xy):
+def _covariance_eigen(xy, weights=None):
     """Eigenvalues λ1 ≥ λ2 (clipped at 0) and the unit major-axis vector of the sample covariance."""
-    values, vectors = np.linalg.eigh(np.cov(xy, rowvar=False, ddof=1))
+    values, vectors = np.linalg.eigh(np.cov(xy, rowvar=False, ddof=1, fweights=weights))
     values = np.clip(values, 0.0, None)
     return values[1], values[0], vectors[:, 1]
 
 
-def fit_ellipse(xy, confidence_sigma=1.0) -> Ellipse:
+def fit_ellipse(xy, confidence_sigma=1.0, weights=None) -> Ellipse:
     """Fit the PCA ellipse of a set of 2-D samples.
 
     Parameters
@@ -70,6 +70,8 @@ def fit_ellipse(xy, confidence_sigma=1.0) -> Ellipse:
         Must be finite: exclude undefined samples first.
     confidence_sigma : float
         k: the semi-axes are k standard deviations along the principal axes (k = 1: the 1 σ ellipse).
+    weights : array_like of int, shape (n,), optional
+        Frequency of each row (distinct samples with their counts): the same fit as on the repeated samples.
 
     Returns
     -------
@@ -83,13 +85,17 @@ def fit_ellipse(xy, confidence_sigma=1.0) -> Ellipse:
         raise ValueError("xy contains NaN or infinite values; exclude undefined samples before fitting")
     if not (np.isfinite(confidence_sigma) and confidence_sigma > 0):
         raise ValueError(f"confidence_sigma must be finite and positive, got {confidence_sigma!r}")
-    n = xy.shape[0]
-    cx, cy = (float(v) for v in xy.mean(axis=0)) if n else (None, None)
+    if weights is not None:
+        weights = np.asarray(weights, dtype=np.int64)
+        if weights.shape != (xy.shape[0],) or np.any(weights < 1):
+            raise ValueError("weights must be one positive count per row")
+    n = xy.shape[0] if weights is None else int(weights.sum())
+    cx, cy = (float(v) for v in np.average(xy, axis=0, weights=weights)) if n else (None, None)
     if n < MIN_SAMPLES:
         return Ellipse(cx, cy, None, None, None, None, n, "too-few-samples")
     if np.all(xy == xy[0]):
         return Ellipse(float(xy[0, 0]), float(xy[0, 1]), 0.0, 0.0, None, 0.0, n, "constant")
-    lam1, lam2, major = _covariance_eigen(xy)
+    lam1, lam2, major = _covariance_eigen(xy, weights)
     a = confidence_sigma * float(np.sqrt(lam1))
     angle = _major_axis_angle_deg(major)
     if lam2 <= RANK1_RATIO * lam1:

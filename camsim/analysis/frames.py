@@ -29,8 +29,8 @@ class LoadedFrame:
         The pixel file.
     source : {'dng', 'exr'}
         ``dng``: the digital numbers I (quantised); ``exr``: the signal before quantisation.
-    pixels_dn : numpy.ndarray, shape (3, H, W), float64
-        Unit: DN.
+    pixels_dn : numpy.ndarray, shape (3, H, W)
+        uint8 / uint16 for a DNG, float32 for an EXR. Unit: DN.
     meta : dict
         The sidecar.
     """
@@ -92,7 +92,7 @@ def load_frame(path: str | Path) -> LoadedFrame:
 
         dn, _ = read_dng(path)
         meta = _check_meta(_read_sidecar(path.with_suffix(".json")), path, dn.shape)
-        return LoadedFrame(path, "dng", dn.astype(np.float64), meta)
+        return LoadedFrame(path, "dng", dn, meta)
     if suffix == ".exr":
         from camsim.io.exr import read_exr
 
@@ -104,7 +104,7 @@ def load_frame(path: str | Path) -> LoadedFrame:
                 raise CamsimError(f"{path}: header camsim:metadata is not valid JSON ({exc})") from None
         else:
             meta = _read_sidecar(path.with_suffix(".json"))
-        return LoadedFrame(path, "exr", noisy.astype(np.float64), _check_meta(meta, path, noisy.shape))
+        return LoadedFrame(path, "exr", noisy, _check_meta(meta, path, noisy.shape))
     raise CamsimError(f"not a frame file (.dng or .exr): {path}")
 
 

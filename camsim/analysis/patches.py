@@ -10,7 +10,7 @@ from camsim.analysis.colorimetry import camera_to_xyz_matrix, chromaticity_xy, x
 from camsim.analysis.delta_e import delta_e_5step, reference_lab
 from camsim.analysis.ellipse import fit_ellipse
 from camsim.analysis.frames import LoadedFrame
-from camsim.analysis.snr import snr_empirical, snr_model
+from camsim.analysis.snr import snr_from_moments, snr_model
 from camsim.errors import CamsimError
 
 CHANNELS = ("R", "G", "B")
@@ -86,35 +86,68 @@ def patch_samples(pixels: np.ndarray, rect, border: int) -> np.ndarray:
     return block.reshape(3, -1).T
 
 
-def patch_colour_samples(frame: LoadedFrame, settings: AnalysisSettings, black_dn, matrix):
-    """XYZ samples of every patch, (n, 3) each, after the chosen black subtraction."""
-    return [xyz_from_camera(patch_samples(frame.pixels_dn, p["rect_xywh"], settings.border_px) - black_dn, matrix)
-            for p in frame.meta["patches"]]
-
-
-def reference_labs(frame: LoadedFrame, settings: AnalysisSettings, black_dn, matrix) -> list:
-    """Mean Lab of every patch of an F = 1 frame (the ΔE reference), or None where no sample is valid."""
-    labs = []
-    for xyz in patch_colour_samples(frame, settings, black_dn, matrix):
-        lab, _ = reference_lab(xyz)
-        labs.append(lab)
-    return labs
-
-
-def fraction_within(xy: np.ndarray, k_sigma: float) -> float:
+def fraction_within(xy: np.ndarray, k_sigma: float, weights=None) -> float:
     """Fraction of samples inside the k-σ ellipse of their own covariance (Mahalanobis distance ≤ k).
 
-    For a bivariate Gaussian cloud this is 1 − exp(−k²/2): 0.865 at k = 2. Unit: fraction.
+    For a bivariate Gaussian cloud this is 1 − exp(−k²/2): 0.865 at k = 2. ``weights``: counts per row.
     """
-    d = xy - xy.mean(axis=0)
-    inverse = np.linalg.inv(np.cov(d.T))
-    return float(np.mean(np.einsum("ni,ij,nj->n", d, inverse, d) <= k_sigma**2))
+    d = xy - np.average(xy, axis=0, weights=weights)
+    inverse = np.linalg.inv(np.cov(d.T, fweights=weights))
+    inside = np.einsum("ni,ij,nj->n", d, inverse, d) <= k_sigma**2
+    return float(np.average(inside, weights=weights))
 
 
-def distinct_values(raw: np.ndarray) -> int:
-    """Number of distinct (R, G, B) digital-number triplets among integer samples (n, 3)."""
-    codes = raw.astype(np.int64)
-    return int(np.unique((codes[:, 0] << 32) | (codes[:, 1] << 16) | codes[:, 2]).size)
+def distinct_samples(raw: np.ndarray):
+    """Distinct (R, G, B) rows of integer samples and their counts: ``(rows (m, 3), counts (m,))``.
+
+    A quantised patch of a few hundred thousand pixels takes a few hundred to a few thousand distinct values;
+    every per-sample quantity (xy, Lab, ΔE) is then computed once per distinct value and weighted by its count,
+    which gives exactly the same statistics as the repeated samples.
+    """
+    if raw.shape[0] == 0:
+        return np.empty((0, 3)), np.empty(0, dtype=np.int64)
+    low = raw.min(axis=0).astype(np.int64)
+    span = raw.max(axis=0).astype(np.int64) - low + 1
+    codes = (raw - low).astype(np.int64)
+    codes = (codes[:, 0] * span[1] + codes[:, 1]) * span[2] + codes[:, 2]
+    if span.prod() <= 4 * raw.shape[0] + 2**16:  # a dense code range: count in one pass instead of sorting
+        counts = np.bincount(codes, minlength=int(span.prod()))
+        unique = np.flatnonzero(counts)
+        counts = counts[unique]
+    else:
+        unique, counts = np.unique(codes, return_counts=True)
+    r, rest = np.divmod(unique, span[1] * span[2])
+    g, b = np.divmod(rest, span[2])
+    return np.stack([r, g, b], axis=1).astype(np.float64) + low, counts
+
+
+def _channel_record(name, values, counts, black, expected_black, threshold, k, model, model_eq13, c):
+    """Per-channel statistics of a patch, from its (distinct) values less ``black`` and their counts."""
+    n = int(counts.sum()) if counts is not None else values.size
+    mean = float(np.average(values, weights=counts)) if n else None
+    var = float(np.sum((counts if counts is not None else 1) * (values - mean) ** 2) / (n - 1)) if n > 1 else None
+    saturated = values >= threshold - black
+    snr, snr_db, snr_status = snr_from_moments(mean + black if n else 0.0, var or 0.0, n, expected_black)
+    return {
+        "channel": name,
+        "n_pixels": n,
+        "black_dn": float(black),
+        "mean_dn": mean,
+        "var_dn2": var,
+        "std_dn": None if var is None else float(np.sqrt(var)),
+        "mean_e": None if mean is None else mean / k,
+        "var_e2": None if var is None else var / k**2,
+        "std_e": None if var is None else float(np.sqrt(var)) / k,
+        "saturated_pixels": int(np.sum(counts[saturated]) if counts is not None else np.count_nonzero(saturated)),
+        "constant": bool(n > 0 and np.all(values == values[0])),
+        "snr_model": _finite_or_none(model.snr[c]),
+        "snr_model_db": _finite_or_none(model.snr_db[c]),
+        "snr_model_eq13": _finite_or_none(model_eq13.snr[c]),
+        "snr_model_eq13_db": _finite_or_none(model_eq13.snr_db[c]),
+        "snr_empirical": snr,
+        "snr_empirical_db": snr_db,
+        "snr_status": snr_status,
+    }
 
 
 def analyse_frame(frame: LoadedFrame, settings: AnalysisSettings, black_dn, matrix, ref_labs=None):
@@ -126,65 +159,47 @@ def analyse_frame(frame: LoadedFrame, settings: AnalysisSettings, black_dn, matr
         Subtracted from every pixel before the colour quantities and the DN/electron statistics. Unit: DN.
     matrix : numpy.ndarray, shape (3, 3)
         Camera DN → XYZ.
-    ref_labs : list, optional
-        Per patch the reference Lab (from the F = 1 frame), for ΔE; None leaves ΔE out.
+    ref_labs : list or "self", optional
+        Per patch the reference Lab (from the F = 1 frame), for ΔE; ``"self"``: this frame is the reference;
+        None leaves ΔE out.
 
     Returns
     -------
-    list of dict
+    records : list of dict
         One record per patch: ``name``, ``channels`` (a list of 3 per-channel dicts) and the patch-level
         colour quantities; undefined cases are counted (``n_xy_undefined``, ``n_y_nonpositive``) or named
         (``ellipse_status``, ``delta_e_status``, per channel ``snr_status``), never NaN.
+    labs : list
+        Per patch the mean Lab of this frame's samples (the ΔE reference when this is an F = 1 frame).
     """
     meta = frame.meta
     k = meta["dn_per_electron"]
     stages = meta["stages"]
     expected_black = frame.expected_black_dn()
     threshold = saturation_threshold_dn(frame)
-    records = []
+    records, labs = [], []
     for index, patch in enumerate(meta["patches"]):
         raw = patch_samples(frame.pixels_dn, patch["rect_xywh"], settings.border_px)
-        samples = raw - black_dn
+        rows, counts = distinct_samples(raw) if frame.quantised else (raw.astype(np.float64), None)
+        samples = rows - black_dn
         terms = (np.asarray(patch["signal_e"]), np.asarray(patch["dark_e"]) if stages["dark_current"] else 0.0,
                  np.asarray(patch["signal_var_e2"]), meta["read_noise_e"] if stages["read_noise"] else 0.0, k,
                  bool(stages["quantisation"]) and frame.quantised)  # an EXR holds the values before the ADC
         model = snr_model(*terms)  # quantisation as the variance it adds: comparable with the pixels' SNR
         model_eq13 = snr_model(*terms, quantisation_term="mean-square")  # Eq. 13 literally
-        channels = []
-        for c, name in enumerate(CHANNELS):
-            values = samples[:, c]
-            n = values.size
-            var = float(values.var(ddof=1)) if n > 1 else None
-            snr, snr_db, snr_status = snr_empirical(raw[:, c], expected_black[c])
-            channels.append({
-                "channel": name,
-                "n_pixels": n,
-                "black_dn": float(black_dn[c]),
-                "mean_dn": float(values.mean()) if n else None,
-                "var_dn2": var,
-                "std_dn": None if var is None else float(np.sqrt(var)),
-                "mean_e": float(values.mean()) / k if n else None,
-                "var_e2": None if var is None else var / k**2,
-                "std_e": None if var is None else float(np.sqrt(var)) / k,
-                "saturated_pixels": int(np.count_nonzero(raw[:, c] >= threshold)),
-                "constant": bool(n > 0 and np.all(values == values[0])),
-                "snr_model": _finite_or_none(model.snr[c]),
-                "snr_model_db": _finite_or_none(model.snr_db[c]),
-                "snr_model_eq13": _finite_or_none(model_eq13.snr[c]),
-                "snr_model_eq13_db": _finite_or_none(model_eq13.snr_db[c]),
-                "snr_empirical": snr,
-                "snr_empirical_db": snr_db,
-                "snr_status": snr_status,
-            })
+        channels = [_channel_record(name, samples[:, c], counts, black_dn[c], expected_black[c], threshold, k, model,
+                                    model_eq13, c) for c, name in enumerate(CHANNELS)]
         xyz = xyz_from_camera(samples, matrix)
-        xy, n_undefined = chromaticity_xy(xyz)
-        ellipse = fit_ellipse(xy)
-        within = fraction_within(xy, 2.0) if ellipse.status == "ok" else None
+        xy, n_undefined, valid = chromaticity_xy(xyz, weights=counts, return_valid=True)
+        weights = None if counts is None else counts[valid]
+        ellipse = fit_ellipse(xy, weights=weights)
+        lab, _ = reference_lab(xyz, weights=counts) if xyz.shape[0] else (None, 0)
+        labs.append(lab)
         record = {
             "index": index,
             "name": patch["name"],
             "channels": channels,
-            "n_xy_valid": int(xy.shape[0]),
+            "n_xy_valid": int(ellipse.n_samples),
             "n_xy_undefined": int(n_undefined),
             "ellipse_status": ellipse.status,
             "center_x": ellipse.center_x,
@@ -193,15 +208,16 @@ def analyse_frame(frame: LoadedFrame, settings: AnalysisSettings, black_dn, matr
             "semi_minor_xy": ellipse.semi_minor,
             "angle_deg": ellipse.angle_deg,
             "size_xy": ellipse.size,
-            "frac_in_2sigma": within,
-            "n_distinct_values": distinct_values(raw) if frame.quantised else None,
+            "frac_in_2sigma": fraction_within(xy, 2.0, weights) if ellipse.status == "ok" else None,
+            "n_distinct_values": int(rows.shape[0]) if frame.quantised else None,
         }
-        if ref_labs is None or ref_labs[index] is None:
+        reference = lab if ref_labs == "self" else (None if ref_labs is None else ref_labs[index])
+        if reference is None:
             record.update(delta_e_ab_mean=None, delta_e_ab_std=None, n_y_nonpositive=None,
                           delta_e_status="no-reference")
         else:
-            de = delta_e_5step(xyz, ref_labs[index])
+            de = delta_e_5step(xyz, reference, weights=counts)
             record.update(delta_e_ab_mean=de.mean, delta_e_ab_std=de.std, n_y_nonpositive=int(de.n_undefined),
                           delta_e_status="ok" if de.mean is not None else "no-valid-sample")
         records.append(record)
-    return records
+    return records, labs

@@ -125,9 +125,16 @@ def snr_empirical(samples_dn, black_dn):
         raise ValueError("samples_dn and black_dn must be finite")
     if x.size < 2:
         return None, None, "too-few-samples"
-    if np.all(x == x[0]):
+    return snr_from_moments(float(x.mean()), float(np.var(x, ddof=1)), x.size, black_dn)
+
+
+def snr_from_moments(mean_dn, var_dn2, n, black_dn):
+    """:func:`snr_empirical` from a sample's mean, variance (ddof = 1) and size; same returns."""
+    if n < 2:
+        return None, None, "too-few-samples"
+    if var_dn2 <= 0:
         return None, None, "constant"
-    snr = float((x.mean() - black_dn) ** 2 / np.var(x, ddof=1))
+    snr = float((mean_dn - black_dn) ** 2 / var_dn2)
     return snr, (10.0 * float(np.log10(snr)) if snr > 0 else None), "ok"
 
 
