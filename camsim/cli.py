@@ -207,12 +207,9 @@ def _cmd_experiment(args) -> int:
     from camsim.experiments.runner import Setup
     from camsim.experiments.scenarios import DEFAULT_SCENE, run_experiment
 
-    setup = None
-    if args.size or args.camera or args.seed:
-        width, height = parse_size(args.size) if args.size else (250, 200)
-        camera = str(Path(args.camera).resolve()) if args.camera and args.camera.lower().endswith(".csv") \
-            else args.camera
-        setup = Setup(DEFAULT_SCENE, width, height, seed=args.seed, camera=camera)
+    width, height = parse_size(args.size) if args.size else (None, None)
+    camera = str(Path(args.camera).resolve()) if args.camera and args.camera.lower().endswith(".csv") else args.camera
+    setup = Setup(DEFAULT_SCENE, width, height, seed=args.seed, camera=camera)
     out = args.out if args.out is not None else DEFAULT_OUT / "experiments" / args.name
     done = run_experiment(args.name, out, setup, progress=not args.quiet)
     for name, findings in done.items():

@@ -135,3 +135,22 @@ def test_analyze_bad_input(frames, tmp_path, capsys, case):
     err = capsys.readouterr().err
     assert err.startswith("camsim: error:") and err.count("\n") == 1 and "Traceback" not in err
     assert not (tmp_path / "o").exists()
+
+
+def test_distinct_values_with_counts_give_the_same_statistics(frames, monkeypatch):
+    """Quantised patches are measured on their distinct values weighted by counts: exactly as on every pixel."""
+    import camsim.analysis.patches as patches_module
+
+    fast = analyse_paths([frames], AnalysisSettings(black="sidecar"), progress=False)
+    monkeypatch.setattr(patches_module, "distinct_samples",
+                        lambda raw: (raw.astype(np.float64), np.ones(raw.shape[0], dtype=np.int64)))
+    slow = analyse_paths([frames], AnalysisSettings(black="sidecar"), progress=False)
+    keys = ("center_x", "center_y", "semi_major_xy", "semi_minor_xy", "angle_deg", "frac_in_2sigma",
+            "delta_e_ab_mean", "delta_e_ab_std", "n_xy_undefined", "n_y_nonpositive")
+    for a, b in zip(fast, slow):
+        for pa, pb in zip(a["patches"], b["patches"]):
+            for key in keys:
+                assert pa[key] == pytest.approx(pb[key], rel=1e-9, abs=1e-12), key
+            for ca, cb in zip(pa["channels"], pb["channels"]):
+                for key in ("mean_dn", "var_dn2", "saturated_pixels", "snr_empirical", "n_pixels"):
+                    assert ca[key] == pytest.approx(cb[key], rel=1e-9), key

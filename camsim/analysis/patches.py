@@ -86,14 +86,17 @@ def patch_samples(pixels: np.ndarray, rect, border: int) -> np.ndarray:
     return block.reshape(3, -1).T
 
 
-def fraction_within(xy: np.ndarray, k_sigma: float, weights=None) -> float:
+def fraction_within(xy: np.ndarray, k_sigma: float, weights=None) -> float | None:
     """Fraction of samples inside the k-σ ellipse of their own covariance (Mahalanobis distance ≤ k).
 
     For a bivariate Gaussian cloud this is 1 − exp(−k²/2): 0.865 at k = 2. ``weights``: counts per row.
     """
     d = xy - np.average(xy, axis=0, weights=weights)
-    inverse = np.linalg.inv(np.cov(d.T, fweights=weights))
-    inside = np.einsum("ni,ij,nj->n", d, inverse, d) <= k_sigma**2
+    values, vectors = np.linalg.eigh(np.cov(d.T, fweights=weights))
+    if not values.min() > 0:  # numerically singular (e.g. a few distinct float32 values): no 2-D shape to test
+        return None
+    projected = d @ vectors
+    inside = np.sum(projected**2 / values, axis=1) <= k_sigma**2
     return float(np.average(inside, weights=weights))
 
 

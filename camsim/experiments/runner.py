@@ -33,8 +33,8 @@ class Setup:
     """What an experiment renders: the scene data, frame size, points and seed."""
 
     scene_file: Path
-    width: int
-    height: int
+    width: int | None = None  # None: the experiment's default size
+    height: int | None = None
     n_points: int = 20
     seed: int = 0
     camera: str | None = None

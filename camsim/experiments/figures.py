@@ -1,0 +1,429 @@
+"""Figures of ``camsim experiment``: the paper's Figs. 4–6 (per scenario) and Figs. 7–9 (SNR sensitivity).
+
+Every maker writes PNG files into ``out_dir`` and returns ``{figure_key: file name}``. Scenario figures have two
+panels side by side, ``paper`` and ``pixel`` photon statistics. Undefined values (None) are never plotted; each
+panel's legend says how many were left out. A data point keeps its colour (``tab20`` by point number) throughout.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.patheffects as pe  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.cm import ScalarMappable  # noqa: E402
+from matplotlib.colors import Normalize  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+
+from camsim.analysis.colorimetry import chromaticity_xy, xyz_from_camera  # noqa: E402
+from camsim.analysis.frames import load_frame  # noqa: E402
+from camsim.analysis.patches import AnalysisSettings, frame_matrix, patch_samples  # noqa: E402
+from camsim.errors import CamsimError  # noqa: E402
+
+DPI = 110
+MAX_SAMPLES = 300
+STATISTICS = ("paper", "pixel")
+CHANNELS = ("R", "G", "B")
+SNR_VARIANTS = {"read+10%": "snr_read", "dark+10%": "snr_dark", "quantisation-off": "snr_quantisation"}
+UNDEF = "undefined, not plotted"
+_MARKERS = "os^D"
+_STYLES = ("-", "--", "-.", ":")
+_HALO = [pe.Stroke(linewidth=2.6, foreground="white"), pe.Normal()]
+_HALO_TEXT = [pe.withStroke(linewidth=2.5, foreground="white")]
+
+
+def _num(value):
+    """``value`` as a finite float, or None."""
+    try:
+        return float(value) if math.isfinite(float(value)) else None
+    except (TypeError, ValueError):
+        return None
+
+
+def _colour(number):
+    """The colour of data point ``number``: tab20's ten dark shades first, then the ten light ones."""
+    k = (int(number) - 1) % 20
+    return plt.get_cmap("tab20")(2 * k if k < 10 else 2 * (k - 10) + 1)
+
+
+def _save(fig, out_dir, name: str) -> str:
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
+    fig.savefig(Path(out_dir) / name, dpi=DPI, bbox_inches="tight")
+    plt.close(fig)
+    return name
+
+
+def _entry(label: str, **style):
+    """A legend entry; without style, a line of text (e.g. how many values were left out)."""
+    return Line2D([], [], label=label, **({"linestyle": "none"} | style))
+
+
+def _count(n: int, text: str) -> list:
+    """A text legend entry "n text" if n > 0 (e.g. how many values were undefined and left out)."""
+    return [_entry(f"{n} {text}")] if n else []
+
+
+def _series(results) -> list:
+    """The frames with a positive F, largest F first."""
+    usable = [r for r in results or [] if (_num(r.get("intensity_factor")) or 0) > 0]
+    return sorted(usable, key=lambda r: -float(r["intensity_factor"]))
+
+
+def _patch(result, j):
+    patches = result.get("patches") or []
+    return patches[j] if j < len(patches) else {}
+
+
+def _ellipse(patch, n: int = 121):
+    """The 1 σ ellipse outline (x, y) of a patch record, or None where it is undefined."""
+    values = [_num(patch.get(k)) for k in ("center_x", "center_y", "semi_major_xy", "semi_minor_xy", "angle_deg")]
+    if patch.get("ellipse_status") != "ok" or None in values:
+        return None
+    cx, cy, a, b, angle = values
+    t, theta = np.linspace(0.0, 2.0 * np.pi, n), np.radians(angle)
+    u, v = a * np.cos(t), b * np.sin(t)
+    return cx + u * np.cos(theta) - v * np.sin(theta), cy + u * np.sin(theta) + v * np.cos(theta)
+
+
+def _centre(patch):
+    x, y = _num(patch.get("center_x")), _num(patch.get("center_y"))
+    return None if x is None or y is None else (x, y)
+
+
+def _samples(cache: dict, result, n_points: int):
+    """Per data point its xy samples (≤ 300, subsampled), re-read from the frame file once per call of a maker.
+
+    None if the frame cannot be read (e.g. moved or deleted).
+    """
+    path = str(result.get("frame_file"))
+    if path in cache:
+        return cache[path]
+    cache[path] = None
+    try:
+        frame = load_frame(path)
+        matrix = frame_matrix(frame, result.get("camera_to_xyz") or "paper")
+    except (CamsimError, OSError, KeyError, TypeError, ValueError):
+        return None
+    black = np.asarray(result.get("black_dn") or np.zeros(3), dtype=np.float64)
+    border, rng, out = AnalysisSettings().border_px, np.random.default_rng(0), []
+    for meta in frame.meta["patches"][:n_points]:
+        raw = patch_samples(frame.pixels_dn, meta["rect_xywh"], border)
+        xy, _ = chromaticity_xy(xyz_from_camera(raw - black, matrix))
+        out.append(xy[np.sort(rng.choice(len(xy), MAX_SAMPLES, replace=False))] if len(xy) > MAX_SAMPLES else xy)
+    cache[path] = out
+    return out
+
+
+def _diagram(ax, colours: bool = True):
+    """The CIE 1931 xy diagram (faded colours) or just its spectral locus."""
+    import colour
+
+    title = ax.get_title()
+    if colours:
+        try:
+            colour.plotting.plot_chromaticity_diagram_CIE1931(axes=ax, show=False, title=None, diagram_opacity=0.3)
+        except Exception:  # the plotting API differs between colour versions: fall back to the locus
+            colours = False
+    if not colours:
+        xyz = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].values
+        xy = xyz[:, :2] / xyz.sum(axis=1, keepdims=True)
+        ax.plot(np.r_[xy[:, 0], xy[0, 0]], np.r_[xy[:, 1], xy[0, 1]], color="0.35", lw=1)
+    ax.set(xlabel="CIE x", ylabel="CIE y", title=title)
+
+
+def _zoom(ax, xs, ys, min_span: float = 0.05, pad: float = 0.08):
+    """Square limits around the data (0.5–99.5 percentiles, so that a few strays do not rule), equal aspect."""
+    if len(xs) == 0:
+        return ax.set(xlim=(0, 0.8), ylim=(0, 0.9))
+    (x0, x1), (y0, y1) = np.percentile(xs, [0.5, 99.5]), np.percentile(ys, [0.5, 99.5])
+    half = max(x1 - x0, y1 - y0, min_span) * (0.5 + pad)
+    ax.set(xlim=((x0 + x1) / 2 - half, (x0 + x1) / 2 + half), ylim=((y0 + y1) / 2 - half, (y0 + y1) / 2 + half))
+    ax.set_aspect("equal", adjustable="box")
+
+
+def _black(ax, black_xy, stat, xs, ys) -> list:
+    """Mark the camera black point (a star) if there is one; returns its legend entries."""
+    point = (black_xy or {}).get(stat)
+    if point is None or None in (_num(point[0]), _num(point[1])):
+        return []
+    ax.plot(*point, marker="*", ms=15, color="k", mec="w", ls="none", zorder=6)
+    xs.append(point[0]), ys.append(point[1])
+    return [_entry("camera black point", marker="*", ms=12, color="k")]
+
+
+def _panels(title: str, layout=None):
+    fig, axes = plt.subplots(1, 2, figsize=(14, 6.5), layout=layout)
+    fig.suptitle(title, fontsize=13)
+    for ax, stat in zip(axes, STATISTICS):
+        ax.set_title(f"{stat} statistics", fontsize=12)
+    return fig, axes
+
+
+def _point_legend(fig, points):
+    if points:
+        fig.legend(handles=[_entry(p.label, color=_colour(p.number), lw=2, linestyle="-") for p in points],
+                   loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=8, title="data point")
+
+
+def _f_axes(ax, ylabel: str):
+    ax.set_xscale("log")
+    ax.set(xlabel="intensity factor F", ylabel=ylabel)
+    ax.grid(alpha=0.3, which="both")
+
+
+def _draw(ax, samples, j, patch, colour, xs, ys, marker="o", **line):
+    """Point ``j``'s samples (dots) and 1 σ ellipse of ``patch``; returns the ellipse, None if undefined."""
+    if samples is not None and j < len(samples) and len(samples[j]):
+        ax.scatter(*samples[j].T, s=5, color=colour, alpha=0.45, marker=marker, linewidths=0)
+        xs.extend(samples[j][:, 0]), ys.extend(samples[j][:, 1])
+    ellipse = _ellipse(patch)
+    if ellipse is not None:
+        ax.plot(*ellipse, color=colour, path_effects=_HALO, zorder=4, **line)
+    return ellipse
+
+
+#: Frames whose median ellipse size exceeds this (in xy) are left out of the samples figure: their clouds cover
+#: the whole diagram and hide everything else (the size and ΔE figures show them).
+READABLE_SIZE = 0.05
+
+
+def _readable(result, n_points: int) -> bool:
+    sizes = [_num(_patch(result, j).get("size_xy")) for j in range(n_points) if _ellipse(_patch(result, j))]
+    sizes = [v for v in sizes if v is not None]
+    return bool(sizes) and float(np.median(sizes)) <= READABLE_SIZE
+
+
+def _fig_samples(name, series, points, black_xy, cache):
+    fig, axes = _panels(f"{name}: samples and 1 σ ellipses at representative F (CIE 1931 xy; F with median "
+                        f"ellipse size ≤ {READABLE_SIZE:g} — larger clouds fill the diagram, see the size figure)")
+    for ax, stat in zip(axes, STATISTICS):
+        _diagram(ax)
+        frames = series[stat]
+        valid = [i for i, r in enumerate(frames) if _readable(r, len(points))]
+        last = valid[-1] if valid else len(frames) - 1
+        chosen = [frames[i] for i in sorted({0, last, round(last / 3), round(2 * last / 3)})] if frames else []
+        xs, ys, handles, undefined, excluded, unread = [], [], [], 0, 0, 0
+        for k, result in enumerate(chosen):
+            samples = _samples(cache, result, len(points))
+            unread += samples is None
+            for j, point in enumerate(points):
+                patch = _patch(result, j)
+                excluded += int(_num(patch.get("n_xy_undefined")) or 0)
+                if _draw(ax, samples, j, patch, _colour(point.number), xs, ys, _MARKERS[k], ls=_STYLES[k], lw=1.4):
+                    ax.text(*_centre(patch), str(point.number), fontsize=9 if k == 0 else 7, weight="bold",
+                            ha="center", va="center", zorder=7, path_effects=_HALO_TEXT)
+                else:
+                    undefined += 1
+            handles.append(_entry(f"F = {float(result['intensity_factor']):g}", color="k", linestyle=_STYLES[k],
+                                  marker=_MARKERS[k], ms=4))
+        handles += _black(ax, black_xy, stat, xs, ys) + _count(undefined, f"ellipses (point × F) {UNDEF}")
+        handles += _count(excluded, "samples with X+Y+Z ≤ 0 excluded")
+        handles += _count(unread, "frame file(s) unreadable: samples not shown")
+        _zoom(ax, xs, ys, min_span=0.1)
+        if handles:
+            ax.legend(handles=handles, fontsize=8, loc="best")
+    return fig
+
+
+def _fig_centres(name, series, points, black_xy):
+    fig, axes = _panels(f"{name}: ellipse centres as F falls (CIE 1931 xy)")
+    for ax, stat in zip(axes, STATISTICS):
+        _diagram(ax)
+        xs, ys, undefined = [], [], 0
+        top = series[stat][0]["intensity_factor"] if series[stat] else None
+        for j, point in enumerate(points):
+            track = [(float(r["intensity_factor"]), _centre(_patch(r, j))) for r in series[stat]]
+            undefined += sum(xy is None for _, xy in track)
+            track = [(f, xy) for f, xy in track if xy is not None]
+            if not track:
+                continue
+            c, (x, y) = _colour(point.number), np.array([xy for _, xy in track]).T
+            ax.plot(x, y, "-", marker=".", color=c, lw=1.4, ms=5, path_effects=_HALO)
+            if track[0][0] == top:
+                ax.plot(x[0], y[0], "o", color=c, mec="k", ms=8, zorder=5)
+            ax.text(x[0], y[0], f" {point.number}", fontsize=9, weight="bold", path_effects=_HALO_TEXT)
+            xs.extend(x), ys.extend(y)
+        handles = [_entry("centre path, F decreasing", color="0.3", marker=".", linestyle="-")]
+        handles += [_entry(f"F = {top:g}", marker="o", color="0.5", mec="k")] if top is not None else []
+        handles += _black(ax, black_xy, stat, xs, ys) + _count(undefined, f"centres (point × F) {UNDEF}")
+        _zoom(ax, xs, ys, min_span=0.05, pad=0.12)
+        ax.legend(handles=handles, fontsize=8, loc="best")
+    _point_legend(fig, points)
+    return fig
+
+
+def _fig_magnified(name, series, points, black_xy, cache, number):
+    index = next((j for j, p in enumerate(points) if p.number == number), 0 if points else None)
+    label = points[index].label if index is not None else "none"
+    label += "" if any(p.number == number for p in points) else f" (point {number} is not among the data points)"
+    fig, axes = _panels(f"{name}: data point {label}, samples and 1 σ ellipses at every F", layout="constrained")
+    logs = [math.log10(float(r["intensity_factor"])) for s in STATISTICS for r in series[s]] or [0.0]
+    norm, cmap = Normalize(min(logs) - 0.5 * (min(logs) == max(logs)), max(logs)), plt.get_cmap("viridis")
+    for ax, stat in zip(axes, STATISTICS):
+        _diagram(ax, colours=False)
+        xs, ys, undefined, unread = [], [], 0, 0
+        for result in series[stat] if index is not None else []:
+            c = cmap(norm(math.log10(float(result["intensity_factor"]))))
+            samples = _samples(cache, result, len(points))
+            unread += samples is None
+            ellipse = _draw(ax, samples, index, _patch(result, index), c, xs, ys, lw=1.8)
+            undefined += ellipse is None
+            if ellipse is not None:
+                xs.extend(ellipse[0]), ys.extend(ellipse[1])
+        handles = [_entry("1 σ ellipse (colour: log₁₀ F)", color="0.3", lw=1.8, linestyle="-")]
+        handles += _black(ax, black_xy, stat, xs, ys) + _count(undefined, f"ellipses (F) {UNDEF}")
+        handles += _count(unread, "frame file(s) unreadable: samples not shown")
+        _zoom(ax, xs, ys, min_span=0.01)
+        ax.grid(alpha=0.3)
+        ax.legend(handles=handles, fontsize=8, loc="best")
+    fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=list(axes), label="log₁₀ F (intensity factor)",
+                 shrink=0.8)
+    return fig
+
+
+def _fig_lines(name, series, points, key, title, ylabel, logy=False, mean=False):
+    """One line per data point of ``patch[key]`` against F; with ``mean``, faint lines and their mean in black.
+
+    ``logy=None`` chooses a log y-axis when the positive values span more than a factor 100.
+    """
+    fig, axes = _panels(f"{name}: {title}")
+    for ax, stat in zip(axes, STATISTICS):
+        table = [[(float(r["intensity_factor"]), _num(_patch(r, j).get(key))) for r in series[stat]]
+                 for j in range(len(points))]
+        positive = [v for row in table for _, v in row if v is not None and v > 0]
+        log = (len(positive) > 1 and max(positive) > 100 * min(positive)) if logy is None else logy
+        undefined, by_f = 0, {}
+        for point, row in zip(points, table):
+            good = [(f, v) for f, v in row if v is not None and (v > 0 or not log)]
+            undefined += len(row) - len(good)
+            for f, v in good:
+                by_f.setdefault(f, []).append(v)
+            if good:
+                ax.plot(*np.array(good).T, "-o", color=_colour(point.number), ms=3, lw=1.0 if mean else 1.4,
+                        alpha=0.5 if mean else 1.0)
+        handles = [_entry("per data point", color="0.5", alpha=0.5, linestyle="-")] if mean else []
+        if mean and by_f:
+            ax.plot(sorted(by_f), [np.mean(by_f[f]) for f in sorted(by_f)], "-o", color="k", lw=2.8, ms=5)
+            handles.append(_entry("mean over data points", color="k", lw=2.8, marker="o", linestyle="-"))
+        _f_axes(ax, ylabel)
+        if log:
+            ax.set_yscale("log")
+        elif key == "angle_deg":
+            ax.set_ylim(-92, 92)
+        handles += _count(undefined, f"values (point × F) {UNDEF}")
+        if handles:
+            ax.legend(handles=handles, fontsize=8, loc="best")
+    _point_legend(fig, points)
+    return fig
+
+
+def scenario_figures(name, results_by_stats, points, black_xy, out_dir, magnified_point=3) -> dict:
+    """Write the figures of one scenario (the paper's Figs. 4–6), paper and pixel statistics side by side.
+
+    Parameters
+    ----------
+    name : str
+        Scenario name, the files' prefix (e.g. ``"scenario1"``).
+    results_by_stats : dict of {str: list of dict}
+        ``"paper"`` and ``"pixel"``: per frame (one per F) the analysis result, with ``frame_file``,
+        ``intensity_factor`` and ``patches`` (one record per data point, in point order).
+    points : list of DataPoint
+        The data points, in the order of the patch records.
+    black_xy : dict of {str: tuple of float or None}
+        The camera black point's xy per statistics (None without dark current).
+    out_dir : path-like
+        Folder for the PNG files (created if missing).
+    magnified_point : int, optional
+        ``DataPoint.number`` of the point shown magnified (Fig. 4b).
+
+    Returns
+    -------
+    dict of {str: str}
+        Figure key → file name: ``samples``, ``centres``, ``magnified``, ``angle``, ``size``, ``delta_e``
+        (files ``{name}_{key}.png``).
+    """
+    points = list(points)
+    series = {stat: _series((results_by_stats or {}).get(stat)) for stat in STATISTICS}
+    cache: dict = {}
+    figures = {
+        "samples": _fig_samples(name, series, points, black_xy, cache),
+        "centres": _fig_centres(name, series, points, black_xy),
+        "magnified": _fig_magnified(name, series, points, black_xy, cache, magnified_point),
+        "angle": _fig_lines(name, series, points, "angle_deg", "inclination of the ellipses' major axis",
+                            "angle of major axis to x axis (deg)"),
+        "size": _fig_lines(name, series, points, "size_xy", "ellipse size √(a² + b²) (1 σ)",
+                           "ellipse size (xy units)", logy=True),
+        "delta_e": _fig_lines(name, series, points, "delta_e_ab_mean", "mean ΔE*ab of the samples to the F = 1 "
+                              "colour", "ΔE*ab (CIELAB units)", logy=None, mean=True),
+    }
+    return {key: _save(fig, out_dir, f"{name}_{key}.png") for key, fig in figures.items()}
+
+
+def _snr_panel(ax, rows):
+    """ΔSNR against F for one statistics × channel: thin model lines, empirical markers, thick model mean."""
+    rows = [r for r in rows if (_num(r.get("intensity_factor")) or 0) > 0 and r.get("point") is not None]
+    if not rows:
+        return ax.text(0.5, 0.5, "no data", transform=ax.transAxes, ha="center", va="center", color="0.4")
+    notes = []
+    for kind, style in (("model", dict(ls="-", lw=0.9)), ("empirical", dict(ls="none", marker="o", ms=4, mfc="none"))):
+        values = [(int(r["point"]), float(r["intensity_factor"]), _num(r.get(f"delta_snr_{kind}_pct"))) for r in rows]
+        notes += _count(sum(v is None for *_, v in values), f"{kind} values {UNDEF}")
+        good = sorted(x for x in values if x[2] is not None)
+        for number in sorted({n for n, _, _ in good}):
+            ax.plot(*np.array([(f, v) for n, f, v in good if n == number]).T, color=_colour(number), alpha=0.8,
+                    **style)
+        if kind == "model" and good:
+            fs = sorted({f for _, f, _ in good})
+            ax.plot(fs, [np.mean([v for _, g, v in good if g == f]) for f in fs], color="k", lw=2.8)
+    ax.axhline(0.0, color="0.6", lw=0.8)
+    if notes:
+        ax.legend(handles=notes, fontsize=7, loc="best")
+
+
+def snr_figures(rows, out_dir) -> dict:
+    """Write the SNR sensitivity figures (the paper's Figs. 7–9), one per variant.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Keys ``statistics`` ('paper'/'pixel'), ``variant`` ('read+10%', 'dark+10%', 'quantisation-off'),
+        ``intensity_factor``, ``point`` (int), ``channel`` ('R'/'G'/'B'), ``delta_snr_model_pct`` and
+        ``delta_snr_empirical_pct`` (float or None; unit: %).
+    out_dir : path-like
+        Folder for the PNG files (created if missing).
+
+    Returns
+    -------
+    dict of {str: str}
+        ``snr_read``, ``snr_dark``, ``snr_quantisation`` (and ``snr_<slug>`` for any other variant) → file
+        name ``<key>.png``. Known variants without rows still get a figure, marked "no data".
+    """
+    rows = list(rows or [])
+    variants = dict(SNR_VARIANTS)
+    for row in rows:
+        variant = str(row.get("variant"))
+        variants.setdefault(variant, "snr_" + "".join(ch if ch.isalnum() else "_" for ch in variant).strip("_"))
+    figures = {}
+    for variant, key in variants.items():
+        fig, axes = plt.subplots(2, 3, figsize=(16, 8.5), squeeze=False, layout="constrained")
+        fig.suptitle(f"SNR change ΔSNR = 100 (SNR₁ − SNR₂) / SNR₁ for {variant}", fontsize=13)
+        subset = [r for r in rows if str(r.get("variant")) == variant]
+        for a, stat in enumerate(STATISTICS):
+            for b, channel in enumerate(CHANNELS):
+                ax = axes[a][b]
+                _snr_panel(ax, [r for r in subset if r.get("statistics") == stat and r.get("channel") == channel])
+                ax.set_title(f"{stat} statistics, channel {channel}", fontsize=11)
+                _f_axes(ax, "ΔSNR (%)")
+        numbers = sorted({int(r["point"]) for r in subset if r.get("point") is not None})
+        handles = [_entry("model, per point", color="0.4", lw=0.9, linestyle="-"),
+                   _entry("empirical, per point", color="0.4", marker="o", mfc="none"),
+                   _entry("model, mean over points", color="k", lw=2.8, linestyle="-")]
+        handles += [_entry(f"point {n}", color=_colour(n), lw=2, linestyle="-") for n in numbers]
+        fig.legend(handles=handles, loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=8)
+        figures[key] = _save(fig, out_dir, f"{key}.png")
+    return figures
