@@ -23,7 +23,7 @@ from camsim.errors import CamsimError
 CMFS_NAME = "CIE 1931 2 Degree Standard Observer"
 
 
-def _colour():
+def import_colour():
     """Import colour-science lazily and quietly (its import is slow and warns about optional packages)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -72,7 +72,7 @@ class WavelengthGrid:
 
     def shape(self):
         """The grid as a ``colour.SpectralShape``."""
-        return _colour().SpectralShape(self.start_nm, self.end_nm, self.step_nm)
+        return import_colour().SpectralShape(self.start_nm, self.end_nm, self.step_nm)
 
 
 def _check_values(values: np.ndarray, what: str, *, allow_negative: bool = False) -> np.ndarray:
@@ -105,7 +105,7 @@ def align_to_grid(wavelengths_nm, values, grid: WavelengthGrid, what: str, *, ze
     -------
     numpy.ndarray, shape (N,) or (N, C)
     """
-    colour = _colour()
+    colour = import_colour()
     wl = _check_values(wavelengths_nm, f"{what}: wavelengths")
     vals = _check_values(values, what)
     if wl.ndim != 1 or wl.size < 2 or np.any(np.diff(wl) <= 0):
@@ -137,12 +137,12 @@ def _sd_on_grid(sd, grid: WavelengthGrid, what: str, *, zero_outside: bool = Fal
 
 def illuminant_names() -> list[str]:
     """Names of the illuminants colour-science ships (``colour.SDS_ILLUMINANTS``)."""
-    return sorted(_colour().SDS_ILLUMINANTS.keys())
+    return sorted(import_colour().SDS_ILLUMINANTS.keys())
 
 
 def illuminant_spd(name: str, grid: WavelengthGrid) -> np.ndarray:
     """Relative spectral power distribution of a colour-science illuminant on ``grid``, shape (N,)."""
-    sds = _colour().SDS_ILLUMINANTS
+    sds = import_colour().SDS_ILLUMINANTS
     if name not in sds:
         raise CamsimError(f"unknown illuminant {name!r}; known: {', '.join(sorted(sds))}")
     return _sd_on_grid(sds[name], grid, f"illuminant {name!r}")
@@ -161,7 +161,7 @@ def reflectance_set(name_or_csv: str, grid: WavelengthGrid, base_dir: Path | Non
     reflectances : numpy.ndarray, shape (K, N)
         Reflectance factor, unitless.
     """
-    colour = _colour()
+    colour = import_colour()
     if name_or_csv in colour.SDS_COLOURCHECKERS:
         chart = colour.SDS_COLOURCHECKERS[name_or_csv]
         names = list(chart.keys())
@@ -180,7 +180,7 @@ def reflectance_set(name_or_csv: str, grid: WavelengthGrid, base_dir: Path | Non
 
 def camera_names() -> list[str]:
     """Names of the camera sensitivity sets colour-science ships (``colour.MSDS_CAMERA_SENSITIVITIES``)."""
-    return sorted(_colour().MSDS_CAMERA_SENSITIVITIES.keys())
+    return sorted(import_colour().MSDS_CAMERA_SENSITIVITIES.keys())
 
 
 def camera_sensitivities(name_or_csv: str, grid: WavelengthGrid, base_dir: Path | None = None):
@@ -193,7 +193,7 @@ def camera_sensitivities(name_or_csv: str, grid: WavelengthGrid, base_dir: Path 
     sensitivities : numpy.ndarray, shape (3, N)
         Relative sensitivity, unitless; zero outside the measured range.
     """
-    colour = _colour()
+    colour = import_colour()
     if name_or_csv in colour.MSDS_CAMERA_SENSITIVITIES:
         msds = colour.MSDS_CAMERA_SENSITIVITIES[name_or_csv]
         sens = align_to_grid(msds.wavelengths, msds.values, grid, f"camera {name_or_csv!r}", zero_outside=True)
@@ -216,8 +216,22 @@ def camera_sensitivities(name_or_csv: str, grid: WavelengthGrid, base_dir: Path 
 
 def cmfs_on_grid(grid: WavelengthGrid) -> np.ndarray:
     """CIE 1931 2° colour-matching functions x̄, ȳ, z̄ on ``grid``, shape (3, N)."""
-    cmfs = _colour().MSDS_CMFS[CMFS_NAME]
-    return align_to_grid(cmfs.wavelengths, cmfs.values, grid, "CIE 1931 CMFs", zero_outside=True).T
+    return cmfs_at(grid.wavelengths_nm)
+
+
+def cmfs_at(wavelengths_nm) -> np.ndarray:
+    """CIE 1931 2° colour-matching functions at any wavelengths (nm), shape (3, N); zero outside 360–830 nm.
+
+    Linear interpolation with ``colour.LinearInterpolator``.
+    """
+    colour = import_colour()
+    cmfs = colour.MSDS_CMFS[CMFS_NAME]
+    wl = np.asarray(wavelengths_nm, dtype=np.float64)
+    out = np.zeros((3, wl.size))
+    inside = (wl >= cmfs.wavelengths[0]) & (wl <= cmfs.wavelengths[-1])
+    for j in range(3):
+        out[j, inside] = colour.LinearInterpolator(cmfs.wavelengths, cmfs.values[:, j])(wl[inside])
+    return out
 
 
 def _resolve(path_text: str, base_dir: Path | None) -> Path:
@@ -258,4 +272,4 @@ def read_spectra_csv(path: Path):
 
 def reflectance_set_names() -> list[str]:
     """Names of the ColorChecker reflectance sets colour-science ships (``colour.SDS_COLOURCHECKERS``)."""
-    return sorted(_colour().SDS_COLOURCHECKERS.keys())
+    return sorted(import_colour().SDS_COLOURCHECKERS.keys())

@@ -8,22 +8,13 @@ Samples are rows: camera DN vectors and XYZ vectors have shape (..., 3), with th
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
-PLANCK_J_S = 6.626176e-34  # h, as in the paper
-LIGHT_SPEED_M_S = 2.997925e8  # c, as in the paper
-CMFS_NAME = "CIE 1931 2 Degree Standard Observer"
+from camsim.photons import LIGHT_SPEED_M_S, PLANCK_J_S
+from camsim.spectra import cmfs_at
+
 MAX_CONDITION = 1e12
 """Largest condition number of the matrix inverted before a camera is called singular."""
-
-
-def _colour():
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        import colour
-    return colour
 
 
 def matrix_condition(matrix) -> float:
@@ -41,20 +32,7 @@ def matrix_condition(matrix) -> float:
     return float(sv[0] / sv[-1])
 
 
-def cmfs_on_grid(wavelengths_nm) -> np.ndarray:
-    """CIE 1931 2° colour-matching functions (x̄, ȳ, z̄) at ``wavelengths_nm``, shape (3, N).
-
-    Linear interpolation with ``colour.LinearInterpolator`` (as :mod:`camsim.spectra` does), zero outside the
-    tabulated 360–830 nm. Any grid, uniform or not.
-    """
-    colour = _colour()
-    cmfs = colour.MSDS_CMFS[CMFS_NAME]
-    wl = np.asarray(wavelengths_nm, dtype=np.float64)
-    out = np.zeros((3, wl.size))
-    inside = (wl >= cmfs.wavelengths[0]) & (wl <= cmfs.wavelengths[-1])
-    for j in range(3):
-        out[j, inside] = colour.LinearInterpolator(cmfs.wavelengths, cmfs.values[:, j])(wl[inside])
-    return out
+cmfs_on_grid = cmfs_at  # CIE 1931 2° CMFs at the frame's wavelengths, shape (3, N)
 
 
 def _radiance_sensitivity(qe, wl, dn_per_electron):

@@ -17,19 +17,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-CMFS_NAME = "CIE 1931 2 Degree Standard Observer"
+from camsim.spectra import CMFS_NAME, import_colour
 
-
-def _colour():
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        import colour
-    return colour
 
 
 def d65_white_xy() -> np.ndarray:
     """xy of the CIE 1931 2° D65 white point (``colour.CCS_ILLUMINANTS``), shape (2,)."""
-    return np.asarray(_colour().CCS_ILLUMINANTS[CMFS_NAME]["D65"], dtype=np.float64)
+    return np.asarray(import_colour().CCS_ILLUMINANTS[CMFS_NAME]["D65"], dtype=np.float64)
 
 
 def d65_white_xyz_y100() -> np.ndarray:
@@ -62,7 +56,7 @@ def lab_scaled_to_y100(xyz, return_valid=False):
     valid : numpy.ndarray of bool, shape (n,)
         Only with ``return_valid``: which input rows the Lab values belong to.
     """
-    colour = _colour()
+    colour = import_colour()
     xyz = _rows(xyz)
     y = xyz[:, 1]
     valid = np.all(np.isfinite(xyz), axis=1) & (y > 0)
@@ -138,7 +132,7 @@ def delta_e_5step(xyz, reference_lab, weights=None) -> DeltaE:
     -------
     DeltaE
     """
-    colour = _colour()
+    colour = import_colour()
     ref = np.asarray(reference_lab, dtype=np.float64)
     if ref.shape != (3,) or not np.all(np.isfinite(ref)):
         raise ValueError(f"reference_lab must be 3 finite numbers, got {reference_lab!r}")

@@ -16,12 +16,12 @@ from camsim.expected import expected_signal
 from camsim.experiments.datapoints import data_points, points_radiance
 from camsim.frame_files import FrameInfo, write_frame
 from camsim.io.atomic import write_json_atomic
-from camsim.photons import KM_LM_PER_W, photon_radiance
+from camsim.photons import photon_radiance
 from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
 from camsim.render import frame_seed_sequence, render_frame
+from camsim.run import patch_xyz
 from camsim.scene import load_scene
 from camsim.sensor import SensorParams
-from camsim.spectra import cmfs_on_grid
 
 #: The photon statistics every experiment runs under, and the sampling method used for each: ``paper`` draws
 #: per bin (Eq. 4 literally, with the channels' shared photon counts); ``pixel`` draws once per pixel (exact).
@@ -70,7 +70,7 @@ def render_series(prep: Prepared, sensor: SensorParams, factors, statistics: str
     """Render one frame per F into ``out_dir`` (DNG/EXR/JSON + manifest); returns the folder."""
     out_dir.mkdir(parents=True, exist_ok=True)
     method = STATISTICS_METHODS[statistics]
-    xyz = KM_LM_PER_W * prep.grid.step_nm * (prep.radiance.radiance[: len(prep.points)] @ cmfs_on_grid(prep.grid).T)
+    xyz = patch_xyz(prep.radiance, prep.grid)
     matrix = color_matrix_xyz_to_camera(prep.qe, prep.grid)
     neutral = as_shot_neutral("D65", prep.qe, prep.grid)
     frames = []
