@@ -73,9 +73,15 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--statistics", choices=("pixel", "paper"),
                         help="photon statistics: 'pixel' = exact Poisson electrons per pixel (default); "
                              "'paper' = Eq. 4 literally, Poisson photons per s·m²·sr, far smaller shot noise")
-    render.add_argument("--method", choices=("poisson", "spectral"),
-                        help="sampling: 'poisson' = one draw per pixel and channel (default); "
-                             "'spectral' = per-wavelength-bin draws (N× slower, the paper's literal method)")
+    render.add_argument("--method", choices=("poisson", "spectral", "gaussian", "auto"),
+                        help="sampling: 'poisson' = one exact draw per pixel and channel (default); 'spectral' = "
+                             "per-wavelength-bin draws (N× slower, the paper's literal method); 'gaussian' = one "
+                             "moment-matched normal per pixel and channel (fast, wrong at low counts); 'auto' = "
+                             "per spectrum and channel the Gaussian where its KS distance to the exact law is "
+                             "within --tolerance, else poisson")
+    render.add_argument("--tolerance", metavar="KS", type=_positive_float,
+                        help="auto's tolerance: the largest Kolmogorov–Smirnov distance (unitless, 0–1) between "
+                             "a pixel value's exact law and its Gaussian replacement (default 0.01)")
     render.add_argument("--preset", choices=sorted(PRESETS),
                         help="sensor preset: paper-table1 (Table I, all stages on; default), paper-photon-dark "
                              "(photon + dark noise only), ideal (photon noise only, output in electrons)")
@@ -155,7 +161,7 @@ def _apply_overrides(scene, args):
         changes["intensity_factors"] = tuple(args.intensity)
     if args.illuminant:
         changes["illuminants"] = tuple(args.illuminant)
-    for key in ("statistics", "method", "seed"):
+    for key in ("statistics", "method", "seed", "tolerance"):
         if getattr(args, key) is not None:
             changes[key] = getattr(args, key)
     if args.camera is not None:  # a CSV named on the command line is relative to the working directory

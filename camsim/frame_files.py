@@ -69,6 +69,8 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
                 "clean_dn": (ex.clean_e[index] * k).tolist(),
                 "xyz_cd_m2": None if info.patch_xyz is None else info.patch_xyz[index].tolist(),
             }
+            | ({} if frame.plan is None else {"sampling": frame.plan.names(index),
+                                              "gaussian_ks": frame.plan.predicted_ks[index].tolist()}),
         )
     height, width = frame.labels.shape
     return {
@@ -79,6 +81,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
         "seed": info.seed,
         "photon_statistics": info.photon_statistics,
         "method": info.method,
+        "auto_tolerance_ks": None if frame.plan is None else frame.plan.tolerance,
         "camera": info.camera,
         "sensitivity_basis": info.sensitivity_basis,
         "reflectances": info.reflectances,
@@ -114,6 +117,9 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
             "signal_var_e2": "e-^2 (variance of the signal electrons under the photon statistics)",
             "clean_dn": "DN (expected value after saturation, before read noise and quantisation)",
             "xyz_cd_m2": "CIE 1931 XYZ of the patch's light at this F (Y = luminance, cd/m^2)",
+            "sampling": "gaussian and auto methods: how each channel of the patch was drawn (poisson = exact)",
+            "gaussian_ks": "per channel, the KS distance a Gaussian draw has to the exact law (auto takes the "
+                           "Gaussian where it is within auto_tolerance_ks)",
             "qe_e_m2_sr_per_photon": "e- m^2 sr / photon, rows R, G, B on wavelengths_nm",
             "rect_xywh": "pixels: x, y of the top-left corner, width, height",
             "exr_channels": "R, G, B: noisy DN before quantisation; clean.R, clean.G, clean.B: expected DN",

@@ -19,7 +19,13 @@ from camsim.camera import Camera, absolute_qe
 from camsim.expected import ExpectedSignal, expected_signal
 from camsim.photons import photon_radiance
 from camsim.radiance import SceneRadiance
-from camsim.sampling import draw_electrons
+from camsim.errors import CamsimError
+from camsim.gaussian import DEFAULT_TOLERANCE, fill_channel, plan_methods
+from camsim.sampling import METHODS, draw_electrons
+
+#: Methods drawn by the fused Gaussian path, and every method camsim knows.
+FUSED_METHODS = ("gaussian", "auto")
+ALL_METHODS = (*METHODS, *FUSED_METHODS)
 from camsim.sensor import (
     SensorParams,
     add_read_noise_e,
@@ -55,6 +61,7 @@ class Frame:
     labels: np.ndarray
     expected: ExpectedSignal
     sensor: SensorParams
+    plan: object = None  # camsim.gaussian.GaussianPlan for the gaussian and auto methods
 
     def clean_dn(self) -> np.ndarray:
         """Expected value of ``noisy_dn`` per pixel: G · G_Ve⁻ · E[f_sat(S + D)], shape (3, H, W), float32."""
@@ -96,6 +103,7 @@ def render_frame(
     method: str = "poisson",
     rng: np.random.Generator | np.random.SeedSequence | int | None = None,
     workers: int | None = None,
+    tolerance: float | None = None,
 ) -> Frame:
     """Render one frame: per-pixel noise on top of the per-spectrum expected signal.
 
@@ -107,12 +115,14 @@ def render_frame(
         From :func:`frame_expected` or :func:`camsim.expected.expected_signal`.
     sensor : SensorParams
     statistics : {'pixel', 'paper'}
-    method : {'poisson', 'spectral'}
+    method : {'poisson', 'spectral', 'gaussian', 'auto'}
     rng : numpy.random.Generator, numpy.random.SeedSequence or int, optional
         Seed of the frame. Each row block draws from its own child (``SeedSequence.spawn`` or
         ``Generator.spawn``), so the output does not depend on the number of threads.
     workers : int, optional
         Threads (default: the number of cores). The output does not depend on it.
+    tolerance : float, optional
+        ``auto``'s KS tolerance (default :data:`camsim.gaussian.DEFAULT_TOLERANCE`).
     """
     height, width = labels.shape
     rows = max(1, BLOCK_PIXELS // width)
@@ -127,6 +137,12 @@ def render_frame(
 
     per_thread = threading.local()  # one scratch block per thread, reused: fresh pages cost more than the maths
     read_noise = sensor.read_noise and sensor.read_noise_e > 0
+    plan = None
+    if method in FUSED_METHODS:
+        plan = plan_methods(expected, sensor, statistics, method,
+                            DEFAULT_TOLERANCE if tolerance is None else tolerance)
+    elif method not in METHODS:
+        raise CamsimError(f"unknown sampling method {method!r}; methods: {', '.join(ALL_METHODS)}")
 
     def run_block(index: int) -> None:
         r0 = starts[index]
@@ -137,6 +153,13 @@ def render_frame(
         scratch = per_thread.scratch[: r1 - r0]
         block_rng = generators[index]
         block = noisy[:, r0:r1]  # work in place in the output: electrons first, DN at the end
+        if plan is not None:  # gaussian / auto: every stage in one pass per channel, straight to DN
+            for c in range(3):
+                fill_channel(block[c], labels[r0:r1], plan, expected, sensor, statistics, c, block_rng, scratch,
+                             per_thread.work)
+                if digital is not None:
+                    quantise_dn(block[c], sensor.bits, out=digital[c, r0:r1], scratch=scratch)
+            return
         draw_electrons(labels[r0:r1], expected, sensor, statistics, method, block_rng, block)
         for c in range(3):
             e = block[c]
@@ -155,4 +178,4 @@ def render_frame(
     else:
         with ThreadPoolExecutor(max_workers=workers) as pool:
             list(pool.map(run_block, range(len(starts))))
-    return Frame(noisy, digital, labels, expected, sensor)
+    return Frame(noisy, digital, labels, expected, sensor, plan)

@@ -16,8 +16,7 @@ from camsim.io.dng import MIN_SIZE
 from camsim.photons import KM_LM_PER_W
 from camsim.radiance import scene_radiance
 from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
-from camsim.render import frame_expected, frame_seed_sequence, render_frame
-from camsim.sampling import METHODS
+from camsim.render import ALL_METHODS, frame_expected, frame_seed_sequence, render_frame
 from camsim.scene import Scene
 from camsim.spectra import cmfs_on_grid, illuminant_spd
 
@@ -32,8 +31,8 @@ def patch_xyz(radiance, grid) -> np.ndarray:
 
 def check_scene(scene: Scene) -> None:
     """Fail early, before any frame is written, on names that do not resolve and sizes that cannot be written."""
-    if scene.method not in METHODS:
-        raise CamsimError(f"unknown sampling method {scene.method!r}; methods: {', '.join(METHODS)}")
+    if scene.method not in ALL_METHODS:
+        raise CamsimError(f"unknown sampling method {scene.method!r}; methods: {', '.join(ALL_METHODS)}")
     for name in scene.illuminants:
         illuminant_spd(name, scene.grid)
     if scene.chart is not None and scene.sensor.quantisation and min(scene.width, scene.height) < MIN_SIZE:
@@ -68,7 +67,7 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
                            as_shot_neutral(illuminant, expected.qe, scene.grid), patch_xyz(radiance, scene.grid))
         frame = render_frame(
             radiance.labels, expected, sensor, statistics=scene.statistics, method=scene.method,
-            rng=frame_seed_sequence(scene.seed, illuminant, factor), workers=workers,
+            rng=frame_seed_sequence(scene.seed, illuminant, factor), workers=workers, tolerance=scene.tolerance,
         )
         info = FrameInfo(
             scene=scene.name,

@@ -78,12 +78,6 @@ def standard_normal_f32(rng: np.random.Generator, out: np.ndarray, work: np.ndar
     return out
 
 
-def _dark(rng, out_c, dark_c: float):
-    """Add D ~ Poisson(D̄) to one channel in place."""
-    if dark_c > 0:
-        out_c += rng.poisson(dark_c, size=out_c.shape)
-
-
 #: Below this mean number of pixels per run of equal labels, the label map is drawn pixel by pixel (a gather
 #: of per-pixel means); at or above it, run by run with one scalar mean per run.
 MIN_PIXELS_PER_RUN = 64
@@ -113,36 +107,47 @@ def label_runs(labels: np.ndarray):
     return runs
 
 
-def _fill_poisson(rng, out_c, labels, runs, lam, scale=None):
-    """out_c = scale · Poisson(lam) with per-label ``lam`` (and ``scale``), run by run when ``runs`` is given."""
-    if runs is None:
-        draws = poisson(rng, lam[labels])
-        out_c[...] = draws if scale is None else scale[labels] * draws
-        return
-    for r0, r1, c0, c1, k in runs:
-        draws = poisson(rng, lam[k], size=(r1 - r0, c1 - c0))
-        out_c[r0:r1, c0:c1] = draws if scale is None else scale[k] * draws
+def exact_charge(rng, expected: ExpectedSignal, sensor: SensorParams, statistics: str, c: int, index, size=None):
+    """Collected charge S + D of one channel, drawn exactly, for pixels of spectrum ``index``.
+
+    Parameters
+    ----------
+    c : int
+        Channel.
+    index : int or numpy.ndarray of int
+        One label (then ``size`` gives the shape) or one label per pixel.
+
+    Returns
+    -------
+    numpy.ndarray
+        Unit: e⁻. ``pixel`` statistics: one draw Poisson(S̄ + D̄) per pixel; ``paper``: s · Poisson(S̄ / s) plus
+        Poisson(D̄); photon noise off: S̄ plus Poisson(D̄).
+    """
+    S = expected.signal_e[index, c]
+    D = expected.dark_e[c]
+    shape = size if size is not None else np.shape(index)
+    if sensor.photon_noise and statistics == "pixel":
+        return poisson(rng, S + D, size=size)  # one draw covers photons and dark current
+    if sensor.photon_noise:
+        var = expected.signal_var_e2[index, c]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = np.where(S > 0, var / S, 0.0)
+            lam = np.where(step > 0, S / step, 0.0)
+        charge = step * poisson(rng, lam, size=size)
+    else:
+        charge = np.broadcast_to(np.asarray(S, dtype=np.float64), shape)
+    return charge + rng.poisson(D, size=shape) if D > 0 else charge
 
 
 def draw_poisson(labels, expected: ExpectedSignal, sensor: SensorParams, statistics: str, rng, out):
     """One draw per pixel and channel (plus one for dark current under ``paper`` statistics)."""
-    S = expected.signal_e
-    dark = expected.dark_e
-    runs = label_runs(labels) if sensor.photon_noise else None
+    runs = label_runs(labels)
     for c in range(3):
-        out_c = out[c]
-        if not sensor.photon_noise:
-            out_c[...] = S[:, c].astype(np.float32)[labels]
-            _dark(rng, out_c, dark[c])
-        elif statistics == "pixel":
-            _fill_poisson(rng, out_c, labels, runs, S[:, c] + dark[c])
-        else:
-            var = expected.signal_var_e2[:, c]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                step = np.where(S[:, c] > 0, var / S[:, c], 0.0)
-                lam = np.where(step > 0, S[:, c] / step, 0.0)
-            _fill_poisson(rng, out_c, labels, runs, lam, step)
-            _dark(rng, out_c, dark[c])
+        if runs is None:
+            out[c][...] = exact_charge(rng, expected, sensor, statistics, c, labels)
+            continue
+        for r0, r1, c0, c1, label in runs:
+            out[c][r0:r1, c0:c1] = exact_charge(rng, expected, sensor, statistics, c, label, (r1 - r0, c1 - c0))
     return out
 
 
@@ -170,7 +175,8 @@ def draw_spectral(labels, expected: ExpectedSignal, sensor: SensorParams, statis
         for c in range(3):
             out_flat[c][start : start + chunk] = signal[:, c]
     for c in range(3):
-        _dark(rng, out[c], expected.dark_e[c])
+        if expected.dark_e[c] > 0:
+            out[c] += rng.poisson(expected.dark_e[c], size=out[c].shape)
     return out
 
 

@@ -73,6 +73,7 @@ class Scene:
     sensor_overrides: tuple = ()
     statistics: str = "pixel"
     method: str = "poisson"
+    tolerance: float = 0.01
     seed: int = 0
     base_dir: Path | None = None
 
@@ -90,6 +91,8 @@ class Scene:
             raise CamsimError(f"normalisation must be one of {NORMALISATIONS}, got {self.normalisation!r}")
         if self.statistics not in STATISTICS:
             raise CamsimError(f"photon statistics must be one of {STATISTICS}, got {self.statistics!r}")
+        if not (isinstance(self.tolerance, float) and 0 < self.tolerance < 1):
+            raise CamsimError(f"auto tolerance must be a KS distance in (0, 1), got {self.tolerance!r}")
         if not (isinstance(self.seed, int) and self.seed >= 0):
             raise CamsimError(f"seed must be a non-negative integer, got {self.seed!r}")
         self.sensor  # validate the preset and overrides now
@@ -222,7 +225,7 @@ def load_scene(path: str | Path) -> Scene:
     if not isinstance(preset_name, str):
         raise CamsimError(f"{where}: [sensor] preset must be a name")
 
-    render = _table(doc, "render", {"statistics", "method", "seed"}, where)
+    render = _table(doc, "render", {"statistics", "method", "seed", "tolerance"}, where)
     return Scene(
         name=_typed(doc, "name", str, path.stem, where),
         grid=grid,
@@ -241,6 +244,7 @@ def load_scene(path: str | Path) -> Scene:
         sensor_overrides=tuple(sorted(sensor_table.items())),
         statistics=_typed(render, "statistics", str, "pixel", where),
         method=_typed(render, "method", str, "poisson", where),
+        tolerance=_typed(render, "tolerance", float, 0.01, where),
         seed=_typed(render, "seed", int, 0, where),
         base_dir=base_dir,
     )
