@@ -69,7 +69,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
                 "clean_dn": (ex.clean_e[index] * k).tolist(),
                 "xyz_cd_m2": None if info.patch_xyz is None else info.patch_xyz[index].tolist(),
             }
-            | ({} if frame.plan is None else {"sampling": frame.plan.names(index),
+            | ({} if info.method not in ("gaussian", "auto") else {"sampling": frame.plan.names(index),
                                               "gaussian_ks": frame.plan.predicted_ks[index].tolist()}),
         )
     height, width = frame.labels.shape
@@ -81,7 +81,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
         "seed": info.seed,
         "photon_statistics": info.photon_statistics,
         "method": info.method,
-        "auto_tolerance_ks": None if frame.plan is None else frame.plan.tolerance,
+        "auto_tolerance_ks": frame.plan.tolerance if info.method == "auto" else None,
         "camera": info.camera,
         "sensitivity_basis": info.sensitivity_basis,
         "reflectances": info.reflectances,

@@ -63,7 +63,7 @@ def ks_gaussian(lam_poisson: float, sigma_gauss: float) -> float:
     n = np.arange(max(0, int(lam - 12 * np.sqrt(lam) - 12)), int(lam + 12 * np.sqrt(lam) + 13))
     pmf = stats.poisson.pmf(n, lam)
     if sigma > 0:
-        x = lam + sd * np.linspace(-8, 8, 1601)
+        x = lam + sd * np.linspace(-8, 8, 801)
         exact = pmf @ stats.norm.cdf((x[None, :] - n[:, None]) / sigma)
         gauss = stats.norm.cdf((x - lam) / sd)
         return float(np.max(np.abs(exact - gauss)))
@@ -101,12 +101,15 @@ class GaussianPlan:
         KS distance the Gaussian has for that spectrum and channel, chosen or not (0 where it is exact: a
         saturated spectrum).
     tolerance : float or None
-        ``auto``'s tolerance; None for the forced ``gaussian`` method.
+        ``auto``'s tolerance; None for the ``gaussian`` and ``poisson`` methods.
+    needs_clip : numpy.ndarray of bool
+        Whether the full well can be reached (mean + 10 σ + 10 e⁻); where not, the exact path skips the clip.
     """
 
     kind: np.ndarray
     predicted_ks: np.ndarray
     tolerance: float | None
+    needs_clip: np.ndarray | None = None
 
     def names(self, index: int) -> list:
         return [KIND_NAMES[int(k)] for k in self.kind[index]]
@@ -114,7 +117,7 @@ class GaussianPlan:
 
 def plan_methods(expected: ExpectedSignal, sensor: SensorParams, statistics: str, method: str,
                  tolerance: float = DEFAULT_TOLERANCE) -> GaussianPlan:
-    """Decide per spectrum and channel (``method`` is ``gaussian`` or ``auto``)."""
+    """Decide per spectrum and channel (``method`` is ``poisson``, ``gaussian`` or ``auto``)."""
     read = sensor.read_noise_e if sensor.read_noise else 0.0
     lam = expected.signal_e + expected.dark_e
     var_charge = expected.total_var_e2
@@ -123,34 +126,40 @@ def plan_methods(expected: ExpectedSignal, sensor: SensorParams, statistics: str
     else:  # paper: the signal's scaled-Poisson counts are ~1e16: Gaussian already; only D is Poisson
         lam_poisson, extra_var = np.broadcast_to(expected.dark_e, lam.shape), expected.signal_var_e2
     ks = np.zeros(lam.shape)
-    sigma_g = np.sqrt(read**2 + extra_var)
-    for value in np.unique(np.round(sigma_g, 6)):  # one KS curve per distinct Gaussian part
-        where = np.round(sigma_g, 6) == value
-        ks[where] = predicted_ks(lam_poisson[where], value)
+    sigma_g = np.round(np.sqrt(read**2 + extra_var), 6)
+    for value in np.unique(sigma_g) if method != "poisson" else ():  # one KS curve per distinct Gaussian part
+        ks[sigma_g == value] = predicted_ks(lam_poisson[sigma_g == value], value)
     spread = SATURATION_MARGIN_SIGMA * np.sqrt(var_charge)
     if sensor.saturation:
         below = lam + spread <= sensor.full_well_e
         above = lam - spread >= sensor.full_well_e
     else:
         below, above = np.ones(lam.shape, bool), np.zeros(lam.shape, bool)
-    if method == "gaussian":
-        kind = np.where(above, SATURATED, np.where(below, GAUSSIAN, GAUSSIAN_CLIPPED))
-        return GaussianPlan(kind.astype(np.int8), np.where(above, 0.0, ks), None)
-    ok = below & (ks <= tolerance)
-    kind = np.where(above, SATURATED, np.where(ok, GAUSSIAN, EXACT))
-    return GaussianPlan(kind.astype(np.int8), np.where(above, 0.0, ks), tolerance)
+    # P(X ≥ mean + 10 σ + 10) < 1e-22 for these Poisson-like totals: below that, clipping cannot act
+    needs_clip = sensor.saturation & (lam + 10 * np.sqrt(var_charge) + 10 >= sensor.full_well_e)
+    if method == "poisson":
+        kind, tolerance = np.full(lam.shape, EXACT), None
+    elif method == "gaussian":
+        kind, tolerance = np.where(above, SATURATED, np.where(below, GAUSSIAN, GAUSSIAN_CLIPPED)), None
+    else:
+        kind = np.where(above, SATURATED, np.where(below & (ks <= tolerance), GAUSSIAN, EXACT))
+    return GaussianPlan(kind.astype(np.int8), np.where(above, 0.0, ks), tolerance, needs_clip)
 
 
 def fill_channel(out_c, labels, plan: GaussianPlan, expected: ExpectedSignal, sensor: SensorParams,
                  statistics: str, c: int, rng, z, work):
     """One channel of a block, in DN, by the plan: ``out_c`` (h, w) float32 is written in place.
 
-    ``z`` (h, w) float32 and ``work`` are scratch. Each pixel uses one normal from ``z`` (its Gaussian value, or
-    its read noise on the exact path); the clipped Gaussian draws a second one.
+    ``z`` (h, w) float32 and ``work`` are scratch. Each pixel uses one normal from ``z``, drawn with the read
+    noise's σ: its read noise on the exact path, or (rescaled) its whole Gaussian value; the clipped Gaussian
+    draws a second one.
     """
     k = sensor.dn_per_electron
     read = sensor.read_noise_e if sensor.read_noise else 0.0
-    standard_normal_f32(rng, z, work)
+    z_scale = read if read > 0 else 1.0
+    needs_z = read > 0 or np.any(plan.kind[:, c] != EXACT)
+    if needs_z:
+        standard_normal_f32(rng, z, work, z_scale)
     lam = expected.signal_e[:, c] + expected.dark_e[c]
     var_charge = expected.total_var_e2[:, c]
     runs = label_runs(labels)
@@ -158,30 +167,38 @@ def fill_channel(out_c, labels, plan: GaussianPlan, expected: ExpectedSignal, se
               else [(labels_of, None) for labels_of in _masks_by_kind(labels, plan.kind[:, c])])
     for where, label in pieces:
         index = label if label is not None else labels[where]
-        kind = plan.kind[label, c] if label is not None else plan.kind[index[0], c]
-        zz = z[where]
+        first = label if label is not None else index[0]
+        kind = plan.kind[first, c]
+        zz = z[where] if needs_z else None
         if kind in (GAUSSIAN, SATURATED):
             mean = lam[index] if kind == GAUSSIAN else sensor.full_well_e
             sd = np.sqrt(var_charge[index] + read**2) if kind == GAUSSIAN else read
             if label is None:
-                out_c[where] = k * (mean + sd * zz)
+                out_c[where] = k * (mean + (sd / z_scale) * zz)
             else:  # a rectangle: two in-place passes, straight into the output
                 view = out_c[where]
-                np.multiply(zz, np.float32(k * sd), out=view)
+                np.multiply(zz, np.float32(k * sd / z_scale), out=view)
                 view += np.float32(k * mean)
             continue
         if kind == GAUSSIAN_CLIPPED:
-            value = np.minimum(lam[index] + np.sqrt(var_charge[index]) * zz, sensor.full_well_e)
+            value = np.minimum(lam[index] + np.sqrt(var_charge[index]) * zz / z_scale, sensor.full_well_e)
             if read > 0:
                 value = value + read * rng.standard_normal(np.shape(zz), dtype=np.float32)
+            out_c[where] = k * value
+            continue
+        size = out_c[where].shape if label is not None else None
+        charge = exact_charge(rng, expected, sensor, statistics, c, index, size)
+        if np.any(plan.needs_clip[index, c]):
+            charge = np.minimum(charge, sensor.full_well_e)
+        if label is None:
+            out_c[where] = k * (charge + zz) if read > 0 else k * charge
+            continue
+        view = out_c[where]  # a rectangle: cast, add the read noise and scale in two passes
+        if read > 0:
+            np.add(charge, zz, out=view, dtype=np.float32, casting="unsafe")
         else:
-            size = zz.shape if label is not None else None
-            value = exact_charge(rng, expected, sensor, statistics, c, index, size)
-            if sensor.saturation:
-                value = np.minimum(value, sensor.full_well_e)
-            if read > 0:
-                value = value + read * zz
-        out_c[where] = k * value
+            view[...] = charge
+        view *= np.float32(k)
 
 
 def _masks_by_kind(labels, kinds_of_spectra):

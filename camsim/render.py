@@ -23,9 +23,9 @@ from camsim.errors import CamsimError
 from camsim.gaussian import DEFAULT_TOLERANCE, fill_channel, plan_methods
 from camsim.sampling import METHODS, draw_electrons
 
-#: Methods drawn by the fused Gaussian path, and every method camsim knows.
-FUSED_METHODS = ("gaussian", "auto")
-ALL_METHODS = (*METHODS, *FUSED_METHODS)
+#: Methods drawn in one pass per channel straight to DN (camsim.gaussian.fill_channel), and every method.
+FUSED_METHODS = ("poisson", "gaussian", "auto")
+ALL_METHODS = ("poisson", "spectral", "gaussian", "auto")
 from camsim.sensor import (
     SensorParams,
     add_read_noise_e,
@@ -61,7 +61,7 @@ class Frame:
     labels: np.ndarray
     expected: ExpectedSignal
     sensor: SensorParams
-    plan: object = None  # camsim.gaussian.GaussianPlan for the gaussian and auto methods
+    plan: object = None  # camsim.gaussian.GaussianPlan: how each spectrum and channel was drawn (not spectral)
 
     def clean_dn(self) -> np.ndarray:
         """Expected value of ``noisy_dn`` per pixel: G · G_Ve⁻ · E[f_sat(S + D)], shape (3, H, W), float32."""
@@ -153,12 +153,12 @@ def render_frame(
         scratch = per_thread.scratch[: r1 - r0]
         block_rng = generators[index]
         block = noisy[:, r0:r1]  # work in place in the output: electrons first, DN at the end
-        if plan is not None:  # gaussian / auto: every stage in one pass per channel, straight to DN
+        if plan is not None:  # poisson / gaussian / auto: every stage in one pass per channel, straight to DN
             for c in range(3):
                 fill_channel(block[c], labels[r0:r1], plan, expected, sensor, statistics, c, block_rng, scratch,
                              per_thread.work)
                 if digital is not None:
-                    quantise_dn(block[c], sensor.bits, out=digital[c, r0:r1], scratch=scratch)
+                    quantise_dn(block[c], sensor.bits, out=digital[c, r0:r1])
             return
         draw_electrons(labels[r0:r1], expected, sensor, statistics, method, block_rng, block)
         for c in range(3):
@@ -169,7 +169,7 @@ def render_frame(
                 add_read_noise_e(e, sensor.read_noise_e, block_rng, scratch, per_thread.work)
             electrons_to_dn(e, sensor.dn_per_electron, out=e)
             if digital is not None:
-                quantise_dn(e, sensor.bits, out=digital[c, r0:r1], scratch=scratch)
+                quantise_dn(e, sensor.bits, out=digital[c, r0:r1])
 
     workers = default_workers() if workers is None else max(1, int(workers))
     if workers == 1 or len(starts) == 1:

@@ -169,10 +169,10 @@ def add_read_noise_e(electrons: np.ndarray, read_noise_e: float, rng: np.random.
 
     z = scratch if scratch is not None else np.empty_like(electrons)
     if z.dtype == np.float32:
-        standard_normal_f32(rng, z, work if work is not None else np.empty(z.size // 2, np.float32))
+        standard_normal_f32(rng, z, work if work is not None else np.empty(z.size // 2, np.float32), read_noise_e)
     else:
         rng.standard_normal(out=z)
-    z *= z.dtype.type(read_noise_e)
+        z *= read_noise_e
     electrons += z
     return electrons
 
@@ -182,7 +182,7 @@ def electrons_to_dn(electrons: np.ndarray, dn_per_electron: float, out: np.ndarr
     return np.multiply(electrons, electrons.dtype.type(dn_per_electron), out=out)
 
 
-def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None, scratch=None) -> np.ndarray:
+def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None) -> np.ndarray:
     """nb-bit quantisation: the integer part of the DN, clipped to [0, 2^nb − 1] (Eq. 11).
 
     Parameters
@@ -191,19 +191,16 @@ def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None, scratc
         Unquantised digital numbers. Unit: DN.
     out : numpy.ndarray, optional
         Integer output array (uint8 for nb ≤ 8, uint16 otherwise).
-    scratch : numpy.ndarray, optional
-        Float buffer shaped like ``dn`` for the intermediate floor (avoids a temporary array).
 
     Returns
     -------
     numpy.ndarray
         Quantised digital numbers. Unit: DN.
     """
-    # clip first, then cast: for values in [0, 2^nb − 1] the cast's truncation is the floor (one pass fewer)
-    clipped = np.clip(dn, 0, 2**bits - 1, out=scratch)
+    # clip straight into the integer output: for values in [0, 2^nb − 1] the cast's truncation is the floor
     if out is None:
-        return clipped.astype(dn_dtype(bits))
-    out[...] = clipped
+        out = np.empty(np.shape(dn), dtype=dn_dtype(bits))
+    np.clip(dn, 0, 2**bits - 1, out=out, casting="unsafe")
     return out
 
 

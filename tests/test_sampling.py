@@ -42,3 +42,48 @@ def test_poisson_beyond_numpy_limit():
     big = draws[:, 1]
     assert abs(big.mean() - lam[1]) < 5 * np.sqrt(lam[1] / 4000)
     assert abs(big.var() / lam[1] - 1) < 5 * np.sqrt(2 / 4000)
+
+
+@pytest.mark.parametrize("lam", [0.5, 3.0, 30.0, 230.0, 7000.0, 4e5])
+def test_histogram_poisson_sampler_is_poisson(lam):
+    """Multinomial histogram + random order: the law, the moments and independence of iid Poisson draws."""
+    from camsim.sampling import HISTOGRAM_MIN_PIXELS_PER_VALUE, poisson_run
+
+    shape = (400, 1000)
+    assert shape[0] * shape[1] >= HISTOGRAM_MIN_PIXELS_PER_VALUE * (26 * np.sqrt(lam) + 41)
+    x = poisson_run(np.random.default_rng(int(lam * 10)), lam, shape)
+    assert x.dtype == np.float32 and x.shape == shape  # the histogram path, not numpy's sampler
+    v = x.astype(np.float64).ravel()
+    assert np.all(v == np.round(v)) and v.min() >= 0
+    n = v.size
+    assert abs(v.mean() - lam) < 5 * np.sqrt(lam / n)
+    assert abs(v.var() - lam) < 5 * lam * np.sqrt(2 / n + 1 / (lam * n))
+    # goodness of fit: bins of the support with an expected count of at least 20
+    values, counts = np.unique(v, return_counts=True)
+    lo, hi = int(max(0, lam - 6 * np.sqrt(lam) - 5)), int(lam + 6 * np.sqrt(lam) + 5)
+    edges = np.unique(np.concatenate([[-0.5], np.arange(lo, hi + 1) + 0.5, [np.inf]]))
+    observed = np.histogram(v, bins=edges)[0]
+    expected = n * np.diff(stats.poisson.cdf(np.floor(edges), lam))
+    merged_o, merged_e, acc_o, acc_e = [], [], 0, 0.0
+    for o, e in zip(observed, expected):
+        acc_o, acc_e = acc_o + o, acc_e + e
+        if acc_e >= 20:
+            merged_o.append(acc_o), merged_e.append(acc_e)
+            acc_o, acc_e = 0, 0.0
+    merged_o[-1] += acc_o
+    merged_e[-1] += acc_e
+    chi2 = np.sum((np.array(merged_o) - merged_e) ** 2 / np.array(merged_e))
+    assert stats.chi2.sf(chi2, len(merged_o) - 1) > 1e-4
+    # independence: neighbouring pixels (along rows and down columns) are uncorrelated
+    for a, b in ((x[:, :-1], x[:, 1:]), (x[:-1, :], x[1:, :])):
+        r = np.corrcoef(a.ravel().astype(float), b.ravel().astype(float))[0, 1]
+        assert abs(r) < 5 / np.sqrt(a.size)
+
+
+def test_histogram_sampler_falls_back_for_short_runs_and_huge_means():
+    from camsim.sampling import poisson_run
+
+    rng = np.random.default_rng(0)
+    assert poisson_run(rng, 7000.0, (3, 4)).dtype == np.int64  # 12 pixels: numpy's sampler
+    assert poisson_run(rng, 1e9, (400, 1000)).dtype == np.int64  # support too wide
+    assert not poisson_run(rng, 0.0, (400, 1000)).any()
