@@ -1,0 +1,366 @@
+"""Optional benchmark: camsim against the ESA detector simulator Pyxel (PyPI ``pyxel-sim``) on workload W1.
+
+W1: the chart of ``scenes/macbeth_26.toml`` under D65 at F = 1, 4000 × 3000 pixels, three channels (every pixel has
+R, G and B), the ``paper-table1`` sensor with every stage on: shot noise, dark current, full well, read noise,
+gain, 8-bit ADC.
+
+Pyxel is installed (once, then reused) into its own virtual environment ``outputs/.pyxel-venv`` and runs in a
+subprocess of that environment, so its memory is measured apart from camsim's. Pyxel has no three-chip colour
+detector, so it runs three exposures of a W × H CMOS detector, one per channel, in one process. Its input is
+camsim's mean signal electrons per pixel and channel (photon flux × QE, saved as float32 ``.npy``), loaded with
+``load_image`` as photons with QE = 1 and a 1 s exposure. Models, in Pyxel's pipeline order:
+``load_image`` → ``shot_noise`` (Poisson) → ``simple_conversion`` (QE 1, no binomial draw: with QE = 1 it is the
+identity) → ``simple_dark_current`` (Poisson, the channel's e⁻/s) → ``simple_collection`` → ``simple_full_well``
+→ ``simple_measurement`` (V/e⁻) → ``output_node_noise`` (read noise, in V) → ``simple_amplifier`` (pre-amplification
+= camsim's G in V/V) → ``simple_adc`` (range [0, 2^nb − 1] V, so the ADC maps 1 V to 1 DN and truncates like camsim).
+Pyxel draws the photon and the dark Poisson separately (camsim draws their sum once: the same distribution).
+
+Measured: the wall-clock time of ``pyxel.run_mode`` for the three channels (median over repeats; Pyxel's import and
+configuration excluded; the ``load_image`` model's time, i.e. reading the .npy input, reported and also
+subtracted), the Pyxel child's peak RSS; camsim ``render_frame`` (methods ``poisson`` and ``auto``, 2 workers,
+median of the repeats, no file writing) and the peak RSS of a fresh camsim child that sets up and renders W1 once.
+Sanity check: the mean digital number of the white patch per channel, Pyxel against camsim.
+Targets: camsim at least 8× faster than Pyxel, with peak memory under a quarter of Pyxel's.
+
+Run:  python tools/bench_pyxel.py [--size WxH] [--repeats N]      (in camsim's venv; default size 4000x3000)
+Exit status 3: Pyxel could not be installed. The last stdout line is one JSON object. The tests never need this.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import statistics
+import string
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "scenes" / "macbeth_26.toml"
+VENV = ROOT / "outputs" / ".pyxel-venv"
+PYXEL_PIN = "pyxel-sim==3.0.2"
+ILLUMINANT, FACTOR, SEED, WHITE = "D65", 1.0, 0, "white"
+TARGET_SPEEDUP, TARGET_MEMORY_RATIO = 8.0, 0.25
+
+PYXEL_YAML = string.Template("""\
+exposure:
+  readout:
+    times: [$exposure]
+    non_destructive: false
+  result_type: image
+  pipeline_seed: null
+cmos_detector:
+  geometry: {row: $rows, col: $cols}
+  environment: {temperature: 300.0}
+  characteristics:
+    quantum_efficiency: 1.0
+    charge_to_volt_conversion: $gve
+    pre_amplification: $gain
+    full_well_capacity: $full_well
+    adc_bit_resolution: $bits
+    adc_voltage_range: [0.0, $max_dn]
+pipeline:
+  photon_collection:
+    - {name: load_image, func: pyxel.models.photon_collection.load_image, enabled: true,
+       arguments: {image_file: $image, convert_to_photons: false}}
+    - {name: shot_noise, func: pyxel.models.photon_collection.shot_noise, enabled: true,
+       arguments: {type: poisson}}
+  charge_generation:
+    - {name: photoelectrons, func: pyxel.models.charge_generation.simple_conversion, enabled: true,
+       arguments: {quantum_efficiency: 1.0, binomial_sampling: false}}
+    - {name: dark_current, func: pyxel.models.charge_generation.simple_dark_current, enabled: true,
+       arguments: {dark_rate: $dark_rate}}
+  charge_collection:
+    - {name: simple_collection, func: pyxel.models.charge_collection.simple_collection, enabled: true}
+    - {name: full_well, func: pyxel.models.charge_collection.simple_full_well, enabled: true,
+       arguments: {fwc: $full_well}}
+  charge_measurement:
+    - {name: simple_measurement, func: pyxel.models.charge_measurement.simple_measurement, enabled: true}
+    - {name: output_node_noise, func: pyxel.models.charge_measurement.output_node_noise, enabled: true,
+       arguments: {std_deviation: $read_noise_v}}
+  readout_electronics:
+    - {name: simple_amplifier, func: pyxel.models.readout_electronics.simple_amplifier, enabled: true}
+    - {name: simple_adc, func: pyxel.models.readout_electronics.simple_adc, enabled: true,
+       arguments: {data_type: uint8}}
+""")
+
+
+def progress(message: str) -> None:
+    print(f"[bench_pyxel] {message}", file=sys.stderr, flush=True)
+
+
+def peak_rss_mb() -> float:
+    """Peak RSS of this process (KiB on Linux). Linux carries it over through fork and exec, so the parent stays
+    small (stdlib only) and every measuring child starts from a few MB."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def ensure_pyxel() -> tuple[Path, str]:
+    """The Pyxel venv's python and Pyxel's version; creates the venv on first use. Exits 3 if that fails."""
+    python = VENV / "bin" / "python"
+    check = [str(python), "-c", "import importlib.metadata as m; print(m.version('pyxel-sim'))"]
+
+    def version() -> str | None:
+        if not python.exists():
+            return None
+        r = subprocess.run(check, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        return r.stdout.strip() if r.returncode == 0 else None
+
+    found = version()
+    if found == PYXEL_PIN.split("==")[1]:
+        return python, found
+    steps = [] if python.exists() else [["python3", "-m", "venv", str(VENV)]]
+    steps += [[str(python), "-m", "pip", "install", "--upgrade", "pip"], [str(python), "-m", "pip", "install", PYXEL_PIN]]
+    for cmd in steps:
+        progress(f"installing Pyxel (may take minutes): {' '.join(cmd[-3:])}")
+        try:
+            r = subprocess.run(cmd, stdout=sys.stderr, stderr=subprocess.STDOUT)
+        except OSError as exc:
+            r = None
+            reason = str(exc)
+        if r is None or r.returncode != 0:
+            print(f"Pyxel unavailable: '{' '.join(cmd)}' failed"
+                  + (f" ({reason})" if r is None else f" (exit {r.returncode})"), flush=True)
+            sys.exit(3)
+    found = version()
+    if found is None:
+        print(f"Pyxel unavailable: {PYXEL_PIN} installed into {VENV} but cannot be imported", flush=True)
+        sys.exit(3)
+    return python, found
+
+
+# --- camsim children (camsim's venv) ----------------------------------------------------------------------------
+
+
+def setup(width: int, height: int) -> dict:
+    from camsim.camera import load_camera
+    from camsim.radiance import scene_radiance
+    from camsim.render import frame_expected
+    from camsim.scene import load_scene
+
+    scene = load_scene(SCENE).replace(width=width, height=height, illuminants=(ILLUMINANT,),
+                                      intensity_factors=(FACTOR,), preset_name="paper-table1", statistics="pixel")
+    radiance = scene_radiance(scene, ILLUMINANT)
+    camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
+    expected = frame_expected(radiance, camera, scene.scale, scene.sensor, FACTOR, "pixel", scene.grid)
+    return {"scene": scene, "radiance": radiance, "expected": expected}
+
+
+def render(w: dict, method: str, workers: int = 2):
+    from camsim.render import frame_seed_sequence, render_frame
+
+    return render_frame(w["radiance"].labels, w["expected"], w["scene"].sensor, statistics="pixel", method=method,
+                        rng=frame_seed_sequence(SEED, ILLUMINANT, FACTOR), workers=workers)
+
+
+def white_rect(w: dict) -> list:
+    """The white patch's interior (x0, y0, x1, y1), 3 pixels in from its edges."""
+    r = w["radiance"]
+    x, y, width, height = r.patch_rects[[WHITE in n.lower() for n in r.patch_names].index(True)]
+    return [x + 3, y + 3, x + width - 3, y + height - 3]
+
+
+def region_means(image, rect) -> dict:
+    """Per channel (image: sequence of 3 2-D arrays) the mean DN of the white patch and of the whole frame."""
+    x0, y0, x1, y1 = rect
+    return {"white": [float(im[y0:y1, x0:x1].mean()) for im in image], "frame": [float(im.mean()) for im in image]}
+
+
+def child_prepare(args) -> dict:
+    """W1's Pyxel input: per channel the mean signal electrons per pixel, as float32 .npy; and the sensor."""
+    import numpy as np
+
+    w = setup(args.width, args.height)
+    ex, labels, s = w["expected"], w["radiance"].labels, w["scene"].sensor
+    files = []
+    for c in range(3):
+        files.append(str(Path(args.tmp) / f"signal_e_{'RGB'[c]}.npy"))
+        np.save(files[-1], ex.signal_e[:, c][labels].astype(np.float32))
+    return {"files": files, "rect": white_rect(w), "dark_e_per_s": list(s.dark_current_e_per_s),
+            "exposure_s": s.exposure_s, "gve": s.conversion_gain_v_per_e, "gain": s.analog_gain_dn_per_v,
+            "full_well": s.full_well_e, "read_noise_e": s.read_noise_e, "bits": s.bits, "max_dn": s.max_dn,
+            "stages": {k: getattr(s, k) for k in ("photon_noise", "dark_current", "saturation", "read_noise",
+                                                  "quantisation")}}
+
+
+def child_camsim_rss(args) -> dict:
+    start = peak_rss_mb()
+    w = setup(args.width, args.height)
+    after_setup = peak_rss_mb()
+    render(w, args.method)
+    return {"rss_start_mb": start, "rss_setup_mb": after_setup, "rss_peak_mb": peak_rss_mb()}
+
+
+def child_camsim_timing(args) -> dict:
+    w = setup(args.width, args.height)
+    render(w, "auto")  # auto tabulates its KS distances once per process
+    runs = [("poisson", "poisson", 2), ("auto", "auto", 2), ("poisson_1worker", "poisson", 1)]
+    times = {name: [] for name, *_ in runs}
+    for r in range(args.repeats):
+        for name, method, workers in runs:
+            progress(f"camsim repeat {r + 1}/{args.repeats}: {name}")
+            t0 = time.perf_counter()
+            render(w, method, workers)
+            times[name].append(time.perf_counter() - t0)
+    dn = render(w, "poisson").digital_dn
+    return {"times": times, "dn": region_means(dn, white_rect(w))}
+
+
+# --- Pyxel child (Pyxel's venv: stdlib, numpy and pyxel only) ---------------------------------------------------
+
+
+def child_pyxel(args) -> dict:
+    rss_start = peak_rss_mb()
+    t0 = time.perf_counter()
+    import dask.utils  # noqa: F401  (imported lazily by the first run_mode: part of the import, not the run)
+    import numpy as np
+    import xarray  # noqa: F401
+
+    import pyxel
+
+    p = json.loads(Path(args.params).read_text())
+    yaml = Path(args.tmp) / "w1_pyxel.yaml"
+    yaml.write_text(PYXEL_YAML.substitute(
+        exposure=p["exposure_s"], rows=args.height, cols=args.width, gve=p["gve"], gain=p["gain"],
+        full_well=p["full_well"], bits=p["bits"], max_dn=float(p["max_dn"]), image=p["files"][0],
+        dark_rate=p["dark_e_per_s"][0], read_noise_v=p["read_noise_e"] * p["gve"]))
+    config = pyxel.load(yaml)
+    model_s: dict = {}
+
+    def timed_model(name, func):
+        def run(detector, **kwargs):
+            t = time.perf_counter()
+            func(detector, **kwargs)
+            model_s[name] = model_s.get(name, 0.0) + time.perf_counter() - t
+        return run
+
+    pipe = config.pipeline
+    for group in pipe.model_group_names:
+        for model in getattr(pipe, group) or []:
+            model._func = timed_model(model.name, model.func)  # resolves (imports) the model now
+    import_s, rss_import = time.perf_counter() - t0, peak_rss_mb()
+    np.random.seed(SEED)
+    runs, per_model, images = [], [], None
+    for r in range(args.repeats):
+        model_s.clear()
+        total, images = 0.0, []
+        for c in range(3):
+            progress(f"Pyxel repeat {r + 1}/{args.repeats}: channel {'RGB'[c]}")
+            pipe.photon_collection.load_image.arguments["image_file"] = p["files"][c]
+            pipe.charge_generation.dark_current.arguments["dark_rate"] = p["dark_e_per_s"][c]
+            t = time.perf_counter()
+            result = pyxel.run_mode(config)
+            total += time.perf_counter() - t
+            images.append(np.asarray(result["bucket"]["image"].values[-1]))
+            del result
+        runs.append(total)
+        per_model.append(dict(model_s))
+    return {"version": pyxel.__version__, "times": runs, "models": per_model, "import_s": import_s,
+            "rss_start_mb": rss_start, "rss_import_mb": rss_import, "rss_peak_mb": peak_rss_mb(),
+            "dtype": str(images[0].dtype), "dn": region_means(images, p["rect"])}
+
+
+# --- parent -----------------------------------------------------------------------------------------------------
+
+
+def run_child(python, name: str, args, *extra: str) -> dict:
+    cmd = [str(python), str(Path(__file__).resolve()), "--child", name, "--size", f"{args.width}x{args.height}",
+           "--repeats", str(args.repeats), "--tmp", args.tmp, *extra]
+    out = subprocess.run(cmd, check=True, stdout=subprocess.PIPE, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def fmt(xs) -> str:
+    return f"median {statistics.median(xs):7.3f} s   min {min(xs):7.3f} s   (n={len(xs)})"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--size", default="4000x3000", help="frame WxH (default 4000x3000 = W1)")
+    parser.add_argument("--repeats", type=int, default=3, help="timing repeats, camsim and Pyxel (default 3)")
+    parser.add_argument("--child", help=argparse.SUPPRESS)
+    parser.add_argument("--method", default="poisson", help=argparse.SUPPRESS)
+    parser.add_argument("--tmp", help=argparse.SUPPRESS)
+    parser.add_argument("--params", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    args.width, args.height = (int(v) for v in args.size.lower().split("x"))
+    args.repeats = max(1, args.repeats)
+    if args.child:
+        children = {"prepare": child_prepare, "camsim-rss": child_camsim_rss, "camsim-timing": child_camsim_timing,
+                    "pyxel": child_pyxel}
+        print(json.dumps(children[args.child](args)))
+        return
+    full = (args.width, args.height) == (4000, 3000)
+    print(f"camsim vs Pyxel, W1: macbeth_26 chart, D65, F = 1, {args.width} x {args.height} x 3 channels, "
+          "paper-table1 (shot, dark, full well, read noise, 8-bit ADC)" + ("" if full else "   [NOT the W1 size]"))
+    pyxel_python, version = ensure_pyxel()
+    progress(f"Pyxel {version} in {VENV}")
+    with tempfile.TemporaryDirectory(prefix="bench_pyxel_") as tmp:
+        args.tmp = tmp
+        progress("camsim: W1 input for Pyxel (mean signal electrons per pixel and channel)")
+        params = run_child(sys.executable, "prepare", args)
+        (Path(tmp) / "params.json").write_text(json.dumps(params))
+        progress("Pyxel: three exposures per repeat (one per channel)")
+        px = run_child(pyxel_python, "pyxel", args, "--params", str(Path(tmp) / "params.json"))
+    progress("camsim: peak RSS, fresh children (poisson, auto)")
+    rss = {m: run_child(sys.executable, "camsim-rss", args, "--method", m) for m in ("poisson", "auto")}
+    progress("camsim: timings")
+    cs = run_child(sys.executable, "camsim-timing", args)
+
+    i_med = sorted(range(len(px["times"])), key=px["times"].__getitem__)[len(px["times"]) // 2]
+    pyxel_s, load_s = px["times"][i_med], px["models"][i_med].get("load_image", 0.0)
+    models_s = sum(px["models"][i_med].values())
+    med = {k: statistics.median(v) for k, v in cs["times"].items()}
+    rss_pyxel, rss_camsim = px["rss_peak_mb"], rss["poisson"]["rss_peak_mb"]
+    speed_p, speed_a = pyxel_s / med["poisson"], pyxel_s / med["auto"]
+    mem_ratio = rss_camsim / rss_pyxel
+    wp, wc = px["dn"]["white"], cs["dn"]["white"]
+    rel = [abs(a - b) / b for a, b in zip(wp, wc)]
+
+    print(f"\nPyxel {version} (own venv; single-threaded numpy; legacy np.random), 3 exposures of a "
+          f"{args.width} x {args.height} CMOS detector, one per channel")
+    print(f"   run_mode x 3 channels   {fmt(px['times'])}   (import + config {px['import_s']:.1f} s, excluded)")
+    print(f"   of which load_image (reading the .npy input) {load_s:.3f} s; without it {pyxel_s - load_s:.3f} s; "
+          f"models {models_s:.3f} s, Pyxel's own overhead (buckets, DataTree) {pyxel_s - models_s:.3f} s")
+    print("   per model (median repeat, 3 channels): "
+          + ", ".join(f"{k} {v:.2f}" for k, v in sorted(px["models"][i_med].items(), key=lambda kv: -kv[1])))
+    print(f"   memory: at start {px['rss_start_mb']:.0f} MB, after import + config {px['rss_import_mb']:.0f} MB, "
+          f"peak {rss_pyxel:.0f} MB; output dtype {px['dtype']}")
+    print("camsim render_frame (no file writing)")
+    print(f"   poisson, 2 workers      {fmt(cs['times']['poisson'])}")
+    print(f"   auto, 2 workers         {fmt(cs['times']['auto'])}")
+    print(f"   poisson, 1 worker       {fmt(cs['times']['poisson_1worker'])}   (for reference: Pyxel uses 1 core)")
+    print(f"   memory (fresh process, setup + render): peak {rss_camsim:.0f} MB poisson, "
+          f"{rss['auto']['rss_peak_mb']:.0f} MB auto (after setup {rss['poisson']['rss_setup_mb']:.0f} MB)")
+    print("Sanity: mean DN per channel (R, G, B)")
+    print(f"   white patch  Pyxel  {', '.join(f'{v:7.2f}' for v in wp)}   camsim {', '.join(f'{v:7.2f}' for v in wc)}"
+          f"   largest difference {100 * max(rel):.2f} %" + ("" if max(rel) < 0.03 else "   <-- NOT THE SAME WORK?"))
+    print(f"   whole frame  Pyxel  {', '.join(f'{v:7.2f}' for v in px['dn']['frame'])}   camsim "
+          f"{', '.join(f'{v:7.2f}' for v in cs['dn']['frame'])}")
+    print(f"\nTargets: at least {TARGET_SPEEDUP:g}x faster: poisson {speed_p:.1f}x -> "
+          f"{'MET' if speed_p >= TARGET_SPEEDUP else 'NOT MET'}, auto {speed_a:.1f}x -> "
+          f"{'MET' if speed_a >= TARGET_SPEEDUP else 'NOT MET'} (without Pyxel's input loading: "
+          f"{(pyxel_s - load_s) / med['poisson']:.1f}x, {(pyxel_s - load_s) / med['auto']:.1f}x);  peak memory under "
+          f"1/4 of Pyxel's: {rss_camsim:.0f} / {rss_pyxel:.0f} MB = {mem_ratio:.3f} -> "
+          f"{'MET' if mem_ratio < TARGET_MEMORY_RATIO else 'NOT MET'}" + ("" if full else "   [reduced frame]"))
+    print(json.dumps({
+        "pyxel_version": version, "pyxel_s": pyxel_s, "pyxel_s_without_load": pyxel_s - load_s,
+        "pyxel_load_image_s": load_s, "pyxel_import_s": px["import_s"], "pyxel_model_s": px["models"][i_med],
+        "pyxel_times_s": px["times"], "peak_rss_mb_pyxel": rss_pyxel, "rss_mb_pyxel_after_import": px["rss_import_mb"],
+        "camsim_poisson_s": med["poisson"], "camsim_auto_s": med["auto"], "camsim_poisson_1worker_s":
+        med["poisson_1worker"], "peak_rss_mb_camsim": rss_camsim, "peak_rss_mb_camsim_auto": rss["auto"]["rss_peak_mb"],
+        "speedup_poisson": speed_p, "speedup_auto": speed_a,
+        "speedup_poisson_without_load": (pyxel_s - load_s) / med["poisson"], "memory_ratio": mem_ratio,
+        "white_patch_dn_pyxel": wp, "white_patch_dn_camsim": wc, "white_patch_max_rel_diff": max(rel),
+        "frame_dn_pyxel": px["dn"]["frame"], "frame_dn_camsim": cs["dn"]["frame"],
+        "width": args.width, "height": args.height, "repeats": args.repeats, "camsim_workers": 2,
+        "target_speedup": TARGET_SPEEDUP, "target_memory_ratio": TARGET_MEMORY_RATIO,
+    }))
+
+
+if __name__ == "__main__":
+    main()
