@@ -1,28 +1,22 @@
 """Optional benchmark: camsim against the ESA detector simulator Pyxel (PyPI ``pyxel-sim``) on workload W1.
 
-W1: the chart of ``scenes/macbeth_26.toml`` under D65 at F = 1, 4000 × 3000 pixels, three channels (every pixel has
-R, G and B), the ``paper-table1`` sensor with every stage on: shot noise, dark current, full well, read noise,
-gain, 8-bit ADC.
+W1: ``scenes/macbeth_26.toml`` under D65 at F = 1, 4000 × 3000 pixels × 3 channels (R, G, B at every pixel), the
+``paper-table1`` sensor with every stage on. Pyxel is installed once into its own venv ``outputs/.pyxel-venv`` and
+runs in a child process of it (memory measured apart). Having no three-chip colour detector, it runs three exposures
+of a W × H CMOS detector, one per channel, in one process, on camsim's mean signal electrons per pixel (photon flux ×
+QE, float32 ``.npy``) taken as photons with QE = 1, T = 1 s. Models: ``load_image`` → ``shot_noise`` (Poisson) →
+``simple_conversion`` (QE 1, binomial off: the identity) → ``simple_dark_current`` (Poisson, the channel's e⁻/s) →
+``simple_collection`` → ``simple_full_well`` → ``simple_measurement`` (V/e⁻) → ``output_node_noise`` (read
+noise in V) → ``simple_amplifier`` (camsim's G, as V/V) → ``simple_adc`` (range [0, 2^nb − 1] V: 1 V = 1 DN,
+truncating like camsim). Pyxel draws photon and dark Poisson separately, camsim their sum once (the same distribution).
 
-Pyxel is installed (once, then reused) into its own virtual environment ``outputs/.pyxel-venv`` and runs in a
-subprocess of that environment, so its memory is measured apart from camsim's. Pyxel has no three-chip colour
-detector, so it runs three exposures of a W × H CMOS detector, one per channel, in one process. Its input is
-camsim's mean signal electrons per pixel and channel (photon flux × QE, saved as float32 ``.npy``), loaded with
-``load_image`` as photons with QE = 1 and a 1 s exposure. Models, in Pyxel's pipeline order:
-``load_image`` → ``shot_noise`` (Poisson) → ``simple_conversion`` (QE 1, no binomial draw: with QE = 1 it is the
-identity) → ``simple_dark_current`` (Poisson, the channel's e⁻/s) → ``simple_collection`` → ``simple_full_well``
-→ ``simple_measurement`` (V/e⁻) → ``output_node_noise`` (read noise, in V) → ``simple_amplifier`` (pre-amplification
-= camsim's G in V/V) → ``simple_adc`` (range [0, 2^nb − 1] V, so the ADC maps 1 V to 1 DN and truncates like camsim).
-Pyxel draws the photon and the dark Poisson separately (camsim draws their sum once: the same distribution).
+Measured: ``pyxel.run_mode`` for the three channels (median of the repeats; import and configuration excluded; its
+``load_image`` time, reading the input, reported and also subtracted) and the Pyxel child's peak RSS after one pass;
+camsim ``render_frame`` (``poisson``, ``auto``; 2 workers; median; no file writing) and the peak RSS of a fresh
+child that sets up and renders W1 once. Sanity: the white patch's mean DN per channel, Pyxel against camsim.
+Targets: camsim ≥ 8× faster, peak memory under a quarter of Pyxel's.
 
-Measured: the wall-clock time of ``pyxel.run_mode`` for the three channels (median over repeats; Pyxel's import and
-configuration excluded; the ``load_image`` model's time, i.e. reading the .npy input, reported and also
-subtracted), the Pyxel child's peak RSS; camsim ``render_frame`` (methods ``poisson`` and ``auto``, 2 workers,
-median of the repeats, no file writing) and the peak RSS of a fresh camsim child that sets up and renders W1 once.
-Sanity check: the mean digital number of the white patch per channel, Pyxel against camsim.
-Targets: camsim at least 8× faster than Pyxel, with peak memory under a quarter of Pyxel's.
-
-Run:  python tools/bench_pyxel.py [--size WxH] [--repeats N]      (in camsim's venv; default size 4000x3000)
+Run:  python tools/bench_pyxel.py [--size WxH] [--repeats N]   (camsim's venv; default 4000x3000, 3 repeats)
 Exit status 3: Pyxel could not be installed. The last stdout line is one JSON object. The tests never need this.
 """
 
@@ -58,34 +52,30 @@ cmos_detector:
   environment: {temperature: 300.0}
   characteristics:
     quantum_efficiency: 1.0
-    charge_to_volt_conversion: $gve
+    charge_to_volt: {value: $gve}
     pre_amplification: $gain
     full_well_capacity: $full_well
     adc_bit_resolution: $bits
     adc_voltage_range: [0.0, $max_dn]
-pipeline:
+pipeline:  # every model enabled (Pyxel's default)
   photon_collection:
-    - {name: load_image, func: pyxel.models.photon_collection.load_image, enabled: true,
+    - {name: load_image, func: pyxel.models.photon_collection.load_image,
        arguments: {image_file: $image, convert_to_photons: false}}
-    - {name: shot_noise, func: pyxel.models.photon_collection.shot_noise, enabled: true,
-       arguments: {type: poisson}}
+    - {name: shot_noise, func: pyxel.models.photon_collection.shot_noise, arguments: {type: poisson}}
   charge_generation:
-    - {name: photoelectrons, func: pyxel.models.charge_generation.simple_conversion, enabled: true,
+    - {name: photoelectrons, func: pyxel.models.charge_generation.simple_conversion,
        arguments: {quantum_efficiency: 1.0, binomial_sampling: false}}
-    - {name: dark_current, func: pyxel.models.charge_generation.simple_dark_current, enabled: true,
-       arguments: {dark_rate: $dark_rate}}
+    - {name: dark_current, func: pyxel.models.charge_generation.simple_dark_current, arguments: {dark_rate: $dark_rate}}
   charge_collection:
-    - {name: simple_collection, func: pyxel.models.charge_collection.simple_collection, enabled: true}
-    - {name: full_well, func: pyxel.models.charge_collection.simple_full_well, enabled: true,
-       arguments: {fwc: $full_well}}
+    - {name: simple_collection, func: pyxel.models.charge_collection.simple_collection}
+    - {name: full_well, func: pyxel.models.charge_collection.simple_full_well, arguments: {fwc: $full_well}}
   charge_measurement:
-    - {name: simple_measurement, func: pyxel.models.charge_measurement.simple_measurement, enabled: true}
-    - {name: output_node_noise, func: pyxel.models.charge_measurement.output_node_noise, enabled: true,
+    - {name: simple_measurement, func: pyxel.models.charge_measurement.simple_measurement}
+    - {name: output_node_noise, func: pyxel.models.charge_measurement.output_node_noise,
        arguments: {std_deviation: $read_noise_v}}
   readout_electronics:
-    - {name: simple_amplifier, func: pyxel.models.readout_electronics.simple_amplifier, enabled: true}
-    - {name: simple_adc, func: pyxel.models.readout_electronics.simple_adc, enabled: true,
-       arguments: {data_type: uint8}}
+    - {name: simple_amplifier, func: pyxel.models.readout_electronics.simple_amplifier}
+    - {name: simple_adc, func: pyxel.models.readout_electronics.simple_adc, arguments: {data_type: uint8}}
 """)
 
 
@@ -94,43 +84,36 @@ def progress(message: str) -> None:
 
 
 def peak_rss_mb() -> float:
-    """Peak RSS of this process (KiB on Linux). Linux carries it over through fork and exec, so the parent stays
-    small (stdlib only) and every measuring child starts from a few MB."""
+    """Peak RSS of this process, MB (ru_maxrss: KiB on Linux, and carried over through fork and exec: so the parent
+    stays small, stdlib only, and each measuring child starts from a few MB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
 def ensure_pyxel() -> tuple[Path, str]:
     """The Pyxel venv's python and Pyxel's version; creates the venv on first use. Exits 3 if that fails."""
-    python = VENV / "bin" / "python"
+    python, want = VENV / "bin" / "python", PYXEL_PIN.split("==")[1]
     check = [str(python), "-c", "import importlib.metadata as m; print(m.version('pyxel-sim'))"]
 
-    def version() -> str | None:
-        if not python.exists():
-            return None
-        r = subprocess.run(check, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-        return r.stdout.strip() if r.returncode == 0 else None
+    def found():
+        return python.exists() and subprocess.run(check, capture_output=True, text=True).stdout.strip()
 
-    found = version()
-    if found == PYXEL_PIN.split("==")[1]:
-        return python, found
+    if found() == want:
+        return python, want
     steps = [] if python.exists() else [["python3", "-m", "venv", str(VENV)]]
-    steps += [[str(python), "-m", "pip", "install", "--upgrade", "pip"], [str(python), "-m", "pip", "install", PYXEL_PIN]]
-    for cmd in steps:
-        progress(f"installing Pyxel (may take minutes): {' '.join(cmd[-3:])}")
+    for cmd in steps + [[str(python), "-m", "pip", "install", "--upgrade", "pip"],
+                        [str(python), "-m", "pip", "install", PYXEL_PIN]]:
+        progress(f"installing Pyxel into {VENV} (may take minutes): {' '.join(cmd[-3:])}")
         try:
-            r = subprocess.run(cmd, stdout=sys.stderr, stderr=subprocess.STDOUT)
+            reason = f"exit {subprocess.run(cmd, stdout=sys.stderr, stderr=subprocess.STDOUT).returncode}"
         except OSError as exc:
-            r = None
             reason = str(exc)
-        if r is None or r.returncode != 0:
-            print(f"Pyxel unavailable: '{' '.join(cmd)}' failed"
-                  + (f" ({reason})" if r is None else f" (exit {r.returncode})"), flush=True)
+        if reason != "exit 0":
+            print(f"Pyxel unavailable: '{' '.join(cmd)}' failed ({reason}; delete {VENV} to start over)", flush=True)
             sys.exit(3)
-    found = version()
-    if found is None:
+    if found() != want:
         print(f"Pyxel unavailable: {PYXEL_PIN} installed into {VENV} but cannot be imported", flush=True)
         sys.exit(3)
-    return python, found
+    return python, want
 
 
 # --- camsim children (camsim's venv) ----------------------------------------------------------------------------
@@ -174,25 +157,24 @@ def child_prepare(args) -> dict:
     """W1's Pyxel input: per channel the mean signal electrons per pixel, as float32 .npy; and the sensor."""
     import numpy as np
 
+    from camsim.sensor import STAGES
+
     w = setup(args.width, args.height)
     ex, labels, s = w["expected"], w["radiance"].labels, w["scene"].sensor
-    files = []
-    for c in range(3):
-        files.append(str(Path(args.tmp) / f"signal_e_{'RGB'[c]}.npy"))
-        np.save(files[-1], ex.signal_e[:, c][labels].astype(np.float32))
+    assert all(getattr(s, k) for k in STAGES), "W1 has every sensor stage on"
+    files = [str(Path(args.tmp) / f"signal_e_{name}.npy") for name in "RGB"]
+    for c, f in enumerate(files):
+        np.save(f, ex.signal_e[:, c][labels].astype(np.float32))
     return {"files": files, "rect": white_rect(w), "dark_e_per_s": list(s.dark_current_e_per_s),
             "exposure_s": s.exposure_s, "gve": s.conversion_gain_v_per_e, "gain": s.analog_gain_dn_per_v,
-            "full_well": s.full_well_e, "read_noise_e": s.read_noise_e, "bits": s.bits, "max_dn": s.max_dn,
-            "stages": {k: getattr(s, k) for k in ("photon_noise", "dark_current", "saturation", "read_noise",
-                                                  "quantisation")}}
+            "full_well": s.full_well_e, "read_noise_e": s.read_noise_e, "bits": s.bits, "max_dn": s.max_dn}
 
 
 def child_camsim_rss(args) -> dict:
-    start = peak_rss_mb()
     w = setup(args.width, args.height)
     after_setup = peak_rss_mb()
     render(w, args.method)
-    return {"rss_start_mb": start, "rss_setup_mb": after_setup, "rss_peak_mb": peak_rss_mb()}
+    return {"rss_setup_mb": after_setup, "rss_peak_mb": peak_rss_mb()}
 
 
 def child_camsim_timing(args) -> dict:
@@ -214,9 +196,8 @@ def child_camsim_timing(args) -> dict:
 
 
 def child_pyxel(args) -> dict:
-    rss_start = peak_rss_mb()
     t0 = time.perf_counter()
-    import dask.utils  # noqa: F401  (imported lazily by the first run_mode: part of the import, not the run)
+    import dask.utils  # noqa: F401  (the first run_mode imports these lazily: count them as import, not run)
     import numpy as np
     import xarray  # noqa: F401
 
@@ -228,8 +209,7 @@ def child_pyxel(args) -> dict:
         exposure=p["exposure_s"], rows=args.height, cols=args.width, gve=p["gve"], gain=p["gain"],
         full_well=p["full_well"], bits=p["bits"], max_dn=float(p["max_dn"]), image=p["files"][0],
         dark_rate=p["dark_e_per_s"][0], read_noise_v=p["read_noise_e"] * p["gve"]))
-    config = pyxel.load(yaml)
-    model_s: dict = {}
+    config, model_s = pyxel.load(yaml), {}
 
     def timed_model(name, func):
         def run(detector, **kwargs):
@@ -241,10 +221,10 @@ def child_pyxel(args) -> dict:
     pipe = config.pipeline
     for group in pipe.model_group_names:
         for model in getattr(pipe, group) or []:
-            model._func = timed_model(model.name, model.func)  # resolves (imports) the model now
-    import_s, rss_import = time.perf_counter() - t0, peak_rss_mb()
+            model._func = timed_model(model.name, model.func)  # model.func resolves (imports) the model now
+    out = {"version": pyxel.__version__, "import_s": time.perf_counter() - t0, "rss_import_mb": peak_rss_mb(),
+           "times": [], "models": []}
     np.random.seed(SEED)
-    runs, per_model, images = [], [], None
     for r in range(args.repeats):
         model_s.clear()
         total, images = 0.0, []
@@ -257,11 +237,10 @@ def child_pyxel(args) -> dict:
             total += time.perf_counter() - t
             images.append(np.asarray(result["bucket"]["image"].values[-1]))
             del result
-        runs.append(total)
-        per_model.append(dict(model_s))
-    return {"version": pyxel.__version__, "times": runs, "models": per_model, "import_s": import_s,
-            "rss_start_mb": rss_start, "rss_import_mb": rss_import, "rss_peak_mb": peak_rss_mb(),
-            "dtype": str(images[0].dtype), "dn": region_means(images, p["rect"])}
+        out["times"].append(total)
+        out["models"].append(dict(model_s))
+        out.setdefault("rss_pass1_mb", peak_rss_mb())
+    return {**out, "rss_all_mb": peak_rss_mb(), "dtype": str(images[0].dtype), "dn": region_means(images, p["rect"])}
 
 
 # --- parent -----------------------------------------------------------------------------------------------------
@@ -282,10 +261,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--size", default="4000x3000", help="frame WxH (default 4000x3000 = W1)")
     parser.add_argument("--repeats", type=int, default=3, help="timing repeats, camsim and Pyxel (default 3)")
-    parser.add_argument("--child", help=argparse.SUPPRESS)
-    parser.add_argument("--method", default="poisson", help=argparse.SUPPRESS)
-    parser.add_argument("--tmp", help=argparse.SUPPRESS)
-    parser.add_argument("--params", help=argparse.SUPPRESS)
+    for hidden in ("--child", "--method", "--tmp", "--params"):
+        parser.add_argument(hidden, help=argparse.SUPPRESS)
     args = parser.parse_args()
     args.width, args.height = (int(v) for v in args.size.lower().split("x"))
     args.repeats = max(1, args.repeats)
@@ -298,49 +275,47 @@ def main() -> None:
     print(f"camsim vs Pyxel, W1: macbeth_26 chart, D65, F = 1, {args.width} x {args.height} x 3 channels, "
           "paper-table1 (shot, dark, full well, read noise, 8-bit ADC)" + ("" if full else "   [NOT the W1 size]"))
     pyxel_python, version = ensure_pyxel()
-    progress(f"Pyxel {version} in {VENV}")
     with tempfile.TemporaryDirectory(prefix="bench_pyxel_") as tmp:
         args.tmp = tmp
         progress("camsim: W1 input for Pyxel (mean signal electrons per pixel and channel)")
-        params = run_child(sys.executable, "prepare", args)
-        (Path(tmp) / "params.json").write_text(json.dumps(params))
-        progress("Pyxel: three exposures per repeat (one per channel)")
+        (Path(tmp) / "params.json").write_text(json.dumps(run_child(sys.executable, "prepare", args)))
+        progress(f"Pyxel {version}: three exposures per repeat (one per channel)")
         px = run_child(pyxel_python, "pyxel", args, "--params", str(Path(tmp) / "params.json"))
     progress("camsim: peak RSS, fresh children (poisson, auto)")
-    rss = {m: run_child(sys.executable, "camsim-rss", args, "--method", m) for m in ("poisson", "auto")}
+    rss = {m: run_child(sys.executable, "camsim-rss", args, "--method", m)["rss_peak_mb"] for m in ("poisson", "auto")}
     progress("camsim: timings")
     cs = run_child(sys.executable, "camsim-timing", args)
 
-    i_med = sorted(range(len(px["times"])), key=px["times"].__getitem__)[len(px["times"]) // 2]
-    pyxel_s, load_s = px["times"][i_med], px["models"][i_med].get("load_image", 0.0)
-    models_s = sum(px["models"][i_med].values())
+    model_s = {k: statistics.median(m[k] for m in px["models"]) for k in px["models"][0]}  # median per model
+    pyxel_s, load_s = statistics.median(px["times"]), model_s.get("load_image", 0.0)
+    models_s = statistics.median(sum(m.values()) for m in px["models"])
     med = {k: statistics.median(v) for k, v in cs["times"].items()}
-    rss_pyxel, rss_camsim = px["rss_peak_mb"], rss["poisson"]["rss_peak_mb"]
-    speed_p, speed_a = pyxel_s / med["poisson"], pyxel_s / med["auto"]
-    mem_ratio = rss_camsim / rss_pyxel
+    rss_pyxel, rss_camsim = px["rss_pass1_mb"], rss["poisson"]
+    speed_p, speed_a, mem_ratio = pyxel_s / med["poisson"], pyxel_s / med["auto"], rss_camsim / rss_pyxel
     wp, wc = px["dn"]["white"], cs["dn"]["white"]
-    rel = [abs(a - b) / b for a, b in zip(wp, wc)]
+    rel = max(abs(a - b) / b for a, b in zip(wp, wc))
+    dn3 = lambda xs: ", ".join(f"{v:7.2f}" for v in xs)  # noqa: E731
 
-    print(f"\nPyxel {version} (own venv; single-threaded numpy; legacy np.random), 3 exposures of a "
-          f"{args.width} x {args.height} CMOS detector, one per channel")
-    print(f"   run_mode x 3 channels   {fmt(px['times'])}   (import + config {px['import_s']:.1f} s, excluded)")
-    print(f"   of which load_image (reading the .npy input) {load_s:.3f} s; without it {pyxel_s - load_s:.3f} s; "
+    print(f"\nPyxel {version} (own venv; numpy on 1 core, legacy np.random): 3 exposures of a {args.width} x "
+          f"{args.height} CMOS detector, one per channel")
+    print(f"   run_mode x 3 channels   {fmt(px['times'])}   (first repeat {px['times'][0]:.2f} s; import + "
+          f"config {px['import_s']:.1f} s, excluded)")
+    print(f"   of which load_image (reading the .npy input) {load_s:.3f} s, so {pyxel_s - load_s:.3f} s without it; "
           f"models {models_s:.3f} s, Pyxel's own overhead (buckets, DataTree) {pyxel_s - models_s:.3f} s")
-    print("   per model (median repeat, 3 channels): "
-          + ", ".join(f"{k} {v:.2f}" for k, v in sorted(px["models"][i_med].items(), key=lambda kv: -kv[1])))
-    print(f"   memory: at start {px['rss_start_mb']:.0f} MB, after import + config {px['rss_import_mb']:.0f} MB, "
-          f"peak {rss_pyxel:.0f} MB; output dtype {px['dtype']}")
+    print("   per model, s (3 channels, median of the repeats): "
+          + ", ".join(f"{k} {v:.2f}" for k, v in sorted(model_s.items(), key=lambda kv: -kv[1])))
+    print(f"   memory: after import + config {px['rss_import_mb']:.0f} MB, peak after one pass over the 3 channels "
+          f"{rss_pyxel:.0f} MB (after all repeats {px['rss_all_mb']:.0f} MB); output dtype {px['dtype']}")
     print("camsim render_frame (no file writing)")
     print(f"   poisson, 2 workers      {fmt(cs['times']['poisson'])}")
     print(f"   auto, 2 workers         {fmt(cs['times']['auto'])}")
     print(f"   poisson, 1 worker       {fmt(cs['times']['poisson_1worker'])}   (for reference: Pyxel uses 1 core)")
-    print(f"   memory (fresh process, setup + render): peak {rss_camsim:.0f} MB poisson, "
-          f"{rss['auto']['rss_peak_mb']:.0f} MB auto (after setup {rss['poisson']['rss_setup_mb']:.0f} MB)")
+    print(f"   memory (fresh process, imports + setup + render): peak {rss_camsim:.0f} MB poisson, "
+          f"{rss['auto']:.0f} MB auto")
     print("Sanity: mean DN per channel (R, G, B)")
-    print(f"   white patch  Pyxel  {', '.join(f'{v:7.2f}' for v in wp)}   camsim {', '.join(f'{v:7.2f}' for v in wc)}"
-          f"   largest difference {100 * max(rel):.2f} %" + ("" if max(rel) < 0.03 else "   <-- NOT THE SAME WORK?"))
-    print(f"   whole frame  Pyxel  {', '.join(f'{v:7.2f}' for v in px['dn']['frame'])}   camsim "
-          f"{', '.join(f'{v:7.2f}' for v in cs['dn']['frame'])}")
+    print(f"   white patch  Pyxel {dn3(wp)}   camsim {dn3(wc)}   largest difference {100 * rel:.2f} %"
+          + ("" if rel < 0.03 else "   <-- NOT THE SAME WORK?"))
+    print(f"   whole frame  Pyxel {dn3(px['dn']['frame'])}   camsim {dn3(cs['dn']['frame'])}")
     print(f"\nTargets: at least {TARGET_SPEEDUP:g}x faster: poisson {speed_p:.1f}x -> "
           f"{'MET' if speed_p >= TARGET_SPEEDUP else 'NOT MET'}, auto {speed_a:.1f}x -> "
           f"{'MET' if speed_a >= TARGET_SPEEDUP else 'NOT MET'} (without Pyxel's input loading: "
@@ -349,16 +324,15 @@ def main() -> None:
           f"{'MET' if mem_ratio < TARGET_MEMORY_RATIO else 'NOT MET'}" + ("" if full else "   [reduced frame]"))
     print(json.dumps({
         "pyxel_version": version, "pyxel_s": pyxel_s, "pyxel_s_without_load": pyxel_s - load_s,
-        "pyxel_load_image_s": load_s, "pyxel_import_s": px["import_s"], "pyxel_model_s": px["models"][i_med],
-        "pyxel_times_s": px["times"], "peak_rss_mb_pyxel": rss_pyxel, "rss_mb_pyxel_after_import": px["rss_import_mb"],
-        "camsim_poisson_s": med["poisson"], "camsim_auto_s": med["auto"], "camsim_poisson_1worker_s":
-        med["poisson_1worker"], "peak_rss_mb_camsim": rss_camsim, "peak_rss_mb_camsim_auto": rss["auto"]["rss_peak_mb"],
-        "speedup_poisson": speed_p, "speedup_auto": speed_a,
+        "pyxel_load_image_s": load_s, "pyxel_import_s": px["import_s"], "pyxel_model_s": model_s,
+        "pyxel_times_s": px["times"], "peak_rss_mb_pyxel": rss_pyxel, "peak_rss_mb_pyxel_all_repeats": px["rss_all_mb"],
+        "camsim_poisson_s": med["poisson"], "camsim_auto_s": med["auto"],
+        "camsim_poisson_1worker_s": med["poisson_1worker"], "peak_rss_mb_camsim": rss_camsim,
+        "peak_rss_mb_camsim_auto": rss["auto"], "speedup_poisson": speed_p, "speedup_auto": speed_a,
         "speedup_poisson_without_load": (pyxel_s - load_s) / med["poisson"], "memory_ratio": mem_ratio,
-        "white_patch_dn_pyxel": wp, "white_patch_dn_camsim": wc, "white_patch_max_rel_diff": max(rel),
-        "frame_dn_pyxel": px["dn"]["frame"], "frame_dn_camsim": cs["dn"]["frame"],
-        "width": args.width, "height": args.height, "repeats": args.repeats, "camsim_workers": 2,
-        "target_speedup": TARGET_SPEEDUP, "target_memory_ratio": TARGET_MEMORY_RATIO,
+        "white_patch_dn_pyxel": wp, "white_patch_dn_camsim": wc, "white_patch_max_rel_diff": rel,
+        "frame_dn_pyxel": px["dn"]["frame"], "frame_dn_camsim": cs["dn"]["frame"], "width": args.width,
+        "height": args.height, "repeats": args.repeats, "camsim_workers": 2, "pyxel_exposures": "3 (one per channel)",
     }))
 
 

@@ -24,7 +24,8 @@ What it measures (seconds are wall-clock; MB = 2^20 bytes):
 
 Targets: the render (no file writing) within 1.5× of the bare draws, and peak memory under 600 MB.
 
-Run:  python tools/bench_w1.py [--repeats N] [--quick]
+Run:  python tools/bench_w1.py [--repeats N] [--quick] [--pyxel]
+``--pyxel`` adds the comparison with ESA's Pyxel (tools/bench_pyxel.py, which installs Pyxel into its own venv).
 ``--quick`` uses a 1000 × 750 frame (smoke test). Progress goes to stderr; the last stdout line is one JSON object.
 """
 
@@ -233,6 +234,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeats", type=int, default=3, help="repeats of each timing (default 3)")
     parser.add_argument("--quick", action="store_true", help=f"{QUICK_SIZE[0]}x{QUICK_SIZE[1]} frame (smoke test)")
+    parser.add_argument("--pyxel", action="store_true",
+                        help="also run tools/bench_pyxel.py (installs Pyxel into its own venv; minutes) and add its keys")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     parser.add_argument("--method", default="poisson", help=argparse.SUPPRESS)
     parser.add_argument("--width", type=int, help=argparse.SUPPRESS)
@@ -318,6 +321,18 @@ def main() -> None:
         "min_s": {k: min(v) for k, v in t["times"].items()},
         "width": args.width, "height": args.height, "repeats": args.repeats, "quick": args.quick,
     }
+    if args.pyxel:
+        progress("Pyxel comparison: tools/bench_pyxel.py")
+        size = f"{args.width}x{args.height}"
+        run = subprocess.run([sys.executable, str(ROOT / "tools" / "bench_pyxel.py"), "--size", size],
+                             stdout=subprocess.PIPE, text=True)
+        lines = run.stdout.strip().splitlines()
+        print("\n".join(lines[:-1]))
+        if run.returncode == 0 and lines:
+            result.update({f"pyxel_{k}" if not k.startswith(("pyxel", "speedup", "memory")) else k: v
+                           for k, v in json.loads(lines[-1]).items()})
+        else:
+            result["pyxel_unavailable"] = lines[-1] if lines else f"exit {run.returncode}"
     print(json.dumps(result))
 
 
