@@ -33,11 +33,12 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-SCENE = ROOT / "scenes" / "macbeth_26.toml"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_w1 import FACTOR, ILLUMINANT, ROOT, SCENE, SEED, peak_rss_mb, render, setup  # noqa: E402  (stdlib only)
+
 VENV = ROOT / "outputs" / ".pyxel-venv"
 PYXEL_PIN = "pyxel-sim==3.0.2"
-ILLUMINANT, FACTOR, SEED, WHITE = "D65", 1.0, 0, "white"
+WHITE = "white"
 TARGET_SPEEDUP, TARGET_MEMORY_RATIO = 8.0, 0.25
 
 PYXEL_YAML = string.Template("""\
@@ -83,12 +84,6 @@ def progress(message: str) -> None:
     print(f"[bench_pyxel] {message}", file=sys.stderr, flush=True)
 
 
-def peak_rss_mb() -> float:
-    """Peak RSS of this process, MB (ru_maxrss: KiB on Linux, and carried over through fork and exec: so the parent
-    stays small, stdlib only, and each measuring child starts from a few MB)."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-
-
 def ensure_pyxel() -> tuple[Path, str]:
     """The Pyxel venv's python and Pyxel's version; creates the venv on first use. Exits 3 if that fails."""
     python, want = VENV / "bin" / "python", PYXEL_PIN.split("==")[1]
@@ -117,27 +112,6 @@ def ensure_pyxel() -> tuple[Path, str]:
 
 
 # --- camsim children (camsim's venv) ----------------------------------------------------------------------------
-
-
-def setup(width: int, height: int) -> dict:
-    from camsim.camera import load_camera
-    from camsim.radiance import scene_radiance
-    from camsim.render import frame_expected
-    from camsim.scene import load_scene
-
-    scene = load_scene(SCENE).replace(width=width, height=height, illuminants=(ILLUMINANT,),
-                                      intensity_factors=(FACTOR,), preset_name="paper-table1", statistics="pixel")
-    radiance = scene_radiance(scene, ILLUMINANT)
-    camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
-    expected = frame_expected(radiance, camera, scene.scale, scene.sensor, FACTOR, "pixel", scene.grid)
-    return {"scene": scene, "radiance": radiance, "expected": expected}
-
-
-def render(w: dict, method: str, workers: int = 2):
-    from camsim.render import frame_seed_sequence, render_frame
-
-    return render_frame(w["radiance"].labels, w["expected"], w["scene"].sensor, statistics="pixel", method=method,
-                        rng=frame_seed_sequence(SEED, ILLUMINANT, FACTOR), workers=workers)
 
 
 def white_rect(w: dict) -> list:

@@ -79,7 +79,7 @@ def setup(width: int, height: int) -> dict:
     return {"scene": scene, "radiance": radiance, "camera": camera, "expected": expected}
 
 
-def render(w: dict, method: str, workers: int):
+def render(w: dict, method: str, workers: int = 2):
     from camsim.render import frame_seed_sequence, render_frame
 
     return render_frame(w["radiance"].labels, w["expected"], w["scene"].sensor, statistics="pixel", method=method,
