@@ -26,9 +26,11 @@ from camsim.sampling import METHODS, draw_electrons
 #: Methods drawn in one pass per channel straight to DN (camsim.gaussian.fill_channel), and every method.
 FUSED_METHODS = ("poisson", "gaussian", "auto")
 ALL_METHODS = ("poisson", "spectral", "gaussian", "auto")
+from camsim.fixed_pattern import fixed_pattern
 from camsim.sensor import (
     SensorParams,
     add_read_noise_e,
+    add_row_noise_e,
     dn_dtype,
     electrons_to_dn,
     quantise_dn,
@@ -62,13 +64,22 @@ class Frame:
     expected: ExpectedSignal
     sensor: SensorParams
     plan: object = None  # camsim.gaussian.GaussianPlan: how each spectrum and channel was drawn (not spectral)
+    maps: object = None  # camsim.fixed_pattern.FixedPattern: the sensor's DSNU / PRNU maps, if any
 
     def clean_dn(self) -> np.ndarray:
         """Expected value of ``noisy_dn`` per pixel: G · G_Ve⁻ · E[f_sat(S + D)], shape (3, H, W), float32."""
-        table = (self.expected.clean_e * self.sensor.dn_per_electron).astype(np.float32)
+        k = self.sensor.dn_per_electron
+        table = (self.expected.clean_e * k).astype(np.float32)
         out = np.empty((3,) + self.labels.shape, dtype=np.float32)
         for c in range(3):
             out[c] = table[:, c][self.labels]  # fancy indexing: ~4× faster than np.take with small ints
+            # fixed-pattern maps are part of the sensor, so of the expectation (exact below saturation)
+            if self.maps is not None and self.maps.gain is not None:
+                out[c] += (self.maps.gain[c] - 1) * (k * self.expected.signal_e[:, c]).astype(np.float32)[self.labels]
+            if self.maps is not None and self.maps.offset_e is not None:
+                out[c] += np.float32(k) * self.maps.offset_e[c]
+            if self.maps is not None and self.sensor.saturation:
+                np.minimum(out[c], np.float32(k * self.sensor.full_well_e), out=out[c])
         return out
 
 
@@ -137,6 +148,9 @@ def render_frame(
 
     per_thread = threading.local()  # one scratch block per thread, reused: fresh pages cost more than the maths
     read_noise = sensor.read_noise and sensor.read_noise_e > 0
+    maps = fixed_pattern(sensor, labels.shape)
+    if maps is not None and maps.gain is not None and method == "spectral":
+        raise CamsimError("PRNU needs a per-pixel mean: use method poisson, gaussian or auto, not spectral")
     plan = None
     if method in FUSED_METHODS:
         plan = plan_methods(expected, sensor, statistics, method,
@@ -153,20 +167,29 @@ def render_frame(
         scratch = per_thread.scratch[: r1 - r0]
         block_rng = generators[index]
         block = noisy[:, r0:r1]  # work in place in the output: electrons first, DN at the end
+        offset = None if maps is None or maps.offset_e is None else maps.offset_e[:, r0:r1]
+        gain = None if maps is None or maps.gain is None else maps.gain[:, r0:r1]
         if plan is not None:  # poisson / gaussian / auto: every stage in one pass per channel, straight to DN
             for c in range(3):
                 fill_channel(block[c], labels[r0:r1], plan, expected, sensor, statistics, c, block_rng, scratch,
-                             per_thread.work)
+                             per_thread.work, None if offset is None else offset[c], None if gain is None else gain[c])
+                if sensor.row_noise_e > 0:
+                    add_row_noise_e(block[c], sensor.row_noise_e * sensor.dn_per_electron, block_rng)
                 if digital is not None:
                     quantise_dn(block[c], sensor.bits, out=digital[c, r0:r1])
             return
         draw_electrons(labels[r0:r1], expected, sensor, statistics, method, block_rng, block)
         for c in range(3):
             e = block[c]
+            if offset is not None:
+                e += offset[c]
             if sensor.saturation:
                 saturate_e(e, sensor.full_well_e, out=e)
             if read_noise:
-                add_read_noise_e(e, sensor.read_noise_e, block_rng, scratch, per_thread.work)
+                add_read_noise_e(e, sensor.read_noise_e, block_rng, scratch, per_thread.work, sensor.read_noise_model,
+                                 sensor.tukey_lambda)
+            if sensor.row_noise_e > 0:
+                add_row_noise_e(e, sensor.row_noise_e, block_rng)
             electrons_to_dn(e, sensor.dn_per_electron, out=e)
             if digital is not None:
                 quantise_dn(e, sensor.bits, out=digital[c, r0:r1])
@@ -178,4 +201,4 @@ def render_frame(
     else:
         with ThreadPoolExecutor(max_workers=workers) as pool:
             list(pool.map(run_block, range(len(starts))))
-    return Frame(noisy, digital, labels, expected, sensor, plan)
+    return Frame(noisy, digital, labels, expected, sensor, plan, maps)

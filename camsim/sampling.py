@@ -148,7 +148,8 @@ def label_runs(labels: np.ndarray):
     return runs
 
 
-def exact_charge(rng, expected: ExpectedSignal, sensor: SensorParams, statistics: str, c: int, index, size=None):
+def exact_charge(rng, expected: ExpectedSignal, sensor: SensorParams, statistics: str, c: int, index, size=None,
+                 gain=None):
     """Collected charge S + D of one channel, drawn exactly, for pixels of spectrum ``index``.
 
     Parameters
@@ -157,6 +158,8 @@ def exact_charge(rng, expected: ExpectedSignal, sensor: SensorParams, statistics
         Channel.
     index : int or numpy.ndarray of int
         One label (then ``size`` gives the shape) or one label per pixel.
+    gain : numpy.ndarray, optional
+        PRNU: per-pixel factor on the mean signal (shape ``size`` or that of ``index``).
 
     Returns
     -------
@@ -167,10 +170,13 @@ def exact_charge(rng, expected: ExpectedSignal, sensor: SensorParams, statistics
     S = expected.signal_e[index, c]
     D = expected.dark_e[c]
     shape = size if size is not None else np.shape(index)
+    if gain is not None:  # per-pixel means: numpy's sampler, one mean per pixel
+        S = S * gain
+        size = None
     if sensor.photon_noise and statistics == "pixel":  # one draw covers photons and dark current
         return poisson(rng, S + D) if size is None else poisson_run(rng, S + D, size)
     if sensor.photon_noise:
-        var = expected.signal_var_e2[index, c]
+        var = expected.signal_var_e2[index, c] * (1 if gain is None else gain)
         with np.errstate(divide="ignore", invalid="ignore"):
             step = np.where(S > 0, var / S, 0.0)
             lam = np.where(step > 0, S / step, 0.0)

@@ -14,6 +14,7 @@ import numpy as np
 from camsim.errors import CamsimError
 
 STAGES = ("photon_noise", "dark_current", "saturation", "read_noise", "quantisation")
+READ_NOISE_MODELS = ("gaussian", "tukey-lambda")
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,22 @@ class SensorParams:
     photon_noise, dark_current, saturation, read_noise, quantisation : bool
         Stage switches. ``photon_noise`` off gives the mean signal exactly; ``dark_current`` off removes the
         dark electrons (mean and noise); ``quantisation`` off keeps the float DN (no DNG can then be written).
+    dsnu_e : float
+        Dark signal non-uniformity: spatial standard deviation of a fixed per-pixel dark offset (Gaussian map,
+        fixed for a ``sensor_seed``), added to the charge before saturation. 0 = off. Unit: e⁻.
+    prnu_percent : float
+        Photo-response non-uniformity: spatial standard deviation of a fixed per-pixel gain on the mean signal
+        (Gaussian map around 1, fixed for a ``sensor_seed``), so that a pixel collects Poisson(g S̄). 0 = off.
+        Unit: %.
+    row_noise_e : float
+        Temporal row noise: one Gaussian offset per row, channel and frame, added at readout. 0 = off. Unit: e⁻.
+    read_noise_model : {'gaussian', 'tukey-lambda'}
+        Law of the read noise (its standard deviation is ``read_noise_e`` either way); Tukey lambda with shape
+        ``tukey_lambda`` < 0.14 has heavier tails than the Gaussian, as in the ELD low-light noise model.
+    tukey_lambda : float
+        Shape of the Tukey lambda read noise (0: logistic).
+    sensor_seed : int
+        Seed of the fixed-pattern maps: frames of the same sensor share them, while temporal noise changes.
     """
 
     conversion_gain_v_per_e: float = 0.0002
@@ -53,6 +70,12 @@ class SensorParams:
     saturation: bool = True
     read_noise: bool = True
     quantisation: bool = True
+    dsnu_e: float = 0.0
+    prnu_percent: float = 0.0
+    row_noise_e: float = 0.0
+    read_noise_model: str = "gaussian"
+    tukey_lambda: float = -0.1
+    sensor_seed: int = 0
 
     def __post_init__(self):
         dark = tuple(float(v) for v in np.broadcast_to(np.asarray(self.dark_current_e_per_s, float), (3,)))
@@ -68,9 +91,31 @@ class SensorParams:
             raise CamsimError(f"sensor parameter dark_current_e_per_s must be ≥ 0, got {dark!r}")
         if not (isinstance(self.bits, int) and 1 <= self.bits <= 16):
             raise CamsimError(f"sensor parameter bits must be an integer from 1 to 16, got {self.bits!r}")
+        for name in ("dsnu_e", "prnu_percent", "row_noise_e"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
+                raise CamsimError(f"sensor parameter {name} must be a number ≥ 0, got {value!r}")
+        if self.prnu_percent >= 30:
+            raise CamsimError(f"prnu_percent {self.prnu_percent} is not a small non-uniformity (must be < 30 %)")
+        if self.read_noise_model not in READ_NOISE_MODELS:
+            raise CamsimError(f"read_noise_model must be one of {READ_NOISE_MODELS}, got {self.read_noise_model!r}")
+        if not (isinstance(self.tukey_lambda, (int, float)) and -0.5 < self.tukey_lambda < 1):
+            raise CamsimError(f"tukey_lambda must be in (−0.5, 1) (finite variance), got {self.tukey_lambda!r}")
+        if not (isinstance(self.sensor_seed, int) and self.sensor_seed >= 0):
+            raise CamsimError(f"sensor_seed must be a non-negative integer, got {self.sensor_seed!r}")
         for name in STAGES:
             if not isinstance(getattr(self, name), bool):
                 raise CamsimError(f"sensor switch {name} must be true or false, got {getattr(self, name)!r}")
+
+    @property
+    def fixed_pattern(self) -> bool:
+        """Whether a fixed-pattern map (DSNU or PRNU) is on."""
+        return self.dsnu_e > 0 or self.prnu_percent > 0
+
+    @property
+    def gaussian_read_noise(self) -> bool:
+        """Whether the read noise (if on) is Gaussian."""
+        return self.read_noise_model == "gaussian"
 
     @property
     def dn_per_electron(self) -> float:
@@ -150,8 +195,9 @@ def saturate_e(electrons: np.ndarray, full_well_e: float, out: np.ndarray | None
     return np.minimum(electrons, electrons.dtype.type(full_well_e), out=out)
 
 
-def add_read_noise_e(electrons: np.ndarray, read_noise_e: float, rng: np.random.Generator, scratch=None, work=None):
-    """Add white Gaussian read noise N(0, σ_read) in place (Eqs. 7 and 10, referred to the charge domain).
+def add_read_noise_e(electrons: np.ndarray, read_noise_e: float, rng: np.random.Generator, scratch=None, work=None,
+                     model: str = "gaussian", shape: float = -0.1):
+    """Add white read noise of standard deviation σ_read in place (Eqs. 7 and 10, referred to the charge domain).
 
     The paper adds N(0, σ_read · G_Ve⁻) to the voltage; dividing by G_Ve⁻ gives this. Unit: e⁻.
     float32 arrays draw with :func:`camsim.sampling.standard_normal_f32` (Box–Muller), float64 with numpy.
@@ -164,16 +210,27 @@ def add_read_noise_e(electrons: np.ndarray, read_noise_e: float, rng: np.random.
         C-contiguous buffer of the same shape and dtype for the normal draws.
     work : numpy.ndarray, optional
         float32 buffer of at least half that size (Box–Muller's scratch).
+    model, shape : str, float
+        ``gaussian``, or ``tukey-lambda`` with its shape λ (the same standard deviation, heavier tails).
     """
+    from camsim.fixed_pattern import tukey_lambda
     from camsim.sampling import standard_normal_f32
 
     z = scratch if scratch is not None else np.empty_like(electrons)
-    if z.dtype == np.float32:
+    if model == "tukey-lambda":
+        tukey_lambda(rng, z, shape, read_noise_e)
+    elif z.dtype == np.float32:
         standard_normal_f32(rng, z, work if work is not None else np.empty(z.size // 2, np.float32), read_noise_e)
     else:
         rng.standard_normal(out=z)
         z *= read_noise_e
     electrons += z
+    return electrons
+
+
+def add_row_noise_e(electrons: np.ndarray, row_noise_e: float, rng: np.random.Generator) -> np.ndarray:
+    """Add one Gaussian offset N(0, σ_row) per row (temporal row noise), in place. Unit: e⁻."""
+    electrons += rng.standard_normal((electrons.shape[0], 1), dtype=electrons.dtype) * electrons.dtype.type(row_noise_e)
     return electrons
 
 

@@ -1,4 +1,5 @@
-"""Three-chip LinearRaw DNG writer and reader (8-bit; 16-bit containers for ADCs of more than 8 bits).
+"""Three-chip LinearRaw and Bayer (CFA) DNG writers and reader (8-bit; 16-bit containers for ADCs of more than
+8 bits).
 
 The simulator's digital numbers are stored as an uncompressed, interleaved, 8-bit, 3-sample LinearRaw DNG (one
 R, G and B value per pixel, no mosaic) written with :mod:`tifffile`, so that LibRaw (``rawpy``), dcraw-style raw
@@ -15,6 +16,23 @@ What LibRaw 0.22 (rawpy 0.28) makes of these files, measured and pinned by ``tes
   stays in the file and :func:`read_dng` returns it too.
 * ``white_level`` is the WhiteLevel written (e.g. 255).
 * LibRaw rejects images smaller than 22 pixels in either dimension, so :func:`write_dng` refuses them.
+
+A Bayer sensor's mosaic (one digital number per pixel) is stored by :func:`write_dng_cfa` as an uncompressed
+1-sample CFA DNG (PhotometricInterpretation 32803, a 2x2 CFAPattern). What LibRaw 0.22 makes of these files, pinned
+by ``tests/test_io_dng_cfa.py``:
+
+* ``raw_type`` is ``RawType.Flat``, ``num_colors`` is 3, ``color_desc`` is ``b"RGBG"`` and ``raw_image`` (and
+  ``raw_image_visible``) is the ``(H, W)`` mosaic exactly (as uint16). LibRaw numbers the colours R = 0, G = 1,
+  B = 2 and the green that shares its rows with blue 3, so ``raw_pattern`` (and the 2x2 cell of ``raw_colors``) is
+  RGGB ``[[0, 1], [3, 2]]``, BGGR ``[[2, 3], [1, 0]]``, GRBG ``[[1, 0], [2, 3]]``, GBRG ``[[3, 2], [0, 1]]``.
+* Per-colour black levels are written as BlackLevelRepeatDim (2, 2) with one BlackLevel per CFA position (or
+  (1, 1) with a single value when R, G and B are equal); LibRaw applies them per position:
+  ``black_level_per_channel[c]`` is the black level of the CFA positions of colour index ``c`` (both greens get
+  the green value). Unlike for LinearRaw files LibRaw *truncates* a fractional black level of a CFA DNG
+  (``floor(b)``: 16.99 -> 16, 16.5 -> 16); the exact value stays in the file and :func:`read_dng` returns it too.
+* ``white_level`` is the (single) WhiteLevel written; ``postprocess()`` demosaics with ColorMatrix1 and
+  AsShotNeutral (LibRaw scales by ``white - min(black)``, so a per-colour black level shifts the brightness of
+  the developed picture slightly, not its colour balance).
 """
 
 from __future__ import annotations
@@ -30,7 +48,7 @@ import tifffile
 from camsim.errors import CamsimError
 from camsim.io.atomic import atomic_path
 
-__all__ = ["write_dng", "read_dng", "MIN_SIZE"]
+__all__ = ["write_dng", "write_dng_cfa", "read_dng", "MIN_SIZE", "CFA_PATTERNS"]
 
 MIN_SIZE = 22  # LibRaw refuses raw images narrower or shorter than this (measured with LibRaw 0.22)
 _MAX_DEN = 1_000_000  # largest rational denominator: floats are stored with absolute error below 1e-6
@@ -40,6 +58,10 @@ _DNG_VERSION, _DNG_BACKWARD_VERSION, _UNIQUE_CAMERA_MODEL = 50706, 50707, 50708
 _BLACK_LEVEL_REPEAT_DIM, _BLACK_LEVEL, _WHITE_LEVEL = 50713, 50714, 50717
 _COLOR_MATRIX1, _AS_SHOT_NEUTRAL, _CALIBRATION_ILLUMINANT1 = 50721, 50728, 50778
 _MAKE, _MODEL, _ORIENTATION = 271, 272, 274
+_CFA_REPEAT_PATTERN_DIM, _CFA_PATTERN, _CFA_PLANE_COLOR, _CFA_LAYOUT = 33421, 33422, 50710, 50711
+
+CFA_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")  # colours of a 2x2 cell's top-left, top-right, bottom-left, -right
+_CFA_CODE = {"R": 0, "G": 1, "B": 2}  # DNG CFAPattern colour codes, in the CFAPlaneColor order (0, 1, 2)
 
 
 def _rationals(values: Any, name: str, *, signed: bool) -> tuple[int, ...]:
@@ -71,9 +93,7 @@ def _per_sample(value: Any, name: str) -> np.ndarray:
     return arr
 
 
-def _dng_tags(dn: Any, black_level_dn: Any, white_level: Any, unique_camera_model: str, color_matrix1: Any,
-              as_shot_neutral: Any, calibration_illuminant1: int, make: str, model: str | None) -> list[tuple]:
-    """Validate :func:`write_dng`'s inputs and return tifffile ``extratags`` for the DNG tags."""
+def _check_three_chip(dn: Any) -> None:
     if (not isinstance(dn, np.ndarray) or dn.dtype not in (np.uint8, np.uint16) or dn.ndim != 3
             or dn.shape[0] != 3):
         raise CamsimError(f"dn must be a uint8 or uint16 array of shape (3, H, W), got "
@@ -81,9 +101,33 @@ def _dng_tags(dn: Any, black_level_dn: Any, white_level: Any, unique_camera_mode
     if min(dn.shape[1:]) < MIN_SIZE:
         raise CamsimError(f"frame {dn.shape[1]}x{dn.shape[2]} is smaller than {MIN_SIZE}x{MIN_SIZE}, which LibRaw "
                           "cannot read")
+
+
+def _check_mosaic(mosaic: Any, pattern: Any) -> None:
+    if pattern not in CFA_PATTERNS:  # also rejects non-strings
+        raise CamsimError(f"pattern must be one of {', '.join(CFA_PATTERNS)}, got {pattern!r}")
+    if not isinstance(mosaic, np.ndarray) or mosaic.dtype not in (np.uint8, np.uint16) or mosaic.ndim != 2:
+        raise CamsimError(f"mosaic must be a uint8 or uint16 array of shape (H, W), got "
+                          f"{getattr(mosaic, 'dtype', type(mosaic).__name__)} {getattr(mosaic, 'shape', '')}")
+    h, w = mosaic.shape
+    if min(h, w) < MIN_SIZE:
+        raise CamsimError(f"mosaic {h}x{w} is smaller than {MIN_SIZE}x{MIN_SIZE}, which LibRaw cannot read")
+    if h % 2 or w % 2:
+        raise CamsimError(f"mosaic {h}x{w} must have an even height and width (whole 2x2 {pattern} cells)")
+
+
+def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_camera_model: str, color_matrix1: Any,
+              as_shot_neutral: Any, calibration_illuminant1: int, make: str, model: str | None,
+              pattern: str | None = None) -> list[tuple]:
+    """Validate the metadata shared by both writers and return tifffile ``extratags`` for the DNG tags.
+
+    ``pattern`` None gives the tags of a 3-sample LinearRaw DNG (one BlackLevel and WhiteLevel per sample); a
+    CFA pattern (one of :data:`CFA_PATTERNS`, already validated) gives those of a 1-sample CFA DNG: the CFA tags,
+    one WhiteLevel, and the per-colour black levels mapped onto the 2x2 CFA positions.
+    """
     black = _per_sample(black_level_dn, "black_level_dn")
     white = _per_sample(white_level, "white_level")
-    top = np.iinfo(dn.dtype).max
+    top = np.iinfo(dtype).max
     if np.any(white != np.round(white)) or np.any(white > top) or np.any(white <= black):
         raise CamsimError(f"white_level must be integers <= {top} above the black level, got {white.tolist()} "
                           f"(black level {black.tolist()})")
@@ -96,20 +140,69 @@ def _dng_tags(dn: Any, black_level_dn: Any, white_level: Any, unique_camera_mode
     if not (isinstance(calibration_illuminant1, (int, np.integer)) and 0 <= calibration_illuminant1 <= 65535):
         raise CamsimError(f"calibration_illuminant1 must be an EXIF LightSource code, got {calibration_illuminant1!r}")
     ucm = _ascii(unique_camera_model, "unique_camera_model")
+    if pattern is None:
+        layout_tags: list[tuple] = []
+        black_dim, black_values = (1, 1), black
+        white_values = tuple(int(w) for w in white)
+    else:
+        if np.any(white != white[0]):
+            raise CamsimError(f"white_level of a CFA DNG must be one value for all colours, got {white.tolist()}")
+        codes = tuple(_CFA_CODE[c] for c in pattern)
+        layout_tags = [
+            (_CFA_REPEAT_PATTERN_DIM, "H", 2, (2, 2), True),
+            (_CFA_PATTERN, "B", 4, codes, True),
+            (_CFA_PLANE_COLOR, "B", 3, (0, 1, 2), True),
+            (_CFA_LAYOUT, "H", 1, 1, True),  # rectangular (Cartesian) layout
+        ]
+        if np.all(black == black[0]):
+            black_dim, black_values = (1, 1), black[:1]
+        else:  # one value per CFA position, row by row
+            black_dim, black_values = (2, 2), black[list(codes)]
+        white_values = (int(white[0]),)
     return [  # (code, dtype, count, value, write-once); tifffile sorts tags by code
         (_MAKE, "s", 0, _ascii(make, "make"), True),
         (_MODEL, "s", 0, _ascii(ucm if model is None else model, "model"), True),
         (_ORIENTATION, "H", 1, 1, True),
+        *layout_tags,
         (_DNG_VERSION, "B", 4, (1, 4, 0, 0), True),
         (_DNG_BACKWARD_VERSION, "B", 4, (1, 1, 0, 0), True),
         (_UNIQUE_CAMERA_MODEL, "s", 0, ucm, True),
-        (_BLACK_LEVEL_REPEAT_DIM, "H", 2, (1, 1), True),
-        (_BLACK_LEVEL, "2I", 3, _rationals(black, "black_level_dn", signed=False), True),
-        (_WHITE_LEVEL, "I", 3, tuple(int(w) for w in white), True),
+        (_BLACK_LEVEL_REPEAT_DIM, "H", 2, black_dim, True),
+        (_BLACK_LEVEL, "2I", len(black_values), _rationals(black_values, "black_level_dn", signed=False), True),
+        (_WHITE_LEVEL, "I", len(white_values), white_values, True),
         (_COLOR_MATRIX1, "2i", 9, _rationals(cm, "color_matrix1", signed=True), True),
         (_AS_SHOT_NEUTRAL, "2I", 3, _rationals(neutral, "as_shot_neutral", signed=False), True),
         (_CALIBRATION_ILLUMINANT1, "H", 1, int(calibration_illuminant1), True),
     ]
+
+
+def _write(path: str | os.PathLike[str], frame: Any, cfa: bool, pattern: Any, black_level_dn: Any, white_level: Any,
+           unique_camera_model: str, color_matrix1: Any, as_shot_neutral: Any, calibration_illuminant1: int,
+           make: str, model: str | None, software: str | None) -> None:
+    """Validate everything, then write a three-chip (``cfa`` False, ``pattern`` None) or CFA DNG atomically."""
+    name = os.fspath(path)
+    try:
+        if cfa:
+            _check_mosaic(frame, pattern)
+        else:
+            _check_three_chip(frame)
+        extratags = _dng_tags(frame.dtype, black_level_dn, white_level, unique_camera_model, color_matrix1,
+                              as_shot_neutral, calibration_illuminant1, make, model, pattern)
+        software_tag = _ascii(software, "software") if software is not None else False
+    except (TypeError, ValueError) as exc:  # CamsimError is a ValueError; so are numpy's failed conversions
+        raise CamsimError(f"cannot write DNG {name}: {exc}") from None
+    if not cfa:
+        pixels = np.ascontiguousarray(frame.transpose(1, 2, 0))  # (H, W, 3) interleaved
+        layout: dict[str, Any] = dict(photometric=tifffile.PHOTOMETRIC.LINEAR_RAW, planarconfig="contig")
+    else:
+        pixels = np.ascontiguousarray(frame)  # (H, W), one sample per pixel
+        layout = dict(photometric=tifffile.PHOTOMETRIC.CFA)
+    with atomic_path(path) as tmp:
+        tifffile.imwrite(
+            tmp, pixels, subfiletype=0, compression=None, rowsperstrip=pixels.shape[0], extratags=extratags,
+            software=software_tag, datetime=False, metadata=None,  # no DateTime tag, no tifffile JSON description
+            **layout,
+        )
 
 
 def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: float | Any, white_level: int | Any,
@@ -148,20 +241,47 @@ def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: f
     -----
     The file has no date/time or other varying content: the same inputs give byte-identical files.
     """
-    name = os.fspath(path)
-    try:
-        extratags = _dng_tags(dn, black_level_dn, white_level, unique_camera_model, color_matrix1, as_shot_neutral,
-                              calibration_illuminant1, make, model)
-        software_tag = _ascii(software, "software") if software is not None else False
-    except (TypeError, ValueError) as exc:  # CamsimError is a ValueError; so are numpy's failed conversions
-        raise CamsimError(f"cannot write DNG {name}: {exc}") from None
-    pixels = np.ascontiguousarray(dn.transpose(1, 2, 0))  # (H, W, 3) interleaved
-    with atomic_path(path) as tmp:
-        tifffile.imwrite(
-            tmp, pixels, photometric=tifffile.PHOTOMETRIC.LINEAR_RAW, planarconfig="contig", subfiletype=0,
-            compression=None, rowsperstrip=pixels.shape[0], extratags=extratags, software=software_tag,
-            datetime=False, metadata=None,  # no DateTime tag, no tifffile JSON ImageDescription
-        )
+    _write(path, dn, False, None, black_level_dn, white_level, unique_camera_model, color_matrix1, as_shot_neutral,
+           calibration_illuminant1, make, model, software)
+
+
+def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: str, black_level_dn: float | Any,
+                  white_level: int, unique_camera_model: str, color_matrix1: Any, as_shot_neutral: Any,
+                  calibration_illuminant1: int = 21, make: str = "camsim", model: str | None = None,
+                  software: str | None = None) -> None:
+    """Write an uncompressed Bayer (CFA) DNG, atomically and byte-deterministically.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination ``.dng`` file (its directory must exist).
+    mosaic : numpy.ndarray, shape (H, W), dtype uint8 (uint16 for a 16-bit DNG)
+        One digital number per pixel [DN], each of the colour its CFA position has. ``H, W`` even and ``>= 22``
+        (LibRaw's minimum size).
+    pattern : {"RGGB", "BGGR", "GRBG", "GBRG"}
+        Colours of the 2x2 cell's top-left, top-right, bottom-left and bottom-right pixels; the cell at the
+        mosaic's top-left corner.
+    black_level_dn : float or array_like, shape (3,)
+        Black level per colour (R, G, B) [DN], stored exactly as RATIONAL per CFA position (BlackLevelRepeatDim
+        (2, 2)), or as one value when all three are equal. LibRaw truncates fractional values (module docstring).
+    white_level : int
+        Saturation level [DN] of all pixels, ``<= 255`` (``<= 65535`` for uint16) and above the black levels; 3
+        equal values are accepted too.
+    unique_camera_model, color_matrix1, as_shot_neutral, calibration_illuminant1, make, model, software
+        As for :func:`write_dng`; ``color_matrix1`` maps XYZ to the camera's R, G, B (CFAPlaneColor order).
+
+    Raises
+    ------
+    CamsimError
+        Naming ``path``, if ``mosaic`` is not an ``(H, W)`` uint8/uint16 array with even ``H, W >= 22``,
+        ``pattern`` is not one of the four, or a metadata value is out of range. No file is created then.
+
+    Notes
+    -----
+    The file has no date/time or other varying content: the same inputs give byte-identical files.
+    """
+    _write(path, mosaic, True, pattern, black_level_dn, white_level, unique_camera_model, color_matrix1,
+           as_shot_neutral, calibration_illuminant1, make, model, software)
 
 
 def _tag(page: Any, code: int) -> Any:
@@ -176,28 +296,60 @@ def _floats(rationals: Any) -> list[float] | None:
     return (vals[0::2] / vals[1::2]).tolist()
 
 
+def _cfa_pattern(page: Any, name: str) -> str:
+    """The 2x2 CFA pattern of a CFA DNG page, e.g. ``"RGGB"``; CamsimError for any other CFA layout."""
+    dim = _tag(page, _CFA_REPEAT_PATTERN_DIM)
+    codes = _tag(page, _CFA_PATTERN)
+    planes = _tag(page, _CFA_PLANE_COLOR)
+    letters = "".join("RGB"[c] if c < 3 else "?" for c in bytes(codes)) if codes is not None else None
+    if (dim is None or tuple(dim) != (2, 2) or letters not in CFA_PATTERNS
+            or (planes is not None and bytes(planes) != bytes((0, 1, 2)))):
+        raise CamsimError(f"cannot read DNG {name}: unsupported CFA layout (CFARepeatPatternDim {dim}, CFAPattern "
+                          f"{None if codes is None else tuple(bytes(codes))}, CFAPlaneColor "
+                          f"{None if planes is None else tuple(bytes(planes))}); expected a 2x2 Bayer pattern "
+                          f"({', '.join(CFA_PATTERNS)})")
+    return letters
+
+
+def _cfa_black_per_colour(page: Any, pattern: str, name: str) -> list[float] | None:
+    """The BlackLevel tag of a CFA DNG as R, G, B values (from the first CFA position of each colour)."""
+    values = _floats(_tag(page, _BLACK_LEVEL))
+    if values is None:
+        return None
+    dim = tuple(_tag(page, _BLACK_LEVEL_REPEAT_DIM) or (1, 1))
+    if dim == (1, 1) and len(values) == 1:
+        return values * 3
+    if dim == (2, 2) and len(values) == 4:
+        return [values[pattern.index(c)] for c in "RGB"]
+    raise CamsimError(f"cannot read DNG {name}: unsupported BlackLevel layout (repeat {dim}, {len(values)} values)")
+
+
 def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
-    """Read a DNG written by :func:`write_dng`; pixels and levels through LibRaw (``rawpy``).
+    """Read a DNG written by :func:`write_dng` or :func:`write_dng_cfa`; pixels and levels through LibRaw.
 
     Parameters
     ----------
     path : str or os.PathLike
-        A three-sample 8-bit LinearRaw DNG.
+        A three-sample LinearRaw DNG or a 2x2 Bayer CFA DNG, 8- or 16-bit, uncompressed.
 
     Returns
     -------
-    dn : numpy.ndarray, shape (3, H, W), dtype uint8 (uint16 for a 16-bit DNG)
-        Planar R, G, B digital numbers [DN], as decoded by LibRaw.
+    dn : numpy.ndarray, shape (3, H, W) or (1, H, W), dtype uint8 (uint16 for a 16-bit DNG)
+        Planar R, G, B digital numbers [DN] of a three-chip file, or the mosaic of a CFA file, as decoded by
+        LibRaw (``rawpy``).
     info : dict
-        ``black_level`` (list of 3 int, LibRaw's rounded per-channel black level [DN]), ``black_level_exact``
-        (list of 3 float, the BlackLevel tag), ``white_level`` (int [DN], LibRaw), ``unique_camera_model``,
-        ``make``, ``model`` (str or None), ``as_shot_neutral`` (list of 3 float), ``color_matrix1`` (3x3 nested
-        list, XYZ -> camera) and ``calibration_illuminant1`` (int or None), from the DNG tags.
+        ``cfa_pattern`` (str such as ``"RGGB"`` for a CFA file, None for a three-chip one), ``black_level`` (list
+        of 3 int, LibRaw's per-channel black level for R, G, B [DN], rounded for LinearRaw and truncated for CFA
+        files), ``black_level_exact`` (list of 3 float, the BlackLevel tag; for a CFA file per colour R, G, B),
+        ``white_level`` (int [DN], LibRaw), ``unique_camera_model``, ``make``, ``model`` (str or None),
+        ``as_shot_neutral`` (list of 3 float), ``color_matrix1`` (3x3 nested list, XYZ -> camera) and
+        ``calibration_illuminant1`` (int or None), from the DNG tags.
 
     Raises
     ------
     CamsimError
-        Naming ``path``, if the file is missing, unreadable, truncated, not a DNG, or not 3-sample 8-bit LinearRaw.
+        Naming ``path``, if the file is missing, unreadable, truncated, not a DNG, or neither 3-sample LinearRaw
+        nor 1-sample 2x2 Bayer CFA of 8 or 16 bits.
     """
     import rawpy  # imported lazily: only readers of DNGs need LibRaw
 
@@ -207,33 +359,57 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
             page = tif.pages.first
             if _tag(page, _DNG_VERSION) is None:
                 raise CamsimError(f"cannot read DNG {name}: not a DNG (no DNGVersion tag)")
-            if (page.photometric != tifffile.PHOTOMETRIC.LINEAR_RAW or page.samplesperpixel != 3
-                    or page.bitspersample not in (8, 16)):
-                raise CamsimError(f"cannot read DNG {name}: not an 8/16-bit 3-sample LinearRaw DNG (photometric "
-                                  f"{int(page.photometric)}, {page.samplesperpixel} samples, "
+            if (page.photometric == tifffile.PHOTOMETRIC.CFA and page.samplesperpixel == 1
+                    and page.bitspersample in (8, 16)):
+                pattern: str | None = _cfa_pattern(page, name)
+                black_exact = _cfa_black_per_colour(page, pattern, name)
+            elif (page.photometric == tifffile.PHOTOMETRIC.LINEAR_RAW and page.samplesperpixel == 3
+                    and page.bitspersample in (8, 16)):
+                pattern = None
+                black_exact = _floats(_tag(page, _BLACK_LEVEL))
+            else:
+                raise CamsimError(f"cannot read DNG {name}: not an 8/16-bit 3-sample LinearRaw or 1-sample CFA DNG "
+                                  f"(photometric {int(page.photometric)}, {page.samplesperpixel} samples, "
                                   f"{page.bitspersample} bits)")
             bits = page.bitspersample
+            shape = (page.imagelength, page.imagewidth)
             cm = _floats(_tag(page, _COLOR_MATRIX1))
             info: dict[str, Any] = {
+                "cfa_pattern": pattern,
                 "unique_camera_model": _tag(page, _UNIQUE_CAMERA_MODEL),
                 "make": _tag(page, _MAKE),
                 "model": _tag(page, _MODEL),
-                "black_level_exact": _floats(_tag(page, _BLACK_LEVEL)),
+                "black_level_exact": black_exact,
                 "as_shot_neutral": _floats(_tag(page, _AS_SHOT_NEUTRAL)),
                 "color_matrix1": None if cm is None else np.reshape(cm, (3, 3)).tolist(),
                 "calibration_illuminant1": _tag(page, _CALIBRATION_ILLUMINANT1),
             }
         with rawpy.imread(name) as raw:
-            image = raw.raw_image  # (H, W, 4) uint16 for a 3-colour stack: channel 3 is unused
-            if raw.raw_type != rawpy.RawType.Stack or raw.num_colors != 3 or image.ndim != 3 or image.shape[2] < 3:
-                raise CamsimError(f"cannot read DNG {name}: LibRaw did not decode a 3-colour stacked image")
-            black = [int(b) for b in raw.black_level_per_channel[:3]]
+            image = raw.raw_image
+            if pattern is None:  # (H, W, 4) uint16 for a 3-colour stack: channel 3 is unused
+                if (raw.raw_type != rawpy.RawType.Stack or raw.num_colors != 3 or image.ndim != 3
+                        or image.shape[2] < 3):
+                    raise CamsimError(f"cannot read DNG {name}: LibRaw did not decode a 3-colour stacked image")
+                black = [int(b) for b in raw.black_level_per_channel[:3]]
+                planes = image[..., :3].transpose(2, 0, 1)
+            else:  # (H, W) uint16 mosaic; LibRaw's colour indices name colours through color_desc (b"RGBG")
+                desc = raw.color_desc.decode("ascii", "replace")
+                cell = raw.raw_pattern
+                decoded = ("".join(desc[i] if i < len(desc) else "?" for i in cell.ravel())
+                           if cell is not None and cell.shape == (2, 2) else None)
+                if (raw.raw_type != rawpy.RawType.Flat or raw.num_colors != 3 or image.shape != shape
+                        or decoded != pattern):
+                    raise CamsimError(f"cannot read DNG {name}: LibRaw did not decode a {shape[0]}x{shape[1]} "
+                                      f"{pattern} mosaic (got {image.shape}, pattern {decoded})")
+                black = [int(raw.black_level_per_channel[desc.index(c)]) for c in "RGB"]
+                planes = image[None]
             white = int(raw.white_level)
-            pixels = image[..., :3]
             dtype = np.uint8 if bits == 8 else np.uint16
-            if pixels.max(initial=0) > np.iinfo(dtype).max:
+            if planes.max(initial=0) > np.iinfo(dtype).max:
                 raise CamsimError(f"cannot read DNG {name}: decoded values exceed {bits} bits")
-            dn = np.ascontiguousarray(pixels.transpose(2, 0, 1), dtype=dtype)
+            # always a copy: raw_image is a view of LibRaw's buffer, freed when the file is closed (for a uint16
+            # mosaic a mere ascontiguousarray would return that view itself)
+            dn = np.array(planes, dtype=dtype, order="C", copy=True)
     except CamsimError:
         raise
     except Exception as exc:  # rawpy.LibRawError, tifffile.TiffFileError, OSError, struct errors on truncation...
