@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from camsim.errors import CamsimError
-from camsim.sensor import PRESETS, STAGES
+from camsim.sensor import CFA_PATTERNS, PRESETS, STAGES
 
 DEFAULT_OUT = Path("outputs")
 
@@ -87,6 +87,9 @@ def build_parser() -> argparse.ArgumentParser:
                              "(photon + dark noise only), ideal (photon noise only, output in electrons)")
     render.add_argument("--disable", metavar="STAGE", choices=STAGES, nargs="+", action="extend", default=[],
                         help=f"switch sensor stage(s) off: {', '.join(STAGES)}")
+    render.add_argument("--cfa", choices=CFA_PATTERNS,
+                        help="a Bayer colour filter array (one channel per pixel; the DNG is then a CFA DNG) instead "
+                             "of the default three-chip sensor (R, G and B at every pixel)")
     render.add_argument("--exposure", metavar="SECONDS", type=_positive_float,
                         help="exposure time T in s (Table I: 1 s)")
     render.add_argument("--camera", metavar="NAME_OR_CSV",
@@ -177,6 +180,8 @@ def _apply_overrides(scene, args):
     overrides = {stage: False for stage in args.disable}
     if args.exposure is not None:
         overrides["exposure_s"] = args.exposure
+    if args.cfa is not None:
+        overrides["cfa"] = args.cfa
     return scene.with_sensor(**overrides) if overrides else scene
 
 

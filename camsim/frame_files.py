@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import re
+from functools import partial
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,7 +16,7 @@ import numpy as np
 
 import camsim
 from camsim.io.atomic import write_json_atomic
-from camsim.io.dng import write_dng
+from camsim.io.dng import write_dng, write_dng_cfa
 from camsim.io.exr import write_exr
 from camsim.rawcolour import CALIBRATION_ILLUMINANT_D65
 from camsim.render import Frame
@@ -88,7 +89,8 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
         "width_px": width,
         "height_px": height,
         "channels": ["R", "G", "B"],
-        "sensor_layout": "three-chip",
+        "sensor_layout": "three-chip" if sensor.cfa is None else "bayer",
+        "cfa_pattern": sensor.cfa,
         "bits": sensor.bits,
         "white_level_dn": sensor.max_dn,
         "dn_per_electron": k,
@@ -128,7 +130,8 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
                            "Gaussian where it is within auto_tolerance_ks)",
             "qe_e_m2_sr_per_photon": "e- m^2 sr / photon, rows R, G, B on wavelengths_nm",
             "rect_xywh": "pixels: x, y of the top-left corner, width, height",
-            "exr_channels": "R, G, B: noisy DN before quantisation; clean.R, clean.G, clean.B: expected DN",
+            "exr_channels": "R, G, B (or CFA, the Bayer mosaic): noisy DN before quantisation; clean.R, clean.G, "
+                            "clean.B: expected DN of every channel at every pixel",
         },
         "files": files,
     }
@@ -149,9 +152,10 @@ def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo) -> dict
              "json": f"{stem}.json"}
     meta = sidecar(frame, info, files)
     if frame.digital_dn is not None:
-        write_dng(
+        write = write_dng if sensor.cfa is None else partial(write_dng_cfa, pattern=sensor.cfa)
+        write(
             out_dir / files["dng"],
-            frame.digital_dn,
+            frame.digital_dn if sensor.cfa is None else frame.digital_dn[0],
             black_level_dn=sensor.black_level_dn,
             white_level=sensor.max_dn,
             unique_camera_model=f"camsim {info.camera}",

@@ -29,6 +29,7 @@ ALL_METHODS = ("poisson", "spectral", "gaussian", "auto")
 from camsim.fixed_pattern import fixed_pattern
 from camsim.sensor import (
     SensorParams,
+    cfa_sites,
     add_read_noise_e,
     add_row_noise_e,
     dn_dtype,
@@ -137,14 +138,19 @@ def render_frame(
     """
     height, width = labels.shape
     rows = max(1, BLOCK_PIXELS // width)
+    if sensor.cfa is not None:
+        if height % 2 or width % 2:
+            raise CamsimError(f"a {sensor.cfa} colour filter array needs an even frame size, got {width}x{height}")
+        rows = max(2, rows - rows % 2)  # blocks start on the pattern's even rows
     starts = list(range(0, height, rows))
     if isinstance(rng, np.random.Generator):
         generators = rng.spawn(len(starts))
     else:
         seed_seq = rng if isinstance(rng, np.random.SeedSequence) else np.random.SeedSequence(rng)
         generators = [np.random.Generator(np.random.PCG64(child)) for child in seed_seq.spawn(len(starts))]
-    noisy = np.empty((3, height, width), dtype=np.float32)
-    digital = np.empty((3, height, width), dtype=dn_dtype(sensor.bits)) if sensor.quantisation else None
+    planes = 3 if sensor.cfa is None else 1  # a colour filter array keeps one value per pixel
+    noisy = np.empty((planes, height, width), dtype=np.float32)
+    digital = np.empty((planes, height, width), dtype=dn_dtype(sensor.bits)) if sensor.quantisation else None
 
     per_thread = threading.local()  # one scratch block per thread, reused: fresh pages cost more than the maths
     read_noise = sensor.read_noise and sensor.read_noise_e > 0
@@ -169,6 +175,30 @@ def render_frame(
         block = noisy[:, r0:r1]  # work in place in the output: electrons first, DN at the end
         offset = None if maps is None or maps.offset_e is None else maps.offset_e[:, r0:r1]
         gain = None if maps is None or maps.gain is None else maps.gain[:, r0:r1]
+        if sensor.cfa is not None and plan is not None:  # each site of the 2 × 2 cell: its channel only
+            for dy, dx, c in cfa_sites(sensor.cfa):
+                site = (slice(dy, None, 2), slice(dx, None, 2))
+                sub_labels = np.ascontiguousarray(labels[r0:r1][site])
+                value = np.empty(sub_labels.shape, dtype=np.float32)
+                fill_channel(value, sub_labels, plan, expected, sensor, statistics, c, block_rng,
+                             np.empty_like(value), per_thread.work,
+                             None if offset is None else offset[c][site], None if gain is None else gain[c][site])
+                if sensor.row_noise_e > 0:
+                    add_row_noise_e(value, sensor.row_noise_e * sensor.dn_per_electron, block_rng)
+                block[0][site] = value
+            if digital is not None:
+                quantise_dn(block[0], sensor.bits, out=digital[0, r0:r1])
+            return
+        if sensor.cfa is not None:  # spectral: draw the three channels, keep each site's own
+            rgb = np.empty((3, r1 - r0, width), dtype=np.float32)
+            draw_electrons(labels[r0:r1], expected, sensor, statistics, method, block_rng, rgb)
+            for dy, dx, c in cfa_sites(sensor.cfa):
+                site = (slice(dy, None, 2), slice(dx, None, 2))
+                block[0][site] = rgb[c][site]
+                if offset is not None:
+                    block[0][site] += offset[c][site]
+            finish_planes(block, digital, r0, r1, scratch, block_rng)
+            return
         if plan is not None:  # poisson / gaussian / auto: every stage in one pass per channel, straight to DN
             for c in range(3):
                 fill_channel(block[c], labels[r0:r1], plan, expected, sensor, statistics, c, block_rng, scratch,
@@ -179,10 +209,14 @@ def render_frame(
                     quantise_dn(block[c], sensor.bits, out=digital[c, r0:r1])
             return
         draw_electrons(labels[r0:r1], expected, sensor, statistics, method, block_rng, block)
-        for c in range(3):
+        if offset is not None:
+            block += offset
+        finish_planes(block, digital, r0, r1, scratch, block_rng)
+
+    def finish_planes(block, digital, r0, r1, scratch, block_rng):
+        """Saturation, read and row noise, gain and ADC on electrons already drawn (the spectral path)."""
+        for c in range(block.shape[0]):
             e = block[c]
-            if offset is not None:
-                e += offset[c]
             if sensor.saturation:
                 saturate_e(e, sensor.full_well_e, out=e)
             if read_noise:

@@ -15,6 +15,12 @@ from camsim.errors import CamsimError
 
 STAGES = ("photon_noise", "dark_current", "saturation", "read_noise", "quantisation")
 READ_NOISE_MODELS = ("gaussian", "tukey-lambda")
+CFA_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
+
+
+def cfa_sites(pattern: str) -> list[tuple[int, int, int]]:
+    """The 2 × 2 cell of a Bayer pattern as ``[(row offset, column offset, channel), ...]`` (channel 0 = R)."""
+    return [(i // 2, i % 2, "RGB".index(colour)) for i, colour in enumerate(pattern)]
 
 
 @dataclass(frozen=True)
@@ -56,6 +62,10 @@ class SensorParams:
         Shape of the Tukey lambda read noise (0: logistic).
     sensor_seed : int
         Seed of the fixed-pattern maps: frames of the same sensor share them, while temporal noise changes.
+    cfa : str or None
+        None for a three-chip sensor (every pixel has R, G and B, like the paper's Sony DXC-930), or a Bayer
+        colour filter array ``RGGB``, ``BGGR``, ``GRBG`` or ``GBRG`` (colours of the 2 × 2 cell, row by row):
+        one channel per pixel.
     """
 
     conversion_gain_v_per_e: float = 0.0002
@@ -76,6 +86,7 @@ class SensorParams:
     read_noise_model: str = "gaussian"
     tukey_lambda: float = -0.1
     sensor_seed: int = 0
+    cfa: str | None = None
 
     def __post_init__(self):
         dark = tuple(float(v) for v in np.broadcast_to(np.asarray(self.dark_current_e_per_s, float), (3,)))
@@ -101,6 +112,8 @@ class SensorParams:
             raise CamsimError(f"read_noise_model must be one of {READ_NOISE_MODELS}, got {self.read_noise_model!r}")
         if not (isinstance(self.tukey_lambda, (int, float)) and -0.5 < self.tukey_lambda < 1):
             raise CamsimError(f"tukey_lambda must be in (−0.5, 1) (finite variance), got {self.tukey_lambda!r}")
+        if self.cfa is not None and self.cfa not in CFA_PATTERNS:
+            raise CamsimError(f"cfa must be one of {', '.join(CFA_PATTERNS)} (or none), got {self.cfa!r}")
         if not (isinstance(self.sensor_seed, int) and self.sensor_seed >= 0):
             raise CamsimError(f"sensor_seed must be a non-negative integer, got {self.sensor_seed!r}")
         for name in STAGES:

@@ -75,6 +75,8 @@ def analyse_paths(paths, settings: AnalysisSettings, source="dng", dark_frame=No
             "source": frame.source,
             **{k: meta.get(k) for k in FRAME_COLUMNS[2:]},
             "camera_to_xyz": settings.matrix,
+            "cfa_pattern": frame.cfa_pattern,
+            "demosaicing": "bilinear (colour-demosaicing), for xy, ellipses and ΔE only" if frame.cfa_pattern else None,
             "black_subtraction": settings.black,
             "black_dn": black.tolist(),
             "patches": patches,

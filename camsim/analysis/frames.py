@@ -29,7 +29,7 @@ class LoadedFrame:
         The pixel file.
     source : {'dng', 'exr'}
         ``dng``: the digital numbers I (quantised); ``exr``: the signal before quantisation.
-    pixels_dn : numpy.ndarray, shape (3, H, W)
+    pixels_dn : numpy.ndarray, shape (3, H, W), or (1, H, W) for a Bayer (CFA) frame
         uint8 / uint16 for a DNG, float32 for an EXR. Unit: DN.
     meta : dict
         The sidecar.
@@ -39,6 +39,11 @@ class LoadedFrame:
     source: str
     pixels_dn: np.ndarray
     meta: dict
+
+    @property
+    def cfa_pattern(self) -> str | None:
+        """The Bayer pattern of a colour-filter-array frame (one value per pixel), None for three-chip frames."""
+        return self.meta.get("cfa_pattern")
 
     @property
     def quantised(self) -> bool:

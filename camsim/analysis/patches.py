@@ -100,6 +100,34 @@ def fraction_within(xy: np.ndarray, k_sigma: float, weights=None) -> float | Non
     return float(np.average(inside, weights=weights))
 
 
+def site_values(mosaic: np.ndarray, rect, border: int, pattern: str, channel: int) -> np.ndarray:
+    """A Bayer frame's values of one channel inside a patch rectangle less a border, shape (n,).
+
+    ``mosaic`` is (1, H, W); a pixel's channel follows from its absolute row and column parity.
+    """
+    from camsim.sensor import cfa_sites
+
+    x, y, w, h = rect
+    if 2 * border >= min(w, h):
+        return np.empty(0, dtype=mosaic.dtype)
+    block = mosaic[0, y + border : y + h - border, x + border : x + w - border]
+    parts = [block[(dy - y - border) % 2 :: 2, (dx - x - border) % 2 :: 2].ravel()
+             for dy, dx, c in cfa_sites(pattern) if c == channel]
+    return np.concatenate(parts)
+
+
+def demosaiced(frame: LoadedFrame) -> np.ndarray:
+    """RGB at every pixel of a Bayer frame, by bilinear demosaicing (colour-demosaicing), shape (3, H, W).
+
+    Used only for the quantities that need all three channels at one pixel (xy, ellipses, ΔE); the per-channel
+    statistics come from the sites themselves.
+    """
+    from colour_demosaicing import demosaicing_CFA_Bayer_bilinear
+
+    rgb = demosaicing_CFA_Bayer_bilinear(frame.pixels_dn[0].astype(np.float64), frame.cfa_pattern)
+    return np.moveaxis(np.asarray(rgb), -1, 0)
+
+
 def distinct_samples(raw: np.ndarray):
     """Distinct (R, G, B) rows of integer samples and their counts: ``(rows (m, 3), counts (m,))``.
 
@@ -180,18 +208,26 @@ def analyse_frame(frame: LoadedFrame, settings: AnalysisSettings, black_dn, matr
     stages = meta["stages"]
     expected_black = frame.expected_black_dn()
     threshold = saturation_threshold_dn(frame)
+    pattern = frame.cfa_pattern
+    rgb = demosaiced(frame) if pattern else None
     records, labs = [], []
     for index, patch in enumerate(meta["patches"]):
-        raw = patch_samples(frame.pixels_dn, patch["rect_xywh"], settings.border_px)
-        rows, counts = distinct_samples(raw) if frame.quantised else (raw.astype(np.float64), None)
+        if pattern:  # Bayer: statistics per site; colour from the demosaiced RGB
+            rows, counts = patch_samples(rgb, patch["rect_xywh"], settings.border_px), None
+            sites = [site_values(frame.pixels_dn, patch["rect_xywh"], settings.border_px, pattern, c).astype(float)
+                     - black_dn[c] for c in range(3)]
+        else:
+            raw = patch_samples(frame.pixels_dn, patch["rect_xywh"], settings.border_px)
+            rows, counts = distinct_samples(raw) if frame.quantised else (raw.astype(np.float64), None)
         samples = rows - black_dn
         terms = (np.asarray(patch["signal_e"]), np.asarray(patch["dark_e"]) if stages["dark_current"] else 0.0,
                  np.asarray(patch["signal_var_e2"]), meta["read_noise_e"] if stages["read_noise"] else 0.0, k,
                  bool(stages["quantisation"]) and frame.quantised)  # an EXR holds the values before the ADC
         model = snr_model(*terms)  # quantisation as the variance it adds: comparable with the pixels' SNR
         model_eq13 = snr_model(*terms, quantisation_term="mean-square")  # Eq. 13 literally
-        channels = [_channel_record(name, samples[:, c], counts, black_dn[c], expected_black[c], threshold, k, model,
-                                    model_eq13, c) for c, name in enumerate(CHANNELS)]
+        channels = [_channel_record(name, sites[c] if pattern else samples[:, c], None if pattern else counts,
+                                    black_dn[c], expected_black[c], threshold, k, model, model_eq13, c)
+                    for c, name in enumerate(CHANNELS)]
         xyz = xyz_from_camera(samples, matrix)
         xy, n_undefined, valid = chromaticity_xy(xyz, weights=counts, return_valid=True)
         weights = None if counts is None else counts[valid]
@@ -212,7 +248,7 @@ def analyse_frame(frame: LoadedFrame, settings: AnalysisSettings, black_dn, matr
             "angle_deg": ellipse.angle_deg,
             "size_xy": ellipse.size,
             "frac_in_2sigma": fraction_within(xy, 2.0, weights) if ellipse.status == "ok" else None,
-            "n_distinct_values": int(rows.shape[0]) if frame.quantised else None,
+            "n_distinct_values": int(rows.shape[0]) if frame.quantised and not pattern else None,
         }
         reference = lab if ref_labs == "self" else (None if ref_labs is None else ref_labs[index])
         if reference is None:

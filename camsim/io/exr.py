@@ -26,6 +26,7 @@ from camsim.io.atomic import atomic_path
 __all__ = ["write_exr", "read_exr", "read_exr_oiio", "NOISY_CHANNELS", "CLEAN_CHANNELS"]
 
 NOISY_CHANNELS = ("R", "G", "B")
+MOSAIC_CHANNELS = ("CFA",)  # a colour filter array frame: one value per pixel
 CLEAN_CHANNELS = ("clean.R", "clean.G", "clean.B")
 
 # Header names the writer refuses: OpenEXR's standard attributes (they have fixed non-string types) and names
@@ -56,10 +57,11 @@ def _configure_threads() -> None:
         _threads_configured = True
 
 
-def _check_frame(arr: Any, what: str, name: str) -> np.ndarray:
+def _check_frame(arr: Any, what: str, name: str, planes=(3,)) -> np.ndarray:
     if not isinstance(arr, np.ndarray) or arr.dtype.kind != "f" or arr.dtype.itemsize != 4 or arr.ndim != 3 \
-            or arr.shape[0] != 3 or arr.shape[1] < 1 or arr.shape[2] < 1:
-        raise CamsimError(f"cannot write EXR {name}: {what} must be a float32 array of shape (3, H, W), got "
+            or arr.shape[0] not in planes or arr.shape[1] < 1 or arr.shape[2] < 1:
+        shapes = " or ".join(f"({p}, H, W)" for p in planes)
+        raise CamsimError(f"cannot write EXR {name}: {what} must be a float32 array of shape {shapes}, got "
                           f"{getattr(arr, 'dtype', type(arr).__name__)} {getattr(arr, 'shape', '')}")
     return arr.astype(np.float32, copy=False)  # native byte order
 
@@ -88,9 +90,9 @@ def write_exr(path: str | os.PathLike[str], noisy: np.ndarray, clean: np.ndarray
     ----------
     path : str or os.PathLike
         Destination ``.exr`` file (its directory must exist).
-    noisy : numpy.ndarray, shape (3, H, W), dtype float32
-        Planar R, G, B of the simulated (noisy) signal, stored as channels ``R``, ``G``, ``B``. Any float32 value
-        (negative, inf, NaN) is stored bit-exactly.
+    noisy : numpy.ndarray, shape (3, H, W) or (1, H, W), dtype float32
+        Planar R, G, B of the simulated (noisy) signal, stored as channels ``R``, ``G``, ``B``; or a colour filter
+        array's mosaic, stored as one channel ``CFA``. Any float32 value (negative, inf, NaN) is stored bit-exactly.
     clean : numpy.ndarray, shape (3, H, W), dtype float32, or None
         Planar noise-free signal, stored as ``clean.R``, ``clean.G``, ``clean.B``; omitted when None.
     header : Mapping[str, str] or None
@@ -109,11 +111,12 @@ def write_exr(path: str | os.PathLike[str], noisy: np.ndarray, clean: np.ndarray
     same inputs give byte-identical files.
     """
     name = os.fspath(path)
-    noisy = _check_frame(noisy, "noisy", name)
-    channels = {c: np.ascontiguousarray(noisy[i]) for i, c in enumerate(NOISY_CHANNELS)}
+    noisy = _check_frame(noisy, "noisy", name, planes=(3, 1))
+    names = NOISY_CHANNELS if noisy.shape[0] == 3 else MOSAIC_CHANNELS
+    channels = {c: np.ascontiguousarray(noisy[i]) for i, c in enumerate(names)}
     if clean is not None:
         clean = _check_frame(clean, "clean", name)
-        if clean.shape != noisy.shape:
+        if clean.shape[1:] != noisy.shape[1:]:
             raise CamsimError(f"cannot write EXR {name}: clean shape {clean.shape} differs from noisy shape "
                               f"{noisy.shape}")
         channels.update({c: np.ascontiguousarray(clean[i]) for i, c in enumerate(CLEAN_CHANNELS)})
@@ -126,17 +129,18 @@ def write_exr(path: str | os.PathLike[str], noisy: np.ndarray, clean: np.ndarray
 
 
 def _assemble(name: str, planes: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray | None]:
-    missing = [c for c in NOISY_CHANNELS if c not in planes]
+    names = MOSAIC_CHANNELS if MOSAIC_CHANNELS[0] in planes and "R" not in planes else NOISY_CHANNELS
+    missing = [c for c in names if c not in planes]
     if missing:
         raise CamsimError(f"cannot read EXR {name}: lacks channel(s) {', '.join(missing)} "
                           f"(has {', '.join(sorted(planes)) or 'none'})")
     present = [c for c in CLEAN_CHANNELS if c in planes]
     if present and len(present) != 3:
         raise CamsimError(f"cannot read EXR {name}: has only some clean channels ({', '.join(present)})")
-    for c in (*NOISY_CHANNELS, *present):
+    for c in (*names, *present):
         if planes[c].dtype.kind != "f":
             raise CamsimError(f"cannot read EXR {name}: channel {c} is {planes[c].dtype}, expected float")
-    noisy = np.stack([planes[c] for c in NOISY_CHANNELS]).astype(np.float32, copy=False)
+    noisy = np.stack([planes[c] for c in names]).astype(np.float32, copy=False)
     clean = np.stack([planes[c] for c in CLEAN_CHANNELS]).astype(np.float32, copy=False) if present else None
     return noisy, clean
 
