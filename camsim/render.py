@@ -183,9 +183,9 @@ def render_frame(
                 fill_channel(value, sub_labels, plan, expected, sensor, statistics, c, block_rng,
                              np.empty_like(value), per_thread.work,
                              None if offset is None else offset[c][site], None if gain is None else gain[c][site])
-                if sensor.row_noise_e > 0:
-                    add_row_noise_e(value, sensor.row_noise_e * sensor.dn_per_electron, block_rng)
                 block[0][site] = value
+            if sensor.row_noise_e > 0:  # a physical row shares its offset, whatever the colour of its pixels
+                add_row_noise_e(block[0], sensor.row_noise_e * sensor.dn_per_electron, block_rng)
             if digital is not None:
                 quantise_dn(block[0], sensor.bits, out=digital[0, r0:r1])
             return

@@ -86,3 +86,19 @@ def test_analysis_reads_cfa_frames(cfa_frames, source):
                 assert abs(channel["mean_dn"] - (k * lam - offset)) < 5 * se + 0.02
     de = {r["intensity_factor"]: np.mean([p["delta_e_ab_mean"] for p in r["patches"]]) for r in results}
     assert de[1.0] < de[0.1]
+
+
+def test_row_noise_is_shared_by_the_whole_row_of_a_bayer_sensor():
+    off = dict(photon_noise=False, dark_current=False, saturation=False, read_noise=False, quantisation=False)
+    sensor = preset("paper-table1", cfa="RGGB", row_noise_e=5.0, **off)
+    frame, radiance = render(small_scene(), sensor, factor=0.5, seed=2)
+    clean = frame.clean_dn()
+    x, y, w, h = radiance.patch_rects[WHITE]
+    k = sensor.dn_per_electron
+    mosaic_clean = np.zeros((h, w))
+    for dy, dx, c in cfa_sites("RGGB"):
+        mosaic_clean[(dy - y) % 2 :: 2, (dx - x) % 2 :: 2] = clean[c, y : y + h, x : x + w][(dy - y) % 2 :: 2,
+                                                                                              (dx - x) % 2 :: 2]
+    residual = (frame.noisy_dn[0, y : y + h, x : x + w] - mosaic_clean) / k
+    np.testing.assert_allclose(residual, np.broadcast_to(residual[:, :1], residual.shape), atol=1e-3)  # per row
+    assert_mean_var(residual[:, 0], 0.0, 25.0, what="row offsets")
