@@ -180,6 +180,20 @@ PRESETS = {
         read_noise=False,
         quantisation=False,
     ),
+    # A 12-bit machine-vision-like sensor for `camsim emva`: K = 40 µV/e⁻ · 10 000 DN/V = 0.4 DN/e⁻, so the
+    # 10 000 e⁻ full well reads 4000 DN, below the ADC's 4095; 3 e⁻ read noise (1.2 DN ≫ the 0.29 DN of the
+    # quantiser); 25 e⁻/s of dark current over the 1 s exposure lifts the dark level to 10 DN, clear of the ADC's
+    # zero (camsim has no black-level pedestal); DSNU 2 e⁻ and PRNU 1 % on.
+    "emva-12bit": SensorParams(
+        conversion_gain_v_per_e=4e-5,
+        analog_gain_dn_per_v=1e4,
+        dark_current_e_per_s=(25.0, 25.0, 25.0),
+        read_noise_e=3.0,
+        full_well_e=10000.0,
+        bits=12,
+        dsnu_e=2.0,
+        prnu_percent=1.0,
+    ),
 }
 
 

@@ -1,0 +1,98 @@
+"""What the EMVA 1288 measurement should find: the configured camera's values and camsim's exact model terms."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from camsim.errors import CamsimError
+from camsim.sensor import PRESETS, SensorParams
+
+#: The preset ``camsim emva`` measures by default: 12 bits, so that quantisation does not dominate the dark noise.
+DEFAULT_PRESET = "emva-12bit"
+#: The analysed channel (G).
+CHANNEL = 1
+
+def sensor_for(preset_name: str | None = None, sensor: SensorParams | None = None) -> tuple[SensorParams, str]:
+    """The sensor to measure: ``sensor`` if given, else the preset (default :data:`DEFAULT_PRESET`)."""
+    if sensor is not None:
+        return sensor, preset_name or "custom"
+    name = preset_name or DEFAULT_PRESET
+    if name not in PRESETS:
+        raise CamsimError(f"unknown sensor preset {name!r}; presets: {', '.join(PRESETS)}")
+    return PRESETS[name], name
+
+
+def configured_values(sensor: SensorParams, eta: float) -> dict:
+    """What the configuration says each EMVA quantity is (None where the stage is off).
+
+    * K: G · G_Ve⁻ (DN/e⁻).
+    * dark noise: the temporal dark noise EMVA's σ_d measures at this exposure, √(σ²_read + μ_dark + σ²_row) in
+      e⁻: read noise, the shot noise of the dark electrons and the row noise (0 in the presets).
+    * QE: η of the analysed channel at the test wavelength (e⁻ per photon; EMVA reports it in %).
+    * saturation: the full well (e⁻). EMVA's μ_e,sat is the photo-electrons at the step where the temporal
+      variance peaks, a little below it: see :func:`predicted_saturation_e` and the report.
+    * DSNU (e⁻) and PRNU (%): the configured standard deviations of the fixed-pattern maps.
+    """
+    c = CHANNEL
+    read = sensor.read_noise_e if sensor.read_noise else 0.0
+    dark = sensor.dark_mean_e[c]
+    return {
+        "K_dn_per_e": sensor.dn_per_electron,
+        "dark_noise_e": math.sqrt(read**2 + dark + sensor.row_noise_e**2),
+        "qe": float(eta),
+        "saturation_e": float(sensor.full_well_e),
+        "dsnu_e": float(sensor.dsnu_e),
+        "prnu_percent": float(sensor.prnu_percent),
+    }
+
+
+def predicted_saturation_e(sensor: SensorParams) -> float:
+    """Signal (photo-)electrons at which the analysed channel saturates, ignoring noise. Unit: e⁻.
+
+    The charge clips at the full well, the ADC at 2^nb − 1 DN, i.e. at (2^nb − 1) / K electrons; whichever comes
+    first, minus the dark electrons already in the pixel.
+    """
+    limits = [sensor.max_dn / sensor.dn_per_electron]
+    if sensor.saturation:
+        limits.append(sensor.full_well_e)
+    return float(min(limits) - sensor.dark_mean_e[CHANNEL])
+
+
+def model_dark_temporal_dn(sensor: SensorParams) -> tuple[float, float]:
+    """The dark signal's mean and temporal variance in quantised DN, exactly from camsim's model, over pixels.
+
+    A dark pixel reads floor(K · (D + o + r)) clipped to [0, 2^nb − 1], with D ~ Poisson(μ_dark), o its DSNU
+    offset (fixed) and r ~ N(0, σ²_read + σ²_row). The variance is taken per pixel (temporal) and averaged over the
+    DSNU offsets (Gauss–Hermite), which is what the pair difference of the photon transfer method estimates; the
+    mean includes the quantiser's −½ DN. Returns (mean DN, variance DN²).
+    """
+    from scipy import stats
+
+    k = sensor.dn_per_electron
+    lam = float(sensor.dark_mean_e[CHANNEL])
+    sigma = math.hypot(sensor.read_noise_e if sensor.read_noise else 0.0, sensor.row_noise_e)
+    if sensor.dsnu_e > 0:
+        nodes, weights = np.polynomial.hermite_e.hermegauss(41)
+        offsets, weights = nodes * sensor.dsnu_e, weights / weights.sum()
+    else:
+        offsets, weights = np.zeros(1), np.ones(1)
+    d = np.arange(max(0, int(lam - 12 * math.sqrt(lam) - 12)), int(lam + 12 * math.sqrt(lam) + 13))
+    pmf = stats.poisson.pmf(d, lam) if lam > 0 else (d == 0).astype(float)
+    means, variances = [], []
+    for o in offsets:
+        centre = k * (d + o)  # DN before the read noise
+        if sigma > 0:
+            lo = int(math.floor(centre.min() - 10 * k * sigma)) - 1
+            hi = int(math.ceil(centre.max() + 10 * k * sigma)) + 1
+            edges = np.arange(lo, hi + 1, dtype=float)
+            cdf = pmf @ stats.norm.cdf((edges[None, :] - centre[:, None]) / (k * sigma))
+            values, probs = edges[:-1], np.diff(cdf)
+        else:
+            values, probs = np.floor(centre), pmf
+        values = np.clip(values, 0, sensor.max_dn)
+        mean = float(probs @ values / probs.sum())
+        means.append(mean)
+        variances.append(float(probs @ (values - mean) ** 2 / probs.sum()))
+    return float(weights @ means), float(weights @ variances)

@@ -1,0 +1,401 @@
+"""The EMVA 1288 measurement of a simulated camera, and its analysis by the reference implementation.
+
+The measurement (EMVA 1288 Release 4.0 Linear, photon transfer method) is simulated with camsim's own renderer,
+as a test bench would take it from a real camera:
+
+* a uniform monochromatic light at the test wavelength (default 550 nm) on a region of ``size × size`` pixels, at
+  one exposure time (the sensor's ``exposure_s``), its irradiation varied from dark to beyond saturation: 50
+  equally spaced steps up to 1.2 × the predicted saturation, plus 10 more in its lowest 5 %;
+* two frames per step and two dark frames (the temporal statistics use the difference of the pair, so the fixed
+  pattern cancels);
+* for the spatial non-uniformity, ``L`` dark frames and ``L`` frames at 50 % of saturation, averaged by the
+  analysis to remove the temporal noise.
+
+Every frame comes from the same sensor (one ``sensor_seed``: the same DSNU / PRNU maps) with its own temporal
+noise (``SeedSequence(seed, spawn_key=(kind, step, frame))``). The G channel is analysed (a monochrome EMVA
+measurement through the G filter; on a Bayer sensor, the first G site of the 2 × 2 cell).
+
+The camera's quantum efficiency is camsim's: the default camera's relative QE (``Nikon 5100 (NPL)``) at its
+physical scale (:class:`camsim.camera.PhysicalScale`, peak QE 0.5, 4.65 µm pixels), so that a pixel collects
+η_G(λ) · μ_p electrons from μ_p photons, μ_p = T · g · (pixel étendue). The digital numbers (``frame.digital_dn``)
+go to ``emva1288``'s in-memory entry points, :class:`Data1288` and :class:`Results1288`, with no image file.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from camsim.camera import DEFAULT_CAMERA, PhysicalScale, absolute_qe, load_camera
+from camsim.errors import CamsimError
+from camsim.expected import expected_signal
+from camsim.fixed_pattern import fixed_pattern
+from camsim.render import render_frame
+from camsim.sensor import SensorParams, cfa_sites
+from camsim.spectra import WavelengthGrid
+from camsim.emva.configured import (  # noqa: F401 (re-exported)
+    CHANNEL,
+    DEFAULT_PRESET,
+    configured_values,
+    model_dark_temporal_dn,
+    predicted_saturation_e,
+    sensor_for,
+)
+
+#: Wavelength grid of the monochromatic test light (5 nm bins, so that 550 nm is a bin centre).
+GRID = WavelengthGrid(380.0, 780.0, 5.0)
+#: EMVA 1288 lower limit of the dark variance used by the reference implementation (DN²): below it, the
+#: temporal dark noise is quantisation-limited and ``Results1288.sigma_y_dark`` returns √0.24.
+S2_YDARK_FLOOR_DN2 = 0.24
+#: The quantities compared, in ``emva.json``'s order: key → (unit, relative-error target or None).
+QUANTITIES = {
+    "K_dn_per_e": ("DN/e⁻", 0.02),
+    "dark_noise_e": ("e⁻", 0.02),
+    "qe": ("e⁻/photon", 0.02),
+    "saturation_e": ("e⁻", None),
+    "dsnu_e": ("e⁻", 0.05),
+    "prnu_percent": ("%", 0.05),
+}
+
+
+def emva1288_process():
+    """``emva1288.process``, imported after the two NumPy-2 shims it needs (``np.asfarray``, ``np.int``)."""
+    if not hasattr(np, "asfarray"):
+        np.asfarray = lambda a, dtype=float: np.asarray(a, dtype=dtype)
+    if not hasattr(np, "int"):
+        np.int = int
+    try:
+        import emva1288.process as process
+    except ImportError as exc:  # pragma: no cover - a declared dependency
+        raise CamsimError(f"camsim emva needs the emva1288 package (pip install emva1288): {exc}") from None
+    return process
+
+
+@dataclass(frozen=True)
+class EmvaSetup:
+    """How the measurement is taken.
+
+    Attributes
+    ----------
+    size : int
+        Side of the square region of interest. Unit: pixels.
+    steps : int
+        Equally spaced irradiation steps from dark to ``overshoot`` × the predicted saturation.
+    low_steps : int
+        Extra steps in the lowest 5 % of the predicted saturation.
+    overshoot : float
+        Last step relative to the predicted saturation (> 1: beyond it).
+    stack_frames : int
+        L, frames averaged in the dark and in the bright for DSNU / PRNU.
+    spatial_level : float
+        Level of the bright stack, as a fraction of the predicted saturation (EMVA 1288: 50 %).
+    wavelength_nm : float
+        Test wavelength, a centre of :data:`GRID`'s bins. Unit: nm.
+    seed : int
+        Seed of the temporal noise (the fixed pattern is the sensor's ``sensor_seed``).
+    camera : str
+        camsim camera whose relative QE, at :class:`PhysicalScale`, is the sensor's spectral QE.
+    workers : int
+        Threads per frame (the output does not depend on it).
+    """
+
+    size: int = 256
+    steps: int = 50
+    low_steps: int = 10
+    overshoot: float = 1.2
+    stack_frames: int = 100
+    spatial_level: float = 0.5
+    wavelength_nm: float = 550.0
+    seed: int = 0
+    camera: str = DEFAULT_CAMERA
+    workers: int = 2
+
+    def __post_init__(self):
+        if not (isinstance(self.size, int) and 16 <= self.size <= 4096):
+            raise CamsimError(f"the EMVA region of interest must be 16 to 4096 pixels on a side, got {self.size!r}")
+        if not (isinstance(self.steps, int) and self.steps >= 10):
+            raise CamsimError(f"EMVA needs at least 10 irradiation steps, got {self.steps!r}")
+        if not (isinstance(self.low_steps, int) and self.low_steps >= 0):
+            raise CamsimError(f"low_steps must be an integer ≥ 0, got {self.low_steps!r}")
+        if not (isinstance(self.stack_frames, int) and self.stack_frames >= 2):
+            raise CamsimError(f"the spatial stacks need at least 2 frames each, got {self.stack_frames!r}")
+        if not (math.isfinite(self.overshoot) and 1.0 < self.overshoot <= 3.0):
+            raise CamsimError(f"overshoot must be in (1, 3] (the series must go beyond saturation), "
+                              f"got {self.overshoot}")
+        if not (math.isfinite(self.spatial_level) and 0.0 < self.spatial_level < 1.0):
+            raise CamsimError(f"spatial_level must be in (0, 1), got {self.spatial_level}")
+        if not (isinstance(self.seed, int) and self.seed >= 0):
+            raise CamsimError(f"seed must be an integer ≥ 0, got {self.seed!r}")
+        if not (isinstance(self.workers, int) and self.workers >= 1):
+            raise CamsimError(f"workers must be an integer ≥ 1, got {self.workers!r}")
+        wl = GRID.wavelengths_nm
+        if not np.any(np.isclose(wl, self.wavelength_nm)):
+            raise CamsimError(f"test wavelength {self.wavelength_nm} nm is not a centre of the {GRID.step_nm:g} nm "
+                              f"bins from {GRID.start_nm:g} to {GRID.end_nm:g} nm")
+
+
+@dataclass
+class Measurement:
+    """The simulated measurement: ``data`` is the dictionary :class:`emva1288.process.Data1288` takes.
+
+    Attributes
+    ----------
+    sensor : SensorParams
+    setup : EmvaSetup
+    preset_name : str or None
+    eta : float
+        Configured quantum efficiency of the analysed channel at the test wavelength. Unit: e⁻ / photon.
+    photons : numpy.ndarray
+        μ_p of the bright steps (photons per pixel in the exposure), ascending.
+    photons_spatial : float
+        μ_p of the bright spatial stack.
+    predicted_saturation_e : float
+        Signal electrons at which the model saturates, ignoring noise: min(full well, ADC full scale / K) minus the
+        dark electrons. Unit: e⁻.
+    data : dict
+        ``{'temporal': {texp_ns: {μ_p: {'sum', 'pvar', 'dmean'}}}, 'spatial': {texp_ns: {μ_p: {'L', 'sum',
+        'pvar', 'dmean'}}}, 'width', 'height'}``, μ_p = 0.0 for the dark frames (the loader's format).
+    realised_dsnu_e, realised_prnu_percent : float or None
+        Standard deviation of the sensor's actual maps over the analysed pixels (None when off).
+    frames : int
+        Frames rendered.
+    """
+
+    sensor: SensorParams
+    setup: EmvaSetup
+    preset_name: str | None
+    eta: float
+    photons: np.ndarray
+    photons_spatial: float
+    predicted_saturation_e: float
+    data: dict
+    realised_dsnu_e: float | None = None
+    realised_prnu_percent: float | None = None
+    frames: int = 0
+    camera: str = ""
+
+
+@dataclass
+class EmvaResult:
+    """The analysis: the reference implementation's results and the comparison with the configuration."""
+
+    measurement: Measurement
+    results: object  # emva1288.process.Results1288
+    configured: dict
+    recovered: dict
+    details: dict = field(default_factory=dict)
+
+    def comparison(self) -> dict:
+        """``{key: {"configured", "recovered", "relative_error"}}`` for :data:`QUANTITIES` (None = undefined)."""
+        out = {}
+        for key in QUANTITIES:
+            c, r = self.configured[key], self.recovered[key]
+            rel = None if c is None or r is None or c == 0 else (r - c) / c
+            out[key] = {"configured": c, "recovered": r, "relative_error": rel}
+        return out
+
+    def within_target(self, key: str) -> bool | None:
+        """Whether ``key`` meets its target; None when it has none (saturation) or is off (DSNU/PRNU = 0)."""
+        target = QUANTITIES[key][1]
+        rel = self.comparison()[key]["relative_error"]
+        if target is None or not self.configured[key]:
+            return None
+        return rel is not None and abs(rel) <= target
+
+
+def channel_image(digital_dn: np.ndarray, sensor: SensorParams) -> np.ndarray:
+    """The analysed pixels of a frame: the G plane, or on a Bayer sensor its first G site, (H', W') integers."""
+    if sensor.cfa is None:
+        return digital_dn[CHANNEL]
+    dy, dx = next((dy, dx) for dy, dx, c in cfa_sites(sensor.cfa) if c == CHANNEL)
+    return digital_dn[0, dy::2, dx::2]
+
+
+def _channel_map(maps: np.ndarray, sensor: SensorParams) -> np.ndarray:
+    if sensor.cfa is None:
+        return maps[CHANNEL]
+    dy, dx = next((dy, dx) for dy, dx, c in cfa_sites(sensor.cfa) if c == CHANNEL)
+    return maps[CHANNEL, dy::2, dx::2]
+
+
+class IntStack:
+    """Running reduction of integer frames, exactly emva1288's ``routines.get_int_imgs`` (which needs them all).
+
+    ``result()`` gives ``{'L', 'sum', 'pvar', 'dmean'}``: the number of frames, their sum image (int64), the
+    pseudo-variance image L (L Σ y² − (Σ y)²) and the sum of the differences of consecutive frames' means.
+    """
+
+    def __init__(self):
+        self.count, self.total, self.squares, self.dmean, self._previous_mean = 0, 0, 0, 0, None
+
+    def add(self, image: np.ndarray) -> None:
+        i = image.astype(np.int64)
+        self.total = self.total + i
+        self.squares = self.squares + np.square(i)
+        mean = np.mean(i)
+        if self._previous_mean is not None:
+            self.dmean += mean - self._previous_mean
+        self._previous_mean = mean
+        self.count += 1
+
+    def result(self) -> dict:
+        n = self.count
+        return {"L": n, "sum": self.total, "pvar": n * (n * self.squares - np.square(self.total)), "dmean": self.dmean}
+
+
+def simulate(sensor: SensorParams, setup: EmvaSetup = EmvaSetup(), preset_name: str | None = None,
+             progress: bool = False) -> Measurement:
+    """Render the EMVA 1288 series of ``sensor`` and reduce it to the reference implementation's input."""
+    if not sensor.quantisation:
+        raise CamsimError("an EMVA 1288 measurement needs digital numbers: this sensor has quantisation off "
+                          "(try --preset emva-12bit or paper-table1)")
+    if not sensor.photon_noise:
+        raise CamsimError("the photon transfer method needs photon noise: this sensor has it off")
+    camera = load_camera(setup.camera, GRID)
+    scale = PhysicalScale()
+    qe_abs = absolute_qe(camera, scale, None)  # e⁻ m² sr / photon, (3, N)
+    bin_index = int(np.argmin(np.abs(GRID.wavelengths_nm - setup.wavelength_nm)))
+    eta = float(camera.relative_qe[CHANNEL, bin_index] * scale.peak_qe)
+    if not eta > 0:
+        raise CamsimError(f"the camera's G channel has no sensitivity at {setup.wavelength_nm} nm")
+    sat_e = predicted_saturation_e(sensor)
+    if not sat_e > 0:
+        raise CamsimError("the dark signal alone saturates this sensor: no photon transfer curve to measure")
+    sat_p = sat_e / eta
+    main = np.linspace(0.0, setup.overshoot * sat_p, setup.steps + 1)[1:]
+    low = np.linspace(0.0, 0.05 * sat_p, setup.low_steps + 1)[1:]
+    photons = np.unique(np.round(np.concatenate([main, low]), 6))
+    photons_spatial = float(np.round(setup.spatial_level * sat_p, 6))
+
+    n = GRID.wavelengths_nm.size
+    labels = np.zeros((setup.size, setup.size), np.uint8)
+    if sensor.cfa is not None and setup.size % 2:
+        raise CamsimError(f"a {sensor.cfa} sensor needs an even region of interest, got {setup.size}")
+    per_photon = 1.0 / (scale.etendue_m2_sr * sensor.exposure_s)  # photon radiance of one photon per pixel
+
+    def expected_for(mu_p: float):
+        radiance = np.zeros((1, n))
+        radiance[0, bin_index] = mu_p * per_photon
+        return expected_signal(radiance, qe_abs, sensor, 1.0, "pixel")
+
+    frames = 2 * (len(photons) + 1) + 2 * setup.stack_frames
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=frames, desc="EMVA 1288 frames", unit="frame", leave=False)
+
+    def shoot(mu_p: float, key: tuple, count: int) -> dict:
+        """``count`` frames at μ_p, reduced as emva1288's ``routines.get_int_imgs`` does, without keeping them."""
+        expected = expected_for(mu_p)
+        stack = IntStack()
+        for j in range(count):
+            ss = np.random.SeedSequence(setup.seed, spawn_key=(*key, j))
+            frame = render_frame(labels, expected, sensor, statistics="pixel", method="poisson", rng=ss,
+                                 workers=setup.workers)
+            stack.add(channel_image(frame.digital_dn, sensor))
+            if bar is not None:
+                bar.update()
+        return stack.result()
+
+    def temporal_entry(imgs):  # as emva1288's LoadImageData keeps a temporal pair: totals only
+        return {"sum": np.sum(imgs["sum"]), "pvar": np.sum(imgs["pvar"]), "dmean": imgs["dmean"]}
+
+    try:
+        texp = float(sensor.exposure_s * 1e9)  # the reference implementation's exposure times are in ns
+        temporal = {0.0: temporal_entry(shoot(0.0, (0, 0), 2))}
+        for i, mu_p in enumerate(photons):
+            temporal[float(mu_p)] = temporal_entry(shoot(float(mu_p), (1, i), 2))
+        spatial = {
+            0.0: shoot(0.0, (2, 0), setup.stack_frames),
+            photons_spatial: shoot(photons_spatial, (2, 1), setup.stack_frames),
+        }
+    finally:
+        if bar is not None:
+            bar.close()
+    height, width = spatial[0.0]["sum"].shape
+    data = {"temporal": {texp: temporal}, "spatial": {texp: spatial}, "width": width, "height": height}
+
+    maps = fixed_pattern(sensor, labels.shape)
+    dsnu = prnu = None
+    if maps is not None and maps.offset_e is not None:
+        dsnu = float(np.std(_channel_map(maps.offset_e, sensor), dtype=np.float64))
+    if maps is not None and maps.gain is not None:
+        prnu = float(100 * np.std(_channel_map(maps.gain, sensor), dtype=np.float64))
+    return Measurement(sensor, setup, preset_name, eta, photons, photons_spatial, sat_e, data, dsnu, prnu, frames,
+                       camera.name)
+
+
+def _finite(value) -> float | None:
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return None
+    return value if math.isfinite(value) else None
+
+
+def analyse(measurement: Measurement) -> EmvaResult:
+    """Run the reference implementation on the measurement and compare with the configuration."""
+    process = emva1288_process()
+    data = process.Data1288(measurement.data, loglevel=logging.WARNING)
+    pitch = PhysicalScale().pixel_pitch_um
+    # EMVA 1288 (4.0 Linear) puts saturation at the maximum of the temporal variance. The reference's own search
+    # walks back from the brightest step and stops at the first local maximum, which here is a wiggle of the
+    # plateau past saturation (the read noise stays after the charge clips at the full well): force the maximum.
+    automatic = process.Results1288(data.data, loglevel=logging.WARNING).index_u_ysat
+    index_sat = int(np.argmax(data.data["temporal"]["s2_y"]))
+    res = process.Results1288(data.data, pixel_area=pitch * pitch, index_u_ysat=index_sat, loglevel=logging.WARNING)
+    res.id = 1  # the reference plots tag their artists with the test's id
+    s2_ydark = float(res.temporal["s2_ydark"][0])
+    recovered = {
+        "K_dn_per_e": _finite(res.K),
+        "dark_noise_e": _finite(res.sigma_d),
+        "qe": _finite(res.QE / 100.0),
+        "saturation_e": _finite(res.u_e_sat),
+        "dsnu_e": _finite(res.DSNU1288),
+        "prnu_percent": _finite(res.PRNU1288),
+    }
+    with np.errstate(invalid="ignore"):
+        details = {
+            "R_dn_per_photon": _finite(res.R),
+            "sigma_y_dark_dn": _finite(res.sigma_y_dark),
+            "s2_ydark_dn2": s2_ydark,
+            "dark_floor_applied": s2_ydark < S2_YDARK_FLOOR_DN2,
+            "u_ydark_dn": float(res.temporal["u_ydark"][0]),
+            "u_p_sat": _finite(res.u_p_sat),
+            "index_u_ysat": int(res.index_u_ysat),
+            "index_u_ysat_automatic": int(automatic),
+            "u_p_sat_automatic": float(res.temporal["u_p"][automatic]),
+            "fit_indices": (int(res.index_sensitivity_min), int(res.index_sensitivity_max)),
+            "fit_photons": (float(res.temporal["u_p"][res.index_sensitivity_min]),
+                            float(res.temporal["u_p"][res.index_sensitivity_max])),
+            "u_p_min": _finite(res.u_p_min),
+            "u_e_min": _finite(res.u_e_min),
+            "SNR_max": _finite(res.SNR_max),
+            "DR_dB": _finite(res.DR_dB()),
+            "LE_min_percent": _finite(res.LE_min),
+            "LE_max_percent": _finite(res.LE_max),
+            "spatial_mean_dn": float(res.spatial["avg_mean"]),
+            "spatial_mean_dark_dn": float(res.spatial["avg_mean_dark"]),
+            "DSNU1288_DN": _finite(res.DSNU1288_DN()),
+            **{name: _finite(getattr(res, name)) for name in (
+                "DSNU1288_row", "DSNU1288_col", "DSNU1288_pixel", "PRNU1288_row", "PRNU1288_col", "PRNU1288_pixel")},
+        }
+    configured = configured_values(measurement.sensor, measurement.eta)
+    return EmvaResult(measurement, res, configured, recovered, details)
+
+
+def run(preset_name: str | None = None, setup: EmvaSetup = EmvaSetup(), sensor: SensorParams | None = None,
+        progress: bool = False) -> EmvaResult:
+    """Simulate and analyse: the measurement of ``sensor`` (or the preset, default :data:`DEFAULT_PRESET`)."""
+    sensor, name = sensor_for(preset_name, sensor)
+    return analyse(simulate(sensor, setup, name, progress))
+
+
+def replace_setup(setup: EmvaSetup, **changes) -> EmvaSetup:
+    """A copy of ``setup`` with fields changed (None values are ignored)."""
+    return dataclasses.replace(setup, **{k: v for k, v in changes.items() if v is not None})

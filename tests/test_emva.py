@@ -1,0 +1,131 @@
+"""``camsim emva``: the simulated EMVA 1288 measurement, analysed by the reference implementation (emva1288).
+
+Tolerances follow from the size of each run (standard deviation of the relative error over seeds 0–19):
+
+* 128 × 128 pixels, 60 steps, L = 100 (the command line's series on a smaller region): K and η 0.2 % (largest
+  0.4 %), the dark noise 0.6 % (it rests on one dark pair; largest 1.3 %), DSNU and PRNU 0.3 % and 0.1 % around
+  the realised maps, which differ from the configured 2 e⁻ / 1 % by −1.2 % / +0.8 % on this region. So the issue's
+  targets are asserted as they are — 2 % for K, η and the dark noise, 5 % for DSNU and PRNU — all more than 3
+  standard deviations away.
+* 64 × 64 pixels, 35 steps, L = 16: K and η 0.75 %, the dark noise 1.4 %, DSNU 1.8 %, PRNU 0.5 %; asserted at
+  3 %, 5 %, 10 % and 10 %.
+"""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from camsim.cli import main
+from camsim.emva import EmvaSetup, run
+from camsim.emva.simulate import model_dark_temporal_dn, predicted_saturation_e
+from camsim.sensor import PRESETS, preset
+
+KEYS = ["K_dn_per_e", "dark_noise_e", "qe", "saturation_e", "dsnu_e", "prnu_percent"]
+SMALL = EmvaSetup(size=64, steps=30, low_steps=5, stack_frames=16, seed=1)
+
+
+def _rel(entry):
+    return abs(entry["recovered"] / entry["configured"] - 1)
+
+
+def test_cli_writes_the_report_and_meets_the_targets(tmp_path, capsys):
+    out = tmp_path / "emva"
+    assert main(["emva", "--size", "128", "--seed", "3", "--out", str(out), "-q"]) == 0
+    assert str(out / "report.md") in capsys.readouterr().out
+    data = json.loads((out / "emva.json").read_text())
+    assert list(data) == KEYS
+    for key in KEYS:
+        assert set(data[key]) == {"configured", "recovered", "relative_error"}
+    sensor = PRESETS["emva-12bit"]
+    assert data["K_dn_per_e"]["configured"] == pytest.approx(0.4)
+    assert data["dark_noise_e"]["configured"] == pytest.approx(math.sqrt(3.0**2 + 25.0))
+    assert data["saturation_e"]["configured"] == sensor.full_well_e
+    assert (data["dsnu_e"]["configured"], data["prnu_percent"]["configured"]) == (2.0, 1.0)
+    for key, tolerance in {"K_dn_per_e": 0.02, "dark_noise_e": 0.02, "qe": 0.02, "dsnu_e": 0.05,
+                           "prnu_percent": 0.05}.items():
+        assert _rel(data[key]) <= tolerance, (key, data[key])
+        assert data[key]["relative_error"] == pytest.approx(data[key]["recovered"] / data[key]["configured"] - 1)
+    # EMVA's saturation: the variance peak, a few % below the clip (full well minus the 25 dark electrons)
+    assert 0.9 * predicted_saturation_e(sensor) < data["saturation_e"]["recovered"] < predicted_saturation_e(sensor)
+    report = (out / "report.md").read_text()
+    assert "emva-12bit" in report and "| System gain K" in report and "✗" not in report
+    for png in ("photon_transfer.png", "snr.png", "nonuniformity.png"):
+        assert (out / png).stat().st_size > 10_000
+        assert f"]({png})" in report
+    assert not list(out.glob(".*partial"))
+
+
+def test_small_run_recovers_the_configuration():
+    result = run("emva-12bit", SMALL)
+    rows = result.comparison()
+    assert _rel(rows["K_dn_per_e"]) < 0.03 and _rel(rows["qe"]) < 0.03
+    assert _rel(rows["dark_noise_e"]) < 0.05
+    assert _rel(rows["dsnu_e"]) < 0.10 and _rel(rows["prnu_percent"]) < 0.10
+    # the realised maps are what the standard measures
+    assert result.measurement.realised_dsnu_e == pytest.approx(2.0, rel=0.03)
+    assert result.measurement.realised_prnu_percent == pytest.approx(1.0, rel=0.03)
+    # the temporal statistics of camsim's model, quantised, exactly: mean (with the −½ DN) and variance in the dark
+    mean, var = model_dark_temporal_dn(result.measurement.sensor)
+    assert result.details["u_ydark_dn"] == pytest.approx(mean, abs=0.05)
+    assert result.details["s2_ydark_dn2"] == pytest.approx(var, rel=0.06)
+
+
+def test_same_seed_same_result_and_another_seed_differs():
+    a, b = run("emva-12bit", SMALL), run("emva-12bit", SMALL)
+    assert a.comparison() == b.comparison()
+    c = run("emva-12bit", EmvaSetup(size=64, steps=30, low_steps=5, stack_frames=16, seed=2))
+    assert c.comparison()["K_dn_per_e"]["recovered"] != a.comparison()["K_dn_per_e"]["recovered"]
+    # one sensor: the fixed pattern does not depend on the frames' seed
+    assert c.measurement.realised_dsnu_e == a.measurement.realised_dsnu_e
+
+
+def test_eight_bit_dark_noise_is_quantisation_limited_as_the_model_predicts():
+    result = run("paper-table1", SMALL)
+    rows = result.comparison()
+    assert _rel(rows["K_dn_per_e"]) < 0.03 and _rel(rows["qe"]) < 0.03
+    # σ_d is about 5 % low: the standard subtracts 1/12 DN², while the exact quantised dark variance is smaller
+    sensor = result.measurement.sensor
+    _, var = model_dark_temporal_dn(sensor)
+    expected = math.sqrt(var - 1 / 12) / sensor.dn_per_electron
+    assert expected < 0.97 * rows["dark_noise_e"]["configured"]
+    assert rows["dark_noise_e"]["recovered"] == pytest.approx(expected, rel=0.03)
+    assert rows["dsnu_e"]["relative_error"] is None and rows["prnu_percent"]["relative_error"] is None
+    assert result.within_target("dsnu_e") is None
+
+
+def test_running_reduction_is_the_reference_one():
+    from camsim.emva.simulate import IntStack, emva1288_process
+
+    emva1288_process()
+    from emva1288.process import routines
+
+    rng = np.random.default_rng(0)
+    images = [rng.integers(0, 4096, (5, 7), dtype=np.uint16) for _ in range(4)]
+    stack = IntStack()
+    for image in images:
+        stack.add(image)
+    mine, reference = stack.result(), routines.get_int_imgs(images)
+    assert mine["L"] == reference["L"] and mine["dmean"] == pytest.approx(reference["dmean"])
+    np.testing.assert_array_equal(mine["sum"], reference["sum"])
+    np.testing.assert_array_equal(mine["pvar"], reference["pvar"])
+
+
+def test_bayer_sensor_is_measured_on_its_green_sites():
+    result = run(sensor=preset("emva-12bit", cfa="GRBG"), setup=EmvaSetup(size=96, steps=30, stack_frames=16))
+    assert result.measurement.data["width"] == 48
+    assert _rel(result.comparison()["K_dn_per_e"]) < 0.03
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--size", "8"], "region of interest"),
+    (["--preset", "ideal"], "quantisation off"),
+    (["--preset", "nope"], "invalid choice"),
+    (["--seed", "-1"], "must be ≥ 0"),
+])
+def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, args, message):
+    assert main(["emva", *args, "--out", str(tmp_path / "o"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("camsim: error: ") and message in err and err.count("\n") == 1
+    assert not (tmp_path / "o").exists()
