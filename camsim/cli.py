@@ -100,6 +100,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="output directory (default: outputs/SCENE_NAME)")
     render.add_argument("--workers", metavar="N", type=int, help="threads per frame (default: all cores; "
                         "the output does not depend on it)")
+    render.add_argument("--preview", action="store_true",
+                        help="also write an sRGB PNG of each frame (camera RGB → XYZ → sRGB, white-balanced from the "
+                             "illuminant; the perfect white at F = 1 is sRGB white, so low light looks dark)")
     render.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     analyze = sub.add_parser(
         "analyze",
@@ -215,7 +218,7 @@ def _cmd_render(args) -> int:
     out = args.out if args.out is not None else DEFAULT_OUT / scene.name
     if args.workers is not None and args.workers < 1:
         raise CamsimError(f"--workers must be ≥ 1, got {args.workers}")
-    manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet)
+    manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet, preview=args.preview)
     print(f"wrote {len(manifest['frames'])} frames (DNG, EXR, JSON) to {out}/ — index: {out / 'manifest.json'}")
     return 0
 

@@ -137,8 +137,11 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
     }
 
 
-def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo) -> dict:
+def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo, preview: bool = False) -> dict:
     """Write ``stem.dng`` (if quantised), ``stem.exr`` and ``stem.json`` into ``out_dir``.
+
+    With ``preview``, also ``stem.png``: an 8-bit sRGB picture of the frame (:func:`camsim.preview.preview_srgb`,
+    default exposure), listed in the sidecar's ``files`` as ``png``.
 
     Returns
     -------
@@ -150,6 +153,8 @@ def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo) -> dict
     sensor = frame.sensor
     files = {"dng": f"{stem}.dng" if frame.digital_dn is not None else None, "exr": f"{stem}.exr",
              "json": f"{stem}.json"}
+    if preview:
+        files["png"] = f"{stem}.png"
     meta = sidecar(frame, info, files)
     if frame.digital_dn is not None:
         write = write_dng if sensor.cfa is None else partial(write_dng_cfa, pattern=sensor.cfa)
@@ -179,5 +184,9 @@ def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo) -> dict
         "camsim:metadata": json.dumps(meta, ensure_ascii=False),
     }
     write_exr(out_dir / files["exr"], frame.noisy_dn, frame.clean_dn(), header)
+    if preview:
+        from camsim.preview import preview_srgb, write_preview_png
+
+        write_preview_png(out_dir / files["png"], preview_srgb(frame, info))
     write_json_atomic(out_dir / files["json"], meta)
     return files

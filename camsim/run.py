@@ -40,8 +40,11 @@ def check_scene(scene: Scene) -> None:
                           "which raw readers (LibRaw) refuse")
 
 
-def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = None, progress: bool = True) -> dict:
+def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = None, progress: bool = True,
+                 preview: bool = False) -> dict:
     """Render every frame of ``scene`` into ``out_dir`` and write ``manifest.json`` there.
+
+    With ``preview``, each frame also gets an sRGB PNG (:mod:`camsim.preview`), listed in its ``files``.
 
     Returns
     -------
@@ -89,7 +92,7 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
             as_shot_neutral=colour_tags[1],
             patch_xyz=factor * colour_tags[2],
         )
-        files = write_frame(out_dir, frame_stem(scene.name, illuminant, factor), frame, info)
+        files = write_frame(out_dir, frame_stem(scene.name, illuminant, factor), frame, info, preview=preview)
         frames.append({
             "illuminant": illuminant,
             "intensity_factor": factor,
