@@ -1,0 +1,21 @@
+"""``camsim denoise-eval``: run denoisers on rendered frames and score them against the clean layer.
+
+* :mod:`camsim.denoise.denoisers` — the built-in baselines (:data:`DENOISERS`) and user targets
+  (``MODULE:FUNCTION``, ``cmd:PROGRAM ... {input} {output}``);
+* :mod:`camsim.denoise.evaluate` — PSNR / SSIM per frame and the colour quantities per patch, per light level;
+* :mod:`camsim.denoise.report` — CSV, plots, ``report.md`` and ``summary.json``;
+* :mod:`camsim.denoise.cli` — the sub-command (``add_parser``, ``run``).
+"""
+
+from camsim.denoise.denoisers import DENOISERS, Denoiser, estimate_noise_sigma, resolve_denoiser
+from camsim.denoise.evaluate import Criterion, EvalSettings, Evaluation, evaluate
+
+__all__ = ["DENOISERS", "Denoiser", "estimate_noise_sigma", "resolve_denoiser", "Criterion", "EvalSettings",
+           "Evaluation", "evaluate", "write_outputs"]
+
+
+def write_outputs(evaluation, out_dir):
+    """Write the CSV tables, plots, report.md and summary.json (see :mod:`camsim.denoise.report`)."""
+    from camsim.denoise.report import write_outputs as _write
+
+    return _write(evaluation, out_dir)

@@ -1,0 +1,154 @@
+"""``camsim denoise-eval``: the sub-command's argparse set-up (:func:`add_parser`) and handler (:func:`run`).
+
+Wired into ``camsim/cli.py`` as::
+
+    from camsim.denoise.cli import add_parser as add_denoise_parser, run as run_denoise
+    add_denoise_parser(sub)                        # in build_parser(), with sub = parser.add_subparsers(...)
+    commands["denoise-eval"] = run_denoise         # in main()
+
+User errors raise :class:`camsim.errors.CamsimError` (printed on one line by ``camsim.cli.main``, exit 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import textwrap
+from pathlib import Path
+
+from camsim.errors import CamsimError
+
+DEFAULT_OUT = Path("outputs") / "denoise-eval"
+MAX_DIR_NAME = 80
+
+DESCRIPTION = (
+    "Run one or more denoisers on every noisy frame of a dataset — camsim EXR frames (channels R, G, B = the noisy "
+    "DN, layer clean.R/G/B = their expected value, header camsim:metadata = the sidecar) found recursively in "
+    "DATASET_DIR — and score each against the clean layer: PSNR and SSIM (scikit-image), and per patch the "
+    "chromaticity bias of the patch mean, the chromaticity-noise ellipse before and after, and ΔE_ab (the paper's "
+    "5-step procedure) against the same patch at F = 1; per intensity factor F. Writes OUT/frames.csv, "
+    "OUT/patches.csv, OUT/summary.csv, PNG plots, OUT/summary.json and OUT/report.md, which states down to which "
+    "light level each denoiser preserves colour (criterion: mean ΔE ≤ --max-delta-e and mean chromaticity bias ≤ "
+    "--max-bias, no patch colour undefined). Bayer (CFA) frames are skipped and listed in the report."
+)
+
+EPILOG = """\
+denoisers (--denoiser, repeatable; each gets the noisy frame as a (H, W, 3) float32 array in DN, black level
+included, and the noise sigma per channel estimated blindly from the frame itself):
+  identity                  the control: returns its input (scores = the noisy baseline)
+  nl-means                  scikit-image non-local means (fast mode, h = 0.8 sigma)
+  wavelet                   wavelet shrinkage (BayesShrink, soft, Haar), scikit-image's algorithm
+  tv                        scikit-image total variation (Chambolle, weight = 1 sigma)
+  MODULE:FUNCTION           your Python function, e.g. mypkg.filters:denoise or path/to/file.py:denoise
+                            (the current directory is on sys.path); called as FUNCTION(image), or
+                            FUNCTION(image, sigma_dn=...) if it has a parameter named sigma_dn; must return an
+                            array of the same shape (H, W, 3)
+  'cmd:PROGRAM ARGS...'     a program run once per frame (no shell; split like a POSIX shell would), in which
+                            {input} is replaced by the path of an EXR holding the noisy frame (float32 channels
+                            R, G, B in DN; header camsim:denoise_sigma_dn = the estimated sigma as JSON) and
+                            {output} by the path of the EXR it must write (channels R, G, B, same size); a
+                            non-zero exit status stops the run with the program's stderr
+
+examples:
+  camsim denoise-eval outputs/macbeth_26 --denoiser nl-means
+  camsim denoise-eval frames/ -d identity -d nl-means -d wavelet -d tv --out outputs/denoise-eval/all
+  camsim denoise-eval frames/ -d mypkg.filters:denoise
+  camsim denoise-eval frames/ -d 'cmd:python my_denoiser.py --in {input} --out {output}'
+"""
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
+    return value
+
+
+def _border(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be ≥ 0, got {text}")
+    return value
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the ``denoise-eval`` sub-parser to ``subparsers`` (from ``ArgumentParser.add_subparsers``)."""
+    parser = subparsers.add_parser(
+        "denoise-eval",
+        help="score denoisers on rendered frames against the clean layer: PSNR, SSIM, colour bias, ellipses, ΔE",
+        description=textwrap.fill(DESCRIPTION, width=110),  # pre-wrapped: the formatter keeps the epilog's layout
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("dataset", nargs="+", metavar="DATASET_DIR",
+                        help="folder(s) searched recursively for camsim .exr frames (or .exr files)")
+    parser.add_argument("--denoiser", "-d", metavar="NAME_OR_TARGET", action="append", required=True,
+                        help="a built-in (identity, nl-means, wavelet, tv), MODULE:FUNCTION or "
+                             "'cmd:PROGRAM ARGS... {input} {output}' (see below); repeat to compare several")
+    parser.add_argument("--out", metavar="DIR", type=Path,
+                        help="output folder (default outputs/denoise-eval/NAME, NAME the denoiser's, or the "
+                             "denoisers' joined by '+')")
+    parser.add_argument("--border", metavar="PIXELS", type=_border, default=3,
+                        help="pixels left out along each edge of a patch (default 3)")
+    parser.add_argument("--keep-black", action="store_true",
+                        help="do not subtract the sidecar's black level (mean dark level, DN) before the colour "
+                             "quantities, as the paper; by default it is subtracted, so that they measure the "
+                             "denoiser and not the dark current's drag toward the camera black point")
+    parser.add_argument("--max-delta-e", metavar="DE", type=_positive_float, default=3.0,
+                        help="criterion: largest mean ΔE_ab at which colour counts as preserved (default 3)")
+    parser.add_argument("--max-bias", metavar="DXY", type=_positive_float, default=0.005,
+                        help="criterion: largest mean chromaticity bias |Δxy| of patch means at which colour counts "
+                             "as preserved (default 0.005)")
+    parser.add_argument("--timeout", metavar="SECONDS", type=_positive_float,
+                        help="time limit per frame for a 'cmd:' denoiser (default none)")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    return parser
+
+
+def _unique_names(denoisers):
+    seen, out = {}, []
+    targets = [d.target for d in denoisers]
+    for target in targets:
+        if targets.count(target) > 1:
+            raise CamsimError(f"denoiser {target!r} is given more than once")
+    for d in denoisers:
+        n = seen.get(d.name, 0) + 1
+        seen[d.name] = n
+        out.append(d if n == 1 else dataclasses.replace(d, name=f"{d.name}-{n}"))
+    return out
+
+
+def default_out(denoisers) -> Path:
+    name = "+".join(d.name for d in denoisers)
+    return DEFAULT_OUT / (name if len(name) <= MAX_DIR_NAME else "comparison")
+
+
+def run(args) -> int:
+    """Handle ``camsim denoise-eval``; returns the exit status (0). User errors raise CamsimError."""
+    from camsim.denoise.denoisers import resolve_denoiser
+    from camsim.denoise.evaluate import NOISY, Criterion, EvalSettings, evaluate
+    from camsim.denoise.report import verdict_sentence, write_outputs
+
+    denoisers = _unique_names([resolve_denoiser(t, timeout_s=args.timeout) for t in args.denoiser])
+    settings = EvalSettings(border_px=args.border, subtract_black=not args.keep_black,
+                            criterion=Criterion(args.max_delta_e, args.max_bias))
+    out = args.out if args.out is not None else default_out(denoisers)
+    evaluation = evaluate(args.dataset, denoisers, settings, progress=not args.quiet)
+    paths = write_outputs(evaluation, out)
+    n = len(evaluation.dataset.frames)
+    print(f"scored {len(denoisers)} denoiser(s) on {n} frame(s); criterion: {settings.criterion.text()}")
+    for d in denoisers:
+        sentence = verdict_sentence(evaluation, d.name).replace("**", "")
+        print(f"  {sentence} [{evaluation.seconds.get(d.name, 0.0):.1f} s]")
+    print(f"  {verdict_sentence(evaluation, NOISY).replace('**', '')}")
+    if evaluation.dataset.skipped:
+        print(f"skipped {len(evaluation.dataset.skipped)} file(s) (e.g. Bayer frames): listed in {paths['report']}")
+    print(f"wrote {paths['report']}, {paths['summary']}, {paths['frames']}, {paths['patches']} and plots to {out}/")
+    return 0

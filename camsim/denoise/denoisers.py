@@ -1,0 +1,441 @@
+"""Denoisers for ``camsim denoise-eval``: the built-in scikit-image baselines and the user's own.
+
+Every denoiser has one interface: ``f(image, sigma_dn) -> denoised``, with ``image`` a (H, W, 3) float32 array of
+noisy digital numbers (R, G, B as the last axis, black level included: the EXR's values before quantisation) and
+``sigma_dn`` the estimated noise standard deviation per channel (3,) in DN, or None. The result has the same shape
+and unit.
+
+The noise level a blind denoiser may use is *estimated from the noisy image itself*
+(:func:`estimate_noise_sigma`, scikit-image's wavelet-domain median absolute deviation); the sidecar's noise model
+(signal variance + dark + read noise) is never given to a denoiser, since a real denoiser does not know it.
+
+A target names a denoiser:
+
+* a built-in name (:data:`DENOISERS`): ``identity`` (the control: returns its input), ``nl-means``, ``wavelet``,
+  ``tv``;
+* ``MODULE:FUNCTION`` — e.g. ``mypkg.filters:denoise`` (imported with the current directory on ``sys.path``) or
+  ``path/to/file.py:denoise``; called as ``FUNCTION(image)`` with the (H, W, 3) float32 DN array, or as
+  ``FUNCTION(image, sigma_dn=...)`` if it has a parameter named ``sigma_dn``; it must return an array of the same
+  shape;
+* ``cmd:COMMAND ARGS...`` — a program run once per frame, with ``{input}`` and ``{output}`` in its arguments
+  replaced by the paths of a temporary EXR holding the noisy frame (channels R, G, B in DN, float32; header
+  ``camsim:denoise_sigma_dn`` = the estimated σ per channel as JSON) and of the EXR it must write (channels R,
+  G, B). The command line is split like a POSIX shell would (``shlex``) but run without a shell.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import inspect
+import json
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from camsim.errors import CamsimError
+
+__all__ = ["DENOISERS", "Denoiser", "estimate_noise_sigma", "resolve_denoiser", "COMMAND_PREFIX"]
+
+COMMAND_PREFIX = "cmd:"
+INPUT_PLACEHOLDER = "{input}"
+OUTPUT_PLACEHOLDER = "{output}"
+STDERR_TAIL_CHARS = 2000
+
+#: Constants of the built-in baselines (in units of the estimated noise σ, so that they do not depend on the
+#: image's scale). ``nl-means``: h = 0.8 σ with σ passed to scikit-image (its documented choice for fast mode),
+#: 5 × 5 patches searched within ±6 pixels; ``tv``: Chambolle's weight = 1 σ (of the normalised image).
+NLM_H_PER_SIGMA = 0.8
+NLM_PATCH_SIZE = 5
+NLM_PATCH_DISTANCE = 6
+TV_WEIGHT_PER_SIGMA = 1.0
+
+
+def have_pywavelets() -> bool:
+    """Whether PyWavelets (scikit-image's optional dependency for its wavelet functions) can be imported."""
+    try:
+        import pywt  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _haar_level(x: np.ndarray):
+    """One level of the 2-D orthonormal Haar transform of ``x`` (h, w), as PyWavelets' ``dwtn(x, 'db1')`` with
+    its default 'symmetric' mode: an odd side is extended by repeating its last sample.
+
+    Returns ``(ll, (ad, da, dd))``: the approximation and the details (``dd``: diagonal), each (⌈h/2⌉, ⌈w/2⌉).
+    """
+    if x.shape[0] % 2:
+        x = np.concatenate([x, x[-1:]], axis=0)
+    if x.shape[1] % 2:
+        x = np.concatenate([x, x[:, -1:]], axis=1)
+    a, b, c, d = x[0::2, 0::2], x[0::2, 1::2], x[1::2, 0::2], x[1::2, 1::2]
+    return (a + b + c + d) / 2, ((a - b + c - d) / 2, (a + b - c - d) / 2, (a - b - c + d) / 2)
+
+
+def _haar_level_inverse(ll, details, shape) -> np.ndarray:
+    """Invert :func:`_haar_level`, cropping to ``shape`` (the level's input shape)."""
+    ad, da, dd = details
+    out = np.empty((2 * ll.shape[0], 2 * ll.shape[1]), dtype=ll.dtype)
+    out[0::2, 0::2] = (ll + ad + da + dd) / 2
+    out[0::2, 1::2] = (ll - ad + da - dd) / 2
+    out[1::2, 0::2] = (ll + ad - da - dd) / 2
+    out[1::2, 1::2] = (ll - ad - da + dd) / 2
+    return out[: shape[0], : shape[1]]
+
+
+def _mad_sigma(detail: np.ndarray) -> float:
+    """Donoho's robust σ: median |d| / Φ⁻¹(0.75) of the non-zero finest diagonal coefficients (as scikit-image)."""
+    detail = detail[np.nonzero(detail)]
+    return float(np.median(np.abs(detail)) / 0.6744897501960817) if detail.size else 0.0
+
+
+def estimate_noise_sigma(image: np.ndarray) -> np.ndarray:
+    """The noise standard deviation per channel of a (H, W, 3) image, estimated blindly. Unit: that of the image.
+
+    Donoho's estimator, the median absolute deviation of the finest diagonal wavelet coefficients / 0.6745, which
+    assumes additive white Gaussian noise and sees only the noisy pixels, never the sidecar's noise model:
+    :func:`skimage.restoration.estimate_sigma` with ``channel_axis=-1`` (Daubechies-2 wavelet) when PyWavelets
+    is installed, else the same estimator on the Haar wavelet computed here (:func:`sigma_estimator` says
+    which). On a ColorChecker both see only noise: flat patches and axis-aligned edges have no diagonal detail.
+    """
+    image = np.asarray(image, dtype=np.float64)
+    if have_pywavelets():
+        from skimage.restoration import estimate_sigma
+
+        sigma = np.asarray(estimate_sigma(image, channel_axis=-1, average_sigmas=False), dtype=np.float64)
+    else:
+        sigma = np.array([_mad_sigma(_haar_level(image[..., c])[1][2]) for c in range(image.shape[-1])])
+    return np.where(np.isfinite(sigma), sigma, 0.0)
+
+
+def sigma_estimator() -> str:
+    """Which noise estimator :func:`estimate_noise_sigma` uses in this environment."""
+    if have_pywavelets():
+        return "skimage.restoration.estimate_sigma(channel_axis=-1) (MAD of the finest db2 diagonal coefficients)"
+    return ("MAD of the finest Haar diagonal coefficients / 0.6745, in numpy (the estimator of "
+            "skimage.restoration.estimate_sigma, which needs PyWavelets, not installed here)")
+
+
+def wavelet_implementation() -> str:
+    """Which implementation the ``wavelet`` denoiser uses in this environment."""
+    if have_pywavelets():
+        return "skimage.restoration.denoise_wavelet(wavelet='db1', method='BayesShrink', mode='soft', channel_axis=-1)"
+    return ("scikit-image's denoise_wavelet algorithm (Haar = db1, BayesShrink, soft thresholds, levels = "
+            "max(⌊log2 min(H, W)⌋ − 3, 1)) in numpy, as PyWavelets is not installed here")
+
+
+def _haar_bayes_shrink(channel: np.ndarray, sigma: float) -> np.ndarray:
+    """scikit-image's ``_wavelet_threshold`` for wavelet 'db1', BayesShrink, soft, default levels, in numpy."""
+    levels = max(int(np.floor(np.log2(min(channel.shape)))) - 3, 1) if min(channel.shape) >= 1 else 1
+    var, eps = sigma**2, np.finfo(np.float64).eps
+    shapes, details, ll = [], [], channel
+    for _ in range(levels):
+        shapes.append(ll.shape)
+        ll, band = _haar_level(ll)
+        details.append(band)
+    for shape, band in zip(reversed(shapes), reversed(details)):
+        shrunk = []
+        for d in band:
+            threshold = var / np.sqrt(max(float(np.mean(d * d)) - var, eps))
+            shrunk.append(np.sign(d) * np.maximum(np.abs(d) - threshold, 0.0))
+        ll = _haar_level_inverse(ll, shrunk, shape)
+    return ll
+
+
+def _normalise(image: np.ndarray):
+    """Divide a DN image by its largest absolute value, so that it lies in [−1, 1]; returns (scaled, scale)."""
+    scale = float(np.max(np.abs(image))) if image.size else 0.0
+    if not (np.isfinite(scale) and scale > 0):
+        scale = 1.0
+    return np.asarray(image, dtype=np.float64) / scale, scale
+
+
+def _sigma(image: np.ndarray, sigma_dn) -> np.ndarray:
+    return estimate_noise_sigma(image) if sigma_dn is None else np.asarray(sigma_dn, dtype=np.float64)
+
+
+def identity(image: np.ndarray, sigma_dn=None) -> np.ndarray:
+    """The control: the noisy image itself (a copy). Its scores are the noisy baseline's, exactly."""
+    return np.array(image, dtype=np.float32, copy=True)
+
+
+def nl_means(image: np.ndarray, sigma_dn=None) -> np.ndarray:
+    """Non-local means (:func:`skimage.restoration.denoise_nl_means`, fast mode, ``channel_axis=-1``).
+
+    The image is divided by its maximum; h = 0.8 σ and ``sigma`` = σ, with σ the root mean square of the
+    per-channel estimates (scikit-image takes one σ for all channels).
+    """
+    from skimage.restoration import denoise_nl_means
+
+    scaled, scale = _normalise(image)
+    sigma = float(np.sqrt(np.mean(np.square(_sigma(image, sigma_dn))))) / scale
+    if not sigma > 0:
+        return identity(image)
+    out = denoise_nl_means(scaled, patch_size=NLM_PATCH_SIZE, patch_distance=NLM_PATCH_DISTANCE,
+                           h=NLM_H_PER_SIGMA * sigma, sigma=sigma, fast_mode=True, preserve_range=True,
+                           channel_axis=-1)
+    return (out * scale).astype(np.float32)
+
+
+def wavelet(image: np.ndarray, sigma_dn=None) -> np.ndarray:
+    """Wavelet shrinkage: BayesShrink, soft thresholds, Haar (db1), per channel, with the per-channel σ.
+
+    :func:`skimage.restoration.denoise_wavelet` (``channel_axis=-1``, no YCbCr conversion) when PyWavelets is
+    installed, else the same algorithm in numpy (:func:`wavelet_implementation` says which). The image is
+    divided by its maximum first; the output is not clipped (scikit-image does not clip float images).
+    """
+    scaled, scale = _normalise(image)
+    sigma = _sigma(image, sigma_dn) / scale
+    if not np.all(sigma > 0):
+        return identity(image)
+    if have_pywavelets():
+        from skimage.restoration import denoise_wavelet
+
+        out = denoise_wavelet(scaled, sigma=list(sigma), wavelet="db1", mode="soft", method="BayesShrink",
+                              rescale_sigma=True, channel_axis=-1)
+    else:
+        out = np.stack([_haar_bayes_shrink(scaled[..., c], float(sigma[c])) for c in range(scaled.shape[-1])],
+                       axis=-1)
+    return (out * scale).astype(np.float32)
+
+
+def total_variation(image: np.ndarray, sigma_dn=None) -> np.ndarray:
+    """Total-variation denoising (:func:`skimage.restoration.denoise_tv_chambolle`, per channel).
+
+    The image is divided by its maximum; the weight (1/λ of the ROF problem) is 1 × the RMS σ of the normalised
+    image, so the smoothing follows the noise level and not the image's scale.
+    """
+    from skimage.restoration import denoise_tv_chambolle
+
+    scaled, scale = _normalise(image)
+    sigma = float(np.sqrt(np.mean(np.square(_sigma(image, sigma_dn))))) / scale
+    if not sigma > 0:
+        return identity(image)
+    out = denoise_tv_chambolle(scaled, weight=TV_WEIGHT_PER_SIGMA * sigma, channel_axis=-1)
+    return (out * scale).astype(np.float32)
+
+
+DENOISERS: dict[str, Callable] = {
+    "identity": identity,
+    "nl-means": nl_means,
+    "wavelet": wavelet,
+    "tv": total_variation,
+}
+"""The built-in denoisers: ``f(image (H, W, 3) float32 DN, sigma_dn (3,) or None) -> (H, W, 3)``."""
+
+BUILTIN_DESCRIPTIONS = {
+    "identity": "the control: returns the noisy frame unchanged",
+    "nl-means": f"scikit-image non-local means, fast mode, {NLM_PATCH_SIZE}×{NLM_PATCH_SIZE} patches within "
+                f"±{NLM_PATCH_DISTANCE} px, h = {NLM_H_PER_SIGMA:g} σ",
+    "wavelet": "wavelet shrinkage (scikit-image's denoise_wavelet algorithm), BayesShrink, soft thresholds, Haar, "
+               "per channel",
+    "tv": f"scikit-image total variation (Chambolle), weight = {TV_WEIGHT_PER_SIGMA:g} σ, per channel",
+}
+
+
+@dataclass(frozen=True)
+class Denoiser:
+    """A resolved denoiser target.
+
+    Attributes
+    ----------
+    target : str
+        As given (``nl-means``, ``pkg.mod:fn``, ``cmd:...``).
+    name : str
+        Short name for tables, plots and file names.
+    kind : {'builtin', 'function', 'command'}
+    description : str
+    function : callable
+        ``function(image, sigma_dn) -> array``; use :meth:`__call__`, which checks the result.
+    """
+
+    target: str
+    name: str
+    kind: str
+    description: str
+    function: Callable
+
+    def __call__(self, image: np.ndarray, sigma_dn=None) -> np.ndarray:
+        """Denoise a (H, W, 3) float32 DN image; the result is checked: same shape, finite, float32.
+
+        Raises
+        ------
+        CamsimError
+            The denoiser raised, or returned an array of another shape, a non-numeric or a non-finite array.
+        """
+        try:
+            out = self.function(np.array(image, dtype=np.float32, copy=True), sigma_dn)
+        except CamsimError:
+            raise
+        except Exception as exc:  # the user's code failing is reported as one line, like any bad input
+            raise CamsimError(f"denoiser {self.target!r} failed: {type(exc).__name__}: {exc}") from exc
+        try:
+            out = np.asarray(out)
+        except Exception as exc:
+            raise CamsimError(f"denoiser {self.target!r} returned {type(out).__name__}, not an array") from exc
+        if out.shape != image.shape:
+            raise CamsimError(f"denoiser {self.target!r} returned an array of shape {out.shape} for an input of "
+                              f"shape {image.shape}; it must return the same shape (H, W, 3)")
+        if out.dtype.kind not in "biuf":
+            raise CamsimError(f"denoiser {self.target!r} returned a {out.dtype} array; expected numbers")
+        out = out.astype(np.float32)
+        if not np.all(np.isfinite(out)):
+            raise CamsimError(f"denoiser {self.target!r} returned {np.count_nonzero(~np.isfinite(out))} non-finite "
+                              "values (NaN or inf)")
+        return out
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._+-]+", "_", text).strip("_.") or "denoiser"
+
+
+def _load_module(spec_text: str, target: str):
+    """Import ``spec_text``: a dotted module name (current directory first on sys.path) or a ``.py`` file."""
+    if spec_text.endswith(".py") or os.sep in spec_text or "/" in spec_text:
+        path = Path(spec_text).expanduser().resolve()
+        if not path.is_file():
+            raise CamsimError(f"denoiser {target!r}: no such Python file {path}")
+        name = f"camsim_user_denoiser_{_slug(path.stem)}"
+        spec = importlib.util.spec_from_file_location(name, path)
+        if spec is None or spec.loader is None:
+            raise CamsimError(f"denoiser {target!r}: cannot load {path} as a Python module")
+        module = importlib.util.module_from_spec(spec)
+        try:
+            spec.loader.exec_module(module)
+        except Exception as exc:
+            raise CamsimError(f"denoiser {target!r}: importing {path} failed: {type(exc).__name__}: {exc}") from exc
+        return module
+    cwd = os.getcwd()
+    added = cwd not in sys.path and "" not in sys.path
+    if added:
+        sys.path.insert(0, cwd)
+    try:
+        return importlib.import_module(spec_text)
+    except ModuleNotFoundError as exc:
+        raise CamsimError(f"denoiser {target!r}: no module named {exc.name or spec_text!r} (looked in the current "
+                          "directory and on sys.path)") from exc
+    except Exception as exc:
+        raise CamsimError(f"denoiser {target!r}: importing {spec_text!r} failed: {type(exc).__name__}: {exc}") from exc
+    finally:
+        if added:
+            sys.path.remove(cwd)
+
+
+def _function_denoiser(target: str) -> Denoiser:
+    module_text, _, attr = target.rpartition(":")
+    if not module_text or not attr:
+        raise CamsimError(f"denoiser {target!r}: expected MODULE:FUNCTION, e.g. mypkg.filters:denoise")
+    module = _load_module(module_text, target)
+    obj = module
+    for part in attr.split("."):
+        try:
+            obj = getattr(obj, part)
+        except AttributeError:
+            raise CamsimError(f"denoiser {target!r}: module {module_text!r} has no attribute {attr!r}") from None
+    if not callable(obj):
+        raise CamsimError(f"denoiser {target!r}: {attr!r} is a {type(obj).__name__}, not a function")
+    try:
+        params = inspect.signature(obj).parameters
+        takes_sigma = "sigma_dn" in params
+    except (TypeError, ValueError):  # builtins without a signature
+        takes_sigma = False
+
+    def call(image, sigma_dn):
+        return obj(image, sigma_dn=sigma_dn) if takes_sigma else obj(image)
+
+    name = _slug(f"{Path(module_text).stem if module_text.endswith('.py') else module_text}.{attr}")
+    how = "image, sigma_dn=σ" if takes_sigma else "image"
+    return Denoiser(target, name, "function", f"user function {module_text}:{attr}({how})", call)
+
+
+def _tail(text: str) -> str:
+    text = (text or "").strip()
+    if len(text) > STDERR_TAIL_CHARS:
+        text = "…" + text[-STDERR_TAIL_CHARS:]
+    return text or "(no output on stderr)"
+
+
+def _command_denoiser(target: str, timeout_s: float | None) -> Denoiser:
+    template = target[len(COMMAND_PREFIX):].strip()
+    try:
+        argv = shlex.split(template)
+    except ValueError as exc:
+        raise CamsimError(f"denoiser {target!r}: cannot split the command line: {exc}") from None
+    if not argv:
+        raise CamsimError(f"denoiser {target!r}: empty command; expected 'cmd:PROGRAM ARGS... {{input}} {{output}}'")
+    for placeholder in (INPUT_PLACEHOLDER, OUTPUT_PLACEHOLDER):
+        if not any(placeholder in arg for arg in argv):
+            raise CamsimError(f"denoiser {target!r}: the command must contain {placeholder} (replaced by the path "
+                              f"of the {'noisy EXR it reads' if placeholder == INPUT_PLACEHOLDER else 'EXR it writes'})")
+    program = argv[0]
+    if shutil.which(program) is None and not Path(program).is_file():
+        raise CamsimError(f"denoiser {target!r}: program {program!r} not found")
+
+    def run(image, sigma_dn):
+        from camsim.io.exr import read_exr, write_exr
+
+        with tempfile.TemporaryDirectory(prefix="camsim-denoise-") as tmp:
+            source, result = Path(tmp) / "noisy.exr", Path(tmp) / "denoised.exr"
+            header = {"camsim:units": "DN"}
+            if sigma_dn is not None:
+                header["camsim:denoise_sigma_dn"] = json.dumps([float(s) for s in sigma_dn])
+            write_exr(source, np.ascontiguousarray(np.moveaxis(image, -1, 0), dtype=np.float32), None, header)
+            args = [a.replace(INPUT_PLACEHOLDER, str(source)).replace(OUTPUT_PLACEHOLDER, str(result)) for a in argv]
+            try:
+                done = subprocess.run(args, capture_output=True, text=True, errors="replace", timeout=timeout_s,
+                                      stdin=subprocess.DEVNULL)
+            except subprocess.TimeoutExpired as exc:
+                raise CamsimError(f"denoiser command {template!r} did not finish within {timeout_s:g} s; stderr: "
+                                  f"{_tail(exc.stderr if isinstance(exc.stderr, str) else '')}") from None
+            except OSError as exc:
+                raise CamsimError(f"denoiser command {template!r} could not start: {exc}") from None
+            if done.returncode != 0:
+                raise CamsimError(f"denoiser command {template!r} failed with exit status {done.returncode}; "
+                                  f"stderr: {_tail(done.stderr)}")
+            if not result.is_file():
+                raise CamsimError(f"denoiser command {template!r} exited with status 0 but wrote no {{output}} EXR; "
+                                  f"stderr: {_tail(done.stderr)}")
+            pixels, _, _ = read_exr(result)
+        if pixels.shape[0] != 3:
+            raise CamsimError(f"denoiser command {template!r} wrote an EXR without channels R, G, B")
+        return np.moveaxis(pixels, 0, -1)
+
+    name = _slug(f"cmd-{Path(program).stem}")
+    return Denoiser(target, name, "command", f"command `{template}`", run)
+
+
+def resolve_denoiser(target: str, timeout_s: float | None = None) -> Denoiser:
+    """The denoiser a target names: a built-in name, ``MODULE:FUNCTION`` or ``cmd:COMMAND {input} {output}``.
+
+    Modules are imported and commands checked (placeholders present, program found) here, before any frame is
+    processed.
+
+    Raises
+    ------
+    CamsimError
+        Unknown name, a module or function that cannot be imported, a command without ``{input}`` / ``{output}``
+        or whose program does not exist.
+    """
+    if not isinstance(target, str) or not target.strip():
+        raise CamsimError("empty denoiser name")
+    target = target.strip()
+    if target in DENOISERS:
+        return Denoiser(target, target, "builtin", BUILTIN_DESCRIPTIONS[target],
+                        lambda image, sigma_dn, f=DENOISERS[target]: f(image, sigma_dn))
+    if target.startswith(COMMAND_PREFIX):
+        return _command_denoiser(target, timeout_s)
+    if ":" in target:
+        return _function_denoiser(target)
+    raise CamsimError(f"unknown denoiser {target!r}: built-ins are {', '.join(DENOISERS)}; a function is "
+                      "MODULE:FUNCTION, a command 'cmd:PROGRAM ARGS... {input} {output}'")

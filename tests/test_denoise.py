@@ -1,0 +1,312 @@
+"""``camsim denoise-eval``: denoisers scored against the clean layer, user targets, outputs and the report."""
+
+import argparse
+import csv
+import json
+import math
+import re
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+from conftest import ROOT
+
+from camsim.denoise.cli import add_parser, run
+from camsim.denoise.denoisers import (
+    DENOISERS,
+    _haar_bayes_shrink,
+    _haar_level,
+    _haar_level_inverse,
+    estimate_noise_sigma,
+    have_pywavelets,
+    resolve_denoiser,
+)
+from camsim.denoise.evaluate import Criterion, EvalSettings, evaluate, verdict
+from camsim.errors import CamsimError
+from camsim.run import render_scene
+from camsim.scene import load_scene
+
+FACTORS = (1.0, 0.1, 0.01)
+SIZE = (192, 128)
+
+# A command denoiser: copies R, G, B from {input} to {output} with camsim's EXR functions (argv[1], argv[2]).
+COPY_CODE = ("import sys; from camsim.io.exr import read_exr, write_exr; "
+             "noisy, _, _ = read_exr(sys.argv[1]); write_exr(sys.argv[2], noisy, None, None)")
+
+
+def _scene(**changes):
+    scene = load_scene(ROOT / "scenes" / "macbeth_26.toml")
+    return scene.replace(**{"width": SIZE[0], "height": SIZE[1], "illuminants": ("D65",), "intensity_factors": FACTORS,
+                            **changes})
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    out = tmp_path_factory.mktemp("dataset")
+    render_scene(_scene(), out / "three_chip", progress=False)
+    return out
+
+
+@pytest.fixture(scope="module")
+def dataset_with_bayer(tmp_path_factory, dataset):
+    """The three-chip frames plus one Bayer frame in a sub-folder (copied, so the module's dataset stays clean)."""
+    import shutil
+
+    out = tmp_path_factory.mktemp("mixed")
+    shutil.copytree(dataset / "three_chip", out / "three_chip")
+    render_scene(_scene(intensity_factors=(0.1,)).with_sensor(cfa="RGGB"), out / "bayer", progress=False)
+    return out
+
+
+@pytest.fixture(scope="module")
+def evaluation(dataset):
+    denoisers = [resolve_denoiser(name) for name in ("identity", "nl-means", "tv")]
+    return evaluate([dataset], denoisers, EvalSettings(), progress=False)
+
+
+def _rows(rows, denoiser, factor=None):
+    return [r for r in rows if r["denoiser"] == denoiser and (factor is None or r["intensity_factor"] == factor)]
+
+
+def _summary(ev, denoiser, factor):
+    (row,) = _rows(ev.summary_rows, denoiser, factor)
+    return row
+
+
+def test_identity_scores_equal_the_noisy_baseline_exactly(evaluation):
+    frames = _rows(evaluation.frame_rows, "identity")
+    assert len(frames) == len(FACTORS)
+    for r in frames:
+        assert r["psnr_denoised_db"] == r["psnr_noisy_db"] and r["ssim_denoised"] == r["ssim_noisy"]
+        assert r["psnr_gain_db"] == 0.0 and r["ssim_gain"] == 0.0
+    patches = _rows(evaluation.patch_rows, "identity")
+    assert len(patches) == 24 * len(FACTORS)
+    for p in patches:
+        assert p["ellipse_size_ratio"] == 1.0
+        assert p["ellipse_size_denoised"] == p["ellipse_size_noisy"]
+        assert p["bias_denoised_xy"] == p["bias_noisy_xy"] and p["delta_e_denoised"] == p["delta_e_noisy"]
+    for f in FACTORS:
+        assert _summary(evaluation, "identity", f)["ellipse_size_ratio"] == 1.0
+
+
+@pytest.mark.parametrize("name", ["nl-means", "tv"])
+def test_denoisers_improve_psnr_and_shrink_the_ellipses_at_f_0_1(evaluation, name):
+    row = _summary(evaluation, name, 0.1)
+    assert row["psnr_gain_db"] > 5.0 and row["ssim_gain"] > 0.1
+    assert row["ellipse_size_ratio"] < 0.5
+    assert row["delta_e_denoised"] < row["delta_e_noisy"]
+    patches = _rows(evaluation.patch_rows, name, 0.1)
+    assert all(p["ellipse_size_ratio"] < 1.0 for p in patches)
+
+
+def test_reference_is_found_and_colour_is_judged(evaluation):
+    assert all(p["delta_e_status"] == "ok" for p in evaluation.patch_rows)
+    # The clean layer is its own truth: its ΔE against the clean F = 1 reference is ~0 with the black subtracted.
+    assert all(abs(p["delta_e_clean"]) < 1e-3 for p in evaluation.patch_rows)
+    nlm = evaluation.verdicts["nl-means"]
+    assert nlm["by_factor"][1.0] == "yes" and nlm["by_factor"][0.01] == "no"
+    assert nlm["status"] == "stops" and nlm["stops_at"] in FACTORS
+
+
+def test_noise_estimate_is_blind_and_close_to_the_truth(evaluation):
+    for r in _rows(evaluation.frame_rows, "identity", 0.01):  # read + dark noise dominate: nearly white Gaussian
+        for c in "RGB":
+            assert r[f"sigma_est_{c}_dn"] == pytest.approx(r[f"noise_std_{c}_dn"], rel=0.1)
+
+
+def test_user_module_function(dataset, tmp_path, monkeypatch):
+    (tmp_path / "my_filters.py").write_text(textwrap.dedent("""
+        import numpy as np
+        from scipy.ndimage import uniform_filter
+
+        calls = []
+
+        def box(image):
+            assert image.shape[-1] == 3 and image.dtype == np.float32
+            return uniform_filter(image, size=(3, 3, 1))
+
+        def with_sigma(image, sigma_dn=None):
+            calls.append(sigma_dn)
+            return image.copy()
+
+        def wrong_shape(image):
+            return image[..., :2]
+
+        def nan(image):
+            return image * np.nan
+        """))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    box = resolve_denoiser("my_filters:box")
+    assert box.kind == "function"
+    ev = evaluate([dataset], [box], progress=False)
+    row = _summary(ev, box.name, 0.1)  # averaging 9 pixels: the ellipses shrink to about 1/3
+    assert row["ellipse_size_ratio"] < 0.5 and row["psnr_denoised_db"] != row["psnr_noisy_db"]
+
+    sigma_fn = resolve_denoiser("my_filters:with_sigma")
+    ev = evaluate([dataset / "three_chip" / "macbeth_26_D65_F0.1.exr"], [sigma_fn], progress=False)
+    import my_filters
+
+    assert len(my_filters.calls) == 1 and np.asarray(my_filters.calls[0]).shape == (3,)
+    assert ev.frame_rows[0]["psnr_gain_db"] == 0.0
+
+    for bad in ("wrong_shape", "nan"):
+        with pytest.raises(CamsimError, match="my_filters:" + bad):
+            evaluate([dataset], [resolve_denoiser(f"my_filters:{bad}")], progress=False)
+
+    by_path = resolve_denoiser(f"{tmp_path / 'my_filters.py'}:box")  # a .py file works too
+    image = np.ones((8, 8, 3), np.float32)
+    assert np.array_equal(by_path(image), image)
+
+
+def test_command_denoiser(dataset):
+    target = f"cmd:{sys.executable} -c '{COPY_CODE}' {{input}} {{output}}"
+    command = resolve_denoiser(target)
+    assert command.kind == "command"
+    ev = evaluate([dataset], [command, resolve_denoiser("identity")], progress=False)
+    for a, b in zip(_rows(ev.frame_rows, command.name), _rows(ev.frame_rows, "identity")):
+        assert a["psnr_denoised_db"] == b["psnr_denoised_db"] == a["psnr_noisy_db"]
+
+
+def test_failing_command_reports_its_stderr(dataset):
+    code = "import sys; sys.stderr.write('model weights missing'); sys.exit(3)"
+    command = resolve_denoiser(f"cmd:{sys.executable} -c \"{code}\" {{input}} {{output}}")
+    with pytest.raises(CamsimError, match="exit status 3.*model weights missing"):
+        evaluate([dataset], [command], progress=False)
+    silent = resolve_denoiser(f"cmd:{sys.executable} -c 'pass' {{input}} {{output}}")
+    with pytest.raises(CamsimError, match="wrote no"):
+        evaluate([dataset], [silent], progress=False)
+
+
+@pytest.mark.parametrize("target, message", [
+    ("no-such-denoiser", "unknown denoiser"),
+    ("camsim_no_such_module_xyz:denoise", "no module named"),
+    ("os.path:no_such_function", "has no attribute"),
+    ("os:sep", "not a function"),
+    ("cmd:", "empty command"),
+    ("cmd:cp {input}", r"\{output\}"),
+    ("cmd:camsim-no-such-program-xyz {input} {output}", "not found"),
+    ("cmd:cp 'unbalanced {input} {output}", "cannot split"),
+])
+def test_bad_targets_are_user_errors(target, message):
+    with pytest.raises(CamsimError, match=message):
+        resolve_denoiser(target)
+
+
+def test_no_frames_is_a_user_error(tmp_path):
+    with pytest.raises(CamsimError, match="no scorable frames"):
+        evaluate([tmp_path], [resolve_denoiser("identity")], progress=False)
+    with pytest.raises(CamsimError, match="no such file"):
+        evaluate([tmp_path / "missing"], [resolve_denoiser("identity")], progress=False)
+
+
+def test_missing_reference_leaves_delta_e_undefined_and_counted(dataset):
+    frame = dataset / "three_chip" / "macbeth_26_D65_F0.1.exr"
+    ev = evaluate([frame], [resolve_denoiser("identity")], progress=False)
+    assert all(p["delta_e_denoised"] is None and p["delta_e_status"] == "no-reference" for p in ev.patch_rows)
+    assert ev.counts["identity"]["delta_e_no_reference"] == 24
+    assert ev.verdicts["identity"]["status"] == "undetermined"
+
+
+def _cli(argv):
+    parser = argparse.ArgumentParser(prog="camsim")
+    add_parser(parser.add_subparsers(dest="command"))
+    return run(parser.parse_args(argv))
+
+
+def _assert_no_nan(path):
+    text = path.read_text(encoding="utf-8")
+    assert not re.search(r"\b(nan|inf|NaN|Infinity)\b", text), path  # Python's and JSON's spellings
+    if path.suffix == ".csv":
+        for row in csv.DictReader(text.splitlines()):
+            for value in row.values():
+                try:
+                    assert math.isfinite(float(value)), (path, row)
+                except ValueError:
+                    pass  # text or empty (undefined, counted)
+
+
+def test_cli_outputs_report_and_comparison(dataset_with_bayer, tmp_path, capsys):
+    out = tmp_path / "eval"
+    assert _cli(["denoise-eval", str(dataset_with_bayer), "--denoiser", "identity", "-d", "nl-means",
+                 "--out", str(out), "-q"]) == 0
+    for name in ("frames.csv", "patches.csv", "summary.csv", "report.md", "summary.json", "psnr_ssim.png",
+                 "chromaticity_bias.png", "delta_e.png", "ellipse_size.png", "examples.png"):
+        assert (out / name).is_file(), name
+    for name in ("frames.csv", "patches.csv", "summary.csv", "report.md", "summary.json"):
+        _assert_no_nan(out / name)
+    summary = list(csv.DictReader((out / "summary.csv").read_text().splitlines()))
+    assert len(summary) == 2 * len(FACTORS)
+    assert len((out / "patches.csv").read_text().splitlines()) == 1 + 2 * 24 * len(FACTORS)
+    report = (out / "report.md").read_text()
+    assert "## Criterion" in report and "≤ 3" in report and "≤ 0.005" in report
+    assert re.search(r"\*\*nl-means\*\* preserves colour down to F = [0-9.]+ and stops at F = [0-9.]+", report)
+    assert "Comparison per light level" in report  # two denoisers: one comparison table
+    assert "Bayer" in report and "bayer" in report  # the skipped CFA frame is named, with the reason
+    data = json.loads((out / "summary.json").read_text())
+    assert len(data["skipped"]) == 1 and data["frames_scored"] == len(FACTORS)
+    assert {d["name"] for d in data["denoisers"]} == {"identity", "nl-means"}
+    printed = capsys.readouterr().out
+    assert "nl-means preserves colour down to F =" in printed and "skipped 1 file" in printed
+
+
+def test_cli_criterion_options_and_default_out(dataset, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert _cli(["denoise-eval", str(dataset), "-d", "identity", "--max-delta-e", "1e9", "--max-bias", "1", "-q"]) == 0
+    out = tmp_path / "outputs" / "denoise-eval" / "identity"
+    data = json.loads((out / "summary.json").read_text())
+    assert data["criterion"]["max_delta_e"] == 1e9
+    assert data["denoisers"][0]["verdict"]["status"] == "all-preserved"
+    assert "below the tested range" in (out / "report.md").read_text()
+    with pytest.raises(CamsimError, match="more than once"):
+        _cli(["denoise-eval", str(dataset), "-d", "identity", "-d", "identity", "-q"])
+
+
+def test_keep_black_measures_as_the_paper(dataset):
+    ev = evaluate([dataset], [resolve_denoiser("identity")], EvalSettings(subtract_black=False), progress=False)
+    # Without black subtraction the dark current drags the clean colours at low light: ΔE floor > 0.
+    assert _summary(ev, "identity", 0.01)["delta_e_clean"] > 1.0
+
+
+def test_verdict_rules():
+    def rows(marks):
+        return [{"intensity_factor": f, "ok": m} for f, m in zip((1.0, 0.3, 0.1, 0.03), marks)]
+
+    v = verdict(rows(["yes", "yes", "no", "no"]), "ok")
+    assert (v["status"], v["preserved_down_to"], v["stops_at"]) == ("stops", 0.3, 0.1)
+    v = verdict(rows(["yes"] * 4), "ok")
+    assert (v["status"], v["preserved_down_to"], v["stops_at"]) == ("all-preserved", 0.03, None)
+    v = verdict(rows(["no", "yes", "no", "no"]), "ok")
+    assert (v["status"], v["stops_at"], v["recovers_below"]) == ("never-preserved", 1.0, [0.3])
+    assert verdict(rows(["undetermined"] * 4), "ok")["status"] == "undetermined"
+    with pytest.raises(CamsimError):
+        Criterion(max_delta_e=float("nan"))
+
+
+def test_noise_estimator_and_haar_transform():
+    rng = np.random.default_rng(0)
+    noise = rng.normal(0.0, 2.0, size=(128, 160, 3))
+    assert estimate_noise_sigma(noise) == pytest.approx([2.0, 2.0, 2.0], rel=0.05)
+    x = rng.normal(size=(37, 45))
+    ll, details = _haar_level(x)
+    assert np.allclose(_haar_level_inverse(ll, details, x.shape), x, atol=1e-12)
+    assert set(DENOISERS) == {"identity", "nl-means", "wavelet", "tv"}
+
+
+@pytest.mark.skipif(not have_pywavelets(), reason="PyWavelets is not installed: no scikit-image wavelet to compare")
+def test_numpy_wavelet_matches_scikit_image():
+    from skimage.restoration import denoise_wavelet, estimate_sigma
+
+    rng = np.random.default_rng(1)
+    image = np.clip(np.kron(rng.uniform(size=(6, 8)), np.ones((16, 16))) + rng.normal(0, 0.05, (96, 128)), 0, 1)
+    ours = _haar_bayes_shrink(image, 0.05)
+    theirs = denoise_wavelet(image, sigma=0.05, wavelet="db1", mode="soft", method="BayesShrink")
+    assert np.allclose(ours, theirs, atol=1e-9)
+    noise = rng.normal(0, 1.0, (128, 128, 3))
+    assert estimate_noise_sigma(noise) == pytest.approx(estimate_sigma(noise, channel_axis=-1), rel=0.05)
+
+
+def test_wavelet_denoiser_runs(dataset):
+    ev = evaluate([dataset / "three_chip" / "macbeth_26_D65_F0.1.exr"], [resolve_denoiser("wavelet")],
+                  progress=False)
+    assert ev.frame_rows[0]["psnr_gain_db"] > 1.0
