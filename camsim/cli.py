@@ -177,8 +177,10 @@ def build_parser() -> argparse.ArgumentParser:
                       help="seed of the temporal noise (integer ≥ 0, default 0); the fixed pattern is the "
                            "sensor's own (its sensor_seed)")
     emva.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no table")
+    from camsim.dataset.cli import add_parser as add_dataset
     from camsim.denoise.cli import add_parser as add_denoise_eval
 
+    add_dataset(sub)
     add_denoise_eval(sub)
     sub.add_parser("list", help="list the illuminants, cameras, reflectance sets and presets camsim knows")
     return parser
@@ -299,10 +301,11 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
+        from camsim.dataset.cli import run as dataset
         from camsim.denoise.cli import run as denoise_eval
 
         commands = {"render": _cmd_render, "analyze": _cmd_analyze, "experiment": _cmd_experiment,
-                    "denoise-eval": denoise_eval,
+                    "dataset": dataset, "denoise-eval": denoise_eval,
                     "emva": _cmd_emva, "list": _cmd_list}
         return commands[args.command](args)
     except CamsimError as exc:

@@ -1,0 +1,24 @@
+"""Datasets: many frames from a spec (grid and random draws of scenes, illuminants, light levels, exposure and
+sensor parameters), rendered in parallel and resumably, with a JSON Lines manifest. See :mod:`camsim.dataset.spec`
+for the spec format and :mod:`camsim.dataset.runner` for the output layout and the back-ends.
+
+Importing the package is cheap (``camsim.dataset.cli`` is imported by every ``camsim`` command); the names below
+load their modules on first use.
+"""
+
+_EXPORTS = {
+    "DatasetSpec": "camsim.dataset.spec",
+    "FrameSpec": "camsim.dataset.spec",
+    "load_spec": "camsim.dataset.spec",
+    "run_dataset": "camsim.dataset.runner",
+    "read_manifest": "camsim.dataset.runner",
+}
+__all__ = list(_EXPORTS)
+
+
+def __getattr__(name):
+    if name in _EXPORTS:
+        import importlib
+
+        return getattr(importlib.import_module(_EXPORTS[name]), name)
+    raise AttributeError(f"module 'camsim.dataset' has no attribute {name!r}")

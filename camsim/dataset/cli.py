@@ -1,0 +1,84 @@
+"""The ``camsim dataset`` sub-command: ``add_parser(subparsers)`` sets it up, ``run(args)`` carries it out.
+
+``run`` raises :class:`camsim.errors.CamsimError` for user errors, which ``camsim.cli.main`` reports on one line.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+DEFAULT_OUT = Path("outputs")
+
+
+def _count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be ≥ 1, got {text}")
+    return value
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the ``dataset`` sub-command to an argparse sub-parsers object; returns its parser."""
+    parser = subparsers.add_parser(
+        "dataset",
+        help="render a dataset of frames (grid or random draws of parameters) with a manifest, resumably",
+        description=(
+            "Render every frame of SPEC.toml (see scenes/denoise_small.toml): scenes × illuminants × intensity "
+            "factors × exposure and sensor parameters, over a grid and/or random draws, each frame as "
+            "OUT/frames/ID.dng, ID.exr (noisy R, G, B and the clean.R/G/B layer) and ID.json, and "
+            "OUT/manifest.jsonl with one line per frame (every parameter, the seed, each file's size and SHA-256). "
+            "A re-run renders only the frames that are not complete and verified. Frames run in parallel on "
+            "this machine's cores, or on a Dask cluster with --scheduler; the files do not depend on which."
+        ),
+    )
+    parser.add_argument("spec", metavar="SPEC.toml", type=Path, help="dataset spec file")
+    parser.add_argument("--out", metavar="DIR", type=Path, help="output folder (default outputs/SPEC_NAME)")
+    parser.add_argument("--workers", metavar="N", type=_count,
+                        help="local processes rendering frames in parallel (default: all cores; 1 = in this "
+                             "process)")
+    parser.add_argument("--threads", metavar="N", type=_count, default=1,
+                        help="threads per frame (default 1; the files do not depend on it)")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="address of a dask.distributed scheduler, e.g. tcp://10.0.0.5:8786: one task per "
+                             "frame on the cluster, whose workers need camsim installed (not a shared disk: "
+                             "they send the files back)")
+    parser.add_argument("--verify", choices=("sha256", "size"), default="sha256",
+                        help="how a re-run checks the files of complete frames: size and SHA-256 (default) or "
+                             "size only")
+    parser.add_argument("--dry-run", action="store_true",
+                        help="validate the spec and list its frames (id and parameters) without rendering")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    return parser
+
+
+def run(args) -> int:
+    """Carry out ``camsim dataset``; returns the exit status (0)."""
+    import json
+
+    from camsim.dataset._pool import start_fork_server
+
+    if args.scheduler is None and args.workers != 1 and not args.dry_run:
+        start_fork_server()  # the pool's fork server imports camsim while this process does the same
+
+    from camsim.dataset.runner import run_dataset
+    from camsim.dataset.spec import load_spec
+
+    spec = load_spec(args.spec)
+    if args.dry_run:
+        varied = [name for name, how in spec.axes.items() if how != "fixed"]
+        print(f"dataset {spec.name}: {len(spec.frames)} frames of {spec.width}x{spec.height}; "
+              f"varied: {', '.join(f'{n} ({spec.axes[n]})' for n in varied)}")
+        for frame in spec.frames:
+            shown = {"id": frame.id, "scene": frame.record["scene"], "repeat": frame.record["repeat"],
+                     **{n: frame.record["photon_statistics" if n == "statistics" else n] for n in varied},
+                     "seed": frame.seed}
+            print(json.dumps(shown, ensure_ascii=False))
+        return 0
+    out = args.out if args.out is not None else DEFAULT_OUT / spec.name
+    run_dataset(spec, out, workers=args.workers, threads=args.threads, scheduler=args.scheduler,
+                verify=args.verify, progress=not args.quiet)
+    return 0
