@@ -29,6 +29,34 @@ def patch_xyz(radiance, grid) -> np.ndarray:
     return KM_LM_PER_W * grid.step_nm * (radiance.radiance[:n] @ cmfs_on_grid(grid).T)
 
 
+def scene_frame_info(scene: Scene, radiance, camera, illuminant: str, factor: float, seed: int, matrix, neutral,
+                     xyz_at_f1) -> FrameInfo:
+    """The :class:`FrameInfo` of one frame of ``scene`` (shared by ``camsim render`` and ``camsim dataset``).
+
+    ``matrix``, ``neutral``: ColorMatrix1 and AsShotNeutral; ``xyz_at_f1``: the patches' XYZ at F = 1.
+    """
+    return FrameInfo(
+        scene=scene.name,
+        illuminant=illuminant,
+        intensity_factor=factor,
+        seed=seed,
+        photon_statistics=scene.statistics,
+        method=scene.method,
+        camera=camera.name,
+        sensitivity_basis=camera.sensitivity_basis,
+        reflectances=radiance.reflectance_set,
+        wavelengths_nm=scene.grid.wavelengths_nm,
+        luminance_cd_m2=scene.luminance_cd_m2,
+        normalisation=scene.normalisation,
+        scale={"kind": scene.scale.kind, **dataclasses.asdict(scene.scale)},
+        patch_names=radiance.patch_names,
+        patch_rects=radiance.patch_rects,
+        color_matrix1=matrix,
+        as_shot_neutral=neutral,
+        patch_xyz=factor * xyz_at_f1,
+    )
+
+
 def check_scene(scene: Scene) -> None:
     """Fail early, before any frame is written, on names that do not resolve and sizes that cannot be written."""
     if scene.method not in ALL_METHODS:
@@ -55,7 +83,6 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
     out_dir = Path(out_dir)
     camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
     sensor = scene.sensor
-    scale = {"kind": scene.scale.kind, **dataclasses.asdict(scene.scale)}
     frames = []
     jobs = [(ill, f) for ill in scene.illuminants for f in scene.intensity_factors]
     bar = tqdm(total=len(jobs), desc=f"rendering {scene.name}", unit="frame", disable=not progress)
@@ -72,26 +99,7 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
             radiance.labels, expected, sensor, statistics=scene.statistics, method=scene.method,
             rng=frame_seed_sequence(scene.seed, illuminant, factor), workers=workers, tolerance=scene.tolerance,
         )
-        info = FrameInfo(
-            scene=scene.name,
-            illuminant=illuminant,
-            intensity_factor=factor,
-            seed=scene.seed,
-            photon_statistics=scene.statistics,
-            method=scene.method,
-            camera=camera.name,
-            sensitivity_basis=camera.sensitivity_basis,
-            reflectances=radiance.reflectance_set,
-            wavelengths_nm=scene.grid.wavelengths_nm,
-            luminance_cd_m2=scene.luminance_cd_m2,
-            normalisation=scene.normalisation,
-            scale=scale,
-            patch_names=radiance.patch_names,
-            patch_rects=radiance.patch_rects,
-            color_matrix1=colour_tags[0],
-            as_shot_neutral=colour_tags[1],
-            patch_xyz=factor * colour_tags[2],
-        )
+        info = scene_frame_info(scene, radiance, camera, illuminant, factor, scene.seed, *colour_tags)
         files = write_frame(out_dir, frame_stem(scene.name, illuminant, factor), frame, info, preview=preview)
         frames.append({
             "illuminant": illuminant,

@@ -6,8 +6,9 @@ noise (uniform 1.5 … 6 e⁻); every frame written as DNG + EXR + JSON and reco
 
 Configurations, each run as a fresh ``camsim dataset``-like process (as a user would run it), into its own folder:
 
-* ``serial``: ``--workers 1`` (one process, one thread per frame);
-* ``threads2``: ``--workers 1 --threads 2`` (one process, each frame's row blocks on 2 threads);
+* ``serial``: ``--workers 1`` (one process, one thread per frame: one core);
+* ``threads2``: ``--workers 1 --threads 2`` (one process, each frame's noise draws and EXR compression on 2
+  threads);
 * ``processes2``: ``--workers 2`` (two processes, one frame each at a time).
 
 For each: ``fps`` = frames / wall time of the rendering phase (from the back-end's start, including the process

@@ -41,7 +41,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="local processes rendering frames in parallel (default: all cores; 1 = in this "
                              "process)")
     parser.add_argument("--threads", metavar="N", type=_count, default=1,
-                        help="threads per frame (default 1; the files do not depend on it)")
+                        help="threads per frame, for the noise draws and the EXR compression (default 1: one "
+                             "core per frame; the files do not depend on it)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="address of a dask.distributed scheduler, e.g. tcp://10.0.0.5:8786: one task per "
                              "frame on the cluster, whose workers need camsim installed (not a shared disk: "
@@ -70,7 +71,7 @@ def run(args) -> int:
     spec = load_spec(args.spec)
     if args.dry_run:
         varied = [name for name, how in spec.axes.items() if how != "fixed"]
-        print(f"dataset {spec.name}: {len(spec.frames)} frames of {spec.width}x{spec.height}; "
+        print(f"dataset {spec.name}: {len(spec.frames)} frames of {spec.size_text}; "
               f"varied: {', '.join(f'{n} ({spec.axes[n]})' for n in varied)}")
         for frame in spec.frames:
             shown = {"id": frame.id, "scene": frame.record["scene"], "repeat": frame.record["repeat"],

@@ -23,7 +23,6 @@ file system shared with this machine.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import hashlib
 import json
 import multiprocessing
@@ -40,12 +39,12 @@ from camsim.camera import load_camera
 from camsim.dataset._pool import pool_context, start_fork_server
 from camsim.dataset.spec import DatasetSpec, FrameSpec, load_spec
 from camsim.errors import CamsimError
-from camsim.frame_files import FrameInfo, write_frame
+from camsim.frame_files import write_frame
 from camsim.io.atomic import atomic_path, write_json_atomic, write_text_atomic
 from camsim.radiance import scene_radiance
 from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
 from camsim.render import default_workers, frame_expected, frame_seed_sequence, render_frame
-from camsim.run import patch_xyz
+from camsim.run import patch_xyz, scene_frame_info
 from camsim.scene import load_scene
 
 FRAMES_DIR = "frames"
@@ -108,26 +107,8 @@ def render_files(frame: FrameSpec, directory: Path, threads: int = 1) -> dict:
         radiance.labels, expected, sensor, statistics=scene.statistics, method=scene.method,
         rng=frame_seed_sequence(frame.seed, frame.illuminant, factor), workers=threads, tolerance=scene.tolerance,
     )
-    info = FrameInfo(
-        scene=scene.name,
-        illuminant=frame.illuminant,
-        intensity_factor=factor,
-        seed=frame.seed,
-        photon_statistics=scene.statistics,
-        method=scene.method,
-        camera=camera.name,
-        sensitivity_basis=camera.sensitivity_basis,
-        reflectances=radiance.reflectance_set,
-        wavelengths_nm=scene.grid.wavelengths_nm,
-        luminance_cd_m2=scene.luminance_cd_m2,
-        normalisation=scene.normalisation,
-        scale={"kind": scene.scale.kind, **dataclasses.asdict(scene.scale)},
-        patch_names=radiance.patch_names,
-        patch_rects=radiance.patch_rects,
-        color_matrix1=matrix,
-        as_shot_neutral=neutral,
-        patch_xyz=factor * patch_xyz(radiance, scene.grid),
-    )
+    info = scene_frame_info(scene, radiance, camera, frame.illuminant, factor, frame.seed, matrix, neutral,
+                            patch_xyz(radiance, scene.grid))
     return write_frame(Path(directory), frame.id, rendered, info)
 
 
@@ -337,7 +318,8 @@ def run_dataset(
     workers : int, optional
         Local processes (default: the machine's cores); 1 renders in this process. Not with ``scheduler``.
     threads : int
-        Threads per frame (default 1; the files do not depend on it).
+        Threads per frame, for the noise draws and OpenEXR's compression (default 1: one core per frame; the
+        files do not depend on it).
     scheduler : str, optional
         Address of a ``dask.distributed`` scheduler (e.g. ``tcp://10.0.0.5:8786``): one task per frame there.
     verify : {'sha256', 'size'}
@@ -354,17 +336,17 @@ def run_dataset(
         ``megapixels_per_second``, ``backend``, ``manifest`` (path).
     """
     say = echo or (lambda *a, **k: None)
-    if scheduler is None and workers != 1:
-        start_fork_server()  # it imports camsim while the spec is read and the frames are checked
-    spec = spec if isinstance(spec, DatasetSpec) else load_spec(spec)
     if verify not in VERIFY_MODES:
         raise CamsimError(f"verify must be one of {VERIFY_MODES}, got {verify!r}")
     if scheduler is not None and workers is not None:
         raise CamsimError("give either --workers (local processes) or --scheduler (a Dask cluster), not both")
-    if workers is not None and workers < 1:
-        raise CamsimError(f"workers must be ≥ 1, got {workers}")
+    if workers is not None and not (isinstance(workers, int) and workers >= 1):
+        raise CamsimError(f"workers must be an integer ≥ 1, got {workers!r}")
     if not (isinstance(threads, int) and threads >= 1):
         raise CamsimError(f"threads must be an integer ≥ 1, got {threads!r}")
+    if scheduler is None and workers != 1:
+        start_fork_server()  # it imports camsim while the spec is read and the frames are checked
+    spec = spec if isinstance(spec, DatasetSpec) else load_spec(spec)
     out_dir = Path(out_dir)
     frames_dir = out_dir / FRAMES_DIR
     frames_dir.mkdir(parents=True, exist_ok=True)
@@ -389,7 +371,7 @@ def run_dataset(
         else:
             workers = min(workers or default_workers(), max(1, len(todo)))
             backend = "1 process" if workers == 1 else f"{workers} processes"
-        say(f"dataset {spec.name}: {len(spec.frames)} frames of {spec.width}x{spec.height}, "
+        say(f"dataset {spec.name}: {len(spec.frames)} frames of {spec.size_text}, "
             f"{len(records)} complete and verified, {len(todo)} to render ({backend}, {threads} thread(s) each)"
             + (f"; {strays} records of other specs left in {frames_dir}" if strays else ""))
 

@@ -166,6 +166,15 @@ class DatasetSpec:
     def __len__(self) -> int:
         return len(self.frames)
 
+    @property
+    def size_text(self) -> str:
+        """``WxH`` of the frames (a cube scene's frames have the cube's size), or ``mixed sizes``."""
+        sizes = {(f.width, f.height) for f in self.frames}
+        if len(sizes) != 1:
+            return "mixed sizes"
+        (width, height), = sizes
+        return f"{width}x{height}"
+
 
 # --- values --------------------------------------------------------------------------------------------------
 
