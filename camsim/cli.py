@@ -9,6 +9,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from camsim.cli_types import non_negative_int, positive_float
 from camsim.errors import CamsimError
 from camsim.sensor import CFA_PATTERNS, PRESETS, STAGES
 
@@ -22,26 +23,6 @@ class _UsageError(Exception):
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # argparse would print the usage block and exit; camsim prints one line
         raise _UsageError(f"{message} (see '{self.prog} --help')")
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not value > 0 or value != value or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
-    return value
-
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be ≥ 0, got {text}")
-    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -65,7 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     render.add_argument("scene", metavar="SCENE.toml", help="scene file (see scenes/macbeth_26.toml)")
-    render.add_argument("--intensity", "-F", metavar="F", type=_positive_float, nargs="+", action="extend",
+    render.add_argument("--intensity", "-F", metavar="F", type=positive_float, nargs="+", action="extend",
                         help="intensity factor(s) F (unitless, > 0): the light is F × the scene radiance, "
                              "whose perfect white is 100 cd/m² at F = 1; F > 1 saturates. Default: the scene's list")
     render.add_argument("--illuminant", metavar="NAME", nargs="+", action="extend",
@@ -79,7 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "moment-matched normal per pixel and channel (fast, wrong at low counts); 'auto' = "
                              "per spectrum and channel the Gaussian where its KS distance to the exact law is "
                              "within --tolerance, else poisson")
-    render.add_argument("--tolerance", metavar="KS", type=_positive_float,
+    render.add_argument("--tolerance", metavar="KS", type=positive_float,
                         help="auto's tolerance: the largest Kolmogorov–Smirnov distance (unitless, 0–1) between "
                              "a pixel value's exact law and its Gaussian replacement (default 0.01)")
     render.add_argument("--preset", choices=sorted(PRESETS),
@@ -90,11 +71,11 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--cfa", choices=CFA_PATTERNS,
                         help="a Bayer colour filter array (one channel per pixel; the DNG is then a CFA DNG) instead "
                              "of the default three-chip sensor (R, G and B at every pixel)")
-    render.add_argument("--exposure", metavar="SECONDS", type=_positive_float,
+    render.add_argument("--exposure", metavar="SECONDS", type=positive_float,
                         help="exposure time T in s (Table I: 1 s)")
     render.add_argument("--camera", metavar="NAME_OR_CSV",
                         help="colour-science camera name (default 'Nikon 5100 (NPL)') or a CSV of wavelength_nm, R, G, B")
-    render.add_argument("--seed", type=_seed, help="random seed (integer ≥ 0); same seed ⇒ identical files")
+    render.add_argument("--seed", type=non_negative_int, help="random seed (integer ≥ 0); same seed ⇒ identical files")
     render.add_argument("--size", metavar="WxH", help="frame size in pixels for chart scenes, e.g. 4000x3000")
     render.add_argument("--out", metavar="DIR", type=Path,
                         help="output directory (default: outputs/SCENE_NAME)")
@@ -153,7 +134,7 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--camera", metavar="NAME_OR_CSV",
                             help="camera (default the scene's, Nikon 5100 (NPL)); e.g. the paper's Sony DXC-930 "
                                  "CSV from the SFU data")
-    experiment.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
+    experiment.add_argument("--seed", type=non_negative_int, default=0, help="random seed (default 0)")
     experiment.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     emva = sub.add_parser(
         "emva",
@@ -173,7 +154,7 @@ def build_parser() -> argparse.ArgumentParser:
     emva.add_argument("--out", metavar="DIR", type=Path, help="output folder (default outputs/emva)")
     emva.add_argument("--size", metavar="N", type=int, default=256,
                       help="side of the square region of interest in pixels, 16 to 4096 (default 256)")
-    emva.add_argument("--seed", metavar="N", type=_seed, default=0,
+    emva.add_argument("--seed", metavar="N", type=non_negative_int, default=0,
                       help="seed of the temporal noise (integer ≥ 0, default 0); the fixed pattern is the "
                            "sensor's own (its sensor_seed)")
     emva.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no table")

@@ -111,6 +111,17 @@ class Scene:
         return dataclasses.replace(self, **changes)
 
 
+def read_toml(path: Path, what: str) -> dict:
+    """Parse a TOML file; a missing or malformed one is a :class:`CamsimError` naming ``what`` and the path."""
+    try:
+        with open(path, "rb") as handle:
+            return tomllib.load(handle)
+    except FileNotFoundError:
+        raise CamsimError(f"{what} not found: {path}") from None
+    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise CamsimError(f"cannot read {what} {path}: {exc}") from None
+
+
 _TOP_KEYS = {"name", "description", "spectral", "chart", "cube", "light", "frame", "camera", "sensor", "render"}
 
 
@@ -146,13 +157,7 @@ def load_scene(path: str | Path) -> Scene:
     """
     path = Path(path)
     where = str(path)
-    try:
-        with open(path, "rb") as handle:
-            doc = tomllib.load(handle)
-    except FileNotFoundError:
-        raise CamsimError(f"scene file not found: {path}") from None
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise CamsimError(f"cannot read scene file {path}: {exc}") from None
+    doc = read_toml(path, "scene file")
     unknown = set(doc) - _TOP_KEYS
     if unknown:
         raise CamsimError(f"{where}: unknown top-level key(s): {', '.join(sorted(unknown))}")

@@ -8,17 +8,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from camsim.cli_types import positive_int
+
 DEFAULT_OUT = Path("outputs")
-
-
-def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be ≥ 1, got {text}")
-    return value
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -37,10 +29,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     parser.add_argument("spec", metavar="SPEC.toml", type=Path, help="dataset spec file")
     parser.add_argument("--out", metavar="DIR", type=Path, help="output folder (default outputs/SPEC_NAME)")
-    parser.add_argument("--workers", metavar="N", type=_count,
+    parser.add_argument("--workers", metavar="N", type=positive_int,
                         help="local processes rendering frames in parallel (default: all cores; 1 = in this "
                              "process)")
-    parser.add_argument("--threads", metavar="N", type=_count, default=1,
+    parser.add_argument("--threads", metavar="N", type=positive_int, default=1,
                         help="threads per frame, for the noise draws and the EXR compression (default 1: one "
                              "core per frame; the files do not depend on it)")
     parser.add_argument("--scheduler", metavar="ADDRESS",

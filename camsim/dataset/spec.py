@@ -47,7 +47,6 @@ import hashlib
 import itertools
 import json
 import math
-import tomllib
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -58,7 +57,7 @@ from camsim.camera import load_camera
 from camsim.errors import CamsimError
 from camsim.render import ALL_METHODS
 from camsim.run import check_scene
-from camsim.scene import STATISTICS, Scene, load_scene
+from camsim.scene import STATISTICS, Scene, load_scene, read_toml
 from camsim.sensor import CFA_PATTERNS, PRESETS, READ_NOISE_MODELS, STAGES
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT = 256, 192
@@ -307,13 +306,7 @@ def load_spec(path: str | Path) -> DatasetSpec:
     """
     path = Path(path)
     where = str(path)
-    try:
-        with open(path, "rb") as handle:
-            doc = tomllib.load(handle)
-    except FileNotFoundError:
-        raise CamsimError(f"dataset spec not found: {path}") from None
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise CamsimError(f"cannot read dataset spec {path}: {exc}") from None
+    doc = read_toml(path, "dataset spec")
     unknown = set(doc) - _TOP_KEYS
     if unknown:
         raise CamsimError(f"{where}: unknown top-level key(s): {', '.join(sorted(unknown))}; "

@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
 import textwrap
 from pathlib import Path
 
+from camsim.cli_types import non_negative_int, positive_float
 from camsim.errors import CamsimError
 
 DEFAULT_OUT = Path("outputs") / "denoise-eval"
@@ -58,26 +58,6 @@ examples:
 """
 
 
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
-    return value
-
-
-def _border(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be ≥ 0, got {text}")
-    return value
-
-
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add the ``denoise-eval`` sub-parser to ``subparsers`` (from ``ArgumentParser.add_subparsers``)."""
     parser = subparsers.add_parser(
@@ -95,18 +75,18 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--out", metavar="DIR", type=Path,
                         help="output folder (default outputs/denoise-eval/NAME, NAME the denoiser's, or the "
                              "denoisers' joined by '+')")
-    parser.add_argument("--border", metavar="PIXELS", type=_border, default=3,
+    parser.add_argument("--border", metavar="PIXELS", type=non_negative_int, default=3,
                         help="pixels left out along each edge of a patch (default 3)")
     parser.add_argument("--keep-black", action="store_true",
                         help="do not subtract the sidecar's black level (mean dark level, DN) before the colour "
                              "quantities, as the paper; by default it is subtracted, so that they measure the "
                              "denoiser and not the dark current's drag toward the camera black point")
-    parser.add_argument("--max-delta-e", metavar="DE", type=_positive_float, default=3.0,
+    parser.add_argument("--max-delta-e", metavar="DE", type=positive_float, default=3.0,
                         help="criterion: largest mean ΔE_ab at which colour counts as preserved (default 3)")
-    parser.add_argument("--max-bias", metavar="DXY", type=_positive_float, default=0.005,
+    parser.add_argument("--max-bias", metavar="DXY", type=positive_float, default=0.005,
                         help="criterion: largest mean chromaticity bias |Δxy| of patch means at which colour counts "
                              "as preserved (default 0.005)")
-    parser.add_argument("--timeout", metavar="SECONDS", type=_positive_float,
+    parser.add_argument("--timeout", metavar="SECONDS", type=positive_float,
                         help="time limit per frame for a 'cmd:' denoiser (default none)")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     return parser

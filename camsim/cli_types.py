@@ -1,0 +1,37 @@
+"""argparse value types shared by the sub-commands: each rejects a bad value with a one-line message."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+
+def positive_float(text: str) -> float:
+    """A finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
+    return value
+
+
+def _integer_at_least(text: str, low: int) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < low:
+        raise argparse.ArgumentTypeError(f"must be ≥ {low}, got {text}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """An integer ≥ 0 (a seed, a border in pixels)."""
+    return _integer_at_least(text, 0)
+
+
+def positive_int(text: str) -> int:
+    """An integer ≥ 1 (a count of workers or threads)."""
+    return _integer_at_least(text, 1)
