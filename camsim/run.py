@@ -29,6 +29,11 @@ def patch_xyz(radiance, grid) -> np.ndarray:
     return KM_LM_PER_W * grid.step_nm * (radiance.radiance[:n] @ cmfs_on_grid(grid).T)
 
 
+def frame_colour_tags(radiance, qe, illuminant: str, grid):
+    """ColorMatrix1, AsShotNeutral and the patches' XYZ at F = 1: what a frame's files need besides its pixels."""
+    return (color_matrix_xyz_to_camera(qe, grid), as_shot_neutral(illuminant, qe, grid), patch_xyz(radiance, grid))
+
+
 def scene_frame_info(scene: Scene, radiance, camera, illuminant: str, factor: float, seed: int, matrix, neutral,
                      xyz_at_f1) -> FrameInfo:
     """The :class:`FrameInfo` of one frame of ``scene`` (shared by ``camsim render`` and ``camsim dataset``).
@@ -93,8 +98,7 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
             colour_tags = None
         expected = frame_expected(radiance, camera, scene.scale, sensor, factor, scene.statistics, scene.grid)
         if colour_tags is None:  # Qe depends on the illuminant (anchor), not on F
-            colour_tags = (color_matrix_xyz_to_camera(expected.qe, scene.grid),
-                           as_shot_neutral(illuminant, expected.qe, scene.grid), patch_xyz(radiance, scene.grid))
+            colour_tags = frame_colour_tags(radiance, expected.qe, illuminant, scene.grid)
         frame = render_frame(
             radiance.labels, expected, sensor, statistics=scene.statistics, method=scene.method,
             rng=frame_seed_sequence(scene.seed, illuminant, factor), workers=workers, tolerance=scene.tolerance,

@@ -41,20 +41,17 @@ def frame_records(scene, radiance, camera, sensor, factor, method, seed, workers
     """Render one frame, write it, analyse it from the files; returns (frame, analysis result, seconds)."""
     from camsim.analysis.analyze import analyse_paths
     from camsim.analysis.patches import AnalysisSettings
-    from camsim.frame_files import FrameInfo, frame_stem, write_frame
-    from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
+    from camsim.frame_files import frame_stem, write_frame
     from camsim.render import frame_expected, render_frame
-    from camsim.run import patch_xyz
+    from camsim.run import frame_colour_tags, scene_frame_info
 
     expected = frame_expected(radiance, camera, scene.scale, sensor, factor, "pixel", scene.grid)
     start = time.perf_counter()
     frame = render_frame(radiance.labels, expected, sensor, method=method, rng=seed, workers=workers)
     seconds = time.perf_counter() - start
-    info = FrameInfo(scene.name, "D65", factor, seed, "pixel", method, camera.name, camera.sensitivity_basis,
-                     radiance.reflectance_set, scene.grid.wavelengths_nm, scene.luminance_cd_m2, scene.normalisation,
-                     {"kind": "anchor"}, radiance.patch_names, radiance.patch_rects,
-                     color_matrix_xyz_to_camera(expected.qe, scene.grid), as_shot_neutral("D65", expected.qe, scene.grid),
-                     factor * patch_xyz(radiance, scene.grid))
+    tags = frame_colour_tags(radiance, expected.qe, "D65", scene.grid)
+    info = scene_frame_info(scene.replace(method=method, statistics="pixel"), radiance, camera, "D65", factor, seed,
+                            *tags)
     folder.mkdir(parents=True, exist_ok=True)
     write_frame(folder, frame_stem(scene.name, f"{method}-{seed}", factor), frame, info)
     result = analyse_paths([folder], AnalysisSettings(), source="exr", progress=False)[0]

@@ -34,7 +34,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_w1 import FACTOR, ILLUMINANT, ROOT, SCENE, SEED, peak_rss_mb, render, setup  # noqa: E402  (stdlib only)
+from bench_w1 import FACTOR, ILLUMINANT, ROOT, SCENE, SEED, fmt, peak_rss_mb, render, setup  # noqa: E402  (stdlib only)
 
 VENV = ROOT / "outputs" / ".pyxel-venv"
 PYXEL_PIN = "pyxel-sim==3.0.2"
@@ -225,10 +225,6 @@ def run_child(python, name: str, args, *extra: str) -> dict:
            "--repeats", str(args.repeats), "--tmp", args.tmp, *extra]
     out = subprocess.run(cmd, check=True, stdout=subprocess.PIPE, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
-
-
-def fmt(xs) -> str:
-    return f"median {statistics.median(xs):7.3f} s   min {min(xs):7.3f} s   (n={len(xs)})"
 
 
 def main() -> None:

@@ -126,21 +126,12 @@ def child_rss(args) -> dict:
 
 
 def frame_info(w: dict, expected, method: str):
-    """The FrameInfo of a frame, built as camsim.run.render_scene does."""
-    import dataclasses
+    """The FrameInfo of a frame, built by camsim.run as ``camsim render`` builds it."""
+    from camsim.run import frame_colour_tags, scene_frame_info
 
-    from camsim.frame_files import FrameInfo
-    from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
-
-    scene, radiance, camera = w["scene"], w["radiance"], w["camera"]
-    return FrameInfo(
-        scene=scene.name, illuminant=ILLUMINANT, intensity_factor=FACTOR, seed=SEED, photon_statistics="pixel",
-        method=method, camera=camera.name, sensitivity_basis=camera.sensitivity_basis,
-        reflectances=radiance.reflectance_set, wavelengths_nm=scene.grid.wavelengths_nm,
-        luminance_cd_m2=scene.luminance_cd_m2, normalisation=scene.normalisation,
-        scale={"kind": scene.scale.kind, **dataclasses.asdict(scene.scale)}, patch_names=radiance.patch_names,
-        patch_rects=radiance.patch_rects, color_matrix1=color_matrix_xyz_to_camera(expected.qe, scene.grid),
-        as_shot_neutral=as_shot_neutral(ILLUMINANT, expected.qe, scene.grid))
+    scene, radiance = w["scene"].replace(method=method), w["radiance"]
+    tags = frame_colour_tags(radiance, expected.qe, ILLUMINANT, scene.grid)
+    return scene_frame_info(scene, radiance, w["camera"], ILLUMINANT, FACTOR, SEED, *tags)
 
 
 def child_timing(args) -> dict:
