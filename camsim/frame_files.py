@@ -19,8 +19,8 @@ from camsim.io.atomic import write_json_atomic
 from camsim.io.dng import write_dng, write_dng_cfa
 from camsim.io.exr import write_exr
 from camsim.rawcolour import CALIBRATION_ILLUMINANT_D65
+from camsim.methods import get_method
 from camsim.render import Frame
-from camsim.sensor import STAGES
 
 
 @dataclass(frozen=True)
@@ -70,8 +70,8 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
                 "clean_dn": (ex.clean_e[index] * k).tolist(),
                 "xyz_cd_m2": None if info.patch_xyz is None else info.patch_xyz[index].tolist(),
             }
-            | ({} if info.method not in ("gaussian", "auto") else {"sampling": frame.plan.names(index),
-                                              "gaussian_ks": frame.plan.predicted_ks[index].tolist()}),
+            | ({"sampling": frame.plan.names(index), "gaussian_ks": frame.plan.predicted_ks[index].tolist()}
+               if get_method(info.method).records_sampling else {}),
         )
     height, width = frame.labels.shape
     return {
@@ -82,32 +82,14 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
         "seed": info.seed,
         "photon_statistics": info.photon_statistics,
         "method": info.method,
-        "auto_tolerance_ks": frame.plan.tolerance if info.method == "auto" else None,
+        "auto_tolerance_ks": None if frame.plan is None else frame.plan.tolerance,
         "camera": info.camera,
         "sensitivity_basis": info.sensitivity_basis,
         "reflectances": info.reflectances,
         "width_px": width,
         "height_px": height,
         "channels": ["R", "G", "B"],
-        "sensor_layout": "three-chip" if sensor.cfa is None else "bayer",
-        "cfa_pattern": sensor.cfa,
-        "bits": sensor.bits,
-        "white_level_dn": sensor.max_dn,
-        "dn_per_electron": k,
-        "black_level_dn": sensor.black_level_dn.tolist(),
-        "full_well_e": sensor.full_well_e,
-        "read_noise_e": sensor.read_noise_e,
-        "exposure_s": sensor.exposure_s,
-        "conversion_gain_v_per_e": sensor.conversion_gain_v_per_e,
-        "analog_gain_dn_per_v": sensor.analog_gain_dn_per_v,
-        "dark_current_e_per_s": list(sensor.dark_current_e_per_s),
-        "stages": {name: getattr(sensor, name) for name in STAGES},
-        "dsnu_e": sensor.dsnu_e,
-        "prnu_percent": sensor.prnu_percent,
-        "row_noise_e": sensor.row_noise_e,
-        "read_noise_model": sensor.read_noise_model,
-        "tukey_lambda": sensor.tukey_lambda if sensor.read_noise_model == "tukey-lambda" else None,
-        "sensor_seed": sensor.sensor_seed,
+        **sensor.sidecar_record(),
         "luminance_cd_m2": info.luminance_cd_m2,
         "normalisation": info.normalisation,
         "scale": info.scale,

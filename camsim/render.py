@@ -1,4 +1,4 @@
-"""The rendering pipeline: expected charge per spectrum, then per-pixel noise in row blocks.
+"""The block scheduler: per-pixel noise on top of the per-spectrum expected charge, in row blocks.
 
 A frame is split into row blocks whose size depends on the frame width only; block *b* draws from its own
 generator, child *b* of the frame's ``SeedSequence``. So the output for a seed is the same whatever the number
@@ -9,34 +9,19 @@ from __future__ import annotations
 
 import os
 import threading
-import zlib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.camera import Camera, absolute_qe
-from camsim.expected import ExpectedSignal, expected_signal
-from camsim.photons import photon_radiance
-from camsim.radiance import SceneRadiance
 from camsim.errors import CamsimError
-from camsim.gaussian import DEFAULT_TOLERANCE, fill_channel, plan_methods
-from camsim.sampling import METHODS, draw_electrons
-
-#: Methods drawn in one pass per channel straight to DN (camsim.gaussian.fill_channel), and every method.
-FUSED_METHODS = ("poisson", "gaussian", "auto")
-ALL_METHODS = ("poisson", "spectral", "gaussian", "auto")
-from camsim.fixed_pattern import fixed_pattern
-from camsim.sensor import (
-    SensorParams,
-    cfa_sites,
-    add_read_noise_e,
-    add_row_noise_e,
-    dn_dtype,
-    electrons_to_dn,
-    quantise_dn,
-    saturate_e,
-)
+from camsim.expected import ExpectedSignal
+from camsim.fixed_pattern import FixedPattern, fixed_pattern
+from camsim.methods import DEFAULT_TOLERANCE, get_method
+from camsim.methods.plan import DrawPlan
+from camsim.seeding import block_generators
+from camsim.sensor import SensorParams
+from camsim.stages import dn_dtype
 
 #: Pixels per row block (the block has max(1, BLOCK_PIXELS // width) rows).
 BLOCK_PIXELS = 2**18
@@ -64,8 +49,8 @@ class Frame:
     labels: np.ndarray
     expected: ExpectedSignal
     sensor: SensorParams
-    plan: object = None  # camsim.gaussian.GaussianPlan: how each spectrum and channel was drawn (not spectral)
-    maps: object = None  # camsim.fixed_pattern.FixedPattern: the sensor's DSNU / PRNU maps, if any
+    plan: DrawPlan | None = None  # how each spectrum and channel was drawn (None for spectral)
+    maps: FixedPattern | None = None  # the sensor's DSNU / PRNU maps, if any
 
     def clean_dn(self) -> np.ndarray:
         """Expected value of ``noisy_dn`` per pixel: G · G_Ve⁻ · E[f_sat(S + D)], shape (3, H, W), float32."""
@@ -84,26 +69,66 @@ class Frame:
         return out
 
 
-def frame_seed_sequence(seed: int, illuminant: str, intensity_factor: float) -> np.random.SeedSequence:
-    """The seed sequence of one frame: a function of the run seed, the illuminant and F only.
-
-    So a frame is the same whether it is rendered alone or as part of a longer run.
-    """
-    key = (zlib.crc32(illuminant.encode("utf-8")), zlib.crc32(repr(float(intensity_factor)).encode("ascii")))
-    return np.random.SeedSequence(entropy=seed, spawn_key=key)
-
-
 def default_workers() -> int:
     """Worker threads to use by default: the machine's cores."""
     return max(1, os.cpu_count() or 1)
 
 
-def frame_expected(radiance: SceneRadiance, camera: Camera, scale, sensor, intensity_factor, statistics, grid):
-    """Qe and the per-spectrum expected signal of one frame."""
-    g = photon_radiance(radiance.radiance, grid.wavelengths_nm, grid.step_nm)
-    g_white = photon_radiance(radiance.white_radiance, grid.wavelengths_nm, grid.step_nm)
-    qe = absolute_qe(camera, scale, g_white)
-    return expected_signal(g, qe, sensor, intensity_factor, statistics)
+@dataclass(frozen=True)
+class FrameJob:
+    """One frame being drawn: what every block of it needs, shared by the threads (read-only but the outputs).
+
+    Attributes
+    ----------
+    labels : numpy.ndarray, shape (H, W)
+    expected : ExpectedSignal
+    sensor : SensorParams
+    statistics : {'pixel', 'paper'}
+    plan : DrawPlan or None
+        The method's per-spectrum plan.
+    maps : FixedPattern or None
+        The sensor's DSNU / PRNU maps.
+    noisy : numpy.ndarray, shape (planes, H, W), float32
+        Output: DN before quantisation.
+    digital : numpy.ndarray or None, shape (planes, H, W)
+        Output: quantised DN (None when quantisation is off).
+    """
+
+    labels: np.ndarray
+    expected: ExpectedSignal
+    sensor: SensorParams
+    statistics: str
+    plan: DrawPlan | None
+    maps: FixedPattern | None
+    noisy: np.ndarray
+    digital: np.ndarray | None
+
+    def maps_rows(self, r0: int, r1: int):
+        """(DSNU offset, PRNU gain) of rows ``r0:r1``, shape (3, r1 − r0, W) each, or None where off."""
+        if self.maps is None:
+            return None, None
+        offset = None if self.maps.offset_e is None else self.maps.offset_e[:, r0:r1]
+        gain = None if self.maps.gain is None else self.maps.gain[:, r0:r1]
+        return offset, gain
+
+
+@dataclass
+class _Scratch:
+    """A thread's reusable buffers: fresh pages cost more than the maths."""
+
+    plane: np.ndarray  # (rows, W) float32: one block plane
+    work: np.ndarray  # float32, half a block plane: Box–Muller's scratch
+
+
+def block_rows(shape, cfa: str | None) -> int:
+    """Rows per block of a frame of ``shape`` (H, W): a function of the width (and the CFA) only."""
+    height, width = shape
+    rows = max(1, BLOCK_PIXELS // width)
+    if cfa is not None:
+        if height % 2 or width % 2:
+            raise CamsimError(f"a {cfa} colour filter array needs an even frame size, got {width}x{height}")
+        rows = max(2, rows - rows % 2)  # blocks start on the pattern's even rows
+    return rows
 
 
 def render_frame(
@@ -119,114 +144,50 @@ def render_frame(
 ) -> Frame:
     """Render one frame: per-pixel noise on top of the per-spectrum expected signal.
 
+    A block scheduler: the frame is cut into row blocks (:func:`block_rows`), block *b* draws from generator
+    *b* (:func:`camsim.seeding.block_generators`) with the method's ``draw_block``
+    (:mod:`camsim.methods`), on a pool of threads.
+
     Parameters
     ----------
     labels : numpy.ndarray, shape (H, W), unsigned integer
         Spectrum index per pixel.
     expected : ExpectedSignal
-        From :func:`frame_expected` or :func:`camsim.expected.expected_signal`.
+        From :meth:`camsim.pipeline.LitScene.expected` or :func:`camsim.expected.expected_signal`.
     sensor : SensorParams
     statistics : {'pixel', 'paper'}
-    method : {'poisson', 'spectral', 'gaussian', 'auto'}
+    method : str
+        A name of :data:`camsim.methods.METHODS`.
     rng : numpy.random.Generator, numpy.random.SeedSequence or int, optional
         Seed of the frame. Each row block draws from its own child (``SeedSequence.spawn`` or
         ``Generator.spawn``), so the output does not depend on the number of threads.
     workers : int, optional
         Threads (default: the number of cores). The output does not depend on it.
     tolerance : float, optional
-        ``auto``'s KS tolerance (default :data:`camsim.gaussian.DEFAULT_TOLERANCE`).
+        ``auto``'s KS tolerance (default :data:`camsim.methods.DEFAULT_TOLERANCE`).
     """
+    impl = get_method(method)
     height, width = labels.shape
-    rows = max(1, BLOCK_PIXELS // width)
-    if sensor.cfa is not None:
-        if height % 2 or width % 2:
-            raise CamsimError(f"a {sensor.cfa} colour filter array needs an even frame size, got {width}x{height}")
-        rows = max(2, rows - rows % 2)  # blocks start on the pattern's even rows
+    rows = block_rows(labels.shape, sensor.cfa)
     starts = list(range(0, height, rows))
-    if isinstance(rng, np.random.Generator):
-        generators = rng.spawn(len(starts))
-    else:
-        seed_seq = rng if isinstance(rng, np.random.SeedSequence) else np.random.SeedSequence(rng)
-        generators = [np.random.Generator(np.random.PCG64(child)) for child in seed_seq.spawn(len(starts))]
+    generators = block_generators(rng, len(starts))
+    maps = fixed_pattern(sensor, labels.shape)
+    if maps is not None and maps.gain is not None and not impl.per_pixel_mean:
+        raise CamsimError(f"PRNU needs a per-pixel mean: use method poisson, gaussian or auto, not {method}")
+    plan = None if impl.plan is None else impl.plan(expected, sensor, statistics,
+                                                    DEFAULT_TOLERANCE if tolerance is None else tolerance)
     planes = 3 if sensor.cfa is None else 1  # a colour filter array keeps one value per pixel
     noisy = np.empty((planes, height, width), dtype=np.float32)
     digital = np.empty((planes, height, width), dtype=dn_dtype(sensor.bits)) if sensor.quantisation else None
-
-    per_thread = threading.local()  # one scratch block per thread, reused: fresh pages cost more than the maths
-    read_noise = sensor.read_noise and sensor.read_noise_e > 0
-    maps = fixed_pattern(sensor, labels.shape)
-    if maps is not None and maps.gain is not None and method == "spectral":
-        raise CamsimError("PRNU needs a per-pixel mean: use method poisson, gaussian or auto, not spectral")
-    plan = None
-    if method in FUSED_METHODS:
-        plan = plan_methods(expected, sensor, statistics, method,
-                            DEFAULT_TOLERANCE if tolerance is None else tolerance)
-    elif method not in METHODS:
-        raise CamsimError(f"unknown sampling method {method!r}; methods: {', '.join(ALL_METHODS)}")
+    job = FrameJob(labels, expected, sensor, statistics, plan, maps, noisy, digital)
+    per_thread = threading.local()
 
     def run_block(index: int) -> None:
-        r0 = starts[index]
-        r1 = min(height, r0 + rows)
         if getattr(per_thread, "scratch", None) is None:
-            per_thread.scratch = np.empty((rows, width), dtype=np.float32)
-            per_thread.work = np.empty(rows * width // 2 + 1, dtype=np.float32)
-        scratch = per_thread.scratch[: r1 - r0]
-        block_rng = generators[index]
-        block = noisy[:, r0:r1]  # work in place in the output: electrons first, DN at the end
-        offset = None if maps is None or maps.offset_e is None else maps.offset_e[:, r0:r1]
-        gain = None if maps is None or maps.gain is None else maps.gain[:, r0:r1]
-        if sensor.cfa is not None and plan is not None:  # each site of the 2 × 2 cell: its channel only
-            for dy, dx, c in cfa_sites(sensor.cfa):
-                site = (slice(dy, None, 2), slice(dx, None, 2))
-                sub_labels = np.ascontiguousarray(labels[r0:r1][site])
-                value = np.empty(sub_labels.shape, dtype=np.float32)
-                fill_channel(value, sub_labels, plan, expected, sensor, statistics, c, block_rng,
-                             np.empty_like(value), per_thread.work,
-                             None if offset is None else offset[c][site], None if gain is None else gain[c][site])
-                block[0][site] = value
-            if sensor.row_noise_e > 0:  # a physical row shares its offset, whatever the colour of its pixels
-                add_row_noise_e(block[0], sensor.row_noise_e * sensor.dn_per_electron, block_rng)
-            if digital is not None:
-                quantise_dn(block[0], sensor.bits, out=digital[0, r0:r1])
-            return
-        if sensor.cfa is not None:  # spectral: draw the three channels, keep each site's own
-            rgb = np.empty((3, r1 - r0, width), dtype=np.float32)
-            draw_electrons(labels[r0:r1], expected, sensor, statistics, method, block_rng, rgb)
-            for dy, dx, c in cfa_sites(sensor.cfa):
-                site = (slice(dy, None, 2), slice(dx, None, 2))
-                block[0][site] = rgb[c][site]
-                if offset is not None:
-                    block[0][site] += offset[c][site]
-            finish_planes(block, digital, r0, r1, scratch, block_rng)
-            return
-        if plan is not None:  # poisson / gaussian / auto: every stage in one pass per channel, straight to DN
-            for c in range(3):
-                fill_channel(block[c], labels[r0:r1], plan, expected, sensor, statistics, c, block_rng, scratch,
-                             per_thread.work, None if offset is None else offset[c], None if gain is None else gain[c])
-                if sensor.row_noise_e > 0:
-                    add_row_noise_e(block[c], sensor.row_noise_e * sensor.dn_per_electron, block_rng)
-                if digital is not None:
-                    quantise_dn(block[c], sensor.bits, out=digital[c, r0:r1])
-            return
-        draw_electrons(labels[r0:r1], expected, sensor, statistics, method, block_rng, block)
-        if offset is not None:
-            block += offset
-        finish_planes(block, digital, r0, r1, scratch, block_rng)
-
-    def finish_planes(block, digital, r0, r1, scratch, block_rng):
-        """Saturation, read and row noise, gain and ADC on electrons already drawn (the spectral path)."""
-        for c in range(block.shape[0]):
-            e = block[c]
-            if sensor.saturation:
-                saturate_e(e, sensor.full_well_e, out=e)
-            if read_noise:
-                add_read_noise_e(e, sensor.read_noise_e, block_rng, scratch, per_thread.work, sensor.read_noise_model,
-                                 sensor.tukey_lambda)
-            if sensor.row_noise_e > 0:
-                add_row_noise_e(e, sensor.row_noise_e, block_rng)
-            electrons_to_dn(e, sensor.dn_per_electron, out=e)
-            if digital is not None:
-                quantise_dn(e, sensor.bits, out=digital[c, r0:r1])
+            per_thread.scratch = _Scratch(np.empty((rows, width), dtype=np.float32),
+                                          np.empty(rows * width // 2 + 1, dtype=np.float32))
+        r0 = starts[index]
+        impl.draw_block(job, r0, min(height, r0 + rows), generators[index], per_thread.scratch)
 
     workers = default_workers() if workers is None else max(1, int(workers))
     if workers == 1 or len(starts) == 1:

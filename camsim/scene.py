@@ -17,7 +17,9 @@ import numpy as np
 from camsim.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
 from camsim.chart import ChartGeometry
 from camsim.errors import CamsimError
-from camsim.sensor import SensorParams, preset
+from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
+from camsim.schema import Param, param, params_of, validate
+from camsim.sensor import PRESETS, SENSOR_PARAMS, SensorParams, preset
 from camsim.spectra import WavelengthGrid
 
 STATISTICS = ("pixel", "paper")
@@ -71,10 +73,13 @@ class Scene:
     scale: AnchorScale | PhysicalScale = field(default_factory=AnchorScale)
     preset_name: str = "paper-table1"
     sensor_overrides: tuple = ()
-    statistics: str = "pixel"
-    method: str = "poisson"
-    tolerance: float = 0.01
-    seed: int = 0
+    statistics: str = param("pixel", "str", "photon statistics: 'pixel' = photons per pixel thinned by QE (exact "
+                            "Poisson electrons, MODEL.md §4); 'paper' = Eq. 4 literally, per m²·sr",
+                            choices=STATISTICS)
+    method: str = param("poisson", "str", "sampling method (MODEL.md §5)", choices=METHOD_NAMES)
+    tolerance: float = param(DEFAULT_TOLERANCE, "float", "auto's tolerance: the largest Kolmogorov–Smirnov distance "
+                             "between a pixel value's exact law and its Gaussian replacement", above=0, below=1)
+    seed: int = param(0, "int", "random seed; the same seed gives byte-identical files", low=0)
     base_dir: Path | None = None
 
     def __post_init__(self):
@@ -89,12 +94,7 @@ class Scene:
             raise CamsimError(f"luminance_cd_m2 must be positive, got {self.luminance_cd_m2!r}")
         if self.normalisation not in NORMALISATIONS:
             raise CamsimError(f"normalisation must be one of {NORMALISATIONS}, got {self.normalisation!r}")
-        if self.statistics not in STATISTICS:
-            raise CamsimError(f"photon statistics must be one of {STATISTICS}, got {self.statistics!r}")
-        if not (isinstance(self.tolerance, float) and 0 < self.tolerance < 1):
-            raise CamsimError(f"auto tolerance must be a KS distance in (0, 1), got {self.tolerance!r}")
-        if not (isinstance(self.seed, int) and self.seed >= 0):
-            raise CamsimError(f"seed must be a non-negative integer, got {self.seed!r}")
+        validate(self, "scene")
         self.sensor  # validate the preset and overrides now
 
     @property
@@ -109,6 +109,18 @@ class Scene:
 
     def replace(self, **changes) -> Scene:
         return dataclasses.replace(self, **changes)
+
+
+#: The render settings of a scene file's ``[render]`` table (and the command line's options of the same names).
+RENDER_PARAMS = params_of(Scene)
+#: What one frame of a scene is taken under: a scene file lists illuminants and intensity factors, a dataset
+#: spec gives each frame one of each (and may change the camera and the sensor preset).
+FRAME_PARAMS = (
+    Param("illuminant", "str", "D65", "colour-science illuminant name"),
+    Param("intensity_factor", "float", 1.0, "F: the light is F × the scene radiance (F > 1 saturates)"),
+    Param("camera", "str", DEFAULT_CAMERA, "colour-science camera name or a CSV of wavelength_nm, R, G, B"),
+    Param("preset", "str", "paper-table1", "sensor preset", choices=tuple(PRESETS)),
+)
 
 
 def read_toml(path: Path, what: str) -> dict:
@@ -218,19 +230,16 @@ def load_scene(path: str | Path) -> Scene:
         raise CamsimError(f"{where}: unknown key(s) in [camera.scale] ({scale_kind}): {', '.join(sorted(unknown))}")
     scale = scale_cls(**{k: _typed(scale_table, k, float, None, where) for k in scale_table if k != "kind"})
 
-    if not isinstance(doc.get("sensor", {}), dict):
-        raise CamsimError(f"{where}: [sensor] must be a table")
-    sensor_table = dict(doc.get("sensor", {}))
+    sensor_table = dict(_table(doc, "sensor", {"preset"} | {p.name for p in SENSOR_PARAMS}, where))
     preset_name = sensor_table.pop("preset", "paper-table1")
-    if "dark_current_e_per_s" in sensor_table:
-        sensor_table["dark_current_e_per_s"] = tuple(sensor_table["dark_current_e_per_s"])
-    for key in ("conversion_gain_v_per_e", "analog_gain_dn_per_v", "read_noise_e", "full_well_e", "exposure_s"):
-        if isinstance(sensor_table.get(key), int) and not isinstance(sensor_table.get(key), bool):
-            sensor_table[key] = float(sensor_table[key])
     if not isinstance(preset_name, str):
         raise CamsimError(f"{where}: [sensor] preset must be a name")
+    sensor_table = {p.name: p.coerce(sensor_table[p.name], f"{where} [sensor]")
+                    for p in SENSOR_PARAMS if p.name in sensor_table}
+    sensor_table = {k: tuple(v) if isinstance(v, list) else v for k, v in sensor_table.items()}  # hashable
 
-    render = _table(doc, "render", {"statistics", "method", "seed", "tolerance"}, where)
+    render = _table(doc, "render", {p.name for p in RENDER_PARAMS}, where)
+    render = {p.name: p.coerce(render[p.name], f"{where} [render]") for p in RENDER_PARAMS if p.name in render}
     return Scene(
         name=_typed(doc, "name", str, path.stem, where),
         grid=grid,
@@ -247,9 +256,6 @@ def load_scene(path: str | Path) -> Scene:
         scale=scale,
         preset_name=preset_name,
         sensor_overrides=tuple(sorted(sensor_table.items())),
-        statistics=_typed(render, "statistics", str, "pixel", where),
-        method=_typed(render, "method", str, "poisson", where),
-        tolerance=_typed(render, "tolerance", float, 0.01, where),
-        seed=_typed(render, "seed", int, 0, where),
         base_dir=base_dir,
+        **render,
     )

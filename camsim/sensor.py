@@ -1,7 +1,7 @@
-"""The image sensor: parameters, presets and one pure array function per physical stage (Eqs. 6–12).
+"""The image sensor's parameters (the paper's Table I and beyond) and named presets.
 
-Work stays in electrons until readout; the conversion to digital numbers happens once, in
-:func:`electrons_to_dn`. Every stage can be switched off on its own, and a switched-off stage costs nothing.
+The stages themselves are pure array functions in :mod:`camsim.stages`. Every stage can be switched off on its
+own, and a switched-off stage costs nothing.
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.errors import CamsimError
+from camsim.schema import param, params_of, record, validate
 
-STAGES = ("photon_noise", "dark_current", "saturation", "read_noise", "quantisation")
 READ_NOISE_MODELS = ("gaussian", "tukey-lambda")
 CFA_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
 
@@ -23,102 +23,71 @@ def cfa_sites(pattern: str) -> list[tuple[int, int, int]]:
     return [(i // 2, i % 2, "RGB".index(colour)) for i, colour in enumerate(pattern)]
 
 
+def _layout_record(sensor) -> dict:
+    return {"sensor_layout": "three-chip" if sensor.cfa is None else "bayer", "cfa_pattern": sensor.cfa}
+
+
+def _adc_record(sensor) -> dict:
+    return {"bits": sensor.bits, "white_level_dn": sensor.max_dn, "dn_per_electron": sensor.dn_per_electron,
+            "black_level_dn": sensor.black_level_dn.tolist()}
+
+
+def _tukey_record(sensor) -> dict:
+    return {"tukey_lambda": sensor.tukey_lambda if sensor.read_noise_model == "tukey-lambda" else None}
+
+
 @dataclass(frozen=True)
 class SensorParams:
     """Sensor model parameters (the paper's Table I by default), with each stage's on/off switch.
 
-    Attributes
-    ----------
-    conversion_gain_v_per_e : float
-        G_Ve⁻, charge-to-voltage conversion. Unit: V / e⁻.
-    analog_gain_dn_per_v : float
-        G, the gain in front of the ADC. Unit: DN / V.
-    dark_current_e_per_s : tuple of 3 float
-        (σ_dark^κ)², mean dark electrons per pixel per second for R, G, B. Unit: e⁻ / s.
-    read_noise_e : float
-        σ_read, standard deviation of the read noise. Unit: e⁻.
-    full_well_e : float
-        Full-well capacity. Unit: e⁻.
-    exposure_s : float
-        Exposure (integration) time T. Unit: s.
-    bits : int
-        ADC resolution nb; digital numbers lie in [0, 2^nb − 1].
-    photon_noise, dark_current, saturation, read_noise, quantisation : bool
-        Stage switches. ``photon_noise`` off gives the mean signal exactly; ``dark_current`` off removes the
-        dark electrons (mean and noise); ``quantisation`` off keeps the float DN (no DNG can then be written).
-    dsnu_e : float
-        Dark signal non-uniformity: spatial standard deviation of a fixed per-pixel dark offset (Gaussian map,
-        fixed for a ``sensor_seed``), added to the charge before saturation. 0 = off. Unit: e⁻.
-    prnu_percent : float
-        Photo-response non-uniformity: spatial standard deviation of a fixed per-pixel gain on the mean signal
-        (Gaussian map around 1, fixed for a ``sensor_seed``), so that a pixel collects Poisson(g S̄). 0 = off.
-        Unit: %.
-    row_noise_e : float
-        Temporal row noise: one Gaussian offset per row, channel and frame, added at readout. 0 = off. Unit: e⁻.
-    read_noise_model : {'gaussian', 'tukey-lambda'}
-        Law of the read noise (its standard deviation is ``read_noise_e`` either way); Tukey lambda with shape
-        ``tukey_lambda`` < 0.14 has heavier tails than the Gaussian, as in the ELD low-light noise model.
-    tukey_lambda : float
-        Shape of the Tukey lambda read noise (0: logistic).
-    sensor_seed : int
-        Seed of the fixed-pattern maps: frames of the same sensor share them, while temporal noise changes.
-    cfa : str or None
-        None for a three-chip sensor (every pixel has R, G and B, like the paper's Sony DXC-930), or a Bayer
-        colour filter array ``RGGB``, ``BGGR``, ``GRBG`` or ``GBRG`` (colours of the 2 × 2 cell, row by row):
-        one channel per pixel.
+    Every field is declared with :func:`camsim.schema.param` (type, unit, range, help): that declaration is the
+    only one, and the scene-file reader, the dataset spec, the command line (``--sensor NAME=VALUE``), the
+    sidecar and the analysis's grouping keys all derive from it. Values are checked (and ints made floats where
+    a float is meant) on construction; a bad one is a :class:`CamsimError`.
     """
 
-    conversion_gain_v_per_e: float = 0.0002
-    analog_gain_dn_per_v: float = 141.67
-    dark_current_e_per_s: tuple = (195.0, 230.0, 218.0)
-    read_noise_e: float = 4.0
-    full_well_e: float = 9000.0
-    exposure_s: float = 1.0
-    bits: int = 8
-    photon_noise: bool = True
-    dark_current: bool = True
-    saturation: bool = True
-    read_noise: bool = True
-    quantisation: bool = True
-    dsnu_e: float = 0.0
-    prnu_percent: float = 0.0
-    row_noise_e: float = 0.0
-    read_noise_model: str = "gaussian"
-    tukey_lambda: float = -0.1
-    sensor_seed: int = 0
-    cfa: str | None = None
+    cfa: str | None = param(
+        None, "str", "Bayer colour filter array (colours of the 2 × 2 cell, row by row; one channel per pixel), or "
+        "none: a three-chip sensor with R, G and B at every pixel, like the paper's Sony DXC-930",
+        choices=CFA_PATTERNS, optional=True, sidecar=_layout_record)
+    bits: int = param(8, "int", "ADC resolution nb: digital numbers lie in [0, 2^nb − 1]", "bits", low=1, below=17,
+                      sidecar=_adc_record)
+    full_well_e: float = param(9000.0, "float", "full-well capacity", "e⁻", above=0)
+    read_noise_e: float = param(4.0, "float", "σ_read, standard deviation of the read noise", "e⁻", low=0)
+    exposure_s: float = param(1.0, "float", "exposure (integration) time T", "s", above=0)
+    conversion_gain_v_per_e: float = param(0.0002, "float", "G_Ve⁻, charge-to-voltage conversion", "V/e⁻",
+                                           above=0)
+    analog_gain_dn_per_v: float = param(141.67, "float", "G, the gain in front of the ADC", "DN/V", above=0)
+    dark_current_e_per_s: tuple = param(
+        (195.0, 230.0, 218.0), "rgb", "(σ_dark^κ)², mean dark electrons per pixel per second for R, G, B "
+        "(one number or three)", "e⁻/s", low=0)
+    photon_noise: bool = param(True, "bool", "photon (shot) noise; off gives the mean signal exactly", stage=True)
+    dark_current: bool = param(True, "bool", "dark current; off removes the dark electrons (mean and noise)",
+                               stage=True)
+    saturation: bool = param(True, "bool", "clipping at the full well", stage=True)
+    read_noise: bool = param(True, "bool", "read noise", stage=True)
+    quantisation: bool = param(True, "bool", "the nb-bit ADC; off keeps the float DN (no DNG is then written)",
+                               stage=True)
+    dsnu_e: float = param(0.0, "float", "dark signal non-uniformity: spatial σ of a fixed per-pixel dark offset "
+                          "(Gaussian map fixed for a sensor_seed) added to the charge before saturation; 0 = off",
+                          "e⁻", low=0)
+    prnu_percent: float = param(0.0, "float", "photo-response non-uniformity: spatial σ of a fixed per-pixel gain on "
+                                "the mean signal, so that a pixel collects Poisson(g S̄); 0 = off", "%", low=0,
+                                below=30)
+    row_noise_e: float = param(0.0, "float", "temporal row noise: one Gaussian offset per row, channel and frame, "
+                               "added at readout; 0 = off", "e⁻", low=0)
+    read_noise_model: str = param("gaussian", "str", "law of the read noise (its σ is read_noise_e either way); "
+                                  "Tukey lambda has heavier tails, as in the ELD low-light noise model",
+                                  choices=READ_NOISE_MODELS)
+    tukey_lambda: float = param(-0.1, "float", "shape of the Tukey lambda read noise (0: logistic; < 0.14: heavier "
+                                "tails than the Gaussian)", above=-0.5, below=1, sidecar=_tukey_record)
+    sensor_seed: int = param(0, "int", "seed of the fixed-pattern maps: frames of one sensor share them, while "
+                             "their temporal noise changes", low=0)
 
     def __post_init__(self):
+        validate(self, "sensor parameter")
         dark = tuple(float(v) for v in np.broadcast_to(np.asarray(self.dark_current_e_per_s, float), (3,)))
         object.__setattr__(self, "dark_current_e_per_s", dark)
-        positive = ("conversion_gain_v_per_e", "analog_gain_dn_per_v", "full_well_e", "exposure_s")
-        for name in positive:
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
-                raise CamsimError(f"sensor parameter {name} must be a positive number, got {value!r}")
-        if not (np.isfinite(self.read_noise_e) and self.read_noise_e >= 0):
-            raise CamsimError(f"sensor parameter read_noise_e must be ≥ 0, got {self.read_noise_e!r}")
-        if not all(np.isfinite(v) and v >= 0 for v in dark):
-            raise CamsimError(f"sensor parameter dark_current_e_per_s must be ≥ 0, got {dark!r}")
-        if not (isinstance(self.bits, int) and 1 <= self.bits <= 16):
-            raise CamsimError(f"sensor parameter bits must be an integer from 1 to 16, got {self.bits!r}")
-        for name in ("dsnu_e", "prnu_percent", "row_noise_e"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
-                raise CamsimError(f"sensor parameter {name} must be a number ≥ 0, got {value!r}")
-        if self.prnu_percent >= 30:
-            raise CamsimError(f"prnu_percent {self.prnu_percent} is not a small non-uniformity (must be < 30 %)")
-        if self.read_noise_model not in READ_NOISE_MODELS:
-            raise CamsimError(f"read_noise_model must be one of {READ_NOISE_MODELS}, got {self.read_noise_model!r}")
-        if not (isinstance(self.tukey_lambda, (int, float)) and -0.5 < self.tukey_lambda < 1):
-            raise CamsimError(f"tukey_lambda must be in (−0.5, 1) (finite variance), got {self.tukey_lambda!r}")
-        if self.cfa is not None and self.cfa not in CFA_PATTERNS:
-            raise CamsimError(f"cfa must be one of {', '.join(CFA_PATTERNS)} (or none), got {self.cfa!r}")
-        if not (isinstance(self.sensor_seed, int) and self.sensor_seed >= 0):
-            raise CamsimError(f"sensor_seed must be a non-negative integer, got {self.sensor_seed!r}")
-        for name in STAGES:
-            if not isinstance(getattr(self, name), bool):
-                raise CamsimError(f"sensor switch {name} must be true or false, got {getattr(self, name)!r}")
 
     @property
     def fixed_pattern(self) -> bool:
@@ -166,6 +135,16 @@ class SensorParams:
         out["dn_per_electron"] = self.dn_per_electron
         return out
 
+    def sidecar_record(self) -> dict:
+        """The sidecar's sensor keys (:func:`camsim.schema.record`): parameters, derived levels and ``stages``."""
+        return record(self)
+
+
+#: The sensor's parameters (:class:`camsim.schema.Param`), in declaration order.
+SENSOR_PARAMS = params_of(SensorParams)
+#: Names of the stage switches.
+STAGES = tuple(p.name for p in SENSOR_PARAMS if p.stage)
+
 
 #: Named presets. ``paper-table1``: Table I with every stage on (scenario III). ``paper-photon-dark``: photon and
 #: dark noise only (scenario II). ``ideal``: photon noise only, output in electrons (scenario I).
@@ -209,85 +188,3 @@ def preset(name: str, **overrides) -> SensorParams:
         return dataclasses.replace(PRESETS[name], **overrides)
     except TypeError as exc:
         raise CamsimError(f"bad sensor parameter: {exc}") from None
-
-
-# --- stages: pure array functions -----------------------------------------------------------------------------
-
-
-def saturate_e(electrons: np.ndarray, full_well_e: float, out: np.ndarray | None = None) -> np.ndarray:
-    """f_sat: clip the collected charge at the full well (Eq. 8).
-
-    Unit: e⁻ in, e⁻ out.
-    """
-    return np.minimum(electrons, electrons.dtype.type(full_well_e), out=out)
-
-
-def add_read_noise_e(electrons: np.ndarray, read_noise_e: float, rng: np.random.Generator, scratch=None, work=None,
-                     model: str = "gaussian", shape: float = -0.1):
-    """Add white read noise of standard deviation σ_read in place (Eqs. 7 and 10, referred to the charge domain).
-
-    The paper adds N(0, σ_read · G_Ve⁻) to the voltage; dividing by G_Ve⁻ gives this. Unit: e⁻.
-    float32 arrays draw with :func:`camsim.sampling.standard_normal_f32` (Box–Muller), float64 with numpy.
-
-    Parameters
-    ----------
-    electrons : numpy.ndarray, float32 or float64
-        Modified in place.
-    scratch : numpy.ndarray, optional
-        C-contiguous buffer of the same shape and dtype for the normal draws.
-    work : numpy.ndarray, optional
-        float32 buffer of at least half that size (Box–Muller's scratch).
-    model, shape : str, float
-        ``gaussian``, or ``tukey-lambda`` with its shape λ (the same standard deviation, heavier tails).
-    """
-    from camsim.fixed_pattern import tukey_lambda
-    from camsim.sampling import standard_normal_f32
-
-    z = scratch if scratch is not None else np.empty_like(electrons)
-    if model == "tukey-lambda":
-        tukey_lambda(rng, z, shape, read_noise_e)
-    elif z.dtype == np.float32:
-        standard_normal_f32(rng, z, work if work is not None else np.empty(z.size // 2, np.float32), read_noise_e)
-    else:
-        rng.standard_normal(out=z)
-        z *= read_noise_e
-    electrons += z
-    return electrons
-
-
-def add_row_noise_e(electrons: np.ndarray, row_noise_e: float, rng: np.random.Generator) -> np.ndarray:
-    """Add one Gaussian offset N(0, σ_row) per row (temporal row noise), in place. Unit: e⁻."""
-    electrons += rng.standard_normal((electrons.shape[0], 1), dtype=electrons.dtype) * electrons.dtype.type(row_noise_e)
-    return electrons
-
-
-def electrons_to_dn(electrons: np.ndarray, dn_per_electron: float, out: np.ndarray | None = None) -> np.ndarray:
-    """Readout and gain: I = G · G_Ve⁻ · e (Eqs. 8, 11 before quantisation). Unit: e⁻ in, DN out."""
-    return np.multiply(electrons, electrons.dtype.type(dn_per_electron), out=out)
-
-
-def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None) -> np.ndarray:
-    """nb-bit quantisation: the integer part of the DN, clipped to [0, 2^nb − 1] (Eq. 11).
-
-    Parameters
-    ----------
-    dn : numpy.ndarray, float
-        Unquantised digital numbers. Unit: DN.
-    out : numpy.ndarray, optional
-        Integer output array (uint8 for nb ≤ 8, uint16 otherwise).
-
-    Returns
-    -------
-    numpy.ndarray
-        Quantised digital numbers. Unit: DN.
-    """
-    # clip straight into the integer output: for values in [0, 2^nb − 1] the cast's truncation is the floor
-    if out is None:
-        out = np.empty(np.shape(dn), dtype=dn_dtype(bits))
-    np.clip(dn, 0, 2**bits - 1, out=out, casting="unsafe")
-    return out
-
-
-def dn_dtype(bits: int):
-    """The smallest unsigned integer type holding ``bits``-bit digital numbers."""
-    return np.uint8 if bits <= 8 else np.uint16

@@ -8,8 +8,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from camsim.camera import AnchorScale, load_camera  # noqa: E402
 from camsim.chart import ChartGeometry  # noqa: E402
+from camsim.pipeline import light_scene, make_frame  # noqa: E402
 from camsim.radiance import scene_radiance  # noqa: E402
-from camsim.render import frame_expected, render_frame  # noqa: E402
 from camsim.scene import ChartSpec, Scene  # noqa: E402
 from camsim.spectra import WavelengthGrid  # noqa: E402
 
@@ -39,11 +39,9 @@ def patch_pixels(image, rect, border=2):
 def render(scene, sensor=None, factor=1.0, statistics="pixel", method="poisson", seed=1, illuminant="D65"):
     """Render one frame of ``scene``; returns (frame, radiance)."""
     sensor = sensor if sensor is not None else scene.sensor
-    radiance = scene_radiance(scene, illuminant)
-    camera = load_camera(scene.camera, scene.grid)
-    expected = frame_expected(radiance, camera, scene.scale, sensor, factor, statistics, scene.grid)
-    frame = render_frame(radiance.labels, expected, sensor, statistics=statistics, method=method, rng=seed)
-    return frame, radiance
+    lit = light_scene(scene, illuminant, load_camera(scene.camera, scene.grid))
+    frame = make_frame(lit, sensor, factor, statistics=statistics, method=method, rng=seed)
+    return frame, lit.radiance
 
 
 @pytest.fixture(scope="session")

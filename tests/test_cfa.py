@@ -11,7 +11,7 @@ from theory import assert_mean_var, digital_pmf, pmf_moments
 from camsim.analysis.analyze import analyse_paths
 from camsim.analysis.patches import AnalysisSettings
 from camsim.io.exr import read_exr, read_exr_oiio
-from camsim.render import frame_seed_sequence
+from camsim.seeding import frame_seed_sequence
 from camsim.run import render_scene
 from camsim.sensor import CFA_PATTERNS, cfa_sites, preset
 

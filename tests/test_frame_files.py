@@ -10,7 +10,7 @@ from conftest import render, small_scene
 import camsim.render as render_module
 from camsim.io.dng import read_dng
 from camsim.io.exr import read_exr, read_exr_oiio
-from camsim.render import frame_seed_sequence
+from camsim.seeding import frame_seed_sequence
 from camsim.run import render_scene
 
 FACTORS = (1.0, 0.02)
@@ -126,11 +126,12 @@ def test_no_dng_without_quantisation(scene, tmp_path):
 def test_render_frame_accepts_a_generator_seed_or_seed_sequence(scene):
     from camsim.camera import load_camera
     from camsim.radiance import scene_radiance
-    from camsim.render import frame_expected, render_frame
+    from camsim.pipeline import lit_scene
+    from camsim.render import render_frame
 
     radiance = scene_radiance(scene, "D65")
     camera = load_camera(scene.camera, scene.grid)
-    expected = frame_expected(radiance, camera, scene.scale, scene.sensor, 0.1, "pixel", scene.grid)
+    expected = lit_scene(radiance, camera, scene.scale, scene.grid).expected(scene.sensor, 0.1, "pixel")
     frames = [render_frame(radiance.labels, expected, scene.sensor, rng=r)
               for r in (7, np.random.SeedSequence(7), np.random.default_rng(7), np.random.default_rng(7))]
     np.testing.assert_array_equal(frames[0].noisy_dn, frames[1].noisy_dn)

@@ -7,7 +7,7 @@ from scipy import stats
 from theory import assert_mean_var, digital_pmf, pmf_moments
 
 from camsim.expected import expected_signal
-from camsim.gaussian import (
+from camsim.methods.plan import (
     DEFAULT_TOLERANCE,
     EXACT,
     GAUSSIAN,
@@ -138,7 +138,7 @@ def test_spectral_method_with_bins_of_zero_radiance(scene):
     from camsim.camera import load_camera
     from camsim.radiance import SceneRadiance
     from camsim.photons import photon_radiance, scale_to_luminance
-    from camsim.render import frame_expected, render_frame
+    from camsim.pipeline import lit_scene, make_frame
     from camsim.spectra import cmfs_on_grid, illuminant_spd
 
     white = scale_to_luminance(illuminant_spd("D65", grid), cmfs_on_grid(grid)[1], grid.step_nm, 100.0)
@@ -150,8 +150,9 @@ def test_spectral_method_with_bins_of_zero_radiance(scene):
     sensor = IDEAL
     for statistics in ("pixel", "paper"):
         factor = 0.01 if statistics == "pixel" else 1e-12
-        expected = frame_expected(radiance, camera, scene.scale, sensor, factor, statistics, grid)
-        frame = render_frame(labels, expected, sensor, statistics=statistics, method="spectral", rng=3)
+        frame = make_frame(lit_scene(radiance, camera, scene.scale, grid), sensor, factor, statistics=statistics,
+                           method="spectral", rng=3)
+        expected = frame.expected
         assert np.all(np.isfinite(frame.noisy_dn))
         assert np.all(frame.noisy_dn[:, :, 30:] == 0)  # black: exactly no electron
         left = frame.noisy_dn[:, :, :30].reshape(3, -1).astype(float)

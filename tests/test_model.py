@@ -13,7 +13,7 @@ from camsim.errors import CamsimError
 from camsim.expected import expected_signal
 from camsim.photons import LIGHT_SPEED_M_S, PLANCK_J_S, photon_radiance
 from camsim.radiance import scene_radiance
-from camsim.render import frame_expected
+from camsim.pipeline import lit_scene
 from camsim.sensor import PRESETS
 from camsim.spectra import WavelengthGrid, illuminant_spd
 
@@ -83,7 +83,7 @@ def test_channel_ratios_match_an_independent_colour_science_integration(camera, 
     """Σ L · s per channel with colour-science on its native 5 nm data, against camsim's S on the 4 nm grid."""
     scene = small_scene()
     radiance = scene_radiance(scene, illuminant)
-    expected = frame_expected(radiance, camera, scene.scale, TABLE1, 1.0, "pixel", GRID)
+    expected = lit_scene(radiance, camera, scene.scale, GRID).expected(TABLE1, 1.0, "pixel")
     sens = colour.MSDS_CAMERA_SENSITIVITIES["Nikon 5100 (NPL)"]
     chart = colour.SDS_COLOURCHECKERS["ColorChecker N Ohta"]
     light = colour.SDS_ILLUMINANTS[illuminant].copy().align(sens.shape)
@@ -95,7 +95,7 @@ def test_channel_ratios_match_an_independent_colour_science_integration(camera, 
 
 
 def test_white_patch_electrons_follow_its_reflectance(camera, d65_radiance):
-    expected = frame_expected(d65_radiance, camera, AnchorScale(), TABLE1, 1.0, "pixel", GRID)
+    expected = lit_scene(d65_radiance, camera, AnchorScale(), GRID).expected(TABLE1, 1.0, "pixel")
     white = expected.signal_e[WHITE]
     assert 0.85 * 8000 < white.max() < 0.92 * 8000  # the ColorChecker white reflects ~ 88–90 %
     surround = expected.signal_e[-1]
@@ -162,7 +162,7 @@ def test_paper_camera_from_the_shared_csv():
     assert camera.name == SONY.name
     data = np.loadtxt(SONY, delimiter=",", skiprows=1)
     radiance = scene_radiance(scene, "A")
-    expected = frame_expected(radiance, camera, scene.scale, TABLE1, 1.0, "pixel", GRID)
+    expected = lit_scene(radiance, camera, scene.scale, GRID).expected(TABLE1, 1.0, "pixel")
     # the CSV is on the scene grid: S ∝ Σ L · s exactly (energy basis), no resampling involved
     direct = radiance.radiance @ data[:, 1:]
     np.testing.assert_allclose(expected.signal_e / expected.signal_e[:, 1:2], direct / direct[:, 1:2], rtol=1e-9)

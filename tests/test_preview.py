@@ -11,7 +11,7 @@ from conftest import ROOT, render
 from camsim.errors import CamsimError
 from camsim.io.exr import read_exr
 from camsim.preview import preview_srgb, write_preview_png
-from camsim.render import frame_seed_sequence
+from camsim.seeding import frame_seed_sequence
 from camsim.run import render_scene
 from camsim.scene import load_scene
 

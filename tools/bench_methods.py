@@ -37,21 +37,17 @@ FACTORS = (1.0, 0.1, 0.01, 1e-3, 1e-4, 1e-5)
 PRESETS = ("paper-table1", "ideal")
 
 
-def frame_records(scene, radiance, camera, sensor, factor, method, seed, workers, folder):
+def frame_records(scene, lit, camera, sensor, factor, method, seed, workers, folder):
     """Render one frame, write it, analyse it from the files; returns (frame, analysis result, seconds)."""
     from camsim.analysis.analyze import analyse_paths
     from camsim.analysis.patches import AnalysisSettings
     from camsim.frame_files import frame_stem, write_frame
-    from camsim.render import frame_expected, render_frame
-    from camsim.run import frame_colour_tags, scene_frame_info
+    from camsim.pipeline import make_frame, scene_frame_info
 
-    expected = frame_expected(radiance, camera, scene.scale, sensor, factor, "pixel", scene.grid)
     start = time.perf_counter()
-    frame = render_frame(radiance.labels, expected, sensor, method=method, rng=seed, workers=workers)
+    frame = make_frame(lit, sensor, factor, method=method, rng=seed, workers=workers)
     seconds = time.perf_counter() - start
-    tags = frame_colour_tags(radiance, expected.qe, "D65", scene.grid)
-    info = scene_frame_info(scene.replace(method=method, statistics="pixel"), radiance, camera, "D65", factor, seed,
-                            *tags)
+    info = scene_frame_info(scene.replace(method=method, statistics="pixel"), lit, camera.name, "D65", factor, seed)
     folder.mkdir(parents=True, exist_ok=True)
     write_frame(folder, frame_stem(scene.name, f"{method}-{seed}", factor), frame, info)
     result = analyse_paths([folder], AnalysisSettings(), source="exr", progress=False)[0]
@@ -128,7 +124,7 @@ def main() -> int:
     sys.path.insert(0, str(ROOT))
     from camsim.camera import load_camera
     from camsim.chart import parse_size
-    from camsim.radiance import scene_radiance
+    from camsim.pipeline import light_scene
     from camsim.scene import load_scene
     from camsim.sensor import PRESETS as SENSORS
 
@@ -139,27 +135,27 @@ def main() -> int:
     args = parser.parse_args()
     width, height = parse_size(args.size)
     scene = load_scene(ROOT / "scenes" / "macbeth_26.toml").replace(width=width, height=height)
-    radiance = scene_radiance(scene, "D65")
     camera = load_camera(scene.camera, scene.grid)
+    lit = light_scene(scene, "D65", camera)
     rows = []
     with tempfile.TemporaryDirectory(prefix="bench_methods_") as tmp:
         for preset in PRESETS:
             sensor = SENSORS[preset]
             for method in ("gaussian", "auto"):  # warm-up, untimed: they tabulate their KS distances once
-                frame_records(scene, radiance, camera, sensor, 1.0, method, 0, 2, Path(tmp) / f"{preset}-warm")
+                frame_records(scene, lit, camera, sensor, 1.0, method, 0, 2, Path(tmp) / f"{preset}-warm")
             for factor in FACTORS:
-                exact, exact_result, _ = frame_records(scene, radiance, camera, sensor, factor, "poisson", 1, 2,
+                exact, exact_result, _ = frame_records(scene, lit, camera, sensor, factor, "poisson", 1, 2,
                                                        Path(tmp) / f"{preset}-{factor}-exact")
                 for method in METHODS:
                     times, frame, result = [], None, None
                     for r in range(1 if method == "spectral" else args.repeats):
-                        frame, result, seconds = frame_records(scene, radiance, camera, sensor, factor, method, 2 + r,
+                        frame, result, seconds = frame_records(scene, lit, camera, sensor, factor, method, 2 + r,
                                                                2, Path(tmp) / f"{preset}-{factor}-{method}-{r}")
                         times.append(seconds)
                     row = {"preset": preset, "intensity_factor": factor, "method": method,
                            "mean_charge_e": float(np.median(frame.expected.signal_e + frame.expected.dark_e)),
                            "mpix_per_s": width * height / 1e6 / statistics.median(times),
-                           **compare(frame, exact, radiance.patch_rects, result, exact_result)}
+                           **compare(frame, exact, lit.radiance.patch_rects, result, exact_result)}
                     if frame.plan is not None and method == "auto":
                         row["auto_gaussian_fraction"] = float(np.mean(frame.plan.kind == 1))
                     rows.append(row)

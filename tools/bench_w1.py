@@ -65,25 +65,27 @@ def peak_rss_mb() -> float:
 
 
 def setup(width: int, height: int) -> dict:
-    """W1's scene, radiance, camera and expected signal (imports camsim and colour-science)."""
+    """W1's scene lit by D65 through its camera, and its expected signal (imports camsim and colour-science)."""
     from camsim.camera import load_camera
-    from camsim.radiance import scene_radiance
-    from camsim.render import frame_expected
+    from camsim.pipeline import light_scene
     from camsim.scene import load_scene
 
     scene = load_scene(SCENE).replace(width=width, height=height, illuminants=(ILLUMINANT,),
                                       intensity_factors=(FACTOR,), preset_name="paper-table1", statistics="pixel")
-    radiance = scene_radiance(scene, ILLUMINANT)
     camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
-    expected = frame_expected(radiance, camera, scene.scale, scene.sensor, FACTOR, "pixel", scene.grid)
-    return {"scene": scene, "radiance": radiance, "camera": camera, "expected": expected}
+    lit = light_scene(scene, ILLUMINANT, camera)
+    return {"scene": scene, "lit": lit, "radiance": lit.radiance, "camera": camera,
+            "expected": lit.expected(scene.sensor, FACTOR, "pixel")}
 
 
-def render(w: dict, method: str, workers: int = 2):
-    from camsim.render import frame_seed_sequence, render_frame
+def render(w: dict, method: str, workers: int = 2, rng=None):
+    """W1 by ``method`` through camsim's frame pipeline (the frame's own seed unless ``rng`` is given)."""
+    from camsim.pipeline import make_frame
+    from camsim.seeding import frame_seed_sequence
 
-    return render_frame(w["radiance"].labels, w["expected"], w["scene"].sensor, statistics="pixel", method=method,
-                        rng=frame_seed_sequence(SEED, ILLUMINANT, FACTOR), workers=workers)
+    rng = frame_seed_sequence(SEED, ILLUMINANT, FACTOR) if rng is None else rng
+    return make_frame(w["lit"], w["scene"].sensor, FACTOR, statistics="pixel", method=method, rng=rng,
+                      workers=workers)
 
 
 def floor_draws(lam, threads: int, blocked: bool = True) -> None:
@@ -119,19 +121,17 @@ def child_rss(args) -> dict:
     w = setup(args.width, args.height)
     after_setup = peak_rss_mb()
     seconds = timed(render, w, args.method, 2)
-    from camsim.render import ALL_METHODS
+    from camsim.methods import METHOD_NAMES
 
     return {"rss_start_mb": start, "rss_setup_mb": after_setup, "rss_peak_mb": peak_rss_mb(), "render_s": seconds,
-            "has_auto": "auto" in ALL_METHODS}
+            "has_auto": "auto" in METHOD_NAMES}
 
 
-def frame_info(w: dict, expected, method: str):
-    """The FrameInfo of a frame, built by camsim.run as ``camsim render`` builds it."""
-    from camsim.run import frame_colour_tags, scene_frame_info
+def frame_info(w: dict, method: str):
+    """The FrameInfo of a frame, built by camsim.pipeline as ``camsim render`` builds it."""
+    from camsim.pipeline import scene_frame_info
 
-    scene, radiance = w["scene"].replace(method=method), w["radiance"]
-    tags = frame_colour_tags(radiance, expected.qe, ILLUMINANT, scene.grid)
-    return scene_frame_info(scene, radiance, w["camera"], ILLUMINANT, FACTOR, SEED, *tags)
+    return scene_frame_info(w["scene"].replace(method=method), w["lit"], w["camera"].name, ILLUMINANT, FACTOR, SEED)
 
 
 def child_timing(args) -> dict:
@@ -139,7 +139,7 @@ def child_timing(args) -> dict:
     import numpy as np
 
     from camsim.frame_files import frame_stem, write_frame
-    from camsim.render import ALL_METHODS
+    from camsim.methods import METHOD_NAMES
 
     w = setup(args.width, args.height)
     ex, labels = w["expected"], w["radiance"].labels
@@ -147,7 +147,7 @@ def child_timing(args) -> dict:
     runs = [("floor_1t", floor_draws, lam, 1, False), ("poisson_1t", render, w, "poisson", 1),
             ("floor_1t_blocked", floor_draws, lam, 1), ("floor_2t", floor_draws, lam, 2),
             ("poisson_2t", render, w, "poisson", 2)]
-    has_auto = "auto" in ALL_METHODS
+    has_auto = "auto" in METHOD_NAMES
     if has_auto:
         runs.append(("auto_2t", render, w, "auto", 2))
     times = {name: [] for name, *_ in runs}
@@ -158,7 +158,7 @@ def child_timing(args) -> dict:
             times[name].append(timed(fn, *fn_args))
     del lam
     frame = render(w, "poisson", 2)
-    info = frame_info(w, frame.expected, "poisson")
+    info = frame_info(w, "poisson")
     stem = frame_stem(w["scene"].name, ILLUMINANT, FACTOR)
     write_times = []
     with tempfile.TemporaryDirectory(prefix="bench_w1_") as tmp:
@@ -183,11 +183,8 @@ def auto_accuracy(w: dict) -> float:
     """Largest two-sample KS statistic between auto's and poisson's digital numbers, over patches and channels."""
     from scipy import stats
 
-    from camsim.render import render_frame
-
     exact = render(w, "poisson", 2).digital_dn
-    fast = render_frame(w["radiance"].labels, w["expected"], w["scene"].sensor, statistics="pixel", method="auto",
-                        rng=SEED + 1, workers=2).digital_dn
+    fast = render(w, "auto", 2, rng=SEED + 1).digital_dn
     worst = 0.0
     for x, y, width, height in w["radiance"].patch_rects:
         for c in range(3):

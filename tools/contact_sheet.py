@@ -35,29 +35,13 @@ ROW_LABELS = {
 
 def previews(scene, illuminant, factors, exposure):
     """sRGB previews of ``scene`` under ``illuminant`` at each F, as ``camsim render --preview`` makes them."""
-    from camsim.camera import load_camera
+    from camsim.pipeline import light_scene, scene_frame
     from camsim.preview import preview_srgb
-    from camsim.radiance import scene_radiance
-    from camsim.rawcolour import as_shot_neutral
-    from camsim.render import frame_expected, frame_seed_sequence, render_frame
-    from camsim.run import patch_xyz
 
-    camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
-    radiance = scene_radiance(scene, illuminant)
-    xyz = patch_xyz(radiance, scene.grid)
+    lit = light_scene(scene, illuminant)
     pictures = []
     for factor in factors:
-        expected = frame_expected(radiance, camera, scene.scale, scene.sensor, factor, scene.statistics, scene.grid)
-        frame = render_frame(radiance.labels, expected, scene.sensor, statistics=scene.statistics,
-                             method=scene.method, rng=frame_seed_sequence(scene.seed, illuminant, factor),
-                             tolerance=scene.tolerance)
-        info = {  # the sidecar keys preview_srgb reads
-            "intensity_factor": factor,
-            "luminance_cd_m2": scene.luminance_cd_m2,
-            "wavelengths_nm": scene.grid.wavelengths_nm,
-            "as_shot_neutral": as_shot_neutral(illuminant, expected.qe, scene.grid),
-            "patches": [{"xyz_cd_m2": factor * row} for row in xyz],
-        }
+        frame, info = scene_frame(scene, illuminant, factor, lit=lit)
         pictures.append(preview_srgb(frame, info, exposure=exposure))
     return pictures
 

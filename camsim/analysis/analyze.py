@@ -14,6 +14,7 @@ from camsim.analysis.frames import find_frames, load_frame
 from camsim.analysis.patches import AnalysisSettings, analyse_frame, frame_matrix
 from camsim.errors import CamsimError
 from camsim.io.atomic import write_json_atomic, write_text_atomic
+from camsim.sensor import SensorParams
 
 CSV_NAME = "analysis.csv"
 SUMMARY_NAME = "analysis.json"
@@ -26,10 +27,12 @@ CHANNEL_COLUMNS = ("channel", "n_pixels", "black_dn", "mean_dn", "var_dn2", "std
                    "saturated_pixels", "constant", "snr_model", "snr_model_db", "snr_model_eq13", "snr_model_eq13_db",
                    "snr_empirical", "snr_empirical_db",
                    "snr_status")
-#: Sidecar values that must agree for two frames to be the same measurement at different F (ΔE reference).
-GROUP_KEYS = ("scene", "illuminant", "photon_statistics", "method", "camera", "reflectances", "stages",
-              "exposure_s", "dn_per_electron", "full_well_e", "read_noise_e", "dark_current_e_per_s", "bits",
-              "width_px", "height_px", "wavelengths_nm")
+#: Sidecar values that must agree for two frames to be the same measurement at different F (ΔE reference): the
+#: scene, light, camera and render settings, and every sensor key the schema writes (so a new sensor parameter
+#: joins the grouping by itself).
+GROUP_KEYS = ("scene", "illuminant", "photon_statistics", "method", "auto_tolerance_ks", "camera",
+              "sensitivity_basis", "reflectances", "luminance_cd_m2", "normalisation", "scale", "width_px",
+              "height_px", "wavelengths_nm", *SensorParams().sidecar_record())
 
 
 def group_key(meta: dict) -> str:

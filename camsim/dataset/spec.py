@@ -32,7 +32,7 @@ keeps the scene file's value; the scene's ``illuminants`` and ``intensity_factor
 
 Distributions of ``[random]``: ``uniform = [a, b]``, ``log_uniform = [a, b]`` (a > 0), ``integers = [a, b]``
 (inclusive) and ``choice = [v, ...]``. Each parameter draws from its own stream,
-``default_rng(SeedSequence(seed, spawn_key=(RANDOM_KEY, crc32(name))))``, one value per frame in frame order, so
+:func:`camsim.seeding.dataset_parameter_generator`, one value per frame in frame order, so
 the frame list is the same on every run and adding a parameter leaves the others' draws unchanged.
 
 Frame order: scene, the scene's inherited axes, the ``[grid]`` keys in file order, the random draw, the repeat.
@@ -47,7 +47,6 @@ import hashlib
 import itertools
 import json
 import math
-import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -55,55 +54,19 @@ import numpy as np
 
 from camsim.camera import load_camera
 from camsim.errors import CamsimError
-from camsim.render import ALL_METHODS
 from camsim.run import check_scene
-from camsim.scene import STATISTICS, Scene, load_scene, read_toml
-from camsim.sensor import CFA_PATTERNS, PRESETS, READ_NOISE_MODELS, STAGES
+from camsim.scene import FRAME_PARAMS, RENDER_PARAMS, Scene, load_scene, read_toml
+from camsim.seeding import dataset_frame_seed, dataset_parameter_generator
+from camsim.sensor import SENSOR_PARAMS
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT = 256, 192
 MAX_FRAMES = 1_000_000
 MAX_PIXELS = 200_000_000
-#: First spawn-key word of the random parameter streams (frame seeds use 4-word keys, so the two never meet).
-RANDOM_KEY = 0xDA7A5E7
 
-# parameter name -> kind; "rgb" is a number or a list of three (dark current, e-/s per channel)
-_SCENE_PARAMS = {
-    "illuminant": "str",
-    "intensity_factor": "float",
-    "statistics": "str",
-    "method": "str",
-    "tolerance": "float",
-    "camera": "str",
-    "preset": "str",
-}
-_SENSOR_PARAMS = {
-    "conversion_gain_v_per_e": "float",
-    "analog_gain_dn_per_v": "float",
-    "dark_current_e_per_s": "rgb",
-    "read_noise_e": "float",
-    "full_well_e": "float",
-    "exposure_s": "float",
-    "bits": "int",
-    **{stage: "bool" for stage in STAGES},
-    "dsnu_e": "float",
-    "prnu_percent": "float",
-    "row_noise_e": "float",
-    "read_noise_model": "str",
-    "tukey_lambda": "float",
-    "sensor_seed": "int",
-    "cfa": "str",
-}
-PARAMETERS = {**_SCENE_PARAMS, **_SENSOR_PARAMS}
+#: Every parameter a spec may set, by name: the frame's choices, the render settings and the sensor's (the schema).
+PARAMETERS = {p.name: p for p in (*FRAME_PARAMS, *RENDER_PARAMS, *SENSOR_PARAMS) if p.name != "seed"}
 #: Plural spellings accepted in [grid] (the scene file's [light] names).
 GRID_ALIASES = {"illuminants": "illuminant", "intensity_factors": "intensity_factor"}
-#: Named choices, checked when the spec is read.
-_CHOICES = {
-    "statistics": STATISTICS,
-    "method": ALL_METHODS,
-    "preset": tuple(PRESETS),
-    "read_noise_model": READ_NOISE_MODELS,
-    "cfa": ("none",) + CFA_PATTERNS,
-}
 DISTRIBUTIONS = ("uniform", "log_uniform", "integers", "choice")
 _TOP_KEYS = {"name", "description", "scene", "seed", "repeats", "frame", "fixed", "grid", "random"}
 
@@ -120,7 +83,7 @@ class FrameSpec:
         ``<index:05d>-<hash>``: the file stem under ``OUT/frames/``.
     seed : int
         The frame's seed (< 2**53): its generator is
-        ``camsim.render.frame_seed_sequence(seed, illuminant, intensity_factor)``, as for ``camsim render``.
+        ``camsim.seeding.frame_seed_sequence(seed, illuminant, intensity_factor)``, as for ``camsim render``.
     scene_path : str
         Absolute path of the scene file.
     width, height : int
@@ -179,32 +142,9 @@ class DatasetSpec:
 
 
 def _coerce(name: str, value, where: str):
-    """Check one parameter value's type (and named choices); returns it typed (ints to floats where needed)."""
-    kind = PARAMETERS[name]
-    bad = f"{where}: {name} must be {{}}, got {value!r}"
-    if kind == "float":
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise CamsimError(bad.format("a number"))
-        value = float(value)
-        if not math.isfinite(value):
-            raise CamsimError(bad.format("a finite number"))
-    elif kind == "int":
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise CamsimError(bad.format("an integer"))
-    elif kind == "bool":
-        if not isinstance(value, bool):
-            raise CamsimError(bad.format("true or false"))
-    elif kind == "str":
-        if not isinstance(value, str):
-            raise CamsimError(bad.format("a string"))
-        if name in _CHOICES and value not in _CHOICES[name]:
-            raise CamsimError(bad.format("one of " + ", ".join(_CHOICES[name])))
-    elif kind == "rgb":
-        items = value if isinstance(value, list) else [value]
-        if len(items) not in (1, 3) or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in items):
-            raise CamsimError(bad.format("a number or a list of three numbers (R, G, B)"))
-        value = float(items[0]) if len(items) == 1 else [float(v) for v in items]
-    return value
+    """One parameter value, type-checked and typed (ints to floats where needed) by the schema; its range is
+    checked when the frame's scene and sensor are built."""
+    return PARAMETERS[name].coerce(value, where, check_range=False)
 
 
 def _canonical(value) -> str:
@@ -222,7 +162,7 @@ def _draw(name: str, dist: dict, n: int, seed: int, where: str) -> list:
                           f"{', '.join(DISTRIBUTIONS)}")
     if not isinstance(args, list) or not args:
         raise CamsimError(f"{where}: {name} {kind} needs a list, got {args!r}")
-    param_kind = PARAMETERS[name]
+    param_kind = PARAMETERS[name].kind
     if kind == "choice":
         values = [_coerce(name, v, where) for v in args]
     else:
@@ -243,9 +183,8 @@ def _draw(name: str, dist: dict, n: int, seed: int, where: str) -> list:
             raise CamsimError(f"{where}: {name} {kind} needs low ≤ high, got {args!r}")
         if kind == "log_uniform" and not low > 0:
             raise CamsimError(f"{where}: {name} log_uniform needs positive bounds, got {args!r}")
-    stream = np.random.SeedSequence(entropy=seed, spawn_key=(RANDOM_KEY, zlib.crc32(name.encode("utf-8"))))
     # uniform variates only, consumed one per frame: a longer list starts with the shorter one's values
-    u = np.random.default_rng(stream).random(n)
+    u = dataset_parameter_generator(seed, name).random(n)
     if kind == "uniform":
         return [float(low + (high - low) * x) for x in u]
     if kind == "log_uniform":
@@ -255,14 +194,6 @@ def _draw(name: str, dist: dict, n: int, seed: int, where: str) -> list:
         span = high - low + 1
         return [int(low + min(span - 1, int(x * span))) for x in u]
     return [values[min(len(values) - 1, int(x * len(values)))] for x in u]
-
-
-def frame_seed(spec_seed: int, frame_id: str) -> int:
-    """A frame's seed: a function of the spec seed and the frame id only, below 2**53 (exact in any JSON reader)."""
-    digest = hashlib.sha256(frame_id.encode("utf-8")).digest()
-    key = tuple(int.from_bytes(digest[i: i + 4], "little") for i in range(0, 16, 4))
-    state = np.random.SeedSequence(entropy=spec_seed, spawn_key=key).generate_state(1, np.uint64)[0]
-    return int(state) >> 11
 
 
 # --- the spec file -------------------------------------------------------------------------------------------
@@ -439,9 +370,7 @@ def _frame(index, repeat, params, scene_file, scene_path, scene: Scene, scene_di
         changes["camera"] = str((base / camera).resolve()) if camera.lower().endswith(".csv") else camera
     if "preset" in params:
         changes["preset_name"] = params["preset"]
-    overrides = {k: v for k, v in params.items() if k in _SENSOR_PARAMS}
-    if overrides.get("cfa") == "none":
-        overrides["cfa"] = None
+    overrides = {p.name: params[p.name] for p in SENSOR_PARAMS if p.name in params}
     if isinstance(overrides.get("dark_current_e_per_s"), list):
         overrides["dark_current_e_per_s"] = tuple(overrides["dark_current_e_per_s"])
     factor = params["intensity_factor"]
@@ -487,7 +416,7 @@ def _frame(index, repeat, params, scene_file, scene_path, scene: Scene, scene_di
     }
     digest = hashlib.sha256(_canonical(record).encode("ascii")).hexdigest()[:10]
     frame_id = f"{index:05d}-{digest}"
-    fseed = frame_seed(seed, frame_id)
+    fseed = dataset_frame_seed(seed, frame_id)
     # as JSON gives it back (lists, not tuples), so that a record read from disk compares equal
     record = json.loads(json.dumps({"id": frame_id, "index": index, **record, "seed": fseed}, allow_nan=False))
     return FrameSpec(
@@ -498,4 +427,4 @@ def _frame(index, repeat, params, scene_file, scene_path, scene: Scene, scene_di
     )
 
 
-__all__ = ["DatasetSpec", "FrameSpec", "PARAMETERS", "DISTRIBUTIONS", "load_spec", "frame_seed"]
+__all__ = ["DatasetSpec", "FrameSpec", "PARAMETERS", "DISTRIBUTIONS", "load_spec"]

@@ -32,9 +32,9 @@ import numpy as np
 
 from camsim.camera import DEFAULT_CAMERA, PhysicalScale, absolute_qe, load_camera
 from camsim.errors import CamsimError
-from camsim.expected import expected_signal
 from camsim.fixed_pattern import fixed_pattern
-from camsim.render import render_frame
+from camsim.pipeline import LitScene, make_frame
+from camsim.seeding import emva_frame_seed_sequence
 from camsim.sensor import SensorParams, cfa_sites
 from camsim.spectra import WavelengthGrid
 from camsim.emva.configured import (  # noqa: F401 (re-exported)
@@ -277,10 +277,11 @@ def simulate(sensor: SensorParams, setup: EmvaSetup = EmvaSetup(), preset_name: 
         raise CamsimError(f"a {sensor.cfa} sensor needs an even region of interest, got {setup.size}")
     per_photon = 1.0 / (scale.etendue_m2_sr * sensor.exposure_s)  # photon radiance of one photon per pixel
 
-    def expected_for(mu_p: float):
-        radiance = np.zeros((1, n))
-        radiance[0, bin_index] = mu_p * per_photon
-        return expected_signal(radiance, qe_abs, sensor, 1.0, "pixel")
+    def field_at(mu_p: float) -> LitScene:
+        """The uniform monochromatic field giving μ_p photons per pixel in the exposure."""
+        photon_rate = np.zeros((1, n))
+        photon_rate[0, bin_index] = mu_p * per_photon
+        return LitScene(labels, photon_rate, qe_abs, GRID)
 
     frames = 2 * (len(photons) + 1) + 2 * setup.stack_frames
     bar = None
@@ -291,12 +292,12 @@ def simulate(sensor: SensorParams, setup: EmvaSetup = EmvaSetup(), preset_name: 
 
     def shoot(mu_p: float, key: tuple, count: int) -> dict:
         """``count`` frames at μ_p, reduced as emva1288's ``routines.get_int_imgs`` does, without keeping them."""
-        expected = expected_for(mu_p)
+        light = field_at(mu_p)
         stack = IntStack()
         for j in range(count):
-            ss = np.random.SeedSequence(setup.seed, spawn_key=(*key, j))
-            frame = render_frame(labels, expected, sensor, statistics="pixel", method="poisson", rng=ss,
-                                 workers=setup.workers)
+            ss = emva_frame_seed_sequence(setup.seed, *key, j)
+            frame = make_frame(light, sensor, 1.0, statistics="pixel", method="poisson", rng=ss,
+                               workers=setup.workers)
             stack.add(channel_image(frame.digital_dn, sensor))
             if bar is not None:
                 bar.update()

@@ -12,14 +12,12 @@ from tqdm import tqdm
 from camsim.analysis.analyze import analyse_paths
 from camsim.analysis.patches import AnalysisSettings
 from camsim.camera import AnchorScale, absolute_qe, load_camera
-from camsim.expected import expected_signal
 from camsim.experiments.datapoints import data_points, points_radiance
 from camsim.frame_files import FrameInfo, write_frame
 from camsim.io.atomic import write_json_atomic
 from camsim.photons import photon_radiance
-from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
-from camsim.render import frame_seed_sequence, render_frame
-from camsim.run import patch_xyz
+from camsim.pipeline import LitScene, make_frame
+from camsim.seeding import frame_seed_sequence
 from camsim.scene import load_scene
 from camsim.sensor import SensorParams
 
@@ -46,10 +44,13 @@ class Prepared:
     points: list
     radiance: object
     camera: object
-    qe: np.ndarray
-    g: np.ndarray
     name: str
+    lit: LitScene  # the data points under their lights, Qe anchored once on D65
 
+    @property
+    def qe(self) -> np.ndarray:
+        """The camera's absolute Qe, shape (3, N). Unit: e⁻ · m² · sr / photon."""
+        return self.lit.qe
 
 def prepare(setup: Setup) -> Prepared:
     """The data points' chart, the camera and its Qe (anchored on the D65 perfect white at 100 cd/m²)."""
@@ -62,7 +63,7 @@ def prepare(setup: Setup) -> Prepared:
     g_white = photon_radiance(radiance.white_radiance, grid.wavelengths_nm, grid.step_nm)
     qe = absolute_qe(camera, AnchorScale(), g_white)
     g = photon_radiance(radiance.radiance, grid.wavelengths_nm, grid.step_nm)
-    return Prepared(grid, points, radiance, camera, qe, g, scene.name)
+    return Prepared(grid, points, radiance, camera, scene.name, LitScene(radiance.labels, g, qe, grid, radiance, "D65"))
 
 
 def render_series(prep: Prepared, sensor: SensorParams, factors, statistics: str, out_dir: Path, seed: int,
@@ -70,22 +71,19 @@ def render_series(prep: Prepared, sensor: SensorParams, factors, statistics: str
     """Render one frame per F into ``out_dir`` (DNG/EXR/JSON + manifest); returns the folder."""
     out_dir.mkdir(parents=True, exist_ok=True)
     method = STATISTICS_METHODS[statistics]
-    xyz = patch_xyz(prep.radiance, prep.grid)
-    matrix = color_matrix_xyz_to_camera(prep.qe, prep.grid)
-    neutral = as_shot_neutral("D65", prep.qe, prep.grid)
+    lit = prep.lit
     frames = []
     for factor in factors:
-        expected = expected_signal(prep.g, prep.qe, sensor, factor, statistics)
-        frame = render_frame(prep.radiance.labels, expected, sensor, statistics=statistics, method=method,
-                             rng=frame_seed_sequence(seed, seed_label or label, factor))
+        frame = make_frame(lit, sensor, factor, statistics=statistics, method=method,
+                           rng=frame_seed_sequence(seed, seed_label or label, factor))
         info = FrameInfo(
             scene=f"experiment-{label}", illuminant="per data point", intensity_factor=float(factor), seed=seed,
             photon_statistics=statistics, method=method, camera=prep.camera.name,
             sensitivity_basis=prep.camera.sensitivity_basis, reflectances=prep.radiance.reflectance_set,
             wavelengths_nm=prep.grid.wavelengths_nm, luminance_cd_m2=100.0, normalisation="per-spectrum",
             scale={"kind": "anchor", **dataclasses.asdict(AnchorScale()), "reference_illuminant": "D65"},
-            patch_names=prep.radiance.patch_names, patch_rects=prep.radiance.patch_rects, color_matrix1=matrix,
-            as_shot_neutral=neutral, patch_xyz=factor * xyz,
+            patch_names=prep.radiance.patch_names, patch_rects=prep.radiance.patch_rects,
+            color_matrix1=lit.color_matrix1, as_shot_neutral=lit.as_shot_neutral, patch_xyz=factor * lit.patch_xyz,
         )
         files = write_frame(out_dir, f"{label}_F{factor:g}", frame, info)
         frames.append({"intensity_factor": float(factor), "files": files})
@@ -113,7 +111,7 @@ def noise_free_xy(prep: Prepared, sensor: SensorParams, factor: float) -> np.nda
     """Chromaticity of each point's expected camera signal (signal + dark, saturated) through M, shape (P, 2)."""
     from camsim.analysis.colorimetry import camera_to_xyz_matrix
 
-    expected = expected_signal(prep.g, prep.qe, sensor, factor, "pixel")
+    expected = prep.lit.expected(sensor, factor, "pixel")
     dn = expected.clean_e[: len(prep.points)] * sensor.dn_per_electron
     matrix = camera_to_xyz_matrix(prep.qe, prep.grid.wavelengths_nm, sensor.dn_per_electron, method="paper")
     xyz = dn @ matrix.T

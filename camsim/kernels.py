@@ -1,16 +1,13 @@
-"""Drawing the collected charge S + D per pixel and channel (MODEL.md §4–5).
+"""Fast exact samplers and block helpers: pure numpy, importing no camsim module.
 
-One function per sampling method, a registry :data:`METHODS`, and one entry point :func:`draw_electrons`.
-Each method takes a block of the label map and fills a float32 (3, h, w) array with electrons (signal plus
-dark, before saturation), for either photon statistics:
+These are the kernels every sampling method and stage draws with:
 
-* ``poisson`` — one draw per pixel and channel. ``pixel`` statistics: S + D ~ Poisson(S̄ + D̄), exact by Poisson
-  thinning and additivity (one draw covers photons *and* dark current). ``paper`` statistics: S is drawn as a
-  scaled Poisson s · Poisson(S̄ / s) with s = Var S / S̄, which matches the mean and variance of Eq. 4 for every
-  channel (but not the cross-channel correlation of the shared per-bin photon counts), plus D ~ Poisson(D̄).
-* ``spectral`` — per-bin draws, cost ∝ N. ``paper``: Poisson(F g(λi)) photons / (s m² sr) per bin, shared by the
-  three channels and weighted by T · Qe (Eq. 4 literally). ``pixel``: per-bin detected electrons
-  Poisson(T F g Qe) per channel, summed (a live check of the thinning argument).
+* :func:`poisson` — numpy's Poisson sampler, extended past its largest mean (a rounded normal there);
+* :func:`poisson_run` — n iid Poisson(λ) draws of one mean as a multinomial histogram plus a shuffle (exact,
+  about twice numpy's per-draw speed);
+* :func:`standard_normal_f32` — float32 Box–Muller normals (three times numpy's float32 ziggurat);
+* :func:`tukey_lambda` — heavy-tailed Tukey-λ draws by inverse CDF;
+* :func:`label_runs` — the rectangles of equal label of a block (a chart's row block is a few of them).
 """
 
 from __future__ import annotations
@@ -18,11 +15,7 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from scipy import stats
-
-from camsim.errors import CamsimError
-from camsim.expected import ExpectedSignal
-from camsim.sensor import SensorParams
+from scipy import special, stats
 
 #: numpy's Poisson sampler refuses means above about 9.2e18; beyond this the Poisson law is a Gaussian to
 #: within a relative skew of 1e-9, and a rounded normal draw is used.
@@ -148,105 +141,20 @@ def label_runs(labels: np.ndarray):
     return runs
 
 
-def exact_charge(rng, expected: ExpectedSignal, sensor: SensorParams, statistics: str, c: int, index, size=None,
-                 gain=None):
-    """Collected charge S + D of one channel, drawn exactly, for pixels of spectrum ``index``.
+def tukey_lambda_variance(lam: float) -> float:
+    """Variance of the standard Tukey lambda law, x = (u^λ − (1 − u)^λ) / λ (λ = 0: the logistic law)."""
+    if abs(lam) < 1e-9:
+        return np.pi**2 / 3
+    return 2 / lam**2 * (1 / (1 + 2 * lam) - special.gamma(lam + 1) ** 2 / special.gamma(2 * lam + 2))
 
-    Parameters
-    ----------
-    c : int
-        Channel.
-    index : int or numpy.ndarray of int
-        One label (then ``size`` gives the shape) or one label per pixel.
-    gain : numpy.ndarray, optional
-        PRNU: per-pixel factor on the mean signal (shape ``size`` or that of ``index``).
 
-    Returns
-    -------
-    numpy.ndarray
-        Unit: e⁻. ``pixel`` statistics: one draw Poisson(S̄ + D̄) per pixel; ``paper``: s · Poisson(S̄ / s) plus
-        Poisson(D̄); photon noise off: S̄ plus Poisson(D̄).
+def tukey_lambda(rng: np.random.Generator, out: np.ndarray, lam: float, std: float) -> np.ndarray:
+    """Fill ``out`` with Tukey lambda draws of shape ``lam``, scaled to standard deviation ``std``.
+
+    Inverse-CDF sampling on float64 uniforms in (0, 1); heavier tails than the Gaussian for λ < 0.14.
     """
-    S = expected.signal_e[index, c]
-    D = expected.dark_e[c]
-    shape = size if size is not None else np.shape(index)
-    if gain is not None:  # per-pixel means: numpy's sampler, one mean per pixel
-        S = S * gain
-        size = None
-    if sensor.photon_noise and statistics == "pixel":  # one draw covers photons and dark current
-        return poisson(rng, S + D) if size is None else poisson_run(rng, S + D, size)
-    if sensor.photon_noise:
-        var = expected.signal_var_e2[index, c] * (1 if gain is None else gain)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = np.where(S > 0, var / S, 0.0)
-            lam = np.where(step > 0, S / step, 0.0)
-        charge = step * poisson(rng, lam, size=size)
-    else:
-        charge = np.broadcast_to(np.asarray(S, dtype=np.float64), shape)
-    return charge + rng.poisson(D, size=shape) if D > 0 else charge
-
-
-def draw_poisson(labels, expected: ExpectedSignal, sensor: SensorParams, statistics: str, rng, out):
-    """One draw per pixel and channel (plus one for dark current under ``paper`` statistics)."""
-    runs = label_runs(labels)
-    for c in range(3):
-        if runs is None:
-            out[c][...] = exact_charge(rng, expected, sensor, statistics, c, labels)
-            continue
-        for r0, r1, c0, c1, label in runs:
-            out[c][r0:r1, c0:c1] = exact_charge(rng, expected, sensor, statistics, c, label, (r1 - r0, c1 - c0))
+    u = rng.random(out.shape)
+    u[u == 0] = np.finfo(float).tiny
+    x = np.log(u / (1 - u)) if abs(lam) < 1e-9 else (u**lam - (1 - u) ** lam) / lam
+    out[...] = x * (std / np.sqrt(tukey_lambda_variance(lam)))
     return out
-
-
-def draw_spectral(labels, expected: ExpectedSignal, sensor: SensorParams, statistics: str, rng, out):
-    """Per-bin draws for every pixel (cost ∝ number of bins)."""
-    if not sensor.photon_noise:
-        return draw_poisson(labels, expected, sensor, statistics, rng, out)
-    T = sensor.exposure_s
-    rate = expected.photon_rate
-    qe = expected.qe
-    n_bins = rate.shape[1]
-    flat = labels.ravel()
-    out_flat = [out[c].reshape(-1) for c in range(3)]  # rows of a C-contiguous plane: views, not copies
-    assert all(np.shares_memory(flat_c, out) for flat_c in out_flat)
-    chunk = max(1, 2**19 // (3 * n_bins))
-    for start in range(0, flat.size, chunk):
-        lab = flat[start : start + chunk]
-        bins = rate[lab]  # (m, N): F g per pixel
-        if statistics == "paper":
-            counts = poisson(rng, bins)  # photons / (s m² sr), shared by the three channels
-            signal = T * (counts @ qe.T)  # (m, 3)
-        else:
-            lam = (T * bins)[:, None, :] * qe[None, :, :]  # (m, 3, N) detected electrons per bin
-            signal = poisson(rng, lam).sum(axis=2)
-        for c in range(3):
-            out_flat[c][start : start + chunk] = signal[:, c]
-    for c in range(3):
-        if expected.dark_e[c] > 0:
-            out[c] += rng.poisson(expected.dark_e[c], size=out[c].shape)
-    return out
-
-
-#: Sampling methods by name.
-METHODS = {"poisson": draw_poisson, "spectral": draw_spectral}
-
-
-def draw_electrons(labels, expected, sensor, statistics, method, rng, out):
-    """Fill ``out`` with the collected charge S + D of each pixel and channel.
-
-    Parameters
-    ----------
-    labels : numpy.ndarray, shape (h, w), unsigned integer
-        Spectrum index per pixel.
-    expected : ExpectedSignal
-    sensor : SensorParams
-    statistics : {'pixel', 'paper'}
-    method : str
-        A key of :data:`METHODS`.
-    rng : numpy.random.Generator
-    out : numpy.ndarray, shape (3, h, w), float32
-        Filled in place. Unit: e⁻.
-    """
-    if method not in METHODS:
-        raise CamsimError(f"unknown sampling method {method!r}; methods: {', '.join(METHODS)}")
-    return METHODS[method](labels, expected, sensor, statistics, rng, out)

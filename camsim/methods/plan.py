@@ -1,4 +1,4 @@
-"""The moment-matched Gaussian method and ``auto``, which chooses per spectrum and channel (MODEL.md §5).
+"""How each spectrum and channel of a frame is drawn: the plans of ``poisson``, ``gaussian`` and ``auto`` (MODEL.md §5).
 
 ``gaussian`` replaces the collected charge and the read noise of a pixel by one normal draw with the same mean
 and variance: value = k · (λ + √(Var(S + D) + σ_read²) · z). It is fast (one float32 normal per pixel and
@@ -23,8 +23,6 @@ import numpy as np
 from scipy import stats
 
 from camsim.expected import ExpectedSignal
-from camsim.fixed_pattern import tukey_lambda
-from camsim.sampling import exact_charge, label_runs, standard_normal_f32
 from camsim.sensor import SensorParams
 
 #: Default ``auto`` tolerance: the largest KS distance accepted between a pixel value's exact law (before
@@ -91,7 +89,7 @@ def predicted_ks(lam_poisson, sigma_gauss: float) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class GaussianPlan:
+class DrawPlan:
     """How each spectrum (row) and channel (column) is drawn, shape (K, 3) each.
 
     Attributes
@@ -117,7 +115,7 @@ class GaussianPlan:
 
 
 def plan_methods(expected: ExpectedSignal, sensor: SensorParams, statistics: str, method: str,
-                 tolerance: float = DEFAULT_TOLERANCE) -> GaussianPlan:
+                 tolerance: float = DEFAULT_TOLERANCE) -> DrawPlan:
     """Decide per spectrum and channel (``method`` is ``poisson``, ``gaussian`` or ``auto``)."""
     read = sensor.read_noise_e if sensor.read_noise else 0.0
     lam = expected.signal_e + expected.dark_e
@@ -148,79 +146,4 @@ def plan_methods(expected: ExpectedSignal, sensor: SensorParams, statistics: str
     else:  # a non-Gaussian read noise: the Gaussian replacement's KS is not tabulated, so never taken
         ok = below & (ks <= tolerance) & (sensor.gaussian_read_noise or read == 0)
         kind = np.where(above, SATURATED, np.where(ok, GAUSSIAN, EXACT))
-    return GaussianPlan(kind.astype(np.int8), np.where(above, 0.0, ks), tolerance, needs_clip)
-
-
-def fill_channel(out_c, labels, plan: GaussianPlan, expected: ExpectedSignal, sensor: SensorParams,
-                 statistics: str, c: int, rng, z, work, offset=None, gain=None):
-    """One channel of a block, in DN, by the plan: ``out_c`` (h, w) float32 is written in place.
-
-    ``z`` (h, w) float32 and ``work`` are scratch. Each pixel uses one draw from ``z``, made with the read noise's
-    σ: its read noise on the exact path, or (rescaled) its whole Gaussian value; the clipped Gaussian, and the
-    Gaussian under non-Gaussian read noise, draw their own normals. ``offset`` (DSNU, e⁻) and ``gain`` (PRNU)
-    are this block's fixed-pattern maps, (h, w), or None.
-    """
-    k = sensor.dn_per_electron
-    read = sensor.read_noise_e if sensor.read_noise else 0.0
-    z_scale = read if read > 0 else 1.0
-    gaussian_z = sensor.gaussian_read_noise or read == 0
-    if read > 0 and not sensor.gaussian_read_noise:
-        tukey_lambda(rng, z, sensor.tukey_lambda, read)
-    elif read > 0 or np.any(plan.kind[:, c] != EXACT):
-        standard_normal_f32(rng, z, work, z_scale)
-    lam = expected.signal_e[:, c] + expected.dark_e[c]
-    var_charge = expected.total_var_e2[:, c]
-    runs = label_runs(labels)
-    pieces = ([((slice(r0, r1), slice(c0, c1)), label) for r0, r1, c0, c1, label in runs] if runs is not None
-              else [(labels_of, None) for labels_of in _masks_by_kind(labels, plan.kind[:, c])])
-    simple = offset is None and gain is None
-    for where, label in pieces:
-        index = label if label is not None else labels[where]
-        first = label if label is not None else index[0]
-        kind = plan.kind[first, c]
-        zz = z[where]
-        g = None if gain is None else gain[where]
-        if kind == SATURATED:
-            value = sensor.full_well_e + zz if read > 0 else np.full(zz.shape, sensor.full_well_e)
-        elif kind in (GAUSSIAN, GAUSSIAN_CLIPPED):
-            signal = expected.signal_e[index, c]
-            mean = lam[index] if g is None else lam[index] + (g - 1) * signal
-            mean = mean if offset is None else mean + offset[where]
-            var = var_charge[index] if g is None else var_charge[index] + (g - 1) * expected.signal_var_e2[index, c]
-            if kind == GAUSSIAN and gaussian_z and simple and label is not None:
-                view = out_c[where]  # a rectangle: two in-place passes, straight into the output
-                np.multiply(zz, np.float32(k * np.sqrt(var + read**2) / z_scale), out=view)
-                view += np.float32(k * mean)
-                continue
-            normal = zz / z_scale if gaussian_z else rng.standard_normal(zz.shape, dtype=np.float32)
-            if kind == GAUSSIAN and gaussian_z:
-                value = mean + np.sqrt(var + read**2) * normal
-            else:  # charge as a normal, clipped, then the read noise from z
-                value = mean + np.sqrt(var) * normal
-                if kind == GAUSSIAN_CLIPPED:
-                    value = np.minimum(value, sensor.full_well_e)
-                if read > 0:
-                    value = value + (zz if not gaussian_z else read * rng.standard_normal(zz.shape, np.float32))
-        else:
-            size = out_c[where].shape if label is not None else None
-            charge = exact_charge(rng, expected, sensor, statistics, c, index, size, g)
-            if offset is not None:
-                charge = charge + offset[where]
-            if np.any(plan.needs_clip[index, c]):
-                charge = np.minimum(charge, sensor.full_well_e)
-            if simple and label is not None:
-                view = out_c[where]  # a rectangle: cast, add the read noise and scale in two passes
-                if read > 0:
-                    np.add(charge, zz, out=view, dtype=np.float32, casting="unsafe")
-                else:
-                    view[...] = charge
-                view *= np.float32(k)
-                continue
-            value = charge + zz if read > 0 else charge
-        out_c[where] = k * value
-
-
-def _masks_by_kind(labels, kinds_of_spectra):
-    """Boolean masks of the pixels of each drawing kind (for label maps without long runs, e.g. cubes)."""
-    per_pixel = kinds_of_spectra[labels]
-    return [per_pixel == kind for kind in np.unique(per_pixel)]
+    return DrawPlan(kind.astype(np.int8), np.where(above, 0.0, ks), tolerance, needs_clip)

@@ -1,0 +1,136 @@
+"""``poisson``, ``gaussian`` and ``auto``: every stage in one pass per channel, straight to digital numbers.
+
+A :class:`~camsim.methods.plan.DrawPlan` says how each spectrum and channel is drawn; :func:`fill_channel` then
+walks a block's rectangles of equal label (or, for a cube, its pixels grouped by kind) and writes DN before
+quantisation. The exact path composes the stage functions of :mod:`camsim.stages` (charge, DSNU offset, full
+well, read noise, gain); the Gaussian paths replace charge and read noise by one moment-matched normal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from camsim.expected import ExpectedSignal
+from camsim.kernels import label_runs, standard_normal_f32
+from camsim.methods.plan import EXACT, GAUSSIAN, GAUSSIAN_CLIPPED, SATURATED, DrawPlan
+from camsim.sensor import SensorParams, cfa_sites
+from camsim.stages import (
+    add_offset_e,
+    add_read_noise_e,
+    add_row_noise,
+    collect_charge_e,
+    draw_read_noise_e,
+    electrons_to_dn,
+    quantise_dn,
+    saturate_e,
+)
+
+
+def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor: SensorParams,
+                 statistics: str, c: int, rng, z, work, offset=None, gain=None):
+    """One channel of a block, in DN before quantisation, by the plan: ``out_c`` (h, w) float32 is written in place.
+
+    ``z`` (h, w) float32 and ``work`` are scratch. Each pixel uses one draw from ``z``: its read noise on the exact
+    path, or (rescaled) its whole Gaussian value; the clipped Gaussian, and the Gaussian under non-Gaussian read
+    noise, draw their own normals. ``offset`` (DSNU, e⁻) and ``gain`` (PRNU) are this block's fixed-pattern maps,
+    (h, w), or None.
+    """
+    k = sensor.dn_per_electron
+    read = sensor.read_noise_e if sensor.read_noise else 0.0
+    z_scale = read if read > 0 else 1.0
+    gaussian_z = sensor.gaussian_read_noise or read == 0
+    if read > 0:
+        draw_read_noise_e(rng, z, read, sensor.read_noise_model, sensor.tukey_lambda, work)
+    elif np.any(plan.kind[:, c] != EXACT):  # the Gaussian paths' normals
+        standard_normal_f32(rng, z, work, z_scale)
+    lam = expected.signal_e[:, c] + expected.dark_e[c]
+    var_charge = expected.total_var_e2[:, c]
+    runs = label_runs(labels)
+    pieces = ([((slice(r0, r1), slice(c0, c1)), label) for r0, r1, c0, c1, label in runs] if runs is not None
+              else [(labels_of, None) for labels_of in _masks_by_kind(labels, plan.kind[:, c])])
+    simple = offset is None and gain is None
+    for where, label in pieces:
+        index = label if label is not None else labels[where]
+        first = label if label is not None else index[0]
+        kind = plan.kind[first, c]
+        zz = z[where]
+        g = None if gain is None else gain[where]
+        if kind == SATURATED:  # far above the full well: the full well plus read noise, exactly
+            value = add_read_noise_e(sensor.full_well_e, zz) if read > 0 else np.full(zz.shape, sensor.full_well_e)
+        elif kind in (GAUSSIAN, GAUSSIAN_CLIPPED):
+            signal = expected.signal_e[index, c]
+            mean = lam[index] if g is None else lam[index] + (g - 1) * signal
+            mean = mean if offset is None else mean + offset[where]
+            var = var_charge[index] if g is None else var_charge[index] + (g - 1) * expected.signal_var_e2[index, c]
+            if kind == GAUSSIAN and gaussian_z and simple and label is not None:
+                view = out_c[where]  # a rectangle: two in-place passes, straight into the output
+                np.multiply(zz, np.float32(k * np.sqrt(var + read**2) / z_scale), out=view)
+                view += np.float32(k * mean)
+                continue
+            normal = zz / z_scale if gaussian_z else rng.standard_normal(zz.shape, dtype=np.float32)
+            if kind == GAUSSIAN and gaussian_z:
+                value = mean + np.sqrt(var + read**2) * normal
+            else:  # charge as a normal, clipped, then the read noise from z
+                value = mean + np.sqrt(var) * normal
+                if kind == GAUSSIAN_CLIPPED:
+                    value = saturate_e(value, sensor.full_well_e)
+                if read > 0:
+                    value = add_read_noise_e(value, zz if not gaussian_z
+                                             else read * rng.standard_normal(zz.shape, np.float32))
+        else:
+            size = out_c[where].shape if label is not None else None
+            charge = collect_charge_e(rng, expected.signal_e[index, c], expected.dark_e[c],
+                                      expected.signal_var_e2[index, c], statistics=statistics,
+                                      photon_noise=sensor.photon_noise, size=size, gain=g)
+            charge = add_offset_e(charge, None if offset is None else offset[where])
+            if np.any(plan.needs_clip[index, c]):
+                charge = saturate_e(charge, sensor.full_well_e)
+            if simple and label is not None:
+                view = out_c[where]  # a rectangle: cast, add the read noise and scale in two passes
+                if read > 0:
+                    add_read_noise_e(charge, zz, out=view)
+                else:
+                    view[...] = charge
+                electrons_to_dn(view, k, out=view)
+                continue
+            value = add_read_noise_e(charge, zz) if read > 0 else charge
+        out_c[where] = electrons_to_dn(value, k)
+
+
+def _masks_by_kind(labels, kinds_of_spectra):
+    """Boolean masks of the pixels of each drawing kind (for label maps without long runs, e.g. cubes)."""
+    per_pixel = kinds_of_spectra[labels]
+    return [per_pixel == kind for kind in np.unique(per_pixel)]
+
+
+def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None:
+    """Rows ``r0:r1`` of a frame by its plan: every channel (or CFA site) in one pass, then row noise and the ADC.
+
+    ``job`` is the frame's :class:`camsim.render.FrameJob`; ``scratch`` the thread's buffers.
+    """
+    sensor, plan, expected = job.sensor, job.plan, job.expected
+    block = job.noisy[:, r0:r1]  # work in place in the output
+    labels = job.labels[r0:r1]
+    offset, gain = job.maps_rows(r0, r1)
+    row_noise_dn = sensor.row_noise_e * sensor.dn_per_electron
+    if sensor.cfa is not None:  # each site of the 2 × 2 cell: its channel only
+        for dy, dx, c in cfa_sites(sensor.cfa):
+            site = (slice(dy, None, 2), slice(dx, None, 2))
+            sub_labels = np.ascontiguousarray(labels[site])
+            value = np.empty(sub_labels.shape, dtype=np.float32)
+            fill_channel(value, sub_labels, plan, expected, sensor, job.statistics, c, rng, np.empty_like(value),
+                         scratch.work, None if offset is None else offset[c][site],
+                         None if gain is None else gain[c][site])
+            block[0][site] = value
+        planes = [0]
+    else:
+        planes = range(3)
+    for p in planes:
+        if sensor.cfa is None:
+            fill_channel(block[p], labels, plan, expected, sensor, job.statistics, p, rng,
+                         scratch.plane[: r1 - r0], scratch.work, None if offset is None else offset[p],
+                         None if gain is None else gain[p])
+        if sensor.row_noise_e > 0:  # a physical row shares its offset, whatever the colour of its pixels
+            add_row_noise(block[p], row_noise_dn, rng)
+        if job.digital is not None:
+            quantise_dn(block[p], sensor.bits, out=job.digital[p, r0:r1])

@@ -1,0 +1,174 @@
+"""The one parameter schema: each parameter's name, type, unit, default, range and help, declared once.
+
+A parameter is declared where its dataclass is (``SensorParams`` in :mod:`camsim.sensor`, the render settings of
+:class:`camsim.scene.Scene`) with :func:`param`, which stores a :class:`Param` in the field's metadata. Everything
+else is derived from it: the dataclass's own validation (:func:`validate`), the scene-file reader's ``[sensor]``
+and ``[render]`` tables, the dataset spec's parameter types and choices, the command line's choices and its
+``--sensor NAME=VALUE`` option, the sidecar's keys and the analysis's grouping keys. So a new sensor parameter is
+one field in :class:`camsim.sensor.SensorParams` (plus the physics that uses it).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from camsim.errors import CamsimError
+
+KINDS = ("float", "int", "bool", "str", "rgb")
+_KIND_TEXT = {"float": "a number", "int": "an integer", "bool": "true or false", "str": "a string",
+              "rgb": "a number or a list of three numbers (R, G, B)"}
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter.
+
+    Attributes
+    ----------
+    name : str
+        Its key everywhere (scene files, dataset specs, ``--sensor``, sidecars), with its unit in the name.
+    kind : {'float', 'int', 'bool', 'str', 'rgb'}
+        ``rgb``: a number or a list of three (one per channel).
+    default : object
+    doc : str
+        One line for help texts.
+    unit : str
+        Unit, as printed ("" for unitless, names and switches).
+    low : float, optional
+        Smallest allowed value (inclusive).
+    above : float, optional
+        The value must be greater than this.
+    below : float, optional
+        The value must be less than this.
+    choices : tuple of str, optional
+        Allowed names (``kind = 'str'``).
+    optional : bool
+        None is allowed (written ``"none"`` in files and on the command line).
+    stage : bool
+        A sensor stage switch (grouped under ``stages`` in the sidecar; ``--disable`` on the command line).
+    sidecar : callable, optional
+        ``sidecar(obj) -> dict``: the sidecar keys this parameter writes (default ``{name: value}``).
+    """
+
+    name: str
+    kind: str
+    default: object
+    doc: str = ""
+    unit: str = ""
+    low: float | None = None
+    above: float | None = None
+    below: float | None = None
+    choices: tuple | None = None
+    optional: bool = False
+    stage: bool = False
+    sidecar: Callable[[object], dict] | None = None
+
+    def coerce(self, value, where: str = "", check_range: bool = True):
+        """``value`` checked and typed for this parameter (ints become floats where a float is meant).
+
+        ``check_range=False`` checks the type (and finiteness) only: for the bounds of a distribution.
+
+        Raises
+        ------
+        CamsimError
+            ``"<where>: <name> must be …, got …"`` for a value of the wrong type or out of range.
+        """
+        def bad(what):
+            return CamsimError(f"{where + ': ' if where else ''}{self.name} must be {what}, got {value!r}")
+
+        if value is None or (self.optional and value == "none"):
+            if self.optional:
+                return None
+            raise bad(_KIND_TEXT[self.kind])
+        if self.kind in ("float", "rgb"):
+            items = value if self.kind == "rgb" and isinstance(value, (list, tuple)) else [value]
+            if (self.kind == "rgb" and len(items) not in (1, 3)) or any(
+                    isinstance(v, bool) or not isinstance(v, (int, float)) for v in items):
+                raise bad(_KIND_TEXT[self.kind])
+            items = [float(v) for v in items]
+            for v in items:
+                if not math.isfinite(v):
+                    raise bad("a finite number")
+                if check_range:
+                    self._check_range(v, bad)
+            return items[0] if len(items) == 1 else items
+        if self.kind == "int":
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise bad("an integer")
+            if check_range:
+                self._check_range(value, bad)
+            return value
+        if self.kind == "bool":
+            if not isinstance(value, bool):
+                raise bad("true or false")
+            return value
+        if not isinstance(value, str):
+            raise bad("a string")
+        if self.choices is not None and value not in self.choices:
+            raise bad("one of " + ", ".join(self.choices))
+        return value
+
+    def _check_range(self, v, bad) -> None:
+        if self.above == 0 and self.below is None and not v > 0:
+            raise bad("a positive number")
+        if self.low is not None and not v >= self.low:
+            raise bad(f"≥ {self.low:g}")
+        if (self.above is not None and not v > self.above) or (self.below is not None and not v < self.below):
+            low = "" if self.above is None else f"> {self.above:g}"
+            high = "" if self.below is None else f"< {self.below:g}"
+            raise bad(" and ".join(filter(None, (low, high))))
+
+    def parse_text(self, text: str, where: str = ""):
+        """A command-line value (a TOML literal such as ``2.5``, ``[1, 2, 3]``, ``true``, or a bare name)."""
+        try:
+            value = tomllib.loads(f"v = {text}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text  # a bare name: RGGB, tukey-lambda, none
+        return self.coerce(value, where)
+
+    def help_text(self) -> str:
+        """``name (unit): doc [choices]`` for help texts."""
+        unit = f" ({self.unit})" if self.unit else ""
+        choices = f" [{', '.join(self.choices)}{', none' if self.optional else ''}]" if self.choices else ""
+        return f"{self.name}{unit}: {self.doc}{choices}"
+
+    def record(self, obj) -> dict:
+        """The sidecar keys of this parameter's value in ``obj``."""
+        if self.sidecar is not None:
+            return self.sidecar(obj)
+        value = getattr(obj, self.name)
+        return {self.name: list(value) if isinstance(value, tuple) else value}
+
+
+def param(default, kind: str, doc: str, unit: str = "", **checks):
+    """A dataclass field declaring a :class:`Param` (its name is the field's)."""
+    if kind not in KINDS:
+        raise ValueError(f"unknown parameter kind {kind!r}")
+    return dataclasses.field(default=default, metadata={"param": Param("", kind, default, doc, unit, **checks)})
+
+
+def params_of(cls) -> tuple[Param, ...]:
+    """The :class:`Param` of every field of dataclass ``cls`` declared with :func:`param`, in field order."""
+    return tuple(dataclasses.replace(f.metadata["param"], name=f.name)
+                 for f in dataclasses.fields(cls) if "param" in f.metadata)
+
+
+def validate(obj, where: str) -> None:
+    """Check and type every schema field of the frozen dataclass instance ``obj`` in place (``__post_init__``)."""
+    for p in params_of(type(obj)):
+        object.__setattr__(obj, p.name, p.coerce(getattr(obj, p.name), where))
+
+
+def record(obj) -> dict:
+    """The sidecar keys of every schema field of ``obj``, in field order; stage switches under ``stages``."""
+    out = {}
+    for p in params_of(type(obj)):
+        if p.stage:
+            out.setdefault("stages", {})[p.name] = getattr(obj, p.name)
+        else:
+            out.update(p.record(obj))
+    return out

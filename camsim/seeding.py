@@ -1,0 +1,84 @@
+"""Every seed camsim derives, in one place: one documented namespace per consumer.
+
+All randomness comes from numpy ``SeedSequence`` objects built here from a user's seed; no global generator is
+used anywhere. The namespaces (``spawn_key`` prefixes) keep consumers apart, so that no two ever draw the same
+stream:
+
+==========================  ===========================================================  ==================
+consumer                    seed sequence                                                function
+==========================  ===========================================================  ==================
+a scene frame               ``SeedSequence(seed, spawn_key=(crc32(label), crc32(repr(F))))``  :func:`frame_seed_sequence`
+  (``render``, ``dataset``,   ``label`` is the illuminant (render, dataset) or the
+  experiments)               experiment's series name
+a row block of a frame      child *b* of the frame's sequence (``spawn``)                :func:`block_generators`
+a sensor's fixed pattern    ``SeedSequence(sensor_seed, spawn_key=(0x46504E,))``,        :func:`fixed_pattern_generators`
+                            children 0 (DSNU) and 1 (PRNU)
+a dataset frame's seed      ``SeedSequence(spec seed, spawn_key=sha256(id)[:16] as 4      :func:`dataset_frame_seed`
+                            words)``, its first 64-bit word >> 11 (< 2^53)
+a dataset random parameter  ``SeedSequence(spec seed, spawn_key=(0xDA7A5E7, crc32(name)))`` :func:`dataset_parameter_generator`
+an EMVA 1288 frame          ``SeedSequence(seed, spawn_key=(kind, step, frame))``        :func:`emva_frame_seed_sequence`
+==========================  ===========================================================  ==================
+
+Frame keys have two words, dataset frame-seed keys four, parameter keys start with ``0xDA7A5E7`` and the fixed
+pattern's with ``0x46504E`` (neither a CRC-32 collision with a frame key in practice nor a small EMVA kind), so
+the namespaces are disjoint by the length or the first word of their keys.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import zlib
+
+import numpy as np
+
+#: First spawn-key word of the fixed-pattern maps ("FPN").
+FIXED_PATTERN_KEY = 0x46504E
+#: First spawn-key word of a dataset's random parameter streams.
+DATASET_PARAMETER_KEY = 0xDA7A5E7
+
+
+def frame_seed_sequence(seed: int, label: str, intensity_factor: float) -> np.random.SeedSequence:
+    """The seed sequence of one frame: a function of the run seed, the label (the illuminant) and F only.
+
+    So a frame is the same whether it is rendered alone or as part of a longer run.
+    """
+    key = (zlib.crc32(label.encode("utf-8")), zlib.crc32(repr(float(intensity_factor)).encode("ascii")))
+    return np.random.SeedSequence(entropy=seed, spawn_key=key)
+
+
+def block_generators(rng, count: int) -> list[np.random.Generator]:
+    """One generator per row block of a frame: child *b* of ``rng`` for block *b*.
+
+    ``rng`` is a ``Generator`` (spawned), a ``SeedSequence`` or an int seed (spawned into PCG64 generators), so
+    that a frame's output does not depend on how many threads draw its blocks.
+    """
+    if isinstance(rng, np.random.Generator):
+        return rng.spawn(count)
+    seed_seq = rng if isinstance(rng, np.random.SeedSequence) else np.random.SeedSequence(rng)
+    return [np.random.Generator(np.random.PCG64(child)) for child in seed_seq.spawn(count)]
+
+
+def fixed_pattern_generators(sensor_seed: int) -> tuple[np.random.Generator, np.random.Generator]:
+    """The generators of a sensor's DSNU and PRNU unit maps: a function of ``sensor_seed`` alone."""
+    offset_ss, gain_ss = np.random.SeedSequence(sensor_seed, spawn_key=(FIXED_PATTERN_KEY,)).spawn(2)
+    return np.random.Generator(np.random.PCG64(offset_ss)), np.random.Generator(np.random.PCG64(gain_ss))
+
+
+def dataset_frame_seed(spec_seed: int, frame_id: str) -> int:
+    """A dataset frame's seed: a function of the spec seed and the frame id only, below 2**53 (exact in JSON)."""
+    digest = hashlib.sha256(frame_id.encode("utf-8")).digest()
+    key = tuple(int.from_bytes(digest[i: i + 4], "little") for i in range(0, 16, 4))
+    state = np.random.SeedSequence(entropy=spec_seed, spawn_key=key).generate_state(1, np.uint64)[0]
+    return int(state) >> 11
+
+
+def dataset_parameter_generator(spec_seed: int, name: str) -> np.random.Generator:
+    """The stream of a dataset's random parameter ``name``: its draws do not move when others are added."""
+    stream = np.random.SeedSequence(entropy=spec_seed, spawn_key=(DATASET_PARAMETER_KEY,
+                                                                  zlib.crc32(name.encode("utf-8"))))
+    return np.random.default_rng(stream)
+
+
+def emva_frame_seed_sequence(seed: int, kind: int, step: int, frame: int) -> np.random.SeedSequence:
+    """The seed sequence of one EMVA 1288 frame: measurement ``kind``, irradiation ``step``, ``frame`` of it."""
+    return np.random.SeedSequence(seed, spawn_key=(kind, step, frame))

@@ -1,0 +1,153 @@
+"""The sensor's physical stages (Eqs. 4–12), one pure array function each: the only implementation of each.
+
+Every sampling method composes these (:mod:`camsim.methods`): the exact and the moment-matched methods run them
+fused per channel, straight to digital numbers; ``spectral`` runs them in sequence on electrons. Work stays in
+electrons until :func:`electrons_to_dn`.
+
+=============================  ====================================  ===========
+stage                          function                              unit
+=============================  ====================================  ===========
+photons + dark current         :func:`collect_charge_e`              e⁻
+DSNU (fixed dark offset)       :func:`add_offset_e`                  e⁻
+full well (Eq. 8)              :func:`saturate_e`                    e⁻
+read noise (Eqs. 7, 10)        :func:`draw_read_noise_e`,            e⁻
+                               :func:`add_read_noise_e`
+row noise                      :func:`add_row_noise`                 any
+gain G · G_Ve⁻ (Eq. 11)        :func:`electrons_to_dn`               e⁻ → DN
+ADC, nb bits (Eq. 11)          :func:`quantise_dn`                   DN
+=============================  ====================================  ===========
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from camsim.kernels import poisson, poisson_run, standard_normal_f32, tukey_lambda
+
+
+def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_var_e2=None, *,
+                     statistics: str = "pixel", photon_noise: bool = True, size=None, gain=None) -> np.ndarray:
+    """The charge S + D collected in the exposure, drawn exactly (Eqs. 4–6).
+
+    Parameters
+    ----------
+    signal_e : float or numpy.ndarray
+        Mean signal S̄ of each pixel (one value, with ``size`` giving the shape, or one per pixel). Unit: e⁻.
+    dark_e : float
+        Mean dark charge D̄ = σ²_dark · T. Unit: e⁻.
+    signal_var_e2 : float or numpy.ndarray, optional
+        Var S under ``paper`` statistics (Eq. 4), shaped like ``signal_e``. Unit: e⁻².
+    statistics : {'pixel', 'paper'}
+        ``pixel``: photons thinned by QE, so S + D ~ Poisson(S̄ + D̄), one draw. ``paper``: S = s · Poisson(S̄ / s),
+        s = Var S / S̄ (Eq. 4's mean and variance), plus D ~ Poisson(D̄).
+    photon_noise : bool
+        Off: S = S̄ exactly, plus D ~ Poisson(D̄).
+    size : tuple, optional
+        Shape of the draws when ``signal_e`` is one value (drawn as a histogram, :func:`camsim.kernels.poisson_run`).
+    gain : numpy.ndarray, optional
+        PRNU: a per-pixel factor on S̄ (and Var S), shape ``size``; the draws then have one mean per pixel.
+
+    Returns
+    -------
+    numpy.ndarray
+        Unit: e⁻ (float32 histogram draws, int64 or float64 otherwise).
+    """
+    S, D = signal_e, dark_e
+    shape = size if size is not None else np.shape(signal_e)
+    if gain is not None:  # per-pixel means: numpy's sampler, one mean per pixel
+        S = S * gain
+        size = None
+    if photon_noise and statistics == "pixel":  # one draw covers photons and dark current
+        return poisson(rng, S + D) if size is None else poisson_run(rng, S + D, size)
+    if photon_noise:
+        var = signal_var_e2 * (1 if gain is None else gain)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = np.where(S > 0, var / S, 0.0)
+            lam = np.where(step > 0, S / step, 0.0)
+        charge = step * poisson(rng, lam, size=size)
+    else:
+        charge = np.broadcast_to(np.asarray(S, dtype=np.float64), shape)
+    return charge + rng.poisson(D, size=shape) if D > 0 else charge
+
+
+def add_offset_e(charge_e: np.ndarray, offset_e: np.ndarray | None) -> np.ndarray:
+    """DSNU: add each pixel's fixed dark offset to its charge (before saturation). Unit: e⁻."""
+    return charge_e if offset_e is None else charge_e + offset_e
+
+
+def saturate_e(electrons: np.ndarray, full_well_e: float, out: np.ndarray | None = None) -> np.ndarray:
+    """f_sat: clip the collected charge at the full well (Eq. 8). Unit: e⁻ in, e⁻ out.
+
+    Float arrays keep their type; an integer count array becomes float64 (a full well may be fractional).
+    """
+    return np.minimum(electrons, float(full_well_e), out=out)
+
+
+def draw_read_noise_e(rng: np.random.Generator, out: np.ndarray, read_noise_e: float, model: str = "gaussian",
+                      tukey_shape: float = -0.1, work: np.ndarray | None = None) -> np.ndarray:
+    """Fill ``out`` with white read noise of standard deviation σ_read (Eqs. 7 and 10, referred to the charge).
+
+    The paper adds N(0, σ_read · G_Ve⁻) to the voltage; dividing by G_Ve⁻ gives this. ``gaussian``: float32
+    arrays draw with :func:`camsim.kernels.standard_normal_f32` (Box–Muller; ``work``, float32 of at least half
+    the size, is its scratch), float64 with numpy. ``tukey-lambda``: the Tukey λ law of shape ``tukey_shape``,
+    scaled to the same σ (heavier tails). Unit: e⁻.
+    """
+    if model == "tukey-lambda":
+        return tukey_lambda(rng, out, tukey_shape, read_noise_e)
+    if out.dtype == np.float32:
+        return standard_normal_f32(rng, out, work if work is not None else np.empty(out.size // 2, np.float32),
+                                   read_noise_e)
+    rng.standard_normal(out=out)
+    out *= read_noise_e
+    return out
+
+
+def add_read_noise_e(charge_e, noise_e: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """The charge plus its read noise (drawn by :func:`draw_read_noise_e`), into ``out`` if given. Unit: e⁻."""
+    return np.add(charge_e, noise_e, out=out, dtype=None if out is None else out.dtype, casting="unsafe")
+
+
+def add_row_noise(values: np.ndarray, row_noise: float, rng: np.random.Generator) -> np.ndarray:
+    """Temporal row noise: one Gaussian offset N(0, σ_row) per row of ``values`` (h, w), in place.
+
+    Unit: that of ``values`` (σ_row in the same unit: e⁻ on charge, σ_row · G · G_Ve⁻ on digital numbers).
+    """
+    values += rng.standard_normal((values.shape[0], 1), dtype=values.dtype) * values.dtype.type(row_noise)
+    return values
+
+
+def electrons_to_dn(electrons: np.ndarray, dn_per_electron: float, out: np.ndarray | None = None) -> np.ndarray:
+    """Readout and gain: I = G · G_Ve⁻ · e (Eqs. 8, 11 before quantisation). Unit: e⁻ in, DN out.
+
+    Float arrays keep their type; integer counts are converted to float64 first.
+    """
+    if not np.issubdtype(electrons.dtype, np.floating):
+        electrons = electrons.astype(np.float64)
+    return np.multiply(electrons, electrons.dtype.type(dn_per_electron), out=out)
+
+
+def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None) -> np.ndarray:
+    """nb-bit quantisation: the integer part of the DN, clipped to [0, 2^nb − 1] (Eq. 11).
+
+    Parameters
+    ----------
+    dn : numpy.ndarray, float
+        Unquantised digital numbers. Unit: DN.
+    out : numpy.ndarray, optional
+        Integer output array (uint8 for nb ≤ 8, uint16 otherwise).
+
+    Returns
+    -------
+    numpy.ndarray
+        Quantised digital numbers. Unit: DN.
+    """
+    # clip straight into the integer output: for values in [0, 2^nb − 1] the cast's truncation is the floor
+    if out is None:
+        out = np.empty(np.shape(dn), dtype=dn_dtype(bits))
+    np.clip(dn, 0, 2**bits - 1, out=out, casting="unsafe")
+    return out
+
+
+def dn_dtype(bits: int):
+    """The smallest unsigned integer type holding ``bits``-bit digital numbers."""
+    return np.uint8 if bits <= 8 else np.uint16
