@@ -184,7 +184,7 @@ def _apply_overrides(scene, args):
     if args.preset:
         changes["preset_name"] = args.preset
     if args.size:
-        if scene.cube is not None:
+        if scene.source.has_own_size:
             raise CamsimError("--size applies to chart scenes; a cube scene has the size of its cube")
         changes["width"], changes["height"] = parse_size(args.size)
     scene = scene.replace(**changes)

@@ -1,7 +1,8 @@
 """From a scene and one illuminant to spectral radiance: a label map plus K spectra.
 
-A chart gives K = patches + 1 (the surround) spectra. A cube is held the same way, with one label per pixel,
-so the renderer has a single path; but nothing per pixel is spectral for a chart.
+The scene's source gives its spectra (:mod:`camsim.sources`): a chart K = patches + 1 (the surround), a cube one
+per pixel, so the renderer has a single path; but nothing per pixel is spectral for a chart. Reflectances are
+lit by the illuminant and scaled to the scene's luminance; an emissive source keeps its own radiance.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import numpy as np
 from camsim.errors import CamsimError
 from camsim.photons import scale_to_luminance
 from camsim.scene import Scene
-from camsim.spectra import cmfs_on_grid, illuminant_spd, reflectance_set
+from camsim.spectra import cmfs_on_grid, illuminant_spd
 
 
 @dataclass(frozen=True)
@@ -51,27 +52,11 @@ def scene_radiance(scene: Scene, illuminant: str) -> SceneRadiance:
     ybar = cmfs_on_grid(grid)[1]
     spd = illuminant_spd(illuminant, grid)
     white = scale_to_luminance(spd, ybar, grid.step_nm, scene.luminance_cd_m2)
-    if scene.chart is not None:
-        names, refl = reflectance_set(scene.chart.reflectances, grid, scene.base_dir)
-        geometry = scene.chart.geometry
-        if len(names) != geometry.n_patches:
-            raise CamsimError(
-                f"reflectance set {scene.chart.reflectances!r} has {len(names)} spectra but the chart is "
-                f"{geometry.columns} × {geometry.rows}"
-            )
-        refl = np.vstack([refl, np.full((1, grid.size), scene.chart.surround_reflectance)])
-        labels = geometry.label_map(scene.width, scene.height)
-        rects = geometry.rects(scene.width, scene.height)
-        label = scene.chart.reflectances
-    else:
-        cube = load_cube(scene.cube.path, grid.size)
-        height, width = cube.shape[:2]
-        labels = np.arange(height * width, dtype=np.uint32).reshape(height, width)
-        refl, names, rects = cube.reshape(-1, grid.size), [], []
-        label = scene.cube.path.name
-        if scene.cube.kind == "radiance":
-            return SceneRadiance(labels, refl, white, names, rects, label)
-    if scene.normalisation == "chart":
+    source = scene.source.spectra(grid, scene.width, scene.height)
+    refl = source.spectra
+    if source.kind == "radiance":  # emissive: its own absolute scale
+        radiance = refl
+    elif scene.normalisation == "chart":
         radiance = refl * white
     else:
         radiance = np.empty_like(refl)
@@ -80,27 +65,4 @@ def scene_radiance(scene: Scene, illuminant: str) -> SceneRadiance:
             if not np.any(lit > 0):
                 raise CamsimError(f"spectrum {k} is black under {illuminant}: it cannot be scaled to a luminance")
             radiance[k] = scale_to_luminance(lit, ybar, grid.step_nm, scene.luminance_cd_m2)
-    return SceneRadiance(labels, radiance, white, names, rects, label)
-
-
-def load_cube(path, n_bins: int) -> np.ndarray:
-    """Load a hyperspectral cube (``.npy``, H × W × N, float) and check it against the scene grid."""
-    try:
-        cube = np.load(path, allow_pickle=False)
-    except FileNotFoundError:
-        raise CamsimError(f"cube file not found: {path}") from None
-    except (OSError, ValueError, EOFError) as exc:
-        raise CamsimError(f"cannot read cube file {path}: {exc}") from None
-    if cube.ndim != 3:
-        raise CamsimError(f"cube {path} must be H × W × N, got shape {cube.shape}")
-    if cube.shape[2] != n_bins:
-        raise CamsimError(
-            f"cube {path} has {cube.shape[2]} wavelength bins but the scene's grid has {n_bins}: "
-            "set [spectral] to the cube's grid"
-        )
-    cube = np.asarray(cube, dtype=np.float64)
-    if not np.all(np.isfinite(cube)):
-        raise CamsimError(f"cube {path} contains NaN or infinite values")
-    if np.any(cube < 0):
-        raise CamsimError(f"cube {path} has negative values")
-    return cube
+    return SceneRadiance(source.labels, radiance, white, source.patch_names, source.patch_rects, source.name)

@@ -24,7 +24,7 @@ def check_scene(scene: Scene) -> None:
     get_method(scene.method)
     for name in scene.illuminants:
         illuminant_spd(name, scene.grid)
-    if scene.chart is not None and scene.sensor.quantisation and min(scene.width, scene.height) < MIN_SIZE:
+    if not scene.source.has_own_size and scene.sensor.quantisation and min(scene.width, scene.height) < MIN_SIZE:
         raise CamsimError(f"frame {scene.width}x{scene.height} is smaller than {MIN_SIZE}x{MIN_SIZE} pixels, "
                           "which raw readers (LibRaw) refuse")
 

@@ -1,8 +1,9 @@
 """Scene files (TOML): what is in front of the camera, and the camera and sensor that look at it.
 
-A scene is either a *chart* (a reflectance set laid out as a grid of patches on a surround: a label map plus
-K spectra) or a hyperspectral *cube* (a ``.npy`` array H × W × N of reflectance or radiance). The full schema
-is documented in the README; unknown keys are errors, so a typo never goes unnoticed.
+What is in front of the camera is a scene *source* read from its own table (:data:`camsim.sources.SOURCES`:
+``[chart]``, a reflectance set laid out as a grid of patches on a surround, a label map plus K spectra; or
+``[cube]``, a ``.npy`` array H × W × N of reflectance or radiance). The full schema is documented in the README;
+unknown keys are errors, so a typo never goes unnoticed.
 """
 
 from __future__ import annotations
@@ -15,33 +16,16 @@ from pathlib import Path
 import numpy as np
 
 from camsim.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
-from camsim.chart import ChartGeometry
 from camsim.errors import CamsimError
 from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
 from camsim.schema import Param, param, params_of, validate
 from camsim.sensor import PRESETS, SENSOR_PARAMS, SensorParams, preset
+from camsim.sources import SOURCES, ChartSource, SceneSource
+from camsim.sources.base import typed
 from camsim.spectra import WavelengthGrid
 
 STATISTICS = ("pixel", "paper")
 NORMALISATIONS = ("chart", "per-spectrum")
-CUBE_KINDS = ("reflectance", "radiance")
-
-
-@dataclass(frozen=True)
-class ChartSpec:
-    """A reflectance chart: its reflectance set, geometry and surround."""
-
-    reflectances: str = "ColorChecker N Ohta"
-    geometry: ChartGeometry = field(default_factory=ChartGeometry)
-    surround_reflectance: float = 0.05
-
-
-@dataclass(frozen=True)
-class CubeSpec:
-    """A hyperspectral cube scene: ``path`` holds an H × W × N array on the scene's wavelength grid."""
-
-    path: Path
-    kind: str = "reflectance"
 
 
 @dataclass(frozen=True)
@@ -54,8 +38,10 @@ class Scene:
         F values: the light level is F · L (F > 0; F > 1 saturates).
     luminance_cd_m2 : float
         Luminance of the perfect white (``chart`` normalisation) or of each spectrum (``per-spectrum``) at F = 1.
+    source : SceneSource
+        What is in front of the camera (:data:`camsim.sources.SOURCES`): a chart by default.
     width, height : int
-        Frame size in pixels (charts; a cube's size is its own).
+        Frame size in pixels (unless the source has a size of its own, as a cube has).
     """
 
     name: str
@@ -64,8 +50,7 @@ class Scene:
     intensity_factors: tuple = (1.0,)
     luminance_cd_m2: float = 100.0
     normalisation: str = "chart"
-    chart: ChartSpec | None = None
-    cube: CubeSpec | None = None
+    source: SceneSource = field(default_factory=ChartSource)
     width: int = 600
     height: int = 400
     camera: str = DEFAULT_CAMERA
@@ -83,8 +68,8 @@ class Scene:
     base_dir: Path | None = None
 
     def __post_init__(self):
-        if (self.chart is None) == (self.cube is None):
-            raise CamsimError("a scene needs exactly one of [chart] or [cube]")
+        if not isinstance(self.source, SceneSource):
+            raise CamsimError(f"a scene's source must be a scene source, got {self.source!r}")
         if not self.illuminants:
             raise CamsimError("scene lists no illuminants")
         for f in self.intensity_factors:
@@ -134,7 +119,7 @@ def read_toml(path: Path, what: str) -> dict:
         raise CamsimError(f"cannot read {what} {path}: {exc}") from None
 
 
-_TOP_KEYS = {"name", "description", "spectral", "chart", "cube", "light", "frame", "camera", "sensor", "render"}
+_TOP_KEYS = {"name", "description", "spectral", "light", "frame", "camera", "sensor", "render", *SOURCES}
 
 
 def _table(doc: dict, key: str, allowed: set, where: str) -> dict:
@@ -147,16 +132,6 @@ def _table(doc: dict, key: str, allowed: set, where: str) -> dict:
     return table
 
 
-def _typed(table: dict, key: str, kind, default, where: str):
-    if key not in table:
-        return default
-    value = table[key]
-    if kind is float and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
-    if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
-        name = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
-        raise CamsimError(f"{where}: {key} must be of type {name}, got {value!r}")
-    return value
 
 
 def load_scene(path: str | Path) -> Scene:
@@ -177,43 +152,21 @@ def load_scene(path: str | Path) -> Scene:
 
     spectral = _table(doc, "spectral", {"start_nm", "end_nm", "step_nm"}, where)
     grid = WavelengthGrid(
-        _typed(spectral, "start_nm", float, 380.0, where),
-        _typed(spectral, "end_nm", float, 780.0, where),
-        _typed(spectral, "step_nm", float, 4.0, where),
+        typed(spectral, "start_nm", float, 380.0, where),
+        typed(spectral, "end_nm", float, 780.0, where),
+        typed(spectral, "step_nm", float, 4.0, where),
     )
     light = _table(doc, "light", {"illuminants", "luminance_cd_m2", "intensity_factors", "normalisation"}, where)
-    illuminants = _typed(light, "illuminants", list, ["D65"], where)
+    illuminants = typed(light, "illuminants", list, ["D65"], where)
     if not all(isinstance(name, str) for name in illuminants):
         raise CamsimError(f"{where}: illuminants must be a list of names")
-    factors = _typed(light, "intensity_factors", list, [1.0], where)
+    factors = typed(light, "intensity_factors", list, [1.0], where)
     frame = _table(doc, "frame", {"width", "height"}, where)
-    chart = cube = None
-    if "chart" in doc:
-        table = _table(
-            doc, "chart",
-            {"reflectances", "columns", "rows", "gap_fraction", "margin_fraction", "surround_reflectance"}, where,
-        )
-        surround = _typed(table, "surround_reflectance", float, 0.05, where)
-        if not 0 <= surround <= 1:
-            raise CamsimError(f"{where}: surround_reflectance must be in [0, 1], got {surround}")
-        chart = ChartSpec(
-            reflectances=_typed(table, "reflectances", str, "ColorChecker N Ohta", where),
-            geometry=ChartGeometry(
-                columns=_typed(table, "columns", int, 6, where),
-                rows=_typed(table, "rows", int, 4, where),
-                gap_fraction=_typed(table, "gap_fraction", float, 0.15, where),
-                margin_fraction=_typed(table, "margin_fraction", float, 0.04, where),
-            ),
-            surround_reflectance=surround,
-        )
-    if "cube" in doc:
-        table = _table(doc, "cube", {"path", "kind"}, where)
-        if "path" not in table:
-            raise CamsimError(f"{where}: [cube] needs a path to an H × W × N .npy file")
-        kind = _typed(table, "kind", str, "reflectance", where)
-        if kind not in CUBE_KINDS:
-            raise CamsimError(f"{where}: [cube] kind must be one of {CUBE_KINDS}, got {kind!r}")
-        cube = CubeSpec(path=base_dir / _typed(table, "path", str, "", where), kind=kind)
+    tables = [name for name in SOURCES if name in doc]
+    if len(tables) != 1:
+        raise CamsimError(f"{where}: a scene needs exactly one of " + " or ".join(f"[{n}]" for n in SOURCES))
+    source_cls = SOURCES[tables[0]]
+    source = source_cls.from_table(_table(doc, source_cls.table, source_cls.keys, where), base_dir, where)
 
     camera = _table(doc, "camera", {"name", "sensitivity_basis", "scale"}, where)
     scale_table = camera.get("scale", {})
@@ -228,7 +181,7 @@ def load_scene(path: str | Path) -> Scene:
     unknown = set(scale_table) - scale_fields - {"kind"}
     if unknown:
         raise CamsimError(f"{where}: unknown key(s) in [camera.scale] ({scale_kind}): {', '.join(sorted(unknown))}")
-    scale = scale_cls(**{k: _typed(scale_table, k, float, None, where) for k in scale_table if k != "kind"})
+    scale = scale_cls(**{k: typed(scale_table, k, float, None, where) for k in scale_table if k != "kind"})
 
     sensor_table = dict(_table(doc, "sensor", {"preset"} | {p.name for p in SENSOR_PARAMS}, where))
     preset_name = sensor_table.pop("preset", "paper-table1")
@@ -241,18 +194,17 @@ def load_scene(path: str | Path) -> Scene:
     render = _table(doc, "render", {p.name for p in RENDER_PARAMS}, where)
     render = {p.name: p.coerce(render[p.name], f"{where} [render]") for p in RENDER_PARAMS if p.name in render}
     return Scene(
-        name=_typed(doc, "name", str, path.stem, where),
+        name=typed(doc, "name", str, path.stem, where),
         grid=grid,
         illuminants=tuple(illuminants),
         intensity_factors=tuple(float(f) if isinstance(f, int) else f for f in factors),
-        luminance_cd_m2=_typed(light, "luminance_cd_m2", float, 100.0, where),
-        normalisation=_typed(light, "normalisation", str, "chart", where),
-        chart=chart,
-        cube=cube,
-        width=_typed(frame, "width", int, 600, where),
-        height=_typed(frame, "height", int, 400, where),
-        camera=_typed(camera, "name", str, DEFAULT_CAMERA, where),
-        sensitivity_basis=_typed(camera, "sensitivity_basis", str, "energy", where),
+        luminance_cd_m2=typed(light, "luminance_cd_m2", float, 100.0, where),
+        normalisation=typed(light, "normalisation", str, "chart", where),
+        source=source,
+        width=typed(frame, "width", int, 600, where),
+        height=typed(frame, "height", int, 400, where),
+        camera=typed(camera, "name", str, DEFAULT_CAMERA, where),
+        sensitivity_basis=typed(camera, "sensitivity_basis", str, "energy", where),
         scale=scale,
         preset_name=preset_name,
         sensor_overrides=tuple(sorted(sensor_table.items())),

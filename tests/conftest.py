@@ -10,7 +10,8 @@ from camsim.camera import AnchorScale, load_camera  # noqa: E402
 from camsim.chart import ChartGeometry  # noqa: E402
 from camsim.pipeline import light_scene, make_frame  # noqa: E402
 from camsim.radiance import scene_radiance  # noqa: E402
-from camsim.scene import ChartSpec, Scene  # noqa: E402
+from camsim.scene import Scene  # noqa: E402
+from camsim.sources import ChartSource  # noqa: E402
 from camsim.spectra import WavelengthGrid  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -23,7 +24,7 @@ def small_scene(**changes) -> Scene:
         name="test",
         grid=WavelengthGrid(),
         illuminants=("D65",),
-        chart=ChartSpec(geometry=ChartGeometry(gap_fraction=0.1, margin_fraction=0.02)),
+        source=ChartSource(geometry=ChartGeometry(gap_fraction=0.1, margin_fraction=0.02)),
         width=720,
         height=480,
     )

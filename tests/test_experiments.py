@@ -63,10 +63,10 @@ def test_each_experiment_writes_report_numbers_and_figures(experiments, name):
 
 def test_data_points_rule():
     scene = load_scene(SCENE)
-    points, radiance = data_points(scene.chart.reflectances, scene.illuminants, scene.grid)
+    points, radiance = data_points(scene.source.reflectances, scene.illuminants, scene.grid)
     assert len(points) == 20 and sum(p.on_hull for p in points) == 13
     assert [p.number for p in points] == list(range(1, 21))
-    _, _, xy = colour_signals(scene.chart.reflectances, scene.illuminants, scene.grid)
+    _, _, xy = colour_signals(scene.source.reflectances, scene.illuminants, scene.grid)
     from scipy.spatial import ConvexHull, Delaunay
 
     hull = ConvexHull(xy)

@@ -311,14 +311,14 @@ def load_spec(path: str | Path) -> DatasetSpec:
     for scene_file in scene_files:
         scene_path = (base / scene_file).resolve()
         scene = load_scene(scene_path)
-        if scene.cube is not None and "frame" in doc:
-            raise CamsimError(f"{where}: [frame] sets a size, but {scene_file} is a cube scene, whose size is "
-                              "its cube's")
-        if scene.cube is not None:  # a cube's size is its own: read it from the file's header
+        if scene.source.has_own_size and "frame" in doc:
+            raise CamsimError(f"{where}: [frame] sets a size, but {scene_file} is a {scene.source.table} scene, "
+                              "whose size is its own")
+        if scene.source.has_own_size:  # a cube's size is its own: read it from the file's header
             try:
-                height_px, width_px = np.load(scene.cube.path, mmap_mode="r", allow_pickle=False).shape[:2]
-            except (OSError, ValueError) as exc:
-                raise CamsimError(f"{where}: cannot read cube {scene.cube.path}: {exc}") from None
+                width_px, height_px = scene.source.own_size()
+            except CamsimError as exc:
+                raise CamsimError(f"{where}: {exc}") from None
         else:
             width_px, height_px = width, height
         scenes.append((scene_file, scene_path, scene.replace(width=int(width_px), height=int(height_px)),
@@ -388,7 +388,7 @@ def _frame(index, repeat, params, scene_file, scene_path, scene: Scene, scene_di
         if key not in checked:
             checked[key] = load_camera(frame_scene.camera, frame_scene.grid, frame_scene.sensitivity_basis,
                                        frame_scene.base_dir).name
-        if sensor.cfa is not None and frame_scene.chart is not None and (scene.width % 2 or scene.height % 2):
+        if sensor.cfa is not None and not frame_scene.source.has_own_size and (scene.width % 2 or scene.height % 2):
             raise CamsimError(f"a {sensor.cfa} colour filter array needs an even frame size, got "
                               f"{scene.width}x{scene.height}")
         if sensor.prnu_percent > 0 and frame_scene.method == "spectral":

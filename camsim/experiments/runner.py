@@ -56,7 +56,7 @@ def prepare(setup: Setup) -> Prepared:
     """The data points' chart, the camera and its Qe (anchored on the D65 perfect white at 100 cd/m²)."""
     scene = load_scene(setup.scene_file)
     grid = scene.grid
-    points, spectra = data_points(scene.chart.reflectances, scene.illuminants, grid)
+    points, spectra = data_points(scene.source.reflectances, scene.illuminants, grid)
     points, spectra = points[: setup.n_points], spectra[: setup.n_points]
     radiance = points_radiance(points, spectra, grid, setup.width, setup.height)
     camera = load_camera(setup.camera or scene.camera, grid, scene.sensitivity_basis, scene.base_dir)
