@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from camsim.analysis.frames import find_frames, load_frame
+from camsim.frame_files import find_frames, load_frame
 from camsim.analysis.patches import AnalysisSettings, analyse_frame, frame_matrix
 from camsim.errors import CamsimError
 from camsim.io.atomic import write_json_atomic, write_text_atomic

@@ -30,7 +30,7 @@ from camsim.analysis.analyze import group_key
 from camsim.analysis.colorimetry import chromaticity_xy, xyz_from_camera
 from camsim.analysis.delta_e import delta_e_5step, reference_lab
 from camsim.analysis.ellipse import fit_ellipse
-from camsim.analysis.frames import load_frame
+from camsim.frame_files import load_frame
 from camsim.analysis.patches import frame_matrix, patch_samples
 from camsim.errors import CamsimError
 

@@ -21,7 +21,7 @@ from matplotlib.colors import Normalize  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
 from camsim.analysis.colorimetry import chromaticity_xy, xyz_from_camera  # noqa: E402
-from camsim.analysis.frames import load_frame  # noqa: E402
+from camsim.frame_files import load_frame  # noqa: E402
 from camsim.analysis.patches import AnalysisSettings, frame_matrix, patch_samples  # noqa: E402
 from camsim.errors import CamsimError  # noqa: E402
 
