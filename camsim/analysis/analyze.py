@@ -39,12 +39,34 @@ def group_key(meta: dict) -> str:
     return json.dumps([meta.get(key) for key in GROUP_KEYS], sort_keys=True)
 
 
-def analyse_paths(paths, settings: AnalysisSettings, source="dng", dark_frame=None, progress=True) -> list[dict]:
+def analyse_paths(paths, settings: AnalysisSettings | None = None, source="dng", dark_frame=None,
+                  progress=True) -> list[dict]:
     """Analyse every frame named by ``paths``; returns one result per frame (metadata + patch records).
+
+    Parameters
+    ----------
+    paths : iterable of str or Path
+        Frame files (``.dng`` with its sidecar, ``.exr``) or folders searched recursively.
+    settings : AnalysisSettings, optional
+        Border, black-level mode and camera → XYZ matrix (default ``AnalysisSettings()``: the paper's way).
+    source : {'dng', 'exr'}
+        Which file of a frame to measure when both exist: the digital numbers or the signal before quantisation.
+    dark_frame : str or Path, optional
+        A dark frame whose per-channel mean is the black level (with ``settings.black == 'dark-frame'``).
+    progress : bool
+        Show a progress bar.
+
+    Returns
+    -------
+    list of dict
+        Per frame: ``frame_file``, ``source``, the sidecar's scene, illuminant, F, statistics, method and seed,
+        the black level used and ``patches`` (per patch and channel: mean, variance and SNR in DN and e⁻; the xy
+        ellipse; ΔE_ab against the same patch at F = 1).
 
     Frames are taken group by group (same measurement at different F), the F = 1 frame first, so that its
     patches' mean Lab serves as the ΔE reference of the others.
     """
+    settings = AnalysisSettings() if settings is None else settings
     files = find_frames(paths, source)
     dark_black = None
     if settings.black == "dark-frame":
