@@ -10,7 +10,6 @@ import textwrap
 
 import numpy as np
 import pytest
-from conftest import ROOT
 
 from camsim.denoise.cli import add_parser, run
 from camsim.denoise.denoisers import (
@@ -26,6 +25,7 @@ from camsim.denoise.evaluate import Criterion, EvalSettings, evaluate, verdict
 from camsim.errors import CamsimError
 from camsim.run import render_scene
 from camsim.scene import load_scene
+from tests.helpers import ROOT
 
 FACTORS = (1.0, 0.1, 0.01)
 SIZE = (192, 128)

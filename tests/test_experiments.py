@@ -8,7 +8,6 @@ import json
 
 import numpy as np
 import pytest
-from conftest import ROOT
 
 from camsim.cli import main
 from camsim.experiments.datapoints import colour_signals, data_points, select_points
@@ -16,6 +15,7 @@ from camsim.experiments.runner import Setup
 from camsim.experiments.scenarios import run_experiment
 from camsim.scene import load_scene
 from camsim.spectra import cmfs_on_grid
+from tests.helpers import ROOT
 
 SCENE = ROOT / "scenes" / "macbeth_26.toml"
 #: finding -> (holds in paper statistics, holds in pixel statistics), as the reports state at full size

@@ -2,9 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import ROOT, WHITE, patch_pixels, render, small_scene
 from scipy import stats
-from theory import assert_mean_var, digital_pmf, pmf_moments
 
 from camsim.expected import expected_signal
 from camsim.gaussian import (
@@ -17,6 +15,8 @@ from camsim.gaussian import (
     predicted_ks,
 )
 from camsim.sensor import PRESETS, preset
+from tests.helpers import ROOT, WHITE, patch_pixels, render, small_scene
+from tests.theory import assert_mean_var, digital_pmf, pmf_moments
 
 TABLE1 = PRESETS["paper-table1"]
 IDEAL = PRESETS["ideal"]

@@ -6,11 +6,11 @@ errors of the model's values.
 
 import numpy as np
 import pytest
-from conftest import WHITE, patch_pixels, render, small_scene
 from scipy import stats
-from theory import assert_mean_var, digital_pmf, pmf_moments
 
 from camsim.sensor import PRESETS, preset
+from tests.helpers import WHITE, patch_pixels, render, small_scene
+from tests.theory import assert_mean_var, digital_pmf, pmf_moments
 
 TABLE1 = PRESETS["paper-table1"]
 IDEAL = PRESETS["ideal"]
