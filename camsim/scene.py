@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from camsim.builtin_scenes import resolve_scene_file
 from camsim.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
 from camsim.chart import ChartGeometry
 from camsim.errors import CamsimError
@@ -148,14 +149,16 @@ def _typed(table: dict, key: str, kind, default, where: str):
 
 
 def load_scene(path: str | Path) -> Scene:
-    """Read and validate a scene file.
+    """Read and validate a scene file, given by its path or by a built-in scene's name (``macbeth_26``).
+
+    An existing file always wins; a name (no ``/``, no ``.toml``) is looked up in :mod:`camsim.builtin_scenes`.
 
     Raises
     ------
     CamsimError
-        For a missing or malformed file, unknown keys, or values of the wrong type or range.
+        For a missing or malformed file, an unknown name, unknown keys, or values of the wrong type or range.
     """
-    path = Path(path)
+    path = resolve_scene_file(path)
     where = str(path)
     doc = read_toml(path, "scene file")
     unknown = set(doc) - _TOP_KEYS
