@@ -105,6 +105,7 @@ def _can_build_wheels_offline() -> bool:
     return setuptools is not None and (setuptools >= (70, 1) or version("wheel") is not None)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not _can_build_wheels_offline(),
                     reason="building a wheel offline needs setuptools >= 70.1, or wheel: pip install -e '.[test]'")
 def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):

@@ -226,6 +226,7 @@ def _assert_no_nan(path):
                     pass  # text or empty (undefined, counted)
 
 
+@pytest.mark.slow
 def test_cli_outputs_report_and_comparison(dataset_with_bayer, tmp_path, capsys):
     out = tmp_path / "eval"
     assert _cli(["denoise-eval", str(dataset_with_bayer), "--denoiser", "identity", "-d", "nl-means",
@@ -250,6 +251,7 @@ def test_cli_outputs_report_and_comparison(dataset_with_bayer, tmp_path, capsys)
     assert "nl-means preserves colour down to F =" in printed and "skipped 1 file" in printed
 
 
+@pytest.mark.slow
 def test_cli_criterion_options_and_default_out(dataset, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert _cli(["denoise-eval", str(dataset), "-d", "identity", "--max-delta-e", "1e9", "--max-bias", "1", "-q"]) == 0

@@ -36,6 +36,7 @@ def experiments(tmp_path_factory):
     return out, done
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_findings_hold_as_reported(experiments, name):
     out, done = experiments
@@ -44,6 +45,7 @@ def test_findings_hold_as_reported(experiments, name):
         assert verdicts[key] == expected, (name, key, [f.verdicts for f in done[name] if f.key == key])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_each_experiment_writes_report_numbers_and_figures(experiments, name):
     out, done = experiments
@@ -94,6 +96,7 @@ def test_data_points_rule():
     assert [order[i] for i in hull_shuffled] == hull_idx and [order[i] for i in inside_shuffled] == inside_idx
 
 
+@pytest.mark.slow
 def test_experiment_cli(tmp_path, capsys):
     code = main(["experiment", "scenario2", "--size", "125x100", "--out", str(tmp_path / "s2"), "-q"])
     assert code == 0

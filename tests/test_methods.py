@@ -70,6 +70,7 @@ def test_gaussian_breaks_at_low_counts(lam):
     assert np.all(plan.kind == EXACT) and plan.predicted_ks[0, 0] > DEFAULT_TOLERANCE
 
 
+@pytest.mark.slow
 def test_auto_never_picks_the_gaussian_outside_its_valid_range():
     rng = np.random.default_rng(0)
     for _ in range(40):
