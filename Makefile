@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup run test bench clean
+.PHONY: setup run test test-fast bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,10 @@ run: $(STAMP)
 ## Set up, then run the test suite
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+## Set up, then run the test suite without the tests marked slow (about a quarter of the time)
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest -q -m "not slow"
 
 ## Set up, then run the W1 speed/memory benchmark (prints a JSON line last)
 bench: $(STAMP)

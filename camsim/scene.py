@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from camsim.builtin_scenes import resolve_scene_file
 from camsim.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
 from camsim.errors import CamsimError
 from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
@@ -135,14 +136,16 @@ def _table(doc: dict, key: str, allowed: set, where: str) -> dict:
 
 
 def load_scene(path: str | Path) -> Scene:
-    """Read and validate a scene file.
+    """Read and validate a scene file, given by its path or by a built-in scene's name (``macbeth_26``).
+
+    An existing file always wins; a name (no ``/``, no ``.toml``) is looked up in :mod:`camsim.builtin_scenes`.
 
     Raises
     ------
     CamsimError
-        For a missing or malformed file, unknown keys, or values of the wrong type or range.
+        For a missing or malformed file, an unknown name, unknown keys, or values of the wrong type or range.
     """
-    path = Path(path)
+    path = resolve_scene_file(path)
     where = str(path)
     doc = read_toml(path, "scene file")
     unknown = set(doc) - _TOP_KEYS

@@ -6,12 +6,12 @@ import shutil
 
 import numpy as np
 import pytest
-from conftest import ROOT, small_scene
 
 from camsim.analysis.analyze import analyse_paths
 from camsim.analysis.patches import AnalysisSettings
 from camsim.cli import main
 from camsim.run import render_scene
+from tests.helpers import ROOT, small_scene
 
 SCENE = ROOT / "scenes" / "macbeth_26.toml"
 

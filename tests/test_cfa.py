@@ -5,8 +5,6 @@ import json
 import numpy as np
 import pytest
 import rawpy
-from conftest import WHITE, render, small_scene
-from theory import assert_mean_var, digital_pmf, pmf_moments
 
 from camsim.analysis.analyze import analyse_paths
 from camsim.analysis.patches import AnalysisSettings
@@ -14,6 +12,8 @@ from camsim.io.exr import read_exr, read_exr_oiio
 from camsim.seeding import frame_seed_sequence
 from camsim.run import render_scene
 from camsim.sensor import CFA_PATTERNS, cfa_sites, preset
+from tests.helpers import WHITE, render, small_scene
+from tests.theory import assert_mean_var, digital_pmf, pmf_moments
 
 RAW_PATTERN = {"RGGB": [[0, 1], [3, 2]], "BGGR": [[2, 3], [1, 0]], "GRBG": [[1, 0], [2, 3]], "GBRG": [[3, 2], [0, 1]]}
 

@@ -4,9 +4,9 @@ import json
 
 import numpy as np
 import pytest
-from conftest import ROOT
 
 from camsim.cli import main
+from tests.helpers import ROOT
 
 SCENE = ROOT / "scenes" / "macbeth_26.toml"
 SMALL = ["--size", "120x80", "-q"]

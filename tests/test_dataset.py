@@ -234,6 +234,7 @@ def test_an_interrupted_run_keeps_its_completed_frames(serial, spec_path, tmp_pa
     assert_same_frames(out, reference)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("start_method", [None, "spawn"])  # None: the preloaded fork server (POSIX)
 def test_local_processes_give_the_serial_bytes(serial, spec_path, tmp_path, monkeypatch, start_method):
     reference, _ = serial
@@ -243,6 +244,7 @@ def test_local_processes_give_the_serial_bytes(serial, spec_path, tmp_path, monk
     assert_same_frames(tmp_path / "out", reference)
 
 
+@pytest.mark.slow
 def test_dask_local_cluster_gives_the_serial_bytes(serial, spec_path, tmp_path):
     distributed = pytest.importorskip("distributed")
     reference, _ = serial

@@ -30,6 +30,7 @@ def _rel(entry):
     return abs(entry["recovered"] / entry["configured"] - 1)
 
 
+@pytest.mark.slow
 def test_cli_writes_the_report_and_meets_the_targets(tmp_path, capsys):
     out = tmp_path / "emva"
     assert main(["emva", "--size", "128", "--seed", "3", "--out", str(out), "-q"]) == 0

@@ -39,6 +39,7 @@ def assert_pngs(out_dir, figures, keys):
         assert image.shape[0] >= 300 and image.shape[1] >= 300
 
 
+@pytest.mark.slow
 def test_scenario_figures(analysed, tmp_path):
     results, points = analysed
     pixel = copy.deepcopy(results)
@@ -54,12 +55,14 @@ def test_scenario_figures(analysed, tmp_path):
     assert_pngs(tmp_path, figures, figures)
 
 
+@pytest.mark.slow
 def test_scenario_figures_without_results(analysed, tmp_path):
     _, points = analysed
     figures = scenario_figures("scenario2", {"paper": [], "pixel": []}, points, {}, tmp_path, magnified_point=99)
     assert_pngs(tmp_path, figures, ("samples", "centres", "magnified", "angle", "size", "delta_e"))
 
 
+@pytest.mark.slow
 def test_snr_figures(tmp_path):
     rows = []
     for stat in ("paper", "pixel"):

@@ -8,7 +8,6 @@ import json
 
 import numpy as np
 import pytest
-from conftest import ROOT
 
 from camsim.cli import main
 from camsim.experiments.datapoints import colour_signals, data_points, select_points
@@ -16,6 +15,7 @@ from camsim.experiments.runner import Setup
 from camsim.experiments.scenarios import run_experiment
 from camsim.scene import load_scene
 from camsim.spectra import cmfs_on_grid
+from tests.helpers import ROOT
 
 SCENE = ROOT / "scenes" / "macbeth_26.toml"
 #: finding -> (holds in paper statistics, holds in pixel statistics), as the reports state at full size
@@ -36,6 +36,7 @@ def experiments(tmp_path_factory):
     return out, done
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_findings_hold_as_reported(experiments, name):
     out, done = experiments
@@ -44,6 +45,7 @@ def test_findings_hold_as_reported(experiments, name):
         assert verdicts[key] == expected, (name, key, [f.verdicts for f in done[name] if f.key == key])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_each_experiment_writes_report_numbers_and_figures(experiments, name):
     out, done = experiments
@@ -77,10 +79,24 @@ def test_data_points_rule():
         assert on_vertex == p.on_hull
     luminance = 683 * radiance @ cmfs_on_grid(scene.grid)[1] * scene.grid.step_nm
     np.testing.assert_allclose(luminance, 100.0, rtol=1e-12)  # each signal at 100 cd/m², as in the paper
-    # deterministic: the same choice twice
-    assert select_points(xy) == select_points(xy)
+    # The documented rule, checked step by step on the chosen indices (camsim.experiments.datapoints).
+    hull_idx, inside_idx = select_points(xy)
+    ring = xy[hull_idx]
+    assert np.argmin(ring[:, 0]) == 0  # numbered from the hull vertex of smallest x ...
+    assert np.sum(ring[:, 0] * np.roll(ring[:, 1], -1) - np.roll(ring[:, 0], -1) * ring[:, 1]) > 0  # ... anticlockwise
+    rest = [i for i in range(len(xy)) if i not in hull_idx]
+    assert inside_idx[0] == min(rest, key=lambda i: np.hypot(*(xy[i] - xy.mean(axis=0))))  # nearest the centroid
+    for k in range(1, len(inside_idx)):  # then each point is the one farthest from all points chosen before it
+        chosen = xy[hull_idx + inside_idx[:k]]
+        gap = {i: np.min(np.hypot(*(chosen - xy[i]).T)) for i in rest if i not in inside_idx[:k]}
+        assert gap[inside_idx[k]] == max(gap.values()), k
+    # The choice depends on the signals, not on their order: shuffled input, the same signals chosen.
+    order = np.random.default_rng(0).permutation(len(xy))
+    hull_shuffled, inside_shuffled = select_points(xy[order])
+    assert [order[i] for i in hull_shuffled] == hull_idx and [order[i] for i in inside_shuffled] == inside_idx
 
 
+@pytest.mark.slow
 def test_experiment_cli(tmp_path, capsys):
     code = main(["experiment", "scenario2", "--size", "125x100", "--out", str(tmp_path / "s2"), "-q"])
     assert code == 0

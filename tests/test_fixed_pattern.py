@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
-from conftest import WHITE, patch_pixels, render, small_scene
 from scipy import stats
-from theory import assert_mean_var
 
 from camsim.sensor import preset
+from tests.helpers import WHITE, patch_pixels, render, small_scene
+from tests.theory import assert_mean_var
 
 OFF = dict(photon_noise=False, dark_current=False, saturation=False, read_noise=False, quantisation=False)
 

@@ -5,13 +5,13 @@ import json
 import numpy as np
 import pytest
 import rawpy
-from conftest import render, small_scene
 
 import camsim.render as render_module
 from camsim.io.dng import read_dng
 from camsim.io.exr import read_exr, read_exr_oiio
 from camsim.seeding import frame_seed_sequence
 from camsim.run import render_scene
+from tests.helpers import render, small_scene
 
 FACTORS = (1.0, 0.02)
 SIDECAR_KEYS = {

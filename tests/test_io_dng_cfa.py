@@ -1,5 +1,6 @@
 """Bayer (CFA) DNG: exact mosaic through LibRaw, pattern numbering, per-colour black levels, development, errors."""
 
+import itertools
 import math
 import re
 
@@ -47,8 +48,13 @@ def write(path, mosaic, pattern="RGGB", **overrides):
     return path
 
 
-def test_patterns_constant():
-    assert CFA_PATTERNS == ("RGGB", "BGGR", "GRBG", "GBRG")
+def test_patterns_are_every_bayer_cell_once():
+    """The patterns offered (and tested below, one by one) are all the 2 × 2 Bayer cells: R, G, G, B read row by
+    row with the two greens on a diagonal, enumerated here independently, each exactly once."""
+    cells = {"".join(p) for p in itertools.permutations("RGGB") if p[0] == p[3] == "G" or p[1] == p[2] == "G"}
+    assert len(cells) == 4
+    assert len(CFA_PATTERNS) == len(set(CFA_PATTERNS)) == 4 and set(CFA_PATTERNS) == cells
+    assert CFA_PATTERNS == ("RGGB", "BGGR", "GRBG", "GBRG")  # in the order the README and --help list them
 
 
 @pytest.mark.parametrize("pattern", CFA_PATTERNS)

@@ -2,9 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import ROOT, WHITE, patch_pixels, render, small_scene
 from scipy import stats
-from theory import assert_mean_var, digital_pmf, pmf_moments
 
 from camsim.expected import expected_signal
 from camsim.methods.plan import (
@@ -17,6 +15,8 @@ from camsim.methods.plan import (
     predicted_ks,
 )
 from camsim.sensor import PRESETS, preset
+from tests.helpers import ROOT, WHITE, patch_pixels, render, small_scene
+from tests.theory import assert_mean_var, digital_pmf, pmf_moments
 
 TABLE1 = PRESETS["paper-table1"]
 IDEAL = PRESETS["ideal"]
@@ -70,6 +70,7 @@ def test_gaussian_breaks_at_low_counts(lam):
     assert np.all(plan.kind == EXACT) and plan.predicted_ks[0, 0] > DEFAULT_TOLERANCE
 
 
+@pytest.mark.slow
 def test_auto_never_picks_the_gaussian_outside_its_valid_range():
     rng = np.random.default_rng(0)
     for _ in range(40):

@@ -5,7 +5,6 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import ROOT, WHITE, small_scene
 
 from camsim.camera import AnchorScale, PhysicalScale, absolute_qe, load_camera
 from camsim.chart import ChartGeometry
@@ -16,6 +15,7 @@ from camsim.radiance import scene_radiance
 from camsim.pipeline import lit_scene
 from camsim.sensor import PRESETS
 from camsim.spectra import WavelengthGrid, illuminant_spd
+from tests.helpers import ROOT, WHITE, small_scene
 
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")

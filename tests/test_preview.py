@@ -6,7 +6,6 @@ import json
 import imageio.v3 as iio
 import numpy as np
 import pytest
-from conftest import ROOT, render
 
 from camsim.errors import CamsimError
 from camsim.io.exr import read_exr
@@ -14,6 +13,7 @@ from camsim.preview import preview_srgb, write_preview_png
 from camsim.seeding import frame_seed_sequence
 from camsim.run import render_scene
 from camsim.scene import load_scene
+from tests.helpers import ROOT, render
 
 SEED = 11
 WHITE, GREYS, BLUE, GREEN, RED = 18, range(18, 24), 12, 13, 14

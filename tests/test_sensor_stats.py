@@ -6,11 +6,11 @@ errors of the model's values.
 
 import numpy as np
 import pytest
-from conftest import WHITE, patch_pixels, render, small_scene
 from scipy import stats
-from theory import assert_mean_var, digital_pmf, pmf_moments
 
 from camsim.sensor import PRESETS, preset
+from tests.helpers import WHITE, patch_pixels, render, small_scene
+from tests.theory import anchored_signal_e, assert_mean_var, digital_pmf, pmf_moments
 
 TABLE1 = PRESETS["paper-table1"]
 IDEAL = PRESETS["ideal"]
@@ -91,16 +91,26 @@ def test_paper_statistics_variance_is_sum_g_qe_squared(scene, method):
 
 
 def test_paper_and_pixel_statistics_share_the_mean(scene):
+    k = TABLE1.dn_per_electron
     for factor in (1.0, 0.05):
         pixel, radiance = render(scene, TABLE1, factor=factor, statistics="pixel", seed=2)
         paper, _ = render(scene, TABLE1, factor=factor, statistics="paper", seed=2)
-        np.testing.assert_allclose(pixel.expected.signal_e, paper.expected.signal_e, rtol=1e-12)
-        k = TABLE1.dn_per_electron
+        # both statistics' mean signal against an independent integration of the anchored white patch
+        truth = anchored_signal_e(WHITE, "D65", factor, TABLE1.exposure_s)
+        for frame in (pixel, paper):
+            np.testing.assert_allclose(frame.expected.signal_e[WHITE], truth, rtol=1e-3)
         x = patch_pixels(paper.noisy_dn, radiance.patch_rects[WHITE])
+        y = patch_pixels(pixel.noisy_dn, radiance.patch_rects[WHITE])
         for c in range(3):
             lam = paper.expected.signal_e[WHITE, c] + paper.expected.dark_e[c]
             var = paper.expected.signal_var_e2[WHITE, c] + paper.expected.dark_e[c] + TABLE1.read_noise_e**2
             assert_mean_var(x[c], k * lam, k * k * var, what=f"paper F={factor} ch{c}")
+            # the pixel frame: Poisson(S + D) plus read noise around the same mean
+            assert_mean_var(y[c], k * lam, k * k * (lam + TABLE1.read_noise_e**2), kurtosis_excess=1 / lam,
+                            what=f"pixel F={factor} ch{c}")
+            # and the two frames' measured means agree (two-sample, 5 standard errors)
+            se = np.sqrt(x[c].var(ddof=1) / x[c].size + y[c].var(ddof=1) / y[c].size)
+            assert abs(float(x[c].mean(dtype=np.float64)) - float(y[c].mean(dtype=np.float64))) < 5 * se
 
 
 # --- each switch removes its stage ---------------------------------------------------------------------------

@@ -45,3 +45,25 @@ def assert_mean_var(samples, mean, var, k=5.0, kurtosis_excess=0.0, what=""):
     se_var = var * np.sqrt(2.0 / (n - 1) + kurtosis_excess / n) if var > 0 else 1e-12
     assert abs(m - mean) <= k * se_mean + 1e-9 * abs(mean), f"{what}: mean {m} vs model {mean} (± {se_mean:.3g})"
     assert abs(v - var) <= k * se_var + 1e-12, f"{what}: variance {v} vs model {var} (± {se_var:.3g})"
+
+
+def anchored_signal_e(patch, illuminant, factor=1.0, exposure_s=1.0, reference_e=8000.0,
+                      camera="Nikon 5100 (NPL)", chart="ColorChecker N Ohta"):
+    """Expected signal electrons [R, G, B] of ColorChecker patch ``patch`` (index) under the anchor scale.
+
+    The anchor puts the perfect white under the illuminant at ``reference_e`` electrons in its strongest channel
+    at F = 1 and T = 1 s; a camera whose curves s_c are responses per unit radiant power ('energy' basis) then
+    collects S_c = reference_e · F · T · Σ ρ L s_c / max_c' Σ L s_c'. Integrated with colour-science's own data
+    on the camera's native wavelength sampling (5 nm), independently of camsim's grid and resampling.
+    """
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        import colour
+
+        sens = colour.MSDS_CAMERA_SENSITIVITIES[camera]
+        light = colour.SDS_ILLUMINANTS[illuminant].copy().align(sens.shape).values
+        rho = list(colour.SDS_COLOURCHECKERS[chart].values())[patch].copy().align(sens.shape).values
+    white = light @ sens.values
+    return reference_e * factor * exposure_s * ((rho * light) @ sens.values) / white.max()

@@ -10,14 +10,15 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
+from camsim.builtin_scenes import builtin_scene_path
 from camsim.errors import CamsimError
 from camsim.experiments import findings as fd
 from camsim.experiments.report import Finding, snr_rows, write_numbers, write_report, write_snr_numbers
 from camsim.experiments.runner import STATISTICS_METHODS, Setup, analyse_series, black_point_xy, prepare, run_conditions
 from camsim.sensor import PRESETS
 
-ROOT = Path(__file__).resolve().parents[2]
-DEFAULT_SCENE = ROOT / "scenes" / "macbeth_26.toml"
+#: The experiments' scene: the built-in ``macbeth_26`` (shipped in the package, so that an installed camsim finds it).
+DEFAULT_SCENE = builtin_scene_path("macbeth_26")
 SCENARIO1_FACTORS = tuple(10.0**-k for k in range(15))
 LOW_LIGHT_FACTORS = (1.0, 0.5, 0.1, 0.05, 0.01, 0.005, 0.001)
 SNR_FACTORS = (0.1, 0.05, 0.01, 0.005, 0.001)

@@ -1,0 +1,41 @@
+"""Helpers the test modules import (``from tests.helpers import ...``): the repository root, scene builders,
+patch pixels and a one-frame render. Fixtures live in ``conftest.py``; closed forms in ``tests.theory``."""
+
+from pathlib import Path
+
+from camsim.camera import load_camera
+from camsim.chart import ChartGeometry
+from camsim.pipeline import light_scene, make_frame
+from camsim.scene import Scene
+from camsim.sources import ChartSource
+from camsim.spectra import WavelengthGrid
+
+ROOT = Path(__file__).resolve().parents[1]
+WHITE = 18  # "white 9.5 (.05 D)" in ColorChecker order
+
+
+def small_scene(**changes) -> Scene:
+    """A ColorChecker scene with large patches, so that each patch gives thousands of samples."""
+    base = Scene(
+        name="test",
+        grid=WavelengthGrid(),
+        illuminants=("D65",),
+        source=ChartSource(geometry=ChartGeometry(gap_fraction=0.1, margin_fraction=0.02)),
+        width=720,
+        height=480,
+    )
+    return base.replace(**changes)
+
+
+def patch_pixels(image, rect, border=2):
+    """Pixels of a patch rectangle (minus a border), shape (C, n) for (C, H, W) input."""
+    x, y, w, h = rect
+    return image[..., y + border : y + h - border, x + border : x + w - border].reshape(image.shape[0], -1)
+
+
+def render(scene, sensor=None, factor=1.0, statistics="pixel", method="poisson", seed=1, illuminant="D65"):
+    """Render one frame of ``scene``; returns (frame, radiance)."""
+    sensor = sensor if sensor is not None else scene.sensor
+    lit = light_scene(scene, illuminant, load_camera(scene.camera, scene.grid))
+    frame = make_frame(lit, sensor, factor, statistics=statistics, method=method, rng=seed)
+    return frame, lit.radiance

@@ -1,0 +1,136 @@
+"""Built-in scenes: shipped as package data, addressable by name from any directory, and in the wheel."""
+
+import hashlib
+import importlib.metadata
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from camsim.builtin_scenes import SCENES_DIR, builtin_scene_names, builtin_scene_path, resolve_scene_file
+from camsim.cli import main
+from camsim.dataset import load_spec
+from camsim.errors import CamsimError
+from camsim.experiments.scenarios import DEFAULT_SCENE
+from camsim.scene import load_scene
+from tests.helpers import ROOT
+
+SCENE_ARGS = ["--illuminant", "D65", "--intensity", "1", "--size", "120x80", "-q"]
+
+
+def _digests(folder):
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def test_names_and_paths():
+    assert builtin_scene_names() == ("macbeth_26",)  # denoise_small.toml beside it is a dataset spec
+    path = builtin_scene_path("macbeth_26")
+    assert path == SCENES_DIR / "macbeth_26.toml" and path.is_file()
+    assert SCENES_DIR.parent == ROOT / "camsim"
+    assert DEFAULT_SCENE == path  # the experiments' scene comes from the package
+    # the checkout's scenes/ is the package folder itself (a link), not a copy
+    assert (ROOT / "scenes").resolve() == SCENES_DIR.resolve()
+    assert sorted(p.name for p in (ROOT / "scenes").glob("*.toml")) == ["denoise_small.toml", "macbeth_26.toml"]
+
+
+def test_load_by_name_equals_load_by_path(tmp_path, monkeypatch):
+    by_path = load_scene(ROOT / "scenes" / "macbeth_26.toml")
+    monkeypatch.chdir(tmp_path)  # no scenes/ here: the name alone finds it
+    by_name = load_scene("macbeth_26")
+    assert by_name == by_path and by_name.name == "macbeth_26" and len(by_name.illuminants) == 26
+
+
+def test_an_existing_file_wins_over_the_name(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "macbeth_26").write_text('name = "local"\n[chart]\n')
+    assert load_scene("macbeth_26").name == "local"
+    (tmp_path / "macbeth_26").unlink()
+    (tmp_path / "macbeth_26").mkdir()  # e.g. an output folder of that name: not a scene file, the name still works
+    assert load_scene("macbeth_26").name == "macbeth_26"
+
+
+@pytest.mark.parametrize(("given", "message"), [
+    ("macbeth", r"no scene file 'macbeth' and no built-in scene of that name: the built-in scenes are macbeth_26"),
+    ("denoise_small", r"'denoise_small' is a built-in dataset spec .*not a scene: the built-in scenes are macbeth_26"),
+    ("missing.toml", r"scene file not found: missing\.toml"),  # a path stays a path
+    ("sub/macbeth_26", r"scene file not found: sub/macbeth_26"),
+])
+def test_unknown_names_and_missing_paths(tmp_path, monkeypatch, given, message):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(CamsimError, match=message):
+        load_scene(given)
+
+
+def test_resolution_rules(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert resolve_scene_file("macbeth_26") == SCENES_DIR / "macbeth_26.toml"
+    for path in ("macbeth_26.toml", "./macbeth_26", str(tmp_path / "macbeth_26"), Path("MACBETH_26.TOML")):
+        assert resolve_scene_file(path) == Path(path)  # a path is never taken for a name
+        with pytest.raises(CamsimError, match="scene file not found"):
+            load_scene(path)
+
+
+def test_cli_renders_a_builtin_scene_by_name_from_anywhere(tmp_path, monkeypatch, capsys):
+    """The same frames, byte for byte, whether the scene is named or given by the checkout's path."""
+    assert main(["render", str(ROOT / "scenes" / "macbeth_26.toml"), *SCENE_ARGS, "--out", str(tmp_path / "a")]) == 0
+    monkeypatch.chdir(tmp_path)
+    assert main(["render", "macbeth_26", *SCENE_ARGS, "--out", str(tmp_path / "b")]) == 0
+    a, b = _digests(tmp_path / "a"), _digests(tmp_path / "b")
+    assert set(a) >= {"macbeth_26_D65_F1.dng", "macbeth_26_D65_F1.exr", "macbeth_26_D65_F1.json", "manifest.json"}
+    assert a == b
+    assert main(["render", "macbeth", *SCENE_ARGS]) == 2
+    assert "built-in scenes are macbeth_26" in capsys.readouterr().err
+
+
+def test_dataset_spec_finds_its_scene_beside_it():
+    spec = load_spec(ROOT / "scenes" / "denoise_small.toml")  # scene = "macbeth_26.toml", relative to the spec
+    assert len(spec.frames) == 48
+    assert {Path(f.scene_path) for f in spec.frames} == {(SCENES_DIR / "macbeth_26.toml").resolve()}
+    assert load_spec(SCENES_DIR / "denoise_small.toml").frames == spec.frames
+
+
+def _can_build_wheels_offline() -> bool:
+    """setuptools ≥ 70.1 builds wheels by itself; an older one needs the ``wheel`` package (the test extra has both)."""
+    def version(name):
+        try:
+            return tuple(int(part) for part in importlib.metadata.version(name).split(".")[:2])
+        except (importlib.metadata.PackageNotFoundError, ValueError):
+            return None
+
+    setuptools = version("setuptools")
+    return setuptools is not None and (setuptools >= (70, 1) or version("wheel") is not None)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not _can_build_wheels_offline(),
+                    reason="building a wheel offline needs setuptools >= 70.1, or wheel: pip install -e '.[test]'")
+def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
+    """Build the wheel from a copy of the sources (no stale build/ folder), check the scene files are in it with
+    the checkout's bytes, then import camsim from the unpacked wheel, away from any checkout, and resolve names."""
+    src = tmp_path / "src"
+    shutil.copytree(ROOT / "camsim", src / "camsim", ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy2(ROOT / name, src / name)
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "--no-index", "-q",
+                    "-w", str(tmp_path / "dist"), str(src)], check=True, capture_output=True, cwd=tmp_path)
+    (wheel,) = (tmp_path / "dist").glob("camsim_lowlight-*.whl")
+    with zipfile.ZipFile(wheel) as archive:
+        names = set(archive.namelist())
+        for scene in ("macbeth_26.toml", "denoise_small.toml"):
+            assert archive.read(f"camsim/scenes/{scene}") == (SCENES_DIR / scene).read_bytes()
+        archive.extractall(tmp_path / "site")
+    assert "camsim/builtin_scenes.py" in names and not any(n.startswith(("scenes/", "tests/")) for n in names)
+    code = ("import camsim, camsim.builtin_scenes as b, camsim.scene as s, camsim.experiments.scenarios as e\n"
+            "print(camsim.__file__); print(b.builtin_scene_names()); print(s.load_scene('macbeth_26').name)\n"
+            "print(e.DEFAULT_SCENE.is_file(), e.DEFAULT_SCENE.relative_to(b.SCENES_DIR.parent.parent))\n")
+    env = {**os.environ, "PYTHONPATH": str(tmp_path / "site")}
+    env.pop("PYTHONSAFEPATH", None)
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=env)
+    assert run.returncode == 0, run.stderr
+    lines = run.stdout.splitlines()
+    assert lines == [str(tmp_path / "site" / "camsim" / "__init__.py"), "('macbeth_26',)", "macbeth_26",
+                     "True camsim/scenes/macbeth_26.toml"]
