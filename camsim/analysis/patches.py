@@ -6,14 +6,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.analysis.colorimetry import camera_to_xyz_matrix, chromaticity_xy, xyz_from_camera
 from camsim.analysis.delta_e import delta_e_5step, reference_lab
 from camsim.analysis.ellipse import fit_ellipse
 from camsim.analysis.frames import LoadedFrame
 from camsim.analysis.snr import snr_from_moments, snr_model
+from camsim.colorimetry import CHANNELS, camera_to_xyz_matrix, chromaticity_xy, xyz_from_camera
 from camsim.errors import CamsimError
 
-CHANNELS = ("R", "G", "B")
 BLACK_MODES = ("none", "sidecar", "dark-frame")
 
 
@@ -28,7 +27,7 @@ class AnalysisSettings:
     black : {'none', 'sidecar', 'dark-frame'}
         Black-level subtraction: none (as in the paper), the sidecar's mean dark level, or a dark frame's mean.
     matrix : str
-        Camera → XYZ method (``camsim.analysis.colorimetry.CAMERA_TO_XYZ_METHODS``).
+        Camera → XYZ method (``camsim.colorimetry.CAMERA_TO_XYZ_METHODS``).
     """
 
     border_px: int = 3

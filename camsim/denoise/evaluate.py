@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from camsim.analysis.analyze import group_key
-from camsim.analysis.colorimetry import chromaticity_xy, xyz_from_camera
+from camsim.colorimetry import CHANNELS, chromaticity_xy, xyz_from_camera
 from camsim.analysis.delta_e import delta_e_5step, reference_lab
 from camsim.analysis.ellipse import fit_ellipse
 from camsim.analysis.frames import load_frame
@@ -36,7 +36,6 @@ from camsim.errors import CamsimError
 
 from camsim.denoise.denoisers import Denoiser, estimate_noise_sigma
 
-CHANNELS = ("R", "G", "B")
 NOISY = "noisy"  # the name of the no-denoising baseline in summaries
 SSIM_MIN_SIDE = 7  # scikit-image's default SSIM window
 

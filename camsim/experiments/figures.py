@@ -20,7 +20,7 @@ from matplotlib.cm import ScalarMappable  # noqa: E402
 from matplotlib.colors import Normalize  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
-from camsim.analysis.colorimetry import chromaticity_xy, xyz_from_camera  # noqa: E402
+from camsim.colorimetry import CHANNELS, chromaticity_xy, xyz_from_camera  # noqa: E402
 from camsim.analysis.frames import load_frame  # noqa: E402
 from camsim.analysis.patches import AnalysisSettings, frame_matrix, patch_samples  # noqa: E402
 from camsim.errors import CamsimError  # noqa: E402
@@ -28,7 +28,6 @@ from camsim.errors import CamsimError  # noqa: E402
 DPI = 110
 MAX_SAMPLES = 300
 STATISTICS = ("paper", "pixel")
-CHANNELS = ("R", "G", "B")
 SNR_VARIANTS = {"read+10%": "snr_read", "dark+10%": "snr_dark", "quantisation-off": "snr_quantisation"}
 UNDEF = "undefined, not plotted"
 _MARKERS = "os^D"
