@@ -33,6 +33,7 @@ from camsim.analysis.ellipse import fit_ellipse
 from camsim.analysis.frames import load_frame
 from camsim.analysis.patches import frame_matrix, patch_samples
 from camsim.errors import CamsimError
+from camsim.optional_numbers import finite_or_none, mean_of_defined, median_of_defined
 
 from camsim.denoise.denoisers import Denoiser, estimate_noise_sigma
 
@@ -159,14 +160,6 @@ def find_dataset(paths) -> Dataset:
     return Dataset(frames, skipped, roots)
 
 
-def _finite(value):
-    """A float for CSV and JSON, None where undefined."""
-    if value is None:
-        return None
-    value = float(value)
-    return value if math.isfinite(value) else None
-
-
 def image_scores(clean: np.ndarray, test: np.ndarray, data_range: float) -> tuple[float | None, float | None]:
     """PSNR (dB) and SSIM of ``test`` against ``clean``, both (H, W, 3); None where undefined.
 
@@ -178,10 +171,10 @@ def image_scores(clean: np.ndarray, test: np.ndarray, data_range: float) -> tupl
     test = test.astype(np.float64)
     psnr = None
     if mean_squared_error(clean, test) > 0:
-        psnr = _finite(peak_signal_noise_ratio(clean, test, data_range=data_range))
+        psnr = finite_or_none(peak_signal_noise_ratio(clean, test, data_range=data_range))
     ssim = None
     if min(clean.shape[:2]) >= SSIM_MIN_SIDE:
-        ssim = _finite(structural_similarity(clean, test, data_range=data_range, channel_axis=-1))
+        ssim = finite_or_none(structural_similarity(clean, test, data_range=data_range, channel_axis=-1))
     return psnr, ssim
 
 
@@ -199,11 +192,11 @@ def patch_colour(samples_dn: np.ndarray, matrix: np.ndarray, ref_lab) -> dict:
     xy, n_undefined = chromaticity_xy(xyz)
     ellipse = fit_ellipse(xy)
     out = {"mean_xy": _xy_of_mean(xyz), "n_xy_undefined": int(n_undefined), "ellipse_status": ellipse.status,
-           "ellipse_size": _finite(ellipse.size), "center_x": _finite(ellipse.center_x),
-           "center_y": _finite(ellipse.center_y), "delta_e": None, "n_y_nonpositive": None}
+           "ellipse_size": finite_or_none(ellipse.size), "center_x": finite_or_none(ellipse.center_x),
+           "center_y": finite_or_none(ellipse.center_y), "delta_e": None, "n_y_nonpositive": None}
     if ref_lab is not None:
         de = delta_e_5step(xyz, ref_lab)
-        out.update(delta_e=_finite(de.mean), n_y_nonpositive=int(de.n_undefined))
+        out.update(delta_e=finite_or_none(de.mean), n_y_nonpositive=int(de.n_undefined))
     return out
 
 
@@ -417,16 +410,6 @@ def evaluate(paths, denoisers: list[Denoiser], settings: EvalSettings | None = N
                       seconds)
 
 
-def _mean(values):
-    values = [v for v in values if v is not None]
-    return float(np.mean(values)) if values else None
-
-
-def _median(values):
-    values = [v for v in values if v is not None]
-    return float(np.median(values)) if values else None
-
-
 def _preserved(delta_e, bias, n_undefined_colour, has_reference, criterion: Criterion) -> str:
     if not has_reference:
         return "undetermined"
@@ -452,12 +435,12 @@ def summarise(frame_rows, patch_rows, names, criterion: Criterion) -> list[dict]
             row = {"denoiser": name, "intensity_factor": factor, "n_frames": len(fr), "n_patches": len(pr)}
             for key in ("psnr_noisy_db", "psnr_denoised_db", "psnr_gain_db", "ssim_noisy", "ssim_denoised",
                         "ssim_gain"):
-                row[key] = _mean(r[key] for r in fr)
+                row[key] = mean_of_defined(r[key] for r in fr)
             for key in ("bias_noisy_xy", "bias_denoised_xy", "ellipse_size_noisy", "ellipse_size_denoised",
                         "ellipse_size_ratio", "delta_e_clean", "delta_e_noisy", "delta_e_denoised"):
-                row[key] = _mean(p[key] for p in pr)
+                row[key] = mean_of_defined(p[key] for p in pr)
             for key in ("delta_e_noisy", "delta_e_denoised"):  # ΔE is heavy-tailed at low light: also the median
-                row[f"{key}_median"] = _median(p[key] for p in pr)
+                row[f"{key}_median"] = median_of_defined(p[key] for p in pr)
             undefined = {}
             for label in ("noisy", "denoised"):
                 undefined[label] = sum((p[f"bias_{label}_xy"] is None and p["clean_x"] is not None)
