@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.denoise.denoisers import sigma_estimator, wavelet_implementation
+from camsim.denoise.denoisers import SIGMA_ESTIMATOR, WAVELET_IMPLEMENTATION
 from camsim.denoise.evaluate import NOISY, Evaluation
 from camsim.io.atomic import write_json_atomic, write_text_atomic
 from camsim.plotting import new_figure, save_png
@@ -344,7 +344,7 @@ def report_text(ev: Evaluation) -> str:
     s = ev.settings
     lines += ["## How it was measured", "",
               f"* **Noise level given to the denoisers**: estimated blindly from each noisy frame — "
-              f"{sigma_estimator()}. The sidecar's noise model (signal variance, dark and read noise) is not used: "
+              f"{SIGMA_ESTIMATOR}. The sidecar's noise model (signal variance, dark and read noise) is not used: "
               "a real denoiser does not know it. `frames.csv` also lists the true σ (std of noisy − clean) for "
               "comparison only.",
               "* **PSNR and SSIM** (scikit-image): against the clean layer, with `data_range` = the clean layer's "
@@ -370,7 +370,7 @@ def report_text(ev: Evaluation) -> str:
               "* **Denoisers**: " + "; ".join(f"`{d.target}` — {d.description}" for d in ev.denoisers) + ".",
               ]
     if any(d.target == "wavelet" for d in ev.denoisers):
-        lines.append(f"* **wavelet implementation**: {wavelet_implementation()}.")
+        lines.append(f"* **wavelet implementation**: {WAVELET_IMPLEMENTATION}.")
     lines.append("")
 
     lines += ["## Undefined values", "",
@@ -400,7 +400,7 @@ def summary_json(ev: Evaluation) -> dict:
         "skipped": ev.dataset.skipped,
         "settings": {"border_px": s.border_px, "black_subtraction": "sidecar" if s.subtract_black else "none",
                      "camera_to_xyz": s.matrix, "data_range": "clean layer range per frame",
-                     "sigma_estimator": sigma_estimator(),
+                     "sigma_estimator": SIGMA_ESTIMATOR,
                      "delta_e_reference": "clean layer of the F = 1 frame of the same measurement"},
         "criterion": {"max_delta_e": s.criterion.max_delta_e, "max_bias_xy": s.criterion.max_bias_xy,
                       "text": s.criterion.text()},
