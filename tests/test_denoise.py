@@ -14,7 +14,8 @@ from conftest import ROOT
 
 from camsim.denoise.cli import add_parser, run
 from camsim.denoise.denoisers import DENOISERS, estimate_noise_sigma, resolve_denoiser
-from camsim.denoise.evaluate import Criterion, EvalSettings, evaluate, verdict
+from camsim.denoise.evaluate import EvalSettings, evaluate
+from camsim.denoise.summary import Criterion, verdict
 from camsim.errors import CamsimError
 from camsim.run import render_scene
 from camsim.scene import load_scene

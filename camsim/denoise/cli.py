@@ -113,7 +113,8 @@ def default_out(denoisers) -> Path:
 def run(args) -> int:
     """Handle ``camsim denoise-eval``; returns the exit status (0). User errors raise CamsimError."""
     from camsim.denoise.denoisers import resolve_denoiser
-    from camsim.denoise.evaluate import NOISY, Criterion, EvalSettings, evaluate
+    from camsim.denoise.evaluate import EvalSettings, evaluate
+    from camsim.denoise.summary import NOISY, Criterion
     from camsim.denoise.report import verdict_sentence, write_outputs
 
     denoisers = _unique_names([resolve_denoiser(t, timeout_s=args.timeout) for t in args.denoiser])

@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from camsim.denoise.denoisers import SIGMA_ESTIMATOR, WAVELET_IMPLEMENTATION
-from camsim.denoise.evaluate import NOISY, Evaluation
+from camsim.denoise.evaluate import Evaluation
+from camsim.denoise.summary import NOISY
 from camsim.io.atomic import write_json_atomic, write_text_atomic
 from camsim.plotting import new_figure, save_png
 
