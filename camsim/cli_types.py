@@ -17,11 +17,15 @@ def positive_float(text: str) -> float:
     return value
 
 
-def _integer_at_least(text: str, low: int) -> int:
+def _integer(text: str) -> int:
     try:
-        value = int(text)
+        return int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+
+
+def _integer_at_least(text: str, low: int) -> int:
+    value = _integer(text)
     if value < low:
         raise argparse.ArgumentTypeError(f"must be ≥ {low}, got {text}")
     return value
@@ -35,3 +39,28 @@ def non_negative_int(text: str) -> int:
 def positive_int(text: str) -> int:
     """An integer ≥ 1 (a count of workers or threads)."""
     return _integer_at_least(text, 1)
+
+
+def integer_between(low: int, high: int, what: str):
+    """An argparse type for an integer from ``low`` to ``high`` inclusive.
+
+    Parameters
+    ----------
+    low, high : int
+        The smallest and the largest value accepted.
+    what : str
+        The value's name in the message, e.g. ``"the side of the region of interest in pixels"``.
+
+    Returns
+    -------
+    callable
+        ``parse(text) -> int``, raising :class:`argparse.ArgumentTypeError` outside the range.
+    """
+
+    def parse(text: str) -> int:
+        value = _integer(text)
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{what} must be {low} to {high}, got {text}")
+        return value
+
+    return parse

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from conftest import ROOT
 
-from camsim.denoise.cli import add_parser, run
+from camsim.commands.denoise_eval import add_parser, run
 from camsim.denoise.denoisers import DENOISERS, estimate_noise_sigma, resolve_denoiser
 from camsim.denoise.evaluate import EvalSettings, evaluate
 from camsim.denoise.summary import Criterion, verdict

@@ -8,7 +8,7 @@
 * :mod:`camsim.denoise.summary` — means per light level, the criterion and the verdicts;
 * :mod:`camsim.denoise.evaluate` — the loop: every denoiser on every frame, scored;
 * :mod:`camsim.denoise.report` — CSV, plots, ``report.md`` and ``summary.json``;
-* :mod:`camsim.denoise.cli` — the sub-command (``add_parser``, ``run``).
+* the sub-command itself is :mod:`camsim.commands.denoise_eval`.
 """
 
 from camsim.denoise.denoisers import DENOISERS, Denoiser, estimate_noise_sigma, resolve_denoiser
