@@ -95,6 +95,12 @@ def _sigma(image: np.ndarray, sigma_dn) -> np.ndarray:
     return estimate_noise_sigma(image) if sigma_dn is None else np.asarray(sigma_dn, dtype=np.float64)
 
 
+def _rms_sigma(image: np.ndarray, sigma_dn) -> float:
+    """One σ for all channels (for scikit-image's functions that take one): the root mean square of the
+    per-channel σ. Unit: that of the image."""
+    return float(np.sqrt(np.mean(np.square(_sigma(image, sigma_dn)))))
+
+
 def identity(image: np.ndarray, sigma_dn=None) -> np.ndarray:
     """The control: the noisy image itself (a copy). Its scores are the noisy baseline's, exactly."""
     return np.array(image, dtype=np.float32, copy=True)
@@ -109,7 +115,7 @@ def nl_means(image: np.ndarray, sigma_dn=None) -> np.ndarray:
     from skimage.restoration import denoise_nl_means
 
     scaled, scale = _normalise(image)
-    sigma = float(np.sqrt(np.mean(np.square(_sigma(image, sigma_dn))))) / scale
+    sigma = _rms_sigma(image, sigma_dn) / scale
     if not sigma > 0:
         return identity(image)
     out = denoise_nl_means(scaled, patch_size=NLM_PATCH_SIZE, patch_distance=NLM_PATCH_DISTANCE,
@@ -144,7 +150,7 @@ def total_variation(image: np.ndarray, sigma_dn=None) -> np.ndarray:
     from skimage.restoration import denoise_tv_chambolle
 
     scaled, scale = _normalise(image)
-    sigma = float(np.sqrt(np.mean(np.square(_sigma(image, sigma_dn))))) / scale
+    sigma = _rms_sigma(image, sigma_dn) / scale
     if not sigma > 0:
         return identity(image)
     out = denoise_tv_chambolle(scaled, weight=TV_WEIGHT_PER_SIGMA * sigma, channel_axis=-1)

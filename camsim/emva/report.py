@@ -160,7 +160,7 @@ def _summary(result: EmvaResult) -> list:
 
 def _dark_notes(result: EmvaResult) -> list:
     """Dark noise (quantisation), K and η (the quantisation offset of the PTC), the −½ DN, the black level."""
-    m, s, d = result.measurement, result.measurement.sensor, result.details
+    s, d = result.measurement.sensor, result.details
     k, dark_e = s.dn_per_electron, s.dark_mean_e[CHANNEL]
     conf, rec = result.configured["dark_noise_e"], result.recovered["dark_noise_e"]
     dark_mean, dark_var = model_dark_temporal_dn(s)
