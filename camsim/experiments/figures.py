@@ -124,6 +124,24 @@ def _samples(cache: dict, result, n_points: int):
     return out
 
 
+def _colour_science_diagram(ax) -> None:
+    """colour-science's CIE 1931 chromaticity diagram (faded colours), drawn on ``ax`` and laid out in its figure.
+
+    colour-science's plotting looks up pyplot's current figure and axes even when it is given its own, and so opens
+    a blank pyplot figure when there is none: that one is closed again, leaving pyplot as it was.
+    """
+    import colour
+    import matplotlib.pyplot as plt  # already imported: colour-science imports it
+
+    open_before = set(plt.get_fignums())
+    try:
+        colour.plotting.plot_chromaticity_diagram_CIE1931(axes=ax, figure=ax.get_figure(), show=False, title=None,
+                                                          diagram_opacity=0.3)
+    finally:
+        for number in set(plt.get_fignums()) - open_before:
+            plt.close(number)
+
+
 def _diagram(ax, colours: bool = True):
     """The CIE 1931 xy diagram (faded colours) or just its spectral locus."""
     import colour
@@ -131,7 +149,7 @@ def _diagram(ax, colours: bool = True):
     title = ax.get_title()
     if colours:
         try:
-            colour.plotting.plot_chromaticity_diagram_CIE1931(axes=ax, show=False, title=None, diagram_opacity=0.3)
+            _colour_science_diagram(ax)
         except Exception:  # the plotting API differs between colour versions: fall back to the locus
             colours = False
     if not colours:
