@@ -17,11 +17,15 @@ def positive_float(text: str) -> float:
     return value
 
 
-def _integer_at_least(text: str, low: int) -> int:
+def _integer(text: str) -> int:
     try:
-        value = int(text)
+        return int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+
+
+def _integer_at_least(text: str, low: int) -> int:
+    value = _integer(text)
     if value < low:
         raise argparse.ArgumentTypeError(f"must be ≥ {low}, got {text}")
     return value
@@ -35,3 +39,58 @@ def non_negative_int(text: str) -> int:
 def positive_int(text: str) -> int:
     """An integer ≥ 1 (a count of workers or threads)."""
     return _integer_at_least(text, 1)
+
+
+def integer_between(low: int, high: int, what: str):
+    """An argparse type for an integer from ``low`` to ``high`` inclusive.
+
+    Parameters
+    ----------
+    low, high : int
+        The smallest and the largest value accepted.
+    what : str
+        The value's name in the message, e.g. ``"the side of the region of interest in pixels"``.
+
+    Returns
+    -------
+    callable
+        ``parse(text) -> int``, raising :class:`argparse.ArgumentTypeError` outside the range.
+    """
+
+    def parse(text: str) -> int:
+        value = _integer(text)
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{what} must be {low} to {high}, got {text}")
+        return value
+
+    return parse
+
+
+def schema_value(param):
+    """The argparse type of a :class:`camsim.schema.Param`: its text parsed, typed and range-checked by the schema."""
+    from camsim.errors import CamsimError
+
+    def parse(text: str):
+        try:
+            return param.parse_text(text)
+        except CamsimError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    parse.__name__ = param.name  # argparse names the type in its messages
+    return parse
+
+
+def sensor_setting(text: str) -> tuple:
+    """``NAME=VALUE`` for a sensor parameter (:data:`camsim.sensor.SENSOR_PARAMS`), typed by the schema."""
+    from camsim.errors import CamsimError
+    from camsim.sensor import SENSOR_PARAMS
+
+    name, sep, value = text.partition("=")
+    params = {p.name: p for p in SENSOR_PARAMS}
+    if not sep or name.strip() not in params:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE with NAME one of {', '.join(params)}, got {text!r}")
+    try:
+        value = params[name.strip()].parse_text(value.strip())
+    except CamsimError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return name.strip(), tuple(value) if isinstance(value, list) else value  # R, G, B as SensorParams holds them

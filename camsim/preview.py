@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.analysis.colorimetry import camera_to_xyz_matrix
+from camsim.colorimetry import camera_to_xyz_matrix
 from camsim.errors import CamsimError
 from camsim.io.atomic import atomic_path
 from camsim.photons import KM_LM_PER_W

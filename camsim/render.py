@@ -17,7 +17,7 @@ import numpy as np
 from camsim.errors import CamsimError
 from camsim.expected import ExpectedSignal
 from camsim.fixed_pattern import FixedPattern, fixed_pattern
-from camsim.methods import DEFAULT_TOLERANCE, get_method
+from camsim.methods import get_method
 from camsim.methods.plan import DrawPlan
 from camsim.seeding import block_generators
 from camsim.sensor import SensorParams
@@ -174,8 +174,7 @@ def render_frame(
     maps = fixed_pattern(sensor, labels.shape)
     if maps is not None and maps.gain is not None and not impl.per_pixel_mean:
         raise CamsimError(f"PRNU needs a per-pixel mean: use method poisson, gaussian or auto, not {method}")
-    plan = None if impl.plan is None else impl.plan(expected, sensor, statistics,
-                                                    DEFAULT_TOLERANCE if tolerance is None else tolerance)
+    plan = impl.plan(expected, sensor, statistics, tolerance)
     planes = 3 if sensor.cfa is None else 1  # a colour filter array keeps one value per pixel
     noisy = np.empty((planes, height, width), dtype=np.float32)
     digital = np.empty((planes, height, width), dtype=dn_dtype(sensor.bits)) if sensor.quantisation else None

@@ -7,15 +7,6 @@ import warnings
 import numpy as np
 import pytest
 
-from camsim.analysis.colorimetry import (
-    LIGHT_SPEED_M_S,
-    PLANCK_J_S,
-    camera_to_xyz_matrix,
-    chromaticity_xy,
-    cmfs_on_grid,
-    matrix_condition,
-    xyz_from_camera,
-)
 from camsim.analysis.delta_e import (
     d65_white_xy,
     d65_white_xyz_y100,
@@ -25,6 +16,14 @@ from camsim.analysis.delta_e import (
 )
 from camsim.analysis.ellipse import fit_ellipse
 from camsim.analysis.snr import delta_snr_percent, snr_empirical, snr_model
+from camsim.colorimetry import (
+    camera_to_xyz_matrix,
+    chromaticity_xy,
+    matrix_condition,
+    xyz_from_camera,
+)
+from camsim.photons import LIGHT_SPEED_M_S, PLANCK_J_S
+from camsim.spectra import cmfs_at
 
 WL = np.arange(380.0, 780.0 + 1e-9, 4.0)
 
@@ -102,7 +101,7 @@ def _qe_for_sensitivity(c, k):
 def test_paper_matrix_inverts_cmf_mixing():
     a = np.array([[0.9, 0.3, 0.05], [0.2, 1.1, 0.1], [0.0, 0.15, 1.3]])
     k = 0.028334
-    qe = _qe_for_sensitivity(a @ cmfs_on_grid(WL), k)
+    qe = _qe_for_sensitivity(a @ cmfs_at(WL), k)
     m, cond = camera_to_xyz_matrix(qe, WL, k, method="paper", return_condition=True)
     np.testing.assert_allclose(m, np.linalg.inv(a), rtol=1e-9, atol=1e-12)
     assert 1 < cond < 1e3
@@ -124,7 +123,7 @@ def test_least_squares_recovers_known_matrix():
 
 
 def test_singular_camera_raises_clear_error():
-    t = cmfs_on_grid(WL)
+    t = cmfs_at(WL)
     qe = np.stack([t[1], t[1], t[2]])  # two identical channels
     for method in ("paper", "paper-literal"):
         with pytest.raises(ValueError, match="singular"):

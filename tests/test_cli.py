@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+import camsim
 from camsim.cli import main
 from tests.helpers import ROOT
 
@@ -66,6 +67,25 @@ def test_help_explains_options_with_units(capsys):
     with pytest.raises(SystemExit):
         main(["--help"])
     assert "render" in capsys.readouterr().out
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--version"])
+    assert exit_info.value.code == 0
+    assert capsys.readouterr().out == f"camsim {camsim.__version__}\n"
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["render", str(SCENE), "--workers", "0"], "--workers: must be ≥ 1, got 0"),
+    (["render", str(SCENE), "--workers", "two"], "--workers: not an integer"),
+    (["analyze", ".", "--border", "-1"], "--border: must be ≥ 0, got -1"),
+    (["emva", "--size", "4097"], "--size: the side of the EMVA region of interest in pixels must be 16 to 4096"),
+])
+def test_integer_options_are_checked_on_one_line(capsys, argv, message):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("camsim: error: ") and err.count("\n") == 1 and message in err, err
 
 
 def _write(path, text):

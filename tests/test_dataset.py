@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 
 import camsim.dataset.runner as runner
+from camsim.commands.dataset import add_parser, run
 from camsim.dataset import _pool
 from camsim.dataset import load_spec, read_manifest, run_dataset
-from camsim.dataset.cli import add_parser, run
 from camsim.errors import CamsimError
 
 ROOT = Path(__file__).resolve().parents[1]

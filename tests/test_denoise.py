@@ -11,17 +11,10 @@ import textwrap
 import numpy as np
 import pytest
 
-from camsim.denoise.cli import add_parser, run
-from camsim.denoise.denoisers import (
-    DENOISERS,
-    _haar_bayes_shrink,
-    _haar_level,
-    _haar_level_inverse,
-    estimate_noise_sigma,
-    have_pywavelets,
-    resolve_denoiser,
-)
-from camsim.denoise.evaluate import Criterion, EvalSettings, evaluate, verdict
+from camsim.commands.denoise_eval import add_parser, run
+from camsim.denoise.denoisers import DENOISERS, estimate_noise_sigma, resolve_denoiser
+from camsim.denoise.evaluate import EvalSettings, evaluate
+from camsim.denoise.summary import Criterion, verdict
 from camsim.errors import CamsimError
 from camsim.run import render_scene
 from camsim.scene import load_scene
@@ -285,13 +278,10 @@ def test_verdict_rules():
         Criterion(max_delta_e=float("nan"))
 
 
-def test_noise_estimator_and_haar_transform():
+def test_noise_estimator():
     rng = np.random.default_rng(0)
     noise = rng.normal(0.0, 2.0, size=(128, 160, 3))
     assert estimate_noise_sigma(noise) == pytest.approx([2.0, 2.0, 2.0], rel=0.05)
-    x = rng.normal(size=(37, 45))
-    ll, details = _haar_level(x)
-    assert np.allclose(_haar_level_inverse(ll, details, x.shape), x, atol=1e-12)
 
 
 @pytest.mark.parametrize("sigma_dn", [None, 8.0])
@@ -315,19 +305,6 @@ def test_every_builtin_denoiser_resolves_keeps_the_mean_and_removes_noise(sigma_
             assert rmse == pytest.approx(8.0, rel=0.05)
         else:
             assert rmse < 0.5 * 8.0, (name, rmse)
-
-
-@pytest.mark.skipif(not have_pywavelets(), reason="PyWavelets is not installed: no scikit-image wavelet to compare")
-def test_numpy_wavelet_matches_scikit_image():
-    from skimage.restoration import denoise_wavelet, estimate_sigma
-
-    rng = np.random.default_rng(1)
-    image = np.clip(np.kron(rng.uniform(size=(6, 8)), np.ones((16, 16))) + rng.normal(0, 0.05, (96, 128)), 0, 1)
-    ours = _haar_bayes_shrink(image, 0.05)
-    theirs = denoise_wavelet(image, sigma=0.05, wavelet="db1", mode="soft", method="BayesShrink")
-    assert np.allclose(ours, theirs, atol=1e-9)
-    noise = rng.normal(0, 1.0, (128, 128, 3))
-    assert estimate_noise_sigma(noise) == pytest.approx(estimate_sigma(noise, channel_axis=-1), rel=0.05)
 
 
 def test_wavelet_denoiser_runs(dataset):

@@ -96,6 +96,32 @@ def test_eight_bit_dark_noise_is_quantisation_limited_as_the_model_predicts():
     assert result.within_target("dsnu_e") is None
 
 
+def test_numpy_is_as_before_after_the_analysis_and_its_plots(tmp_path, monkeypatch):
+    from camsim.emva import write_outputs
+
+    for name in ("int", "asfarray"):  # NumPy as NumPy 2 has it (NumPy 1 has both names)
+        monkeypatch.delattr(np, name, raising=False)
+    result = run("emva-12bit", EmvaSetup(size=16, steps=10, low_steps=0, stack_frames=2))
+    write_outputs(result, tmp_path / "emva")  # the reference plots call emva1288's routines too
+    assert (tmp_path / "emva" / "snr.png").is_file()
+    assert not hasattr(np, "int") and not hasattr(np, "asfarray")
+
+
+def test_the_numpy_shims_add_only_what_is_missing_and_remove_only_that(monkeypatch):
+    from camsim.emva.simulate import emva1288_numpy_shims
+
+    monkeypatch.delattr(np, "asfarray", raising=False)
+    mine = object()
+    monkeypatch.setattr(np, "int", mine, raising=False)
+    with emva1288_numpy_shims():
+        assert np.int is mine  # present before: left alone
+        assert np.asfarray([1, 2]).dtype == np.float64
+    assert np.int is mine and not hasattr(np, "asfarray")
+    with pytest.raises(RuntimeError), emva1288_numpy_shims():
+        raise RuntimeError("an error inside the block")
+    assert np.int is mine and not hasattr(np, "asfarray")
+
+
 def test_running_reduction_is_the_reference_one():
     from camsim.emva.simulate import IntStack, emva1288_process
 

@@ -80,3 +80,13 @@ def test_snr_figures(tmp_path):
     assert figures == {"snr_read": "snr_read.png", "snr_dark": "snr_dark.png",
                        "snr_quantisation": "snr_quantisation.png"}
     assert_pngs(tmp_path, figures, figures)
+
+
+def test_figures_leave_pyplot_alone(analysed, tmp_path):
+    import matplotlib.pyplot as plt
+
+    results, points = analysed
+    plt.close("all")  # pyplot's current figure, if any, would hide a figure opened through it
+    scenario_figures("scenario1", {"paper": results, "pixel": results}, points, {}, tmp_path)
+    snr_figures([], tmp_path)
+    assert plt.get_fignums() == []  # no figure opened in pyplot (colour-science's plots draw on ours)

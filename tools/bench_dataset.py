@@ -60,7 +60,8 @@ read_noise_e = {{ uniform = [1.5, 6.0] }}
 
 def child(args) -> None:
     """One run in this (fresh) process; prints its summary as JSON."""
-    from camsim.dataset.runner import DONE_SUFFIX, FRAMES_DIR, run_dataset
+    from camsim.dataset.manifest import DONE_SUFFIX, FRAMES_DIR
+    from camsim.dataset.runner import run_dataset
 
     summary = run_dataset(args.spec, args.out, workers=args.workers, threads=args.threads, progress=False,
                           echo=None)

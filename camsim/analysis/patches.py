@@ -6,14 +6,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.analysis.colorimetry import camera_to_xyz_matrix, chromaticity_xy, xyz_from_camera
 from camsim.analysis.delta_e import delta_e_5step, reference_lab
 from camsim.analysis.ellipse import fit_ellipse
 from camsim.frame_files import LoadedFrame
 from camsim.analysis.snr import snr_from_moments, snr_model
+from camsim.colorimetry import CHANNELS, camera_to_xyz_matrix, chromaticity_xy, xyz_from_camera
 from camsim.errors import CamsimError
+from camsim.optional_numbers import finite_or_none
 
-CHANNELS = ("R", "G", "B")
 BLACK_MODES = ("none", "sidecar", "dark-frame")
 
 
@@ -28,7 +28,7 @@ class AnalysisSettings:
     black : {'none', 'sidecar', 'dark-frame'}
         Black-level subtraction: none (as in the paper), the sidecar's mean dark level, or a dark frame's mean.
     matrix : str
-        Camera → XYZ method (``camsim.analysis.colorimetry.CAMERA_TO_XYZ_METHODS``).
+        Camera → XYZ method (``camsim.colorimetry.CAMERA_TO_XYZ_METHODS``).
     """
 
     border_px: int = 3
@@ -40,12 +40,6 @@ class AnalysisSettings:
             raise CamsimError(f"black-level mode must be one of {BLACK_MODES}, got {self.black!r}")
         if not (isinstance(self.border_px, int) and self.border_px >= 0):
             raise CamsimError(f"border must be a non-negative number of pixels, got {self.border_px!r}")
-
-
-def _finite_or_none(value):
-    """A float for JSON and CSV, None where the value is infinite (e.g. SNR in dB of a zero signal)."""
-    value = float(value)
-    return value if np.isfinite(value) else None
 
 
 def frame_matrix(frame: LoadedFrame, method: str) -> np.ndarray:
@@ -171,10 +165,10 @@ def _channel_record(name, values, counts, black, expected_black, threshold, k, m
         "std_e": None if var is None else float(np.sqrt(var)) / k,
         "saturated_pixels": int(np.sum(counts[saturated]) if counts is not None else np.count_nonzero(saturated)),
         "constant": bool(n > 0 and np.all(values == values[0])),
-        "snr_model": _finite_or_none(model.snr[c]),
-        "snr_model_db": _finite_or_none(model.snr_db[c]),
-        "snr_model_eq13": _finite_or_none(model_eq13.snr[c]),
-        "snr_model_eq13_db": _finite_or_none(model_eq13.snr_db[c]),
+        "snr_model": finite_or_none(model.snr[c]),
+        "snr_model_db": finite_or_none(model.snr_db[c]),
+        "snr_model_eq13": finite_or_none(model_eq13.snr[c]),
+        "snr_model_eq13_db": finite_or_none(model_eq13.snr_db[c]),
         "snr_empirical": snr,
         "snr_empirical_db": snr_db,
         "snr_status": snr_status,

@@ -1,9 +1,9 @@
 """Datasets: many frames from a spec (grid and random draws of scenes, illuminants, light levels, exposure and
 sensor parameters), rendered in parallel and resumably, with a JSON Lines manifest. See :mod:`camsim.dataset.spec`
-for the spec format and :mod:`camsim.dataset.runner` for the output layout and the back-ends.
+for the spec format, :mod:`camsim.dataset.runner` for the run, :mod:`camsim.dataset.manifest` for the output
+layout, :mod:`camsim.dataset.backends` for the back-ends and :mod:`camsim.dataset.frame_render` for one frame.
 
-Importing the package is cheap (``camsim.dataset.cli`` is imported by every ``camsim`` command); the names below
-load their modules on first use.
+Importing the package is cheap; the names below load their modules on first use.
 """
 
 _EXPORTS = {
@@ -11,7 +11,7 @@ _EXPORTS = {
     "FrameSpec": "camsim.dataset.spec",
     "load_spec": "camsim.dataset.spec",
     "run_dataset": "camsim.dataset.runner",
-    "read_manifest": "camsim.dataset.runner",
+    "read_manifest": "camsim.dataset.manifest",
 }
 __all__ = list(_EXPORTS)
 

@@ -2,13 +2,18 @@
 
 * :mod:`camsim.denoise.denoisers` — the built-in baselines (:data:`DENOISERS`) and user targets
   (``MODULE:FUNCTION``, ``cmd:PROGRAM ... {input} {output}``);
-* :mod:`camsim.denoise.evaluate` — PSNR / SSIM per frame and the colour quantities per patch, per light level;
+* :mod:`camsim.denoise.frames` — the scorable frames of a dataset (three-chip camsim EXR with a clean layer);
+* :mod:`camsim.denoise.image_scores` — PSNR / SSIM of a frame against its clean layer;
+* :mod:`camsim.denoise.patch_colour` — the colour quantities per patch (bias, noise ellipse, ΔE against F = 1);
+* :mod:`camsim.denoise.summary` — means per light level, the criterion and the verdicts;
+* :mod:`camsim.denoise.evaluate` — the loop: every denoiser on every frame, scored;
 * :mod:`camsim.denoise.report` — CSV, plots, ``report.md`` and ``summary.json``;
-* :mod:`camsim.denoise.cli` — the sub-command (``add_parser``, ``run``).
+* the sub-command itself is :mod:`camsim.commands.denoise_eval`.
 """
 
 from camsim.denoise.denoisers import DENOISERS, Denoiser, estimate_noise_sigma, resolve_denoiser
-from camsim.denoise.evaluate import Criterion, EvalSettings, Evaluation, evaluate
+from camsim.denoise.evaluate import EvalSettings, Evaluation, evaluate
+from camsim.denoise.summary import Criterion
 
 __all__ = ["DENOISERS", "Denoiser", "estimate_noise_sigma", "resolve_denoiser", "Criterion", "EvalSettings",
            "Evaluation", "evaluate", "write_outputs"]

@@ -60,44 +60,12 @@ NLM_PATCH_DISTANCE = 6
 TV_WEIGHT_PER_SIGMA = 1.0
 
 
-def have_pywavelets() -> bool:
-    """Whether PyWavelets (scikit-image's optional dependency for its wavelet functions) can be imported."""
-    try:
-        import pywt  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def _haar_level(x: np.ndarray):
-    """One level of the 2-D orthonormal Haar transform of ``x`` (h, w), as PyWavelets' ``dwtn(x, 'db1')`` with
-    its default 'symmetric' mode: an odd side is extended by repeating its last sample.
-
-    Returns ``(ll, (ad, da, dd))``: the approximation and the details (``dd``: diagonal), each (⌈h/2⌉, ⌈w/2⌉).
-    """
-    if x.shape[0] % 2:
-        x = np.concatenate([x, x[-1:]], axis=0)
-    if x.shape[1] % 2:
-        x = np.concatenate([x, x[:, -1:]], axis=1)
-    a, b, c, d = x[0::2, 0::2], x[0::2, 1::2], x[1::2, 0::2], x[1::2, 1::2]
-    return (a + b + c + d) / 2, ((a - b + c - d) / 2, (a + b - c - d) / 2, (a - b - c + d) / 2)
-
-
-def _haar_level_inverse(ll, details, shape) -> np.ndarray:
-    """Invert :func:`_haar_level`, cropping to ``shape`` (the level's input shape)."""
-    ad, da, dd = details
-    out = np.empty((2 * ll.shape[0], 2 * ll.shape[1]), dtype=ll.dtype)
-    out[0::2, 0::2] = (ll + ad + da + dd) / 2
-    out[0::2, 1::2] = (ll - ad + da - dd) / 2
-    out[1::2, 0::2] = (ll + ad - da - dd) / 2
-    out[1::2, 1::2] = (ll - ad - da + dd) / 2
-    return out[: shape[0], : shape[1]]
-
-
-def _mad_sigma(detail: np.ndarray) -> float:
-    """Donoho's robust σ: median |d| / Φ⁻¹(0.75) of the non-zero finest diagonal coefficients (as scikit-image)."""
-    detail = detail[np.nonzero(detail)]
-    return float(np.median(np.abs(detail)) / 0.6744897501960817) if detail.size else 0.0
+SIGMA_ESTIMATOR = ("skimage.restoration.estimate_sigma(channel_axis=-1) (MAD of the finest db2 diagonal "
+                   "coefficients)")
+"""How :func:`estimate_noise_sigma` estimates the noise (for the report)."""
+WAVELET_IMPLEMENTATION = ("skimage.restoration.denoise_wavelet(wavelet='db1', method='BayesShrink', mode='soft', "
+                          "channel_axis=-1)")
+"""What the ``wavelet`` denoiser runs (for the report)."""
 
 
 def estimate_noise_sigma(image: np.ndarray) -> np.ndarray:
@@ -105,52 +73,14 @@ def estimate_noise_sigma(image: np.ndarray) -> np.ndarray:
 
     Donoho's estimator, the median absolute deviation of the finest diagonal wavelet coefficients / 0.6745, which
     assumes additive white Gaussian noise and sees only the noisy pixels, never the sidecar's noise model:
-    :func:`skimage.restoration.estimate_sigma` with ``channel_axis=-1`` (Daubechies-2 wavelet) when PyWavelets
-    is installed, else the same estimator on the Haar wavelet computed here (:func:`sigma_estimator` says
-    which). On a ColorChecker both see only noise: flat patches and axis-aligned edges have no diagonal detail.
+    :func:`skimage.restoration.estimate_sigma` with ``channel_axis=-1`` (Daubechies-2 wavelet). On a ColorChecker
+    it sees only noise: flat patches and axis-aligned edges have no diagonal detail. Undefined estimates are 0.
     """
+    from skimage.restoration import estimate_sigma
+
     image = np.asarray(image, dtype=np.float64)
-    if have_pywavelets():
-        from skimage.restoration import estimate_sigma
-
-        sigma = np.asarray(estimate_sigma(image, channel_axis=-1, average_sigmas=False), dtype=np.float64)
-    else:
-        sigma = np.array([_mad_sigma(_haar_level(image[..., c])[1][2]) for c in range(image.shape[-1])])
+    sigma = np.asarray(estimate_sigma(image, channel_axis=-1, average_sigmas=False), dtype=np.float64)
     return np.where(np.isfinite(sigma), sigma, 0.0)
-
-
-def sigma_estimator() -> str:
-    """Which noise estimator :func:`estimate_noise_sigma` uses in this environment."""
-    if have_pywavelets():
-        return "skimage.restoration.estimate_sigma(channel_axis=-1) (MAD of the finest db2 diagonal coefficients)"
-    return ("MAD of the finest Haar diagonal coefficients / 0.6745, in numpy (the estimator of "
-            "skimage.restoration.estimate_sigma, which needs PyWavelets, not installed here)")
-
-
-def wavelet_implementation() -> str:
-    """Which implementation the ``wavelet`` denoiser uses in this environment."""
-    if have_pywavelets():
-        return "skimage.restoration.denoise_wavelet(wavelet='db1', method='BayesShrink', mode='soft', channel_axis=-1)"
-    return ("scikit-image's denoise_wavelet algorithm (Haar = db1, BayesShrink, soft thresholds, levels = "
-            "max(⌊log2 min(H, W)⌋ − 3, 1)) in numpy, as PyWavelets is not installed here")
-
-
-def _haar_bayes_shrink(channel: np.ndarray, sigma: float) -> np.ndarray:
-    """scikit-image's ``_wavelet_threshold`` for wavelet 'db1', BayesShrink, soft, default levels, in numpy."""
-    levels = max(int(np.floor(np.log2(min(channel.shape)))) - 3, 1) if min(channel.shape) >= 1 else 1
-    var, eps = sigma**2, np.finfo(np.float64).eps
-    shapes, details, ll = [], [], channel
-    for _ in range(levels):
-        shapes.append(ll.shape)
-        ll, band = _haar_level(ll)
-        details.append(band)
-    for shape, band in zip(reversed(shapes), reversed(details)):
-        shrunk = []
-        for d in band:
-            threshold = var / np.sqrt(max(float(np.mean(d * d)) - var, eps))
-            shrunk.append(np.sign(d) * np.maximum(np.abs(d) - threshold, 0.0))
-        ll = _haar_level_inverse(ll, shrunk, shape)
-    return ll
 
 
 def _normalise(image: np.ndarray):
@@ -163,6 +93,12 @@ def _normalise(image: np.ndarray):
 
 def _sigma(image: np.ndarray, sigma_dn) -> np.ndarray:
     return estimate_noise_sigma(image) if sigma_dn is None else np.asarray(sigma_dn, dtype=np.float64)
+
+
+def _rms_sigma(image: np.ndarray, sigma_dn) -> float:
+    """One σ for all channels (for scikit-image's functions that take one): the root mean square of the
+    per-channel σ. Unit: that of the image."""
+    return float(np.sqrt(np.mean(np.square(_sigma(image, sigma_dn)))))
 
 
 def identity(image: np.ndarray, sigma_dn=None) -> np.ndarray:
@@ -179,7 +115,7 @@ def nl_means(image: np.ndarray, sigma_dn=None) -> np.ndarray:
     from skimage.restoration import denoise_nl_means
 
     scaled, scale = _normalise(image)
-    sigma = float(np.sqrt(np.mean(np.square(_sigma(image, sigma_dn))))) / scale
+    sigma = _rms_sigma(image, sigma_dn) / scale
     if not sigma > 0:
         return identity(image)
     out = denoise_nl_means(scaled, patch_size=NLM_PATCH_SIZE, patch_distance=NLM_PATCH_DISTANCE,
@@ -191,22 +127,17 @@ def nl_means(image: np.ndarray, sigma_dn=None) -> np.ndarray:
 def wavelet(image: np.ndarray, sigma_dn=None) -> np.ndarray:
     """Wavelet shrinkage: BayesShrink, soft thresholds, Haar (db1), per channel, with the per-channel σ.
 
-    :func:`skimage.restoration.denoise_wavelet` (``channel_axis=-1``, no YCbCr conversion) when PyWavelets is
-    installed, else the same algorithm in numpy (:func:`wavelet_implementation` says which). The image is
-    divided by its maximum first; the output is not clipped (scikit-image does not clip float images).
+    :func:`skimage.restoration.denoise_wavelet` (``channel_axis=-1``, no YCbCr conversion). The image is divided
+    by its maximum first; the output is not clipped (scikit-image does not clip float images).
     """
+    from skimage.restoration import denoise_wavelet
+
     scaled, scale = _normalise(image)
     sigma = _sigma(image, sigma_dn) / scale
     if not np.all(sigma > 0):
         return identity(image)
-    if have_pywavelets():
-        from skimage.restoration import denoise_wavelet
-
-        out = denoise_wavelet(scaled, sigma=list(sigma), wavelet="db1", mode="soft", method="BayesShrink",
-                              rescale_sigma=True, channel_axis=-1)
-    else:
-        out = np.stack([_haar_bayes_shrink(scaled[..., c], float(sigma[c])) for c in range(scaled.shape[-1])],
-                       axis=-1)
+    out = denoise_wavelet(scaled, sigma=list(sigma), wavelet="db1", mode="soft", method="BayesShrink",
+                          rescale_sigma=True, channel_axis=-1)
     return (out * scale).astype(np.float32)
 
 
@@ -219,7 +150,7 @@ def total_variation(image: np.ndarray, sigma_dn=None) -> np.ndarray:
     from skimage.restoration import denoise_tv_chambolle
 
     scaled, scale = _normalise(image)
-    sigma = float(np.sqrt(np.mean(np.square(_sigma(image, sigma_dn))))) / scale
+    sigma = _rms_sigma(image, sigma_dn) / scale
     if not sigma > 0:
         return identity(image)
     out = denoise_tv_chambolle(scaled, weight=TV_WEIGHT_PER_SIGMA * sigma, channel_axis=-1)

@@ -1,16 +1,16 @@
-"""Scoring denoisers on a dataset of camsim frames against their clean layer.
+"""Scoring denoisers on a dataset of camsim frames against their clean layer: the evaluation loop.
 
-A dataset is any set of folders (searched recursively) and files holding camsim EXR frames: channels R, G, B =
-the noisy DN before quantisation, layer ``clean.R/G/B`` = their expected value, header ``camsim:metadata`` = the
-sidecar. Every denoiser sees each noisy frame as a (H, W, 3) float32 DN array; it is scored
+A dataset is any set of folders and files holding camsim EXR frames (:mod:`camsim.denoise.frames`). Every
+denoiser sees each noisy frame as a (H, W, 3) float32 DN array; it is scored
 
-* per frame: PSNR and SSIM (:mod:`skimage.metrics`) of the denoised and of the noisy frame against the clean
-  layer, with ``data_range`` = the clean layer's range (max − min over the frame's pixels and channels);
-* per patch (``meta["patches"]`` rectangles less a border): the chromaticity of the patch mean and of every
-  pixel through the paper's camera → XYZ matrix M (Eq. 15, from the sidecar's Qe), the chromaticity bias
-  |xy(mean of the patch) − xy(mean of the clean patch)|, the PCA noise ellipse of the pixels' xy before
-  (noisy) and after (denoised), and ΔE_ab by the paper's 5-step procedure against the same patch in the clean
-  layer of the F = 1 frame of the same measurement (:func:`camsim.analysis.analyze.group_key`).
+* per frame: PSNR and SSIM (:mod:`camsim.denoise.image_scores`) of the denoised and of the noisy frame against the
+  clean layer, with ``data_range`` = the clean layer's range (max − min over the frame's pixels and channels);
+* per patch (``meta["patches"]`` rectangles less a border; :mod:`camsim.denoise.patch_colour`): the chromaticity
+  of the patch mean and of every pixel through the paper's camera → XYZ matrix M (Eq. 15, from the sidecar's Qe),
+  the chromaticity bias |xy(mean of the patch) − xy(mean of the clean patch)|, the PCA noise ellipse of the
+  pixels' xy before (noisy) and after (denoised), and ΔE_ab by the paper's 5-step procedure against the same
+  patch in the clean layer of the F = 1 frame of the same measurement (:func:`camsim.analysis.analyze.group_key`);
+* per intensity factor: means, undefined counts and the colour-preservation verdicts (:mod:`camsim.denoise.summary`).
 
 Undefined quantities (no chromaticity where X + Y + Z ≤ 0, degenerate ellipses, no F = 1 reference, an
 infinite PSNR of a perfect result) are None and counted, never NaN.
@@ -18,50 +18,23 @@ infinite PSNR of a perfect result) are None and counted, never NaN.
 
 from __future__ import annotations
 
-import math
 import time
-from collections import defaultdict
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from camsim.analysis.analyze import group_key
-from camsim.analysis.colorimetry import chromaticity_xy, xyz_from_camera
-from camsim.analysis.delta_e import delta_e_5step, reference_lab
-from camsim.analysis.ellipse import fit_ellipse
 from camsim.frame_files import load_frame
 from camsim.analysis.patches import frame_matrix, patch_samples
+from camsim.colorimetry import CHANNELS
+from camsim.denoise.denoisers import Denoiser, estimate_noise_sigma
+from camsim.denoise.frames import Dataset, DatasetFrame, find_dataset
+from camsim.denoise.image_scores import image_scores
+from camsim.denoise.patch_colour import patch_colour, patch_row, reference_labs
+from camsim.denoise.summary import NOISY, Criterion, summarise, undefined_counts, verdict
 from camsim.errors import CamsimError
 
-from camsim.denoise.denoisers import Denoiser, estimate_noise_sigma
-
-CHANNELS = ("R", "G", "B")
-NOISY = "noisy"  # the name of the no-denoising baseline in summaries
-SSIM_MIN_SIDE = 7  # scikit-image's default SSIM window
-
-
-@dataclass(frozen=True)
-class Criterion:
-    """When a denoiser is said to preserve colour at a light level (over all patches of the frames at that F).
-
-    Colour is preserved when the mean ΔE_ab (5-step, against F = 1) ≤ ``max_delta_e``, the mean chromaticity bias
-    ≤ ``max_bias_xy``, and no patch's denoised colour is undefined (its mean with X + Y + Z ≤ 0, or not one
-    sample with Y > 0 for ΔE).
-    """
-
-    max_delta_e: float = 3.0
-    max_bias_xy: float = 0.005
-
-    def __post_init__(self):
-        for name in ("max_delta_e", "max_bias_xy"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise CamsimError(f"criterion {name} must be a positive finite number, got {value!r}")
-
-    def text(self) -> str:
-        return (f"mean ΔE_ab ≤ {self.max_delta_e:g} and mean chromaticity bias ≤ {self.max_bias_xy:g} (xy), "
-                "with no patch's colour undefined")
+__all__ = ["EvalSettings", "FrameResult", "Evaluation", "evaluate", "evaluate_frame"]
 
 
 @dataclass(frozen=True)
@@ -89,145 +62,6 @@ class EvalSettings:
     def __post_init__(self):
         if not (isinstance(self.border_px, int) and self.border_px >= 0):
             raise CamsimError(f"border must be a non-negative number of pixels, got {self.border_px!r}")
-
-
-@dataclass
-class DatasetFrame:
-    """A usable frame of a dataset: its path, its path relative to the dataset folder, and its sidecar."""
-
-    path: Path
-    name: str
-    meta: dict
-
-
-@dataclass
-class Dataset:
-    frames: list[DatasetFrame]
-    skipped: list[dict]  # {"file", "reason"}
-    roots: list[str]
-
-
-def _relative(path: Path, root: Path) -> str:
-    try:
-        return str(path.relative_to(root))
-    except ValueError:
-        return str(path)
-
-
-def find_dataset(paths) -> Dataset:
-    """The EXR frames under ``paths`` (folders searched recursively, or files) that can be scored.
-
-    Bayer (CFA) frames, EXRs without a clean layer and files that are not camsim frames are skipped, each with
-    its reason.
-
-    Raises
-    ------
-    CamsimError
-        A path that does not exist, or no usable frame at all.
-    """
-    from camsim.io.exr import read_exr
-
-    frames, skipped, roots = [], [], []
-    for entry in paths:
-        entry = Path(entry)
-        if entry.is_dir():
-            candidates, root = sorted(p for p in entry.rglob("*.exr") if p.is_file()), entry
-        elif entry.is_file():
-            candidates, root = [entry], entry.parent
-        else:
-            raise CamsimError(f"no such file or folder: {entry}")
-        roots.append(str(entry))
-        for path in candidates:
-            name = _relative(path, root)
-            try:
-                frame = load_frame(path)
-            except CamsimError as exc:
-                skipped.append({"file": name, "reason": f"not a readable camsim frame: {exc}"})
-                continue
-            if frame.cfa_pattern or frame.pixels_dn.shape[0] != 3:
-                skipped.append({"file": name, "reason": f"Bayer (CFA {frame.cfa_pattern}) mosaic: denoise-eval "
-                                                        "scores three-chip (R, G, B at every pixel) frames only"})
-                continue
-            _, clean, _ = read_exr(path)
-            if clean is None:
-                skipped.append({"file": name, "reason": "no clean layer (clean.R/G/B) to score against"})
-                continue
-            frames.append(DatasetFrame(path, name, frame.meta))
-    if not frames:
-        reasons = "; ".join(f"{s['file']}: {s['reason']}" for s in skipped[:3])
-        raise CamsimError(f"no scorable frames (three-chip camsim EXR with a clean layer) in "
-                          f"{', '.join(str(p) for p in paths)}" + (f" — skipped {reasons}" if reasons else ""))
-    return Dataset(frames, skipped, roots)
-
-
-def _finite(value):
-    """A float for CSV and JSON, None where undefined."""
-    if value is None:
-        return None
-    value = float(value)
-    return value if math.isfinite(value) else None
-
-
-def image_scores(clean: np.ndarray, test: np.ndarray, data_range: float) -> tuple[float | None, float | None]:
-    """PSNR (dB) and SSIM of ``test`` against ``clean``, both (H, W, 3); None where undefined.
-
-    PSNR is undefined (infinite) for a perfect result; SSIM for frames smaller than its 7 × 7 window.
-    """
-    from skimage.metrics import mean_squared_error, peak_signal_noise_ratio, structural_similarity
-
-    clean = clean.astype(np.float64)
-    test = test.astype(np.float64)
-    psnr = None
-    if mean_squared_error(clean, test) > 0:
-        psnr = _finite(peak_signal_noise_ratio(clean, test, data_range=data_range))
-    ssim = None
-    if min(clean.shape[:2]) >= SSIM_MIN_SIDE:
-        ssim = _finite(structural_similarity(clean, test, data_range=data_range, channel_axis=-1))
-    return psnr, ssim
-
-
-def _xy_of_mean(xyz: np.ndarray):
-    """xy of the mean of XYZ samples, or None (no sample, or X + Y + Z ≤ 0)."""
-    if xyz.shape[0] == 0:
-        return None
-    xy, _ = chromaticity_xy(xyz.mean(axis=0)[None, :])
-    return (float(xy[0, 0]), float(xy[0, 1])) if xy.shape[0] else None
-
-
-def patch_colour(samples_dn: np.ndarray, matrix: np.ndarray, ref_lab) -> dict:
-    """Colour quantities of one patch's samples (n, 3), black already subtracted. Unit of samples: DN."""
-    xyz = xyz_from_camera(samples_dn, matrix)
-    xy, n_undefined = chromaticity_xy(xyz)
-    ellipse = fit_ellipse(xy)
-    out = {"mean_xy": _xy_of_mean(xyz), "n_xy_undefined": int(n_undefined), "ellipse_status": ellipse.status,
-           "ellipse_size": _finite(ellipse.size), "center_x": _finite(ellipse.center_x),
-           "center_y": _finite(ellipse.center_y), "delta_e": None, "n_y_nonpositive": None}
-    if ref_lab is not None:
-        de = delta_e_5step(xyz, ref_lab)
-        out.update(delta_e=_finite(de.mean), n_y_nonpositive=int(de.n_undefined))
-    return out
-
-
-def _bias(xy, truth):
-    if xy is None or truth is None:
-        return None
-    return float(math.hypot(xy[0] - truth[0], xy[1] - truth[1]))
-
-
-def _ratio(after, before):
-    if after is None or before is None or not before > 0:
-        return None
-    return float(after / before)
-
-
-def _reference_labs(frame, clean: np.ndarray, black: np.ndarray, matrix, border: int) -> list:
-    """Per patch the mean Lab (5-step, Y = 100) of the clean layer: the ΔE reference of the F = 1 frame."""
-    labs = []
-    for patch in frame.meta["patches"]:
-        samples = patch_samples(clean, patch["rect_xywh"], border).astype(np.float64) - black
-        lab = reference_lab(xyz_from_camera(samples, matrix))[0] if samples.shape[0] else None
-        labs.append(lab)
-    return labs
 
 
 @dataclass
@@ -266,7 +100,7 @@ def evaluate_frame(frame: DatasetFrame, denoisers: list[Denoiser], settings: Eva
     border = settings.border_px
     own_refs = None
     if ref_labs == "self":
-        own_refs = _reference_labs(loaded, clean, black, matrix, border)
+        own_refs = reference_labs(loaded, clean, black, matrix, border)
         ref_labs = own_refs
 
     data_range = float(clean.max() - clean.min())
@@ -316,34 +150,9 @@ def evaluate_frame(frame: DatasetFrame, denoisers: list[Denoiser], settings: Eva
         for index, patch, ref, truth, before in base:
             samples = patch_samples(denoised_chw, patch["rect_xywh"], border).astype(np.float64) - black
             after = patch_colour(samples, matrix, ref)
-            rows.append(_patch_row(index, patch, ref, truth, before, after))
+            rows.append(patch_row(index, patch, ref, truth, before, after))
         result.patch_rows[denoiser.name] = rows
     return result, own_refs
-
-
-def _patch_row(index, patch, ref, truth, before, after) -> dict:
-    truth_xy = truth["mean_xy"]
-    row = {"patch_index": index, "patch_name": patch["name"],
-           "clean_x": None if truth_xy is None else truth_xy[0], "clean_y": None if truth_xy is None else truth_xy[1]}
-    for label, colour in (("noisy", before), ("denoised", after)):
-        xy = colour["mean_xy"]
-        row.update({
-            f"{label}_mean_x": None if xy is None else xy[0],
-            f"{label}_mean_y": None if xy is None else xy[1],
-            f"bias_{label}_xy": _bias(xy, truth_xy),
-            f"{label}_center_x": colour["center_x"],
-            f"{label}_center_y": colour["center_y"],
-            f"ellipse_size_{label}": colour["ellipse_size"],
-            f"ellipse_status_{label}": colour["ellipse_status"],
-            f"n_xy_undefined_{label}": colour["n_xy_undefined"],
-        })
-    row["ellipse_size_ratio"] = _ratio(after["ellipse_size"], before["ellipse_size"])
-    row.update({"delta_e_clean": truth["delta_e"], "delta_e_noisy": before["delta_e"],
-                "delta_e_denoised": after["delta_e"], "n_y_nonpositive_noisy": before["n_y_nonpositive"],
-                "n_y_nonpositive_denoised": after["n_y_nonpositive"],
-                "delta_e_status": "no-reference" if ref is None else (
-                    "ok" if after["delta_e"] is not None else "no-valid-sample")})
-    return row
 
 
 @dataclass
@@ -416,116 +225,3 @@ def evaluate(paths, denoisers: list[Denoiser], settings: EvalSettings | None = N
     counts = undefined_counts(frame_rows, patch_rows, names)
     return Evaluation(dataset, denoisers, settings, frame_rows, patch_rows, summary_rows, verdicts, examples, counts,
                       seconds)
-
-
-def _mean(values):
-    values = [v for v in values if v is not None]
-    return float(np.mean(values)) if values else None
-
-
-def _median(values):
-    values = [v for v in values if v is not None]
-    return float(np.median(values)) if values else None
-
-
-def _preserved(delta_e, bias, n_undefined_colour, has_reference, criterion: Criterion) -> str:
-    if not has_reference:
-        return "undetermined"
-    if n_undefined_colour or delta_e is None or bias is None:
-        return "no"
-    return "yes" if delta_e <= criterion.max_delta_e and bias <= criterion.max_bias_xy else "no"
-
-
-def summarise(frame_rows, patch_rows, names, criterion: Criterion) -> list[dict]:
-    """One row per denoiser × intensity factor: means over frames and patches, counts of undefined values and
-    whether colour is preserved (for the denoised frames, and for the noisy baseline)."""
-    frames_by = defaultdict(list)
-    patches_by = defaultdict(list)
-    for r in frame_rows:
-        frames_by[(r["denoiser"], r["intensity_factor"])].append(r)
-    for r in patch_rows:
-        patches_by[(r["denoiser"], r["intensity_factor"])].append(r)
-    rows = []
-    for name in names:
-        for factor in sorted({k[1] for k in frames_by if k[0] == name}, reverse=True):
-            fr, pr = frames_by[(name, factor)], patches_by[(name, factor)]
-            has_ref = any(p["delta_e_status"] != "no-reference" for p in pr) or not pr
-            row = {"denoiser": name, "intensity_factor": factor, "n_frames": len(fr), "n_patches": len(pr)}
-            for key in ("psnr_noisy_db", "psnr_denoised_db", "psnr_gain_db", "ssim_noisy", "ssim_denoised",
-                        "ssim_gain"):
-                row[key] = _mean(r[key] for r in fr)
-            for key in ("bias_noisy_xy", "bias_denoised_xy", "ellipse_size_noisy", "ellipse_size_denoised",
-                        "ellipse_size_ratio", "delta_e_clean", "delta_e_noisy", "delta_e_denoised"):
-                row[key] = _mean(p[key] for p in pr)
-            for key in ("delta_e_noisy", "delta_e_denoised"):  # ΔE is heavy-tailed at low light: also the median
-                row[f"{key}_median"] = _median(p[key] for p in pr)
-            undefined = {}
-            for label in ("noisy", "denoised"):
-                undefined[label] = sum((p[f"bias_{label}_xy"] is None and p["clean_x"] is not None)
-                                       + (p[f"delta_e_{label}"] is None and p["delta_e_status"] != "no-reference")
-                                       for p in pr)
-            row.update({
-                "n_bias_undefined": sum(p["bias_denoised_xy"] is None for p in pr),
-                "n_ellipse_ratio_undefined": sum(p["ellipse_size_ratio"] is None for p in pr),
-                "n_delta_e_undefined": sum(p["delta_e_denoised"] is None for p in pr),
-                "n_psnr_undefined": sum(r["psnr_denoised_db"] is None for r in fr),
-                "colour_preserved": _preserved(row["delta_e_denoised"], row["bias_denoised_xy"], undefined["denoised"],
-                                               has_ref, criterion),
-                "colour_preserved_noisy": _preserved(row["delta_e_noisy"], row["bias_noisy_xy"], undefined["noisy"],
-                                                     has_ref, criterion),
-            })
-            rows.append(row)
-    return rows
-
-
-def verdict(rows, column: str) -> dict:
-    """Where colour stops being preserved, from summary rows of one denoiser (any order).
-
-    Returns ``{"preserved_down_to": F or None, "stops_at": F or None, "status": ..., "by_factor": {F: yes/no/...},
-    "recovers_below": [F...]}``; status is ``all-preserved`` (the stop lies below the tested range), ``stops``,
-    ``never-preserved`` (fails at the highest tested F) or ``undetermined`` (no F = 1 reference).
-    """
-    rows = sorted(rows, key=lambda r: -r["intensity_factor"])
-    by_factor = {r["intensity_factor"]: r[column] for r in rows}
-    if rows and all(v == "undetermined" for v in by_factor.values()):
-        return {"status": "undetermined", "preserved_down_to": None, "stops_at": None, "by_factor": by_factor,
-                "recovers_below": []}
-    down_to, stops = None, None
-    for r in rows:
-        if r[column] == "yes":
-            down_to = r["intensity_factor"]
-        else:
-            stops = r["intensity_factor"]
-            break
-    recovers = [] if stops is None else [f for f, v in by_factor.items() if f < stops and v == "yes"]
-    status = "all-preserved" if stops is None else ("never-preserved" if down_to is None else "stops")
-    return {"status": status, "preserved_down_to": down_to, "stops_at": stops, "by_factor": by_factor,
-            "recovers_below": recovers}
-
-
-def undefined_counts(frame_rows, patch_rows, names) -> dict:
-    """Per denoiser, how many values were undefined (None in the CSV files) and why."""
-    out = {}
-    for name in names:
-        fr = [r for r in frame_rows if r["denoiser"] == name]
-        pr = [r for r in patch_rows if r["denoiser"] == name]
-        out[name] = {
-            "frames": len(fr),
-            "patches": len(pr),
-            "psnr_infinite_denoised": sum(r["psnr_denoised_db"] is None for r in fr),
-            "psnr_infinite_noisy": sum(r["psnr_noisy_db"] is None for r in fr),
-            "ssim_undefined": sum(r["ssim_denoised"] is None for r in fr),
-            "patch_mean_xy_undefined_clean": sum(r["clean_x"] is None for r in pr),
-            "patch_mean_xy_undefined_noisy": sum(r["noisy_mean_x"] is None for r in pr),
-            "patch_mean_xy_undefined_denoised": sum(r["denoised_mean_x"] is None for r in pr),
-            "xy_undefined_samples_noisy": sum(r["n_xy_undefined_noisy"] for r in pr),
-            "xy_undefined_samples_denoised": sum(r["n_xy_undefined_denoised"] for r in pr),
-            "degenerate_ellipses_noisy": sum(r["ellipse_status_noisy"] != "ok" for r in pr),
-            "degenerate_ellipses_denoised": sum(r["ellipse_status_denoised"] != "ok" for r in pr),
-            "ellipse_ratio_undefined": sum(r["ellipse_size_ratio"] is None for r in pr),
-            "delta_e_no_reference": sum(r["delta_e_status"] == "no-reference" for r in pr),
-            "delta_e_no_valid_sample": sum(r["delta_e_status"] == "no-valid-sample" for r in pr),
-            "y_nonpositive_samples_noisy": sum(r["n_y_nonpositive_noisy"] or 0 for r in pr),
-            "y_nonpositive_samples_denoised": sum(r["n_y_nonpositive_denoised"] or 0 for r in pr),
-        }
-    return out

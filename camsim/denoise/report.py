@@ -20,15 +20,13 @@ import io
 import math
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from camsim.denoise.denoisers import sigma_estimator, wavelet_implementation  # noqa: E402
-from camsim.denoise.evaluate import NOISY, Evaluation  # noqa: E402
-from camsim.io.atomic import atomic_path, write_json_atomic, write_text_atomic  # noqa: E402
+from camsim.denoise.denoisers import SIGMA_ESTIMATOR, WAVELET_IMPLEMENTATION
+from camsim.denoise.evaluate import Evaluation
+from camsim.denoise.summary import NOISY
+from camsim.io.atomic import write_json_atomic, write_text_atomic
+from camsim.plotting import new_figure, save_png
 
 FRAME_COLUMNS = ("denoiser", "file", "scene", "illuminant", "intensity_factor", "width_px", "height_px",
                  "data_range_dn", "data_range_source", "sigma_est_R_dn", "sigma_est_G_dn", "sigma_est_B_dn",
@@ -49,7 +47,6 @@ SUMMARY_COLUMNS = ("denoiser", "intensity_factor", "n_frames", "n_patches", "psn
                    "colour_preserved", "colour_preserved_noisy")
 PLOTS = {"psnr_ssim": "psnr_ssim.png", "bias": "chromaticity_bias.png", "delta_e": "delta_e.png",
          "ellipse": "ellipse_size.png", "examples": "examples.png"}
-DPI = 110
 NOISY_LABEL = "noisy (no denoising)"
 
 
@@ -80,12 +77,6 @@ def _f(factor) -> str:
 
 # ------------------------------------------------------------------------------------------------------ plots
 
-def _save(fig, path: Path) -> None:
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=DPI)
-    plt.close(fig)
-
-
 def _series(ev: Evaluation, name: str, key: str):
     rows = sorted((r for r in ev.summary_rows if r["denoiser"] == name), key=lambda r: r["intensity_factor"])
     pts = [(r["intensity_factor"], r[key]) for r in rows if r[key] is not None]
@@ -93,7 +84,9 @@ def _series(ev: Evaluation, name: str, key: str):
 
 
 def _colours(ev: Evaluation) -> dict:
-    cycle = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    import matplotlib
+
+    cycle = matplotlib.rcParams["axes.prop_cycle"].by_key()["color"]
     return {d.name: cycle[i % len(cycle)] for i, d in enumerate(ev.denoisers)}
 
 
@@ -120,19 +113,22 @@ def _against_f(ax, ev: Evaluation, key_noisy: str, key_denoised: str, ylabel: st
 
 def _plots(ev: Evaluation, out: Path) -> dict:
     crit = ev.settings.criterion
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), layout="constrained")
+    fig = new_figure(figsize=(11, 4.2), layout="constrained")
+    axes = fig.subplots(1, 2)
     _against_f(axes[0], ev, "psnr_noisy_db", "psnr_denoised_db", "PSNR against the clean layer (dB)")
     _against_f(axes[1], ev, "ssim_noisy", "ssim_denoised", "SSIM against the clean layer")
     fig.suptitle("PSNR and SSIM (mean over frames) — data range: each frame's clean range")
-    _save(fig, out / PLOTS["psnr_ssim"])
+    save_png(fig, out / PLOTS["psnr_ssim"])
 
-    fig, ax = plt.subplots(figsize=(6.5, 4.4), layout="constrained")
+    fig = new_figure(figsize=(6.5, 4.4), layout="constrained")
+    ax = fig.subplots()
     _against_f(ax, ev, "bias_noisy_xy", "bias_denoised_xy", "mean chromaticity bias |Δxy| of patch means",
                log_y=True, threshold=crit.max_bias_xy)
     ax.set_title("Chromaticity bias against the clean patch mean")
-    _save(fig, out / PLOTS["bias"])
+    save_png(fig, out / PLOTS["bias"])
 
-    fig, ax = plt.subplots(figsize=(6.5, 4.4), layout="constrained")
+    fig = new_figure(figsize=(6.5, 4.4), layout="constrained")
+    ax = fig.subplots()
     _against_f(ax, ev, "delta_e_noisy", "delta_e_denoised", "mean ΔE_ab (5-step, vs clean F = 1)", log_y=True,
                threshold=crit.max_delta_e)
     x, y = _series(ev, ev.denoisers[0].name, "delta_e_clean")
@@ -140,9 +136,10 @@ def _plots(ev: Evaluation, out: Path) -> dict:
         ax.plot(x, y, color="grey", ls="-.", label="clean layer (perfect denoiser)")
         ax.legend(fontsize=8)
     ax.set_title("ΔE against F = 1")
-    _save(fig, out / PLOTS["delta_e"])
+    save_png(fig, out / PLOTS["delta_e"])
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), layout="constrained")
+    fig = new_figure(figsize=(11, 4.2), layout="constrained")
+    axes = fig.subplots(1, 2)
     _against_f(axes[0], ev, "ellipse_size_noisy", "ellipse_size_denoised", "mean ellipse size √(a² + b²) (xy, 1 σ)",
                log_y=True)
     colours = _colours(ev)
@@ -157,7 +154,7 @@ def _plots(ev: Evaluation, out: Path) -> dict:
     axes[1].grid(True, which="both", alpha=0.3)
     axes[1].legend(fontsize=8)
     fig.suptitle("Chromaticity noise ellipses before (noisy) and after (denoised)")
-    _save(fig, out / PLOTS["ellipse"])
+    save_png(fig, out / PLOTS["ellipse"])
 
     if ev.examples:
         _example_plot(ev, out / PLOTS["examples"])
@@ -172,8 +169,8 @@ def _display(img, black, scale):
 def _example_plot(ev: Evaluation, path: Path) -> None:
     factors = sorted(ev.examples, reverse=True)
     columns = ["clean", "noisy", *[d.name for d in ev.denoisers]]
-    fig, axes = plt.subplots(len(factors), len(columns), figsize=(2.3 * len(columns), 1.9 * len(factors) + 0.5),
-                             layout="constrained", squeeze=False)
+    fig = new_figure(figsize=(2.3 * len(columns), 1.9 * len(factors) + 0.5), layout="constrained")
+    axes = fig.subplots(len(factors), len(columns), squeeze=False)
     for i, factor in enumerate(factors):
         crops = ev.examples[factor]
         black = crops["black"]
@@ -189,7 +186,7 @@ def _example_plot(ev: Evaluation, path: Path) -> None:
                 ax.set_ylabel(f"F = {_f(factor)}", fontsize=9)
     fig.suptitle("Clean, noisy and denoised (black subtracted, each row scaled to its clean maximum, γ 1/2.2)",
                  fontsize=9)
-    _save(fig, path)
+    save_png(fig, path)
 
 
 # ------------------------------------------------------------------------------------------------------ report
@@ -348,7 +345,7 @@ def report_text(ev: Evaluation) -> str:
     s = ev.settings
     lines += ["## How it was measured", "",
               f"* **Noise level given to the denoisers**: estimated blindly from each noisy frame — "
-              f"{sigma_estimator()}. The sidecar's noise model (signal variance, dark and read noise) is not used: "
+              f"{SIGMA_ESTIMATOR}. The sidecar's noise model (signal variance, dark and read noise) is not used: "
               "a real denoiser does not know it. `frames.csv` also lists the true σ (std of noisy − clean) for "
               "comparison only.",
               "* **PSNR and SSIM** (scikit-image): against the clean layer, with `data_range` = the clean layer's "
@@ -374,7 +371,7 @@ def report_text(ev: Evaluation) -> str:
               "* **Denoisers**: " + "; ".join(f"`{d.target}` — {d.description}" for d in ev.denoisers) + ".",
               ]
     if any(d.target == "wavelet" for d in ev.denoisers):
-        lines.append(f"* **wavelet implementation**: {wavelet_implementation()}.")
+        lines.append(f"* **wavelet implementation**: {WAVELET_IMPLEMENTATION}.")
     lines.append("")
 
     lines += ["## Undefined values", "",
@@ -404,7 +401,7 @@ def summary_json(ev: Evaluation) -> dict:
         "skipped": ev.dataset.skipped,
         "settings": {"border_px": s.border_px, "black_subtraction": "sidecar" if s.subtract_black else "none",
                      "camera_to_xyz": s.matrix, "data_range": "clean layer range per frame",
-                     "sigma_estimator": sigma_estimator(),
+                     "sigma_estimator": SIGMA_ESTIMATOR,
                      "delta_e_reference": "clean layer of the F = 1 frame of the same measurement"},
         "criterion": {"max_delta_e": s.criterion.max_delta_e, "max_bias_xy": s.criterion.max_bias_xy,
                       "text": s.criterion.text()},

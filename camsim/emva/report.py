@@ -13,23 +13,20 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from camsim.emva.simulate import (  # noqa: E402
+from camsim.emva.simulate import (
     CHANNEL,
     QUANTITIES,
     S2_YDARK_FLOOR_DN2,
     EmvaResult,
+    emva1288_numpy_shims,
     emva1288_process,
     model_dark_temporal_dn,
 )
-from camsim.io.atomic import atomic_path, write_json_atomic, write_text_atomic  # noqa: E402
+from camsim.io.atomic import write_json_atomic, write_text_atomic
+from camsim.plotting import new_figure, save_png
 
-DPI = 110
 PLOTS = {
     "photon_transfer": "photon_transfer.png",
     "snr": "snr.png",
@@ -53,12 +50,6 @@ _CONFIGURED_AS = {
 }
 
 
-def _save(fig, path: Path) -> None:
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=DPI)
-    plt.close(fig)
-
-
 def _plots(result: EmvaResult, out: Path) -> dict:
     """Draw the reference implementation's plots with the configuration overlaid; returns {key: file name}."""
     emva1288_process()
@@ -67,7 +58,7 @@ def _plots(result: EmvaResult, out: Path) -> dict:
     res, conf = result.results, result.configured
     k, eta = conf["K_dn_per_e"], conf["qe"]
 
-    fig = plt.figure(figsize=(11, 4.4), layout="constrained")
+    fig = new_figure(figsize=(11, 4.4), layout="constrained")
     left, right = fig.subfigures(1, 2)
     ptc = plotting.PlotPTC(left)
     ptc.plot(res)
@@ -82,9 +73,9 @@ def _plots(result: EmvaResult, out: Path) -> dict:
     sens.ax.set_title(f"Sensitivity (fit R = {res.R:.4g} DN/p, η = {res.QE:.2f} %)")
     sens.ax.ticklabel_format(axis="x", style="sci", scilimits=(1, 4))
     sens.set_legend(sens.ax)
-    _save(fig, out / PLOTS["photon_transfer"])
+    save_png(fig, out / PLOTS["photon_transfer"])
 
-    fig = plt.figure(figsize=(7.5, 5.2), layout="constrained")
+    fig = new_figure(figsize=(7.5, 5.2), layout="constrained")
     snr = plotting.PlotSNR(fig)
     snr.plot(res)
     mu_p = np.geomspace(max(1.0, float(p[0]) / 4), float(p[-1]), 200)
@@ -94,9 +85,9 @@ def _plots(result: EmvaResult, out: Path) -> dict:
     snr.ax.plot(mu_p, temporal, color="k", lw=0.8, label="configured camera (temporal SNR)")
     snr.ax.set_title("Signal-to-noise ratio")
     snr.set_legend(snr.ax)
-    _save(fig, out / PLOTS["snr"])
+    save_png(fig, out / PLOTS["snr"])
 
-    fig = plt.figure(figsize=(11, 4.2), layout="constrained")
+    fig = new_figure(figsize=(11, 4.2), layout="constrained")
     left, right = fig.subfigures(1, 2)
     dsnu = plotting.PlotLogarithmicHistogramDSNU(left)
     dsnu.plot(res)
@@ -106,7 +97,7 @@ def _plots(result: EmvaResult, out: Path) -> dict:
     prnu.plot(res)
     prnu_value = _fmt(result.recovered["prnu_percent"])
     prnu.ax.set_title(f"PRNU histogram (high-pass filtered, PRNU₁₂₈₈ = {prnu_value} %)", fontsize="medium")
-    _save(fig, out / PLOTS["nonuniformity"])
+    save_png(fig, out / PLOTS["nonuniformity"])
     return dict(PLOTS)
 
 
@@ -169,7 +160,7 @@ def _summary(result: EmvaResult) -> list:
 
 def _dark_notes(result: EmvaResult) -> list:
     """Dark noise (quantisation), K and η (the quantisation offset of the PTC), the −½ DN, the black level."""
-    m, s, d = result.measurement, result.measurement.sensor, result.details
+    s, d = result.measurement.sensor, result.details
     k, dark_e = s.dn_per_electron, s.dark_mean_e[CHANNEL]
     conf, rec = result.configured["dark_noise_e"], result.recovered["dark_noise_e"]
     dark_mean, dark_var = model_dark_temporal_dn(s)
@@ -360,7 +351,8 @@ def write_outputs(result: EmvaResult, out) -> dict:
     """Write ``OUT/emva.json``, the plots and ``OUT/report.md``; returns {name: path}."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    plots = _plots(result, out)
+    with emva1288_numpy_shims():  # the reference plots call into emva1288's routines
+        plots = _plots(result, out)
     write_json_atomic(out / "emva.json", result.comparison())
     write_text_atomic(out / "report.md", markdown(result, plots))
     return {"report": out / "report.md", "json": out / "emva.json", **{k: out / v for k, v in plots.items()}}

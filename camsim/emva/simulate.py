@@ -23,6 +23,7 @@ go to ``emva1288``'s in-memory entry points, :class:`Data1288` and :class:`Resul
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import math
@@ -33,6 +34,7 @@ import numpy as np
 from camsim.camera import DEFAULT_CAMERA, PhysicalScale, absolute_qe, load_camera
 from camsim.errors import CamsimError
 from camsim.fixed_pattern import fixed_pattern
+from camsim.optional_numbers import finite_or_none
 from camsim.pipeline import LitScene, make_frame
 from camsim.seeding import emva_frame_seed_sequence
 from camsim.sensor import SensorParams, cfa_sites
@@ -62,12 +64,41 @@ QUANTITIES = {
 }
 
 
+def _asfarray(a, dtype=float):
+    return np.asarray(a, dtype=dtype)
+
+
+#: NumPy 1 names that emva1288 still calls and NumPy 2 removed, with what they stood for.
+_NUMPY1_NAMES = {"asfarray": _asfarray, "int": int}
+
+
+@contextlib.contextmanager
+def emva1288_numpy_shims():
+    """Within the block, ``np.asfarray`` and ``np.int`` exist, as emva1288 (written for NumPy 1) needs.
+
+    Only the names NumPy lacks are added, and exactly those are removed when the block ends (also on an
+    exception): outside it, every other module sees NumPy as it was. emva1288's routines look the names up when
+    they run, so every call into emva1288 goes inside the block, including reading the lazily computed properties
+    of ``Results1288`` (``K``, ``QE``, ...).
+    """
+    added = [name for name in _NUMPY1_NAMES if not hasattr(np, name)]
+    for name in added:
+        setattr(np, name, _NUMPY1_NAMES[name])
+    try:
+        yield
+    finally:
+        for name in added:
+            vars(np).pop(name, None)
+
+
 def emva1288_process():
-    """``emva1288.process``, imported after the two NumPy-2 shims it needs (``np.asfarray``, ``np.int``)."""
-    if not hasattr(np, "asfarray"):
-        np.asfarray = lambda a, dtype=float: np.asarray(a, dtype=dtype)
-    if not hasattr(np, "int"):
-        np.int = int
+    """``emva1288.process``; call into it within :func:`emva1288_numpy_shims`.
+
+    Raises
+    ------
+    CamsimError
+        emva1288 is not installed.
+    """
     try:
         import emva1288.process as process
     except ImportError as exc:  # pragma: no cover - a declared dependency
@@ -184,7 +215,7 @@ class EmvaResult:
     """The analysis: the reference implementation's results and the comparison with the configuration."""
 
     measurement: Measurement
-    results: object  # emva1288.process.Results1288
+    results: object  # emva1288.process.Results1288: read its properties within emva1288_numpy_shims()
     configured: dict
     recovered: dict
     details: dict = field(default_factory=dict)
@@ -331,16 +362,13 @@ def simulate(sensor: SensorParams, setup: EmvaSetup = EmvaSetup(), preset_name: 
                        camera.name)
 
 
-def _finite(value) -> float | None:
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        return None
-    return value if math.isfinite(value) else None
-
-
 def analyse(measurement: Measurement) -> EmvaResult:
     """Run the reference implementation on the measurement and compare with the configuration."""
+    with emva1288_numpy_shims():
+        return _analyse(measurement)
+
+
+def _analyse(measurement: Measurement) -> EmvaResult:
     process = emva1288_process()
     data = process.Data1288(measurement.data, loglevel=logging.WARNING)
     pitch = PhysicalScale().pixel_pitch_um
@@ -353,37 +381,37 @@ def analyse(measurement: Measurement) -> EmvaResult:
     res.id = 1  # the reference plots tag their artists with the test's id
     s2_ydark = float(res.temporal["s2_ydark"][0])
     recovered = {
-        "K_dn_per_e": _finite(res.K),
-        "dark_noise_e": _finite(res.sigma_d),
-        "qe": _finite(res.QE / 100.0),
-        "saturation_e": _finite(res.u_e_sat),
-        "dsnu_e": _finite(res.DSNU1288),
-        "prnu_percent": _finite(res.PRNU1288),
+        "K_dn_per_e": finite_or_none(res.K),
+        "dark_noise_e": finite_or_none(res.sigma_d),
+        "qe": finite_or_none(res.QE / 100.0),
+        "saturation_e": finite_or_none(res.u_e_sat),
+        "dsnu_e": finite_or_none(res.DSNU1288),
+        "prnu_percent": finite_or_none(res.PRNU1288),
     }
     with np.errstate(invalid="ignore"):
         details = {
-            "R_dn_per_photon": _finite(res.R),
-            "sigma_y_dark_dn": _finite(res.sigma_y_dark),
+            "R_dn_per_photon": finite_or_none(res.R),
+            "sigma_y_dark_dn": finite_or_none(res.sigma_y_dark),
             "s2_ydark_dn2": s2_ydark,
             "dark_floor_applied": s2_ydark < S2_YDARK_FLOOR_DN2,
             "u_ydark_dn": float(res.temporal["u_ydark"][0]),
-            "u_p_sat": _finite(res.u_p_sat),
+            "u_p_sat": finite_or_none(res.u_p_sat),
             "index_u_ysat": int(res.index_u_ysat),
             "index_u_ysat_automatic": int(automatic),
             "u_p_sat_automatic": float(res.temporal["u_p"][automatic]),
             "fit_indices": (int(res.index_sensitivity_min), int(res.index_sensitivity_max)),
             "fit_photons": (float(res.temporal["u_p"][res.index_sensitivity_min]),
                             float(res.temporal["u_p"][res.index_sensitivity_max])),
-            "u_p_min": _finite(res.u_p_min),
-            "u_e_min": _finite(res.u_e_min),
-            "SNR_max": _finite(res.SNR_max),
-            "DR_dB": _finite(res.DR_dB()),
-            "LE_min_percent": _finite(res.LE_min),
-            "LE_max_percent": _finite(res.LE_max),
+            "u_p_min": finite_or_none(res.u_p_min),
+            "u_e_min": finite_or_none(res.u_e_min),
+            "SNR_max": finite_or_none(res.SNR_max),
+            "DR_dB": finite_or_none(res.DR_dB()),
+            "LE_min_percent": finite_or_none(res.LE_min),
+            "LE_max_percent": finite_or_none(res.LE_max),
             "spatial_mean_dn": float(res.spatial["avg_mean"]),
             "spatial_mean_dark_dn": float(res.spatial["avg_mean_dark"]),
-            "DSNU1288_DN": _finite(res.DSNU1288_DN()),
-            **{name: _finite(getattr(res, name)) for name in (
+            "DSNU1288_DN": finite_or_none(res.DSNU1288_DN()),
+            **{name: finite_or_none(getattr(res, name)) for name in (
                 "DSNU1288_row", "DSNU1288_col", "DSNU1288_pixel", "PRNU1288_row", "PRNU1288_col", "PRNU1288_pixel")},
         }
     configured = configured_values(measurement.sensor, measurement.eta)

@@ -3,6 +3,7 @@
 Every maker writes PNG files into ``out_dir`` and returns ``{figure_key: file name}``. Scenario figures have two
 panels side by side, ``paper`` and ``pixel`` photon statistics. Undefined values (None) are never plotted; each
 panel's legend says how many were left out. A data point keeps its colour (``tab20`` by point number) throughout.
+The figures are drawn without pyplot (:mod:`camsim.plotting`); matplotlib is imported when the first is drawn.
 """
 
 from __future__ import annotations
@@ -10,56 +11,60 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.patheffects as pe  # noqa: E402
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.cm import ScalarMappable  # noqa: E402
-from matplotlib.colors import Normalize  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
+from camsim.frame_files import load_frame
+from camsim.analysis.patches import AnalysisSettings, frame_matrix, patch_samples
+from camsim.colorimetry import CHANNELS, chromaticity_xy, xyz_from_camera
+from camsim.errors import CamsimError
+from camsim.optional_numbers import finite_or_none as _num
+from camsim.plotting import new_figure, save_png
 
-from camsim.analysis.colorimetry import chromaticity_xy, xyz_from_camera  # noqa: E402
-from camsim.frame_files import load_frame  # noqa: E402
-from camsim.analysis.patches import AnalysisSettings, frame_matrix, patch_samples  # noqa: E402
-from camsim.errors import CamsimError  # noqa: E402
-
-DPI = 110
 MAX_SAMPLES = 300
 STATISTICS = ("paper", "pixel")
-CHANNELS = ("R", "G", "B")
 SNR_VARIANTS = {"read+10%": "snr_read", "dark+10%": "snr_dark", "quantisation-off": "snr_quantisation"}
 UNDEF = "undefined, not plotted"
 _MARKERS = "os^D"
 _STYLES = ("-", "--", "-.", ":")
-_HALO = [pe.Stroke(linewidth=2.6, foreground="white"), pe.Normal()]
-_HALO_TEXT = [pe.withStroke(linewidth=2.5, foreground="white")]
 
 
-def _num(value):
-    """``value`` as a finite float, or None."""
-    try:
-        return float(value) if math.isfinite(float(value)) else None
-    except (TypeError, ValueError):
-        return None
+def _halo():
+    """Path effects of a line drawn with a white halo, so that it stays visible over the others."""
+    import matplotlib.patheffects as pe
+
+    return [pe.Stroke(linewidth=2.6, foreground="white"), pe.Normal()]
+
+
+def _halo_text():
+    """Path effects of a label drawn with a white halo."""
+    import matplotlib.patheffects as pe
+
+    return [pe.withStroke(linewidth=2.5, foreground="white")]
+
+
+def _colormap(name: str):
+    """A registered matplotlib colormap (``pyplot.get_cmap(name)`` without pyplot)."""
+    import matplotlib
+
+    return matplotlib.colormaps[name]
 
 
 def _colour(number):
     """The colour of data point ``number``: tab20's ten dark shades first, then the ten light ones."""
     k = (int(number) - 1) % 20
-    return plt.get_cmap("tab20")(2 * k if k < 10 else 2 * (k - 10) + 1)
+    return _colormap("tab20")(2 * k if k < 10 else 2 * (k - 10) + 1)
 
 
 def _save(fig, out_dir, name: str) -> str:
     Path(out_dir).mkdir(parents=True, exist_ok=True)
-    fig.savefig(Path(out_dir) / name, dpi=DPI, bbox_inches="tight")
-    plt.close(fig)
+    save_png(fig, Path(out_dir) / name, bbox_inches="tight")
     return name
 
 
 def _entry(label: str, **style):
     """A legend entry; without style, a line of text (e.g. how many values were left out)."""
+    from matplotlib.lines import Line2D
+
     return Line2D([], [], label=label, **({"linestyle": "none"} | style))
 
 
@@ -119,6 +124,24 @@ def _samples(cache: dict, result, n_points: int):
     return out
 
 
+def _colour_science_diagram(ax) -> None:
+    """colour-science's CIE 1931 chromaticity diagram (faded colours), drawn on ``ax`` and laid out in its figure.
+
+    colour-science's plotting looks up pyplot's current figure and axes even when it is given its own, and so opens
+    a blank pyplot figure when there is none: that one is closed again, leaving pyplot as it was.
+    """
+    import colour
+    import matplotlib.pyplot as plt  # already imported: colour-science imports it
+
+    open_before = set(plt.get_fignums())
+    try:
+        colour.plotting.plot_chromaticity_diagram_CIE1931(axes=ax, figure=ax.get_figure(), show=False, title=None,
+                                                          diagram_opacity=0.3)
+    finally:
+        for number in set(plt.get_fignums()) - open_before:
+            plt.close(number)
+
+
 def _diagram(ax, colours: bool = True):
     """The CIE 1931 xy diagram (faded colours) or just its spectral locus."""
     import colour
@@ -126,7 +149,7 @@ def _diagram(ax, colours: bool = True):
     title = ax.get_title()
     if colours:
         try:
-            colour.plotting.plot_chromaticity_diagram_CIE1931(axes=ax, show=False, title=None, diagram_opacity=0.3)
+            _colour_science_diagram(ax)
         except Exception:  # the plotting API differs between colour versions: fall back to the locus
             colours = False
     if not colours:
@@ -157,7 +180,8 @@ def _black(ax, black_xy, stat, xs, ys) -> list:
 
 
 def _panels(title: str, layout=None):
-    fig, axes = plt.subplots(1, 2, figsize=(14, 6.5), layout=layout)
+    fig = new_figure(figsize=(14, 6.5), layout=layout)
+    axes = fig.subplots(1, 2)
     fig.suptitle(title, fontsize=13)
     for ax, stat in zip(axes, STATISTICS):
         ax.set_title(f"{stat} statistics", fontsize=12)
@@ -183,7 +207,7 @@ def _draw(ax, samples, j, patch, colour, xs, ys, marker="o", **line):
         xs.extend(samples[j][:, 0]), ys.extend(samples[j][:, 1])
     ellipse = _ellipse(patch)
     if ellipse is not None:
-        ax.plot(*ellipse, color=colour, path_effects=_HALO, zorder=4, **line)
+        ax.plot(*ellipse, color=colour, path_effects=_halo(), zorder=4, **line)
     return ellipse
 
 
@@ -216,7 +240,7 @@ def _fig_samples(name, series, points, black_xy, cache):
                 excluded += int(_num(patch.get("n_xy_undefined")) or 0)
                 if _draw(ax, samples, j, patch, _colour(point.number), xs, ys, _MARKERS[k], ls=_STYLES[k], lw=1.4):
                     ax.text(*_centre(patch), str(point.number), fontsize=9 if k == 0 else 7, weight="bold",
-                            ha="center", va="center", zorder=7, path_effects=_HALO_TEXT)
+                            ha="center", va="center", zorder=7, path_effects=_halo_text())
                 else:
                     undefined += 1
             handles.append(_entry(f"F = {float(result['intensity_factor']):g}", color="k", linestyle=_STYLES[k],
@@ -243,10 +267,10 @@ def _fig_centres(name, series, points, black_xy):
             if not track:
                 continue
             c, (x, y) = _colour(point.number), np.array([xy for _, xy in track]).T
-            ax.plot(x, y, "-", marker=".", color=c, lw=1.4, ms=5, path_effects=_HALO)
+            ax.plot(x, y, "-", marker=".", color=c, lw=1.4, ms=5, path_effects=_halo())
             if track[0][0] == top:
                 ax.plot(x[0], y[0], "o", color=c, mec="k", ms=8, zorder=5)
-            ax.text(x[0], y[0], f" {point.number}", fontsize=9, weight="bold", path_effects=_HALO_TEXT)
+            ax.text(x[0], y[0], f" {point.number}", fontsize=9, weight="bold", path_effects=_halo_text())
             xs.extend(x), ys.extend(y)
         handles = [_entry("centre path, F decreasing", color="0.3", marker=".", linestyle="-")]
         handles += [_entry(f"F = {top:g}", marker="o", color="0.5", mec="k")] if top is not None else []
@@ -263,7 +287,10 @@ def _fig_magnified(name, series, points, black_xy, cache, number):
     label += "" if any(p.number == number for p in points) else f" (point {number} is not among the data points)"
     fig, axes = _panels(f"{name}: data point {label}, samples and 1 σ ellipses at every F", layout="constrained")
     logs = [math.log10(float(r["intensity_factor"])) for s in STATISTICS for r in series[s]] or [0.0]
-    norm, cmap = Normalize(min(logs) - 0.5 * (min(logs) == max(logs)), max(logs)), plt.get_cmap("viridis")
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
+    norm, cmap = Normalize(min(logs) - 0.5 * (min(logs) == max(logs)), max(logs)), _colormap("viridis")
     for ax, stat in zip(axes, STATISTICS):
         _diagram(ax, colours=False)
         xs, ys, undefined, unread = [], [], 0, 0
@@ -410,7 +437,8 @@ def snr_figures(rows, out_dir) -> dict:
         variants.setdefault(variant, "snr_" + "".join(ch if ch.isalnum() else "_" for ch in variant).strip("_"))
     figures = {}
     for variant, key in variants.items():
-        fig, axes = plt.subplots(2, 3, figsize=(16, 8.5), squeeze=False, layout="constrained")
+        fig = new_figure(figsize=(16, 8.5), layout="constrained")
+        axes = fig.subplots(2, 3, squeeze=False)
         fig.suptitle(f"SNR change ΔSNR = 100 (SNR₁ − SNR₂) / SNR₁ for {variant}", fontsize=13)
         subset = [r for r in rows if str(r.get("variant")) == variant]
         for a, stat in enumerate(STATISTICS):

@@ -10,10 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from camsim.analysis.snr import delta_snr_percent
+from camsim.colorimetry import CHANNELS
 from camsim.experiments.findings import RESOLVED_SIZE, VISIBLE_XY, Verdict
 from camsim.io.atomic import write_text_atomic
-
-CHANNELS = ("R", "G", "B")
 
 
 @dataclass(frozen=True)

@@ -98,7 +98,7 @@ def analyse_series(folder: Path, black: str = "none") -> list[dict]:
 
 def black_point_xy(prep: Prepared, sensor: SensorParams) -> tuple[float, float] | None:
     """Chromaticity of the camera black point (the mean dark level through the paper's M), or None without dark."""
-    from camsim.analysis.colorimetry import camera_to_xyz_matrix
+    from camsim.colorimetry import camera_to_xyz_matrix
 
     if not sensor.dark_current:
         return None
@@ -109,7 +109,7 @@ def black_point_xy(prep: Prepared, sensor: SensorParams) -> tuple[float, float] 
 
 def noise_free_xy(prep: Prepared, sensor: SensorParams, factor: float) -> np.ndarray:
     """Chromaticity of each point's expected camera signal (signal + dark, saturated) through M, shape (P, 2)."""
-    from camsim.analysis.colorimetry import camera_to_xyz_matrix
+    from camsim.colorimetry import camera_to_xyz_matrix
 
     expected = prep.lit.expected(sensor, factor, "pixel")
     dn = expected.clean_e[: len(prep.points)] * sensor.dn_per_electron

@@ -13,12 +13,16 @@ checked. The command line, the scene-file reader and the dataset spec take their
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
+from importlib import import_module
 
 from camsim.errors import CamsimError
-from camsim.methods import fused, spectral
-from camsim.methods.plan import DEFAULT_TOLERANCE, DrawPlan, plan_methods
+
+#: Default ``auto`` tolerance: the largest KS distance accepted between a pixel value's exact law (before
+#: quantisation) and the Gaussian that replaces it. With Table I's 4 e⁻ read noise the Gaussian never exceeds it
+#: (worst 0.0064, near 30 e⁻); without read noise it needs about 650 e⁻.
+DEFAULT_TOLERANCE = 0.01
 
 
 @dataclass(frozen=True)
@@ -30,13 +34,12 @@ class SamplingMethod:
     name : str
     summary : str
         One line for help texts.
-    plan : callable or None
-        ``plan(expected, sensor, statistics, tolerance) -> DrawPlan``, decided per spectrum and channel before
-        anything is drawn; None for methods without a plan.
-    draw_block : callable
-        ``draw_block(job, r0, r1, rng, scratch)``: rows ``r0:r1`` of the frame ``job`` (a
-        :class:`camsim.render.FrameJob`), DN before quantisation into ``job.noisy`` and, if quantised, digital
-        numbers into ``job.digital``.
+    draw_module : str
+        The module whose ``draw_block(job, r0, r1, rng, scratch)`` draws rows ``r0:r1`` of the frame ``job`` (a
+        :class:`camsim.render.FrameJob`): DN before quantisation into ``job.noisy`` and, if quantised, digital
+        numbers into ``job.digital``. Imported on first use, so that listing the methods costs nothing.
+    planned : bool
+        Whether the method decides per spectrum and channel before drawing (:attr:`plan`).
     per_pixel_mean : bool
         Whether it can draw with a different mean at every pixel (PRNU needs it).
     records_sampling : bool
@@ -45,29 +48,38 @@ class SamplingMethod:
 
     name: str
     summary: str
-    plan: Callable[..., DrawPlan] | None
-    draw_block: Callable
+    draw_module: str
+    planned: bool = True
     per_pixel_mean: bool = True
     records_sampling: bool = False
 
+    @cached_property
+    def draw_block(self):
+        """``draw_block(job, r0, r1, rng, scratch)`` of :attr:`draw_module`."""
+        return import_module(self.draw_module).draw_block
 
-def _plan(method: str):
-    return lambda expected, sensor, statistics, tolerance: plan_methods(expected, sensor, statistics, method,
-                                                                        tolerance)
+    def plan(self, expected, sensor, statistics: str, tolerance: float | None = None):
+        """The :class:`camsim.methods.plan.DrawPlan` of a frame (None for a method without a plan)."""
+        if not self.planned:
+            return None
+        from camsim.methods.plan import plan_methods
+
+        return plan_methods(expected, sensor, statistics, self.name,
+                            DEFAULT_TOLERANCE if tolerance is None else tolerance)
 
 
 METHODS = {
     "poisson": SamplingMethod(
-        "poisson", "one exact draw per pixel and channel (default)", _plan("poisson"), fused.draw_block),
+        "poisson", "one exact draw per pixel and channel (default)", "camsim.methods.fused"),
     "spectral": SamplingMethod(
-        "spectral", "per-wavelength-bin draws (N× slower, the paper's literal method)", None, spectral.draw_block,
-        per_pixel_mean=False),
+        "spectral", "per-wavelength-bin draws (N× slower, the paper's literal method)", "camsim.methods.spectral",
+        planned=False, per_pixel_mean=False),
     "gaussian": SamplingMethod(
         "gaussian", "one moment-matched normal per pixel and channel (fast, wrong at low counts)",
-        _plan("gaussian"), fused.draw_block, records_sampling=True),
+        "camsim.methods.fused", records_sampling=True),
     "auto": SamplingMethod(
-        "auto", "per spectrum and channel the Gaussian where its KS distance to the exact law is within the "
-                "tolerance, else poisson", _plan("auto"), fused.draw_block, records_sampling=True),
+        "auto", "per spectrum and channel the Gaussian where its KS distance to the exact law is within "
+                "--tolerance, else poisson", "camsim.methods.fused", records_sampling=True),
 }
 #: The method names, in the order help texts list them.
 METHOD_NAMES = tuple(METHODS)

@@ -23,12 +23,9 @@ import numpy as np
 from scipy import stats
 
 from camsim.expected import ExpectedSignal
+from camsim.methods import DEFAULT_TOLERANCE
 from camsim.sensor import SensorParams
 
-#: Default ``auto`` tolerance: the largest KS distance accepted between a pixel value's exact law (before
-#: quantisation) and the Gaussian that replaces it. With Table I's 4 e⁻ read noise the Gaussian never exceeds it
-#: (worst 0.0064, near 30 e⁻); without read noise it needs about 650 e⁻.
-DEFAULT_TOLERANCE = 0.01
 #: Saturation cannot act on a spectrum whose mean is this many standard deviations below the full well.
 SATURATION_MARGIN_SIGMA = 6.0
 

@@ -1,4 +1,4 @@
-"""The ``camsim dataset`` sub-command: ``add_parser(subparsers)`` sets it up, ``run(args)`` carries it out.
+"""``camsim dataset``: render a dataset of frames (grid or random draws of parameters) with a manifest, resumably.
 
 ``run`` raises :class:`camsim.errors.CamsimError` for user errors, which ``camsim.cli.main`` reports on one line.
 """
@@ -9,8 +9,7 @@ import argparse
 from pathlib import Path
 
 from camsim.cli_types import positive_int
-
-DEFAULT_OUT = Path("outputs")
+from camsim.commands import DEFAULT_OUT
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:

@@ -1,10 +1,5 @@
-"""``camsim denoise-eval``: the sub-command's argparse set-up (:func:`add_parser`) and handler (:func:`run`).
-
-Wired into ``camsim/cli.py`` as::
-
-    from camsim.denoise.cli import add_parser as add_denoise_parser, run as run_denoise
-    add_denoise_parser(sub)                        # in build_parser(), with sub = parser.add_subparsers(...)
-    commands["denoise-eval"] = run_denoise         # in main()
+"""``camsim denoise-eval``: score denoisers on rendered frames against the clean layer (PSNR, SSIM, colour bias,
+noise ellipses, ΔE), per light level.
 
 User errors raise :class:`camsim.errors.CamsimError` (printed on one line by ``camsim.cli.main``, exit 2).
 """
@@ -17,9 +12,10 @@ import textwrap
 from pathlib import Path
 
 from camsim.cli_types import non_negative_int, positive_float
+from camsim.commands import DEFAULT_OUT
 from camsim.errors import CamsimError
 
-DEFAULT_OUT = Path("outputs") / "denoise-eval"
+#: Longest default output folder name (the denoisers' names joined by '+'); beyond it, "comparison".
 MAX_DIR_NAME = 80
 
 DESCRIPTION = (
@@ -106,14 +102,16 @@ def _unique_names(denoisers):
 
 
 def default_out(denoisers) -> Path:
+    """``outputs/denoise-eval/NAME``, NAME the denoisers' names joined by '+' (or "comparison" if too long)."""
     name = "+".join(d.name for d in denoisers)
-    return DEFAULT_OUT / (name if len(name) <= MAX_DIR_NAME else "comparison")
+    return DEFAULT_OUT / "denoise-eval" / (name if len(name) <= MAX_DIR_NAME else "comparison")
 
 
 def run(args) -> int:
     """Handle ``camsim denoise-eval``; returns the exit status (0). User errors raise CamsimError."""
     from camsim.denoise.denoisers import resolve_denoiser
-    from camsim.denoise.evaluate import NOISY, Criterion, EvalSettings, evaluate
+    from camsim.denoise.evaluate import EvalSettings, evaluate
+    from camsim.denoise.summary import NOISY, Criterion
     from camsim.denoise.report import verdict_sentence, write_outputs
 
     denoisers = _unique_names([resolve_denoiser(t, timeout_s=args.timeout) for t in args.denoiser])

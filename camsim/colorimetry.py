@@ -1,5 +1,8 @@
 """Camera RGB → CIE XYZ → xy chromaticity (MODEL.md §6, the paper's Eqs. 15–16).
 
+A core module (it imports only :mod:`camsim.photons` and :mod:`camsim.spectra`): the preview, the analysis and
+its consumers (experiments, denoise-eval) all take their colorimetry from here.
+
 Conventions
 -----------
 Samples are rows: camera DN vectors and XYZ vectors have shape (..., 3), with the last axis (R, G, B) or
@@ -13,6 +16,8 @@ import numpy as np
 from camsim.photons import LIGHT_SPEED_M_S, PLANCK_J_S
 from camsim.spectra import cmfs_at
 
+CHANNELS = ("R", "G", "B")
+"""The camera's channels, in the order of the last axis of DN samples (and of a frame's first axis)."""
 MAX_CONDITION = 1e12
 """Largest condition number of the matrix inverted before a camera is called singular."""
 
@@ -30,9 +35,6 @@ def matrix_condition(matrix) -> float:
     if sv.size == 0 or sv[-1] <= 0.0:
         return float("inf")
     return float(sv[0] / sv[-1])
-
-
-cmfs_on_grid = cmfs_at  # CIE 1931 2° CMFs at the frame's wavelengths, shape (3, N)
 
 
 def _radiance_sensitivity(qe, wl, dn_per_electron):
@@ -59,7 +61,7 @@ def _check_camera(qe, wavelengths_nm, dn_per_electron):
 
 def _cmf_projection_matrix(sensitivity, wl):
     """M = (T Tᵗ)(C Tᵗ)⁻¹ and cond(C Tᵗ)."""
-    t = cmfs_on_grid(wl)
+    t = cmfs_at(wl)  # CIE 1931 2° CMFs at the frame's wavelengths, shape (3, N)
     ctt = sensitivity @ t.T
     cond = matrix_condition(ctt)
     if cond > MAX_CONDITION:

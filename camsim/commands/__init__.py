@@ -1,0 +1,25 @@
+"""The sub-commands of ``camsim``, one module each (``render``, ``analyze``, ``experiment``, ``emva``, ``dataset``,
+``denoise_eval``, ``list``), all alike:
+
+* ``add_parser(subparsers)`` adds the sub-command and its options to an ``ArgumentParser.add_subparsers()``
+  object and returns its parser;
+* ``run(args) -> int`` carries it out and returns the exit status; user errors raise
+  :class:`camsim.errors.CamsimError`, which :func:`camsim.cli.main` prints on one line (exit 2).
+
+Importing a command module does no work: the modules that do the work are imported inside ``run``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+DEFAULT_OUT = Path("outputs")
+"""Where a command writes when no ``--out`` is given, relative to the working directory."""
+
+
+def camera_argument(name_or_csv: str | None) -> str | None:
+    """A ``--camera`` value as a scene takes it: a CSV file named on the command line is relative to the working
+    directory, so its path is made absolute; a colour-science camera name (or None) is returned as it is."""
+    if name_or_csv is not None and name_or_csv.lower().endswith(".csv"):
+        return str(Path(name_or_csv).resolve())
+    return name_or_csv

@@ -1,0 +1,28 @@
+"""``camsim list``: the built-in scenes, illuminants, cameras, reflectance sets, sensor presets and methods."""
+
+from __future__ import annotations
+
+import argparse
+
+from camsim.sensor import PRESETS
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add ``list`` to ``subparsers``; returns its parser."""
+    return subparsers.add_parser("list", help="list the built-in scenes, illuminants, cameras, reflectance sets, "
+                                 "sensor presets and sampling methods camsim knows")
+
+
+def run(args) -> int:
+    """Carry out ``camsim list``; returns the exit status (0)."""
+    from camsim.builtin_scenes import builtin_scene_names
+    from camsim.methods import METHOD_NAMES
+    from camsim.spectra import camera_names, illuminant_names, reflectance_set_names
+
+    print("built-in scenes:", ", ".join(builtin_scene_names()))
+    print("illuminants:", ", ".join(illuminant_names()))
+    print("cameras:", ", ".join(camera_names()))
+    print("reflectance sets:", ", ".join(reflectance_set_names()))
+    print("presets:", ", ".join(PRESETS))
+    print("sampling methods:", ", ".join(METHOD_NAMES))
+    return 0

@@ -1,0 +1,120 @@
+"""``camsim render``: render a scene file into DNG, EXR and JSON frames."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from camsim.cli_types import positive_float, positive_int, schema_value, sensor_setting
+from camsim.commands import DEFAULT_OUT, camera_argument
+from camsim.errors import CamsimError
+from camsim.methods import METHOD_NAMES, METHODS
+from camsim.scene import RENDER_PARAMS
+from camsim.sensor import PRESETS, SENSOR_PARAMS, STAGES
+
+_RENDER = {p.name: p for p in RENDER_PARAMS}
+_SENSOR = {p.name: p for p in SENSOR_PARAMS}
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add ``render`` and its options to ``subparsers``; returns its parser."""
+    parser = subparsers.add_parser(
+        "render",
+        help="render a scene file into DNG, EXR and JSON frames",
+        description=(
+            "Render SCENE.toml: one frame per illuminant and intensity factor. Each frame is written as NAME.dng "
+            "(8-bit raw digital numbers), NAME.exr (float32 DN before quantisation, plus the expected 'clean' "
+            "layer) and NAME.json (every parameter with its unit); OUT/manifest.json lists them all."
+        ),
+    )
+    parser.add_argument("scene", metavar="SCENE.toml", help="scene file (see scenes/macbeth_26.toml) or the name of "
+                        "a built-in scene (camsim list), e.g. macbeth_26")
+    parser.add_argument("--intensity", "-F", metavar="F", type=positive_float, nargs="+", action="extend",
+                        help="intensity factor(s) F (unitless, > 0): the light is F × the scene radiance, "
+                             "whose perfect white is 100 cd/m² at F = 1; F > 1 saturates. Default: the scene's list")
+    parser.add_argument("--illuminant", metavar="NAME", nargs="+", action="extend",
+                        help="colour-science illuminant name(s), e.g. D65 FL2 'LED-B1'. Default: the scene's list")
+    parser.add_argument("--statistics", choices=_RENDER["statistics"].choices,
+                        help=f"{_RENDER['statistics'].doc} (default pixel)")
+    parser.add_argument("--method", choices=METHOD_NAMES,
+                        help="sampling: " + "; ".join(f"'{m.name}' = {m.summary}" for m in METHODS.values()))
+    parser.add_argument("--tolerance", metavar="KS", type=schema_value(_RENDER["tolerance"]),
+                        help=f"{_RENDER['tolerance'].doc} (unitless, 0–1; default {_RENDER['tolerance'].default})")
+    parser.add_argument("--preset", choices=sorted(PRESETS),
+                        help="sensor preset: paper-table1 (Table I, all stages on; default), paper-photon-dark "
+                             "(photon + dark noise only), ideal (photon noise only, output in electrons), "
+                             "emva-12bit (a 12-bit machine-vision-like sensor)")
+    parser.add_argument("--sensor", metavar="NAME=VALUE", type=sensor_setting, action="append", default=[],
+                        help="set any sensor parameter, after the preset and the scene file (repeatable; VALUE as "
+                             "in a scene file: 2.5, [1, 2, 3], true, RGGB, none): "
+                             + "; ".join(p.help_text() for p in SENSOR_PARAMS).replace("%", "%%"))
+    parser.add_argument("--disable", metavar="STAGE", choices=STAGES, nargs="+", action="extend", default=[],
+                        help=f"switch sensor stage(s) off: {', '.join(STAGES)}")
+    parser.add_argument("--cfa", choices=_SENSOR["cfa"].choices,
+                        help="a Bayer colour filter array (one channel per pixel; the DNG is then a CFA DNG) instead "
+                             "of the default three-chip sensor (R, G and B at every pixel)")
+    parser.add_argument("--exposure", metavar="SECONDS", type=schema_value(_SENSOR["exposure_s"]),
+                        help="exposure time T in s (Table I: 1 s)")
+    parser.add_argument("--camera", metavar="NAME_OR_CSV",
+                        help="colour-science camera name (default 'Nikon 5100 (NPL)') or a CSV of wavelength_nm, R, G, B")
+    parser.add_argument("--seed", type=schema_value(_RENDER["seed"]), help="random seed (integer ≥ 0); same seed ⇒ "
+                        "identical files")
+    parser.add_argument("--size", metavar="WxH", help="frame size in pixels for chart scenes, e.g. 4000x3000")
+    parser.add_argument("--out", metavar="DIR", type=Path,
+                        help="output directory (default: outputs/SCENE_NAME)")
+    parser.add_argument("--workers", metavar="N", type=positive_int, help="threads per frame (default: all cores; "
+                        "the output does not depend on it)")
+    parser.add_argument("--preview", action="store_true",
+                        help="also write an sRGB PNG of each frame (camera RGB → XYZ → sRGB, white-balanced from the "
+                             "illuminant; the perfect white at F = 1 is sRGB white, so low light looks dark)")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    return parser
+
+
+def apply_overrides(scene, args):
+    """``scene`` with the command line's options applied (each given option replaces the scene file's value)."""
+    from camsim.chart import parse_size
+
+    changes = {}
+    if args.intensity:
+        changes["intensity_factors"] = tuple(args.intensity)
+    if args.illuminant:
+        changes["illuminants"] = tuple(args.illuminant)
+    for key in ("statistics", "method", "seed", "tolerance"):
+        if getattr(args, key) is not None:
+            changes[key] = getattr(args, key)
+    if args.camera is not None:
+        changes["camera"] = camera_argument(args.camera)
+    if args.preset:
+        changes["preset_name"] = args.preset
+    if args.size:
+        if scene.source.has_own_size:
+            raise CamsimError("--size applies to chart scenes; a cube scene has the size of its cube")
+        changes["width"], changes["height"] = parse_size(args.size)
+    scene = scene.replace(**changes)
+    overrides = sensor_overrides(args)
+    return scene.with_sensor(**overrides) if overrides else scene
+
+
+def sensor_overrides(args) -> dict:
+    """The sensor parameters set on the command line: ``--disable``, ``--exposure``, ``--cfa``, then every
+    ``--sensor NAME=VALUE`` in order (a later setting wins)."""
+    overrides = {stage: False for stage in args.disable}
+    if args.exposure is not None:
+        overrides["exposure_s"] = args.exposure
+    if args.cfa is not None:
+        overrides["cfa"] = args.cfa
+    overrides.update(args.sensor)
+    return overrides
+
+
+def run(args) -> int:
+    """Carry out ``camsim render``; returns the exit status (0)."""
+    from camsim.run import render_scene
+    from camsim.scene import load_scene
+
+    scene = apply_overrides(load_scene(args.scene), args)
+    out = args.out if args.out is not None else DEFAULT_OUT / scene.name
+    manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet, preview=args.preview)
+    print(f"wrote {len(manifest['frames'])} frames (DNG, EXR, JSON) to {out}/ — index: {out / 'manifest.json'}")
+    return 0

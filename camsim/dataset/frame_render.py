@@ -1,0 +1,52 @@
+"""One frame of a dataset, rendered and written: :func:`render_files` (in a worker process, or in this one).
+
+The scene, the camera and the lit scene (radiance, Qe and the DNG colour tags) are cached per process, since
+consecutive frames of a spec share them.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+from camsim.camera import load_camera
+from camsim.dataset.spec import FrameSpec
+from camsim.frame_files import write_frame
+from camsim.pipeline import light_scene, scene_frame
+from camsim.scene import load_scene
+
+__all__ = ["render_files"]
+
+
+@lru_cache(maxsize=16)
+def _scene(path: str):
+    return load_scene(path)
+
+
+@lru_cache(maxsize=16)
+def _camera(name: str, grid, basis: str, base_dir):
+    return load_camera(name, grid, basis, base_dir)
+
+
+@lru_cache(maxsize=64)
+def _lit(path: str, width: int, height: int, illuminant: str, camera: str):
+    scene = _scene(path).replace(width=width, height=height, camera=camera)
+    return light_scene(scene, illuminant, _camera(camera, scene.grid, scene.sensitivity_basis, scene.base_dir))
+
+
+def render_files(frame: FrameSpec, directory: Path, threads: int = 1) -> dict:
+    """Render one frame and write ``<id>.dng`` (if quantised), ``<id>.exr`` and ``<id>.json`` into ``directory``.
+
+    :func:`camsim.pipeline.scene_frame`, as for ``camsim render``, with the frame's own seed. Returns the file
+    names by kind (``dng`` None without quantisation).
+    """
+    base = _scene(frame.scene_path)
+    scene = base.replace(width=frame.width, height=frame.height, illuminants=(frame.illuminant,),
+                         intensity_factors=(frame.intensity_factor,), **frame.scene_changes)
+    if frame.sensor_overrides:
+        scene = scene.with_sensor(**frame.sensor_overrides)
+    camera = _camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
+    lit = _lit(frame.scene_path, frame.width, frame.height, frame.illuminant, scene.camera)
+    rendered, info = scene_frame(scene, frame.illuminant, frame.intensity_factor, seed=frame.seed, lit=lit,
+                                 camera=camera, workers=threads)
+    return write_frame(Path(directory), frame.id, rendered, info)

@@ -1,0 +1,97 @@
+"""A dataset's records on disk: each frame's ``.done`` record, its verification, and the JSON Lines manifest.
+
+Layout of ``OUT``::
+
+    OUT/frames/<id>.dng, <id>.exr, <id>.json   the frame's files (camsim's writers: temporary name, then rename)
+    OUT/frames/<id>.done                       the frame's record, written (atomically) after all its files
+    OUT/manifest.jsonl                         one line per complete frame, in frame order
+
+A frame is complete when its ``.done`` record exists, describes the same frame (every parameter and the seed)
+and every file it lists exists with the recorded size and SHA-256. The manifest is rebuilt from the records when
+a run starts and when it ends (also on Ctrl-C or an error), always by atomic rename, so it never holds a half
+line; a run killed outright leaves the records, and the next run rebuilds the manifest from them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+from camsim.dataset.spec import FrameSpec
+from camsim.io.atomic import atomic_path, write_json_atomic, write_text_atomic
+
+__all__ = ["FRAMES_DIR", "MANIFEST_NAME", "DONE_SUFFIX", "VERIFY_MODES", "sha256_file", "done_path",
+           "verified_record", "write_manifest", "read_manifest", "store_result"]
+
+FRAMES_DIR = "frames"
+MANIFEST_NAME = "manifest.jsonl"
+DONE_SUFFIX = ".done"
+VERIFY_MODES = ("sha256", "size")
+_HASH_CHUNK = 1 << 22
+
+
+def sha256_file(path: Path) -> str:
+    """SHA-256 of a file's bytes, as hex, read in chunks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        while chunk := handle.read(_HASH_CHUNK):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def done_path(out_dir: Path, frame_id: str) -> Path:
+    return Path(out_dir) / FRAMES_DIR / f"{frame_id}{DONE_SUFFIX}"
+
+
+def verified_record(out_dir: Path, frame: FrameSpec, verify: str = "sha256") -> dict | None:
+    """The frame's record if the frame is complete and verified, else None.
+
+    Complete and verified: the ``.done`` record describes this very frame (every parameter and the seed), and
+    every file it lists exists with the recorded size and (``verify="sha256"``) SHA-256.
+    """
+    try:
+        record = json.loads(done_path(out_dir, frame.id).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(record, dict) or {k: v for k, v in record.items() if k != "files"} != frame.record:
+        return None
+    files = record.get("files")
+    if not isinstance(files, dict) or not files.get("exr") or not files.get("json"):
+        return None
+    for entry in files.values():
+        if entry is None:
+            continue
+        try:
+            path = Path(out_dir) / entry["name"]
+            if path.stat().st_size != entry["bytes"]:
+                return None
+            if verify == "sha256" and sha256_file(path) != entry["sha256"]:
+                return None
+        except (OSError, KeyError, TypeError):
+            return None
+    return record
+
+
+def write_manifest(out_dir: Path, records: dict) -> Path:
+    """(Re)write ``OUT/manifest.jsonl`` atomically: one JSON object per complete frame, in frame order."""
+    lines = [json.dumps(records[index], ensure_ascii=False, allow_nan=False) + "\n" for index in sorted(records)]
+    path = Path(out_dir) / MANIFEST_NAME
+    write_text_atomic(path, "".join(lines))
+    return path
+
+
+def read_manifest(out_dir: Path) -> list[dict]:
+    """The manifest's records, in frame order."""
+    text = (Path(out_dir) / MANIFEST_NAME).read_text(encoding="utf-8")
+    return [json.loads(line) for line in text.splitlines() if line.strip()]
+
+
+def store_result(out_dir: Path, frame: FrameSpec, result: dict) -> dict:
+    """Write a rendered frame's bytes (if sent back) and then its record; returns the record."""
+    for kind, data in result.get("blobs", {}).items():
+        with atomic_path(Path(out_dir) / result["files"][kind]["name"]) as tmp:
+            tmp.write_bytes(data)
+    record = {**frame.record, "files": result["files"]}
+    write_json_atomic(done_path(out_dir, frame.id), record)
+    return record

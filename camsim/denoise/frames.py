@@ -1,0 +1,84 @@
+"""The frames ``camsim denoise-eval`` scores: camsim EXR frames found under folders (searched recursively) and
+files — channels R, G, B = the noisy DN before quantisation, layer ``clean.R/G/B`` = their expected value, header
+``camsim:metadata`` = the sidecar. Bayer (CFA) frames, EXRs without a clean layer and other files are skipped, each
+with its reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from camsim.frame_files import load_frame
+from camsim.errors import CamsimError
+
+
+@dataclass
+class DatasetFrame:
+    """A usable frame of a dataset: its path, its path relative to the dataset folder, and its sidecar."""
+
+    path: Path
+    name: str
+    meta: dict
+
+
+@dataclass
+class Dataset:
+    """The scorable frames found, the files skipped (with the reason) and the folders and files searched."""
+
+    frames: list[DatasetFrame]
+    skipped: list[dict]  # {"file", "reason"}
+    roots: list[str]
+
+
+def _relative(path: Path, root: Path) -> str:
+    try:
+        return str(path.relative_to(root))
+    except ValueError:
+        return str(path)
+
+
+def find_dataset(paths) -> Dataset:
+    """The EXR frames under ``paths`` (folders searched recursively, or files) that can be scored.
+
+    Bayer (CFA) frames, EXRs without a clean layer and files that are not camsim frames are skipped, each with
+    its reason.
+
+    Raises
+    ------
+    CamsimError
+        A path that does not exist, or no usable frame at all.
+    """
+    from camsim.io.exr import read_exr
+
+    frames, skipped, roots = [], [], []
+    for entry in paths:
+        entry = Path(entry)
+        if entry.is_dir():
+            candidates, root = sorted(p for p in entry.rglob("*.exr") if p.is_file()), entry
+        elif entry.is_file():
+            candidates, root = [entry], entry.parent
+        else:
+            raise CamsimError(f"no such file or folder: {entry}")
+        roots.append(str(entry))
+        for path in candidates:
+            name = _relative(path, root)
+            try:
+                frame = load_frame(path)
+            except CamsimError as exc:
+                skipped.append({"file": name, "reason": f"not a readable camsim frame: {exc}"})
+                continue
+            if frame.cfa_pattern or frame.pixels_dn.shape[0] != 3:
+                skipped.append({"file": name, "reason": f"Bayer (CFA {frame.cfa_pattern}) mosaic: denoise-eval "
+                                                        "scores three-chip (R, G, B at every pixel) frames only"})
+                continue
+            _, clean, _ = read_exr(path)
+            if clean is None:
+                skipped.append({"file": name, "reason": "no clean layer (clean.R/G/B) to score against"})
+                continue
+            frames.append(DatasetFrame(path, name, frame.meta))
+    if not frames:
+        reasons = "; ".join(f"{s['file']}: {s['reason']}" for s in skipped[:3])
+        raise CamsimError(f"no scorable frames (three-chip camsim EXR with a clean layer) in "
+                          f"{', '.join(str(p) for p in paths)}" + (f" — skipped {reasons}" if reasons else ""))
+    return Dataset(frames, skipped, roots)
