@@ -35,6 +35,7 @@ from camsim.colorimetry import camera_to_xyz_matrix
 from camsim.errors import CamsimError
 from camsim.io.atomic import atomic_path
 from camsim.photons import KM_LM_PER_W
+from camsim.render import BLOCK_PIXELS  # the preview works in the renderer's row blocks: memory does not grow
 
 __all__ = ["EXPOSURES", "MATRICES", "preview_srgb", "preview_transform", "write_preview_png"]
 
@@ -121,10 +122,6 @@ def _exposure_gain(exposure, info) -> float:
     return float(exposure)
 
 
-#: Pixels per row block: the preview works block by block, so its memory does not grow with the frame.
-BLOCK_PIXELS = 2**18
-
-
 def _camera_dn(frame, r0: int, r1: int) -> np.ndarray:
     """Black-subtracted camera DN of rows ``r0:r1``, shape (r1 − r0, W, 3), float64."""
     sensor = frame.sensor
@@ -135,7 +132,7 @@ def _camera_dn(frame, r0: int, r1: int) -> np.ndarray:
         return np.moveaxis(numbers[:, r0:r1], 0, -1).astype(np.float64) - black
     from colour_demosaicing import demosaicing_CFA_Bayer_bilinear
 
-    from camsim.sensor import cfa_sites
+    from camsim.cfa import cfa_sites
 
     # two rows of context each side (r0 is even, so the block starts on the pattern's first row): the 3 × 3
     # bilinear kernels then see what they would see in the whole frame, and the block's result is the same

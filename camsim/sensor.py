@@ -11,16 +11,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from camsim.cfa import CFA_PATTERNS
 from camsim.errors import CamsimError
 from camsim.schema import param, params_of, record, validate
 
 READ_NOISE_MODELS = ("gaussian", "tukey-lambda")
-CFA_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
-
-
-def cfa_sites(pattern: str) -> list[tuple[int, int, int]]:
-    """The 2 × 2 cell of a Bayer pattern as ``[(row offset, column offset, channel), ...]`` (channel 0 = R)."""
-    return [(i // 2, i % 2, "RGB".index(colour)) for i, colour in enumerate(pattern)]
 
 
 def _layout_record(sensor) -> dict:

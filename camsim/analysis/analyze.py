@@ -14,6 +14,7 @@ from camsim.frame_files import find_frames, load_frame
 from camsim.analysis.patches import AnalysisSettings, analyse_frame, frame_matrix
 from camsim.errors import CamsimError
 from camsim.io.atomic import write_json_atomic, write_text_atomic
+from camsim.optional_numbers import mean_of_defined
 from camsim.sensor import SensorParams
 
 CSV_NAME = "analysis.csv"
@@ -154,19 +155,14 @@ def summary(results, settings: AnalysisSettings) -> dict:
                          "camera_to_xyz": settings.matrix}, "totals": totals, "frames": frames}
 
 
-def _mean(values):
-    values = [v for v in values if v is not None]
-    return float(np.mean(values)) if values else None
-
-
 def table(results) -> str:
     """A short text table: one line per frame."""
     lines = [f"{'frame':44s} {'F':>8s} {'stats':5s} {'ellipse size':>12s} {'mean ΔE':>8s} {'SNR G dB':>8s} flags"]
     for result in results:
         patches = result["patches"]
-        size = _mean([p["size_xy"] for p in patches])
-        de = _mean([p["delta_e_ab_mean"] for p in patches])
-        snr = _mean([p["channels"][1]["snr_empirical_db"] for p in patches])
+        size = mean_of_defined([p["size_xy"] for p in patches])
+        de = mean_of_defined([p["delta_e_ab_mean"] for p in patches])
+        snr = mean_of_defined([p["channels"][1]["snr_empirical_db"] for p in patches])
         flags = sum(p["ellipse_status"] != "ok" or p["n_xy_undefined"] > 0 for p in patches)
         fmt = lambda v, spec: "—" if v is None else format(v, spec)  # noqa: E731
         lines.append(f"{Path(result['frame_file']).name[:44]:44s} {result['intensity_factor']:>8g} "

@@ -37,7 +37,8 @@ from camsim.fixed_pattern import fixed_pattern
 from camsim.optional_numbers import finite_or_none
 from camsim.pipeline import LitScene, make_frame
 from camsim.seeding import emva_frame_seed_sequence
-from camsim.sensor import SensorParams, cfa_sites
+from camsim.cfa import cfa_sites
+from camsim.sensor import SensorParams
 from camsim.spectra import WavelengthGrid
 from camsim.emva.configured import (  # noqa: F401 (re-exported)
     CHANNEL,

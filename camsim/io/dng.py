@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 import tifffile
 
+from camsim.cfa import CFA_PATTERNS
 from camsim.errors import CamsimError
 from camsim.io.atomic import atomic_path
 
@@ -60,7 +61,6 @@ _COLOR_MATRIX1, _AS_SHOT_NEUTRAL, _CALIBRATION_ILLUMINANT1 = 50721, 50728, 50778
 _MAKE, _MODEL, _ORIENTATION = 271, 272, 274
 _CFA_REPEAT_PATTERN_DIM, _CFA_PATTERN, _CFA_PLANE_COLOR, _CFA_LAYOUT = 33421, 33422, 50710, 50711
 
-CFA_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")  # colours of a 2x2 cell's top-left, top-right, bottom-left, -right
 _CFA_CODE = {"R": 0, "G": 1, "B": 2}  # DNG CFAPattern colour codes, in the CFAPlaneColor order (0, 1, 2)
 
 

@@ -13,7 +13,8 @@ import numpy as np
 from camsim.expected import ExpectedSignal
 from camsim.kernels import label_runs, standard_normal_f32
 from camsim.methods.plan import EXACT, GAUSSIAN, GAUSSIAN_CLIPPED, SATURATED, DrawPlan
-from camsim.sensor import SensorParams, cfa_sites
+from camsim.cfa import cfa_sites
+from camsim.sensor import SensorParams
 from camsim.stages import (
     add_offset_e,
     add_read_noise_e,

@@ -13,7 +13,8 @@ import numpy as np
 
 from camsim.expected import ExpectedSignal
 from camsim.kernels import label_runs, poisson
-from camsim.sensor import SensorParams, cfa_sites
+from camsim.cfa import cfa_sites
+from camsim.sensor import SensorParams
 from camsim.stages import (
     add_read_noise_e,
     add_row_noise,
