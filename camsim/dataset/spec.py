@@ -50,7 +50,6 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 
 from camsim.camera import load_camera
 from camsim.errors import CamsimError
