@@ -93,4 +93,4 @@ def sensor_setting(text: str) -> tuple:
         value = params[name.strip()].parse_text(value.strip())
     except CamsimError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
-    return name.strip(), tuple(value) if isinstance(value, list) else value  # R, G, B as SensorParams holds them
+    return name.strip(), value

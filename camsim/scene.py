@@ -90,11 +90,15 @@ class Scene:
 
     def with_sensor(self, **overrides) -> Scene:
         """A copy with more sensor overrides (later ones win)."""
-        merged = dict(self.sensor_overrides) | overrides
-        return dataclasses.replace(self, sensor_overrides=tuple(sorted(merged.items())))
+        return dataclasses.replace(self, sensor_overrides=_frozen(dict(self.sensor_overrides) | overrides))
 
     def replace(self, **changes) -> Scene:
         return dataclasses.replace(self, **changes)
+
+
+def _frozen(overrides: dict) -> tuple:
+    """Sensor overrides as a Scene holds them: sorted (name, value) pairs, lists (R, G, B) as tuples (hashable)."""
+    return tuple(sorted((k, tuple(v) if isinstance(v, list) else v) for k, v in overrides.items()))
 
 
 #: The render settings of a scene file's ``[render]`` table (and the command line's options of the same names).
@@ -192,7 +196,6 @@ def load_scene(path: str | Path) -> Scene:
         raise CamsimError(f"{where}: [sensor] preset must be a name")
     sensor_table = {p.name: p.coerce(sensor_table[p.name], f"{where} [sensor]")
                     for p in SENSOR_PARAMS if p.name in sensor_table}
-    sensor_table = {k: tuple(v) if isinstance(v, list) else v for k, v in sensor_table.items()}  # hashable
 
     render = _table(doc, "render", {p.name for p in RENDER_PARAMS}, where)
     render = {p.name: p.coerce(render[p.name], f"{where} [render]") for p in RENDER_PARAMS if p.name in render}
@@ -210,7 +213,7 @@ def load_scene(path: str | Path) -> Scene:
         sensitivity_basis=typed(camera, "sensitivity_basis", str, "energy", where),
         scale=scale,
         preset_name=preset_name,
-        sensor_overrides=tuple(sorted(sensor_table.items())),
+        sensor_overrides=_frozen(sensor_table),
         base_dir=base_dir,
         **render,
     )

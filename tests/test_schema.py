@@ -65,7 +65,7 @@ def test_every_sensor_parameter_reaches_every_consumer(p, tmp_path):
     from camsim.commands.render import sensor_overrides
 
     args = build_parser().parse_args(["render", "macbeth_26", "--sensor", f"{p.name}={literal.strip(chr(34))}"])
-    assert sensor_overrides(args)[p.name] == value
+    assert getattr(SensorParams(**context, **{p.name: sensor_overrides(args)[p.name]}), p.name) == value
     # sidecar and grouping keys: every key the parameter writes is a grouping key
     record = sensor.sidecar_record()
     written = set(p.record(sensor)) if not p.stage else {"stages"}

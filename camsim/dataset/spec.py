@@ -370,8 +370,6 @@ def _frame(index, repeat, params, scene_file, scene_path, scene: Scene, scene_di
     if "preset" in params:
         changes["preset_name"] = params["preset"]
     overrides = {p.name: params[p.name] for p in SENSOR_PARAMS if p.name in params}
-    if isinstance(overrides.get("dark_current_e_per_s"), list):
-        overrides["dark_current_e_per_s"] = tuple(overrides["dark_current_e_per_s"])
     factor = params["intensity_factor"]
     label = f"{where}: frame {index} ({', '.join(f'{k}={v!r}' for k, v in params.items())})"
     try:
