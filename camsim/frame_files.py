@@ -188,8 +188,8 @@ def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo, preview
 
 # --- reading ----------------------------------------------------------------------------------------------
 
-#: The pixel files a frame may be read from.
-SOURCES = ("dng", "exr")
+#: The pixel files a frame may be read from (not to be confused with scene sources, camsim.sources).
+PIXEL_FILE_KINDS = ("dng", "exr")
 _REQUIRED = ("illuminant", "intensity_factor", "photon_statistics", "dn_per_electron", "black_level_dn",
              "wavelengths_nm", "qe_e_m2_sr_per_photon", "patches", "stages", "bits", "white_level_dn")
 
@@ -290,8 +290,8 @@ def find_frames(paths, source: str = "dng") -> list[Path]:
     A frame present as both DNG and EXR is taken from ``source``; a frame with only the other kind is taken
     from that (e.g. no DNG is written when quantisation is off).
     """
-    if source not in SOURCES:
-        raise CamsimError(f"source must be one of {SOURCES}, got {source!r}")
+    if source not in PIXEL_FILE_KINDS:
+        raise CamsimError(f"source must be one of {PIXEL_FILE_KINDS}, got {source!r}")
     found: dict[Path, dict[str, Path]] = {}
     for entry in paths:
         entry = Path(entry)
@@ -303,7 +303,7 @@ def find_frames(paths, source: str = "dng") -> list[Path]:
             raise CamsimError(f"no such file or folder: {entry}")
         for candidate in candidates:
             kind = candidate.suffix.lower().lstrip(".")
-            if kind not in SOURCES:
+            if kind not in PIXEL_FILE_KINDS:
                 raise CamsimError(f"not a frame file (.dng or .exr): {candidate}")
             found.setdefault(candidate.with_suffix(""), {})[kind] = candidate
     if not found:

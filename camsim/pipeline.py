@@ -130,13 +130,13 @@ def patch_xyz(radiance: SceneRadiance, grid: WavelengthGrid) -> np.ndarray:
     return KM_LM_PER_W * grid.step_nm * (radiance.radiance[:n] @ cmfs_on_grid(grid).T)
 
 
-def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, illuminant: str, intensity_factor: float,
+def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, intensity_factor: float,
                      seed: int) -> FrameInfo:
     """The :class:`FrameInfo` of one frame of ``scene`` under ``lit``: what its files say besides its pixels."""
     radiance, grid = lit.radiance, scene.grid
     return FrameInfo(
         scene=scene.name,
-        illuminant=illuminant,
+        illuminant=lit.illuminant,
         intensity_factor=intensity_factor,
         seed=seed,
         photon_statistics=scene.statistics,
@@ -174,7 +174,9 @@ def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed:
     if camera is None:
         camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
     lit = light_scene(scene, illuminant, camera) if lit is None else lit
+    if lit.illuminant != illuminant:
+        raise ValueError(f"scene_frame under {illuminant!r} was given a scene lit by {lit.illuminant!r}")
     frame = make_frame(lit, scene.sensor, intensity_factor, statistics=scene.statistics, method=scene.method,
                        rng=frame_seed_sequence(seed, illuminant, intensity_factor), tolerance=scene.tolerance,
                        workers=workers)
-    return frame, scene_frame_info(scene, lit, camera.name, illuminant, intensity_factor, seed)
+    return frame, scene_frame_info(scene, lit, camera.name, intensity_factor, seed)

@@ -11,6 +11,7 @@ import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,10 +19,12 @@ from camsim.errors import CamsimError
 from camsim.expected import ExpectedSignal
 from camsim.fixed_pattern import FixedPattern, fixed_pattern
 from camsim.methods import get_method
-from camsim.methods.plan import DrawPlan
 from camsim.seeding import block_generators
 from camsim.sensor import SensorParams
 from camsim.stages import dn_dtype
+
+if TYPE_CHECKING:  # the plan's module imports scipy: only its type is needed here
+    from camsim.methods.plan import DrawPlan
 
 #: Pixels per row block (the block has max(1, BLOCK_PIXELS // width) rows).
 BLOCK_PIXELS = 2**18

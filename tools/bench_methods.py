@@ -47,7 +47,7 @@ def frame_records(scene, lit, camera, sensor, factor, method, seed, workers, fol
     start = time.perf_counter()
     frame = make_frame(lit, sensor, factor, method=method, rng=seed, workers=workers)
     seconds = time.perf_counter() - start
-    info = scene_frame_info(scene.replace(method=method, statistics="pixel"), lit, camera.name, "D65", factor, seed)
+    info = scene_frame_info(scene.replace(method=method, statistics="pixel"), lit, camera.name, factor, seed)
     folder.mkdir(parents=True, exist_ok=True)
     write_frame(folder, frame_stem(scene.name, f"{method}-{seed}", factor), frame, info)
     result = analyse_paths([folder], AnalysisSettings(), source="exr", progress=False)[0]

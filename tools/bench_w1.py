@@ -131,7 +131,7 @@ def frame_info(w: dict, method: str):
     """The FrameInfo of a frame, built by camsim.pipeline as ``camsim render`` builds it."""
     from camsim.pipeline import scene_frame_info
 
-    return scene_frame_info(w["scene"].replace(method=method), w["lit"], w["camera"].name, ILLUMINANT, FACTOR, SEED)
+    return scene_frame_info(w["scene"].replace(method=method), w["lit"], w["camera"].name, FACTOR, SEED)
 
 
 def child_timing(args) -> dict:
