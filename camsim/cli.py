@@ -1,19 +1,24 @@
 """The ``camsim`` command line. ``main(argv)`` does the work and returns an exit status; importing does nothing.
 
 Each sub-command is a module of :mod:`camsim.commands` with ``add_parser(subparsers)`` and ``run(args)``;
-:data:`COMMANDS` names them. User errors (bad names, malformed files, bad values) print one line,
-``camsim: error: ...``, and exit with 2.
+:data:`COMMANDS` names them. User errors (bad names, malformed files, bad values) and the environment's (a folder
+that cannot be written, a full disk, no memory) print one line, ``camsim: error: ...``, and exit with 2. Ctrl-C
+(SIGINT) exits with 130 and SIGTERM (``kill``, ``timeout``, batch schedulers) with 143, both after the files being
+written are removed: what a run leaves is complete.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import signal
 import sys
+import threading
 
 from camsim import __version__
 from camsim.commands import analyze, dataset, denoise_eval, emva, experiment, render
 from camsim.commands import list as list_command
-from camsim.errors import CamsimError
+from camsim.errors import CamsimError, describe_os_error
 
 #: The sub-commands, by name, in the order ``camsim --help`` lists them.
 COMMANDS = {
@@ -54,8 +59,39 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(BaseException):
+    """Raised in the main thread when the process receives SIGTERM, so that it unwinds like Ctrl-C."""
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated
+
+
+@contextlib.contextmanager
+def _sigterm_unwinds():
+    """While the block runs, SIGTERM raises :class:`Terminated` (in the main thread only; restored after)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _os_error_text(exc: OSError) -> str:
+    where = f"{exc.filename}: " if exc.filename else ""
+    return f"{where}{describe_os_error(exc)}"
+
+
+#: Exit status after Ctrl-C (128 + SIGINT) and SIGTERM (128 + SIGTERM), as shells report them.
+EXIT_INTERRUPTED, EXIT_TERMINATED = 128 + signal.SIGINT, 128 + signal.SIGTERM
+_STOPPED = "completed frames are kept, no partial file is left"
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit status (0 ok, 2 user error, 130 interrupted)."""
+    """Run the command line; returns the exit status (0 ok, 2 error, 130 interrupted, 143 terminated)."""
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -66,13 +102,23 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return COMMANDS[args.command].run(args)
+        with _sigterm_unwinds():
+            return COMMANDS[args.command].run(args)
     except CamsimError as exc:
         print(f"camsim: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # the environment's: a file or folder that cannot be read or written
+        print(f"camsim: error: {_os_error_text(exc)}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print("camsim: error: out of memory (try a smaller --size, or fewer --workers)", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
-        print("camsim: interrupted; completed frames are kept, no partial file is left", file=sys.stderr)
-        return 130
+        print(f"camsim: interrupted; {_STOPPED}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Terminated:
+        print(f"camsim: terminated (SIGTERM); {_STOPPED}", file=sys.stderr)
+        return EXIT_TERMINATED
 
 
 def main_entry() -> None:

@@ -7,6 +7,11 @@ frames that were moved or renamed (with their sidecar) still read.
 
 No wall-clock time goes into any file, so that the same seed gives byte-identical files. Every file is written
 under a temporary name and renamed when complete.
+
+A frame is committed by its sidecar: :func:`write_frame` writes the pixel files first and renames the sidecar
+into place last, so a frame whose sidecar is there is complete, and the files no sidecar claims belong to a frame
+that was never finished (readers skip them). A frame being re-written loses its old sidecar first; a write that
+fails removes the files it had written.
 """
 
 from __future__ import annotations
@@ -20,10 +25,11 @@ from pathlib import Path
 import numpy as np
 
 import camsim
-from camsim.io.atomic import write_json_atomic
-from camsim.errors import CamsimError
+from camsim.io.atomic import undo_on_failure, write_json_atomic
+from camsim.errors import CamsimError, output_error
 from camsim.io.dng import read_dng, write_dng, write_dng_cfa
 from camsim.io.exr import read_exr, write_exr
+from camsim.io.output_folder import make_folder
 from camsim.rawcolour import CALIBRATION_ILLUMINANT_D65
 from camsim.methods import get_method
 from camsim.render import Frame
@@ -143,13 +149,35 @@ def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo, preview
         File names relative to ``out_dir`` by kind (``dng`` is None when quantisation is off: an integer raw
         file cannot hold unquantised values).
     """
-    out_dir.mkdir(parents=True, exist_ok=True)
-    sensor = frame.sensor
     files = {"dng": f"{stem}.dng" if frame.digital_dn is not None else None, "exr": f"{stem}.exr",
              "json": f"{stem}{SIDECAR_SUFFIX}"}
     if preview:
         files["png"] = f"{stem}.png"
     meta = sidecar(frame, info, files)
+    make_folder(out_dir)
+    uncommit_frame(out_dir, stem, keep=[name for name in files.values() if name is not None])
+    with undo_on_failure():  # a failed or interrupted write leaves none of the frame's files
+        _write_pixel_files(out_dir, files, frame, info, meta)
+        write_json_atomic(out_dir / files["json"], meta)  # last: the commit record
+    return files
+
+
+def uncommit_frame(out_dir: Path, stem: str, keep=()) -> None:
+    """Remove the sidecar of frame ``stem`` (if any), so that its files are no longer a committed frame, and then
+    its pixel files other than those named in ``keep`` (which the caller is about to replace)."""
+    out_dir = Path(out_dir)
+    for name in (f"{stem}{SIDECAR_SUFFIX}", *(f"{stem}.{kind}" for kind in (*PIXEL_FILE_KINDS, "png"))):
+        if name in keep and name != f"{stem}{SIDECAR_SUFFIX}":
+            continue
+        try:
+            (out_dir / name).unlink(missing_ok=True)
+        except OSError as exc:
+            raise output_error(out_dir / name, exc) from None
+
+
+def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo, meta: dict) -> None:
+    """The frame's DNG (if quantised), EXR and preview PNG (if asked for), each written atomically."""
+    sensor = frame.sensor
     if frame.digital_dn is not None:
         write = write_dng if sensor.cfa is None else partial(write_dng_cfa, pattern=sensor.cfa)
         write(
@@ -178,12 +206,10 @@ def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo, preview
         EXR_METADATA_KEY: json.dumps(meta, ensure_ascii=False),
     }
     write_exr(out_dir / files["exr"], frame.noisy_dn, frame.clean_dn(), header)
-    if preview:
+    if "png" in files:
         from camsim.preview import preview_srgb, write_preview_png
 
         write_preview_png(out_dir / files["png"], preview_srgb(frame, info))
-    write_json_atomic(out_dir / files["json"], meta)
-    return files
 
 
 # --- reading ----------------------------------------------------------------------------------------------

@@ -9,15 +9,13 @@ from tqdm import tqdm
 from camsim.camera import load_camera
 from camsim.errors import CamsimError
 from camsim.frame_files import frame_stem, write_frame
-from camsim.io.atomic import write_json_atomic
+from camsim.frame_manifest import FrameManifest
 from camsim.io.dng import MIN_SIZE
+from camsim.io.output_folder import output_folder
 from camsim.methods import get_method
 from camsim.pipeline import light_scene, scene_frame
 from camsim.scene import Scene
 from camsim.spectra import illuminant_spd
-
-MANIFEST_NAME = "manifest.json"
-
 
 def check_scene(scene: Scene) -> None:
     """Fail early, before any frame is written, on names that do not resolve and sizes that cannot be written."""
@@ -31,37 +29,37 @@ def check_scene(scene: Scene) -> None:
 
 def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = None, progress: bool = True,
                  preview: bool = False) -> dict:
-    """Render every frame of ``scene`` into ``out_dir`` and write ``manifest.json`` there.
+    """Render every frame of ``scene`` into ``out_dir``, keeping ``manifest.json`` there up to date.
 
-    With ``preview``, each frame also gets an sRGB PNG (:mod:`camsim.preview`), listed in its ``files``.
+    The folder is made ready and held before any work (:func:`camsim.io.output_folder.output_folder`: created,
+    checked writable, locked against other camsim runs, swept of temporaries left by killed runs). Each frame
+    commits on its own (:func:`camsim.frame_files.write_frame`) and the manifest follows each commit, adding to
+    the frames of earlier runs in the folder (:class:`camsim.frame_manifest.FrameManifest`). With ``preview``,
+    each frame also gets an sRGB PNG (:mod:`camsim.preview`), listed in its ``files``.
 
     Returns
     -------
     dict
-        The manifest: the scene name and, per frame, illuminant, F, seed and file paths relative to ``out_dir``.
+        The manifest: per frame of the folder, scene, illuminant, F, seed and file paths relative to ``out_dir``.
     """
     check_scene(scene)
-    out_dir = Path(out_dir)
-    camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
-    frames = []
-    jobs = [(ill, f) for ill in scene.illuminants for f in scene.intensity_factors]
-    bar = tqdm(total=len(jobs), desc=f"rendering {scene.name}", unit="frame", disable=not progress)
-    lit = None
-    for illuminant, factor in jobs:
-        if lit is None or lit.illuminant != illuminant:  # jobs come grouped by illuminant: lit once each
-            lit = light_scene(scene, illuminant, camera)
-        frame, info = scene_frame(scene, illuminant, factor, lit=lit, camera=camera, workers=workers)
-        files = write_frame(out_dir, frame_stem(scene.name, illuminant, factor), frame, info, preview=preview)
-        frames.append({
-            "illuminant": illuminant,
-            "intensity_factor": factor,
-            "seed": scene.seed,
-            "photon_statistics": scene.statistics,
-            "method": scene.method,
-            "files": files,
-        })
-        bar.update()
-    bar.close()
-    manifest = {"scene": scene.name, "frames": frames}
-    write_json_atomic(out_dir / MANIFEST_NAME, manifest)
-    return manifest
+    with output_folder(out_dir) as out_dir:
+        camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
+        manifest = FrameManifest(out_dir, scene.name)
+        jobs = [(ill, f) for ill in scene.illuminants for f in scene.intensity_factors]
+        bar = tqdm(total=len(jobs), desc=f"rendering {scene.name}", unit="frame", disable=not progress)
+        lit = None
+        with bar:
+            for illuminant, factor in jobs:
+                if lit is None or lit.illuminant != illuminant:  # jobs come grouped by illuminant: lit once each
+                    lit = light_scene(scene, illuminant, camera)
+                frame, info = scene_frame(scene, illuminant, factor, lit=lit, camera=camera, workers=workers)
+                stem = frame_stem(scene.name, illuminant, factor)
+                manifest.withdraw(stem)
+                files = write_frame(out_dir, stem, frame, info, preview=preview)
+                manifest.commit({"scene": scene.name, "illuminant": illuminant, "intensity_factor": factor,
+                                 "seed": scene.seed, "photon_statistics": scene.statistics, "method": scene.method,
+                                 "files": files})
+                bar.update()
+        manifest.write()  # also when no frame changed it (the earlier frames are listed)
+    return manifest.as_dict()

@@ -50,9 +50,9 @@ def write_spec(folder: Path, text: str = TINY, name: str = "tiny.toml") -> Path:
 
 
 def tree(out: Path) -> dict:
-    """Every file of an output folder (but the run's lock) by relative path: its bytes."""
+    """Every file of an output folder by relative path: its bytes."""
     return {p.relative_to(out).as_posix(): p.read_bytes() for p in sorted(out.rglob("*"))
-            if p.is_file() and p.name != runner.LOCK_NAME}
+            if p.is_file()}
 
 
 def assert_same_frames(out: Path, reference: Path) -> None:

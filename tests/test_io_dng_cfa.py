@@ -1,5 +1,6 @@
 """Bayer (CFA) DNG: exact mosaic through LibRaw, pattern numbering, per-colour black levels, development, errors."""
 
+import errno
 import itertools
 import math
 import re
@@ -9,7 +10,7 @@ import pytest
 import rawpy
 import tifffile
 
-from camsim.errors import CamsimError
+from camsim.errors import CamsimError, OutputError
 from camsim.io import dng as dng_mod
 from camsim.io.dng import CFA_PATTERNS, read_dng, write_dng, write_dng_cfa
 
@@ -262,13 +263,13 @@ def test_exception_mid_write_leaves_no_file(tmp_path, monkeypatch):
     def half_write(path, data, **kwargs):
         with open(path, "wb") as fh:
             fh.write(b"II*\x00partial")
-        raise OSError("disk full")
+        raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(dng_mod.tifffile, "imwrite", half_write)
-    with pytest.raises(OSError, match="disk full"):
+    with pytest.raises(OutputError, match=f"cannot write {re.escape(str(final))}: No space left on device"):
         write(final, random_mosaic(9))
     assert final.read_bytes() == before  # old complete file untouched
-    with pytest.raises(OSError):
+    with pytest.raises(OutputError, match="No space left on device"):
         write(tmp_path / "new.dng", random_mosaic(9))
     assert [p.name for p in tmp_path.iterdir()] == ["f.dng"]
 

@@ -6,7 +6,7 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from camsim.errors import CamsimError
+from camsim.errors import CamsimError, OutputError
 from camsim.io import exr as exr_mod
 from camsim.io.exr import read_exr, read_exr_oiio, write_exr
 
@@ -174,12 +174,12 @@ def test_exception_mid_write_leaves_no_file(tmp_path, monkeypatch):
         def write(self, path):
             with open(path, "wb") as fh:
                 fh.write(b"v/1\x01partial")
-            raise RuntimeError("interrupted")
+            raise RuntimeError("Cannot write image file: No space left on device")
 
     monkeypatch.setattr(exr_mod.OpenEXR, "File", HalfWritingFile)
-    with pytest.raises(RuntimeError, match="interrupted"):
+    with pytest.raises(OutputError, match=f"cannot write {re.escape(str(final))}: No space left on device"):
         write_exr(final, -noisy, clean, HEADER)
-    with pytest.raises(RuntimeError, match="interrupted"):
+    with pytest.raises(OutputError, match="No space left on device"):
         write_exr(tmp_path / "new.exr", noisy, clean, HEADER)
     monkeypatch.undo()
     assert final.read_bytes() == before

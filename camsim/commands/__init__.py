@@ -11,6 +11,8 @@ Importing a command module does no work: the modules that do the work are import
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from pathlib import Path
 
 DEFAULT_OUT = Path("outputs")
@@ -23,3 +25,15 @@ def camera_argument(name_or_csv: str | None) -> str | None:
     if name_or_csv is not None and name_or_csv.lower().endswith(".csv"):
         return str(Path(name_or_csv).resolve())
     return name_or_csv
+
+
+@contextlib.contextmanager
+def writing_to(out: Path) -> Iterator[Path]:
+    """Hold the command's output folder for its work: made ready before the work starts (created, checked writable,
+    locked; :func:`camsim.io.output_folder.output_folder`), and the files written in the block are one unit — if the
+    block fails or is interrupted, those it had completed are removed (:func:`camsim.io.atomic.undo_on_failure`)."""
+    from camsim.io.atomic import undo_on_failure
+    from camsim.io.output_folder import output_folder
+
+    with output_folder(out) as folder, undo_on_failure():
+        yield folder

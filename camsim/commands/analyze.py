@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from camsim.cli_types import non_negative_int
-from camsim.commands import DEFAULT_OUT
+from camsim.commands import DEFAULT_OUT, writing_to
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -48,9 +48,11 @@ def run(args) -> int:
 
     black = "dark-frame" if args.dark is not None else ("sidecar" if args.subtract_black else "none")
     settings = AnalysisSettings(border_px=args.border, black=black, matrix=args.matrix)
-    results = analyse_paths(args.paths, settings, source=args.source, dark_frame=args.dark, progress=not args.quiet)
     out = args.out if args.out is not None else DEFAULT_OUT / "analysis"
-    csv_path, json_path = write_outputs(results, settings, out)
+    with writing_to(out):
+        results = analyse_paths(args.paths, settings, source=args.source, dark_frame=args.dark,
+                                progress=not args.quiet)
+        csv_path, json_path = write_outputs(results, settings, out)
     if not args.quiet:
         print(table(results))
     print(f"analysed {len(results)} frames: {csv_path} (one row per frame × patch × channel), {json_path}")

@@ -12,7 +12,7 @@ import textwrap
 from pathlib import Path
 
 from camsim.cli_types import non_negative_int, positive_float
-from camsim.commands import DEFAULT_OUT
+from camsim.commands import DEFAULT_OUT, writing_to
 from camsim.errors import CamsimError
 
 #: Longest default output folder name (the denoisers' names joined by '+'); beyond it, "comparison".
@@ -118,8 +118,9 @@ def run(args) -> int:
     settings = EvalSettings(border_px=args.border, subtract_black=not args.keep_black,
                             criterion=Criterion(args.max_delta_e, args.max_bias))
     out = args.out if args.out is not None else default_out(denoisers)
-    evaluation = evaluate(args.dataset, denoisers, settings, progress=not args.quiet)
-    paths = write_outputs(evaluation, out)
+    with writing_to(out):
+        evaluation = evaluate(args.dataset, denoisers, settings, progress=not args.quiet)
+        paths = write_outputs(evaluation, out)
     n = len(evaluation.dataset.frames)
     print(f"scored {len(denoisers)} denoiser(s) on {n} frame(s); criterion: {settings.criterion.text()}")
     for d in denoisers:

@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 
 from camsim.cli_types import integer_between, non_negative_int
-from camsim.commands import DEFAULT_OUT
+from camsim.commands import DEFAULT_OUT, writing_to
 from camsim.sensor import PRESETS
 
 #: ``--size``: the range :class:`camsim.emva.EmvaSetup` accepts for the side of the region of interest.
@@ -46,9 +46,11 @@ def run(args) -> int:
     from camsim.emva import EmvaSetup, write_outputs
     from camsim.emva import run as measure
 
-    result = measure(args.preset, EmvaSetup(size=args.size, seed=args.seed), progress=not args.quiet)
+    setup = EmvaSetup(size=args.size, seed=args.seed)
     out = args.out if args.out is not None else DEFAULT_OUT / "emva"
-    paths = write_outputs(result, out)
+    with writing_to(out):
+        result = measure(args.preset, setup, progress=not args.quiet)
+        paths = write_outputs(result, out)
     if not args.quiet:
         for key, row in result.comparison().items():
             ok = result.within_target(key)

@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 
 from camsim.cli_types import non_negative_int
-from camsim.commands import DEFAULT_OUT, camera_argument
+from camsim.commands import DEFAULT_OUT, camera_argument, writing_to
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -48,7 +48,8 @@ def run(args) -> int:
     width, height = parse_size(args.size) if args.size else (None, None)
     setup = Setup(DEFAULT_SCENE, width, height, seed=args.seed, camera=camera_argument(args.camera))
     out = args.out if args.out is not None else DEFAULT_OUT / "experiments" / args.name
-    done = run_experiment(args.name, out, setup, progress=not args.quiet)
+    with writing_to(out):
+        done = run_experiment(args.name, out, setup, progress=not args.quiet)
     for name, findings in done.items():
         report = out / name / "report.md" if args.name == "all" else out / "report.md"
         print(f"{name}: {report}")

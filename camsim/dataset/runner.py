@@ -4,12 +4,12 @@
 describes the layout of ``OUT``), renders the others with one of the back-ends (:mod:`camsim.dataset.backends`),
 each frame by :func:`camsim.dataset.task.render_task`, and keeps the manifest up to date. A re-run skips complete
 frames and renders the others; a frame's files do not depend on the back-end, the number of processes or
-threads, or the order the frames are rendered in. One run at a time writes into ``OUT`` (a lock file).
+threads, or the order the frames are rendered in. One run at a time writes into ``OUT``
+(:func:`camsim.io.output_folder.output_folder`: the lock every camsim run takes).
 """
 
 from __future__ import annotations
 
-import contextlib
 import time
 from pathlib import Path
 
@@ -28,27 +28,10 @@ from camsim.dataset.manifest import (
 from camsim.dataset.spec import DatasetSpec, FrameSpec, load_spec
 from camsim.dataset.task import render_task
 from camsim.errors import CamsimError
+from camsim.io.output_folder import output_folder
 from camsim.render import default_workers
 
-__all__ = ["run_dataset", "LOCK_NAME"]
-
-LOCK_NAME = ".camsim-dataset.lock"
-
-
-@contextlib.contextmanager
-def _exclusive(out_dir: Path):
-    """Hold an exclusive lock on ``OUT`` for the run (POSIX): two runs into one folder would trip each other."""
-    try:
-        import fcntl
-    except ImportError:  # no advisory locks on this platform: best effort
-        yield
-        return
-    with open(out_dir / LOCK_NAME, "a") as handle:
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            raise CamsimError(f"another camsim dataset run is writing to {out_dir}") from None
-        yield
+__all__ = ["run_dataset"]
 
 
 def run_dataset(
@@ -101,12 +84,9 @@ def run_dataset(
     if scheduler is None and workers != 1:
         start_fork_server()  # it imports camsim while the spec is read and the frames are checked
     spec = spec if isinstance(spec, DatasetSpec) else load_spec(spec)
-    out_dir = Path(out_dir)
-    frames_dir = out_dir / FRAMES_DIR
-    frames_dir.mkdir(parents=True, exist_ok=True)
-    with _exclusive(out_dir):
-        for stale in frames_dir.glob(".*.partial"):  # left by a run killed outright (we hold the lock)
-            stale.unlink(missing_ok=True)
+    frames_dir = Path(out_dir) / FRAMES_DIR
+    # created, checked, locked against other runs, swept of temporaries left by killed runs
+    with output_folder(out_dir, subfolders=(FRAMES_DIR,)) as out_dir:
         records = {}
         todo = []
         check = tqdm(spec.frames, desc="checking complete frames", unit="frame", leave=False,

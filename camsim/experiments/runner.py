@@ -14,7 +14,8 @@ from camsim.analysis.patches import AnalysisSettings
 from camsim.camera import AnchorScale, absolute_qe, load_camera
 from camsim.experiments.datapoints import data_points, points_radiance
 from camsim.frame_files import FrameInfo, write_frame
-from camsim.io.atomic import write_json_atomic
+from camsim.frame_manifest import FrameManifest
+from camsim.io.output_folder import make_folder
 from camsim.photons import photon_radiance
 from camsim.pipeline import LitScene, make_frame
 from camsim.seeding import frame_seed_sequence
@@ -69,10 +70,10 @@ def prepare(setup: Setup) -> Prepared:
 def render_series(prep: Prepared, sensor: SensorParams, factors, statistics: str, out_dir: Path, seed: int,
                   label: str, seed_label: str | None = None) -> Path:
     """Render one frame per F into ``out_dir`` (DNG/EXR/JSON + manifest); returns the folder."""
-    out_dir.mkdir(parents=True, exist_ok=True)
     method = STATISTICS_METHODS[statistics]
     lit = prep.lit
-    frames = []
+    make_folder(out_dir)
+    manifest = FrameManifest(out_dir, f"experiment-{label}")
     for factor in factors:
         frame = make_frame(lit, sensor, factor, statistics=statistics, method=method,
                            rng=frame_seed_sequence(seed, seed_label or label, factor))
@@ -85,9 +86,12 @@ def render_series(prep: Prepared, sensor: SensorParams, factors, statistics: str
             patch_names=prep.radiance.patch_names, patch_rects=prep.radiance.patch_rects,
             color_matrix1=lit.color_matrix1, as_shot_neutral=lit.as_shot_neutral, patch_xyz=factor * lit.patch_xyz,
         )
-        files = write_frame(out_dir, f"{label}_F{factor:g}", frame, info)
-        frames.append({"intensity_factor": float(factor), "files": files})
-    write_json_atomic(out_dir / "manifest.json", {"scene": f"experiment-{label}", "frames": frames})
+        stem = f"{label}_F{factor:g}"
+        manifest.withdraw(stem)
+        files = write_frame(out_dir, stem, frame, info)
+        manifest.commit({"scene": info.scene, "illuminant": info.illuminant, "intensity_factor": float(factor),
+                         "seed": seed, "photon_statistics": statistics, "method": method, "files": files})
+    manifest.write()
     return out_dir
 
 

@@ -3,6 +3,11 @@
 Every writer in :mod:`camsim.io` writes into a temporary file next to the target and renames it onto the target
 with :func:`os.replace` only after the write has finished. A crash, an exception or Ctrl-C in the middle of a write
 therefore never leaves a truncated file under the final name (an older complete file, if any, stays in place).
+A write the environment refuses (no space, no permission) raises :class:`camsim.errors.OutputError`, one line.
+
+:func:`undo_on_failure` groups writes into one unit: if the block fails, the files it completed are removed too,
+so that a set of files that belong together (a frame's DNG and EXR, a report and its tables) appears whole or
+not at all.
 """
 
 from __future__ import annotations
@@ -11,18 +16,25 @@ import contextlib
 import json
 import os
 from collections.abc import Iterator
+from contextvars import ContextVar
 from pathlib import Path
 from typing import Any
 
-from camsim.errors import CamsimError
+from camsim.errors import CamsimError, output_error
 
-__all__ = ["atomic_path", "write_json_atomic", "write_text_atomic"]
+__all__ = ["atomic_path", "write_json_atomic", "write_text_atomic", "undo_on_failure", "PARTIAL_SUFFIX"]
+
+#: The suffix of a temporary file (``.NAME.PID.partial``) while it is being written.
+PARTIAL_SUFFIX = ".partial"
+
+# The files completed inside the innermost undo_on_failure block of this thread/task (None: no block).
+_completed: ContextVar[list[Path] | None] = ContextVar("camsim_completed_writes", default=None)
 
 
 def _temp_name(path: Path) -> Path:
     # Hidden, in the same directory (so os.replace is a same-filesystem rename), and deterministic. The process
     # id keeps two processes that write the same target from clobbering each other's half-written temporary.
-    return path.with_name(f".{path.name}.{os.getpid()}.partial")
+    return path.with_name(f".{path.name}.{os.getpid()}{PARTIAL_SUFFIX}")
 
 
 def _fsync_path(path: Path, *, directory: bool = False) -> None:
@@ -67,22 +79,60 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     On normal exit the temporary file is flushed to disk (``fsync``) and atomically renamed onto ``path`` with
     :func:`os.replace`, replacing any existing file. On any exception (including ``KeyboardInterrupt``) the
     temporary file is deleted and the exception re-raised, so neither a partial final file nor a temporary file
-    is left behind.
+    is left behind; an :class:`OSError` (no space, no permission, an I/O error) is re-raised as
+    :class:`camsim.errors.OutputError` naming ``path``.
     """
     final = Path(path)
     if not final.parent.is_dir():
         raise CamsimError(f"cannot write {final}: directory {final.parent} does not exist")
     tmp = _temp_name(final)
-    tmp.unlink(missing_ok=True)
     try:
+        tmp.unlink(missing_ok=True)
         yield tmp
         _fsync_path(tmp)
         os.replace(tmp, final)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise output_error(final, exc) from None
         raise
+    completed = _completed.get()
+    if completed is not None:
+        completed.append(final)
     _fsync_path(final.parent, directory=True)
+
+
+@contextlib.contextmanager
+def undo_on_failure() -> Iterator[list[Path]]:
+    """Group the atomic writes of the block into one unit: if the block raises (anything, Ctrl-C included), the
+    files it completed are removed before the exception goes on.
+
+    Yields
+    ------
+    list of pathlib.Path
+        The files completed so far in the block, in order. A block nested in another hands its files to the outer
+        one when it succeeds.
+
+    Notes
+    -----
+    A file completed in the block replaced any older file of its name, so after a failure neither is there: the
+    unit is gone, not rolled back.
+    """
+    outer = _completed.get()
+    completed: list[Path] = []
+    token = _completed.set(completed)
+    try:
+        yield completed
+    except BaseException:
+        for path in reversed(completed):
+            with contextlib.suppress(OSError):
+                path.unlink(missing_ok=True)
+        raise
+    finally:
+        _completed.reset(token)
+    if outer is not None:
+        outer.extend(completed)
 
 
 def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:

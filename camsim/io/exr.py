@@ -13,6 +13,7 @@ the faster and smaller one, is used.
 
 from __future__ import annotations
 
+import errno
 import os
 from collections.abc import Mapping
 from typing import Any
@@ -20,7 +21,7 @@ from typing import Any
 import numpy as np
 import OpenEXR
 
-from camsim.errors import CamsimError
+from camsim.errors import CamsimError, output_error
 from camsim.io.atomic import atomic_path
 
 __all__ = ["write_exr", "read_exr", "read_exr_oiio", "NOISY_CHANNELS", "CLEAN_CHANNELS"]
@@ -125,7 +126,19 @@ def write_exr(path: str | os.PathLike[str], noisy: np.ndarray, clean: np.ndarray
     exr_header.update(_check_header(header, name))
     _configure_threads()
     with atomic_path(path) as tmp, OpenEXR.File(exr_header, channels) as exr:
-        exr.write(str(tmp))
+        try:
+            exr.write(str(tmp))
+        except RuntimeError as exc:  # OpenEXR reports a failed write (no space, I/O error) as RuntimeError
+            raise output_error(path, _exr_reason(exc)) from None
+
+
+def _exr_reason(exc: RuntimeError) -> BaseException:
+    """The reason inside OpenEXR's message (e.g. ``No space left on device``), as an OSError where one is named."""
+    text = str(exc)
+    for code in (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EACCES, errno.EROFS, errno.EFBIG):
+        if os.strerror(code) in text:
+            return OSError(code, os.strerror(code))
+    return exc
 
 
 def _assemble(name: str, planes: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray | None]:
