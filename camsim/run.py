@@ -46,6 +46,7 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
     with output_folder(out_dir) as out_dir:
         camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
         manifest = FrameManifest(out_dir, scene.name)
+        manifest.write()  # from the start, the manifest lists the folder's committed frames (earlier runs')
         jobs = [(ill, f) for ill in scene.illuminants for f in scene.intensity_factors]
         bar = tqdm(total=len(jobs), desc=f"rendering {scene.name}", unit="frame", disable=not progress)
         lit = None
@@ -61,5 +62,4 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
                                  "seed": scene.seed, "photon_statistics": scene.statistics, "method": scene.method,
                                  "files": files})
                 bar.update()
-        manifest.write()  # also when no frame changed it (the earlier frames are listed)
     return manifest.as_dict()

@@ -1,0 +1,139 @@
+"""Fault injection with real processes and real signals: ``camsim render`` is started as a subprocess and sent
+SIGINT, SIGTERM or SIGKILL before its first frame commits, in the middle of writing a frame, and between frames.
+Then: the exit status and the one message line, no child process left, no temporary file after the next run, a
+manifest that lists exactly the committed frames, ``camsim analyze`` working on what is there, and a re-run that
+completes to files byte-identical to an uninterrupted run. Also two renders started into one folder.
+
+(``camsim dataset`` under signals: tests/test_dataset_processes.py; full disks and unwritable folders for every
+sub-command: tests/test_output_safety.py.)
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from camsim.cli import main
+from camsim.frame_manifest import MANIFEST_NAME
+
+from tests.helpers import ROOT
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+
+FACTORS = ("1", "0.5")
+RENDER = ["render", "macbeth_26", "--size", "800x600", "--illuminant", "D65", "--intensity", *FACTORS,
+          "--workers", "1", "-q"]
+
+
+def env() -> dict:
+    return {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+
+
+def start(argv, out: Path) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "camsim", *argv, "--out", str(out)], env=env(),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
+def tree(out: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(out.iterdir()) if p.is_file()}
+
+
+def partials(out: Path) -> list[str]:
+    return sorted(p.name for p in out.glob(".*.partial"))
+
+
+def committed(out: Path) -> set[str]:
+    return {p.name for p in out.glob("*.json") if p.name != MANIFEST_NAME}
+
+
+def listed(out: Path) -> set[str]:
+    frames = json.loads((out / MANIFEST_NAME).read_text())["frames"]
+    return {f["files"]["json"] for f in frames}
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> dict[str, bytes]:
+    out = tmp_path_factory.mktemp("reference")
+    assert main([*RENDER, "--out", str(out)]) == 0
+    return tree(out)
+
+
+# when to send the signal: a predicate on the output folder
+POINTS = {
+    "before-first-commit": lambda out: out.is_dir() and not committed(out),
+    "mid-frame": lambda out: bool(partials(out)),
+    "between-frames": lambda out: len(committed(out)) == 1,
+}
+
+
+def wait_until(proc: subprocess.Popen, ready, out: Path, timeout_s: float = 120.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not ready(out):
+        assert proc.poll() is None, f"camsim ended ({proc.returncode}) before the point: {proc.stderr.read()}"
+        assert time.monotonic() < deadline, "the point was never reached"
+        time.sleep(0.001)
+
+
+EXPECTED = {signal.SIGINT: (130, "camsim: interrupted"), signal.SIGTERM: (143, "camsim: terminated (SIGTERM)"),
+            signal.SIGKILL: (-signal.SIGKILL, None)}
+
+
+@pytest.mark.parametrize("point", POINTS)
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL], ids=lambda s: s.name)
+def test_render_interrupted(point, signum, tmp_path, reference, capsys):
+    out = tmp_path / "out"
+    proc = start(RENDER, out)
+    wait_until(proc, POINTS[point], out)
+    proc.send_signal(signum)
+    _, err = proc.communicate(timeout=60)
+    status, message = EXPECTED[signum]
+    assert proc.returncode == status, err
+    lines = err.strip().splitlines()
+    if message is not None:
+        assert len(lines) == 1 and lines[0].startswith(message), err  # one line, no traceback
+        assert partials(out) == []  # the frame being written was removed, temporaries and all
+    # what is left is whole: the manifest (if the run got that far) lists exactly the committed frames, and every
+    # committed frame's files are those of an uninterrupted run
+    if (out / MANIFEST_NAME).exists():
+        if signum == signal.SIGKILL:  # killed between a commit and the manifest's update at most one is missing
+            assert listed(out) <= committed(out) and len(committed(out) - listed(out)) <= 1
+        else:
+            assert listed(out) == committed(out)
+    for name in committed(out):
+        meta = json.loads((out / name).read_text())
+        for file in filter(None, meta["files"].values()):
+            assert (out / file).read_bytes() == reference[file], file
+    if committed(out):
+        assert main(["analyze", str(out), "-q", "--out", str(tmp_path / "analysis")]) == 0
+        rows = (tmp_path / "analysis" / "analysis.csv").read_text().splitlines()
+        assert len({row.split(",")[0] for row in rows[1:]}) == len(committed(out))
+    # the next run cleans up and completes to the same bytes as an uninterrupted run
+    capsys.readouterr()
+    assert main([*RENDER, "--out", str(out)]) == 0
+    assert partials(out) == []
+    assert tree(out) == reference
+
+
+def test_two_renders_into_one_folder(tmp_path):
+    """The second run is refused at once with one line, whatever the first is doing; the first goes on (here until
+    it is stopped) and leaves a consistent folder."""
+    out = tmp_path / "out"
+    first = start([*RENDER, "--intensity", *(f"{2.0 ** -k:g}" for k in range(2, 40))], out)
+    wait_until(first, lambda folder: folder.is_dir(), out)
+    second = start(RENDER, out)
+    _, err = second.communicate(timeout=60)
+    assert second.returncode == 2
+    assert err.strip().splitlines() == [f"camsim: error: another camsim run is writing to {out}; wait for it to "
+                                        "finish or choose another --out"]
+    assert first.poll() is None, "the first run ended before the second was refused: make it longer"
+    first.send_signal(signal.SIGTERM)
+    first.communicate(timeout=60)
+    assert first.returncode == 143
+    assert listed(out) == committed(out) and partials(out) == []
