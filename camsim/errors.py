@@ -9,6 +9,7 @@ reported the same way.
 from __future__ import annotations
 
 import os
+import shutil
 
 
 class CamsimError(ValueError):
@@ -30,5 +31,16 @@ def describe_os_error(exc: BaseException) -> str:
 
 
 def output_error(path, exc: BaseException) -> OutputError:
-    """An :class:`OutputError` saying that ``path`` could not be written, and why (from ``exc``)."""
-    return OutputError(f"cannot write {path}: {describe_os_error(exc)}")
+    """An :class:`OutputError` saying that ``path`` could not be written, and why (from ``exc``).
+
+    A writer's error without an error number (e.g. a short write: ``N requested and M written``) gets the free
+    space of the file system, the usual cause.
+    """
+    reason = describe_os_error(exc)
+    if not (isinstance(exc, OSError) and exc.errno):
+        try:
+            free = shutil.disk_usage(os.path.dirname(os.path.abspath(path))).free
+            reason += f" ({free / 1e6:.1f} MB free on that file system)"
+        except OSError:
+            pass
+    return OutputError(f"cannot write {path}: {reason}")

@@ -155,20 +155,18 @@ def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo, preview
         files["png"] = f"{stem}.png"
     meta = sidecar(frame, info, files)
     make_folder(out_dir)
-    uncommit_frame(out_dir, stem, keep=[name for name in files.values() if name is not None])
+    uncommit_frame(out_dir, stem)
     with undo_on_failure():  # a failed or interrupted write leaves none of the frame's files
         _write_pixel_files(out_dir, files, frame, info, meta)
         write_json_atomic(out_dir / files["json"], meta)  # last: the commit record
     return files
 
 
-def uncommit_frame(out_dir: Path, stem: str, keep=()) -> None:
-    """Remove the sidecar of frame ``stem`` (if any), so that its files are no longer a committed frame, and then
-    its pixel files other than those named in ``keep`` (which the caller is about to replace)."""
+def uncommit_frame(out_dir: Path, stem: str) -> None:
+    """Remove frame ``stem``'s sidecar (if any), so that its files are no longer a committed frame, and then its
+    pixel files (which also frees their space for the frame about to replace them)."""
     out_dir = Path(out_dir)
     for name in (f"{stem}{SIDECAR_SUFFIX}", *(f"{stem}.{kind}" for kind in (*PIXEL_FILE_KINDS, "png"))):
-        if name in keep and name != f"{stem}{SIDECAR_SUFFIX}":
-            continue
         try:
             (out_dir / name).unlink(missing_ok=True)
         except OSError as exc:

@@ -9,7 +9,7 @@ from tqdm import tqdm
 from camsim.camera import load_camera
 from camsim.errors import CamsimError
 from camsim.frame_files import frame_stem, write_frame
-from camsim.frame_manifest import FrameManifest
+from camsim.frame_manifest import MANIFEST_NAME, FrameManifest
 from camsim.io.dng import MIN_SIZE
 from camsim.io.output_folder import output_folder
 from camsim.methods import get_method
@@ -46,7 +46,8 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
     with output_folder(out_dir) as out_dir:
         camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
         manifest = FrameManifest(out_dir, scene.name)
-        manifest.write()  # from the start, the manifest lists the folder's committed frames (earlier runs')
+        if manifest.frames or (out_dir / MANIFEST_NAME).exists():
+            manifest.write()  # from the start, the manifest lists the folder's committed frames (earlier runs')
         jobs = [(ill, f) for ill in scene.illuminants for f in scene.intensity_factors]
         bar = tqdm(total=len(jobs), desc=f"rendering {scene.name}", unit="frame", disable=not progress)
         lit = None

@@ -16,6 +16,7 @@ from camsim.errors import CamsimError
 from camsim.io.atomic import write_json_atomic, write_text_atomic
 from camsim.optional_numbers import mean_of_defined
 from camsim.sensor import SensorParams
+from camsim.io.output_folder import make_folder
 
 CSV_NAME = "analysis.csv"
 SUMMARY_NAME = "analysis.json"
@@ -172,7 +173,7 @@ def table(results) -> str:
 
 
 def write_outputs(results, settings, out_dir: Path) -> tuple[Path, Path]:
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     csv_path, json_path = out_dir / CSV_NAME, out_dir / SUMMARY_NAME
     write_text_atomic(csv_path, csv_text(tidy_rows(results)))
     write_json_atomic(json_path, summary(results, settings))

@@ -27,6 +27,7 @@ from camsim.denoise.evaluate import Evaluation
 from camsim.denoise.summary import NOISY
 from camsim.io.atomic import write_json_atomic, write_text_atomic
 from camsim.plotting import new_figure, save_png
+from camsim.io.output_folder import make_folder
 
 FRAME_COLUMNS = ("denoiser", "file", "scene", "illuminant", "intensity_factor", "width_px", "height_px",
                  "data_range_dn", "data_range_source", "sigma_est_R_dn", "sigma_est_G_dn", "sigma_est_B_dn",
@@ -420,7 +421,7 @@ def _json_verdict(v: dict) -> dict:
 def write_outputs(ev: Evaluation, out_dir: Path) -> dict:
     """Write every output into ``out_dir`` (created); returns {kind: path}."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     paths = {"frames": out_dir / "frames.csv", "patches": out_dir / "patches.csv",
              "summary": out_dir / "summary.csv", "report": out_dir / "report.md", "json": out_dir / "summary.json"}
     write_text_atomic(paths["frames"], csv_text(ev.frame_rows, FRAME_COLUMNS))

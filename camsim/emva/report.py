@@ -26,6 +26,7 @@ from camsim.emva.simulate import (
 )
 from camsim.io.atomic import write_json_atomic, write_text_atomic
 from camsim.plotting import new_figure, save_png
+from camsim.io.output_folder import make_folder
 
 PLOTS = {
     "photon_transfer": "photon_transfer.png",
@@ -350,7 +351,7 @@ def markdown(result: EmvaResult, plots: dict) -> str:
 def write_outputs(result: EmvaResult, out) -> dict:
     """Write ``OUT/emva.json``, the plots and ``OUT/report.md``; returns {name: path}."""
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     with emva1288_numpy_shims():  # the reference plots call into emva1288's routines
         plots = _plots(result, out)
     write_json_atomic(out / "emva.json", result.comparison())

@@ -19,6 +19,7 @@ from camsim.colorimetry import CHANNELS, chromaticity_xy, xyz_from_camera
 from camsim.errors import CamsimError
 from camsim.optional_numbers import finite_or_none as _num
 from camsim.plotting import new_figure, save_png
+from camsim.io.output_folder import make_folder
 
 MAX_SAMPLES = 300
 STATISTICS = ("paper", "pixel")
@@ -56,7 +57,7 @@ def _colour(number):
 
 
 def _save(fig, out_dir, name: str) -> str:
-    Path(out_dir).mkdir(parents=True, exist_ok=True)
+    make_folder(Path(out_dir))
     save_png(fig, Path(out_dir) / name, bbox_inches="tight")
     return name
 

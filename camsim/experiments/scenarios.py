@@ -16,6 +16,7 @@ from camsim.experiments import findings as fd
 from camsim.experiments.report import Finding, snr_rows, write_numbers, write_report, write_snr_numbers
 from camsim.experiments.runner import STATISTICS_METHODS, Setup, analyse_series, black_point_xy, prepare, run_conditions
 from camsim.sensor import PRESETS
+from camsim.io.output_folder import make_folder
 
 #: The experiments' scene: the built-in ``macbeth_26`` (shipped in the package, so that an installed camsim finds it).
 DEFAULT_SCENE = builtin_scene_path("macbeth_26")
@@ -172,7 +173,7 @@ def run_experiment(name: str, out_dir: str | Path, setup: Setup | None = None, p
     done = {}
     for each in names:
         folder = out_dir / each if name == "all" else out_dir
-        folder.mkdir(parents=True, exist_ok=True)
+        make_folder(folder)
         width, height = DEFAULT_SIZES[each] if setup.width is None else (setup.width, setup.height)
         chosen = dataclasses.replace(setup, width=width, height=height)
         if each == "snr-sensitivity":

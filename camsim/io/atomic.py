@@ -22,7 +22,7 @@ from typing import Any
 
 from camsim.errors import CamsimError, output_error
 
-__all__ = ["atomic_path", "write_json_atomic", "write_text_atomic", "undo_on_failure", "PARTIAL_SUFFIX"]
+__all__ = ["atomic_path", "write_json_atomic", "write_text_atomic", "undo_on_failure", "record_created", "PARTIAL_SUFFIX"]
 
 #: The suffix of a temporary file (``.NAME.PID.partial``) while it is being written.
 PARTIAL_SUFFIX = ".partial"
@@ -97,16 +97,23 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         if isinstance(exc, OSError):
             raise output_error(final, exc) from None
         raise
+    record_created(final)
+    _fsync_path(final.parent, directory=True)
+
+
+def record_created(path: Path) -> None:
+    """Count ``path`` (a file just completed, or a folder just made) among the innermost
+    :func:`undo_on_failure` block's outputs, if a block is open."""
     completed = _completed.get()
     if completed is not None:
-        completed.append(final)
-    _fsync_path(final.parent, directory=True)
+        completed.append(Path(path))
 
 
 @contextlib.contextmanager
 def undo_on_failure() -> Iterator[list[Path]]:
     """Group the atomic writes of the block into one unit: if the block raises (anything, Ctrl-C included), the
-    files it completed are removed before the exception goes on.
+    files it completed are removed before the exception goes on, and the folders it made
+    (:func:`camsim.io.output_folder.make_folder`) if they are empty then.
 
     Yields
     ------
@@ -125,9 +132,12 @@ def undo_on_failure() -> Iterator[list[Path]]:
     try:
         yield completed
     except BaseException:
-        for path in reversed(completed):
+        for path in reversed(completed):  # files before the folders that hold them
             with contextlib.suppress(OSError):
-                path.unlink(missing_ok=True)
+                if path.is_dir():
+                    path.rmdir()  # only if the block left it empty
+                else:
+                    path.unlink(missing_ok=True)
         raise
     finally:
         _completed.reset(token)

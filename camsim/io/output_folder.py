@@ -19,7 +19,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from camsim.errors import CamsimError, OutputError, describe_os_error
-from camsim.io.atomic import PARTIAL_SUFFIX
+from camsim.io.atomic import PARTIAL_SUFFIX, record_created
 
 __all__ = ["output_folder", "make_folder", "check_writable", "remove_stale_partials", "FolderBusyError"]
 
@@ -31,7 +31,8 @@ class FolderBusyError(CamsimError):
 
 
 def make_folder(path: str | os.PathLike[str]) -> list[Path]:
-    """Create ``path`` and its missing parents; returns the folders created, outermost first.
+    """Create ``path`` and its missing parents; returns the folders created, outermost first (they also count as
+    outputs of an open :func:`camsim.io.atomic.undo_on_failure` block).
 
     Raises
     ------
@@ -54,6 +55,7 @@ def make_folder(path: str | os.PathLike[str]) -> list[Path]:
             raise OutputError(f"cannot create folder {path}: {folder.parent} is a file") from None
         except OSError as exc:
             raise OutputError(f"cannot create folder {path}: {describe_os_error(exc)}") from None
+        record_created(folder)
     return missing[::-1]
 
 
