@@ -87,7 +87,7 @@ def _os_error_text(exc: OSError) -> str:
 
 #: Exit status after Ctrl-C (128 + SIGINT) and SIGTERM (128 + SIGTERM), as shells report them.
 EXIT_INTERRUPTED, EXIT_TERMINATED = 128 + signal.SIGINT, 128 + signal.SIGTERM
-_STOPPED = "completed frames are kept, no partial file is left"
+_STOPPED = "what was complete is kept, nothing half-written is left"
 
 
 def main(argv: list[str] | None = None) -> int:
