@@ -28,7 +28,7 @@ from tests.helpers import ROOT
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 
 FACTORS = ("1", "0.5")
-RENDER = ["render", "macbeth_26", "--size", "800x600", "--illuminant", "D65", "--intensity", *FACTORS,
+RENDER = ["render", "macbeth_26", "--size", "640x480", "--illuminant", "D65", "--intensity", *FACTORS,
           "--workers", "1", "-q"]
 
 
@@ -54,7 +54,7 @@ def committed(out: Path) -> set[str]:
 
 
 def listed(out: Path) -> set[str]:
-    frames = json.loads((out / MANIFEST_NAME).read_text())["frames"]
+    frames = json.loads((out / MANIFEST_NAME).read_text(encoding="utf-8"))["frames"]  # replaced atomically
     return {f["files"]["json"] for f in frames}
 
 
@@ -69,7 +69,7 @@ def reference(tmp_path_factory) -> dict[str, bytes]:
 POINTS = {
     "before-first-commit": lambda out: out.is_dir() and not committed(out),
     "mid-frame": lambda out: bool(partials(out)),
-    "between-frames": lambda out: len(committed(out)) == 1,
+    "between-frames": lambda out: (out / MANIFEST_NAME).exists() and len(listed(out)) == 1,
 }
 
 
@@ -110,7 +110,7 @@ def test_render_interrupted(point, signum, tmp_path, reference, capsys):
         meta = json.loads((out / name).read_text())
         for file in filter(None, meta["files"].values()):
             assert (out / file).read_bytes() == reference[file], file
-    if committed(out):
+    if point == "between-frames":  # one committed frame, maybe the next one's files: analyze takes what is whole
         assert main(["analyze", str(out), "-q", "--out", str(tmp_path / "analysis")]) == 0
         rows = (tmp_path / "analysis" / "analysis.csv").read_text().splitlines()
         assert len({row.split(",")[0] for row in rows[1:]}) == len(committed(out))
@@ -122,18 +122,24 @@ def test_render_interrupted(point, signum, tmp_path, reference, capsys):
 
 
 def test_two_renders_into_one_folder(tmp_path):
-    """The second run is refused at once with one line, whatever the first is doing; the first goes on (here until
-    it is stopped) and leaves a consistent folder."""
+    """Two renders started together into one folder: one is refused at once with one line, the other goes on (here
+    until it is stopped) and leaves a consistent folder."""
     out = tmp_path / "out"
-    first = start([*RENDER, "--intensity", *(f"{2.0 ** -k:g}" for k in range(2, 40))], out)
-    wait_until(first, lambda folder: folder.is_dir(), out)
-    second = start(RENDER, out)
-    _, err = second.communicate(timeout=60)
-    assert second.returncode == 2
+    long_render = [*RENDER, "--intensity", *(f"{2.0 ** -k:g}" for k in range(2, 40))]
+    runs = [start(long_render, out), start(long_render, out)]
+    deadline = time.monotonic() + 120
+    while all(run.poll() is None for run in runs):
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    refused, = [run for run in runs if run.poll() is not None]
+    winner, = [run for run in runs if run is not refused]
+    _, err = refused.communicate(timeout=60)
+    assert refused.returncode == 2
     assert err.strip().splitlines() == [f"camsim: error: another camsim run is writing to {out}; wait for it to "
                                         "finish or choose another --out"]
-    assert first.poll() is None, "the first run ended before the second was refused: make it longer"
-    first.send_signal(signal.SIGTERM)
-    first.communicate(timeout=60)
-    assert first.returncode == 143
-    assert listed(out) == committed(out) and partials(out) == []
+    assert winner.poll() is None, "the first run ended before the second was refused: make it longer"
+    winner.send_signal(signal.SIGTERM)
+    winner.communicate(timeout=60)
+    assert winner.returncode == 143
+    assert partials(out) == []
+    assert not (out / MANIFEST_NAME).exists() or listed(out) == committed(out)
