@@ -115,6 +115,9 @@ def test_frames_pickle_and_compare(tmp_path):
     again = pickle.loads(pickle.dumps(frame))
     assert again == frame and again.record == frame.record and again.sensor_overrides == frame.sensor_overrides
     assert frame.record is not frame.record  # a new dict each time: a caller may change it
+    assert all(frame.get(key) == value for key, value in frame.record.items())
+    with pytest.raises(KeyError):
+        frame.get("files")
     assert frame.group is spec.frames[4].group  # differs from frame 4 only in its repeat
 
 

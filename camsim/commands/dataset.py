@@ -81,12 +81,12 @@ def print_plan(plan, write=None, chunk: int = 1000) -> None:
     write(f"dataset {plan.name}: {len(plan)} frames of {plan.size_text}; "
           f"varied: {', '.join(f'{n} ({plan.axes[n]})' for n in varied)}\n")
     keys = [(n, "photon_statistics" if n == "statistics" else n) for n in varied]
+    encode = json.JSONEncoder(ensure_ascii=False).encode
     lines = []
     for frame in plan.frames():
-        record = frame.record
-        shown = {"id": frame.id, "scene": record["scene"], "repeat": record["repeat"],
-                 **{n: record[key] for n, key in keys}, "seed": frame.seed}
-        lines.append(json.dumps(shown, ensure_ascii=False) + "\n")
+        shown = {"id": frame.id, "scene": frame.get("scene"), "repeat": frame.get("repeat"),
+                 **{n: frame.get(key) for n, key in keys}, "seed": frame.seed}
+        lines.append(encode(shown) + "\n")
         if len(lines) == chunk:
             write("".join(lines))
             lines = []

@@ -219,6 +219,13 @@ class FrameSpec:
         record["seed"] = self.seed
         return record
 
+    def get(self, key: str):
+        """``record[key]``, without making the record (``KeyError`` for a key it does not have)."""
+        if key in ("id", "index", "seed"):
+            return getattr(self, key)
+        keys = self.group.value_keys
+        return self.values[keys.index(key)] if key in keys else self.group.record[key]
+
     @property
     def megapixels(self) -> float:
         return self.width * self.height / 1e6
