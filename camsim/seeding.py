@@ -72,6 +72,94 @@ def dataset_frame_seed(spec_seed: int, frame_id: str) -> int:
     return int(state) >> 11
 
 
+# NumPy's SeedSequence constants (numpy/random/bit_generator.pyx, after M. E. O'Neill's seed_seq), for
+# dataset_frame_seeds, which repeats its mixing on arrays
+_INIT_A, _MULT_A, _INIT_B, _MULT_B = 0x43B0D7E5, 0x931E8875, 0x8B51F9DD, 0x58F38DED
+_MIX_MULT_L, _MIX_MULT_R, _MASK32 = 0xCA01F9DD, 0x4973F715, 0xFFFFFFFF
+_POOL_SIZE = 4
+
+
+def dataset_frame_seeds(spec_seed: int, frame_ids) -> list[int]:
+    """:func:`dataset_frame_seed` of many frames at once: the same numbers, some 30 times faster per frame.
+
+    NumPy's ``SeedSequence(entropy=spec_seed, spawn_key=...).generate_state(1, np.uint64)``, its entropy mixing
+    done once for all the frames on arrays of 32-bit words (a test checks it against SeedSequence itself).
+
+    Parameters
+    ----------
+    spec_seed : int
+        The spec's seed (≥ 0).
+    frame_ids : sequence of str
+
+    Returns
+    -------
+    list of int
+        One seed per frame id, each < 2**53.
+    """
+    if not frame_ids:
+        return []
+    digests = b"".join(hashlib.sha256(frame_id.encode("utf-8")).digest()[:16] for frame_id in frame_ids)
+    spawn = np.frombuffer(digests, dtype="<u4").reshape(len(frame_ids), 4).astype(np.uint32)
+    run = _uint32_words(spec_seed)
+    run += [0] * (_POOL_SIZE - len(run))  # as SeedSequence pads the entropy of a spawned sequence
+    columns = [np.full(len(frame_ids), word, dtype=np.uint32) for word in run] + list(spawn.T)
+    pool = _mix_entropy(columns)
+    state = [_output_word(pool[i], i) for i in range(2)]  # generate_state(1, uint64): two words, little-endian
+    return ((state[0].astype(np.uint64) | (state[1].astype(np.uint64) << np.uint64(32))) >> np.uint64(11)).tolist()
+
+
+def _uint32_words(value: int) -> list[int]:
+    """A non-negative integer as SeedSequence takes it: 32-bit words, least significant first ([0] for 0)."""
+    words = [value & _MASK32]
+    value >>= 32
+    while value:
+        words.append(value & _MASK32)
+        value >>= 32
+    return words
+
+
+class _HashConstant:
+    """The running hash constant of SeedSequence's mixing (a 32-bit word, the same for every frame)."""
+
+    def __init__(self, value: int):
+        self.value = value
+
+    def hashmix(self, words: np.ndarray) -> np.ndarray:
+        words = words ^ np.uint32(self.value)
+        self.value = (self.value * _MULT_A) & _MASK32
+        words = words * np.uint32(self.value)
+        return words ^ (words >> np.uint32(16))
+
+
+def _mix(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    result = np.uint32(_MIX_MULT_L) * x - np.uint32(_MIX_MULT_R) * y
+    return result ^ (result >> np.uint32(16))
+
+
+def _mix_entropy(entropy: list) -> list:
+    """SeedSequence.mix_entropy on columns of 32-bit words (one array per entropy word, one element per frame)."""
+    const = _HashConstant(_INIT_A)
+    mixer = [const.hashmix(entropy[i]) for i in range(_POOL_SIZE)]
+    for i_src in range(_POOL_SIZE):
+        for i_dst in range(_POOL_SIZE):
+            if i_src != i_dst:
+                mixer[i_dst] = _mix(mixer[i_dst], const.hashmix(mixer[i_src]))
+    for i_src in range(_POOL_SIZE, len(entropy)):
+        for i_dst in range(_POOL_SIZE):
+            mixer[i_dst] = _mix(mixer[i_dst], const.hashmix(entropy[i_src]))
+    return mixer
+
+
+def _output_word(pool_word: np.ndarray, i: int) -> np.ndarray:
+    """Word ``i`` of SeedSequence.generate_state (i < the pool size)."""
+    const = _INIT_B
+    for _ in range(i):
+        const = (const * _MULT_B) & _MASK32
+    words = pool_word ^ np.uint32(const)
+    words = words * np.uint32((const * _MULT_B) & _MASK32)
+    return words ^ (words >> np.uint32(16))
+
+
 def dataset_parameter_generator(spec_seed: int, name: str) -> np.random.Generator:
     """The stream of a dataset's random parameter ``name``: its draws do not move when others are added."""
     stream = np.random.SeedSequence(entropy=spec_seed, spawn_key=(DATASET_PARAMETER_KEY,

@@ -49,28 +49,45 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     """Carry out ``camsim dataset``; returns the exit status (0)."""
-    import json
-
     from camsim.dataset._pool import start_fork_server
 
     if args.scheduler is None and args.workers != 1 and not args.dry_run:
         start_fork_server()  # the pool's fork server imports camsim while this process does the same
 
     from camsim.dataset.runner import run_dataset
-    from camsim.dataset.spec import load_spec
+    from camsim.dataset.spec import load_spec, plan_spec
 
-    spec = load_spec(args.spec)
     if args.dry_run:
-        varied = [name for name, how in spec.axes.items() if how != "fixed"]
-        print(f"dataset {spec.name}: {len(spec.frames)} frames of {spec.size_text}; "
-              f"varied: {', '.join(f'{n} ({spec.axes[n]})' for n in varied)}")
-        for frame in spec.frames:
-            shown = {"id": frame.id, "scene": frame.record["scene"], "repeat": frame.record["repeat"],
-                     **{n: frame.record["photon_statistics" if n == "statistics" else n] for n in varied},
-                     "seed": frame.seed}
-            print(json.dumps(shown, ensure_ascii=False))
+        print_plan(plan_spec(args.spec))
         return 0
+    spec = load_spec(args.spec)
     out = args.out if args.out is not None else DEFAULT_OUT / spec.name
     run_dataset(spec, out, workers=args.workers, threads=args.threads, scheduler=args.scheduler,
                 verify=args.verify, progress=not args.quiet)
     return 0
+
+
+def print_plan(plan, write=None, chunk: int = 1000) -> None:
+    """``--dry-run``: a header line, then one JSON line per frame (id, scene, repeat, the varied parameters,
+    seed), written as the frames are made (``chunk`` lines at a time), so that a long spec streams.
+
+    ``write`` defaults to ``sys.stdout.write``.
+    """
+    import json
+    import sys
+
+    write = write or sys.stdout.write
+    varied = [name for name, how in plan.axes.items() if how != "fixed"]
+    write(f"dataset {plan.name}: {len(plan)} frames of {plan.size_text}; "
+          f"varied: {', '.join(f'{n} ({plan.axes[n]})' for n in varied)}\n")
+    keys = [(n, "photon_statistics" if n == "statistics" else n) for n in varied]
+    encode = json.JSONEncoder(ensure_ascii=False).encode
+    lines = []
+    for frame in plan.frames():
+        shown = {"id": frame.id, "scene": frame.get("scene"), "repeat": frame.get("repeat"),
+                 **{n: frame.get(key) for n, key in keys}, "seed": frame.seed}
+        lines.append(encode(shown) + "\n")
+        if len(lines) == chunk:
+            write("".join(lines))
+            lines = []
+    write("".join(lines))

@@ -10,6 +10,7 @@ _EXPORTS = {
     "DatasetSpec": "camsim.dataset.spec",
     "FrameSpec": "camsim.dataset.spec",
     "load_spec": "camsim.dataset.spec",
+    "plan_spec": "camsim.dataset.spec",
     "run_dataset": "camsim.dataset.runner",
     "read_manifest": "camsim.dataset.manifest",
 }

@@ -11,18 +11,24 @@ this machine. A frame's files do not depend on the back-end.
 from __future__ import annotations
 
 import contextlib
-import signal
-from concurrent.futures import ProcessPoolExecutor, as_completed
+import itertools
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from pathlib import Path
 
-from camsim.dataset._pool import pool_context
+from camsim.dataset._pool import pool_context, worker_init
+from camsim.dataset.manifest import FRAMES_DIR
 from camsim.dataset.task import exr_threads
 from camsim.errors import CamsimError
 
 __all__ = ["run_serial", "run_pool", "run_dask"]
 
 
-def _ignore_sigint() -> None:  # pool workers: Ctrl-C is the main process's to handle
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+#: On an interruption or an error, how long the frames being rendered get to finish (and be recorded) before their
+#: workers are terminated. Unit: s.
+GRACE_S = 2.0
+#: Frames submitted to the pool ahead of the results, per worker: enough to keep every worker busy, few enough
+#: that a spec of 10⁵ frames does not become 10⁵ queued tasks (and that an interruption has little to cancel).
+AHEAD_PER_WORKER = 2
 
 
 def run_serial(task, todo, out_dir, threads, on_done) -> None:
@@ -39,29 +45,83 @@ def run_serial(task, todo, out_dir, threads, on_done) -> None:
 def run_pool(task, todo, out_dir, workers, threads, on_done) -> None:
     """Run ``task`` on every frame of ``todo`` in a pool of ``workers`` local processes; they write into ``out_dir``.
 
-    On an error or Ctrl-C, the frames not started are cancelled and those being rendered are still recorded.
+    Frames are submitted a few per worker ahead of the results. On an error, Ctrl-C (KeyboardInterrupt) or any
+    exception raised in this thread (a SIGTERM handler's), the frames not started are cancelled, those being
+    rendered get :data:`GRACE_S` seconds to finish, every finished frame is handed to ``on_done``, the workers
+    still rendering are terminated and their temporary files removed (a frame's files that were already renamed
+    into place but not recorded are rendered again by the next run, to the same bytes), and the exception
+    propagates: the pool is gone within about ``GRACE_S`` seconds, whatever the frame size.
     """
-    context = pool_context()
-    recorded = set()
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_ignore_sigint) as pool:
-        futures = {pool.submit(task, frame, str(out_dir), threads): frame for frame in todo}
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=pool_context(), initializer=worker_init)
+    pending = {}  # future -> frame, until its result is handed to on_done
+    try:
+        frames = iter(todo)
+        _submit(pool, pending, frames, workers * AHEAD_PER_WORKER, task, out_dir, threads)
+        while pending:
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for future in done:
+                on_done(pending[future], future.result())
+                del pending[future]
+            _submit(pool, pending, frames, workers * AHEAD_PER_WORKER, task, out_dir, threads)
+    except BaseException:
         try:
-            for future in as_completed(futures):
-                on_done(futures[future], future.result())
-                recorded.add(future)
-        except BaseException:
-            for future in futures:
-                future.cancel()
-            for future, frame in futures.items():  # frames already being rendered finish: keep them
-                if future not in recorded and not future.cancelled():
-                    with contextlib.suppress(Exception):
-                        on_done(frame, future.result())
-            raise
+            _keep_finished(pending, on_done)
+        finally:
+            _remove_partials(Path(out_dir), _stop(pool))
+        raise
+    pool.shutdown(wait=True)
+
+
+def _submit(pool, pending: dict, frames, ahead: int, task, out_dir, threads) -> None:
+    """Submit frames until ``ahead`` are pending."""
+    for frame in itertools.islice(frames, max(0, ahead - len(pending))):
+        pending[pool.submit(task, frame, str(out_dir), threads)] = frame
+
+
+def _keep_finished(pending: dict, on_done) -> None:
+    """After an interruption: cancel the frames not started, give those being rendered :data:`GRACE_S` seconds,
+    and hand every finished one to ``on_done`` (a frame that failed is left out)."""
+    for future in pending:
+        future.cancel()
+    wait([f for f in pending if not f.cancelled()], timeout=GRACE_S)
+    for future, frame in pending.items():
+        if future.done() and not future.cancelled() and future.exception() is None:
+            with contextlib.suppress(Exception):
+                on_done(frame, future.result())
+
+
+def _stop(pool: ProcessPoolExecutor) -> list[int]:
+    """Shut the pool down now: terminate its workers (still rendering, or idle) and wait for them briefly;
+    returns their process ids."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())  # the executor has no public handle
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        with contextlib.suppress(Exception):
+            process.terminate()
+    for process in processes:
+        with contextlib.suppress(Exception):
+            process.join(timeout=GRACE_S)
+            if process.is_alive():
+                process.kill()
+                process.join(timeout=GRACE_S)
+    return [process.pid for process in processes]
+
+
+def _remove_partials(out_dir: Path, pids: list[int]) -> None:
+    """Remove the temporary files that the (terminated) workers ``pids`` left in ``out_dir/frames``: camsim's
+    writers name them ``.<name>.<pid>.partial`` (:mod:`camsim.io.atomic`)."""
+    for pid in pids:
+        for path in (out_dir / FRAMES_DIR).glob(f".*.{pid}.partial"):
+            path.unlink(missing_ok=True)
 
 
 def run_dask(task, todo, address, threads, on_done) -> None:
     """Submit ``task`` for every frame of ``todo`` to the ``dask.distributed`` scheduler at ``address``; the
-    workers send the files' bytes back."""
+    workers send the files' bytes back.
+
+    On an error, Ctrl-C or any exception raised in this thread, every frame not yet handed to ``on_done`` is
+    cancelled on the cluster and the client is closed, so that the cluster is left idle and usable.
+    """
     try:
         from distributed import Client, as_completed as dask_completed
     except ImportError:
@@ -70,13 +130,19 @@ def run_dask(task, todo, address, threads, on_done) -> None:
         client = Client(address, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
         raise CamsimError(f"cannot connect to the Dask scheduler at {address}: {exc}") from None
-    with client:
-        futures = [client.submit(task, frame, None, threads, pure=False) for frame in todo]
-        frames = {future.key: frame for future, frame in zip(futures, todo)}
-        try:
-            for future in dask_completed(futures, loop=client.loop):
-                on_done(frames[future.key], future.result())
-                future.release()
-        except BaseException:
-            client.cancel(futures)
-            raise
+    futures = {}  # key -> (future, frame), until the frame is handed to on_done
+    try:
+        for frame in todo:
+            future = client.submit(task, frame, None, threads, pure=False)
+            futures[future.key] = (future, frame)
+        for future in dask_completed([f for f, _ in futures.values()], loop=client.loop):
+            on_done(futures[future.key][1], future.result())
+            del futures[future.key]
+            future.release()
+    except BaseException:
+        with contextlib.suppress(Exception):
+            client.cancel([f for f, _ in futures.values()])
+        raise
+    finally:
+        with contextlib.suppress(Exception):
+            client.close()

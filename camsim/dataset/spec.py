@@ -36,9 +36,16 @@ Distributions of ``[random]``: ``uniform = [a, b]``, ``log_uniform = [a, b]`` (a
 the frame list is the same on every run and adding a parameter leaves the others' draws unchanged.
 
 Frame order: scene, the scene's inherited axes, the ``[grid]`` keys in file order, the random draw, the repeat.
-Each frame gets an id ``<index:05d>-<hash>`` (the hash covers every resolved parameter, the scene file's bytes
-and the seed) and its own seed, a function of the spec seed and the id alone, so that a frame's content does not
-depend on the other frames, on the order they are rendered in or on the machine.
+Each frame gets an id ``<index>-<hash>`` (the hash covers every resolved parameter, the scene file's bytes and the
+seed) and its own seed, a function of the spec seed and the id alone, so that a frame's content does not depend
+on the other frames, on the order they are rendered in or on the machine. The index is zero-padded to five digits,
+or to the digits of the last index where a spec has more than 100 000 frames (``000000-…`` to ``119999-…``), so
+that every id of a spec has the same width and the ids sort in frame order.
+
+Planning is cheap per frame: frames that differ only in parameters that enter them through their own value alone
+(:data:`OWN_VALUE_PARAMS`: the light level, the read noise, the exposure …) share one resolved and checked scene
+and sensor (:class:`FrameGroup`), so that a spec of 10⁵ frames is planned in seconds and little memory;
+:func:`plan_spec` makes the frames one by one (``camsim dataset --dry-run`` streams them).
 """
 
 from __future__ import annotations
@@ -47,15 +54,16 @@ import hashlib
 import itertools
 import json
 import math
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
-
 
 from camsim.camera import load_camera
 from camsim.errors import CamsimError
 from camsim.run import check_scene
 from camsim.scene import FRAME_PARAMS, RENDER_PARAMS, Scene, load_scene, read_toml
-from camsim.seeding import dataset_frame_seed, dataset_parameter_generator
+from camsim.seeding import dataset_frame_seeds, dataset_parameter_generator
 from camsim.sensor import SENSOR_PARAMS
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT = 256, 192
@@ -68,48 +76,168 @@ PARAMETERS = {p.name: p for p in (*FRAME_PARAMS, *RENDER_PARAMS, *SENSOR_PARAMS)
 GRID_ALIASES = {"illuminants": "illuminant", "intensity_factors": "intensity_factor"}
 DISTRIBUTIONS = ("uniform", "log_uniform", "integers", "choice")
 _TOP_KEYS = {"name", "description", "scene", "seed", "repeats", "frame", "fixed", "grid", "random"}
+#: Digits of a frame id's index at least (more where a spec has more than 10**ID_DIGITS frames).
+ID_DIGITS = 5
+
+_COUPLED = frozenset({
+    "analog_gain_dn_per_v", "conversion_gain_v_per_e",  # their product is the record's dn_per_electron
+    "prnu_percent",  # checked against the method
+    "quantisation",  # checked against the frame size
+})
+#: Parameters that enter a frame through their own value alone: range-checked by themselves, copied as they are
+#: into the frame's record and sensor overrides, with no derived value and no check across parameters. Frames that
+#: differ only in these share one :class:`FrameGroup` (a test checks each against a frame resolved in full).
+OWN_VALUE_PARAMS = frozenset({"intensity_factor"} | {p.name for p in SENSOR_PARAMS
+                                                      if p.kind in ("float", "int", "bool")} - _COUPLED)
+_FACTOR = 1  # position of the intensity factor in FrameSpec.values: repeat, factor, own-value sensor parameters
+_BATCH = 1024  # frames whose seeds are computed together
 
 
 @dataclass(frozen=True)
+class FrameGroup:
+    """What the frames that differ only in their own-value parameters (:data:`OWN_VALUE_PARAMS`) share: one
+    resolved and checked scene and sensor, held once for all of them.
+
+    Attributes
+    ----------
+    scene_path : str
+        Absolute path of the scene file.
+    width, height : int
+        Frame size in pixels.
+    illuminant : str
+    scene_changes : dict
+        ``Scene.replace`` arguments (statistics, method, tolerance, camera, preset_name).
+    sensor_overrides : dict
+        Sensor parameters on top of the scene's preset and ``[sensor]`` table; the keys of ``value_keys`` hold one
+        frame's values.
+    record : dict
+        A frame's record without id, index and seed; the keys of ``value_keys`` hold one frame's values.
+    value_keys : tuple of str
+        Names of :attr:`FrameSpec.values`: ``repeat``, ``intensity_factor``, then sensor parameters.
+    canonical_parts : tuple of str
+        ``"key":value`` of every key of ``record``, sorted: the canonical JSON the frame ids hash, but for the
+        frames' own values.
+    canonical_slots : tuple
+        ``(position in canonical_parts, '"key":')`` of each of ``value_keys``.
+    """
+
+    scene_path: str
+    width: int
+    height: int
+    illuminant: str
+    scene_changes: dict
+    sensor_overrides: dict
+    record: dict
+    value_keys: tuple
+    canonical_parts: tuple
+    canonical_slots: tuple
+
+    def canonical(self, values: tuple) -> str:
+        """The canonical JSON (:func:`_canonical`) of the record of a frame with ``values``, without its id,
+        index and seed: what the frame's id hashes."""
+        parts = list(self.canonical_parts)
+        for (position, prefix), value in zip(self.canonical_slots, values):
+            parts[position] = prefix + _canonical_scalar(value)
+        return "{" + ",".join(parts) + "}"
+
+
+@dataclass(frozen=True, slots=True)
 class FrameSpec:
     """One frame of a dataset: everything a worker needs to render it, as plain picklable data.
+
+    A frame holds its index, id, seed and own values; the rest is its :class:`FrameGroup`'s, shared with the
+    frames that differ from it only in those values.
 
     Attributes
     ----------
     index : int
         Position in the spec's frame list.
     id : str
-        ``<index:05d>-<hash>``: the file stem under ``OUT/frames/``.
+        ``<index>-<hash>``: the file stem under ``OUT/frames/`` (the index zero-padded to the same width for
+        every frame of the spec, at least five digits).
     seed : int
         The frame's seed (< 2**53): its generator is
         ``camsim.seeding.frame_seed_sequence(seed, illuminant, intensity_factor)``, as for ``camsim render``.
+    group : FrameGroup
+    values : tuple
+        The frame's own values, named by ``group.value_keys``: repeat, intensity factor, sensor parameters.
     scene_path : str
         Absolute path of the scene file.
     width, height : int
         Frame size in pixels.
+    illuminant : str
+    intensity_factor : float
     scene_changes : dict
-        ``Scene.replace`` arguments (illuminant list, statistics, method, tolerance, camera, preset_name).
+        ``Scene.replace`` arguments (statistics, method, tolerance, camera, preset_name).
     sensor_overrides : dict
         Sensor parameters on top of the scene's preset and ``[sensor]`` table.
     record : dict
-        The frame's manifest entry without its files: id, index, repeat, scene, every resolved parameter, seed.
+        The frame's manifest entry without its files: id, index, repeat, scene, every resolved parameter, seed
+        (a new dict at each access).
     """
 
     index: int
     id: str
     seed: int
-    scene_path: str
-    width: int
-    height: int
-    illuminant: str
-    intensity_factor: float
-    scene_changes: dict
-    sensor_overrides: dict
-    record: dict
+    group: FrameGroup
+    values: tuple
+
+    @property
+    def scene_path(self) -> str:
+        return self.group.scene_path
+
+    @property
+    def width(self) -> int:
+        return self.group.width
+
+    @property
+    def height(self) -> int:
+        return self.group.height
+
+    @property
+    def illuminant(self) -> str:
+        return self.group.illuminant
+
+    @property
+    def intensity_factor(self) -> float:
+        return self.values[_FACTOR]
+
+    @property
+    def scene_changes(self) -> dict:
+        return self.group.scene_changes
+
+    @property
+    def sensor_overrides(self) -> dict:
+        overrides = dict(self.group.sensor_overrides)
+        overrides.update(zip(self.group.value_keys[_FACTOR + 1:], self.values[_FACTOR + 1:]))
+        return overrides
+
+    @property
+    def record(self) -> dict:
+        record = {"id": self.id, "index": self.index, **self.group.record}
+        record.update(zip(self.group.value_keys, self.values))
+        record["seed"] = self.seed
+        return record
+
+    def get(self, key: str):
+        """``record[key]``, without making the record (``KeyError`` for a key it does not have)."""
+        if key in ("id", "index", "seed"):
+            return getattr(self, key)
+        keys = self.group.value_keys
+        return self.values[keys.index(key)] if key in keys else self.group.record[key]
 
     @property
     def megapixels(self) -> float:
         return self.width * self.height / 1e6
+
+
+def _size_text(sizes) -> str:
+    """``WxH`` of frames of one size, or ``mixed sizes``."""
+    sizes = set(sizes)
+    if len(sizes) != 1:
+        return "mixed sizes"
+    (width, height), = sizes
+    return f"{width}x{height}"
 
 
 @dataclass(frozen=True)
@@ -130,11 +258,43 @@ class DatasetSpec:
     @property
     def size_text(self) -> str:
         """``WxH`` of the frames (a cube scene's frames have the cube's size), or ``mixed sizes``."""
-        sizes = {(f.width, f.height) for f in self.frames}
-        if len(sizes) != 1:
-            return "mixed sizes"
-        (width, height), = sizes
-        return f"{width}x{height}"
+        return _size_text((f.width, f.height) for f in self.frames)
+
+
+@dataclass(frozen=True)
+class SpecPlan:
+    """A parsed spec before its frames are made: what :func:`load_spec` knows before the first frame.
+
+    :meth:`frames` makes and validates the frames one by one, in order (a frame that camsim cannot render raises
+    :class:`CamsimError` when it is reached); :meth:`spec` makes them all.
+    """
+
+    name: str
+    path: Path
+    seed: int
+    width: int
+    height: int
+    axes: dict  # parameter -> "fixed" | "grid" | "random" | "scene": how it is set
+    count: int  # frames
+    sizes: tuple  # the frames' (width, height), without repetition
+    make_frames: Callable[[], Iterator[FrameSpec]] = field(repr=False, compare=False)
+
+    def __len__(self) -> int:
+        return self.count
+
+    @property
+    def size_text(self) -> str:
+        """``WxH`` of the frames (a cube scene's frames have the cube's size), or ``mixed sizes``."""
+        return _size_text(self.sizes)
+
+    def frames(self) -> Iterator[FrameSpec]:
+        """The frames, in order, each validated as it is made."""
+        return self.make_frames()
+
+    def spec(self) -> DatasetSpec:
+        """The spec with every frame made and validated."""
+        return DatasetSpec(name=self.name, path=self.path, seed=self.seed, width=self.width, height=self.height,
+                           frames=tuple(self.frames()), axes=self.axes)
 
 
 # --- values --------------------------------------------------------------------------------------------------
@@ -148,6 +308,16 @@ def _coerce(name: str, value, where: str):
 
 def _canonical(value) -> str:
     return json.dumps(value, sort_keys=True, separators=(",", ":"), allow_nan=False, ensure_ascii=True)
+
+
+def _canonical_scalar(value) -> str:
+    """:func:`_canonical` of a value, faster for the finite floats and the ints of a frame's own values."""
+    kind = type(value)
+    if kind is float and math.isfinite(value):
+        return float.__repr__(value)  # what json writes
+    if kind is int:
+        return int.__repr__(value)
+    return _canonical(value)
 
 
 def _draw(name: str, dist: dict, n: int, seed: int, where: str) -> list:
@@ -233,6 +403,19 @@ def load_spec(path: str | Path) -> DatasetSpec:
     CamsimError
         A missing or malformed file, an unknown key, a value of the wrong type or range, a name that does not
         resolve (scene, illuminant, camera, preset) or a frame camsim cannot render.
+    """
+    return plan_spec(path).spec()
+
+
+def plan_spec(path: str | Path) -> SpecPlan:
+    """Read and check a dataset spec, its scenes and its random draws; the frames are made by
+    :meth:`SpecPlan.frames`, one by one (each validated as it is made).
+
+    Raises
+    ------
+    CamsimError
+        A missing or malformed file, an unknown key, a value of the wrong type, a name that does not resolve
+        (scene) or more than :data:`MAX_FRAMES` frames.
     """
     path = Path(path)
     where = str(path)
@@ -320,108 +503,189 @@ def load_spec(path: str | Path) -> DatasetSpec:
                 raise CamsimError(f"{where}: {exc}") from None
         else:
             width_px, height_px = width, height
-        scenes.append((scene_file, scene_path, scene.replace(width=int(width_px), height=int(height_px)),
-                       _scene_sha256(scene_path)))
+        scenes.append(_SceneEntry(scene_file, scene_path, scene.replace(width=int(width_px), height=int(height_px)),
+                                  _scene_sha256(scene_path), _scene_axes(scene, axes, grid)))
 
     # the frame list: per scene, its inherited axes, then [grid] in file order; then the draws and repeats
-    points = []
-    for s, (_, _, scene, _) in enumerate(scenes):
-        axes_here = {}
-        if "illuminant" not in axes:
-            axes_here["illuminant"] = list(scene.illuminants)
-        if "intensity_factor" not in axes:
-            axes_here["intensity_factor"] = list(scene.intensity_factors)
-        axes_here.update(grid)
-        n = math.prod(len(v) for v in axes_here.values()) * count * repeats
-        if len(points) + n > MAX_FRAMES:
-            raise CamsimError(f"{where}: more than {MAX_FRAMES} frames")
-        for combo in itertools.product(*axes_here.values()):
-            for draw in range(count):
-                points.append((s, dict(zip(axes_here, combo)), draw))
+    points = sum(math.prod(len(v) for v in entry.axes.values()) * count for entry in scenes)
+    if points * repeats > MAX_FRAMES:
+        raise CamsimError(f"{where}: more than {MAX_FRAMES} frames")
     for param in ("illuminant", "intensity_factor"):
         axes.setdefault(param, "scene")
-    random_values = {p: _draw(p, random_table[k], len(points), seed, f"{where} [random]")
+    random_values = {p: _draw(p, random_table[k], points, seed, f"{where} [random]")
                      for p, k in random_names.items()}
-
-    frames = []
-    checked: dict = {}
-    for point_index, (s, combo, draw) in enumerate(points):
-        scene_file, scene_path, scene, scene_digest = scenes[s]
-        params = dict(fixed)
-        params.update(combo)
-        params.update({p: values[point_index] for p, values in random_values.items()})
-        for repeat in range(repeats):
-            index = len(frames)
-            frames.append(_frame(index, repeat, params, scene_file, scene_path, scene, scene_digest, seed, base,
-                                 checked, where))
-    return DatasetSpec(name=name, path=path, seed=seed, width=width, height=height, frames=tuple(frames),
-                       axes=axes)
+    varied = {p for p, how in axes.items() if how != "fixed"}
+    own_sensor = tuple(p.name for p in SENSOR_PARAMS if p.name in varied and p.name in OWN_VALUE_PARAMS)
+    job = _Job(where=where, base=base, seed=seed, repeats=repeats, count=count, scenes=tuple(scenes), fixed=fixed,
+               random_values=random_values, value_keys=("repeat", "intensity_factor", *own_sensor),
+               id_digits=max(ID_DIGITS, len(str(points * repeats - 1))))
+    sizes = tuple(dict.fromkeys((entry.scene.width, entry.scene.height) for entry in scenes))
+    return SpecPlan(name=name, path=path, seed=seed, width=width, height=height, axes=axes, count=points * repeats,
+                    sizes=sizes, make_frames=partial(_frames, job))
 
 
-def _frame(index, repeat, params, scene_file, scene_path, scene: Scene, scene_digest, seed, base, checked, where):
-    """Resolve and validate one frame; ``checked`` memoises the costly checks (illuminants, cameras)."""
+# --- the frames ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _SceneEntry:
+    """A scene file of the spec: its name as the spec gives it, its path, the scene at the frame size, the file's
+    SHA-256 and the axes of its frames (the scene's inherited lists, then [grid])."""
+
+    file: str
+    path: Path
+    scene: Scene
+    digest: str
+    axes: dict
+
+
+def _scene_axes(scene: Scene, axes: dict, grid: dict) -> dict:
+    """The axes of a scene's frames: its illuminant and intensity factor lists unless the spec sets them, then
+    the spec's [grid] (the last one varies fastest)."""
+    here = {}
+    if "illuminant" not in axes:
+        here["illuminant"] = list(scene.illuminants)
+    if "intensity_factor" not in axes:
+        here["intensity_factor"] = list(scene.intensity_factors)
+    here.update(grid)
+    return here
+
+
+@dataclass(frozen=True)
+class _Job:
+    """What :func:`_frames` needs to make the frames of a spec."""
+
+    where: str
+    base: Path
+    seed: int
+    repeats: int
+    count: int  # random draws per grid point
+    scenes: tuple  # _SceneEntry
+    fixed: dict
+    random_values: dict  # parameter -> one value per grid point and draw
+    value_keys: tuple  # the frames' own values (FrameSpec.values)
+    id_digits: int
+
+
+def _frames(job: _Job) -> Iterator[FrameSpec]:
+    """Make the frames of a spec, in order, a batch at a time (their seeds are computed together)."""
+    batch = []
+    for index, values, group in _frame_values(job):
+        digest = hashlib.sha256(group.canonical(values).encode("ascii")).hexdigest()[:10]
+        batch.append((f"{index:0{job.id_digits}d}-{digest}", index, values, group))
+        if len(batch) == _BATCH:
+            yield from _seeded(batch, job.seed)
+            batch = []
+    yield from _seeded(batch, job.seed)
+
+
+def _seeded(batch: list, spec_seed: int) -> Iterator[FrameSpec]:
+    """The frames of ``batch`` (id, index, values, group), with their seeds."""
+    seeds = dataset_frame_seeds(spec_seed, [frame_id for frame_id, *_ in batch])
+    for (frame_id, index, values, group), seed in zip(batch, seeds):
+        yield FrameSpec(index=index, id=frame_id, seed=seed, group=group, values=values)
+
+
+def _frame_values(job: _Job) -> Iterator[tuple]:
+    """Resolve and validate the frames of a spec, in order: (index, own values, group) of each; the frames that
+    differ only in their own values share a FrameGroup."""
+    groups: dict = {}
+    checked: dict = {}  # memo of the costly checks (illuminants, cameras), across groups
+    own_sensor = job.value_keys[_FACTOR + 1:]
+    point = index = 0
+    for s, entry in enumerate(job.scenes):
+        names = tuple(entry.axes)
+        shared_axes = [i for i, n in enumerate(names) if n not in OWN_VALUE_PARAMS]  # they tell groups apart
+        shared_random = [p for p in job.random_values if p not in OWN_VALUE_PARAMS]
+        for combo in itertools.product(*(range(len(v)) for v in entry.axes.values())):
+            combo_params = {**job.fixed, **{n: entry.axes[n][i] for n, i in zip(names, combo)}}
+            combo_key = (s, *(combo[i] for i in shared_axes))
+            for _ in range(job.count):
+                params = dict(combo_params)
+                params.update({p: values[point] for p, values in job.random_values.items()})
+                key = (combo_key, *(_canonical(params[p]) for p in shared_random))
+                point += 1
+                try:
+                    factor = _intensity_factor(params["intensity_factor"])
+                    own = tuple(PARAMETERS[p].coerce(params[p], "sensor parameter") for p in own_sensor)
+                    group = groups.get(key)
+                    if group is None:
+                        group = groups[key] = _resolve(params, entry, job, checked)
+                except CamsimError as exc:
+                    label = f"{job.where}: frame {index} ({', '.join(f'{k}={v!r}' for k, v in params.items())})"
+                    raise CamsimError(f"{label}: {exc}") from None
+                for repeat in range(job.repeats):
+                    yield index, (repeat, factor, *own), group
+                    index += 1
+
+
+def _intensity_factor(value) -> float:
+    """A frame's intensity factor, checked as a scene checks it."""
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise CamsimError(f"intensity factor must be a positive number, got {value!r}")
+    return value
+
+
+def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> FrameGroup:
+    """Resolve and validate the scene and sensor of a frame with ``params``: its group's."""
     changes = {"illuminants": (params["illuminant"],)}
     for key in ("statistics", "method", "tolerance"):
         if key in params:
             changes[key] = params[key]
     if "camera" in params:  # a camera CSV named in the spec is relative to the spec
         camera = params["camera"]
-        changes["camera"] = str((base / camera).resolve()) if camera.lower().endswith(".csv") else camera
+        changes["camera"] = str((job.base / camera).resolve()) if camera.lower().endswith(".csv") else camera
     if "preset" in params:
         changes["preset_name"] = params["preset"]
     overrides = {p.name: params[p.name] for p in SENSOR_PARAMS if p.name in params}
-    factor = params["intensity_factor"]
-    label = f"{where}: frame {index} ({', '.join(f'{k}={v!r}' for k, v in params.items())})"
-    try:
-        frame_scene = scene.replace(intensity_factors=(factor,), **changes)
-        if overrides:
-            frame_scene = frame_scene.with_sensor(**overrides)
-        sensor = frame_scene.sensor
-        key = ("scene", str(scene_path), frame_scene.illuminants, frame_scene.method, sensor.quantisation)
-        if key not in checked:
-            check_scene(frame_scene)
-            checked[key] = True
-        key = ("camera", str(scene_path), frame_scene.camera)
-        if key not in checked:
-            checked[key] = load_camera(frame_scene.camera, frame_scene.grid, frame_scene.sensitivity_basis,
-                                       frame_scene.base_dir).name
-        if sensor.cfa is not None and not frame_scene.source.has_own_size and (scene.width % 2 or scene.height % 2):
-            raise CamsimError(f"a {sensor.cfa} colour filter array needs an even frame size, got "
-                              f"{scene.width}x{scene.height}")
-        if sensor.prnu_percent > 0 and frame_scene.method == "spectral":
-            raise CamsimError("PRNU needs a per-pixel mean: use method poisson, gaussian or auto, not spectral")
-    except CamsimError as exc:
-        raise CamsimError(f"{label}: {exc}") from None
+    scene = entry.scene
+    frame_scene = scene.replace(intensity_factors=(params["intensity_factor"],), **changes)
+    if overrides:
+        frame_scene = frame_scene.with_sensor(**overrides)
+    sensor = frame_scene.sensor
+    key = ("scene", str(entry.path), frame_scene.illuminants, frame_scene.method, sensor.quantisation)
+    if key not in checked:
+        check_scene(frame_scene)
+        checked[key] = True
+    key = ("camera", str(entry.path), frame_scene.camera)
+    if key not in checked:
+        checked[key] = load_camera(frame_scene.camera, frame_scene.grid, frame_scene.sensitivity_basis,
+                                   frame_scene.base_dir).name
+    if sensor.cfa is not None and not frame_scene.source.has_own_size and (scene.width % 2 or scene.height % 2):
+        raise CamsimError(f"a {sensor.cfa} colour filter array needs an even frame size, got "
+                          f"{scene.width}x{scene.height}")
+    if sensor.prnu_percent > 0 and frame_scene.method == "spectral":
+        raise CamsimError("PRNU needs a per-pixel mean: use method poisson, gaussian or auto, not spectral")
 
-    sensor_dict = sensor.to_dict()
     record = {
         "scene": frame_scene.name,
-        "scene_file": scene_file,
-        "scene_sha256": scene_digest,
+        "scene_file": entry.file,
+        "scene_sha256": entry.digest,
         "width_px": scene.width,
         "height_px": scene.height,
-        "repeat": repeat,
+        "repeat": 0,
         "illuminant": params["illuminant"],
-        "intensity_factor": factor,
+        "intensity_factor": params["intensity_factor"],
         "photon_statistics": frame_scene.statistics,
         "method": frame_scene.method,
         "tolerance": frame_scene.tolerance,
-        "camera": checked[("camera", str(scene_path), frame_scene.camera)],
+        "camera": checked[("camera", str(entry.path), frame_scene.camera)],
         "preset": frame_scene.preset_name,
-        **sensor_dict,
-        "spec_seed": seed,
+        **sensor.to_dict(),
+        "spec_seed": job.seed,
     }
-    digest = hashlib.sha256(_canonical(record).encode("ascii")).hexdigest()[:10]
-    frame_id = f"{index:05d}-{digest}"
-    fseed = dataset_frame_seed(seed, frame_id)
     # as JSON gives it back (lists, not tuples), so that a record read from disk compares equal
-    record = json.loads(json.dumps({"id": frame_id, "index": index, **record, "seed": fseed}, allow_nan=False))
-    return FrameSpec(
-        index=index, id=frame_id, seed=fseed, scene_path=str(scene_path), width=scene.width, height=scene.height,
-        illuminant=params["illuminant"], intensity_factor=factor,
+    record = json.loads(json.dumps(record, allow_nan=False))
+    keys = sorted(record)
+    return FrameGroup(
+        scene_path=str(entry.path), width=scene.width, height=scene.height, illuminant=params["illuminant"],
         scene_changes={k: v for k, v in changes.items() if k != "illuminants"},
-        sensor_overrides=overrides, record=record,
+        sensor_overrides=overrides,
+        record=record, value_keys=job.value_keys,
+        canonical_parts=tuple(f"{_canonical(k)}:{_canonical(record[k])}" for k in keys),
+        canonical_slots=tuple((keys.index(k), f"{_canonical(k)}:") for k in job.value_keys),
     )
 
 
-__all__ = ["DatasetSpec", "FrameSpec", "PARAMETERS", "DISTRIBUTIONS", "load_spec"]
+__all__ = ["DatasetSpec", "FrameSpec", "FrameGroup", "SpecPlan", "PARAMETERS", "DISTRIBUTIONS",
+           "OWN_VALUE_PARAMS", "load_spec", "plan_spec"]
