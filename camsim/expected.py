@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from camsim.errors import CamsimError
 from camsim.sensor import SensorParams
 
 
@@ -65,17 +66,27 @@ def expected_signal(photon_radiance, qe, sensor: SensorParams, intensity_factor:
     intensity_factor : float
         F.
     statistics : {'pixel', 'paper'}
+
+    Raises
+    ------
+    CamsimError
+        Where a mean overflows float64 (F · g, S, Var S or σ²_dark · T infinite): the reason, and the largest F
+        the scene, camera and exposure allow.
     """
     T = sensor.exposure_s
-    rate = intensity_factor * np.asarray(photon_radiance, dtype=np.float64)
-    signal = T * (rate @ qe.T)
-    if not sensor.photon_noise:
-        var = np.zeros_like(signal)
-    elif statistics == "pixel":
-        var = signal.copy()
-    else:
-        var = T * T * (rate @ (qe * qe).T)
-    dark = sensor.dark_mean_e
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is refused below, with its reason
+        rate = intensity_factor * np.asarray(photon_radiance, dtype=np.float64)
+        signal = T * (rate @ qe.T)
+        if not sensor.photon_noise:
+            var = np.zeros_like(signal)
+        elif statistics == "pixel":
+            var = signal.copy()
+        else:
+            var = T * T * (rate @ (qe * qe).T)
+        dark = sensor.dark_mean_e
+    if not (np.all(np.isfinite(rate)) and np.all(np.isfinite(signal)) and np.all(np.isfinite(var))
+            and np.all(np.isfinite(dark))):
+        raise CamsimError(_overflow_reason(photon_radiance, qe, sensor, intensity_factor, statistics))
     exact_poisson = statistics == "pixel" or not sensor.photon_noise
     clean = expected_saturated(signal, var, dark, sensor, exact_poisson)
     return ExpectedSignal(rate, qe, signal, var, dark, clean)
@@ -100,11 +111,57 @@ def expected_saturated(signal, var, dark, sensor: SensorParams, exact_poisson: b
         room = c - signal
         return np.where(room <= 0, c, signal + _poisson_min(dark_b, np.maximum(room, 0)))
     sd = np.sqrt(var + dark_b)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         z = (mean - c) / sd
         excess = (mean - c) * stats.norm.cdf(z) + sd * stats.norm.pdf(z)
     excess = np.where(sd > 0, excess, np.maximum(mean - c, 0))
-    return mean - excess
+    # beyond z = 38 the normal tails underflow and E[min] is c; mean − excess would cancel catastrophically there
+    # (at mean 1e23 e⁻, 1e23 − (1e23 − 9000) is 0 in float64)
+    return np.where(z > SATURATED_Z, c, mean - excess)
+
+
+#: Above this z = (mean − full well) / sd the Gaussian expectation E[min(X, c)] is c to within sd · 1e-314.
+SATURATED_Z = 38.0
+
+#: The largest float64. Unit: any.
+_FLOAT64_MAX = np.finfo(np.float64).max
+
+
+def _sci(log10_value: float) -> str:
+    """A positive number given by its base-10 logarithm, as ``1.4e+316`` (beyond float64's range too)."""
+    if -300 < log10_value < 300:
+        return f"{10 ** log10_value:.2g}"
+    exponent = int(np.floor(log10_value))
+    mantissa = 10 ** (log10_value - exponent)
+    if mantissa >= 9.95:
+        mantissa, exponent = 1.0, exponent + 1
+    return f"{mantissa:.2g}e{exponent:+d}"
+
+
+def _overflow_reason(photon_radiance, qe, sensor: SensorParams, intensity_factor: float, statistics: str) -> str:
+    """Why a frame's expected signal is not finite: which quantity overflows float64, and the largest F allowed."""
+    T, F = sensor.exposure_s, intensity_factor
+    g = np.asarray(photon_radiance, dtype=np.float64)
+    with np.errstate(over="ignore"):
+        dark = np.asarray(sensor.dark_current_e_per_s) * T if sensor.dark_current else np.zeros(3)
+    if not np.all(np.isfinite(g)) or not np.all(np.isfinite(qe)):
+        return "the scene's photon rates or the camera's Qe are not finite"
+    if not np.all(np.isfinite(dark)):
+        return (f"the exposure T = {T:g} s overflows the mean dark charge σ²_dark·T (float64 ends at "
+                f"{_FLOAT64_MAX:.2g} e⁻)")
+    # (what, unit, log10 of its value at F = 1): each grows as F
+    with np.errstate(divide="ignore"):
+        terms = [("the photon rate F·g(λ)", "photons / (s m² sr) per bin", np.log10(g.max(initial=0.0))),
+                 ("the mean signal T·F·Σ g Qe", "e⁻", np.log10(np.max(g @ qe.T, initial=0.0)) + np.log10(T))]
+        if sensor.photon_noise and statistics == "paper":
+            terms.append(("the variance T²·F·Σ g Qe² of the paper's photon statistics", "e⁻²",
+                          np.log10(np.max(g @ (qe * qe).T, initial=0.0)) + 2 * np.log10(T)))
+    log_f, log_max = np.log10(F), np.log10(_FLOAT64_MAX)
+    worst = max(terms, key=lambda term: term[2])
+    allowed = log_max - worst[2]
+    return (f"intensity factor F = {F:g} at exposure T = {T:g} s overflows float64: {worst[0]} would reach "
+            f"{_sci(log_f + worst[2])} {worst[1]}, beyond {_FLOAT64_MAX:.2g}; this scene and camera allow F up to "
+            f"about {_sci(allowed - 0.01)} at this exposure")
 
 
 def _poisson_min(lam, c):

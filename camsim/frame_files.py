@@ -181,7 +181,7 @@ def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo
         write(
             out_dir / files["dng"],
             frame.digital_dn if sensor.cfa is None else frame.digital_dn[0],
-            black_level_dn=sensor.black_level_dn,
+            black_level_dn=sensor.black_level_tag_dn,  # below the white level, as readers need
             white_level=sensor.max_dn,
             unique_camera_model=f"camsim {info.camera}",
             color_matrix1=info.color_matrix1,

@@ -21,12 +21,13 @@ from functools import cached_property
 import numpy as np
 
 from camsim.camera import Camera, absolute_qe, load_camera
+from camsim.errors import CamsimError
 from camsim.expected import ExpectedSignal, expected_signal
 from camsim.frame_files import FrameInfo
 from camsim.photons import KM_LM_PER_W, photon_radiance
 from camsim.radiance import SceneRadiance, scene_radiance
 from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
-from camsim.render import Frame, render_frame
+from camsim.render import Frame, check_frame_values, render_frame
 from camsim.scene import Scene
 from camsim.seeding import frame_seed_sequence
 from camsim.sensor import SensorParams
@@ -180,3 +181,105 @@ def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed:
                        rng=frame_seed_sequence(seed, illuminant, intensity_factor), tolerance=scene.tolerance,
                        workers=workers)
     return frame, scene_frame_info(scene, lit, camera.name, intensity_factor, seed)
+
+
+def check_frames(scene: Scene, camera: Camera | None = None) -> list[str]:
+    """Refuse a scene with a frame that cannot be drawn, before anything is drawn or written; return its warnings.
+
+    Every illuminant is lit once and its brightest frame checked (every mean grows with F): its expected signal
+    must be finite (:func:`camsim.expected.expected_signal`) and its values must fit the frame's float32 pixels
+    (:func:`camsim.render.check_frame_values`). Means far above the full well are no reason to refuse: they are
+    drawn at the saturation cap (:func:`camsim.stages.cap_mean_e`).
+
+    Parameters
+    ----------
+    scene : Scene
+    camera : Camera, optional
+        The scene's camera, when the caller has it loaded.
+
+    Returns
+    -------
+    list of str
+        :func:`frame_warnings` of the scene's sensor: one line each, for the caller to print.
+
+    Raises
+    ------
+    CamsimError
+        Naming the frame (illuminant and F) and the reason.
+    """
+    if camera is None:
+        camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
+    factor = max(scene.intensity_factors)
+    for illuminant in scene.illuminants:
+        lit = light_scene(scene, illuminant, camera)
+        try:
+            check_frame_values(lit.expected(scene.sensor, factor, scene.statistics), scene.sensor)
+        except CamsimError as exc:
+            raise CamsimError(f"frame under {illuminant} at F = {factor:g}: {exc}") from None
+    return frame_warnings(scene.sensor)
+
+
+#: "Every pixel" in :func:`frame_warnings`: the dark level this many standard deviations (of the dark shot noise,
+#: DSNU, read and row noise) past the threshold, so that a pixel escapes with probability below 1e-9.
+EVERY_PIXEL_SIGMA = 6.0
+
+
+def frame_warnings(sensor: SensorParams) -> list[str]:
+    """Warnings (one line each, no prefix) about frames of ``sensor`` that are valid but saturated by their dark.
+
+    Two conditions, on the mean dark charge D̄ = σ²_dark · T of each channel (Eq. 6), with k = G · G_Ve⁻:
+
+    * with saturation on, D̄ ≥ full well: the dark current alone fills the well, so every pixel saturates
+      whatever the light ("every" when D̄ − 6 σ ≥ full well, σ² = D̄ + DSNU²; else "most");
+    * otherwise, with quantisation on, k · D̄ ≥ 2^nb − 1 (the white level): the dark level alone reaches the top of
+      the ADC, so every pixel reads the white level ("every" when k (D̄ − 6 σ) ≥ 2^nb − 1, σ² = D̄ + DSNU² + σ_read²
+      + σ_row²) — a high gain does this before the well fills.
+
+    Both may leave the model's black level k · D̄ at or above the white level; the DNG's BlackLevel is then written
+    as the white level − 1 (:attr:`camsim.sensor.SensorParams.black_level_tag_dn`), which the warning says too,
+    as it does when only that clip applies (k · D̄ within 1 DN of the white level).
+
+    Returns
+    -------
+    list of str
+        Empty for every ordinary sensor; at most one line.
+    """
+    dark = sensor.dark_mean_e
+    k, full, white = sensor.dn_per_electron, sensor.full_well_e, sensor.max_dn
+    black = sensor.black_level_dn
+    clipped_tag = sensor.quantisation and bool(np.any(sensor.black_level_tag_dn != black))
+    tag = (f"; the DNG's BlackLevel is written as {white - 1} DN, below its WhiteLevel {white} DN (sidecar "
+           f"black_level_tag_dn; black_level_dn keeps the model's {_channels(black, range(3), '.4g')} DN)"
+           if clipped_tag else "")
+    read = sensor.read_noise_e if sensor.read_noise else 0.0
+    when = f"at T = {sensor.exposure_s:g} s"
+    if sensor.saturation and np.any(dark >= full):
+        hit = [c for c in range(3) if dark[c] >= full]
+        sigma = np.sqrt(dark + sensor.dsnu_e**2)
+        every = all(dark[c] - EVERY_PIXEL_SIGMA * sigma[c] >= full for c in hit)
+        return [f"dark current alone fills the well: σ²_dark·T = {_channels(dark, hit)} e⁻ ≥ full well {full:g} e⁻ "
+                f"{when}; {_pixels(every, hit)} saturate{'s' if every else ''}, whatever the light{tag}"]
+    if sensor.quantisation and np.any(k * dark >= white):
+        hit = [c for c in range(3) if k * dark[c] >= white]
+        sigma = np.sqrt(dark + sensor.dsnu_e**2 + read**2 + sensor.row_noise_e**2)
+        every = all(k * (dark[c] - EVERY_PIXEL_SIGMA * sigma[c]) >= white for c in hit)
+        below = f"; the full well, {full:g} e⁻, is not reached" if sensor.saturation else ""
+        return [f"dark current alone reaches the top of the ADC: k·σ²_dark·T = {_channels(k * dark, hit, '.4g')} DN ≥ "
+                f"white level {white} DN {when} (k = {k:.4g} DN/e⁻{below}); {_pixels(every, hit)} "
+                f"read{'s' if every else ''} {white} DN, whatever the light{tag}"]
+    if clipped_tag:
+        hit = [c for c in range(3) if black[c] > white - 1]
+        return [f"the dark level k·σ²_dark·T = {_channels(black, hit, '.4g')} DN {when} is within 1 DN of the white "
+                f"level {white} DN{tag}"]
+    return []
+
+
+def _channels(values, channels, spec: str = ".6g") -> str:
+    """``R 9750, G 11500``: the values of some channels, each after its name."""
+    return ", ".join(f"{'RGB'[c]} {format(float(values[c]), spec)}" for c in channels)
+
+
+def _pixels(every: bool, channels) -> str:
+    """``every pixel`` / ``most G pixels``, naming the channels unless all three."""
+    which = "" if len(channels) == 3 else " " + "/".join("RGB"[c] for c in channels)
+    return f"every{which} pixel" if every else f"most{which} pixels"

@@ -21,7 +21,7 @@ from camsim.fixed_pattern import FixedPattern, fixed_pattern
 from camsim.methods import get_method
 from camsim.seeding import block_generators
 from camsim.sensor import SensorParams
-from camsim.stages import dn_dtype
+from camsim.stages import dn_dtype, saturating_mean_e, saturation_level_e
 
 if TYPE_CHECKING:  # the plan's module imports scipy: only its type is needed here
     from camsim.methods.plan import DrawPlan
@@ -56,20 +56,90 @@ class Frame:
     maps: FixedPattern | None = None  # the sensor's DSNU / PRNU maps, if any
 
     def clean_dn(self) -> np.ndarray:
-        """Expected value of ``noisy_dn`` per pixel: G · G_Ve⁻ · E[f_sat(S + D)], shape (3, H, W), float32."""
+        """Expected value of ``noisy_dn`` per pixel: G · G_Ve⁻ · E[f_sat(S + D)], shape (3, H, W), float32.
+
+        With fixed-pattern maps, each pixel's shift of the mean is added to its spectrum's value and the sum clipped
+        at the full well: exact below saturation, and for spectra whose every pixel is saturated (their mean, with
+        the smallest PRNU gain and the most negative DSNU offset, at or above the saturation cap of
+        :func:`camsim.stages.saturating_mean_e`) the full well itself; an approximation in between.
+        """
         k = self.sensor.dn_per_electron
         table = (self.expected.clean_e * k).astype(np.float32)
         out = np.empty((3,) + self.labels.shape, dtype=np.float32)
+        full = self._saturated_spectra() if self.maps is not None and self.sensor.saturation else None
         for c in range(3):
             out[c] = table[:, c][self.labels]  # fancy indexing: ~4× faster than np.take with small ints
             # fixed-pattern maps are part of the sensor, so of the expectation (exact below saturation)
             if self.maps is not None and self.maps.gain is not None:
-                out[c] += (self.maps.gain[c] - 1) * (k * self.expected.signal_e[:, c]).astype(np.float32)[self.labels]
+                signal = k * self.expected.signal_e[:, c]
+                if full is not None:  # saturated spectra get the full well below: no shift (and no overflow)
+                    signal = np.where(full[:, c], 0.0, signal)
+                out[c] += (self.maps.gain[c] - 1) * signal.astype(np.float32)[self.labels]
             if self.maps is not None and self.maps.offset_e is not None:
                 out[c] += np.float32(k) * self.maps.offset_e[c]
             if self.maps is not None and self.sensor.saturation:
                 np.minimum(out[c], np.float32(k * self.sensor.full_well_e), out=out[c])
+                if np.any(full[:, c]):
+                    out[c][full[:, c][self.labels]] = np.float32(k * self.sensor.full_well_e)
         return out
+
+    def _saturated_spectra(self) -> np.ndarray:
+        """(K, 3) bool: spectra and channels whose every pixel saturates but with probability ≤ ε (fixed-pattern
+        maps on): S̄ · min gain + D̄ ≥ M(L, max(1, Var S / S̄)), L the full well minus the most negative offset.
+
+        The total charge is a sum of scaled Poisson counts whose variance is at most max(1, s) times its mean, so
+        :func:`camsim.stages.saturating_mean_e`'s bound holds with that step.
+        """
+        ex, maps = self.expected, self.maps
+        g_min = float(np.min(maps.gain)) if maps.gain is not None else 1.0
+        level = saturation_level_e(self.sensor.full_well_e, maps.offset_e)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = np.maximum(1.0, np.where(ex.signal_e > 0, ex.signal_var_e2 / ex.signal_e, 0.0))
+        return ex.signal_e * max(g_min, 0.0) + ex.dark_e >= saturating_mean_e(level, step)
+
+
+#: The largest charge (e⁻) or digital number a frame may hold. Its pixels are float32, which ends at 3.4e38: this
+#: leaves room for PRNU gains, offsets and noise on top of the mean.
+FRAME_VALUE_MAX = 1e36
+
+
+def check_frame_values(expected: ExpectedSignal, sensor: SensorParams) -> None:
+    """Refuse a frame whose values would not fit its float32 pixels, with the reason.
+
+    The largest value a pixel can take, in electrons: with saturation on, the full well plus ten σ of the read and
+    row noise; with saturation off, the largest mean charge (S̄ times the largest PRNU gain, 1 + 10 σ, plus D̄) plus
+    ten σ of its shot noise, DSNU, read and row noise. In DN it is G · G_Ve⁻ times that. Both must stay below
+    :data:`FRAME_VALUE_MAX`: only a light or an exposure astronomically beyond any camera's with saturation off
+    (nothing then bounds the charge), or a full well or noise of that size, reach it. Means that overflow float64
+    are refused before, by :func:`camsim.expected.expected_signal`.
+
+    Raises
+    ------
+    CamsimError
+    """
+    k = sensor.dn_per_electron
+    readout = 10 * ((sensor.read_noise_e if sensor.read_noise else 0.0) + sensor.row_noise_e)
+    if sensor.saturation:
+        peak_e = sensor.full_well_e + readout
+    else:
+        gain = 1 + 10 * sensor.prnu_percent / 100
+        mean = expected.signal_e * gain + expected.dark_e
+        peak_e = float(np.max(mean + 10 * np.sqrt(expected.total_var_e2 * gain), initial=0.0))
+        peak_e += 10 * sensor.dsnu_e + readout
+    if max(peak_e, k * peak_e) <= FRAME_VALUE_MAX:
+        return
+    limit = (f"beyond {FRAME_VALUE_MAX:.0e}, the largest value a frame holds (its pixels are float32, which end at "
+             f"{float(np.finfo(np.float32).max):.2g})")
+    if sensor.saturation and sensor.full_well_e >= readout:
+        raise CamsimError(f"the full well of {sensor.full_well_e:.3g} e⁻ is {k * sensor.full_well_e:.3g} DN, {limit}")
+    if sensor.saturation or float(np.max(mean)) < peak_e / 2:
+        raise CamsimError(f"the noise and offsets (ten σ) make pixel values of {peak_e:.3g} e⁻ = {k * peak_e:.3g} DN, "
+                          f"{limit}")
+    spectrum, channel = np.unravel_index(int(np.argmax(mean)), mean.shape)
+    top = float(expected.signal_e[spectrum, channel] + expected.dark_e[channel])
+    raise CamsimError(f"mean charge {top:.3g} e⁻ per pixel (spectrum {spectrum} of {mean.shape[0]}, channel "
+                      f"{'RGB'[channel]}) is {k * top:.3g} DN, {limit}: with saturation off nothing bounds the charge; "
+                      f"lower F or the exposure, or switch saturation on")
 
 
 def default_workers() -> int:
@@ -168,8 +238,15 @@ def render_frame(
         Threads (default: the number of cores). The output does not depend on it.
     tolerance : float, optional
         ``auto``'s KS tolerance (default :data:`camsim.methods.DEFAULT_TOLERANCE`).
+
+    Raises
+    ------
+    CamsimError
+        A frame whose values would not fit its float32 pixels (:func:`check_frame_values`); PRNU with a method
+        that has one mean per spectrum.
     """
     impl = get_method(method)
+    check_frame_values(expected, sensor)
     height, width = labels.shape
     rows = block_rows(labels.shape, sensor.cfa)
     starts = list(range(0, height, rows))

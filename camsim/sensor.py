@@ -23,8 +23,12 @@ def _layout_record(sensor) -> dict:
 
 
 def _adc_record(sensor) -> dict:
-    return {"bits": sensor.bits, "white_level_dn": sensor.max_dn, "dn_per_electron": sensor.dn_per_electron,
-            "black_level_dn": sensor.black_level_dn.tolist()}
+    record = {"bits": sensor.bits, "white_level_dn": sensor.max_dn, "dn_per_electron": sensor.dn_per_electron,
+              "black_level_dn": sensor.black_level_dn.tolist()}
+    tag = sensor.black_level_tag_dn
+    if sensor.quantisation and np.any(tag != sensor.black_level_dn):  # only where the DNG says something else
+        record["black_level_tag_dn"] = tag.tolist()
+    return record
 
 
 def _tukey_record(sensor) -> dict:
@@ -115,6 +119,17 @@ class SensorParams:
     def black_level_dn(self) -> np.ndarray:
         """Mean dark level in DN (before quantisation), per channel, shape (3,). Unit: DN."""
         return self.dark_mean_e * self.dn_per_electron
+
+    @property
+    def black_level_tag_dn(self) -> np.ndarray:
+        """The black level a DNG's BlackLevel tag holds, per channel, shape (3,). Unit: DN.
+
+        :attr:`black_level_dn`, at most the white level − 1 (:attr:`max_dn` − 1): a dark current that alone reaches
+        the top of the ADC (or fills a well that maps there) would otherwise put it at or above the WhiteLevel,
+        which readers cannot use (LibRaw also rounds 254.5 up to 255). Such a frame is saturated everywhere; its
+        sidecar then records this value as ``black_level_tag_dn`` beside the model's ``black_level_dn``.
+        """
+        return np.minimum(self.black_level_dn, self.max_dn - 1)
 
     def with_stages(self, **switches) -> SensorParams:
         """A copy with some stage switches changed (``with_stages(dark_current=False)``)."""

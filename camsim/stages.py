@@ -8,6 +8,9 @@ electrons until :func:`electrons_to_dn`.
 stage                          function                              unit
 =============================  ====================================  ===========
 photons + dark current         :func:`collect_charge_e`              e⁻
+  (its saturation cap)         :func:`saturating_mean_e`,            e⁻
+                               :func:`cap_mean_e`,
+                               :func:`saturation_level_e`
 DSNU (fixed dark offset)       :func:`add_offset_e`                  e⁻
 full well (Eq. 8)              :func:`saturate_e`                    e⁻
 read noise (Eqs. 7, 10)        :func:`draw_read_noise_e`,            e⁻
@@ -24,10 +27,74 @@ import numpy as np
 
 from camsim.kernels import poisson, poisson_run, standard_normal_f32, tukey_lambda
 
+#: ε of the saturation cap: a pixel whose mean charge is at or above :func:`saturating_mean_e` stays below its
+#: full well with probability at most ε, and drawing it at that mean changes the law of its value by at most ε in
+#: total variation.
+SATURATION_CAP_TAIL = 1e-30
+
+
+def saturating_mean_e(level_e, step_e=1.0):
+    """The mean charge M at and above which a charge stays below ``level_e`` with probability at most ε.
+
+    For a charge that is a sum of independent scaled Poisson counts, S = Σ wᵢ Nᵢ with wᵢ ≥ 0 (one Poisson count,
+    w = 1; the ``paper`` statistics' s · Poisson(S̄ / s); the ``spectral`` method's per-bin sums), of mean S̄ and
+    variance V = s · S̄, Chernoff's bound with e⁻ˣ ≤ 1 − x + x²/2 gives P(S ≤ L) ≤ exp(−(S̄ − L)² / (2 s S̄)) for
+    S̄ ≥ L. That is at most ε = e⁻ᵃ (a = ln 1/ε, ε = :data:`SATURATION_CAP_TAIL`) when
+
+        S̄ ≥ M = L + a s + √(a² s² + 2 a s L).
+
+    For one Poisson count and L = 9000 e⁻ (Table I's full well), M = 10 186 e⁻, and the exact
+    P(Poisson(M) ≤ 9000) is 2e-32.
+
+    Parameters
+    ----------
+    level_e : float or numpy.ndarray
+        L, the charge at and above which the pixel is saturated: the full well minus the pixel's DSNU offset
+        (negative L counts as 0). Unit: e⁻.
+    step_e : float or numpy.ndarray
+        s = Var S / S̄: 1 for Poisson counts of electrons. Unit: e⁻.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        M. Unit: e⁻.
+    """
+    a = -np.log(SATURATION_CAP_TAIL)
+    level = np.maximum(level_e, 0.0)
+    return level + a * step_e + np.sqrt((a * step_e) ** 2 + 2 * a * step_e * level)
+
+
+def cap_mean_e(mean_e, level_e, step_e=1.0):
+    """The saturation cap: ``mean_e`` where it is below :func:`saturating_mean_e` (``level_e``, ``step_e``), else M.
+
+    A pixel saturates when its charge reaches the level L; its value is then the full well whatever more it
+    collects. If two means are both at least M, each law puts probability at least 1 − ε on the full well, so the
+    laws of the saturated value — and of everything computed from it (read noise, gain, ADC) — differ by at most
+    ε = :data:`SATURATION_CAP_TAIL` in total variation, per pixel and channel. Drawing a mean above M at M keeps
+    every draw within the exact sampler's range (numpy refuses Poisson means above 9.2e18) and in float64, however
+    bright the light. Means at or below M are returned as given (the same object: no draw changes).
+
+    Unit: e⁻ (``mean_e`` float or array; the result has its shape).
+    """
+    cap = saturating_mean_e(level_e, step_e)
+    if np.all(np.asarray(mean_e) <= cap):
+        return mean_e
+    return np.minimum(mean_e, cap)
+
+
+def saturation_level_e(full_well_e: float, offset_e=None) -> float:
+    """The charge at and above which every pixel is saturated: the full well minus the most negative of the pixels'
+    DSNU offsets ``offset_e`` (None: no offsets). The level of :func:`collect_charge_e`'s saturation cap. Unit: e⁻.
+    """
+    if offset_e is None:
+        return float(full_well_e)
+    return float(full_well_e) - min(0.0, float(np.min(offset_e)))
+
 
 def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_var_e2=None, *,
-                     statistics: str = "pixel", photon_noise: bool = True, size=None, gain=None) -> np.ndarray:
-    """The charge S + D collected in the exposure, drawn exactly (Eqs. 4–6).
+                     statistics: str = "pixel", photon_noise: bool = True, size=None, gain=None,
+                     saturation_e=None) -> np.ndarray:
+    """The charge S + D collected in the exposure, drawn exactly (Eqs. 4–6); capped where saturation hides it.
 
     Parameters
     ----------
@@ -46,6 +113,13 @@ def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_v
         Shape of the draws when ``signal_e`` is one value (drawn as a histogram, :func:`camsim.kernels.poisson_run`).
     gain : numpy.ndarray, optional
         PRNU: a per-pixel factor on S̄ (and Var S), shape ``size``; the draws then have one mean per pixel.
+    saturation_e : float, optional
+        Where the charge is then clipped at the full well (:func:`saturate_e`): the level L at and above which
+        the pixel's value is the full well, the full well minus the pixel's DSNU offset (one value for all the
+        pixels drawn: the largest). Each Poisson mean is then capped by :func:`cap_mean_e` — S̄ + D̄ under
+        ``pixel`` statistics; S̄ (step s) and D̄ each on its own under ``paper`` statistics and without photon
+        noise, as either alone saturates the pixel — which changes the law of the saturated value by at most
+        :data:`SATURATION_CAP_TAIL` in total variation. None (no full well): the means are drawn as they are.
 
     Returns
     -------
@@ -58,16 +132,21 @@ def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_v
         S = S * gain
         size = None
     if photon_noise and statistics == "pixel":  # one draw covers photons and dark current
-        return poisson(rng, S + D) if size is None else poisson_run(rng, S + D, size)
+        lam = S + D if saturation_e is None else cap_mean_e(S + D, saturation_e)
+        return poisson(rng, lam) if size is None else poisson_run(rng, lam, size)
+    if saturation_e is not None:
+        D = cap_mean_e(D, saturation_e)
     if photon_noise:
         var = signal_var_e2 * (1 if gain is None else gain)
         with np.errstate(divide="ignore", invalid="ignore"):
             step = np.where(S > 0, var / S, 0.0)
+            if saturation_e is not None:
+                S = cap_mean_e(S, saturation_e, step)
             lam = np.where(step > 0, S / step, 0.0)
         charge = step * poisson(rng, lam, size=size)
     else:
         charge = np.broadcast_to(np.asarray(S, dtype=np.float64), shape)
-    return charge + rng.poisson(D, size=shape) if D > 0 else charge
+    return charge + poisson(rng, D, size=shape) if D > 0 else charge
 
 
 def add_offset_e(charge_e: np.ndarray, offset_e: np.ndarray | None) -> np.ndarray:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from camsim.cli_types import positive_float, positive_int, schema_value, sensor_setting
@@ -109,11 +110,19 @@ def sensor_overrides(args) -> dict:
 
 
 def run(args) -> int:
-    """Carry out ``camsim render``; returns the exit status (0)."""
+    """Carry out ``camsim render``; returns the exit status (0).
+
+    Before anything is written, every frame is checked (:func:`camsim.pipeline.check_frames`: a frame that cannot
+    be drawn is a :class:`CamsimError`) and the warnings of valid but dark-saturated frames go to stderr, one line
+    each, ``camsim: warning: ...``.
+    """
+    from camsim.pipeline import check_frames
     from camsim.run import render_scene
     from camsim.scene import load_scene
 
     scene = apply_overrides(load_scene(args.scene), args)
+    for warning in check_frames(scene):
+        print(f"camsim: warning: {warning}", file=sys.stderr)
     out = args.out if args.out is not None else DEFAULT_OUT / scene.name
     manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet, preview=args.preview)
     print(f"wrote {len(manifest['frames'])} frames (DNG, EXR, JSON) to {out}/ — index: {out / 'manifest.json'}")

@@ -3,7 +3,8 @@
 A :class:`~camsim.methods.plan.DrawPlan` says how each spectrum and channel is drawn; :func:`fill_channel` then
 walks a block's rectangles of equal label (or, for a cube, its pixels grouped by kind) and writes DN before
 quantisation. The exact path composes the stage functions of :mod:`camsim.stages` (charge, DSNU offset, full
-well, read noise, gain); the Gaussian paths replace charge and read noise by one moment-matched normal.
+well, read noise, gain; where the full well can act, the charge's Poisson means are capped far above it,
+:func:`camsim.stages.cap_mean_e`); the Gaussian paths replace charge and read noise by one moment-matched normal.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from camsim.stages import (
     electrons_to_dn,
     quantise_dn,
     saturate_e,
+    saturation_level_e,
 )
 
 
@@ -80,11 +82,14 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
                                              else read * rng.standard_normal(zz.shape, np.float32))
         else:
             size = out_c[where].shape if label is not None else None
+            clip = bool(np.any(plan.needs_clip[index, c]))
             charge = collect_charge_e(rng, expected.signal_e[index, c], expected.dark_e[c],
                                       expected.signal_var_e2[index, c], statistics=statistics,
-                                      photon_noise=sensor.photon_noise, size=size, gain=g)
+                                      photon_noise=sensor.photon_noise, size=size, gain=g,
+                                      saturation_e=None if not clip else saturation_level_e(
+                                          sensor.full_well_e, None if offset is None else offset[where]))
             charge = add_offset_e(charge, None if offset is None else offset[where])
-            if np.any(plan.needs_clip[index, c]):
+            if clip:
                 charge = saturate_e(charge, sensor.full_well_e)
             if simple and label is not None:
                 view = out_c[where]  # a rectangle: cast, add the read noise and scale in two passes

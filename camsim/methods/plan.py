@@ -121,10 +121,6 @@ def plan_methods(expected: ExpectedSignal, sensor: SensorParams, statistics: str
         lam_poisson, extra_var = lam, 0.0
     else:  # paper: the signal's scaled-Poisson counts are ~1e16: Gaussian already; only D is Poisson
         lam_poisson, extra_var = np.broadcast_to(expected.dark_e, lam.shape), expected.signal_var_e2
-    ks = np.zeros(lam.shape)
-    sigma_g = np.round(np.sqrt(read**2 + extra_var), 6)
-    for value in np.unique(sigma_g) if method != "poisson" else ():  # one KS curve per distinct Gaussian part
-        ks[sigma_g == value] = predicted_ks(lam_poisson[sigma_g == value], value)
     spread = SATURATION_MARGIN_SIGMA * np.sqrt(var_charge)
     # fixed-pattern maps move a pixel's mean: widen the margins by 6 σ of each map
     spread = spread + 6 * (sensor.prnu_percent / 100 * expected.signal_e + sensor.dsnu_e)
@@ -133,6 +129,13 @@ def plan_methods(expected: ExpectedSignal, sensor: SensorParams, statistics: str
         above = lam - spread >= sensor.full_well_e
     else:
         below, above = np.ones(lam.shape, bool), np.zeros(lam.shape, bool)
+    ks = np.zeros(lam.shape)
+    sigma_g = np.broadcast_to(np.round(np.sqrt(read**2 + extra_var), 6), lam.shape)
+    # one KS curve per distinct Gaussian part; none for saturated spectra (exact either way, their KS is 0): under
+    # ``paper`` statistics a bright frame has a distinct Gaussian part per spectrum, each curve costs a second
+    for value in np.unique(sigma_g[~above]) if method != "poisson" else ():
+        where = (sigma_g == value) & ~above
+        ks[where] = predicted_ks(lam_poisson[where], value)
     # P(X ≥ mean + 10 σ + 10) < 1e-22 for these Poisson-like totals: below that, clipping cannot act
     fpn = 10 * (sensor.prnu_percent / 100 * expected.signal_e + sensor.dsnu_e)
     needs_clip = sensor.saturation & (lam + 10 * np.sqrt(var_charge) + 10 + fpn >= sensor.full_well_e)
