@@ -125,5 +125,8 @@ def run(args) -> int:
         print(f"camsim: warning: {warning}", file=sys.stderr)
     out = args.out if args.out is not None else DEFAULT_OUT / scene.name
     manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet, preview=args.preview)
-    print(f"wrote {len(manifest['frames'])} frames (DNG, EXR, JSON) to {out}/ — index: {out / 'manifest.json'}")
+    rendered = len(scene.illuminants) * len(scene.intensity_factors)
+    earlier = len(manifest["frames"]) - rendered
+    print(f"wrote {rendered} frames (DNG, EXR, JSON) to {out}/ — index: {out / 'manifest.json'}"
+          + (f" (with {earlier} frames of earlier runs)" if earlier > 0 else ""))
     return 0
