@@ -74,11 +74,11 @@ def check_writable(folder: str | os.PathLike[str]) -> None:
             os.write(fd, b"camsim")
         finally:
             os.close(fd)
-        probe.unlink()
     except OSError as exc:
+        raise OutputError(f"cannot write into {folder}: {describe_os_error(exc)}") from None
+    finally:  # whatever happened, Ctrl-C included
         with contextlib.suppress(OSError):
             probe.unlink(missing_ok=True)
-        raise OutputError(f"cannot write into {folder}: {describe_os_error(exc)}") from None
 
 
 def remove_stale_partials(folder: str | os.PathLike[str]) -> list[Path]:
