@@ -5,6 +5,10 @@ quantisation plus the ``clean`` layer; its header carries the whole sidecar unde
 ``STEM.json``, the sidecar (:func:`sidecar`). A DNG is read with its sidecar beside it, an EXR on its own, so
 frames that were moved or renamed (with their sidecar) still read.
 
+The sidecar is the commit record: it is written last and its ``files`` names the frame's files. A search of a
+folder (:func:`search_frames`) takes only committed frames, whose sidecar claims the file, and passes over hidden
+files (temporaries); a file named explicitly is read as it is, so a renamed frame is read by naming it.
+
 No wall-clock time goes into any file, so that the same seed gives byte-identical files. Every file is written
 under a temporary name and renamed when complete.
 
@@ -28,7 +32,7 @@ import camsim
 from camsim.io.atomic import undo_on_failure, write_json_atomic
 from camsim.errors import CamsimError, output_error
 from camsim.io.dng import read_dng, write_dng, write_dng_cfa
-from camsim.io.exr import read_exr, write_exr
+from camsim.io.exr import read_exr, read_exr_header, write_exr
 from camsim.io.output_folder import make_folder
 from camsim.rawcolour import CALIBRATION_ILLUMINANT_D65
 from camsim.methods import get_method
@@ -268,21 +272,69 @@ def _read_sidecar(path: Path) -> dict:
     return meta
 
 
-def _check_meta(meta, path: Path, shape) -> dict:
+def _check_meta(meta, path: Path, shape=None) -> dict:
+    """``meta`` if it is a camsim frame's metadata that fits pixels of ``shape`` (planes, H, W); else CamsimError.
+
+    ``shape`` None checks the keys only (the pixels are not read yet).
+    """
     if not isinstance(meta, dict):
         raise CamsimError(f"{path}: metadata is not a JSON object")
     missing = [key for key in _REQUIRED if key not in meta]
     if missing:
         raise CamsimError(f"{path}: metadata lacks {', '.join(missing)} (not a camsim frame?)")
-    height, width = shape[1:]
+    if shape is None:
+        return meta
+    planes, height, width = shape
     if (meta.get("height_px"), meta.get("width_px")) != (height, width):
         raise CamsimError(f"{path}: the sidecar describes a {meta.get('width_px')}x{meta.get('height_px')} frame "
                           f"but the file holds {width}x{height}: wrong sidecar?")
+    if (planes == 1) != bool(meta.get("cfa_pattern")):
+        held = "a Bayer mosaic" if planes == 1 else "R, G and B at every pixel"
+        raise CamsimError(f"{path}: the sidecar describes a {meta.get('cfa_pattern') or 'three-chip'} frame but "
+                          f"the file holds {held}: wrong sidecar?")
     return meta
+
+
+def _exr_meta(path: Path, header: dict) -> dict:
+    """The metadata of an EXR: its header's copy of the sidecar, or else the sidecar beside it."""
+    if EXR_METADATA_KEY not in header:
+        return _read_sidecar(path.with_suffix(SIDECAR_SUFFIX))
+    try:
+        return json.loads(header[EXR_METADATA_KEY])
+    except json.JSONDecodeError as exc:
+        raise CamsimError(f"{path}: header {EXR_METADATA_KEY} is not valid JSON ({exc})") from None
+
+
+def _frame_kind(path: Path) -> str:
+    kind = path.suffix.lower().lstrip(".")
+    if kind not in PIXEL_FILE_KINDS:
+        raise CamsimError(f"not a frame file (.dng or .exr): {path}")
+    return kind
+
+
+def read_frame_meta(path: str | Path) -> dict:
+    """The metadata of a frame file without reading its pixels: a DNG's sidecar, an EXR's header.
+
+    What :func:`load_frame` would give as ``meta``, at the cost of a small JSON file or an EXR header, for
+    sorting frames before they are loaded one at a time. The pixel dimensions are checked against the metadata
+    for an EXR only (a DNG's when it is loaded).
+
+    Raises
+    ------
+    CamsimError
+        Unreadable or foreign files, a missing or mismatched sidecar.
+    """
+    path = Path(path)
+    if _frame_kind(path) == "dng":
+        return _check_meta(_read_sidecar(path.with_suffix(SIDECAR_SUFFIX)), path)
+    header, shape = read_exr_header(path)
+    return _check_meta(_exr_meta(path, header), path, shape)
 
 
 def load_frame(path: str | Path) -> LoadedFrame:
     """Load a ``.dng`` (with its ``.json`` sidecar beside it) or an ``.exr`` frame.
+
+    An EXR's clean layer is not read (:class:`LoadedFrame` holds the noisy values only).
 
     Raises
     ------
@@ -290,47 +342,140 @@ def load_frame(path: str | Path) -> LoadedFrame:
         Unreadable, truncated or foreign files, a missing or mismatched sidecar.
     """
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".dng":
+    if _frame_kind(path) == "dng":
         dn, _ = read_dng(path)
         meta = _check_meta(_read_sidecar(path.with_suffix(SIDECAR_SUFFIX)), path, dn.shape)
         return LoadedFrame(path, "dng", dn, meta)
-    if suffix == ".exr":
-        noisy, _, header = read_exr(path)
-        if EXR_METADATA_KEY in header:
-            try:
-                meta = json.loads(header[EXR_METADATA_KEY])
-            except json.JSONDecodeError as exc:
-                raise CamsimError(f"{path}: header {EXR_METADATA_KEY} is not valid JSON ({exc})") from None
+    noisy, _, header = read_exr(path, clean=False)
+    return LoadedFrame(path, "exr", noisy, _check_meta(_exr_meta(path, header), path, noisy.shape))
+
+
+@dataclass(frozen=True)
+class FrameSearch:
+    """What a search for frame files found.
+
+    Attributes
+    ----------
+    files : list of Path
+        One pixel file per frame, in the order of their paths less the suffix: the files named, and the
+        committed frames in the folders searched.
+    bad : list of tuple (Path, str)
+        Files that are no frame, with the reason: a path that does not exist, a file named that is not a
+        ``.dng`` or ``.exr``, a sidecar in a folder that cannot be read.
+    uncommitted : list of Path
+        Frame files (``.dng``, ``.exr``) in the folders searched that no sidecar claims: frames being written,
+        or left by an interrupted writer.
+    """
+
+    files: list
+    bad: list
+    uncommitted: list
+
+
+def _claims(sidecar: Path) -> dict | str | None:
+    """The ``files`` record of ``sidecar``: None when there is no such file, the reason when it is unreadable."""
+    if not sidecar.is_file():
+        return None
+    try:
+        meta = json.loads(sidecar.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        return f"unreadable sidecar ({type(exc).__name__}: {exc})"
+    files = meta.get("files") if isinstance(meta, dict) else None
+    return files if isinstance(files, dict) else "not a camsim sidecar (no 'files' record)"
+
+
+def _search_folder(folder: Path, found: dict, bad: list, uncommitted: list) -> None:
+    """Add the committed frame files under ``folder`` to ``found`` (stem → kind → path), and the rest to the lists.
+
+    A frame file is committed when the sidecar of its stem exists and names it in ``files`` (the sidecar is
+    written last, as the commit record). Hidden files and folders (names starting with '.': temporaries such as
+    ``.x.dng.1234.partial``) are passed over.
+    """
+    claims_of: dict[Path, dict | str | None] = {}  # sidecar → its claims, read once for the DNG and the EXR
+    for path in sorted(folder.rglob("*")):
+        if any(part.startswith(".") for part in path.relative_to(folder).parts):
+            continue
+        kind = path.suffix.lower().lstrip(".")
+        if kind not in PIXEL_FILE_KINDS or not path.is_file():
+            continue
+        sidecar = path.with_suffix(SIDECAR_SUFFIX)
+        seen = sidecar in claims_of
+        claims = claims_of[sidecar] if seen else claims_of.setdefault(sidecar, _claims(sidecar))
+        if isinstance(claims, str):
+            if not seen:  # one report per sidecar, not per frame file
+                bad.append((sidecar, claims))
+        elif claims is not None and claims.get(kind) == path.name:
+            found.setdefault(path.with_suffix(""), {})[kind] = path
         else:
-            meta = _read_sidecar(path.with_suffix(SIDECAR_SUFFIX))
-        return LoadedFrame(path, "exr", noisy, _check_meta(meta, path, noisy.shape))
-    raise CamsimError(f"not a frame file (.dng or .exr): {path}")
+            uncommitted.append(path)
+
+
+def search_frames(paths, source: str = "dng") -> FrameSearch:
+    """The frame files named by ``paths``: files, or folders searched recursively for committed frames.
+
+    A frame present as both DNG and EXR is taken from ``source``; a frame with only the other kind is taken
+    from that (e.g. no DNG is written when quantisation is off). A file named is taken as it is (an EXR carries
+    its own metadata); in a folder only the frames whose sidecar claims the file are (see :class:`FrameSearch`).
+    Nothing raises for a bad path: it is reported in the result.
+    """
+    if source not in PIXEL_FILE_KINDS:
+        raise CamsimError(f"source must be one of {PIXEL_FILE_KINDS}, got {source!r}")
+    found: dict[Path, dict[str, Path]] = {}
+    bad: list = []
+    uncommitted: list = []
+    for entry in map(Path, paths):
+        if entry.is_dir():
+            _search_folder(entry, found, bad, uncommitted)
+        elif not entry.is_file():
+            bad.append((entry, "no such file or folder"))
+        elif entry.suffix.lower().lstrip(".") not in PIXEL_FILE_KINDS:
+            bad.append((entry, "not a frame file (.dng or .exr)"))
+        else:
+            found.setdefault(entry.with_suffix(""), {})[entry.suffix.lower().lstrip(".")] = entry
+    other = "exr" if source == "dng" else "dng"
+    files = [kinds.get(source, kinds.get(other)) for _, kinds in sorted(found.items())]
+    return FrameSearch(files, bad, uncommitted)
+
+
+def uncommitted_lines(files, shown: int = 5) -> list[str]:
+    """One warning line per folder about the uncommitted frame files in it, naming at most ``shown`` of them."""
+    by_folder: dict[Path, list[str]] = {}
+    for path in files:
+        by_folder.setdefault(Path(path).parent, []).append(Path(path).name)
+    lines = []
+    for folder, names in by_folder.items():
+        listed = ", ".join(names[:shown]) + (f" … (+{len(names) - shown})" if len(names) > shown else "")
+        lines.append(f"ignored {len(names)} uncommitted frame file(s) in {folder} (no sidecar claims them): "
+                     f"{listed}")
+    return lines
 
 
 def find_frames(paths, source: str = "dng") -> list[Path]:
     """The frame files named by ``paths`` (files, or folders searched recursively), one per frame.
 
-    A frame present as both DNG and EXR is taken from ``source``; a frame with only the other kind is taken
-    from that (e.g. no DNG is written when quantisation is off).
+    :func:`search_frames`, strictly: a bad path raises, and so does finding no frame at all. Uncommitted frame
+    files in folders are left out.
+
+    Raises
+    ------
+    CamsimError
+        A path that does not exist, a file named that is no frame file, an unreadable sidecar in a folder, or
+        no frame found.
     """
-    if source not in PIXEL_FILE_KINDS:
-        raise CamsimError(f"source must be one of {PIXEL_FILE_KINDS}, got {source!r}")
-    found: dict[Path, dict[str, Path]] = {}
-    for entry in paths:
-        entry = Path(entry)
-        if entry.is_dir():
-            candidates = [p for p in sorted(entry.rglob("*")) if p.suffix.lower() in (".dng", ".exr")]
-        elif entry.is_file():
-            candidates = [entry]
-        else:
-            raise CamsimError(f"no such file or folder: {entry}")
-        for candidate in candidates:
-            kind = candidate.suffix.lower().lstrip(".")
-            if kind not in PIXEL_FILE_KINDS:
-                raise CamsimError(f"not a frame file (.dng or .exr): {candidate}")
-            found.setdefault(candidate.with_suffix(""), {})[kind] = candidate
-    if not found:
-        raise CamsimError(f"no .dng or .exr frames in {', '.join(str(p) for p in paths)}")
-    other = "exr" if source == "dng" else "dng"
-    return [kinds.get(source, kinds.get(other)) for _, kinds in sorted(found.items())]
+    search = search_frames(paths, source)
+    if search.bad:
+        path, reason = search.bad[0]
+        raise CamsimError(f"{path}: {reason}")
+    if not search.files:
+        raise CamsimError(no_frames_message(paths, search.uncommitted))
+    return search.files
+
+
+def no_frames_message(paths, uncommitted) -> str:
+    """Why ``paths`` gave no frame: none there, or only uncommitted ones."""
+    where = ", ".join(str(p) for p in paths)
+    if not uncommitted:
+        return f"no .dng or .exr frames in {where}"
+    names = ", ".join(Path(p).name for p in uncommitted[:5]) + (" …" if len(uncommitted) > 5 else "")
+    return (f"no committed frames in {where}: {len(uncommitted)} frame file(s) that no sidecar claims ({names}), "
+            "i.e. frames being written or left by an interrupted writer; name a file to read it anyway")

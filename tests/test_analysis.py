@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from camsim.analysis.analyze import analyse_paths
-from camsim.analysis.patches import AnalysisSettings
+from camsim.analysis.patches import AnalysisSettings, analyse_frame
 from camsim.cli import main
+from camsim.errors import CamsimError
+from camsim.frame_files import load_frame
 from camsim.run import render_scene
 from tests.helpers import ROOT, small_scene
 
@@ -81,10 +83,12 @@ def test_undefined_cases_are_counted_not_nan(tmp_path):
     bright = analyse_paths([_render(tmp_path, small_scene(intensity_factors=(3.0,)), "bright")],
                            AnalysisSettings(), progress=False)[0]
     assert bright["patches"][18]["channels"][1]["saturated_pixels"] == bright["patches"][18]["channels"][1]["n_pixels"]
-    # 5. a border that leaves no pixel
-    empty = analyse_paths([tmp_path / "bright"], AnalysisSettings(border_px=200), progress=False)[0]
-    assert all(p["ellipse_status"] == "too-few-samples" and p["channels"][0]["mean_dn"] is None
-               for p in empty["patches"])
+    # 5. a border that leaves no pixel: the analysis refuses it; measured anyway, every patch is empty, not NaN
+    with pytest.raises(CamsimError, match=r"border of 200 px .* leaves patch 0 'dark skin' \(\d+x\d+ px\)"):
+        analyse_paths([tmp_path / "bright"], AnalysisSettings(border_px=200), progress=False)
+    frame = load_frame(next((tmp_path / "bright").glob("*.dng")))
+    empty, _ = analyse_frame(frame, AnalysisSettings(border_px=200), np.zeros(3), np.eye(3))
+    assert all(p["ellipse_status"] == "too-few-samples" and p["channels"][0]["mean_dn"] is None for p in empty)
     # the CLI writes all of it without NaN (JSON is written with allow_nan=False)
     for folder in ("dark", "still", "line", "bright"):
         assert main(["analyze", str(tmp_path / folder), "--subtract-black", "--out", str(tmp_path / f"a-{folder}"),
@@ -105,7 +109,9 @@ def test_analyze_cli_on_moved_and_renamed_frames(frames, tmp_path, capsys):
         shutil.copy(frames / f"test_D65_F0.1{suffix}", moved / f"renamed{suffix}")
     shutil.copy(frames / "test_D65_F1.exr", moved / "reference.exr")  # the EXR carries its own metadata
     out = tmp_path / "analysis"
-    assert main(["analyze", str(moved), "--out", str(out)]) == 0
+    assert main(["analyze", str(moved), "--out", str(out)]) == 2  # a folder gives its committed frames only
+    assert "2 frame file(s) that no sidecar claims (reference.exr, renamed.dng)" in capsys.readouterr().err
+    assert main(["analyze", str(moved / "renamed.dng"), str(moved / "reference.exr"), "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "renamed.dng" in printed and "reference.exr" in printed
     lines = (out / "analysis.csv").read_text().splitlines()
@@ -126,7 +132,9 @@ def test_analyze_bad_input(frames, tmp_path, capsys, case):
     if case == "truncated":
         data = (frames / "test_D65_F1.dng").read_bytes()
         (target / "x.dng").write_bytes(data[: len(data) // 3])
-        shutil.copy(frames / "test_D65_F1.json", target / "x.json")
+        meta = json.loads((frames / "test_D65_F1.json").read_text())
+        meta["files"]["dng"] = "x.dng"  # a committed frame whose DNG is damaged
+        (target / "x.json").write_text(json.dumps(meta))
     elif case == "no sidecar":
         shutil.copy(frames / "test_D65_F1.dng", target / "x.dng")
     elif case == "not a frame":

@@ -179,6 +179,16 @@ def test_truncated_file_is_a_user_error(tmp_path, keep):
         read_dng(bad)
 
 
+def test_a_file_cut_in_its_pixels_is_called_truncated_and_libraw_stays_quiet(tmp_path, capfd):
+    good = write(tmp_path / "good.dng", random_dn(7)).read_bytes()
+    bad = tmp_path / "truncated.dng"
+    bad.write_bytes(good[:-10])  # the tags are whole, the last pixels missing
+    with pytest.raises(CamsimError, match=re.escape(f"cannot read DNG {bad}: truncated: the file has "
+                                                    f"{len(good) - 10} bytes")):
+        read_dng(bad)
+    assert capfd.readouterr() == ("", "")
+
+
 def test_text_missing_and_non_dng_files_are_user_errors(tmp_path):
     text = tmp_path / "notes.dng"
     text.write_text("this is not a raw file\n")

@@ -8,10 +8,24 @@ import pytest
 
 from camsim.errors import CamsimError, OutputError
 from camsim.io import exr as exr_mod
-from camsim.io.exr import read_exr, read_exr_oiio, write_exr
+from camsim.io.exr import read_exr, read_exr_header, read_exr_oiio, write_exr
 
 H, W = 48, 64
 READERS = [read_exr, read_exr_oiio]
+
+
+def read_noisy(path):
+    """read_exr without the clean layer (OpenEXR's channel-selecting reader)."""
+    return read_exr(path, clean=False)
+
+
+def read_header(path):
+    """read_exr_header, shaped like the readers' returns: the pixels are not read."""
+    header, shape = read_exr_header(path)
+    return shape, None, header
+
+
+ERROR_READERS = [*READERS, read_noisy]  # each refuses every broken file with a CamsimError naming it
 HEADER = {
     "camsim:version": "0.1.0",
     "camsim:gain_e_per_dn": "0.12345678901234567890123456789",  # longer than any float carries
@@ -120,7 +134,19 @@ def test_rejects_bad_header_without_writing(tmp_path, header):
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("reader", READERS)
+def test_noisy_only_and_header_only_reads_agree_with_the_full_read(tmp_path):
+    noisy, clean = frames(4)
+    write_exr(tmp_path / "rgb.exr", noisy, clean, HEADER)
+    write_exr(tmp_path / "cfa.exr", noisy[:1], None, HEADER)
+    for name, planes in (("rgb.exr", 3), ("cfa.exr", 1)):
+        full = read_exr(tmp_path / name)
+        n2, c2, hdr = read_noisy(tmp_path / name)
+        assert c2 is None and n2.dtype == np.float32 and n2.flags.c_contiguous and hdr == full[2] == HEADER
+        np.testing.assert_array_equal(bits(n2), bits(full[0]))
+        assert read_header(tmp_path / name) == ((planes, H, W), None, HEADER)
+
+
+@pytest.mark.parametrize("reader", ERROR_READERS)
 @pytest.mark.parametrize("keep", [0.999, 0.5, 0.01])
 def test_truncated_file_is_a_user_error(tmp_path, reader, keep):
     noisy, clean = frames(7)
@@ -132,7 +158,7 @@ def test_truncated_file_is_a_user_error(tmp_path, reader, keep):
         reader(bad)
 
 
-@pytest.mark.parametrize("reader", READERS)
+@pytest.mark.parametrize("reader", [*ERROR_READERS, read_header])
 def test_text_and_missing_files_are_user_errors(tmp_path, reader):
     text = tmp_path / "notes.exr"
     text.write_text("not an image\n")
@@ -141,9 +167,10 @@ def test_text_and_missing_files_are_user_errors(tmp_path, reader):
             reader(path)
 
 
-@pytest.mark.parametrize("reader", READERS)
-@pytest.mark.parametrize(("names", "message"), [
-    (["R", "G"], "lacks channel"), (["Y"], "lacks channel"), (["R", "G", "B", "clean.R"], "only some clean"),
+@pytest.mark.parametrize(("reader", "names", "message"), [
+    *((reader, names, "lacks channel") for reader in (*READERS, read_noisy, read_header) for names in (["R", "G"],
+                                                                                                        ["Y"])),
+    *((reader, ["R", "G", "B", "clean.R"], "only some clean") for reader in READERS),  # the others skip clean.*
 ])
 def test_missing_channels_are_user_errors(tmp_path, reader, names, message):
     path = tmp_path / "foreign.exr"

@@ -100,7 +100,7 @@ def test_output_under_a_file_fails_before_any_work(name, frames, tmp_path, capsy
 
     monkeypatch.setattr(camsim.pipeline, "make_frame", no_work)
     monkeypatch.setattr(camsim.experiments.runner, "make_frame", no_work)
-    monkeypatch.setattr(camsim.analysis.analyze, "analyse_paths", no_work)
+    monkeypatch.setattr(camsim.analysis.analyze, "analyse", no_work)
     monkeypatch.setattr(camsim.emva, "run", no_work)
     monkeypatch.setattr(importlib.import_module("camsim.denoise.evaluate"), "evaluate", no_work)
     out = blocker / "out"

@@ -5,12 +5,15 @@ from __future__ import annotations
 import csv
 import io
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
-from camsim.frame_files import find_frames, load_frame
+from camsim.frame_files import (LoadedFrame, load_frame, no_frames_message, read_frame_meta, search_frames,
+                                uncommitted_lines)
+from camsim.analysis.dark import DarkFrame, load_dark
 from camsim.analysis.patches import AnalysisSettings, analyse_frame, frame_matrix
 from camsim.errors import CamsimError
 from camsim.io.atomic import write_json_atomic, write_text_atomic
@@ -41,6 +44,213 @@ def group_key(meta: dict) -> str:
     return json.dumps([meta.get(key) for key in GROUP_KEYS], sort_keys=True)
 
 
+@dataclass
+class Analysis:
+    """The outcome of :func:`analyse`.
+
+    Attributes
+    ----------
+    results : list of dict
+        One result per frame analysed (see :func:`analyse_paths`).
+    skipped : list of dict
+        The bad files, each ``{"file": path, "reason": why}``: unreadable, truncated or foreign files, missing
+        or mismatched sidecars, frames that cannot be measured.
+    uncommitted : list of str
+        Frame files in the folders searched that no sidecar claims (frames being written, or left by an
+        interrupted writer): not analysed.
+    """
+
+    results: list = field(default_factory=list)
+    skipped: list = field(default_factory=list)
+    uncommitted: list = field(default_factory=list)
+
+
+def check_settings(path: Path, meta: dict, settings: AnalysisSettings, dark: DarkFrame | None) -> None:
+    """Refuse settings that make no sense for the frame ``path`` (with metadata ``meta``).
+
+    Raises
+    ------
+    CamsimError
+        A border that leaves a patch empty (a Bayer patch needs a whole 2 × 2 cell left), or a dark frame of
+        another size or CFA layout than the frame.
+    """
+    least = 2 if meta.get("cfa_pattern") else 1
+    for index, patch in enumerate(meta["patches"]):
+        _, _, w, h = patch["rect_xywh"]
+        if min(w, h) - 2 * settings.border_px < least:
+            raise CamsimError(f"a border of {settings.border_px} px (--border) leaves patch {index} "
+                              f"'{patch['name']}' ({w}x{h} px) of {path} empty: it allows at most "
+                              f"{max((min(w, h) - least) // 2, 0)} px")
+    if dark is not None:
+        layout = f"{meta.get('width_px')}x{meta.get('height_px')} {meta.get('cfa_pattern') or 'three-chip'}"
+        if layout != dark.layout():
+            raise CamsimError(f"--dark {dark.path} is {dark.layout()} but {path} is {layout}: a dark frame must "
+                              "have the size and CFA layout of the frames analysed")
+
+
+class _Report:
+    """The bad and uncommitted files of an analysis: recorded, and told through ``warn`` (one line each).
+
+    Lines are held back until the first frame has been analysed: when none can be, the analysis ends with one
+    error that says why (:meth:`failure`) instead.
+    """
+
+    def __init__(self, warn, strict: bool):
+        self.warn, self.strict = warn, strict
+        self.skipped: list[dict] = []
+        self.uncommitted: list[str] = []
+        self.held: list[str] = []
+        self.analysed = False
+
+    def skip(self, path, message: str) -> None:
+        """A bad file: recorded and told, or with ``strict`` the end of the analysis."""
+        reason = message.removeprefix(f"{path}: ")
+        if self.strict:
+            raise CamsimError(f"{path}: {reason}")
+        self.skipped.append({"file": str(path), "reason": reason})
+        self._tell(f"skipped {path}: {reason}")
+
+    def ignore(self, files) -> None:
+        """Uncommitted frame files: recorded and told, one line per folder."""
+        self.uncommitted += [str(p) for p in files]
+        for line in uncommitted_lines(files):
+            self._tell(line)
+
+    def frame_done(self) -> None:
+        if not self.analysed:
+            self.analysed = True
+            for line in self.held:
+                self._tell(line)
+            self.held.clear()
+
+    def failure(self, paths) -> CamsimError:
+        """The error when no frame was analysed."""
+        if not self.skipped:
+            return CamsimError(no_frames_message(paths, self.uncommitted))
+        first = self.skipped[0]
+        n = len(self.skipped)
+        what = "skipped" if n == 1 else f"skipped {n} bad files, e.g."
+        ignored = f"; ignored {len(self.uncommitted)} uncommitted frame file(s)" if self.uncommitted else ""
+        return CamsimError(f"nothing analysed: {what} {first['file']}: {first['reason']}{ignored}")
+
+    def _tell(self, line: str) -> None:
+        if self.warn is None:
+            return
+        if self.analysed:
+            self.warn(line)
+        else:
+            self.held.append(line)
+
+
+def measure_frame(frame: LoadedFrame, settings: AnalysisSettings, black: np.ndarray, references: dict) -> dict:
+    """The result of one frame (see :func:`analyse_paths`), its black level ``black`` (DN) subtracted.
+
+    ``references`` maps a group key to the patches' reference Lab: the first F = 1 frame of a group enters it,
+    the others of its group are measured against it.
+    """
+    matrix = frame_matrix(frame, settings.matrix)
+    meta = frame.meta
+    key = group_key(meta)
+    is_reference = meta["intensity_factor"] == 1.0 and key not in references
+    patches, labs = analyse_frame(frame, settings, black, matrix, "self" if is_reference else references.get(key))
+    if is_reference:
+        references[key] = labs
+    return {
+        "frame_file": str(frame.path),
+        "source": frame.source,
+        **{k: meta.get(k) for k in FRAME_COLUMNS[2:]},
+        "camera_to_xyz": settings.matrix,
+        "cfa_pattern": frame.cfa_pattern,
+        "demosaicing": "bilinear (colour-demosaicing), for xy, ellipses and ΔE only" if frame.cfa_pattern else None,
+        "black_subtraction": settings.black,
+        "black_dn": black.tolist(),
+        "patches": patches,
+    }
+
+
+def _black(frame: LoadedFrame, settings: AnalysisSettings, dark: DarkFrame | None) -> np.ndarray:
+    if settings.black == "none":
+        return np.zeros(3)
+    if settings.black == "sidecar":
+        return frame.expected_black_dn()
+    return dark.black_dn
+
+
+def _sorted_frames(files, settings: AnalysisSettings, dark: DarkFrame | None, report: _Report) -> list[Path]:
+    """Pass 1: the frames' metadata only (sidecars, EXR headers), checked and sorted group by group, F = 1 first."""
+    keys = []
+    for path in files:
+        try:
+            meta = read_frame_meta(path)
+        except CamsimError as exc:
+            report.skip(path, str(exc))
+            continue
+        check_settings(path, meta, settings, dark)
+        keys.append((group_key(meta), meta["intensity_factor"] != 1.0, str(path), path))
+    return [key[-1] for key in sorted(keys)]
+
+
+def analyse(paths, settings: AnalysisSettings | None = None, source="dng", dark_frame=None, progress=True,
+            strict=False, warn=None) -> Analysis:
+    """Analyse every frame named by ``paths``, one at a time, skipping bad files.
+
+    Parameters
+    ----------
+    paths, settings, source, dark_frame, progress
+        As for :func:`analyse_paths`.
+    strict : bool
+        Stop at the first bad file (CamsimError) instead of skipping it.
+    warn : callable, optional
+        Called with one line (no prefix, no newline) per bad file and per folder with uncommitted frame files,
+        once the first frame has been analysed; None says nothing (the :class:`Analysis` records them).
+
+    Returns
+    -------
+    Analysis
+        The results, the files skipped with their reasons and the uncommitted files left out.
+
+    Raises
+    ------
+    CamsimError
+        Settings that make no sense for the frames (:func:`check_settings`), an unusable or lit dark frame, a
+        bad file with ``strict``, or no frame analysed (one message that says why).
+
+    Notes
+    -----
+    Two passes, so that memory does not grow with the number of frames: the first reads each frame's metadata
+    (its sidecar, or an EXR's header) to order the frames group by group (same measurement at different F),
+    the F = 1 frame first, whose patches' mean Lab is the ΔE reference of the others; the second loads,
+    measures and frees one frame at a time.
+    """
+    settings = AnalysisSettings() if settings is None else settings
+    report = _Report(warn, strict)
+    search = search_frames(paths, source)
+    for path, reason in search.bad:
+        report.skip(path, reason)
+    report.ignore(search.uncommitted)
+    dark = None
+    if settings.black == "dark-frame":
+        if dark_frame is None:
+            raise CamsimError("black-level mode 'dark-frame' needs a dark frame (--dark FILE)")
+        dark = load_dark(dark_frame)
+    order = _sorted_frames(search.files, settings, dark, report)
+    references: dict[str, list] = {}
+    results = []
+    for path in tqdm(order, desc="analysing", unit="frame", disable=not (progress and order)):
+        try:
+            frame = load_frame(path)
+            results.append(measure_frame(frame, settings, _black(frame, settings, dark), references))
+        except CamsimError as exc:
+            report.skip(path, str(exc))
+            continue
+        finally:
+            frame = None  # free the pixels before the next frame is read
+        report.frame_done()
+    if not results:
+        raise report.failure(paths)
+    return Analysis(results, report.skipped, report.uncommitted)
+
+
 def analyse_paths(paths, settings: AnalysisSettings | None = None, source="dng", dark_frame=None,
                   progress=True) -> list[dict]:
     """Analyse every frame named by ``paths``; returns one result per frame (metadata + patch records).
@@ -48,7 +258,8 @@ def analyse_paths(paths, settings: AnalysisSettings | None = None, source="dng",
     Parameters
     ----------
     paths : iterable of str or Path
-        Frame files (``.dng`` with its sidecar, ``.exr``) or folders searched recursively.
+        Frame files (``.dng`` with its sidecar, ``.exr``) or folders searched recursively for committed frames
+        (whose sidecar claims the file; :func:`camsim.frame_files.search_frames`).
     settings : AnalysisSettings, optional
         Border, black-level mode and camera → XYZ matrix (default ``AnalysisSettings()``: the paper's way).
     source : {'dng', 'exr'}
@@ -65,50 +276,15 @@ def analyse_paths(paths, settings: AnalysisSettings | None = None, source="dng",
         the black level used and ``patches`` (per patch and channel: mean, variance and SNR in DN and e⁻; the xy
         ellipse; ΔE_ab against the same patch at F = 1).
 
+    Raises
+    ------
+    CamsimError
+        Any bad file (this is :func:`analyse` with ``strict``), settings that make no sense, no frame found.
+
     Frames are taken group by group (same measurement at different F), the F = 1 frame first, so that its
-    patches' mean Lab serves as the ΔE reference of the others.
+    patches' mean Lab serves as the ΔE reference of the others; one frame's pixels are in memory at a time.
     """
-    settings = AnalysisSettings() if settings is None else settings
-    files = find_frames(paths, source)
-    dark_black = None
-    if settings.black == "dark-frame":
-        if dark_frame is None:
-            raise CamsimError("black-level mode 'dark-frame' needs a dark frame (--dark FILE)")
-        dark = load_frame(dark_frame)
-        dark_black = dark.pixels_dn.reshape(3, -1).mean(axis=1)
-    frames = [load_frame(path) for path in files]
-    order = sorted(range(len(frames)), key=lambda i: (group_key(frames[i].meta),
-                                                      frames[i].meta["intensity_factor"] != 1.0, str(files[i])))
-    references: dict[str, list] = {}
-    results = []
-    for i in tqdm(order, desc="analysing", unit="frame", disable=not progress):
-        frame = frames[i]
-        frames[i] = None  # free the pixels once measured
-        if settings.black == "none":
-            black = np.zeros(3)
-        elif settings.black == "sidecar":
-            black = frame.expected_black_dn()
-        else:
-            black = dark_black
-        matrix = frame_matrix(frame, settings.matrix)
-        key = group_key(frame.meta)
-        is_reference = frame.meta["intensity_factor"] == 1.0 and key not in references
-        patches, labs = analyse_frame(frame, settings, black, matrix, "self" if is_reference else references.get(key))
-        if is_reference:
-            references[key] = labs
-        meta = frame.meta
-        results.append({
-            "frame_file": str(frame.path),
-            "source": frame.source,
-            **{k: meta.get(k) for k in FRAME_COLUMNS[2:]},
-            "camera_to_xyz": settings.matrix,
-            "cfa_pattern": frame.cfa_pattern,
-            "demosaicing": "bilinear (colour-demosaicing), for xy, ellipses and ΔE only" if frame.cfa_pattern else None,
-            "black_subtraction": settings.black,
-            "black_dn": black.tolist(),
-            "patches": patches,
-        })
-    return results
+    return analyse(paths, settings, source, dark_frame, progress, strict=True).results
 
 
 def tidy_rows(results) -> list[dict]:
@@ -133,8 +309,9 @@ def csv_text(rows) -> str:
     return buffer.getvalue()
 
 
-def summary(results, settings: AnalysisSettings) -> dict:
-    """The settings, the counts of undefined cases in total and per frame, and every frame's patch records."""
+def summary(results, settings: AnalysisSettings, skipped=(), uncommitted=()) -> dict:
+    """The settings, the counts of undefined cases in total and per frame, the files left out (``skipped``: bad
+    files with their reasons, ``uncommitted``: frame files no sidecar claims) and every frame's patch records."""
     totals = dict.fromkeys(("frames", "patches", "xy_undefined_samples", "y_nonpositive_samples",
                             "degenerate_ellipses", "saturated_patches", "constant_channels", "snr_undefined"), 0)
     frames = []
@@ -153,7 +330,8 @@ def summary(results, settings: AnalysisSettings) -> dict:
             totals[key] += counts[key]
         frames.append(result | {"counts": counts})
     return {"settings": {"border_px": settings.border_px, "black_subtraction": settings.black,
-                         "camera_to_xyz": settings.matrix}, "totals": totals, "frames": frames}
+                         "camera_to_xyz": settings.matrix}, "totals": totals, "skipped": list(skipped),
+            "uncommitted": list(uncommitted), "frames": frames}
 
 
 def table(results) -> str:
@@ -172,9 +350,10 @@ def table(results) -> str:
     return "\n".join(lines)
 
 
-def write_outputs(results, settings, out_dir: Path) -> tuple[Path, Path]:
+def write_outputs(results, settings, out_dir: Path, skipped=(), uncommitted=()) -> tuple[Path, Path]:
+    """Write ``out_dir/analysis.csv`` and ``out_dir/analysis.json`` (:func:`summary`); returns their paths."""
     make_folder(out_dir)
     csv_path, json_path = out_dir / CSV_NAME, out_dir / SUMMARY_NAME
     write_text_atomic(csv_path, csv_text(tidy_rows(results)))
-    write_json_atomic(json_path, summary(results, settings))
+    write_json_atomic(json_path, summary(results, settings, skipped, uncommitted))
     return csv_path, json_path

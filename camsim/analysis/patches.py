@@ -110,16 +110,27 @@ def site_values(mosaic: np.ndarray, rect, border: int, pattern: str, channel: in
     return np.concatenate(parts)
 
 
-def demosaiced(frame: LoadedFrame) -> np.ndarray:
-    """RGB at every pixel of a Bayer frame, by bilinear demosaicing (colour-demosaicing), shape (3, H, W).
+def demosaiced_samples(frame: LoadedFrame, rect, border: int) -> np.ndarray:
+    """RGB of a Bayer frame's patch rectangle less a border, by bilinear demosaicing (colour-demosaicing), as
+    samples (n, 3) of float64. Unit: DN.
 
     Used only for the quantities that need all three channels at one pixel (xy, ellipses, ΔE); the per-channel
-    statistics come from the sites themselves.
+    statistics come from the sites themselves. Only a window around the patch is demosaiced, not the frame: the
+    bilinear kernels are 3 × 3, so a margin of one pixel (two, to start on a whole 2 × 2 cell and keep the
+    pattern) gives exactly the values the whole frame would (at the frame's edges the window's edges are the
+    frame's, with the same reflection), in float64 of the window's size instead of several times the frame's.
     """
     from colour_demosaicing import demosaicing_CFA_Bayer_bilinear
 
-    rgb = demosaicing_CFA_Bayer_bilinear(frame.pixels_dn[0].astype(np.float64), frame.cfa_pattern)
-    return np.moveaxis(np.asarray(rgb), -1, 0)
+    x, y, w, h = rect
+    if 2 * border >= min(w, h):
+        return np.empty((0, 3))
+    mosaic = frame.pixels_dn[0]
+    top, left = max(y + border - 2, 0) & ~1, max(x + border - 2, 0) & ~1  # even: the window keeps the pattern
+    bottom, right = min(y + h - border + 1, mosaic.shape[0]), min(x + w - border + 1, mosaic.shape[1])
+    window = demosaicing_CFA_Bayer_bilinear(mosaic[top:bottom, left:right].astype(np.float64), frame.cfa_pattern)
+    inner = np.asarray(window)[y + border - top : y + h - border - top, x + border - left : x + w - border - left]
+    return inner.reshape(-1, 3)
 
 
 def distinct_samples(raw: np.ndarray):
@@ -203,11 +214,10 @@ def analyse_frame(frame: LoadedFrame, settings: AnalysisSettings, black_dn, matr
     expected_black = frame.expected_black_dn()
     threshold = saturation_threshold_dn(frame)
     pattern = frame.cfa_pattern
-    rgb = demosaiced(frame) if pattern else None
     records, labs = [], []
     for index, patch in enumerate(meta["patches"]):
         if pattern:  # Bayer: statistics per site; colour from the demosaiced RGB
-            rows, counts = patch_samples(rgb, patch["rect_xywh"], settings.border_px), None
+            rows, counts = demosaiced_samples(frame, patch["rect_xywh"], settings.border_px), None
             sites = [site_values(frame.pixels_dn, patch["rect_xywh"], settings.border_px, pattern, c).astype(float)
                      - black_dn[c] for c in range(3)]
         else:

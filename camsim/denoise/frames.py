@@ -1,7 +1,7 @@
-"""The frames ``camsim denoise-eval`` scores: camsim EXR frames found under folders (searched recursively) and
-files — channels R, G, B = the noisy DN before quantisation, layer ``clean.R/G/B`` = their expected value, header
-``camsim:metadata`` = the sidecar. Bayer (CFA) frames, EXRs without a clean layer and other files are skipped, each
-with its reason.
+"""The frames ``camsim denoise-eval`` scores: camsim EXR frames found under folders (searched recursively, committed
+frames only: :func:`camsim.frame_files.search_frames`) and files — channels R, G, B = the noisy DN before
+quantisation, layer ``clean.R/G/B`` = their expected value, header ``camsim:metadata`` = the sidecar. Bayer (CFA)
+frames, EXRs without a clean layer, uncommitted EXRs and other files are skipped, each with its reason.
 """
 
 from __future__ import annotations
@@ -9,8 +9,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from camsim.frame_files import load_frame
+from camsim.frame_files import load_frame, search_frames
 from camsim.errors import CamsimError
+
+#: Why an EXR in a folder that no sidecar claims is not scored.
+UNCOMMITTED = "uncommitted: no sidecar claims it (a frame being written, or left by an interrupted writer)"
 
 
 @dataclass
@@ -41,8 +44,9 @@ def _relative(path: Path, root: Path) -> str:
 def find_dataset(paths) -> Dataset:
     """The EXR frames under ``paths`` (folders searched recursively, or files) that can be scored.
 
-    Bayer (CFA) frames, EXRs without a clean layer and files that are not camsim frames are skipped, each with
-    its reason.
+    In folders only committed frames count (the sidecar, written last, names the EXR); hidden files are passed
+    over. Bayer (CFA) frames, EXRs without a clean layer, uncommitted EXRs, unreadable sidecars and files that
+    are not camsim frames are skipped, each with its reason.
 
     Raises
     ------
@@ -55,7 +59,12 @@ def find_dataset(paths) -> Dataset:
     for entry in paths:
         entry = Path(entry)
         if entry.is_dir():
-            candidates, root = sorted(p for p in entry.rglob("*.exr") if p.is_file()), entry
+            search, root = search_frames([entry], "exr"), entry
+            candidates = [p for p in search.files if p.suffix.lower() == ".exr"]
+            skipped += [{"file": _relative(p, root), "reason": f"not a readable camsim frame: {reason}"}
+                        for p, reason in search.bad]
+            skipped += [{"file": _relative(p, root), "reason": UNCOMMITTED}
+                        for p in search.uncommitted if p.suffix.lower() == ".exr"]
         elif entry.is_file():
             candidates, root = [entry], entry.parent
         else:

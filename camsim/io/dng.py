@@ -324,6 +324,15 @@ def _cfa_black_per_colour(page: Any, pattern: str, name: str) -> list[float] | N
     raise CamsimError(f"cannot read DNG {name}: unsupported BlackLevel layout (repeat {dim}, {len(values)} values)")
 
 
+def _check_complete(page: Any, size: int, name: str) -> None:
+    """Refuse a file that ends before its pixel data does (a truncated copy), before LibRaw reads it: LibRaw
+    would print its own complaint on stderr besides failing."""
+    end = max((o + c for o, c in zip(page.dataoffsets, page.databytecounts)), default=0)
+    if end > size:
+        raise CamsimError(f"cannot read DNG {name}: truncated: the file has {size} bytes but its pixel data runs to "
+                          f"byte {end}")
+
+
 def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
     """Read a DNG written by :func:`write_dng` or :func:`write_dng_cfa`; pixels and levels through LibRaw.
 
@@ -373,6 +382,7 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
                                   f"{page.bitspersample} bits)")
             bits = page.bitspersample
             shape = (page.imagelength, page.imagewidth)
+            _check_complete(page, tif.filehandle.size, name)
             cm = _floats(_tag(page, _COLOR_MATRIX1))
             info: dict[str, Any] = {
                 "cfa_pattern": pattern,

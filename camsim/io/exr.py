@@ -24,7 +24,7 @@ import OpenEXR
 from camsim.errors import CamsimError, output_error
 from camsim.io.atomic import atomic_path
 
-__all__ = ["write_exr", "read_exr", "read_exr_oiio", "NOISY_CHANNELS", "CLEAN_CHANNELS"]
+__all__ = ["write_exr", "read_exr", "read_exr_header", "read_exr_oiio", "NOISY_CHANNELS", "CLEAN_CHANNELS"]
 
 NOISY_CHANNELS = ("R", "G", "B")
 MOSAIC_CHANNELS = ("CFA",)  # a colour filter array frame: one value per pixel
@@ -142,11 +142,7 @@ def _exr_reason(exc: RuntimeError) -> BaseException:
 
 
 def _assemble(name: str, planes: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray | None]:
-    names = MOSAIC_CHANNELS if MOSAIC_CHANNELS[0] in planes and "R" not in planes else NOISY_CHANNELS
-    missing = [c for c in names if c not in planes]
-    if missing:
-        raise CamsimError(f"cannot read EXR {name}: lacks channel(s) {', '.join(missing)} "
-                          f"(has {', '.join(sorted(planes)) or 'none'})")
+    names = _present_channels(name, list(planes))
     present = [c for c in CLEAN_CHANNELS if c in planes]
     if present and len(present) != 3:
         raise CamsimError(f"cannot read EXR {name}: has only some clean channels ({', '.join(present)})")
@@ -158,20 +154,30 @@ def _assemble(name: str, planes: Mapping[str, np.ndarray]) -> tuple[np.ndarray, 
     return noisy, clean
 
 
-def read_exr(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray | None, dict[str, str]]:
+def _string_attributes(header: Mapping[str, Any]) -> dict[str, str]:
+    """The string-typed, non-standard attributes of an OpenEXR header, copied."""
+    return {k: v for k, v in header.items() if isinstance(v, str) and k not in _RESERVED}
+
+
+def read_exr(path: str | os.PathLike[str], *, clean: bool = True) \
+        -> tuple[np.ndarray, np.ndarray | None, dict[str, str]]:
     """Read an EXR written by :func:`write_exr` with the OpenEXR bindings.
 
     Parameters
     ----------
     path : str or os.PathLike
         EXR file with at least float channels ``R``, ``G``, ``B``.
+    clean : bool, optional
+        Also read the clean layer (default). False reads only the noisy channels, which for a frame with a
+        clean layer takes half the memory: 12 B per pixel instead of 24 B (plus the returned array).
 
     Returns
     -------
     noisy : numpy.ndarray, shape (3, H, W), dtype float32
         Channels ``R``, ``G``, ``B``.
     clean : numpy.ndarray, shape (3, H, W), dtype float32, or None
-        Channels ``clean.R``, ``clean.G``, ``clean.B``, or None if the file has none of them.
+        Channels ``clean.R``, ``clean.G``, ``clean.B``, or None if the file has none of them or ``clean`` is
+        False.
     header : dict of str to str
         The string-typed, non-standard header attributes.
 
@@ -183,16 +189,97 @@ def read_exr(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray | Non
     name = os.fspath(path)
     _configure_threads()
     try:
+        if not clean:
+            return _read_noisy(name)
         with OpenEXR.File(name, separate_channels=True) as exr:
             # Copy everything before the file closes: closing empties the dict header() returned (measured with
             # the 3.5.3 bindings). _assemble's np.stack copies the pixel planes.
-            header = {k: v for k, v in exr.header().items() if isinstance(v, str) and k not in _RESERVED}
-            noisy, clean = _assemble(name, {k: v.pixels for k, v in exr.channels().items()})
+            header = _string_attributes(exr.header())
+            noisy, clean_dn = _assemble(name, {k: v.pixels for k, v in exr.channels().items()})
     except CamsimError:
         raise
     except Exception as exc:  # the bindings raise RuntimeError or ValueError, depending on where the file breaks
         raise CamsimError(f"cannot read EXR {name}: {type(exc).__name__}: {exc}") from exc
-    return noisy, clean, header
+    return noisy, clean_dn, header
+
+
+def _read_noisy(name: str) -> tuple[np.ndarray, None, dict[str, str]]:
+    """The noisy channels and the string attributes only.
+
+    ``OpenEXR.File`` decodes every channel into memory; the bindings' older ``OpenEXR.InputFile`` decodes only
+    the channels asked for, as bytes, which are copied into one (planes, H, W) array and freed one by one. Its
+    header gives strings as bytes, so the header comes from ``OpenEXR.File(header_only=True)``.
+    """
+    import Imath  # the older bindings' types, installed with OpenEXR
+
+    header, (n_planes, height, width) = _header(name)
+    exr = OpenEXR.InputFile(name)
+    try:
+        channels = exr.header()["channels"]
+        names = _present_channels(name, list(channels))
+        for c in names:  # as _assemble: float channels only (HALF is widened to float32, as OpenEXR.File does)
+            if channels[c].type.v == Imath.PixelType.UINT:
+                raise CamsimError(f"cannot read EXR {name}: channel {c} is uint32, expected float")
+        if not exr.isComplete():
+            raise CamsimError(f"cannot read EXR {name}: the file is incomplete (truncated?)")
+        planes = exr.channels(list(names), Imath.PixelType(Imath.PixelType.FLOAT))
+        noisy = np.empty((n_planes, height, width), dtype=np.float32)
+        for i in range(n_planes):
+            noisy[i] = np.frombuffer(planes[i], dtype=np.float32).reshape(height, width)
+            planes[i] = None  # free each plane's bytes once copied
+        return noisy, None, header
+    finally:
+        exr.close()
+
+
+def _present_channels(name: str, channels: list[str]) -> tuple[str, ...]:
+    """The noisy channels of a file with ``channels``: ``R, G, B`` or the mosaic's ``CFA``; else CamsimError."""
+    names = MOSAIC_CHANNELS if MOSAIC_CHANNELS[0] in channels and "R" not in channels else NOISY_CHANNELS
+    missing = [c for c in names if c not in channels]
+    if missing:
+        raise CamsimError(f"cannot read EXR {name}: lacks channel(s) {', '.join(missing)} "
+                          f"(has {', '.join(sorted(channels)) or 'none'})")
+    return names
+
+
+def read_exr_header(path: str | os.PathLike[str]) -> tuple[dict[str, str], tuple[int, int, int]]:
+    """The string attributes and the noisy image's shape of an EXR, without reading its pixels.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        EXR file written by :func:`write_exr`.
+
+    Returns
+    -------
+    header : dict of str to str
+        The string-typed, non-standard header attributes (as :func:`read_exr` returns them).
+    shape : tuple of int
+        ``(planes, H, W)`` of the noisy image :func:`read_exr` would return: 3 planes (``R, G, B``) or 1 (a
+        mosaic's ``CFA``). Unit: pixels.
+
+    Raises
+    ------
+    CamsimError
+        Naming ``path``, for a missing, unreadable or non-EXR file or one without the noisy channels.
+    """
+    name = os.fspath(path)
+    try:
+        return _header(name)
+    except CamsimError:
+        raise
+    except Exception as exc:  # the bindings raise RuntimeError for a missing or foreign file
+        raise CamsimError(f"cannot read EXR {name}: {type(exc).__name__}: {exc}") from exc
+
+
+def _header(name: str) -> tuple[dict[str, str], tuple[int, int, int]]:
+    """:func:`read_exr_header` without the translation of the bindings' exceptions."""
+    with OpenEXR.File(name, header_only=True) as exr:
+        raw = exr.header()
+        header = _string_attributes(raw)
+        names = _present_channels(name, [c.name for c in raw["channels"]])
+        (x0, y0), (x1, y1) = ((int(v) for v in corner) for corner in raw["dataWindow"])
+    return header, (len(names), y1 - y0 + 1, x1 - x0 + 1)
 
 
 def read_exr_oiio(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray | None, dict[str, str]]:
