@@ -301,3 +301,22 @@ def test_interrupt_mid_frame_leaves_only_committed_frames(tmp_path, capsys, monk
     assert files_in(out) == ["macbeth_26_D65_F1.dng", "macbeth_26_D65_F1.exr", "macbeth_26_D65_F1.json",
                              MANIFEST_NAME]
     assert manifest_sidecars(out) == ["macbeth_26_D65_F1.json"]
+
+
+def test_readers_skip_uncommitted_frames_with_one_warning(frames, tmp_path, capsys):
+    """A frame whose sidecar is missing (never committed) is left out by analyze and denoise-eval, each with one
+    warning line; the committed frame is measured."""
+    import shutil
+
+    folder = tmp_path / "frames"
+    shutil.copytree(frames, folder)
+    (folder / "macbeth_26_D65_F0.5.json").unlink()
+    (folder / ".macbeth_26_D65_F1.exr.999.partial").write_bytes(b"half")  # hidden temporaries: passed over
+    assert main(["analyze", str(folder), "-q", "--out", str(tmp_path / "a")]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("camsim: warning: ignored 2 uncommitted frame file(s)"), err
+    assert err[0].endswith(": macbeth_26_D65_F0.5.dng, macbeth_26_D65_F0.5.exr")
+    assert main(["denoise-eval", str(folder), "-d", "identity", "-q", "--out", str(tmp_path / "d")]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert [line for line in err if line.startswith("camsim: warning:")] == [
+        "camsim: warning: ignored 1 uncommitted frame file(s) (no sidecar claims them): macbeth_26_D65_F0.5.exr"]

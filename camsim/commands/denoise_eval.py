@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 import textwrap
 from pathlib import Path
 
@@ -127,6 +128,13 @@ def run(args) -> int:
         sentence = verdict_sentence(evaluation, d.name).replace("**", "")
         print(f"  {sentence} [{evaluation.seconds.get(d.name, 0.0):.1f} s]")
     print(f"  {verdict_sentence(evaluation, NOISY).replace('**', '')}")
+    from camsim.denoise.frames import UNCOMMITTED
+
+    uncommitted = [s["file"] for s in evaluation.dataset.skipped if s["reason"] == UNCOMMITTED]
+    if uncommitted:
+        shown = ", ".join(uncommitted[:5]) + (" …" if len(uncommitted) > 5 else "")
+        print(f"camsim: warning: ignored {len(uncommitted)} uncommitted frame file(s) (no sidecar claims them): "
+              f"{shown}", file=sys.stderr)
     if evaluation.dataset.skipped:
         print(f"skipped {len(evaluation.dataset.skipped)} file(s) (e.g. Bayer frames): listed in {paths['report']}")
     print(f"wrote {paths['report']}, {paths['summary']}, {paths['frames']}, {paths['patches']} and plots to {out}/")
