@@ -11,7 +11,11 @@ invent radiance, so that is an error. Camera sensitivities outside their measure
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import signal
+import sys
+import threading
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,11 +28,37 @@ CMFS_NAME = "CIE 1931 2 Degree Standard Observer"
 
 
 def import_colour():
-    """Import colour-science lazily and quietly (its import is slow and warns about optional packages)."""
-    with warnings.catch_warnings():
+    """Import colour-science lazily and quietly (its import is slow and warns about optional packages).
+
+    The first import holds SIGINT and SIGTERM back until it is over (when called from the main thread, where
+    Python acts on signals): colour-science imports OpenImageIO, whose nanobind extension aborts the whole process
+    ("Critical nanobind error", SIGABRT) if Ctrl-C lands while it initialises. A signal that came meanwhile is
+    re-sent as the import ends, and the run stops cleanly.
+    """
+    if "colour" in sys.modules:
+        return sys.modules["colour"]
+    with warnings.catch_warnings(), _signals_held():
         warnings.simplefilter("ignore")
         import colour
     return colour
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """Hold SIGINT and SIGTERM back in the block: they are noted, not acted on, and re-sent as the block ends."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received = []
+    previous = {sig: signal.signal(sig, lambda signum, frame: received.append(signum))
+                for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+        if received:
+            signal.raise_signal(received[0])
 
 
 @dataclass(frozen=True)

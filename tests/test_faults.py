@@ -143,3 +143,21 @@ def test_two_renders_into_one_folder(tmp_path):
     assert winner.returncode == 143
     assert partials(out) == []
     assert not (out / MANIFEST_NAME).exists() or listed(out) == committed(out)
+
+
+def test_ctrl_c_while_colour_science_imports():
+    """colour-science imports OpenImageIO, whose nanobind extension aborts the process (SIGABRT) if Ctrl-C lands
+    while it initialises; camsim holds the signal back during that import and acts on it right after."""
+    code = (
+        "import os, signal, sys, threading\n"
+        "from camsim.spectra import import_colour\n"
+        "threading.Timer(0.02, os.kill, (os.getpid(), signal.SIGINT)).start()\n"
+        "try:\n"
+        "    import_colour()\n"
+        "    threading.Event().wait(5)\n"
+        "except KeyboardInterrupt:\n"
+        "    print('interrupted after the import:', 'OpenImageIO' in sys.modules)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], env=env(), capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "interrupted after the import: True"
