@@ -320,3 +320,18 @@ def test_readers_skip_uncommitted_frames_with_one_warning(frames, tmp_path, caps
     err = capsys.readouterr().err.strip().splitlines()
     assert [line for line in err if line.startswith("camsim: warning:")] == [
         "camsim: warning: ignored 1 uncommitted frame file(s) (no sidecar claims them): macbeth_26_D65_F0.5.exr"]
+
+
+def test_a_failed_run_removes_the_empty_folders_it_made(tmp_path):
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    with pytest.raises(KeyboardInterrupt):
+        with output_folder(kept / "a" / "b", subfolders=("frames",)):
+            assert (kept / "a" / "b" / "frames").is_dir()
+            raise KeyboardInterrupt
+    assert kept.is_dir() and list(kept.iterdir()) == []  # a, b and frames were made by the run: gone again
+    (kept / "mine").mkdir()
+    with pytest.raises(KeyboardInterrupt):
+        with output_folder(kept / "mine"):
+            raise KeyboardInterrupt
+    assert (kept / "mine").is_dir()  # there before the run: left alone

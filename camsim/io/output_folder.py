@@ -45,18 +45,21 @@ def make_folder(path: str | os.PathLike[str]) -> list[Path]:
         if folder.is_dir():
             break
         missing.append(folder)
+    created = []
     for folder in reversed(missing):
         try:
             folder.mkdir()
         except FileExistsError:
             if not folder.is_dir():
                 raise OutputError(f"cannot create folder {path}: {folder} is a file") from None
+            continue  # made meanwhile by another process: not ours
         except NotADirectoryError:
             raise OutputError(f"cannot create folder {path}: {folder.parent} is a file") from None
         except OSError as exc:
             raise OutputError(f"cannot create folder {path}: {describe_os_error(exc)}") from None
         record_created(folder)
-    return missing[::-1]
+        created.append(folder)
+    return created
 
 
 def check_writable(folder: str | os.PathLike[str]) -> None:
