@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import statistics
 import string
 import subprocess
@@ -34,7 +33,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_w1 import FACTOR, ILLUMINANT, ROOT, SCENE, SEED, fmt, peak_rss_mb, render, setup  # noqa: E402  (stdlib only)
+from bench_w1 import ROOT, SEED, fmt, peak_rss_mb, render, setup  # noqa: E402  (stdlib only)
 
 VENV = ROOT / "outputs" / ".pyxel-venv"
 PYXEL_PIN = "pyxel-sim==3.0.2"

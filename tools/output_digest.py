@@ -53,9 +53,9 @@ CASES = {
 def _prepare(tmp: Path) -> None:
     """The scene files some cases need: fixed-pattern noise on the chart, and a small reflectance cube."""
     (tmp / "fpn.toml").write_text(
-        f"name = \"fpn\"\n[chart]\n[light]\nilluminants = [\"D65\"]\n[sensor]\npreset = \"emva-12bit\"\n"
-        f"row_noise_e = 1.5\nread_noise_model = \"tukey-lambda\"\nsensor_seed = 3\n"
-        f"[render]\nseed = 4\n")
+        "name = \"fpn\"\n[chart]\n[light]\nilluminants = [\"D65\"]\n[sensor]\npreset = \"emva-12bit\"\n"
+        "row_noise_e = 1.5\nread_noise_model = \"tukey-lambda\"\nsensor_seed = 3\n"
+        "[render]\nseed = 4\n")
     cube = np.random.default_rng(0).uniform(0.05, 0.9, size=(30, 40, 101))
     np.save(tmp / "cube.npy", cube)
     (tmp / "cube.toml").write_text("name = \"cube\"\n[cube]\npath = \"cube.npy\"\n[light]\n"
