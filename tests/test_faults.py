@@ -25,7 +25,7 @@ from camsim.frame_manifest import MANIFEST_NAME
 
 from tests.helpers import ROOT
 
-pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+pytestmark = [pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals"), pytest.mark.slow]
 
 FACTORS = ("1", "0.5")
 RENDER = ["render", "macbeth_26", "--size", "640x480", "--illuminant", "D65", "--intensity", *FACTORS,
