@@ -10,15 +10,14 @@ written are removed: what a run leaves is complete.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import signal
 import sys
-import threading
 
 from camsim import __version__
 from camsim.commands import analyze, dataset, denoise_eval, emva, experiment, render
 from camsim.commands import list as list_command
 from camsim.errors import CamsimError, describe_os_error
+from camsim.signals import handlers_installed
 
 #: The sub-commands, by name, in the order ``camsim --help`` lists them.
 COMMANDS = {
@@ -67,19 +66,6 @@ def _raise_terminated(signum, frame):
     raise Terminated
 
 
-@contextlib.contextmanager
-def _sigterm_unwinds():
-    """While the block runs, SIGTERM raises :class:`Terminated` (in the main thread only; restored after)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGTERM, _raise_terminated)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
 def _os_error_text(exc: OSError) -> str:
     where = f"{exc.filename}: " if exc.filename else ""
     return f"{where}{describe_os_error(exc)}"
@@ -102,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        with _sigterm_unwinds():
+        with handlers_installed({signal.SIGTERM: _raise_terminated}):  # SIGTERM unwinds like Ctrl-C
             return COMMANDS[args.command].run(args)
     except CamsimError as exc:
         print(f"camsim: error: {exc}", file=sys.stderr)

@@ -15,10 +15,13 @@ Format::
 
 from __future__ import annotations
 
+import contextlib
 import json
+from collections.abc import Iterator
 from pathlib import Path
 
-from camsim.frame_files import SIDECAR_SUFFIX
+from camsim.errors import CamsimError
+from camsim.frame_files import SIDECAR_SUFFIX, FrameInfo
 from camsim.io.atomic import write_json_atomic
 
 __all__ = ["MANIFEST_NAME", "FrameManifest", "manifest_entry"]
@@ -68,11 +71,31 @@ class FrameManifest:
             name = entry.get("files", {}).get("json") if isinstance(entry, dict) else None
             if isinstance(name, str) and (self.out_dir / name).is_file():
                 self.entries[name] = entry
+        self._add_unlisted()
+
+    def _add_unlisted(self) -> bool:
+        """Add the committed frames on disk that no entry lists (in name order); returns whether there were any."""
+        added = False
         for path in sorted(self.out_dir.glob(f"*{SIDECAR_SUFFIX}")):
-            if path.name not in self.entries and path.name != MANIFEST_NAME:
+            if self.entries.get(path.name) is None and path.name != MANIFEST_NAME:
                 meta = _committed_sidecar(path)
                 if meta is not None:
                     self.entries[path.name] = manifest_entry(meta)
+                    added = True
+        return added
+
+    @contextlib.contextmanager
+    def kept_on_failure(self) -> Iterator[FrameManifest]:
+        """Render into the folder in the block; if the block fails or is interrupted, add to the manifest (and
+        write, as far as the disk allows) a frame that committed but was not recorded yet: a signal can land
+        between a frame's commit and :meth:`commit`."""
+        try:
+            yield self
+        except BaseException:
+            if self._add_unlisted():
+                with contextlib.suppress(CamsimError):
+                    self.write()
+            raise
 
     @property
     def frames(self) -> list[dict]:
@@ -95,7 +118,8 @@ class FrameManifest:
             self.entries[name] = None  # keeps its place for the new entry
             self.write()
 
-    def commit(self, entry: dict) -> None:
-        """Add (or replace in place) a frame that has just committed, and write the manifest."""
-        self.entries[entry["files"]["json"]] = entry
+    def commit(self, info: FrameInfo, files: dict) -> None:
+        """Add (or replace in place) the frame ``info`` that has just committed with ``files``, and write the
+        manifest."""
+        self.entries[files["json"]] = {**{key: getattr(info, key) for key in _ENTRY_KEYS}, "files": files}
         self.write()

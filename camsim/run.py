@@ -51,7 +51,7 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
         jobs = [(ill, f) for ill in scene.illuminants for f in scene.intensity_factors]
         bar = tqdm(total=len(jobs), desc=f"rendering {scene.name}", unit="frame", disable=not progress)
         lit = None
-        with bar:
+        with bar, manifest.kept_on_failure():
             for illuminant, factor in jobs:
                 if lit is None or lit.illuminant != illuminant:  # jobs come grouped by illuminant: lit once each
                     lit = light_scene(scene, illuminant, camera)
@@ -59,8 +59,6 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
                 stem = frame_stem(scene.name, illuminant, factor)
                 manifest.withdraw(stem)
                 files = write_frame(out_dir, stem, frame, info, preview=preview)
-                manifest.commit({"scene": scene.name, "illuminant": illuminant, "intensity_factor": factor,
-                                 "seed": scene.seed, "photon_statistics": scene.statistics, "method": scene.method,
-                                 "files": files})
+                manifest.commit(info, files)
                 bar.update()
     return manifest.as_dict()

@@ -15,7 +15,6 @@ import contextlib
 import csv
 import signal
 import sys
-import threading
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from camsim.errors import CamsimError
+from camsim.signals import handlers_installed
 
 CMFS_NAME = "CIE 1931 2 Degree Standard Observer"
 
@@ -46,17 +46,12 @@ def import_colour():
 @contextlib.contextmanager
 def _signals_held():
     """Hold SIGINT and SIGTERM back in the block: they are noted, not acted on, and re-sent as the block ends."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
     received = []
-    previous = {sig: signal.signal(sig, lambda signum, frame: received.append(signum))
-                for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        yield
+        with handlers_installed({sig: lambda signum, frame: received.append(signum)
+                                 for sig in (signal.SIGINT, signal.SIGTERM)}):
+            yield
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
         if received:
             signal.raise_signal(received[0])
 

@@ -1,5 +1,6 @@
 """Helpers the test modules import (``from tests.helpers import ...``): the repository root, scene builders,
-patch pixels and a one-frame render. Fixtures live in ``conftest.py``; closed forms in ``tests.theory``."""
+patch pixels, a one-frame render and an EXR writer that meets a full disk. Fixtures live in ``conftest.py``;
+closed forms in ``tests.theory``."""
 
 from pathlib import Path
 
@@ -39,3 +40,21 @@ def render(scene, sensor=None, factor=1.0, statistics="pixel", method="poisson",
     lit = light_scene(scene, illuminant, load_camera(scene.camera, scene.grid))
     frame = make_frame(lit, sensor, factor, statistics=statistics, method=method, rng=seed)
     return frame, lit.radiance
+
+
+class FullDiskExrFile:
+    """A stand-in for ``OpenEXR.File`` whose ``write`` meets a full disk as OpenEXR's does: it leaves part of the
+    file and raises ``RuntimeError`` naming the reason. Patch it over ``camsim.io.exr.OpenEXR.File``."""
+
+    def __init__(self, header, channels):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def write(self, path):
+        Path(path).write_bytes(b"v/1\x01partial")
+        raise RuntimeError(f"Cannot write image file {path}. No space left on device")

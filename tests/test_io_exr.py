@@ -10,6 +10,8 @@ from camsim.errors import CamsimError, OutputError
 from camsim.io import exr as exr_mod
 from camsim.io.exr import read_exr, read_exr_header, read_exr_oiio, write_exr
 
+from tests.helpers import FullDiskExrFile
+
 H, W = 48, 64
 READERS = [read_exr, read_exr_oiio]
 
@@ -188,22 +190,7 @@ def test_exception_mid_write_leaves_no_file(tmp_path, monkeypatch):
     write_exr(final, noisy, clean, HEADER)
     before = final.read_bytes()
 
-    class HalfWritingFile:
-        def __init__(self, header, channels):
-            pass
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            return False
-
-        def write(self, path):
-            with open(path, "wb") as fh:
-                fh.write(b"v/1\x01partial")
-            raise RuntimeError("Cannot write image file: No space left on device")
-
-    monkeypatch.setattr(exr_mod.OpenEXR, "File", HalfWritingFile)
+    monkeypatch.setattr(exr_mod.OpenEXR, "File", FullDiskExrFile)
     with pytest.raises(OutputError, match=f"cannot write {re.escape(str(final))}: No space left on device"):
         write_exr(final, -noisy, clean, HEADER)
     with pytest.raises(OutputError, match="No space left on device"):

@@ -22,7 +22,7 @@ from camsim.frame_manifest import MANIFEST_NAME
 from camsim.io.atomic import atomic_path, undo_on_failure, write_text_atomic
 from camsim.io.output_folder import FolderBusyError, output_folder
 
-from tests.helpers import ROOT
+from tests.helpers import ROOT, FullDiskExrFile
 
 SMALL = ["--size", "64x48", "--illuminant", "D65", "-q"]
 SPEC = f"""
@@ -149,21 +149,7 @@ def test_exr_writer_failure_is_one_line(tmp_path, capsys, monkeypatch):
     """OpenEXR reports a failed write as RuntimeError; it reaches the user as the reason, one line."""
     import camsim.io.exr as exr_mod
 
-    class FullDisk:
-        def __init__(self, header, channels):
-            pass
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            return False
-
-        def write(self, path):
-            Path(path).write_bytes(b"v/1\x01")
-            raise RuntimeError(f"Cannot write image file {path}. No space left on device")
-
-    monkeypatch.setattr(exr_mod.OpenEXR, "File", FullDisk)
+    monkeypatch.setattr(exr_mod.OpenEXR, "File", FullDiskExrFile)
     out = tmp_path / "out"
     assert main(["render", "macbeth_26", *SMALL, "--intensity", "1", "--out", str(out)]) == 2
     line = one_error_line(capsys)
@@ -335,3 +321,18 @@ def test_a_failed_run_removes_the_empty_folders_it_made(tmp_path):
         with output_folder(kept / "mine"):
             raise KeyboardInterrupt
     assert (kept / "mine").is_dir()  # there before the run: left alone
+
+
+def test_a_frame_committed_but_not_yet_recorded_is_listed(tmp_path, monkeypatch):
+    """A signal between a frame's commit (its sidecar renamed into place) and the manifest's update: the run's
+    unwinding still lists the frame, so the manifest equals the committed frames."""
+    from camsim.frame_manifest import FrameManifest
+
+    def interrupted(self, info, files):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(FrameManifest, "commit", interrupted)
+    out = tmp_path / "out"
+    assert main(["render", "macbeth_26", *SMALL, "--intensity", "1", "0.5", "--out", str(out)]) == 130
+    assert sidecars(out) == {"macbeth_26_D65_F1.json"}
+    assert manifest_sidecars(out) == ["macbeth_26_D65_F1.json"]

@@ -74,24 +74,23 @@ def render_series(prep: Prepared, sensor: SensorParams, factors, statistics: str
     lit = prep.lit
     make_folder(out_dir)
     manifest = FrameManifest(out_dir, f"experiment-{label}")
-    for factor in factors:
-        frame = make_frame(lit, sensor, factor, statistics=statistics, method=method,
-                           rng=frame_seed_sequence(seed, seed_label or label, factor))
-        info = FrameInfo(
-            scene=f"experiment-{label}", illuminant="per data point", intensity_factor=float(factor), seed=seed,
-            photon_statistics=statistics, method=method, camera=prep.camera.name,
-            sensitivity_basis=prep.camera.sensitivity_basis, reflectances=prep.radiance.reflectance_set,
-            wavelengths_nm=prep.grid.wavelengths_nm, luminance_cd_m2=100.0, normalisation="per-spectrum",
-            scale={"kind": "anchor", **dataclasses.asdict(AnchorScale()), "reference_illuminant": "D65"},
-            patch_names=prep.radiance.patch_names, patch_rects=prep.radiance.patch_rects,
-            color_matrix1=lit.color_matrix1, as_shot_neutral=lit.as_shot_neutral, patch_xyz=factor * lit.patch_xyz,
-        )
-        stem = f"{label}_F{factor:g}"
-        manifest.withdraw(stem)
-        files = write_frame(out_dir, stem, frame, info)
-        manifest.commit({"scene": info.scene, "illuminant": info.illuminant, "intensity_factor": float(factor),
-                         "seed": seed, "photon_statistics": statistics, "method": method, "files": files})
-    manifest.write()
+    with manifest.kept_on_failure():
+        for factor in factors:
+            frame = make_frame(lit, sensor, factor, statistics=statistics, method=method,
+                               rng=frame_seed_sequence(seed, seed_label or label, factor))
+            info = FrameInfo(
+                scene=f"experiment-{label}", illuminant="per data point", intensity_factor=float(factor), seed=seed,
+                photon_statistics=statistics, method=method, camera=prep.camera.name,
+                sensitivity_basis=prep.camera.sensitivity_basis, reflectances=prep.radiance.reflectance_set,
+                wavelengths_nm=prep.grid.wavelengths_nm, luminance_cd_m2=100.0, normalisation="per-spectrum",
+                scale={"kind": "anchor", **dataclasses.asdict(AnchorScale()), "reference_illuminant": "D65"},
+                patch_names=prep.radiance.patch_names, patch_rects=prep.radiance.patch_rects,
+                color_matrix1=lit.color_matrix1, as_shot_neutral=lit.as_shot_neutral, patch_xyz=factor * lit.patch_xyz,
+            )
+            stem = f"{label}_F{factor:g}"
+            manifest.withdraw(stem)
+            files = write_frame(out_dir, stem, frame, info)
+            manifest.commit(info, files)
     return out_dir
 
 

@@ -22,7 +22,8 @@ from typing import Any
 
 from camsim.errors import CamsimError, output_error
 
-__all__ = ["atomic_path", "write_json_atomic", "write_text_atomic", "undo_on_failure", "record_created", "PARTIAL_SUFFIX"]
+__all__ = ["atomic_path", "write_json_atomic", "write_text_atomic", "undo_on_failure", "record_created",
+           "PARTIAL_SUFFIX"]
 
 #: The suffix of a temporary file (``.NAME.PID.partial``) while it is being written.
 PARTIAL_SUFFIX = ".partial"
