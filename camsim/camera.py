@@ -3,10 +3,16 @@
 A camera's published sensitivities are relative. camsim turns them into the paper's Qe, in
 e⁻ · m² · sr / photon (electrons per pixel per unit photon radiance), in one of two ways:
 
-* ``AnchorScale`` (default): scaled so that a stated reference — the perfect white at 100 cd/m² under the
-  scene illuminant, F = 1, T = 1 s — yields a stated number of electrons (8000) in the strongest channel.
+* ``AnchorScale`` (default): scaled once so that a stated reference — the perfect white at 100 cd/m² under a
+  stated reference illuminant (D65 by default), F = 1, T = 1 s — yields a stated number of electrons (8000) in the
+  strongest channel.
 * ``PhysicalScale``: the pixel's étendue times its peak QE: Qe = (π τ p² / 4N²) · QE_peak · QE_rel(λ), for pixel
   pitch p, f-number N and lens transmittance τ (Lambertian scene, on axis, object far away).
+
+Either way Qe is a property of the camera: the same for every illuminant, F and frame of a run (MODEL.md §3). Under
+another light at the same luminance the electrons differ, and may saturate; a run that wants every light exposed
+to the same level changes the exposure time per frame (``exposure = "auto"``, :func:`camsim.pipeline.frame_sensor`),
+never Qe.
 """
 
 from __future__ import annotations
@@ -17,7 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.errors import CamsimError
-from camsim.spectra import WavelengthGrid, camera_sensitivities
+from camsim.photons import photon_radiance, scale_to_luminance
+from camsim.spectra import WavelengthGrid, camera_sensitivities, cmfs_on_grid, illuminant_spd
 
 DEFAULT_CAMERA = "Nikon 5100 (NPL)"
 SENSITIVITY_BASES = ("energy", "photon")
@@ -25,7 +32,9 @@ SENSITIVITY_BASES = ("energy", "photon")
 
 @dataclass(frozen=True)
 class AnchorScale:
-    """Absolute scale from a reference white.
+    """Absolute scale from a reference white: the perfect white under ``reference_illuminant`` at
+    ``reference_luminance_cd_m2``, F = 1 and ``reference_exposure_s`` yields ``reference_electrons`` in the
+    camera's strongest channel. Anchored once: Qe is then fixed for every illuminant, F and frame.
 
     Attributes
     ----------
@@ -35,13 +44,19 @@ class AnchorScale:
         Luminance of the perfect white reference at F = 1. Unit: cd/m².
     reference_exposure_s : float
         Exposure at which the reference gives ``reference_electrons``. Unit: s.
+    reference_illuminant : str
+        colour-science name of the light of the reference white.
     """
 
     reference_electrons: float = 8000.0
     reference_luminance_cd_m2: float = 100.0
     reference_exposure_s: float = 1.0
+    reference_illuminant: str = "D65"
 
     def __post_init__(self):
+        if not isinstance(self.reference_illuminant, str) or not self.reference_illuminant:
+            raise CamsimError(f"scale parameter reference_illuminant must be an illuminant name, "
+                              f"got {self.reference_illuminant!r}")
         for name in ("reference_electrons", "reference_luminance_cd_m2", "reference_exposure_s"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
@@ -119,16 +134,23 @@ def load_camera(name_or_csv: str, grid: WavelengthGrid, sensitivity_basis: str =
     return Camera(name=label, relative_qe=sens / sens.max(), sensitivity_basis=sensitivity_basis)
 
 
-def absolute_qe(camera: Camera, scale, white_photon_radiance: np.ndarray | None) -> np.ndarray:
-    """The paper's Qe_κ(λ) with its absolute scale.
+def reference_white_photon_radiance(scale: AnchorScale, grid: WavelengthGrid) -> np.ndarray:
+    """g(λ) of the anchor's reference: the perfect white under ``scale.reference_illuminant`` at
+    ``scale.reference_luminance_cd_m2``, F = 1, shape (N,). Unit: photons / (s m² sr) per bin."""
+    spd = illuminant_spd(scale.reference_illuminant, grid)
+    white = scale_to_luminance(spd, cmfs_on_grid(grid)[1], grid.step_nm, scale.reference_luminance_cd_m2)
+    return photon_radiance(white, grid.wavelengths_nm, grid.step_nm)
+
+
+def absolute_qe(camera: Camera, scale, grid: WavelengthGrid) -> np.ndarray:
+    """The paper's Qe_κ(λ) with its absolute scale: one per camera and scale, whatever the scene's light.
 
     Parameters
     ----------
     camera : Camera
     scale : AnchorScale or PhysicalScale
-    white_photon_radiance : numpy.ndarray, shape (N,)
-        Photon radiance g(λ) of the perfect white under the reference illuminant at the reference luminance,
-        F = 1. Unit: photons / (s m² sr). Needed by ``AnchorScale`` only.
+    grid : WavelengthGrid
+        The camera's grid (that of :attr:`Camera.relative_qe`).
 
     Returns
     -------
@@ -137,7 +159,6 @@ def absolute_qe(camera: Camera, scale, white_photon_radiance: np.ndarray | None)
     """
     if isinstance(scale, PhysicalScale):
         return camera.relative_qe * (scale.etendue_m2_sr * scale.peak_qe)
-    if white_photon_radiance is None:
-        raise CamsimError("the anchor scale needs a reference white")
-    per_channel = scale.reference_exposure_s * (camera.relative_qe @ white_photon_radiance)
+    white = reference_white_photon_radiance(scale, grid)
+    per_channel = scale.reference_exposure_s * (camera.relative_qe @ white)
     return camera.relative_qe * (scale.reference_electrons / per_channel.max())

@@ -80,6 +80,22 @@ def schema_value(param):
     return parse
 
 
+def exposure_setting(param):
+    """The argparse type of ``--exposure``: ``auto``, or an exposure time in seconds typed by ``param``."""
+    seconds = schema_value(param)
+
+    def parse(text: str):
+        if text.strip().lower() == "auto":
+            return "auto"
+        try:
+            return seconds(text)
+        except argparse.ArgumentTypeError as exc:
+            raise argparse.ArgumentTypeError(f"{exc}; or 'auto'") from None
+
+    parse.__name__ = "exposure"
+    return parse
+
+
 def sensor_setting(text: str) -> tuple:
     """``NAME=VALUE`` for a sensor parameter (:data:`camsim.sensor.SENSOR_PARAMS`), typed by the schema."""
     from camsim.errors import CamsimError

@@ -67,6 +67,7 @@ class FrameInfo:
     color_matrix1: np.ndarray
     as_shot_neutral: np.ndarray
     patch_xyz: np.ndarray | None = None
+    exposure: dict | None = None  # how T was chosen: camsim.pipeline.exposure_record (None: a fixed T)
 
 
 def frame_stem(scene: str, illuminant: str, intensity_factor: float) -> str:
@@ -105,6 +106,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
         "photon_statistics": info.photon_statistics,
         "method": info.method,
         "auto_tolerance_ks": None if frame.plan is None else frame.plan.tolerance,
+        **(info.exposure if info.exposure is not None else {"exposure": "fixed"}),
         "camera": info.camera,
         "sensitivity_basis": info.sensitivity_basis,
         "reflectances": info.reflectances,

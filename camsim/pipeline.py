@@ -3,6 +3,7 @@
 ::
 
     scene source ──(illuminant)──▶ SceneRadiance ──(camera, scale)──▶ LitScene   (per illuminant: K spectra)
+    LitScene ──(sensor, F, exposure mode)──▶ the frame's sensor, its T                (frame_sensor)
     LitScene ──(sensor, F, statistics)──▶ ExpectedSignal ──(method, seed)──▶ Frame   (make_frame)
     Frame + FrameInfo ──▶ .dng / .exr / .json                                    (camsim.frame_files)
 
@@ -51,6 +52,9 @@ class LitScene:
         The spectral radiance it came from (patch names and rectangles for the sidecar), if any.
     illuminant : str or None
         The light's colour-science name (the white balance of the frame's files), if any.
+    white_photon_rate : numpy.ndarray or None, shape (N,)
+        g(λi) of the perfect white under this light at the scene's luminance, F = 1: what auto exposure meters
+        (:func:`frame_sensor`). Unit: photons / (s m² sr) per bin.
     """
 
     labels: np.ndarray
@@ -59,6 +63,17 @@ class LitScene:
     grid: WavelengthGrid
     radiance: SceneRadiance | None = None
     illuminant: str | None = None
+    white_photon_rate: np.ndarray | None = None
+
+    @cached_property
+    def white_signal_e_per_s(self) -> np.ndarray:
+        """Signal electrons per second of the perfect white under this light at F = 1, per channel, shape (3,).
+
+        Unit: e⁻ / s. Needs :attr:`white_photon_rate`.
+        """
+        if self.white_photon_rate is None:
+            raise CamsimError("this lit scene has no perfect white: auto exposure cannot meter it")
+        return self.qe @ self.white_photon_rate
 
     @cached_property
     def color_matrix1(self) -> np.ndarray:
@@ -81,11 +96,16 @@ class LitScene:
 
 
 def lit_scene(radiance: SceneRadiance, camera: Camera, scale, grid: WavelengthGrid,
-              illuminant: str | None = None) -> LitScene:
-    """A :class:`LitScene` from spectral radiance, with Qe anchored on the radiance's perfect white."""
+              illuminant: str | None = None, qe: np.ndarray | None = None) -> LitScene:
+    """A :class:`LitScene` from spectral radiance, seen by ``camera`` with its one absolute Qe.
+
+    ``qe``: :func:`camsim.camera.absolute_qe` of ``camera`` and ``scale``, when the caller has it (it does not
+    depend on the light).
+    """
     g = photon_radiance(radiance.radiance, grid.wavelengths_nm, grid.step_nm)
     g_white = photon_radiance(radiance.white_radiance, grid.wavelengths_nm, grid.step_nm)
-    return LitScene(radiance.labels, g, absolute_qe(camera, scale, g_white), grid, radiance, illuminant)
+    qe = absolute_qe(camera, scale, grid) if qe is None else qe
+    return LitScene(radiance.labels, g, qe, grid, radiance, illuminant, g_white)
 
 
 def light_scene(scene: Scene, illuminant: str, camera: Camera | None = None) -> LitScene:
@@ -93,6 +113,35 @@ def light_scene(scene: Scene, illuminant: str, camera: Camera | None = None) -> 
     if camera is None:
         camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
     return lit_scene(scene_radiance(scene, illuminant), camera, scene.scale, scene.grid, illuminant)
+
+
+def auto_exposure_s(lit: LitScene, intensity_factor: float, target_e: float,
+                    max_exposure_s: float | None = None) -> float:
+    """The exposure time at which the perfect white of ``lit`` at F reaches ``target_e`` signal electrons in its
+    strongest channel: T = target / (F · max_κ Σ g_white Qe_κ), at most ``max_exposure_s``. Unit: s.
+
+    The dark charge is not part of the target (a camera meters the light). Raises :class:`CamsimError` where T is
+    not a finite positive number (F so small, or so large, that T leaves float64).
+    """
+    rate = intensity_factor * float(np.max(lit.white_signal_e_per_s))
+    with np.errstate(divide="ignore", over="ignore"):
+        exposure = float(target_e) / rate if rate > 0 else np.inf
+    if max_exposure_s is not None:
+        exposure = min(exposure, float(max_exposure_s))
+    if not (np.isfinite(exposure) and exposure > 0):
+        raise CamsimError(f"auto exposure at F = {intensity_factor:g} under {lit.illuminant}: the white's "
+                          f"{rate:.3g} e⁻/s need T = {exposure:g} s to reach {target_e:g} e⁻; set exposure_max_s")
+    return exposure
+
+
+def frame_sensor(scene: Scene, lit: LitScene, intensity_factor: float) -> SensorParams:
+    """The sensor of one frame of ``scene``: its own, or with ``exposure = "auto"`` the same sensor at the frame's
+    exposure time (:func:`auto_exposure_s`), so that dark current scales with T. Qe is never changed."""
+    sensor = scene.sensor
+    if scene.exposure == "fixed":
+        return sensor
+    exposure = auto_exposure_s(lit, intensity_factor, scene.exposure_target_e, scene.exposure_max_s)
+    return dataclasses.replace(sensor, exposure_s=exposure)
 
 
 def make_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, *, statistics: str = "pixel",
@@ -154,7 +203,16 @@ def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, intensity_fa
         color_matrix1=lit.color_matrix1,
         as_shot_neutral=lit.as_shot_neutral,
         patch_xyz=intensity_factor * lit.patch_xyz,
+        exposure=exposure_record(scene),
     )
+
+
+def exposure_record(scene: Scene) -> dict:
+    """How a frame's T (its sensor's ``exposure_s``) is chosen: the sidecar's ``exposure`` key, a dataset
+    manifest's ``exposure`` keys. With ``auto``, each frame's T is in its sidecar's ``exposure_s``."""
+    if scene.exposure == "fixed":
+        return {"exposure": "fixed"}
+    return {"exposure": "auto", "exposure_target_e": scene.exposure_target_e, "exposure_max_s": scene.exposure_max_s}
 
 
 def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed: int | None = None,
@@ -177,7 +235,8 @@ def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed:
     lit = light_scene(scene, illuminant, camera) if lit is None else lit
     if lit.illuminant != illuminant:
         raise ValueError(f"scene_frame under {illuminant!r} was given a scene lit by {lit.illuminant!r}")
-    frame = make_frame(lit, scene.sensor, intensity_factor, statistics=scene.statistics, method=scene.method,
+    frame = make_frame(lit, frame_sensor(scene, lit, intensity_factor), intensity_factor,
+                       statistics=scene.statistics, method=scene.method,
                        rng=frame_seed_sequence(seed, illuminant, intensity_factor), tolerance=scene.tolerance,
                        workers=workers)
     return frame, scene_frame_info(scene, lit, camera.name, intensity_factor, seed)
@@ -200,7 +259,8 @@ def check_frames(scene: Scene, camera: Camera | None = None) -> list[str]:
     Returns
     -------
     list of str
-        :func:`frame_warnings` of the scene's sensor: one line each, for the caller to print.
+        :func:`frame_warnings` of the scene's sensor (with auto exposure: of each frame's, naming the frame), one
+        line each, for the caller to print.
 
     Raises
     ------
@@ -209,14 +269,25 @@ def check_frames(scene: Scene, camera: Camera | None = None) -> list[str]:
     """
     if camera is None:
         camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
-    factor = max(scene.intensity_factors)
+    # with a fixed exposure every mean grows with F: the brightest frame stands for all; with auto exposure T
+    # changes per frame (and the dark charge with it), so every frame is checked
+    factors = scene.intensity_factors if scene.exposure == "auto" else (max(scene.intensity_factors),)
+    warned = []  # (illuminant, F, T, line) of each frame with a warning
     for illuminant in scene.illuminants:
         lit = light_scene(scene, illuminant, camera)
-        try:
-            check_frame_values(lit.expected(scene.sensor, factor, scene.statistics), scene.sensor)
-        except CamsimError as exc:
-            raise CamsimError(f"frame under {illuminant} at F = {factor:g}: {exc}") from None
-    return frame_warnings(scene.sensor)
+        for factor in factors:
+            try:
+                sensor = frame_sensor(scene, lit, factor)
+                check_frame_values(lit.expected(sensor, factor, scene.statistics), sensor)
+            except CamsimError as exc:
+                raise CamsimError(f"frame under {illuminant} at F = {factor:g}: {exc}") from None
+            warned += [(illuminant, factor, sensor.exposure_s, line) for line in frame_warnings(sensor)]
+    if scene.exposure == "fixed" or not warned:
+        return [line for *_, line in warned]
+    illuminant, factor, exposure, line = warned[0]
+    others = len({(i, f) for i, f, *_ in warned}) - 1
+    return [f"auto exposure under {illuminant} at F = {factor:g} (T = {exposure:.4g} s): {line}"
+            + (f"; and {others} more of the {len(scene.illuminants) * len(factors)} frames" if others else "")]
 
 
 #: "Every pixel" in :func:`frame_warnings`: the dark level this many standard deviations (of the dark shot noise,

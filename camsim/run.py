@@ -17,11 +17,15 @@ from camsim.pipeline import light_scene, scene_frame
 from camsim.scene import Scene
 from camsim.spectra import illuminant_spd
 
+
 def check_scene(scene: Scene) -> None:
     """Fail early, before any frame is written, on names that do not resolve and sizes that cannot be written."""
     get_method(scene.method)
     for name in scene.illuminants:
         illuminant_spd(name, scene.grid)
+    reference = getattr(scene.scale, "reference_illuminant", None)  # the anchor's light (AnchorScale)
+    if reference is not None:
+        illuminant_spd(reference, scene.grid)
     if not scene.source.has_own_size and scene.sensor.quantisation and min(scene.width, scene.height) < MIN_SIZE:
         raise CamsimError(f"frame {scene.width}x{scene.height} is smaller than {MIN_SIZE}x{MIN_SIZE} pixels, "
                           "which raw readers (LibRaw) refuse")

@@ -26,6 +26,7 @@ from camsim.sources.base import typed
 from camsim.spectra import WavelengthGrid
 
 STATISTICS = ("pixel", "paper")
+EXPOSURE_MODES = ("fixed", "auto")
 NORMALISATIONS = ("chart", "per-spectrum")
 
 
@@ -66,6 +67,15 @@ class Scene:
     tolerance: float = param(DEFAULT_TOLERANCE, "float", "auto's tolerance: the largest Kolmogorov–Smirnov distance "
                              "between a pixel value's exact law and its Gaussian replacement", above=0, below=1)
     seed: int = param(0, "int", "random seed; the same seed gives byte-identical files", low=0)
+    exposure: str = param("fixed", "str", "exposure time per frame: 'fixed' = the sensor's exposure_s for every "
+                          "frame; 'auto' = each frame's T chosen so that the perfect white under the frame's "
+                          "illuminant, at its F, reaches exposure_target_e in the strongest channel (dark current "
+                          "scales with T; Qe never changes)", choices=EXPOSURE_MODES)
+    exposure_target_e: float = param(8000.0, "float", "auto exposure: signal electrons of the perfect white in the "
+                                     "strongest channel", "e⁻", above=0)
+    exposure_max_s: float | None = param(None, "float", "auto exposure: the longest exposure time allowed (frames "
+                                         "that need more are exposed this long, and darker); none = no limit", "s",
+                                         above=0, optional=True)
     base_dir: Path | None = None
 
     def __post_init__(self):
@@ -188,7 +198,8 @@ def load_scene(path: str | Path) -> Scene:
     unknown = set(scale_table) - scale_fields - {"kind"}
     if unknown:
         raise CamsimError(f"{where}: unknown key(s) in [camera.scale] ({scale_kind}): {', '.join(sorted(unknown))}")
-    scale = scale_cls(**{k: typed(scale_table, k, float, None, where) for k in scale_table if k != "kind"})
+    scale = scale_cls(**{k: typed(scale_table, k, str if k == "reference_illuminant" else float, None, where)
+                         for k in scale_table if k != "kind"})
 
     sensor_table = dict(_table(doc, "sensor", {"preset"} | {p.name for p in SENSOR_PARAMS}, where))
     preset_name = sensor_table.pop("preset", "paper-table1")

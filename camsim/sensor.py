@@ -150,6 +150,10 @@ class SensorParams:
         return record(self)
 
 
+#: Sidecar keys of the sensor that change with the exposure time T alone: frames of one auto-exposed series
+#: (``exposure = "auto"``) differ in them and are still one measurement.
+EXPOSURE_KEYS = ("exposure_s", "black_level_dn", "black_level_tag_dn")
+
 #: The sensor's parameters (:class:`camsim.schema.Param`), in declaration order.
 SENSOR_PARAMS = params_of(SensorParams)
 #: Names of the stage switches.

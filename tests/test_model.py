@@ -12,7 +12,7 @@ from camsim.errors import CamsimError
 from camsim.expected import expected_signal
 from camsim.photons import LIGHT_SPEED_M_S, PLANCK_J_S, photon_radiance
 from camsim.radiance import scene_radiance
-from camsim.pipeline import lit_scene
+from camsim.pipeline import frame_sensor, light_scene, lit_scene
 from camsim.sensor import PRESETS
 from camsim.spectra import WavelengthGrid, illuminant_spd
 from tests.helpers import ROOT, WHITE, small_scene
@@ -65,17 +65,63 @@ def test_photon_counts_at_100_cd_m2_are_about_1e16_per_bin():
     assert 3e15 < g[GRID.wavelengths_nm == 560][0] < 3e16
 
 
-@pytest.mark.parametrize("illuminant", ["D65", "A", "FL11"])
-def test_anchor_perfect_white_gives_8000_electrons(camera, illuminant):
-    radiance = scene_radiance(small_scene(), illuminant)
+@pytest.mark.parametrize("reference", ["D65", "A", "FL11"])
+def test_anchor_perfect_white_gives_8000_electrons(camera, reference):
+    """The anchor: the perfect white under the reference illuminant at 100 cd/m², F = 1, T = 1 s gives 8000 e⁻ in
+    the strongest channel; S scales as F · T."""
+    radiance = scene_radiance(small_scene(), reference)
     g_white = photon_radiance(radiance.white_radiance, GRID.wavelengths_nm, GRID.step_nm)
-    qe = absolute_qe(camera, AnchorScale(), g_white)
+    qe = absolute_qe(camera, AnchorScale(reference_illuminant=reference), GRID)
     white = expected_signal(g_white[None], qe, TABLE1, 1.0, "pixel").signal_e[0]
     assert white.max() == pytest.approx(8000.0, rel=1e-12)
     for factor, exposure in ((0.1, 1.0), (1.0, 0.5), (1e-3, 2.0)):
         sensor = dataclasses.replace(TABLE1, exposure_s=exposure)
         scaled = expected_signal(g_white[None], qe, sensor, factor, "pixel").signal_e[0]
         np.testing.assert_allclose(scaled, white * factor * exposure, rtol=1e-12)
+
+
+def _white_response_colour_science(illuminant: str) -> np.ndarray:
+    """Σ s_κ(λ) E(λ) / Σ ȳ(λ) E(λ): the camera's relative response to the perfect white under ``illuminant`` at a
+    fixed luminance, on colour-science's native 5 nm data (energy-basis sensitivities), shape (3,)."""
+    sens = colour.MSDS_CAMERA_SENSITIVITIES["Nikon 5100 (NPL)"]
+    light = colour.SDS_ILLUMINANTS[illuminant].copy().align(sens.shape).values
+    ybar = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(sens.shape).values[:, 1]
+    return sens.values.T @ light / (ybar @ light)
+
+
+@pytest.mark.parametrize("illuminant", ["A", "FL2", "D50"])  # smooth enough for 4 nm against 5 nm
+def test_one_camera_under_every_light(camera, illuminant):
+    """MODEL.md §3: Qe is anchored once (on D65) and is the same under every light; the perfect white at the same
+    luminance then gives each light's own electrons: under CIE A 0.80× the D65 anchor in the strongest channel
+    (R 1.38×, G 0.76×, B 0.40× of D65's channels) with the Nikon 5100 curves, from colour-science's data alone."""
+    scene = small_scene()
+    reference = light_scene(scene, "D65", camera)
+    lit = light_scene(scene, illuminant, camera)
+    np.testing.assert_array_equal(lit.qe, reference.qe)  # one camera
+    assert reference.white_signal_e_per_s.max() == pytest.approx(8000.0, rel=1e-12)
+    theory = _white_response_colour_science(illuminant) / _white_response_colour_science("D65")
+    np.testing.assert_allclose(lit.white_signal_e_per_s / reference.white_signal_e_per_s, theory, rtol=2e-3)
+    if illuminant == "A":
+        assert lit.white_signal_e_per_s.max() / 8000 == pytest.approx(0.8013, abs=2e-4)
+
+
+def test_auto_exposure_meters_the_white_and_scales_dark_with_exposure(camera):
+    """``exposure = "auto"``: T = target / (F · white e⁻/s of the strongest channel); dark charge = σ²_dark · T;
+    the white then reaches the target under every light and F; an exposure limit caps T."""
+    scene = small_scene().replace(exposure="auto", exposure_target_e=6000.0)
+    for illuminant, factor in (("D65", 1.0), ("A", 0.1), ("FL2", 1e-3)):
+        lit = light_scene(scene, illuminant, camera)
+        sensor = frame_sensor(scene, lit, factor)
+        white_rate = (lit.qe @ lit.white_photon_rate).max()  # e⁻/s at F = 1
+        assert sensor.exposure_s == pytest.approx(6000.0 / (factor * white_rate), rel=1e-12)
+        white = expected_signal(lit.white_photon_rate[None], lit.qe, sensor, factor, "pixel")
+        assert white.signal_e.max() == pytest.approx(6000.0, rel=1e-12)
+        np.testing.assert_allclose(white.dark_e, np.array(TABLE1.dark_current_e_per_s) * sensor.exposure_s,
+                                   rtol=1e-12)
+        np.testing.assert_array_equal(lit.qe, light_scene(scene, "D65", camera).qe)
+    capped = frame_sensor(scene.replace(exposure_max_s=2.0), light_scene(scene, "D65", camera), 1e-3)
+    assert capped.exposure_s == 2.0
+    assert frame_sensor(small_scene(), light_scene(scene, "A", camera), 0.1).exposure_s == TABLE1.exposure_s
 
 
 @pytest.mark.parametrize("illuminant", ["D65", "A", "FL2"])
@@ -106,7 +152,7 @@ def test_physical_scale_is_etendue_times_qe(camera, d65_radiance):
     scale = PhysicalScale(pixel_pitch_um=4.0, f_number=2.0, transmittance=0.8, peak_qe=0.6)
     etendue = np.pi * 0.8 * (4e-6) ** 2 / (4 * 2.0**2)
     assert scale.etendue_m2_sr == pytest.approx(etendue, rel=1e-12)
-    qe = absolute_qe(camera, scale, None)
+    qe = absolute_qe(camera, scale, GRID)
     assert qe.max() == pytest.approx(etendue * 0.6, rel=1e-12)
     # 100 cd/m² white at f/2, τ 0.8: sensor illuminance π L τ / 4N² ≈ 15.7 lx; one lux is ~4.1e15 photons/(s m²)
     # at 555 nm, so a 16 µm² pixel receives ~1e6 photons/s: with QE 0.6 and a third of the band per channel, a few

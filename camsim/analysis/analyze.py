@@ -18,7 +18,7 @@ from camsim.analysis.patches import AnalysisSettings, analyse_frame, frame_matri
 from camsim.errors import CamsimError
 from camsim.io.atomic import write_json_atomic, write_text_atomic
 from camsim.optional_numbers import mean_of_defined
-from camsim.sensor import SensorParams
+from camsim.sensor import EXPOSURE_KEYS, SensorParams
 from camsim.io.output_folder import make_folder
 
 CSV_NAME = "analysis.csv"
@@ -37,11 +37,16 @@ CHANNEL_COLUMNS = ("channel", "n_pixels", "black_dn", "mean_dn", "var_dn2", "std
 #: joins the grouping by itself).
 GROUP_KEYS = ("scene", "illuminant", "photon_statistics", "method", "auto_tolerance_ks", "camera",
               "sensitivity_basis", "reflectances", "luminance_cd_m2", "normalisation", "scale", "width_px",
-              "height_px", "wavelengths_nm", *SensorParams().sidecar_record())
+              "height_px", "wavelengths_nm", "exposure", "exposure_target_e", "exposure_max_s",
+              *SensorParams().sidecar_record())
 
 
 def group_key(meta: dict) -> str:
-    return json.dumps([meta.get(key) for key in GROUP_KEYS], sort_keys=True)
+    """The grouping key of a frame's sidecar: frames of an auto-exposed series share it whatever their T (each
+    frame's exposure time, and the dark levels that follow from it, are not part of the key)."""
+    auto = meta.get("exposure") == "auto"
+    return json.dumps([None if auto and key in EXPOSURE_KEYS else meta.get(key) for key in GROUP_KEYS],
+                      sort_keys=True)
 
 
 @dataclass

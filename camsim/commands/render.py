@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from camsim.cli_types import positive_float, positive_int, schema_value, sensor_setting
+from camsim.cli_types import exposure_setting, positive_float, positive_int, schema_value, sensor_setting
 from camsim.commands import DEFAULT_OUT, camera_argument
 from camsim.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS
@@ -54,8 +54,16 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--cfa", choices=_SENSOR["cfa"].choices,
                         help="a Bayer colour filter array (one channel per pixel; the DNG is then a CFA DNG) instead "
                              "of the default three-chip sensor (R, G and B at every pixel)")
-    parser.add_argument("--exposure", metavar="SECONDS", type=schema_value(_SENSOR["exposure_s"]),
-                        help="exposure time T in s (Table I: 1 s)")
+    parser.add_argument("--exposure", metavar="SECONDS|auto", type=exposure_setting(_SENSOR["exposure_s"]),
+                        help="exposure time T in s for every frame (Table I: 1 s), or 'auto': each frame's T chosen "
+                             "so that the perfect white under its illuminant, at its F, reaches --exposure-target "
+                             "electrons in the strongest channel (dark current scales with T; the camera's Qe "
+                             "never changes)")
+    parser.add_argument("--exposure-target", metavar="E", type=schema_value(_RENDER["exposure_target_e"]),
+                        help=f"auto exposure: {_RENDER['exposure_target_e'].doc} (e⁻; default "
+                             f"{_RENDER['exposure_target_e'].default:g})")
+    parser.add_argument("--exposure-max", metavar="SECONDS", type=schema_value(_RENDER["exposure_max_s"]),
+                        help=f"auto exposure: {_RENDER['exposure_max_s'].doc}")
     parser.add_argument("--camera", metavar="NAME_OR_CSV",
                         help="colour-science camera name (default 'Nikon 5100 (NPL)') or a CSV of wavelength_nm, R, G, B")
     parser.add_argument("--seed", type=schema_value(_RENDER["seed"]), help="random seed (integer ≥ 0); same seed ⇒ "
@@ -84,6 +92,12 @@ def apply_overrides(scene, args):
     for key in ("statistics", "method", "seed", "tolerance"):
         if getattr(args, key) is not None:
             changes[key] = getattr(args, key)
+    if args.exposure is not None:
+        changes["exposure"] = "auto" if args.exposure == "auto" else "fixed"
+    if args.exposure_target is not None:
+        changes["exposure_target_e"] = args.exposure_target
+    if args.exposure_max is not None:
+        changes["exposure_max_s"] = args.exposure_max
     if args.camera is not None:
         changes["camera"] = camera_argument(args.camera)
     if args.preset:
@@ -101,7 +115,7 @@ def sensor_overrides(args) -> dict:
     """The sensor parameters set on the command line: ``--disable``, ``--exposure``, ``--cfa``, then every
     ``--sensor NAME=VALUE`` in order (a later setting wins)."""
     overrides = {stage: False for stage in args.disable}
-    if args.exposure is not None:
+    if args.exposure is not None and args.exposure != "auto":
         overrides["exposure_s"] = args.exposure
     if args.cfa is not None:
         overrides["cfa"] = args.cfa

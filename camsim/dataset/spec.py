@@ -61,6 +61,7 @@ from pathlib import Path
 
 from camsim.camera import load_camera
 from camsim.errors import CamsimError
+from camsim.pipeline import exposure_record
 from camsim.run import check_scene
 from camsim.scene import FRAME_PARAMS, RENDER_PARAMS, Scene, load_scene, read_toml
 from camsim.seeding import dataset_frame_seeds, dataset_parameter_generator
@@ -629,7 +630,7 @@ def _intensity_factor(value) -> float:
 def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> FrameGroup:
     """Resolve and validate the scene and sensor of a frame with ``params``: its group's."""
     changes = {"illuminants": (params["illuminant"],)}
-    for key in ("statistics", "method", "tolerance"):
+    for key in ("statistics", "method", "tolerance", "exposure", "exposure_target_e", "exposure_max_s"):
         if key in params:
             changes[key] = params[key]
     if "camera" in params:  # a camera CSV named in the spec is relative to the spec
@@ -672,6 +673,9 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> Fram
         "camera": checked[("camera", str(entry.path), frame_scene.camera)],
         "preset": frame_scene.preset_name,
         **sensor.to_dict(),
+        # auto exposure only: a fixed exposure is the sensor's exposure_s (and frame ids stay those of earlier
+        # versions); with auto, exposure_s is the sensor's setting and each frame's T is in its sidecar
+        **(exposure_record(frame_scene) if frame_scene.exposure == "auto" else {}),
         "spec_seed": job.seed,
     }
     # as JSON gives it back (lists, not tuples), so that a record read from disk compares equal

@@ -289,7 +289,7 @@ def simulate(sensor: SensorParams, setup: EmvaSetup = EmvaSetup(), preset_name: 
         raise CamsimError("the photon transfer method needs photon noise: this sensor has it off")
     camera = load_camera(setup.camera, GRID)
     scale = PhysicalScale()
-    qe_abs = absolute_qe(camera, scale, None)  # e⁻ m² sr / photon, (3, N)
+    qe_abs = absolute_qe(camera, scale, GRID)  # e⁻ m² sr / photon, (3, N)
     bin_index = int(np.argmin(np.abs(GRID.wavelengths_nm - setup.wavelength_nm)))
     eta = float(camera.relative_qe[CHANNEL, bin_index] * scale.peak_qe)
     if not eta > 0:

@@ -61,10 +61,11 @@ def prepare(setup: Setup) -> Prepared:
     points, spectra = points[: setup.n_points], spectra[: setup.n_points]
     radiance = points_radiance(points, spectra, grid, setup.width, setup.height)
     camera = load_camera(setup.camera or scene.camera, grid, scene.sensitivity_basis, scene.base_dir)
-    g_white = photon_radiance(radiance.white_radiance, grid.wavelengths_nm, grid.step_nm)
-    qe = absolute_qe(camera, AnchorScale(), g_white)
+    qe = absolute_qe(camera, AnchorScale(reference_illuminant="D65"), grid)  # one camera for every data point
     g = photon_radiance(radiance.radiance, grid.wavelengths_nm, grid.step_nm)
-    return Prepared(grid, points, radiance, camera, scene.name, LitScene(radiance.labels, g, qe, grid, radiance, "D65"))
+    g_white = photon_radiance(radiance.white_radiance, grid.wavelengths_nm, grid.step_nm)
+    return Prepared(grid, points, radiance, camera, scene.name,
+                    LitScene(radiance.labels, g, qe, grid, radiance, "D65", g_white))
 
 
 def render_series(prep: Prepared, sensor: SensorParams, factors, statistics: str, out_dir: Path, seed: int,
@@ -83,7 +84,7 @@ def render_series(prep: Prepared, sensor: SensorParams, factors, statistics: str
                 photon_statistics=statistics, method=method, camera=prep.camera.name,
                 sensitivity_basis=prep.camera.sensitivity_basis, reflectances=prep.radiance.reflectance_set,
                 wavelengths_nm=prep.grid.wavelengths_nm, luminance_cd_m2=100.0, normalisation="per-spectrum",
-                scale={"kind": "anchor", **dataclasses.asdict(AnchorScale()), "reference_illuminant": "D65"},
+                scale={"kind": "anchor", **dataclasses.asdict(AnchorScale(reference_illuminant="D65"))},
                 patch_names=prep.radiance.patch_names, patch_rects=prep.radiance.patch_rects,
                 color_matrix1=lit.color_matrix1, as_shot_neutral=lit.as_shot_neutral, patch_xyz=factor * lit.patch_xyz,
             )
