@@ -17,7 +17,7 @@ import numpy as np
 
 from camsim.errors import CamsimError
 from camsim.expected import ExpectedSignal
-from camsim.fixed_pattern import FixedPattern, fixed_pattern
+from camsim.fixed_pattern import FixedPattern, dark_gain_at, fixed_pattern
 from camsim.methods import get_method
 from camsim.seeding import block_generators
 from camsim.sensor import SensorParams
@@ -53,14 +53,15 @@ class Frame:
     expected: ExpectedSignal
     sensor: SensorParams
     plan: DrawPlan | None = None  # how each spectrum and channel was drawn (None for spectral)
-    maps: FixedPattern | None = None  # the sensor's DSNU / PRNU maps, if any
+    maps: FixedPattern | None = None  # the sensor's DSNU (offset, dark-current) and PRNU maps, if any
 
     def clean_dn(self) -> np.ndarray:
         """Expected value of ``noisy_dn`` per pixel: G · G_Ve⁻ · E[f_sat(S + D)], shape (3, H, W), float32.
 
-        With fixed-pattern maps, each pixel's shift of the mean is added to its spectrum's value and the sum clipped
-        at the full well: exact below saturation, and for spectra whose every pixel is saturated (their mean, with
-        the smallest PRNU gain and the most negative DSNU offset, at or above the saturation cap of
+        With fixed-pattern maps, each pixel's shift of the mean — (g − 1) S̄ (PRNU), (d − 1) D̄ (dark-current DSNU)
+        and its offset o — is added to its spectrum's value and the sum clipped at the full well: exact below
+        saturation, and for spectra whose every pixel is saturated (their mean, with the smallest PRNU gain, the
+        smallest dark-current factor and the most negative DSNU offset, at or above the saturation cap of
         :func:`camsim.stages.saturating_mean_e`) the full well itself; an approximation in between.
         """
         k = self.sensor.dn_per_electron
@@ -75,6 +76,10 @@ class Frame:
                 if full is not None:  # saturated spectra get the full well below: no shift (and no overflow)
                     signal = np.where(full[:, c], 0.0, signal)
                 out[c] += (self.maps.gain[c] - 1) * signal.astype(np.float32)[self.labels]
+            dark = self.expected.dark_e[c]
+            if self.maps is not None and self.maps.dark_gain is not None and dark > 0 and not (
+                    full is not None and np.all(full[:, c])):  # (every spectrum saturated: the full well below)
+                out[c] += np.float32(k * dark) * (self.maps.dark_gain[c] - np.float32(1))
             if self.maps is not None and self.maps.offset_e is not None:
                 out[c] += np.float32(k) * self.maps.offset_e[c]
             if self.maps is not None and self.sensor.saturation:
@@ -85,17 +90,19 @@ class Frame:
 
     def _saturated_spectra(self) -> np.ndarray:
         """(K, 3) bool: spectra and channels whose every pixel saturates but with probability ≤ ε (fixed-pattern
-        maps on): S̄ · min gain + D̄ ≥ M(L, max(1, Var S / S̄)), L the full well minus the most negative offset.
+        maps on): S̄ · min g + D̄ · min d ≥ M(L, max(1, Var S / S̄)), L the full well minus the most negative offset
+        (g the PRNU gains, d the dark-current DSNU factors: a pixel with a larger mean only saturates more).
 
         The total charge is a sum of scaled Poisson counts whose variance is at most max(1, s) times its mean, so
         :func:`camsim.stages.saturating_mean_e`'s bound holds with that step.
         """
         ex, maps = self.expected, self.maps
         g_min = float(np.min(maps.gain)) if maps.gain is not None else 1.0
+        dark = ex.dark_e if maps.dark_gain is None else ex.dark_e * float(np.min(maps.dark_gain))
         level = saturation_level_e(self.sensor.full_well_e, maps.offset_e)
         with np.errstate(divide="ignore", invalid="ignore"):
             step = np.maximum(1.0, np.where(ex.signal_e > 0, ex.signal_var_e2 / ex.signal_e, 0.0))
-        return ex.signal_e * max(g_min, 0.0) + ex.dark_e >= saturating_mean_e(level, step)
+        return ex.signal_e * max(g_min, 0.0) + dark >= saturating_mean_e(level, step)
 
 
 #: The largest charge (e⁻) or digital number a frame may hold. Its pixels are float32, which ends at 3.4e38: this
@@ -107,11 +114,12 @@ def check_frame_values(expected: ExpectedSignal, sensor: SensorParams) -> None:
     """Refuse a frame whose values would not fit its float32 pixels, with the reason.
 
     The largest value a pixel can take, in electrons: with saturation on, the full well plus ten σ of the read and
-    row noise; with saturation off, the largest mean charge (S̄ times the largest PRNU gain, 1 + 10 σ, plus D̄) plus
-    ten σ of its shot noise, DSNU, read and row noise. In DN it is G · G_Ve⁻ times that. Both must stay below
-    :data:`FRAME_VALUE_MAX`: only a light or an exposure astronomically beyond any camera's with saturation off
-    (nothing then bounds the charge), or a full well or noise of that size, reach it. Means that overflow float64
-    are refused before, by :func:`camsim.expected.expected_signal`.
+    row noise; with saturation off, the largest mean charge (S̄ times the largest PRNU gain, 1 + 10 σ, plus D̄ times
+    the dark-current DSNU's factor at 10 σ of its normal) plus ten σ of its shot noise, DSNU, read and row noise.
+    In DN it is G · G_Ve⁻ times that. Both must stay below :data:`FRAME_VALUE_MAX`: only a light or an exposure
+    astronomically beyond any camera's with saturation off (nothing then bounds the charge), or a full well or noise
+    of that size, reach it. Means that overflow float64 are refused before, by
+    :func:`camsim.expected.expected_signal`.
 
     Raises
     ------
@@ -123,8 +131,13 @@ def check_frame_values(expected: ExpectedSignal, sensor: SensorParams) -> None:
         peak_e = sensor.full_well_e + readout
     else:
         gain = 1 + 10 * sensor.prnu_percent / 100
-        mean = expected.signal_e * gain + expected.dark_e
-        peak_e = float(np.max(mean + 10 * np.sqrt(expected.total_var_e2 * gain), initial=0.0))
+        if sensor.dsnu_dark_current_percent > 0:
+            dark = expected.dark_e * dark_gain_at(sensor, 10.0)
+            mean = expected.signal_e * gain + dark
+            peak_e = float(np.max(mean + 10 * np.sqrt((expected.signal_var_e2 + dark) * gain), initial=0.0))
+        else:
+            mean = expected.signal_e * gain + expected.dark_e
+            peak_e = float(np.max(mean + 10 * np.sqrt(expected.total_var_e2 * gain), initial=0.0))
         peak_e += 10 * sensor.dsnu_e + readout
     if max(peak_e, k * peak_e) <= FRAME_VALUE_MAX:
         return
@@ -160,7 +173,7 @@ class FrameJob:
     plan : DrawPlan or None
         The method's per-spectrum plan.
     maps : FixedPattern or None
-        The sensor's DSNU / PRNU maps.
+        The sensor's DSNU (offset, dark-current) and PRNU maps.
     noisy : numpy.ndarray, shape (planes, H, W), float32
         Output: DN before quantisation.
     digital : numpy.ndarray or None, shape (planes, H, W)
@@ -177,12 +190,14 @@ class FrameJob:
     digital: np.ndarray | None
 
     def maps_rows(self, r0: int, r1: int):
-        """(DSNU offset, PRNU gain) of rows ``r0:r1``, shape (3, r1 − r0, W) each, or None where off."""
+        """(DSNU offset, PRNU gain, dark-current DSNU factor) of rows ``r0:r1``, shape (3, r1 − r0, W) each, or None
+        where off."""
         if self.maps is None:
-            return None, None
+            return None, None, None
         offset = None if self.maps.offset_e is None else self.maps.offset_e[:, r0:r1]
         gain = None if self.maps.gain is None else self.maps.gain[:, r0:r1]
-        return offset, gain
+        dark_gain = None if self.maps.dark_gain is None else self.maps.dark_gain[:, r0:r1]
+        return offset, gain, dark_gain
 
 
 @dataclass
@@ -243,7 +258,8 @@ def render_frame(
     ------
     CamsimError
         A frame whose values would not fit its float32 pixels (:func:`check_frame_values`); PRNU with a method
-        that has one mean per spectrum.
+        that has one mean per spectrum (``spectral``: it draws the dark charge per pixel, so it takes the
+        dark-current DSNU, but its per-bin signal draws have one mean per spectrum).
     """
     impl = get_method(method)
     check_frame_values(expected, sensor)

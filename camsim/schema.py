@@ -52,6 +52,11 @@ class Param:
         A sensor stage switch (grouped under ``stages`` in the sidecar; ``--disable`` on the command line).
     sidecar : callable, optional
         ``sidecar(obj) -> dict``: the sidecar keys this parameter writes (default ``{name: value}``).
+    omit_default : bool
+        Written to records (the sidecar, :meth:`camsim.sensor.SensorParams.to_dict`) only when its value differs
+        from the default: for a parameter added later whose default is off, so that the records of everything
+        made without it — and the dataset frame ids that hash them — stay byte for byte as they were. An absent
+        key then means the default.
     """
 
     name: str
@@ -66,6 +71,7 @@ class Param:
     optional: bool = False
     stage: bool = False
     sidecar: Callable[[object], dict] | None = None
+    omit_default: bool = False
 
     def coerce(self, value, where: str = "", check_range: bool = True):
         """``value`` checked and typed for this parameter (ints become floats where a float is meant).
@@ -141,6 +147,8 @@ class Param:
         if self.sidecar is not None:
             return self.sidecar(obj)
         value = getattr(obj, self.name)
+        if self.omit_default and value == self.default:
+            return {}
         return {self.name: list(value) if isinstance(value, tuple) else value}
 
 

@@ -12,7 +12,8 @@ a scene frame               ``SeedSequence(seed, spawn_key=(crc32(label), crc32(
   experiments)               experiment's series name
 a row block of a frame      child *b* of the frame's sequence (``spawn``)                :func:`block_generators`
 a sensor's fixed pattern    ``SeedSequence(sensor_seed, spawn_key=(0x46504E,))``,        :func:`fixed_pattern_generators`
-                            children 0 (DSNU) and 1 (PRNU)
+                            children 0 (DSNU offset), 1 (PRNU) and 2 (dark-current
+                            DSNU)
 a dataset frame's seed      ``SeedSequence(spec seed, spawn_key=sha256(id)[:16] as 4      :func:`dataset_frame_seed`
                             words)``, its first 64-bit word >> 11 (< 2^53)
 a dataset random parameter  ``SeedSequence(spec seed, spawn_key=(0xDA7A5E7, crc32(name)))`` :func:`dataset_parameter_generator`
@@ -58,10 +59,15 @@ def block_generators(rng, count: int) -> list[np.random.Generator]:
     return [np.random.Generator(np.random.PCG64(child)) for child in seed_seq.spawn(count)]
 
 
-def fixed_pattern_generators(sensor_seed: int) -> tuple[np.random.Generator, np.random.Generator]:
-    """The generators of a sensor's DSNU and PRNU unit maps: a function of ``sensor_seed`` alone."""
-    offset_ss, gain_ss = np.random.SeedSequence(sensor_seed, spawn_key=(FIXED_PATTERN_KEY,)).spawn(2)
-    return np.random.Generator(np.random.PCG64(offset_ss)), np.random.Generator(np.random.PCG64(gain_ss))
+def fixed_pattern_generators(sensor_seed: int) -> tuple[np.random.Generator, ...]:
+    """The generators of a sensor's unit maps — DSNU offset, PRNU, dark-current DSNU — a function of ``sensor_seed``
+    alone.
+
+    Child *i* of a ``SeedSequence`` depends on *i* only, not on how many are spawned, so the dark-current map
+    (child 2, added later) left the offset and gain maps (children 0 and 1) as they were.
+    """
+    children = np.random.SeedSequence(sensor_seed, spawn_key=(FIXED_PATTERN_KEY,)).spawn(3)
+    return tuple(np.random.Generator(np.random.PCG64(child)) for child in children)
 
 
 def dataset_frame_seed(spec_seed: int, frame_id: str) -> int:

@@ -70,6 +70,11 @@ class SensorParams:
     dsnu_e: float = param(0.0, "float", "dark signal non-uniformity: spatial σ of a fixed per-pixel dark offset "
                           "(Gaussian map fixed for a sensor_seed) added to the charge before saturation; 0 = off",
                           "e⁻", low=0)
+    dsnu_dark_current_percent: float = param(
+        0.0, "float", "dark-current DSNU: spatial σ of a fixed per-pixel factor d on the dark-current rate "
+        "(log-normal map of mean 1 fixed for a sensor_seed), so that a pixel collects Poisson(σ²_dark · T · d) dark "
+        "electrons: its spatial σ grows ∝ T, while dsnu_e's does not; 0 = off (and not written to records)", "%",
+        low=0, below=100, omit_default=True)
     prnu_percent: float = param(0.0, "float", "photo-response non-uniformity: spatial σ of a fixed per-pixel gain on "
                                 "the mean signal, so that a pixel collects Poisson(g S̄); 0 = off", "%", low=0,
                                 below=30)
@@ -90,8 +95,8 @@ class SensorParams:
 
     @property
     def fixed_pattern(self) -> bool:
-        """Whether a fixed-pattern map (DSNU or PRNU) is on."""
-        return self.dsnu_e > 0 or self.prnu_percent > 0
+        """Whether a fixed-pattern map (DSNU offset, dark-current DSNU or PRNU) is on."""
+        return self.dsnu_e > 0 or self.prnu_percent > 0 or self.dsnu_dark_current_percent > 0
 
     @property
     def gaussian_read_noise(self) -> bool:
@@ -139,8 +144,11 @@ class SensorParams:
         return dataclasses.replace(self, **switches)
 
     def to_dict(self) -> dict:
-        """Parameters with units in their names, JSON-ready."""
+        """Parameters with units in their names, JSON-ready (those declared ``omit_default`` only when set)."""
         out = dataclasses.asdict(self)
+        for p in SENSOR_PARAMS:  # parameters recorded only when set (camsim.schema.Param.omit_default)
+            if p.omit_default and out[p.name] == p.default:
+                del out[p.name]
         out["dark_current_e_per_s"] = list(self.dark_current_e_per_s)
         out["dn_per_electron"] = self.dn_per_electron
         return out

@@ -8,10 +8,13 @@ electrons until :func:`electrons_to_dn`.
 stage                          function                              unit
 =============================  ====================================  ===========
 photons + dark current         :func:`collect_charge_e`              e⁻
+  (with PRNU and the dark-     ``gain``, ``dark_gain``
+  current DSNU: per-pixel
+  factors on S̄ and D̄)
   (its saturation cap)         :func:`saturating_mean_e`,            e⁻
                                :func:`cap_mean_e`,
                                :func:`saturation_level_e`
-DSNU (fixed dark offset)       :func:`add_offset_e`                  e⁻
+offset DSNU (fixed offset)     :func:`add_offset_e`                  e⁻
 full well (Eq. 8)              :func:`saturate_e`                    e⁻
 read noise (Eqs. 7, 10)        :func:`draw_read_noise_e`,            e⁻
                                :func:`add_read_noise_e`
@@ -93,7 +96,7 @@ def saturation_level_e(full_well_e: float, offset_e=None) -> float:
 
 def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_var_e2=None, *,
                      statistics: str = "pixel", photon_noise: bool = True, size=None, gain=None,
-                     saturation_e=None) -> np.ndarray:
+                     dark_gain=None, saturation_e=None) -> np.ndarray:
     """The charge S + D collected in the exposure, drawn exactly (Eqs. 4–6); capped where saturation hides it.
 
     Parameters
@@ -113,6 +116,9 @@ def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_v
         Shape of the draws when ``signal_e`` is one value (drawn as a histogram, :func:`camsim.kernels.poisson_run`).
     gain : numpy.ndarray, optional
         PRNU: a per-pixel factor on S̄ (and Var S), shape ``size``; the draws then have one mean per pixel.
+    dark_gain : numpy.ndarray, optional
+        Dark-current DSNU: a per-pixel factor d on D̄, shape ``size`` (or that of ``signal_e``), so that the dark
+        charge is Poisson(D̄ · d): under ``pixel`` statistics S + D ~ Poisson(S̄ + D̄ d), one draw.
     saturation_e : float, optional
         Where the charge is then clipped at the full well (:func:`saturate_e`): the level L at and above which
         the pixel's value is the full well, the full well minus the pixel's DSNU offset (one value for all the
@@ -131,9 +137,11 @@ def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_v
     if gain is not None:  # per-pixel means: numpy's sampler, one mean per pixel
         S = S * gain
         size = None
+    if dark_gain is not None:  # per-pixel dark means (the signal's draw keeps its size)
+        D = D * dark_gain
     if photon_noise and statistics == "pixel":  # one draw covers photons and dark current
         lam = S + D if saturation_e is None else cap_mean_e(S + D, saturation_e)
-        return poisson(rng, lam) if size is None else poisson_run(rng, lam, size)
+        return poisson(rng, lam) if size is None or dark_gain is not None else poisson_run(rng, lam, size)
     if saturation_e is not None:
         D = cap_mean_e(D, saturation_e)
     if photon_noise:
@@ -146,7 +154,7 @@ def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_v
         charge = step * poisson(rng, lam, size=size)
     else:
         charge = np.broadcast_to(np.asarray(S, dtype=np.float64), shape)
-    return charge + poisson(rng, D, size=shape) if D > 0 else charge
+    return charge + poisson(rng, D, size=shape) if dark_e > 0 else charge
 
 
 def add_offset_e(charge_e: np.ndarray, offset_e: np.ndarray | None) -> np.ndarray:

@@ -150,9 +150,105 @@ def test_bayer_sensor_is_measured_on_its_green_sites():
     (["--preset", "ideal"], "quantisation off"),
     (["--preset", "nope"], "invalid choice"),
     (["--seed", "-1"], "must be ≥ 0"),
+    (["--dsnu-exposure-factor", "1"], "dsnu_exposure_factor (the DSNU's second exposure time over the first) must be"),
+    (["--sensor", "dsnu_dark_current_percent=100"], "must be < 100"),
 ])
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, args, message):
     assert main(["emva", *args, "--out", str(tmp_path / "o"), "-q"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("camsim: error: ") and message in err and err.count("\n") == 1
     assert not (tmp_path / "o").exists()
+
+
+def test_dsnu_split_through_two_exposure_times_is_exact_for_the_two_kinds():
+    from camsim.emva.simulate import dsnu_split
+
+    offset, rate = 2.0, 2.5  # DSNU²(T) = σ_o² + (c T)²
+    dsnu = [math.hypot(offset, rate * t) for t in (1.0, 4.0)]
+    assert dsnu_split(dsnu[0], 1.0, dsnu[1], 4.0) == pytest.approx((offset, rate), rel=1e-12)
+    assert dsnu_split(2.0, 1.0, 2.0, 4.0) == pytest.approx((2.0, 0.0), abs=1e-12)  # an offset alone: constant
+    assert dsnu_split(2.5, 1.0, 10.0, 4.0) == pytest.approx((0.0, 2.5), abs=1e-7)  # a dark current alone: ∝ T
+    assert dsnu_split(2.0, 1.0, 1.9, 4.0) == (pytest.approx(math.sqrt((16 * 4 - 1.9**2) / 15)), None)  # below noise
+    assert dsnu_split(None, 1.0, 2.0, 4.0) == (None, None)
+
+
+SPLIT = EmvaSetup(size=128, steps=30, low_steps=5, stack_frames=16, seed=1, dsnu_exposure_factor=4.0)
+
+
+@pytest.mark.parametrize("dsnu_e, p", [(2.0, 0.0), (0.0, 10.0), (2.0, 10.0)])
+def test_emva_dsnu_at_two_exposure_times_splits_the_two_kinds(dsnu_e, p):
+    """The offset DSNU is the same at T and 4 T, the dark-current DSNU grows ∝ T: on 128 × 128 pixels with
+    L = 16 the DSNU's estimators scatter by about 1 % (their noise, the temporal variance left after averaging,
+    is below 1 % of the spatial variance, and K's 0.5 %), so the split σ_o and c are asserted within 5 % of the
+    maps actually drawn (sensor seed 0), and the ratio DSNU(4 T) / DSNU(T) within 5 % of √(σ_o² + (4 c T)²) /
+    √(σ_o² + (c T)²): 1 for the offset alone, 4 for the dark current alone."""
+    result = run(sensor=preset("emva-12bit", dsnu_e=dsnu_e, dsnu_dark_current_percent=p), setup=SPLIT)
+    m, rows, d = result.measurement, result.comparison(), result.details
+    assert list(rows) == KEYS + ["dsnu_offset_e", "dsnu_dark_current_e_per_s"]
+    assert d["dsnu_exposures_s"] == (1.0, 4.0) and m.dsnu_exposure_s == 4.0
+    offset = m.realised_dsnu_e or 0.0
+    rate = m.realised_dark_dsnu_e_per_s or 0.0
+    assert (m.realised_dark_dsnu_e_per_s is None) == (p == 0)
+    expected_ratio = math.hypot(offset, 4 * rate) / math.hypot(offset, rate)
+    assert d["dsnu_long_e"] / rows["dsnu_e"]["recovered"] == pytest.approx(expected_ratio, rel=0.05)
+    for key, realised in (("dsnu_offset_e", offset), ("dsnu_dark_current_e_per_s", rate)):
+        recovered = rows[key]["recovered"]
+        if realised:
+            assert recovered == pytest.approx(realised, rel=0.05), key
+        else:  # the part is off: what is left is the estimators' noise, well below the other part
+            assert recovered is None or recovered < 0.15 * max(offset, rate), key
+    # configured: the offset dsnu_e, the rate p/100 · σ²_dark, and the DSNU at T the two added in variance
+    assert rows["dsnu_offset_e"]["configured"] == dsnu_e
+    assert rows["dsnu_dark_current_e_per_s"]["configured"] == pytest.approx(p / 100 * 25.0)
+    assert rows["dsnu_e"]["configured"] == pytest.approx(math.hypot(dsnu_e, p / 100 * 25.0))
+    assert rows["dsnu_e"]["recovered"] == pytest.approx(math.hypot(offset, rate), rel=0.05)
+    # the model's dark temporal statistics hold with the dark-current map too
+    mean, var = model_dark_temporal_dn(m.sensor)
+    assert d["u_ydark_dn"] == pytest.approx(mean, abs=0.05)
+    assert d["s2_ydark_dn2"] == pytest.approx(var, rel=0.06)
+
+
+def test_the_dark_spatial_variance_is_the_reference_ones():
+    """The second exposure's DSNU uses the standard's formula; on the first exposure's stack it gives the reference
+    implementation's own s²_y.dark."""
+    from camsim.emva.report import markdown
+    from camsim.emva.simulate import dark_spatial_variance_dn2, emva1288_numpy_shims
+
+    result = run(sensor=preset("emva-12bit", dsnu_dark_current_percent=10.0), setup=SMALL)
+    assert result.measurement.dark_stack_long is not None  # taken by default for a dark-current DSNU
+    assert result.measurement.dsnu_exposure_s == 4.0
+    stack = next(iter(result.measurement.data["spatial"].values()))[0.0]
+    with emva1288_numpy_shims():
+        reference = float(result.results.s_2_y_dark)
+    assert dark_spatial_variance_dn2(stack) == pytest.approx(reference, rel=1e-12)
+    report = markdown(result, {"photon_transfer": "a.png", "snr": "b.png", "nonuniformity": "c.png"})
+    assert "## DSNU at two exposure times" in report
+    assert sum(line.startswith("| 4 s |") for line in report.splitlines()) == 1  # the second exposure's row
+
+
+def test_no_second_stack_unless_asked_or_needed():
+    result = run("emva-12bit", SMALL)
+    assert result.measurement.dark_stack_long is None and list(result.comparison()) == KEYS
+
+
+@pytest.mark.parametrize("factor, preset_name, message", [
+    (1.0, "emva-12bit", "must be > 1 and ≤ 100"),
+    (40.0, "paper-table1", "saturates this sensor at the DSNU's second exposure time"),
+])
+def test_a_bad_second_exposure_is_refused(factor, preset_name, message):
+    from camsim.errors import CamsimError
+
+    with pytest.raises(CamsimError, match=message):
+        run(preset_name, EmvaSetup(size=16, steps=10, low_steps=0, stack_frames=2, dsnu_exposure_factor=factor))
+
+
+@pytest.mark.slow
+def test_cli_measures_a_dark_current_dsnu_at_two_exposure_times(tmp_path):
+    out = tmp_path / "emva"
+    assert main(["emva", "--size", "32", "--sensor", "dsnu_dark_current_percent=10", "--out", str(out), "-q"]) == 0
+    data = json.loads((out / "emva.json").read_text())
+    assert list(data) == KEYS + ["dsnu_offset_e", "dsnu_dark_current_e_per_s"]
+    assert data["dsnu_dark_current_e_per_s"]["configured"] == pytest.approx(2.5)
+    report = (out / "report.md").read_text()
+    assert "preset `emva-12bit with dsnu_dark_current_percent=10.0`" in report
+    assert "## DSNU at two exposure times" in report and "| 4 s |" in report

@@ -18,7 +18,7 @@ from camsim.analysis.patches import AnalysisSettings, analyse_frame, frame_matri
 from camsim.errors import CamsimError
 from camsim.io.atomic import write_json_atomic, write_text_atomic
 from camsim.optional_numbers import mean_of_defined
-from camsim.sensor import EXPOSURE_KEYS, SensorParams
+from camsim.sensor import EXPOSURE_KEYS, SENSOR_PARAMS, SensorParams
 from camsim.io.output_folder import make_folder
 
 CSV_NAME = "analysis.csv"
@@ -34,11 +34,11 @@ CHANNEL_COLUMNS = ("channel", "n_pixels", "black_dn", "mean_dn", "var_dn2", "std
                    "snr_status")
 #: Sidecar values that must agree for two frames to be the same measurement at different F (ΔE reference): the
 #: scene, light, camera and render settings, and every sensor key the schema writes (so a new sensor parameter
-#: joins the grouping by itself).
+#: joins the grouping by itself), also those it writes only when set (absent: the default, read as None).
 GROUP_KEYS = ("scene", "illuminant", "photon_statistics", "method", "auto_tolerance_ks", "camera",
               "sensitivity_basis", "reflectances", "luminance_cd_m2", "normalisation", "scale", "width_px",
               "height_px", "wavelengths_nm", "exposure", "exposure_target_e", "exposure_max_s",
-              *SensorParams().sidecar_record())
+              *SensorParams().sidecar_record(), *(p.name for p in SENSOR_PARAMS if p.omit_default))
 
 
 def group_key(meta: dict) -> str:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from camsim.cli_types import integer_between, non_negative_int
+from camsim.cli_types import integer_between, non_negative_int, positive_float, sensor_setting
 from camsim.commands import DEFAULT_OUT, writing_to
 from camsim.sensor import PRESETS
 
@@ -31,6 +31,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="sensor preset to measure (default emva-12bit: a 12-bit machine-vision-like sensor, "
                              "K = 0.4 DN/e⁻; paper-table1 shows the 8-bit, 35 e⁻/DN case, where quantisation "
                              "dominates the dark noise)")
+    parser.add_argument("--sensor", metavar="NAME=VALUE", type=sensor_setting, action="append", default=[],
+                        help="set a sensor parameter of the preset (repeatable; as camsim render's --sensor), e.g. "
+                             "dsnu_dark_current_percent=10 for a dark-current DSNU")
+    parser.add_argument("--dsnu-exposure-factor", metavar="F", type=positive_float,
+                        help="also take the dark stack at F times the exposure time (F > 1 and ≤ 100), for the DSNU at "
+                             "two exposure times split into its offset part and its dark-current part (∝ T); "
+                             "default: only for a sensor with a dark-current DSNU, at F = 4")
     parser.add_argument("--out", metavar="DIR", type=Path, help="output folder (default outputs/emva)")
     parser.add_argument("--size", metavar="N", type=ROI_SIDE_PX, default=256,
                         help="side of the square region of interest in pixels, 16 to 4096 (default 256)")
@@ -43,20 +50,28 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     """Carry out ``camsim emva``; returns the exit status (0)."""
-    from camsim.emva import EmvaSetup, write_outputs
+    from camsim.emva import DEFAULT_PRESET, EmvaSetup, write_outputs
     from camsim.emva import run as measure
+    from camsim.sensor import preset
 
-    setup = EmvaSetup(size=args.size, seed=args.seed)
+    setup = EmvaSetup(size=args.size, seed=args.seed, dsnu_exposure_factor=args.dsnu_exposure_factor)
+    name, sensor = args.preset, None
+    if args.sensor:
+        overrides = dict(args.sensor)
+        name = args.preset or DEFAULT_PRESET
+        sensor = preset(name, **overrides)
+        name += " with " + ", ".join(f"{key}={value}" for key, value in overrides.items())
     out = args.out if args.out is not None else DEFAULT_OUT / "emva"
     with writing_to(out):
-        result = measure(args.preset, setup, progress=not args.quiet)
+        result = measure(name, setup, sensor=sensor, progress=not args.quiet)
         paths = write_outputs(result, out)
     if not args.quiet:
+        width = max(14, *map(len, result.comparison()))
         for key, row in result.comparison().items():
             ok = result.within_target(key)
             mark = "" if ok is None else ("  ok" if ok else "  outside target")
             rel = "" if row["relative_error"] is None else f"  {100 * row['relative_error']:+.2f} %"
             recovered = "—" if row["recovered"] is None else f"{row['recovered']:.5g}"
-            print(f"  {key:<14} configured {row['configured']:<10.5g} recovered {recovered:<10}{rel}{mark}")
+            print(f"  {key:<{width}} configured {row['configured']:<10.5g} recovered {recovered:<10}{rel}{mark}")
     print(f"EMVA 1288 of preset {result.measurement.preset_name}: {paths['report']}, {paths['json']}")
     return 0

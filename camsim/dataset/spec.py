@@ -89,7 +89,9 @@ _COUPLED = frozenset({
 #: into the frame's record and sensor overrides, with no derived value and no check across parameters. Frames that
 #: differ only in these share one :class:`FrameGroup` (a test checks each against a frame resolved in full).
 OWN_VALUE_PARAMS = frozenset({"intensity_factor"} | {p.name for p in SENSOR_PARAMS
-                                                      if p.kind in ("float", "int", "bool")} - _COUPLED)
+                                                      if p.kind in ("float", "int", "bool")} - _COUPLED
+                             # recorded only when set (Param.omit_default): not a key of every record of a group
+                             - {p.name for p in SENSOR_PARAMS if p.omit_default})
 _FACTOR = 1  # position of the intensity factor in FrameSpec.values: repeat, factor, own-value sensor parameters
 _BATCH = 1024  # frames whose seeds are computed together
 

@@ -1,8 +1,10 @@
 """The outputs of ``camsim emva``: ``emva.json``, ``report.md`` and its plots, each written atomically.
 
 ``emva.json`` is an interface: ``{key: {"configured", "recovered", "relative_error"}}`` for the keys of
-:data:`camsim.emva.simulate.QUANTITIES` (K_dn_per_e, dark_noise_e, qe, saturation_e, dsnu_e, prnu_percent), with
-null where a value is undefined (a relative error of a quantity configured as 0, a negative variance).
+:data:`camsim.emva.simulate.QUANTITIES` (K_dn_per_e, dark_noise_e, qe, saturation_e, dsnu_e, prnu_percent), then,
+where the dark stack was also taken at a second exposure time, of
+:data:`camsim.emva.simulate.SPLIT_QUANTITIES` (dsnu_offset_e, dsnu_dark_current_e_per_s), with null where a value
+is undefined (a relative error of a quantity configured as 0, a negative variance).
 
 The plots are the reference implementation's own (``emva1288.process.plotting``) drawn headless, each with the
 configured camera overlaid.
@@ -40,6 +42,8 @@ _NAMES = {
     "saturation_e": "Saturation capacity μ_e,sat",
     "dsnu_e": "DSNU₁₂₈₈",
     "prnu_percent": "PRNU₁₂₈₈",
+    "dsnu_offset_e": "DSNU, offset part σ_o",
+    "dsnu_dark_current_e_per_s": "DSNU, dark-current part c (∝ T)",
 }
 _CONFIGURED_AS = {
     "K_dn_per_e": "G · G_Ve⁻",
@@ -48,7 +52,11 @@ _CONFIGURED_AS = {
     "saturation_e": "full well",
     "dsnu_e": "dsnu_e",
     "prnu_percent": "prnu_percent",
+    "dsnu_offset_e": "dsnu_e",
+    "dsnu_dark_current_e_per_s": "p/100 · σ²_dark (G)",
 }
+#: The DSNU configured with both kinds on: the total at the measured exposure time T.
+_DSNU_BOTH = "√(dsnu_e² + (p/100 · σ²_dark · T)²)"
 
 
 def _plots(result: EmvaResult, out: Path) -> dict:
@@ -115,7 +123,7 @@ def _percent(value) -> str:
 
 
 def _verdict(result: EmvaResult, key: str) -> str:
-    target = QUANTITIES[key][1]
+    target = result.quantities[key][1]
     ok = result.within_target(key)
     if target is None:
         return "no target (see below)"
@@ -141,11 +149,13 @@ def _summary(result: EmvaResult) -> list:
         "| quantity | unit | configured as | configured | recovered (EMVA 1288) | relative error | target |",
         "|---|---|---|---|---|---|---|",
     ]
-    for key, (unit, _target) in QUANTITIES.items():
+    for key, (unit, _target) in result.quantities.items():
         r = rows[key]
-        lines.append(f"| {_NAMES[key]} (`{key}`) | {unit} | {_CONFIGURED_AS[key]} | {_fmt(r['configured'])} | "
+        configured_as = _DSNU_BOTH if key == "dsnu_e" and result.measurement.sensor.dsnu_dark_current_percent > 0 \
+            else _CONFIGURED_AS[key]
+        lines.append(f"| {_NAMES[key]} (`{key}`) | {unit} | {configured_as} | {_fmt(r['configured'])} | "
                      f"{_fmt(r['recovered'])} | {_percent(r['relative_error'])} | {_verdict(result, key)} |")
-    checked = [key for key in QUANTITIES if result.within_target(key) is not None]
+    checked = [key for key in result.quantities if result.within_target(key) is not None]
     failed = [key for key in checked if not result.within_target(key)]
     verdict = (f"All {len(checked)} quantities with a target ({', '.join(checked)}) are within it." if not failed
                else f"Outside their target: {', '.join(failed)} (of {', '.join(checked)}); see below.")
@@ -171,7 +181,7 @@ def _dark_notes(result: EmvaResult) -> list:
     lo, hi = d["fit_indices"]
     x = (result.results.temporal["u_y"] - result.results.temporal["u_ydark"])[lo:hi + 1]
     k_bias = delta * np.sum(x) / np.sum(x * x) / k  # least squares through the origin, shifted by delta
-    spread = k * math.hypot(conf, s.dsnu_e)
+    spread = k * math.hypot(conf, result.configured["dsnu_e"])  # temporal and spatial (both kinds of DSNU)
     read = s.read_noise_e if s.read_noise else 0.0
     if abs(expected / conf - 1) > 0.01:
         cause = ("The difference from the configuration is therefore the standard's 1/12 DN² assumption, not the "
@@ -185,7 +195,7 @@ def _dark_notes(result: EmvaResult) -> list:
         clipping = "negligible." if s.black_level_dn[CHANNEL] > 3.5 * spread else \
             "**not** negligible: the dark statistics are biased."
         black = (f"{dark_e:g} e⁻ = {s.black_level_dn[CHANNEL]:.3g} DN against a dark noise of {spread:.3g} DN"
-                 f"{' (with DSNU)' if s.dsnu_e > 0 else ''}, so clipping is {clipping}")
+                 f"{' (with DSNU)' if result.configured['dsnu_e'] > 0 else ''}, so clipping is {clipping}")
     else:
         black = "none: the dark signal is clipped at 0 DN and its statistics are biased."
     return [
@@ -209,10 +219,23 @@ def _dark_notes(result: EmvaResult) -> list:
         "and η; a rounding ADC would change nothing here.",
         "* **Black level.** EMVA 1288 asks for an offset high enough that no dark pixel reads 0; camsim's ADC has no "
         f"pedestal and clips at 0 DN. The dark electrons are the only offset: {black}",
-        "* **Dark current.** One exposure time is measured (the standard's dark-current section needs several), so "
-        "the dark electrons appear only through σ_d. camsim's dark current is a rate σ²_dark in e⁻/s with Poisson "
-        "noise and no spatial non-uniformity of its own; EMVA's μ_I would be the same rate.",
+        _dark_current_note(result),
     ]
+
+
+def _dark_current_note(result: EmvaResult) -> str:
+    """What the one exposure time says of the dark current, and of its spatial non-uniformity."""
+    s = result.measurement.sensor
+    note = ("* **Dark current.** One exposure time is measured (the standard's dark-current section needs several), "
+            "so the dark electrons appear only through σ_d. camsim's dark current is a rate σ²_dark in e⁻/s with "
+            "Poisson noise and ")
+    if s.dsnu_dark_current_percent == 0:
+        note += "no spatial non-uniformity of its own"
+    else:
+        note += (f"a spatial non-uniformity of its own, {s.dsnu_dark_current_percent:g} % (each pixel's rate is "
+                 "σ²_dark · d, d a fixed log-normal map of mean 1), whose DSNU grows ∝ T: see the DSNU at two "
+                 "exposure times")
+    return note + "; EMVA's μ_I would be the same rate."
 
 
 def _saturation_and_pattern_notes(result: EmvaResult) -> list:
@@ -232,11 +255,19 @@ def _saturation_and_pattern_notes(result: EmvaResult) -> list:
         search = f"The reference implementation's own search for the peak finds the same step ({d['index_u_ysat']})."
     if s.fixed_pattern:
         drawn = [f"{v:.4g} {unit} ({name})" for v, unit, name in
-                 ((m.realised_dsnu_e, "e⁻", "DSNU"), (m.realised_prnu_percent, "%", "PRNU")) if v is not None]
+                 ((m.realised_dsnu_e, "e⁻", "DSNU"), (m.realised_prnu_percent, "%", "PRNU"),
+                  (m.realised_dark_dsnu_e_per_s, "e⁻/s", "the dark-current rates")) if v is not None]
+        listed = drawn[0] if len(drawn) == 1 else ", ".join(drawn[:-1]) + " and " + drawn[-1]
         maps = (f"; over the {m.data['width']} × {m.data['height']} analysed pixels the maps actually drawn (sensor "
-                f"seed {s.sensor_seed}) have {' and '.join(drawn)}.")
+                f"seed {s.sensor_seed}) have {listed}.")
     else:
         maps = " (both off here, so the standard should find about 0: what it finds is the estimators' noise)."
+    kind = "Gaussian" if s.dsnu_dark_current_percent == 0 else "Gaussian (offset, PRNU) and log-normal (dark current)"
+    dark_map = ("" if s.dsnu_dark_current_percent == 0 else
+                " The dark-current DSNU is a log-normal factor (mean 1, σ "
+                f"{s.dsnu_dark_current_percent:g} %) on the dark-current rate: the dark electrons of a pixel are "
+                "Poisson(σ²_dark · T · d), so in the averaged dark image it adds p/100 · σ²_dark · T to the offset's σ "
+                "in quadrature, and it cancels from the PRNU's bright minus dark.")
     return [
         "* **Saturation.** The standard defines saturation as the step where the temporal variance peaks, and "
         "μ_e,sat = η μ_p,sat counts the photo-electrons there (the dark electrons are subtracted). camsim clips the "
@@ -246,10 +277,10 @@ def _saturation_and_pattern_notes(result: EmvaResult) -> list:
         f"clip, and the steps ({(m.photons[-1] - m.photons[-2]) * m.eta:.0f} e⁻ apart near the top) quantise where: "
         f"the standard finds {_fmt(recovered)} e⁻, {_percent(recovered / sat - 1 if recovered else None)} from the "
         f"clip. {search}",
-        f"* **DSNU and PRNU.** Configured: the standard deviations of camsim's per-pixel Gaussian maps{maps} camsim "
+        f"* **DSNU and PRNU.** Configured: the standard deviations of camsim's per-pixel {kind} maps{maps} camsim "
         "applies the PRNU gain to the photo-signal only (not to the dark electrons), which is what EMVA's PRNU "
         "measures (bright minus dark). Neither map has row or column structure, so the standard's row / column "
-        "components should be near 0.",
+        f"components should be near 0.{dark_map}",
         "* **Quantum efficiency.** The light is monochromatic and the photon count μ_p is per pixel area in the "
         "exposure; camsim's photon statistics are exact Poisson electrons per pixel (`pixel` statistics), the "
         "standard's model.",
@@ -262,13 +293,19 @@ def _method(result: EmvaResult) -> list:
     setup = m.setup
     stages = ", ".join(f"{stage} {'on' if getattr(s, stage) else 'off'}" for stage in
                        ("photon_noise", "dark_current", "saturation", "read_noise", "quantisation"))
+    p = s.dsnu_dark_current_percent
+    dark_dsnu = "" if p == 0 else f" (offset) and {p:g} % (dark current)"
+    long_stack = "" if m.dark_stack_long is None else (
+        f" L more dark frames at {m.dsnu_exposure_s:g} s ({m.dsnu_exposure_s / s.exposure_s:g} × the exposure time) "
+        "give the DSNU at a second exposure time.")
     return [
         "## How the measurement was simulated",
         "",
         f"* **Sensor:** preset `{m.preset_name}`: K = {s.dn_per_electron:.4g} DN/e⁻ ({s.conversion_gain_v_per_e:g} "
         f"V/e⁻ × {s.analog_gain_dn_per_v:g} DN/V), {s.bits}-bit ADC, full well {s.full_well_e:g} e⁻, read noise "
         f"{s.read_noise_e:g} e⁻, dark current {s.dark_current_e_per_s[CHANNEL]:g} e⁻/s (G), exposure "
-        f"{s.exposure_s:g} s, DSNU {s.dsnu_e:g} e⁻, PRNU {s.prnu_percent:g} %, row noise {s.row_noise_e:g} e⁻, "
+        f"{s.exposure_s:g} s, DSNU {s.dsnu_e:g} e⁻{dark_dsnu}, PRNU {s.prnu_percent:g} %, row noise "
+        f"{s.row_noise_e:g} e⁻, "
         f"{s.read_noise_model} read noise, sensor seed {s.sensor_seed}; stages {stages}.",
         f"* **Light and QE:** monochromatic {setup.wavelength_nm:g} nm; the camera is `{m.camera}` at camsim's "
         f"physical scale (peak QE 0.5, 4.65 µm pixels), whose G channel has η = {m.eta:.4g} e⁻/photon there. A "
@@ -279,7 +316,7 @@ def _method(result: EmvaResult) -> list:
         "frames (the temporal variance comes from each pair's difference, so the fixed pattern cancels).",
         f"* **Spatial non-uniformity:** L = {setup.stack_frames} dark frames and L frames at "
         f"{setup.spatial_level * 100:g} % of saturation (μ_p = {m.photons_spatial:.6g}), averaged; the standard "
-        "subtracts the temporal variance left in the average (σ²_y.stack / L).",
+        f"subtracts the temporal variance left in the average (σ²_y.stack / L).{long_stack}",
         f"* **Frames:** {m.frames} frames of {setup.size} × {setup.size} pixels, G channel (`frame.digital_dn`, "
         f"in memory), method `poisson`, `pixel` statistics; temporal noise from seed {setup.seed} "
         "(`SeedSequence(seed, spawn_key=(kind, step, frame))`), the same sensor for every frame.",
@@ -288,6 +325,51 @@ def _method(result: EmvaResult) -> list:
         f"saturation (μ_p {d['fit_photons'][0]:.6g} to {d['fit_photons'][1]:.6g}).",
         "",
     ]
+
+
+def _dsnu_exposures(result: EmvaResult) -> list:
+    """The DSNU at two exposure times and its split into the offset and the dark-current part (if measured)."""
+    m, d = result.measurement, result.details
+    if m.dark_stack_long is None:
+        return []
+    s, conf, rec = m.sensor, result.configured, result.recovered
+    offset, rate = conf["dsnu_offset_e"], conf["dsnu_dark_current_e_per_s"]
+    t1, t2 = d["dsnu_exposures_s"]
+    rows = [(t1, rec["dsnu_e"], d["DSNU1288_DN"]), (t2, d["dsnu_long_e"], d["dsnu_long_dn"])]
+    ratio = None if rec["dsnu_e"] is None or d["dsnu_long_e"] is None else d["dsnu_long_e"] / rec["dsnu_e"]
+    realised = [f"{v:.4g} {unit} ({name})" for v, unit, name in
+                ((m.realised_dsnu_e, "e⁻", "offset"), (m.realised_dark_dsnu_e_per_s, "e⁻/s", "dark-current rate"))
+                if v is not None]
+    lines = [
+        "## DSNU at two exposure times: the offset and the dark-current part",
+        "",
+        "An offset DSNU (`dsnu_e`, a fixed charge per pixel) is the same at every exposure time; a DSNU of the "
+        "dark-current rate (`dsnu_dark_current_percent` = p: each pixel collects Poisson(σ²_dark · T · d) dark "
+        "electrons, d a fixed log-normal factor of mean 1 and σ p/100) grows ∝ T. Independent maps add in "
+        "variance, so DSNU²(T) = σ_o² + (c T)² with σ_o = `dsnu_e` and c = p/100 · σ²_dark. The dark stack was "
+        f"taken at two exposure times, {t1:g} s and {t2:g} s (L = {m.setup.stack_frames} frames each). At "
+        f"{t1:g} s the DSNU is the reference implementation's DSNU₁₂₈₈; at {t2:g} s the standard's spatial data "
+        "take no second exposure time, so it is the standard's own formula on that stack (the averaged image's "
+        "spatial variance less the temporal variance left in it, σ²_y.stack / L, over the reference's K).",
+        "",
+        "| exposure time | configured √(σ_o² + (c T)²) | measured DSNU | measured DSNU in DN |",
+        "|---|---|---|---|",
+    ]
+    lines += [f"| {t:g} s | {_fmt(math.hypot(offset, rate * t))} e⁻ | {_fmt(e)} e⁻ | {_fmt(dn)} DN |"
+              for t, e, dn in rows]
+    lines += [
+        "",
+        f"DSNU({t2:g} s) / DSNU({t1:g} s) = {_fmt(ratio)} (an offset DSNU alone: 1; a dark-current DSNU alone: "
+        f"{t2 / t1:g}). Through the two points, the offset part is σ_o = {_fmt(rec['dsnu_offset_e'])} e⁻ (configured "
+        f"{_fmt(offset)} e⁻) and the dark-current part c = {_fmt(rec['dsnu_dark_current_e_per_s'])} e⁻/s "
+        f"(configured {_fmt(rate)} e⁻/s, i.e. {s.dsnu_dark_current_percent:g} % of "
+        f"{s.dark_current_e_per_s[CHANNEL] if s.dark_current else 0:g} e⁻/s)."
+        + (" — : the estimate of that part's square came out negative, i.e. the part is below the estimators' "
+           "noise." if rec["dsnu_offset_e"] is None or rec["dsnu_dark_current_e_per_s"] is None else "")
+        + (f" The maps actually drawn have {' and '.join(realised)} over the analysed pixels." if realised else ""),
+        "",
+    ]
+    return lines
 
 
 def _other_results(result: EmvaResult) -> list:
@@ -343,7 +425,7 @@ def markdown(result: EmvaResult, plots: dict) -> str:
     """The report: the comparison table, where the model and the standard differ, the method, the plots."""
     lines = _summary(result)
     lines += ["## Where camsim's model and the standard's assumptions meet", ""]
-    lines += _dark_notes(result) + _saturation_and_pattern_notes(result) + [""]
+    lines += _dark_notes(result) + _saturation_and_pattern_notes(result) + [""] + _dsnu_exposures(result)
     lines += _method(result) + _other_results(result) + _plot_section(plots)
     return "\n".join(lines)
 

@@ -9,7 +9,12 @@ as a test bench would take it from a real camera:
 * two frames per step and two dark frames (the temporal statistics use the difference of the pair, so the fixed
   pattern cancels);
 * for the spatial non-uniformity, ``L`` dark frames and ``L`` frames at 50 % of saturation, averaged by the
-  analysis to remove the temporal noise.
+  analysis to remove the temporal noise;
+* where asked (:attr:`EmvaSetup.dsnu_exposure_factor`), and always for a sensor with a dark-current DSNU, ``L``
+  more dark frames at a second, longer exposure time T₂: the DSNU at two exposure times, split into its offset
+  part (the same at every T) and its dark-current part (∝ T), DSNU²(T) = σ_o² + (c T)². The standard's spatial
+  data take one exposure time, so the DSNU at T₂ is the standard's own formula (:func:`dark_spatial_variance_dn2`)
+  on that stack, with the reference implementation's K.
 
 Every frame comes from the same sensor (one ``sensor_seed``: the same DSNU / PRNU maps) with its own temporal
 noise (``SeedSequence(seed, spawn_key=(kind, step, frame))``). The G channel is analysed (a monochrome EMVA
@@ -43,6 +48,7 @@ from camsim.spectra import WavelengthGrid
 from camsim.emva.configured import (  # noqa: F401 (re-exported)
     CHANNEL,
     DEFAULT_PRESET,
+    configured_split,
     configured_values,
     model_dark_temporal_dn,
     predicted_saturation_e,
@@ -63,6 +69,14 @@ QUANTITIES = {
     "dsnu_e": ("e⁻", 0.05),
     "prnu_percent": ("%", 0.05),
 }
+#: The DSNU's split by exposure time, in ``emva.json`` after :data:`QUANTITIES` when the second dark stack was
+#: taken: the offset part σ_o and the dark-current part's rate c (DSNU²(T) = σ_o² + (c T)²). Targets: see the tests.
+SPLIT_QUANTITIES = {
+    "dsnu_offset_e": ("e⁻", 0.05),
+    "dsnu_dark_current_e_per_s": ("e⁻/s", 0.05),
+}
+#: T₂ / T of the second dark stack of a sensor with a dark-current DSNU, when the setup names none.
+DEFAULT_DSNU_EXPOSURE_FACTOR = 4.0
 
 
 def _asfarray(a, dtype=float):
@@ -133,6 +147,9 @@ class EmvaSetup:
         camsim camera whose relative QE, at :class:`PhysicalScale`, is the sensor's spectral QE.
     workers : int
         Threads per frame (the output does not depend on it).
+    dsnu_exposure_factor : float or None
+        T₂ / T: also take ``stack_frames`` dark frames at T₂, for the DSNU at two exposure times. None: only for a
+        sensor with a dark-current DSNU (``dsnu_dark_current_percent`` > 0), at :data:`DEFAULT_DSNU_EXPOSURE_FACTOR`.
     """
 
     size: int = 256
@@ -145,6 +162,7 @@ class EmvaSetup:
     seed: int = 0
     camera: str = DEFAULT_CAMERA
     workers: int = 2
+    dsnu_exposure_factor: float | None = None
 
     def __post_init__(self):
         if not (isinstance(self.size, int) and 16 <= self.size <= 4096):
@@ -164,6 +182,11 @@ class EmvaSetup:
             raise CamsimError(f"seed must be an integer ≥ 0, got {self.seed!r}")
         if not (isinstance(self.workers, int) and self.workers >= 1):
             raise CamsimError(f"workers must be an integer ≥ 1, got {self.workers!r}")
+        factor = self.dsnu_exposure_factor
+        if factor is not None and not (isinstance(factor, (int, float)) and not isinstance(factor, bool)
+                                       and math.isfinite(factor) and 1.0 < factor <= 100.0):
+            raise CamsimError(f"dsnu_exposure_factor (the DSNU's second exposure time over the first) must be > 1 "
+                              f"and ≤ 100, got {factor!r}")
         wl = GRID.wavelengths_nm
         if not np.any(np.isclose(wl, self.wavelength_nm)):
             raise CamsimError(f"test wavelength {self.wavelength_nm} nm is not a centre of the {GRID.step_nm:g} nm "
@@ -195,6 +218,13 @@ class Measurement:
         Standard deviation of the sensor's actual maps over the analysed pixels (None when off).
     frames : int
         Frames rendered.
+    dsnu_exposure_s : float or None
+        T₂, the exposure time of the second dark stack (None: not taken). Unit: s.
+    dark_stack_long : dict or None
+        That stack, reduced as the spatial stacks (``{'L', 'sum', 'pvar', 'dmean'}``).
+    realised_dark_dsnu_e_per_s : float or None
+        Standard deviation over the analysed pixels of the actual dark-current rates σ²_dark,G · d (None when the
+        dark-current DSNU is off). Unit: e⁻/s.
     """
 
     sensor: SensorParams
@@ -209,6 +239,9 @@ class Measurement:
     realised_prnu_percent: float | None = None
     frames: int = 0
     camera: str = ""
+    dsnu_exposure_s: float | None = None
+    dark_stack_long: dict | None = None
+    realised_dark_dsnu_e_per_s: float | None = None
 
 
 @dataclass
@@ -221,10 +254,17 @@ class EmvaResult:
     recovered: dict
     details: dict = field(default_factory=dict)
 
+    @property
+    def quantities(self) -> dict:
+        """:data:`QUANTITIES`, then :data:`SPLIT_QUANTITIES` where the second dark stack was taken."""
+        if self.measurement.dark_stack_long is None:
+            return QUANTITIES
+        return {**QUANTITIES, **SPLIT_QUANTITIES}
+
     def comparison(self) -> dict:
-        """``{key: {"configured", "recovered", "relative_error"}}`` for :data:`QUANTITIES` (None = undefined)."""
+        """``{key: {"configured", "recovered", "relative_error"}}`` for :attr:`quantities` (None = undefined)."""
         out = {}
-        for key in QUANTITIES:
+        for key in self.quantities:
             c, r = self.configured[key], self.recovered[key]
             rel = None if c is None or r is None or c == 0 else (r - c) / c
             out[key] = {"configured": c, "recovered": r, "relative_error": rel}
@@ -232,7 +272,7 @@ class EmvaResult:
 
     def within_target(self, key: str) -> bool | None:
         """Whether ``key`` meets its target; None when it has none (saturation) or is off (DSNU/PRNU = 0)."""
-        target = QUANTITIES[key][1]
+        target = self.quantities[key][1]
         rel = self.comparison()[key]["relative_error"]
         if target is None or not self.configured[key]:
             return None
@@ -315,20 +355,28 @@ def simulate(sensor: SensorParams, setup: EmvaSetup = EmvaSetup(), preset_name: 
         photon_rate[0, bin_index] = mu_p * per_photon
         return LitScene(labels, photon_rate, qe_abs, GRID)
 
-    frames = 2 * (len(photons) + 1) + 2 * setup.stack_frames
+    factor = setup.dsnu_exposure_factor
+    if factor is None and sensor.dsnu_dark_current_percent > 0:
+        factor = DEFAULT_DSNU_EXPOSURE_FACTOR
+    long_sensor = None if factor is None else dataclasses.replace(sensor, exposure_s=sensor.exposure_s * factor)
+    if long_sensor is not None and not predicted_saturation_e(long_sensor) > 0:
+        raise CamsimError(f"the dark signal alone saturates this sensor at the DSNU's second exposure time, "
+                          f"{long_sensor.exposure_s:g} s: choose a smaller dsnu_exposure_factor")
+
+    frames = 2 * (len(photons) + 1) + 2 * setup.stack_frames + (0 if long_sensor is None else setup.stack_frames)
     bar = None
     if progress:
         from tqdm import tqdm
 
         bar = tqdm(total=frames, desc="EMVA 1288 frames", unit="frame", leave=False)
 
-    def shoot(mu_p: float, key: tuple, count: int) -> dict:
+    def shoot(mu_p: float, key: tuple, count: int, camera_sensor: SensorParams = sensor) -> dict:
         """``count`` frames at μ_p, reduced as emva1288's ``routines.get_int_imgs`` does, without keeping them."""
         light = field_at(mu_p)
         stack = IntStack()
         for j in range(count):
             ss = emva_frame_seed_sequence(setup.seed, *key, j)
-            frame = make_frame(light, sensor, 1.0, statistics="pixel", method="poisson", rng=ss,
+            frame = make_frame(light, camera_sensor, 1.0, statistics="pixel", method="poisson", rng=ss,
                                workers=setup.workers)
             stack.add(channel_image(frame.digital_dn, sensor))
             if bar is not None:
@@ -347,6 +395,7 @@ def simulate(sensor: SensorParams, setup: EmvaSetup = EmvaSetup(), preset_name: 
             0.0: shoot(0.0, (2, 0), setup.stack_frames),
             photons_spatial: shoot(photons_spatial, (2, 1), setup.stack_frames),
         }
+        dark_long = None if long_sensor is None else shoot(0.0, (2, 2), setup.stack_frames, long_sensor)
     finally:
         if bar is not None:
             bar.close()
@@ -359,8 +408,12 @@ def simulate(sensor: SensorParams, setup: EmvaSetup = EmvaSetup(), preset_name: 
         dsnu = float(np.std(_channel_map(maps.offset_e, sensor), dtype=np.float64))
     if maps is not None and maps.gain is not None:
         prnu = float(100 * np.std(_channel_map(maps.gain, sensor), dtype=np.float64))
+    dark_dsnu = None
+    if maps is not None and maps.dark_gain is not None and sensor.dark_current:
+        rate = sensor.dark_current_e_per_s[CHANNEL]
+        dark_dsnu = float(rate * np.std(_channel_map(maps.dark_gain, sensor), dtype=np.float64))
     return Measurement(sensor, setup, preset_name, eta, photons, photons_spatial, sat_e, data, dsnu, prnu, frames,
-                       camera.name)
+                       camera.name, None if long_sensor is None else long_sensor.exposure_s, dark_long, dark_dsnu)
 
 
 def analyse(measurement: Measurement) -> EmvaResult:
@@ -416,7 +469,57 @@ def _analyse(measurement: Measurement) -> EmvaResult:
                 "DSNU1288_row", "DSNU1288_col", "DSNU1288_pixel", "PRNU1288_row", "PRNU1288_col", "PRNU1288_pixel")},
         }
     configured = configured_values(measurement.sensor, measurement.eta)
+    if measurement.dark_stack_long is not None:  # the DSNU at a second exposure time, and its split
+        t1, t2 = measurement.sensor.exposure_s, measurement.dsnu_exposure_s
+        s2_long = dark_spatial_variance_dn2(measurement.dark_stack_long)
+        dsnu_long = math.sqrt(s2_long) / res.K if s2_long >= 0 else None
+        offset, rate = dsnu_split(recovered["dsnu_e"], t1, dsnu_long, t2)
+        recovered.update({"dsnu_offset_e": offset, "dsnu_dark_current_e_per_s": rate})
+        configured.update(configured_split(measurement.sensor))
+        details.update({"dsnu_exposures_s": (t1, t2), "s2_ydark_long_dn2": s2_long, "dsnu_long_e": dsnu_long,
+                        "dsnu_long_dn": None if dsnu_long is None else dsnu_long * res.K})
     return EmvaResult(measurement, res, configured, recovered, details)
+
+
+def dark_spatial_variance_dn2(stack: dict) -> float:
+    """EMVA 1288's spatial variance of the dark signal, s²_y.dark, from a stack of L dark frames. Unit: DN².
+
+    The variance over pixels (ddof = 1) of the averaged image, less the temporal variance left in the average:
+    the mean over pixels of each pixel's variance over the L frames, divided by L. The reference implementation's
+    ``Data1288`` (``avg_var``, ``var_mean``) and ``Results1288.s_2_y_dark`` compute it so for the one exposure
+    time of their spatial data; this gives the same number for any stack reduced by :class:`IntStack`.
+    """
+    frames = stack["L"]
+    average = stack["sum"] / frames
+    temporal = float(np.mean(stack["pvar"] / (frames * frames * (frames - 1))))
+    return float(np.var(average, ddof=1)) - temporal / frames
+
+
+def dsnu_split(dsnu_1, t_1: float, dsnu_2, t_2: float) -> tuple:
+    """The offset part σ_o and the dark-current rate c of DSNU²(T) = σ_o² + (c T)², through two measurements.
+
+    σ_o² = (T₂² DSNU₁² − T₁² DSNU₂²) / (T₂² − T₁²) and c² = (DSNU₂² − DSNU₁²) / (T₂² − T₁²): an offset DSNU is the
+    same at every T, a DSNU of the dark-current rate grows ∝ T, and independent maps add in variance.
+
+    Parameters
+    ----------
+    dsnu_1, dsnu_2 : float or None
+        DSNU at T₁ and T₂ (None: undefined). Unit: e⁻.
+    t_1, t_2 : float
+        The exposure times, T₂ > T₁. Unit: s.
+
+    Returns
+    -------
+    tuple
+        (σ_o in e⁻, c in e⁻/s); None where undefined or where the estimate of its square is negative (below the
+        estimators' noise).
+    """
+    if dsnu_1 is None or dsnu_2 is None:
+        return None, None
+    span = t_2 * t_2 - t_1 * t_1
+    offset2 = (t_2 * t_2 * dsnu_1 * dsnu_1 - t_1 * t_1 * dsnu_2 * dsnu_2) / span
+    rate2 = (dsnu_2 * dsnu_2 - dsnu_1 * dsnu_1) / span
+    return (math.sqrt(offset2) if offset2 >= 0 else None), (math.sqrt(rate2) if rate2 >= 0 else None)
 
 
 def run(preset_name: str | None = None, setup: EmvaSetup = EmvaSetup(), sensor: SensorParams | None = None,

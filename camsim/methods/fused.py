@@ -30,13 +30,13 @@ from camsim.stages import (
 
 
 def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor: SensorParams,
-                 statistics: str, c: int, rng, z, work, offset=None, gain=None):
+                 statistics: str, c: int, rng, z, work, offset=None, gain=None, dark_gain=None):
     """One channel of a block, in DN before quantisation, by the plan: ``out_c`` (h, w) float32 is written in place.
 
     ``z`` (h, w) float32 and ``work`` are scratch. Each pixel uses one draw from ``z``: its read noise on the exact
     path, or (rescaled) its whole Gaussian value; the clipped Gaussian, and the Gaussian under non-Gaussian read
-    noise, draw their own normals. ``offset`` (DSNU, e⁻) and ``gain`` (PRNU) are this block's fixed-pattern maps,
-    (h, w), or None.
+    noise, draw their own normals. ``offset`` (offset DSNU, e⁻), ``gain`` (PRNU) and ``dark_gain`` (dark-current
+    DSNU) are this block's fixed-pattern maps, (h, w), or None.
     """
     k = sensor.dn_per_electron
     read = sensor.read_noise_e if sensor.read_noise else 0.0
@@ -51,13 +51,17 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
     runs = label_runs(labels)
     pieces = ([((slice(r0, r1), slice(c0, c1)), label) for r0, r1, c0, c1, label in runs] if runs is not None
               else [(labels_of, None) for labels_of in _masks_by_kind(labels, plan.kind[:, c])])
-    simple = offset is None and gain is None
+    dark = expected.dark_e[c]
+    if not dark > 0:
+        dark_gain = None  # no dark current in this channel: nothing for the map to scale
+    simple = offset is None and gain is None and dark_gain is None
     for where, label in pieces:
         index = label if label is not None else labels[where]
         first = label if label is not None else index[0]
         kind = plan.kind[first, c]
         zz = z[where]
         g = None if gain is None else gain[where]
+        d = None if dark_gain is None else dark_gain[where]
         if kind == SATURATED:  # far above the full well: the full well plus read noise, exactly
             value = add_read_noise_e(sensor.full_well_e, zz) if read > 0 else np.full(zz.shape, sensor.full_well_e)
         elif kind in (GAUSSIAN, GAUSSIAN_CLIPPED):
@@ -65,6 +69,8 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
             mean = lam[index] if g is None else lam[index] + (g - 1) * signal
             mean = mean if offset is None else mean + offset[where]
             var = var_charge[index] if g is None else var_charge[index] + (g - 1) * expected.signal_var_e2[index, c]
+            if d is not None:  # Poisson(D̄ d): mean and variance both move by (d − 1) D̄
+                mean, var = mean + (d - 1) * dark, var + (d - 1) * dark
             if kind == GAUSSIAN and gaussian_z and simple and label is not None:
                 view = out_c[where]  # a rectangle: two in-place passes, straight into the output
                 np.multiply(zz, np.float32(k * np.sqrt(var + read**2) / z_scale), out=view)
@@ -85,7 +91,7 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
             clip = bool(np.any(plan.needs_clip[index, c]))
             charge = collect_charge_e(rng, expected.signal_e[index, c], expected.dark_e[c],
                                       expected.signal_var_e2[index, c], statistics=statistics,
-                                      photon_noise=sensor.photon_noise, size=size, gain=g,
+                                      photon_noise=sensor.photon_noise, size=size, gain=g, dark_gain=d,
                                       saturation_e=None if not clip else saturation_level_e(
                                           sensor.full_well_e, None if offset is None else offset[where]))
             charge = add_offset_e(charge, None if offset is None else offset[where])
@@ -117,7 +123,7 @@ def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None
     sensor, plan, expected = job.sensor, job.plan, job.expected
     block = job.noisy[:, r0:r1]  # work in place in the output
     labels = job.labels[r0:r1]
-    offset, gain = job.maps_rows(r0, r1)
+    offset, gain, dark_gain = job.maps_rows(r0, r1)
     row_noise_dn = sensor.row_noise_e * sensor.dn_per_electron
     if sensor.cfa is not None:  # each site of the 2 × 2 cell: its channel only
         for dy, dx, c in cfa_sites(sensor.cfa):
@@ -126,7 +132,7 @@ def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None
             value = np.empty(sub_labels.shape, dtype=np.float32)
             fill_channel(value, sub_labels, plan, expected, sensor, job.statistics, c, rng, np.empty_like(value),
                          scratch.work, None if offset is None else offset[c][site],
-                         None if gain is None else gain[c][site])
+                         None if gain is None else gain[c][site], None if dark_gain is None else dark_gain[c][site])
             block[0][site] = value
         planes = [0]
     else:
@@ -135,7 +141,7 @@ def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None
         if sensor.cfa is None:
             fill_channel(block[p], labels, plan, expected, sensor, job.statistics, p, rng,
                          scratch.plane[: r1 - r0], scratch.work, None if offset is None else offset[p],
-                         None if gain is None else gain[p])
+                         None if gain is None else gain[p], None if dark_gain is None else dark_gain[p])
         if sensor.row_noise_e > 0:  # a physical row shares its offset, whatever the colour of its pixels
             add_row_noise(block[p], row_noise_dn, rng)
         if job.digital is not None:

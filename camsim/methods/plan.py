@@ -23,6 +23,7 @@ import numpy as np
 from scipy import stats
 
 from camsim.expected import ExpectedSignal
+from camsim.fixed_pattern import dark_gain_at
 from camsim.methods import DEFAULT_TOLERANCE
 from camsim.sensor import SensorParams
 
@@ -124,6 +125,12 @@ def plan_methods(expected: ExpectedSignal, sensor: SensorParams, statistics: str
     spread = SATURATION_MARGIN_SIGMA * np.sqrt(var_charge)
     # fixed-pattern maps move a pixel's mean: widen the margins by 6 σ of each map
     spread = spread + 6 * (sensor.prnu_percent / 100 * expected.signal_e + sensor.dsnu_e)
+    if sensor.dsnu_dark_current_percent > 0:
+        # the log-normal dark map, within 6 σ of its normal: a hot pixel's dark mean and variance grow by
+        # D̄ (d₆ − 1) (more than a cold one's fall); a cold one's Poisson mean, D̄ d₋₆, is where the KS is judged
+        hot = expected.dark_e * (dark_gain_at(sensor, 6.0) - 1)
+        spread = spread + hot + SATURATION_MARGIN_SIGMA * (np.sqrt(var_charge + hot) - np.sqrt(var_charge))
+        lam_poisson = lam_poisson - expected.dark_e * (1 - dark_gain_at(sensor, -6.0))
     if sensor.saturation:
         below = lam + spread <= sensor.full_well_e
         above = lam - spread >= sensor.full_well_e
@@ -138,6 +145,9 @@ def plan_methods(expected: ExpectedSignal, sensor: SensorParams, statistics: str
         ks[where] = predicted_ks(lam_poisson[where], value)
     # P(X ≥ mean + 10 σ + 10) < 1e-22 for these Poisson-like totals: below that, clipping cannot act
     fpn = 10 * (sensor.prnu_percent / 100 * expected.signal_e + sensor.dsnu_e)
+    if sensor.dsnu_dark_current_percent > 0:  # the dark map's hot pixels, within 10 σ of its normal
+        hot = expected.dark_e * (dark_gain_at(sensor, 10.0) - 1)
+        fpn = fpn + hot + 10 * (np.sqrt(var_charge + hot) - np.sqrt(var_charge))
     needs_clip = sensor.saturation & (lam + 10 * np.sqrt(var_charge) + 10 + fpn >= sensor.full_well_e)
     if method == "poisson":
         kind, tolerance = np.full(lam.shape, EXACT), None

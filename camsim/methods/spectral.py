@@ -3,8 +3,9 @@
 ``paper`` statistics: Poisson(F g(λi)) photons / (s m² sr) per bin, shared by the three channels and weighted by
 T · Qe (Eq. 4 literally, so the channels are correlated as the paper's model says). ``pixel`` statistics:
 per-bin detected electrons Poisson(T F g Qe) per channel, summed: equal in distribution to ``poisson``, a live
-check of the thinning argument. Dark current is added as Poisson(D̄); with photon noise off the charge is S̄ plus
-Poisson(D̄). Then saturation, read noise, row noise, gain and the ADC (:mod:`camsim.stages`), plane by plane.
+check of the thinning argument. Dark current is added as Poisson(D̄), or Poisson(D̄ d) per pixel with the
+dark-current DSNU map d; with photon noise off the charge is S̄ plus that dark draw. Then saturation, read noise,
+row noise, gain and the ADC (:mod:`camsim.stages`), plane by plane.
 Where the full well acts, a spectrum far above it has its per-bin means scaled down to the saturation cap of
 :func:`camsim.stages.cap_mean_e` (:func:`bin_scale`), and the dark mean is capped alike.
 """
@@ -31,15 +32,17 @@ from camsim.stages import (
 
 
 def draw_bins(labels, expected: ExpectedSignal, sensor: SensorParams, statistics: str, rng, out,
-              saturation_e: float | None = None):
+              saturation_e: float | None = None, dark_gain=None):
     """Fill ``out`` (3, h, w) float32 with the collected charge S + D of every pixel, by per-bin draws. Unit: e⁻.
 
     ``saturation_e``: with a full well, the charge at and above which every pixel is saturated (the full well
     minus the most negative DSNU offset); a spectrum whose mean charge is far above it has its bins' means scaled
     down to the saturation cap (:func:`camsim.stages.cap_mean_e`, :func:`bin_scale`), and the dark mean is capped.
+    ``dark_gain``: the dark-current DSNU map d of these pixels, (3, h, w), or None: the dark charge is then
+    Poisson(D̄ d), one draw per pixel and channel.
     """
     if not sensor.photon_noise:
-        return _draw_without_photon_noise(labels, expected, sensor, statistics, rng, out, saturation_e)
+        return _draw_without_photon_noise(labels, expected, sensor, statistics, rng, out, saturation_e, dark_gain)
     T = sensor.exposure_s
     rate = expected.photon_rate
     qe = expected.qe
@@ -65,9 +68,12 @@ def draw_bins(labels, expected: ExpectedSignal, sensor: SensorParams, statistics
         for c in range(3):
             out_flat[c][start : start + chunk] = signal[:, c]
     for c in range(3):
-        dark = expected.dark_e[c] if saturation_e is None else cap_mean_e(expected.dark_e[c], saturation_e)
-        if dark > 0:
-            out[c] += poisson(rng, dark, size=out[c].shape)
+        dark = expected.dark_e[c]
+        if not dark > 0:
+            continue
+        mean = dark if dark_gain is None else dark * dark_gain[c]
+        mean = mean if saturation_e is None else cap_mean_e(mean, saturation_e)
+        out[c] += poisson(rng, mean, size=out[c].shape)
     return out
 
 
@@ -94,37 +100,40 @@ def bin_scale(expected: ExpectedSignal, statistics: str, saturation_e: float):
 
 
 def _draw_without_photon_noise(labels, expected: ExpectedSignal, sensor: SensorParams, statistics: str, rng, out,
-                               saturation_e: float | None = None):
-    """S̄ plus Poisson(D̄) per pixel and channel (nothing to draw per bin), rectangle by rectangle."""
+                               saturation_e: float | None = None, dark_gain=None):
+    """S̄ plus Poisson(D̄) (or Poisson(D̄ d)) per pixel and channel (nothing to draw per bin), rectangle by
+    rectangle."""
     runs = label_runs(labels)
     for c in range(3):
-        def charge(index, size=None):
+        def charge(index, size=None, where=(slice(None),)):
             return collect_charge_e(rng, expected.signal_e[index, c], expected.dark_e[c],
                                     expected.signal_var_e2[index, c], statistics=statistics,
-                                    photon_noise=sensor.photon_noise, size=size, saturation_e=saturation_e)
+                                    photon_noise=sensor.photon_noise, size=size, saturation_e=saturation_e,
+                                    dark_gain=None if dark_gain is None else dark_gain[c][where])
 
         if runs is None:
             out[c][...] = charge(labels)
             continue
         for r0, r1, c0, c1, label in runs:
-            out[c][r0:r1, c0:c1] = charge(label, (r1 - r0, c1 - c0))
+            out[c][r0:r1, c0:c1] = charge(label, (r1 - r0, c1 - c0), (slice(r0, r1), slice(c0, c1)))
     return out
 
 
 def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None:
-    """Rows ``r0:r1`` of a frame: per-bin charge of the three channels (a CFA keeps each site's own), the DSNU
-    offset, then saturation, read noise, row noise, gain and the ADC on each plane."""
+    """Rows ``r0:r1`` of a frame: per-bin charge of the three channels (a CFA keeps each site's own) with the dark
+    charge (per pixel with the dark-current DSNU), the offset DSNU, then saturation, read noise, row noise, gain and
+    the ADC on each plane."""
     sensor = job.sensor
     block = job.noisy[:, r0:r1]
-    offset, _ = job.maps_rows(r0, r1)
+    offset, _, dark_gain = job.maps_rows(r0, r1)
     level = saturation_level_e(sensor.full_well_e, offset) if sensor.saturation else None
     if sensor.cfa is None:
-        draw_bins(job.labels[r0:r1], job.expected, sensor, job.statistics, rng, block, level)
+        draw_bins(job.labels[r0:r1], job.expected, sensor, job.statistics, rng, block, level, dark_gain)
         if offset is not None:
             block += offset
     else:
         rgb = np.empty((3, r1 - r0, block.shape[2]), dtype=np.float32)
-        draw_bins(job.labels[r0:r1], job.expected, sensor, job.statistics, rng, rgb, level)
+        draw_bins(job.labels[r0:r1], job.expected, sensor, job.statistics, rng, rgb, level, dark_gain)
         for dy, dx, c in cfa_sites(sensor.cfa):
             site = (slice(dy, None, 2), slice(dx, None, 2))
             block[0][site] = rgb[c][site]
