@@ -127,7 +127,7 @@ def _camera_dn(frame, r0: int, r1: int) -> np.ndarray:
     sensor = frame.sensor
     quantised = frame.digital_dn is not None
     numbers = frame.digital_dn if quantised else frame.noisy_dn
-    black = sensor.black_level_dn - (0.5 if quantised else 0.0)  # Eq. 11's integer part lowers I by ½ DN
+    black = sensor.black_level_dn if quantised else sensor.dark_level_dn  # the mean of an unlit pixel's numbers
     if sensor.cfa is None:
         return np.moveaxis(numbers[:, r0:r1], 0, -1).astype(np.float64) - black
     from colour_demosaicing import demosaicing_CFA_Bayer_bilinear
