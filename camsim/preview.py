@@ -4,8 +4,9 @@ The preview develops the frame's digital numbers the way a simple camera pipelin
 
 1. **Numbers**: the quantised digital numbers I (``frame.digital_dn``), or the float ``frame.noisy_dn`` when
    quantisation is off. A Bayer mosaic is demosaiced first (bilinear, colour-demosaicing).
-2. **Black level**: the sensor's mean dark level k · σ²_dark · T is subtracted (minus ½ DN for quantised numbers,
-   since Eq. 11 keeps the integer part — as ``camsim analyze --subtract-black`` does).
+2. **Black level**: the mean of an unlit pixel's numbers is subtracted — the true black level
+   (:attr:`camsim.sensor.SensorParams.black_level_dn`, after Eq. 11's floor) from quantised numbers, the level
+   before the ADC (``dark_level_dn``) from unquantised ones, as ``camsim analyze --subtract-black`` does.
 3. **Camera RGB → XYZ**: by default (``matrix="least-squares"``) the 3 × 3 matrix that best maps the chart
    patches' expected camera DN (k · S, noise-free, under the frame's own illuminant) to their CIE 1931 XYZ in
    cd/m²; ``matrix="paper"`` uses Eq. 15's projection on the colour-matching functions, M = (T Tᵗ)(C Tᵗ)⁻¹,
