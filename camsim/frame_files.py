@@ -206,6 +206,7 @@ def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo
         "camsim:camera": info.camera,
         "camsim:dn_per_electron": repr(sensor.dn_per_electron),
         "camsim:black_level_dn": json.dumps(sensor.black_level_dn.tolist()),
+        "camsim:dark_level_dn": json.dumps(sensor.dark_level_dn.tolist()),  # the mean of these values in the dark
         "camsim:units": "DN",
         EXR_METADATA_KEY: json.dumps(meta, ensure_ascii=False),
     }
@@ -257,11 +258,14 @@ class LoadedFrame:
     def expected_black_dn(self) -> np.ndarray:
         """The expected dark level of this file's numbers, per channel. Unit: DN.
 
-        The sidecar's mean dark level k · σ²_dark · T; for quantised numbers minus ½ DN, because Eq. 11 keeps the
-        integer part, which lowers the numbers by ½ DN on average.
+        The sidecar's ``black_level_dn`` (the exact mean digital number of an unlit pixel) for a DNG's quantised
+        numbers, its ``dark_level_dn`` (the mean before the ADC) for an EXR's. A sidecar of an older camsim, without
+        ``dark_level_dn``, held the level before the ADC as ``black_level_dn``: ½ DN less is its quantised mean.
         """
         black = np.asarray(self.meta["black_level_dn"], dtype=np.float64)
-        return black - 0.5 if self.quantised else black
+        if "dark_level_dn" not in self.meta:
+            return black - 0.5 if self.quantised else black
+        return black if self.quantised else np.asarray(self.meta["dark_level_dn"], dtype=np.float64)
 
 
 def _read_sidecar(path: Path) -> dict:

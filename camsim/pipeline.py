@@ -306,9 +306,10 @@ def frame_warnings(sensor: SensorParams) -> list[str]:
       the ADC, so every pixel reads the white level ("every" when k (D̄ − 6 σ) ≥ 2^nb − 1, σ² = D̄ + DSNU² + σ_read²
       + σ_row²) — a high gain does this before the well fills.
 
-    Both may leave the model's black level k · D̄ at or above the white level; the DNG's BlackLevel is then written
-    as the white level − 1 (:attr:`camsim.sensor.SensorParams.black_level_tag_dn`), which the warning says too,
-    as it does when only that clip applies (k · D̄ within 1 DN of the white level).
+    Both may put the black level (the mean digital number of an unlit pixel,
+    :attr:`camsim.sensor.SensorParams.black_level_dn`) above the white level − 1; the DNG's BlackLevel is then
+    written as the white level − 1 (:attr:`camsim.sensor.SensorParams.black_level_tag_dn`), which the warning says
+    too, as it does when only that clip applies (the black level within 1 DN of the white level).
 
     Returns
     -------
@@ -320,7 +321,7 @@ def frame_warnings(sensor: SensorParams) -> list[str]:
     black = sensor.black_level_dn
     clipped_tag = sensor.quantisation and bool(np.any(sensor.black_level_tag_dn != black))
     tag = (f"; the DNG's BlackLevel is written as {white - 1} DN, below its WhiteLevel {white} DN (sidecar "
-           f"black_level_tag_dn; black_level_dn keeps the model's {_channels(black, range(3), '.4g')} DN)"
+           f"black_level_tag_dn; black_level_dn keeps the true black level {_channels(black, range(3), '.4g')} DN)"
            if clipped_tag else "")
     read = sensor.read_noise_e if sensor.read_noise else 0.0
     when = f"at T = {sensor.exposure_s:g} s"
@@ -340,8 +341,8 @@ def frame_warnings(sensor: SensorParams) -> list[str]:
                 f"read{'s' if every else ''} {white} DN, whatever the light{tag}"]
     if clipped_tag:
         hit = [c for c in range(3) if black[c] > white - 1]
-        return [f"the dark level k·σ²_dark·T = {_channels(black, hit, '.4g')} DN {when} is within 1 DN of the white "
-                f"level {white} DN{tag}"]
+        return [f"the black level (the mean digital number of an unlit pixel) = {_channels(black, hit, '.4g')} DN "
+                f"{when} is within 1 DN of the white level {white} DN{tag}"]
     return []
 
 

@@ -4,8 +4,9 @@ The preview develops the frame's digital numbers the way a simple camera pipelin
 
 1. **Numbers**: the quantised digital numbers I (``frame.digital_dn``), or the float ``frame.noisy_dn`` when
    quantisation is off. A Bayer mosaic is demosaiced first (bilinear, colour-demosaicing).
-2. **Black level**: the sensor's mean dark level k · σ²_dark · T is subtracted (minus ½ DN for quantised numbers,
-   since Eq. 11 keeps the integer part — as ``camsim analyze --subtract-black`` does).
+2. **Black level**: the mean of an unlit pixel's numbers is subtracted — the true black level
+   (:attr:`camsim.sensor.SensorParams.black_level_dn`, after Eq. 11's floor) from quantised numbers, the level
+   before the ADC (``dark_level_dn``) from unquantised ones, as ``camsim analyze --subtract-black`` does.
 3. **Camera RGB → XYZ**: by default (``matrix="least-squares"``) the 3 × 3 matrix that best maps the chart
    patches' expected camera DN (k · S, noise-free, under the frame's own illuminant) to their CIE 1931 XYZ in
    cd/m²; ``matrix="paper"`` uses Eq. 15's projection on the colour-matching functions, M = (T Tᵗ)(C Tᵗ)⁻¹,
@@ -127,7 +128,7 @@ def _camera_dn(frame, r0: int, r1: int) -> np.ndarray:
     sensor = frame.sensor
     quantised = frame.digital_dn is not None
     numbers = frame.digital_dn if quantised else frame.noisy_dn
-    black = sensor.black_level_dn - (0.5 if quantised else 0.0)  # Eq. 11's integer part lowers I by ½ DN
+    black = sensor.black_level_dn if quantised else sensor.dark_level_dn  # the mean of an unlit pixel's numbers
     if sensor.cfa is None:
         return np.moveaxis(numbers[:, r0:r1], 0, -1).astype(np.float64) - black
     from colour_demosaicing import demosaicing_CFA_Bayer_bilinear

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from camsim.black_level import unlit_mean_dn
 from camsim.cfa import CFA_PATTERNS
 from camsim.errors import CamsimError
 from camsim.schema import param, params_of, record, validate
@@ -24,7 +25,7 @@ def _layout_record(sensor) -> dict:
 
 def _adc_record(sensor) -> dict:
     record = {"bits": sensor.bits, "white_level_dn": sensor.max_dn, "dn_per_electron": sensor.dn_per_electron,
-              "black_level_dn": sensor.black_level_dn.tolist()}
+              "black_level_dn": sensor.black_level_dn.tolist(), "dark_level_dn": sensor.dark_level_dn.tolist()}
     tag = sensor.black_level_tag_dn
     if sensor.quantisation and np.any(tag != sensor.black_level_dn):  # only where the DNG says something else
         record["black_level_tag_dn"] = tag.tolist()
@@ -120,10 +121,33 @@ class SensorParams:
             return np.zeros(3)
         return np.asarray(self.dark_current_e_per_s) * self.exposure_s
 
+    def _unlit_mean_dn(self, quantisation: bool) -> np.ndarray:
+        return unlit_mean_dn(
+            self.dark_mean_e, dn_per_electron=self.dn_per_electron, bits=self.bits, quantisation=quantisation,
+            full_well_e=self.full_well_e if self.saturation else None, dsnu_e=self.dsnu_e,
+            dark_rate_rel_sigma=self.dsnu_dark_current_percent / 100 if self.dark_current else 0.0,
+            read_noise_e=self.read_noise_e if self.read_noise else 0.0,
+            read_noise_model=self.read_noise_model, tukey_lambda=self.tukey_lambda, row_noise_e=self.row_noise_e)
+
     @property
     def black_level_dn(self) -> np.ndarray:
-        """Mean dark level in DN (before quantisation), per channel, shape (3,). Unit: DN."""
-        return self.dark_mean_e * self.dn_per_electron
+        """The true black level: the exact mean digital number of an unlit pixel, per channel, shape (3,). Unit: DN.
+
+        E[clip(floor(k (min(D + o, FW) + read + row)), 0, 2^nb − 1)] over the dark charge, the noise and the
+        fixed-pattern maps' law (:func:`camsim.black_level.unlit_mean_dn`): what a dark frame's mean converges to,
+        and so what a raw reader must subtract. Eq. 11's floor puts it about ½ DN below :attr:`dark_level_dn`
+        (Table I: 5.025, 6.018, 5.683 DN against 5.525, 6.517, 6.177). Without quantisation it is :attr:`dark_level_dn`.
+        """
+        return self._unlit_mean_dn(self.quantisation)
+
+    @property
+    def dark_level_dn(self) -> np.ndarray:
+        """The mean dark level before the ADC, per channel, shape (3,). Unit: DN.
+
+        k · E[min(D + o, FW)]: k · σ²_dark · T wherever the dark charge stays below the full well (every ordinary
+        sensor). The mean of an unlit pixel's values before quantisation (the EXR's).
+        """
+        return self._unlit_mean_dn(False)
 
     @property
     def black_level_tag_dn(self) -> np.ndarray:
@@ -160,7 +184,7 @@ class SensorParams:
 
 #: Sidecar keys of the sensor that change with the exposure time T alone: frames of one auto-exposed series
 #: (``exposure = "auto"``) differ in them and are still one measurement.
-EXPOSURE_KEYS = ("exposure_s", "black_level_dn", "black_level_tag_dn")
+EXPOSURE_KEYS = ("exposure_s", "black_level_dn", "dark_level_dn", "black_level_tag_dn")
 
 #: The sensor's parameters (:class:`camsim.schema.Param`), in declaration order.
 SENSOR_PARAMS = params_of(SensorParams)

@@ -23,6 +23,7 @@ from camsim.pipeline import check_frames, frame_warnings, light_scene, make_fram
 from camsim.sensor import PRESETS, SensorParams
 from camsim.stages import SATURATION_CAP_TAIL, cap_mean_e, collect_charge_e, saturating_mean_e
 from tests.helpers import small_scene
+from tests.theory import mean_dn_tail_sum
 
 TABLE1 = SensorParams()
 SMALL = ["--illuminant", "D65", "--size", "64x48", "-q"]
@@ -251,13 +252,22 @@ def test_frame_warnings_conditions():
     # nothing clips without saturation and quantisation; with only the well, no DNG tag to mention
     assert frame_warnings(dataclasses.replace(TABLE1, exposure_s=50.0, saturation=False, quantisation=False)) == []
     assert "BlackLevel" not in frame_warnings(dataclasses.replace(TABLE1, exposure_s=50.0, quantisation=False))[0]
-    # the dark level within 1 DN of the white level: only the tag
-    near = frame_warnings(dataclasses.replace(TABLE1, exposure_s=39.06))
-    assert len(near) == 1 and near[0].startswith("the dark level k·σ²_dark·T = G 254.5 DN")
+    # the black level within 1 DN of the white level: only the tag. k · D̄ = 254.9 DN with a noise of 0.23 DN
+    # (k = 2e-4 DN/e⁻, no well): the floor and the clip at 255 make 254.33 DN of it (tests.theory's tail sum)
+    low_gain = SensorParams(analog_gain_dn_per_v=1.0, dark_current_e_per_s=1e6, exposure_s=1.2745, saturation=False)
+    np.testing.assert_allclose(low_gain.black_level_dn, mean_dn_tail_sum(1.2745e6, 2e-4, 4.0, 8), atol=1e-9)
+    near = frame_warnings(low_gain)
+    assert len(near) == 1 and near[0].startswith(
+        "the black level (the mean digital number of an unlit pixel) = R 254.3, G 254.3, B 254.3 DN at T = 1.2745 s "
+        "is within 1 DN of the white level 255 DN; the DNG's BlackLevel is written as 254 DN")
     # 12 bits: the well (4000 DN) fills below the ADC's 4095
-    emva = frame_warnings(dataclasses.replace(PRESETS["emva-12bit"], exposure_s=500.0))[0]
+    full_emva = dataclasses.replace(PRESETS["emva-12bit"], exposure_s=500.0)
+    emva = frame_warnings(full_emva)[0]
     assert emva.startswith("dark current alone fills the well: σ²_dark·T = R 12500, G 12500, B 12500 e⁻")
-    assert "BlackLevel is written as 4094 DN" in emva
+    # every pixel reads floor(0.4 (10 000 + read noise)), about 3999.5 DN: a BlackLevel below the WhiteLevel
+    assert "BlackLevel" not in emva
+    codes = np.arange(1, 4096)
+    np.testing.assert_allclose(full_emva.black_level_dn, stats.norm.sf((codes / 0.4 - 10000) / 3.0).sum(), atol=1e-9)
 
 
 def test_black_level_tag():
@@ -280,8 +290,11 @@ def test_cli_dark_fills_the_well_warns_once_and_writes_a_readable_dng(tmp_path, 
     assert len(err) == 1 and err[0].startswith("camsim: warning: dark current alone fills the well: σ²_dark·T = ")
     assert "every pixel saturates" in err[0]
     sidecar = json.loads((out / "macbeth_26_D65_F1.json").read_text())
-    assert np.allclose(sidecar["black_level_dn"], [195 * 50 * TABLE1.dn_per_electron, 230 * 50 * TABLE1.dn_per_electron,
-                                                   218 * 50 * TABLE1.dn_per_electron])
+    # every pixel holds the full well: before the ADC k · 9000 = 255.006 DN; after it 254, or 255 when the read
+    # noise reaches 255 / k − 9000 e⁻
+    k = TABLE1.dn_per_electron
+    assert np.allclose(sidecar["dark_level_dn"], [k * 9000] * 3)
+    assert np.allclose(sidecar["black_level_dn"], [254 + stats.norm.sf((255 / k - 9000) / 4.0)] * 3)
     assert sidecar["black_level_tag_dn"] == [254.0, 254.0, 254.0]
     for name in ("macbeth_26_D65_F1.dng", "macbeth_26_D65_F0.1.dng"):
         with rawpy.imread(str(out / name)) as raw:

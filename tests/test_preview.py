@@ -173,7 +173,7 @@ def test_row_blocks_do_not_change_the_picture(scene, monkeypatch, cfa):
         # subtracted first, as the preview does)
         expected = np.asarray(demosaicing_CFA_Bayer_bilinear(frame.digital_dn[0].astype(np.float64), cfa))
         got = preview_module._camera_dn(frame, 40, 60)
-        black = frame.sensor.black_level_dn - 0.5
+        black = frame.sensor.black_level_dn
         np.testing.assert_allclose(got[:, 1:-1], expected[40:60, 1:-1] - black, atol=1e-9)
 
 

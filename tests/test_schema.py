@@ -120,7 +120,8 @@ def test_render_settings_and_methods_share_one_registry(tmp_path):
 
 def test_sidecar_keys_of_the_table1_sensor_are_the_documented_ones():
     record = SensorParams().sidecar_record()
-    assert record["black_level_dn"] == pytest.approx(np.array([195.0, 230.0, 218.0]) * 0.0002 * 141.67)
+    assert record["dark_level_dn"] == pytest.approx(np.array([195.0, 230.0, 218.0]) * 0.0002 * 141.67)
+    assert record["black_level_dn"] == SensorParams().black_level_dn.tolist()  # the floor's: tests/test_black_level
     assert record["white_level_dn"] == 255 and record["sensor_layout"] == "three-chip"
     assert record["stages"] == dict.fromkeys(STAGES, True)
     assert record["tukey_lambda"] is None  # only with the Tukey lambda read noise

@@ -154,7 +154,11 @@ def test_each_noise_stage_alone_adds_its_variance(scene, stage, variance_e2):
 
 def test_dark_switch_removes_mean_and_black_level(scene):
     sensor = TABLE1.with_stages(dark_current=False)
-    assert np.all(sensor.black_level_dn == 0) and np.all(TABLE1.black_level_dn > 5)
+    assert np.all(sensor.dark_level_dn == 0) and np.all(TABLE1.black_level_dn > 5)
+    # an unlit pixel reads 1 only where its read noise reaches 1 / k = 35.3 e⁻ (8.8 σ)
+    from scipy import stats
+
+    np.testing.assert_allclose(sensor.black_level_dn, stats.norm.sf(1 / (sensor.dn_per_electron * 4.0)), rtol=1e-9)
     frame, x = _stage_moments(scene, sensor)
     k = sensor.dn_per_electron
     for c in range(3):

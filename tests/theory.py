@@ -67,3 +67,18 @@ def anchored_signal_e(patch, illuminant, factor=1.0, exposure_s=1.0, reference_e
         rho = list(colour.SDS_COLOURCHECKERS[chart].values())[patch].copy().align(sens.shape).values
     white = light @ sens.values
     return reference_e * factor * exposure_s * ((rho * light) @ sens.values) / white.max()
+
+
+def mean_dn_tail_sum(lam, dn_per_e, sigma_e, bits, full_well_e=None):
+    """E[I] of I = clip(floor(k (min(N, FW) + z)), 0, 2^bits − 1), N ~ Poisson(λ), z ~ N(0, σ²) (σ = 0: none),
+    as the tail sum Σ_{j=1}^{top} P(I ≥ j), with P(I ≥ j) = Σ_n P(N = n) P(z ≥ j / k − min(n, FW))."""
+    top = 2**bits - 1
+    n = np.arange(max(0, int(lam - 15 * np.sqrt(lam) - 30)), int(lam + 15 * np.sqrt(lam) + 31))
+    p_n = stats.poisson.pmf(n, lam)
+    charge = n.astype(float) if full_well_e is None else np.minimum(n, full_well_e)
+    j_lo = min(top + 1, max(1, int(np.floor(dn_per_e * (charge.min() - 15 * sigma_e)))))
+    j_hi = min(top, int(np.ceil(dn_per_e * (charge.max() + 15 * sigma_e))) + 1)
+    j = np.arange(j_lo, j_hi + 1)
+    gap = j[None, :] / dn_per_e - charge[:, None]
+    tail = stats.norm.sf(gap / sigma_e) if sigma_e > 0 else (dn_per_e * charge[:, None] >= j[None, :]).astype(float)
+    return (j_lo - 1) + float(p_n @ tail.sum(axis=1))

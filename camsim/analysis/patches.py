@@ -26,7 +26,8 @@ class AnalysisSettings:
     border_px : int
         Pixels excluded along each edge of every patch rectangle.
     black : {'none', 'sidecar', 'dark-frame'}
-        Black-level subtraction: none (as in the paper), the sidecar's mean dark level, or a dark frame's mean.
+        Black-level subtraction: none (as in the paper), the sidecar's (the mean of an unlit pixel's numbers), or a
+        dark frame's mean.
     matrix : str
         Camera → XYZ method (``camsim.colorimetry.CAMERA_TO_XYZ_METHODS``).
     """

@@ -29,7 +29,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     parser.add_argument("paths", nargs="+", metavar="DIR_OR_FILES", help="frame files (.dng, .exr) or folders")
     parser.add_argument("--subtract-black", action="store_true",
-                        help="subtract the black level (the sidecar's mean dark level, in DN, or --dark's mean) "
+                        help="subtract the black level (the sidecar's mean DN of an unlit pixel, or --dark's mean) "
                              "before measuring; the paper does not, which drags dark colours to the black point")
     parser.add_argument("--dark", metavar="FILE", type=Path,
                         help="a dark frame (.dng or .exr) whose per-channel mean is the black level (DN); "

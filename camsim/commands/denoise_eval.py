@@ -75,7 +75,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--border", metavar="PIXELS", type=non_negative_int, default=3,
                         help="pixels left out along each edge of a patch (default 3)")
     parser.add_argument("--keep-black", action="store_true",
-                        help="do not subtract the sidecar's black level (mean dark level, DN) before the colour "
+                        help="do not subtract the sidecar's black level (mean DN of an unlit pixel) before the colour "
                              "quantities, as the paper; by default it is subtracted, so that they measure the "
                              "denoiser and not the dark current's drag toward the camera black point")
     parser.add_argument("--max-delta-e", metavar="DE", type=positive_float, default=3.0,

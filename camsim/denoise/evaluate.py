@@ -46,9 +46,9 @@ class EvalSettings:
     border_px : int
         Pixels left out along each edge of a patch rectangle.
     subtract_black : bool
-        Subtract the sidecar's mean dark level (exact for EXR numbers) before the colour quantities, so that they
-        measure the denoiser rather than the dark current's drag toward the camera black point (which the paper,
-        subtracting nothing, reports). False measures as the paper does.
+        Subtract the sidecar's black level (the mean of an unlit pixel's numbers) before the colour quantities, so
+        that they measure the denoiser rather than the dark current's drag toward the camera black point (which the
+        paper, subtracting nothing, reports). False measures as the paper does.
     criterion : Criterion
     matrix : str
         Camera → XYZ method; the paper's M by default.

@@ -355,7 +355,7 @@ def report_text(ev: Evaluation) -> str:
               "make SSIM's stabilising constants swamp the image and rate every frame ≈ 1. The PSNR *gain* does not "
               "depend on the range.",
               f"* **Patches**: the sidecar's `rect_xywh` less {s.border_px} px on each side. Black level: "
-              + ("the sidecar's mean dark level subtracted before every colour quantity, so that they measure the "
+              + ("the sidecar's black level subtracted before every colour quantity, so that they measure the "
                  "denoiser and not the dark current's drag toward the camera black point (the paper subtracts "
                  "nothing; `--keep-black` does the same)." if s.subtract_black else
                  "not subtracted (as the paper): the colour quantities include the dark current's drag toward the "

@@ -192,9 +192,9 @@ def _dark_notes(result: EmvaResult) -> list:
     if d["dark_floor_applied"]:
         cause += f" The reference implementation raised σ²_y.dark to its floor of {S2_YDARK_FLOOR_DN2} DN²."
     if dark_e > 0:
-        clipping = "negligible." if s.black_level_dn[CHANNEL] > 3.5 * spread else \
+        clipping = "negligible." if s.dark_level_dn[CHANNEL] > 3.5 * spread else \
             "**not** negligible: the dark statistics are biased."
-        black = (f"{dark_e:g} e⁻ = {s.black_level_dn[CHANNEL]:.3g} DN against a dark noise of {spread:.3g} DN"
+        black = (f"{dark_e:g} e⁻ = {s.dark_level_dn[CHANNEL]:.3g} DN against a dark noise of {spread:.3g} DN"
                  f"{' (with DSNU)' if result.configured['dsnu_e'] > 0 else ''}, so clipping is {clipping}")
     else:
         black = "none: the dark signal is clipped at 0 DN and its statistics are biased."
@@ -215,7 +215,7 @@ def _dark_notes(result: EmvaResult) -> list:
         "sign (R, a fit of means, is unbiased).",
         "* **The −½ DN of the integer part.** camsim's ADC keeps the integer part (Eq. 11), so every mean reads "
         f"½ DN low: the dark level is {d['u_ydark_dn']:.4g} DN (model: {dark_mean:.4g} DN) for {dark_e:g} e⁻ × K = "
-        f"{s.black_level_dn[CHANNEL]:.4g} DN. The standard only uses μ_y − μ_y.dark, so the bias cancels from K, R "
+        f"{s.dark_level_dn[CHANNEL]:.4g} DN. The standard only uses μ_y − μ_y.dark, so the bias cancels from K, R "
         "and η; a rounding ADC would change nothing here.",
         "* **Black level.** EMVA 1288 asks for an offset high enough that no dark pixel reads 0; camsim's ADC has no "
         f"pedestal and clips at 0 DN. The dark electrons are the only offset: {black}",

@@ -101,7 +101,12 @@ def analyse_series(folder: Path, black: str = "none") -> list[dict]:
 
 
 def black_point_xy(prep: Prepared, sensor: SensorParams) -> tuple[float, float] | None:
-    """Chromaticity of the camera black point (the mean dark level through the paper's M), or None without dark."""
+    """Chromaticity of the camera black point, or None without dark current.
+
+    The mean digital number of an unlit pixel (:attr:`camsim.sensor.SensorParams.black_level_dn`: after the ADC's
+    floor where the sensor quantises, as in the DNGs the series is analysed from) through the paper's M: where the
+    ellipse centres go as F falls.
+    """
     from camsim.colorimetry import camera_to_xyz_matrix
 
     if not sensor.dark_current:

@@ -6,6 +6,14 @@ R, G and B value per pixel, no mosaic) written with :mod:`tifffile`, so that Lib
 developers and Adobe tools read the exact numbers. Deflate compression is deliberately not used: LibRaw cannot
 read deflate-compressed DNGs.
 
+camsim writes the true black level (:attr:`camsim.sensor.SensorParams.black_level_dn`, the exact mean digital
+number of an unlit pixel, clipped below the WhiteLevel) as BlackLevel: RATIONAL, one value per sample (LinearRaw)
+or per CFA position (Bayer), exact to 1e-6 DN. Other readers, from their sources (README, "Raw readers and camsim's
+DNGs"): rawspeed (darktable) ignores BlackLevel in any image of more than one sample per pixel
+(``DngDecoder::decodeBlackLevels``: ``getCpp() != 1``) and keeps integer levels for CFA files; dcraw 9.x (and
+RawTherapee's ``rtengine/dcraw.cc``) reads BlackLevelRepeatRows × Cols values, so only the first of a three-chip
+file's three. No tag type or layout changes either without bending the value, so none is used.
+
 What LibRaw 0.22 (rawpy 0.28) makes of these files, measured and pinned by ``tests/test_io_dng.py``:
 
 * ``raw_type`` is ``RawType.Stack`` and ``raw_image`` (and ``raw_image_visible``) is an ``(H, W, 4)`` uint16 array:
