@@ -19,7 +19,6 @@ import numpy as np
 
 from camsim.emva.simulate import (
     CHANNEL,
-    QUANTITIES,
     S2_YDARK_FLOOR_DN2,
     EmvaResult,
     emva1288_numpy_shims,
