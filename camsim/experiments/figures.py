@@ -437,13 +437,13 @@ def _snr_panel(ax, rows):
         for number in sorted({n for n, _, _ in good}):
             ax.plot(*np.array([(f, v) for n, f, v in good if n == number]).T, color=_colour(number), alpha=0.7,
                     **style)
-    for column, term, _, style in SNR_CURVES:
+    for rank, (column, term, _, style) in enumerate(SNR_CURVES):  # the verdicts' form (the first) on top
         good = [(float(r["intensity_factor"]), _num(r.get(column))) for r in rows
                 if r.get("quantisation_term") == term]
         good = [(f, v) for f, v in good if v is not None]
         fs = sorted({f for f, _ in good})
         if fs:
-            ax.plot(fs, [np.mean([v for g, v in good if g == f]) for f in fs], zorder=5, **style)
+            ax.plot(fs, [np.mean([v for g, v in good if g == f]) for f in fs], zorder=10 - rank, **style)
     ax.axhline(0.0, color="0.6", lw=0.8)
     ax.set_ylim(low, high)
     if notes:
