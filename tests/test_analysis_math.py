@@ -244,6 +244,19 @@ def test_snr_model_hand_computed():
     assert q.snr_db == pytest.approx(28.6973014, abs=1e-6)
 
 
+def test_snr_model_quantised_numerator_hand_computed():
+    """Eq. 14's numerator [k S]_nb: the integer part of k S, clipped to [0, 2^nb − 1]; SNR 0 where k S < 1 DN."""
+    k = 0.5
+    # k S = 2.7, 0.9, 400 DN (8 bits: 400 clips to 255); variance k² (S + 0 + 0) + 1/3 = 1.35 + 1/3, … by hand
+    signal = np.array([5.4, 1.8, 800.0])
+    m = snr_model(signal, 0.0, signal, 0.0, k, quantisation=True, quantisation_term="mean-square", numerator_bits=8)
+    np.testing.assert_array_equal(m.signal_dn, [2.0, 0.0, 255.0])
+    np.testing.assert_allclose(m.variance_dn2, [1.35 + 1 / 3, 0.45 + 1 / 3, 200.0 + 1 / 3])
+    np.testing.assert_allclose(m.snr, [4.0 / (1.35 + 1 / 3), 0.0, 255.0**2 / (200.0 + 1 / 3)])
+    plain = snr_model(signal, 0.0, signal, 0.0, k, quantisation=True, quantisation_term="mean-square")
+    np.testing.assert_allclose(plain.signal_dn, [2.7, 0.9, 400.0])  # without numerator_bits: k S
+
+
 def test_snr_model_vectorised_and_edge_cases():
     m = snr_model(np.array([0.0, 0.0, 100.0, 100.0]), 0.0, np.array([0.0, 0.0, 100.0, 0.0]),
                   np.array([0.0, 2.0, 0.0, 0.0]), 1.0, quantisation=False)

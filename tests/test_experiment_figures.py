@@ -67,21 +67,27 @@ def test_snr_figures(tmp_path):
     rows = []
     for stat in ("paper", "pixel"):
         for variant, scale in (("read+10%", 0.5), ("dark+10%", 5.0)):  # no quantisation rows: "no data"
-            for f in (0.1, 0.05, 0.01, 0.005, 0.001):
-                for point in (1, 2, 3):
-                    for channel in "RGB":
-                        model = scale * point / (1 + 100 * f)
-                        rows.append({"statistics": stat, "variant": variant, "intensity_factor": f, "point": point,
-                                     "channel": channel, "delta_snr_model_pct": model,
-                                     "delta_snr_empirical_pct": None if point == 2 else model * 1.1})
-    rows[0]["delta_snr_model_pct"] = None
-    rows[1]["delta_snr_model_pct"] = float("nan")
+            for term in ("mean-square", "variance"):
+                for f in (0.1, 0.05, 0.01, 0.005, 0.001):
+                    for point in (1, 2, 3):
+                        for channel in "RGB":
+                            model = scale * point / (1 + 100 * f)
+                            rows.append({"statistics": stat, "protocol": "all-on", "variant": variant,
+                                         "quantisation_term": term, "intensity_factor": f, "point": point,
+                                         "channel": channel, "delta_snr_eq13_pct": model,
+                                         "delta_snr_eq13_unquantised_numerator_pct": 1.1 * model,
+                                         "delta_snr_statistics_variance_pct": scale,
+                                         "delta_snr_empirical_pct": None if point == 2 else model * 1.1})
+    rows[0]["delta_snr_eq13_pct"] = None
+    rows[1]["delta_snr_eq13_pct"] = float("nan")
+    rows[2]["delta_snr_empirical_pct"] = 1e6  # beyond the axes: counted, not drawn
     figures = snr_figures(rows, tmp_path)
-    assert figures == {"snr_read": "snr_read.png", "snr_dark": "snr_dark.png",
-                       "snr_quantisation": "snr_quantisation.png"}
+    assert figures == {f"snr_{noise}_{protocol}": f"snr_{noise}_{protocol}.png"
+                       for noise in ("read", "dark", "quantisation") for protocol in ("one_at_a_time", "all_on")}
     assert_pngs(tmp_path, figures, figures)
 
 
+@pytest.mark.slow
 def test_figures_leave_pyplot_alone(analysed, tmp_path):
     import matplotlib.pyplot as plt
 

@@ -24,7 +24,7 @@ class SNRModel:
     Attributes
     ----------
     signal_dn : numpy.ndarray
-        k S. Unit: DN.
+        The numerator's signal: k S, or Eq. 14's quantised [k S]_nb. Unit: DN.
     variance_dn2 : numpy.ndarray
         k² (Var S + D + σ_read²) (+ 1/12 with quantisation). Unit: DN².
     snr : numpy.ndarray
@@ -52,8 +52,26 @@ def _to_db(snr: np.ndarray) -> np.ndarray:
         return 10.0 * np.log10(snr)  # log10(0) = -inf, log10(inf) = inf
 
 
+def quantised_signal_dn(signal_dn, bits: int) -> np.ndarray:
+    """Eq. 14's numerator [k S]_nb: the integer part of the noise-free signal, clipped to [0, 2^nb − 1].
+
+    Parameters
+    ----------
+    signal_dn : array_like
+        The noise-free signal k S. Unit: DN.
+    bits : int
+        ADC resolution nb.
+
+    Returns
+    -------
+    numpy.ndarray
+        Unit: DN. 0 wherever k S < 1 DN.
+    """
+    return np.clip(np.floor(np.asarray(signal_dn, dtype=np.float64)), 0, 2**int(bits) - 1)
+
+
 def snr_model(signal_e, dark_e, signal_var_e2, read_noise_e, dn_per_electron, quantisation: bool,
-              quantisation_term: str = "variance") -> SNRModel:
+              quantisation_term: str = "variance", numerator_bits: int | None = None) -> SNRModel:
     """Model SNR of a pixel (Eqs. 13–14), vectorised over broadcastable arrays.
 
     Parameters
@@ -74,6 +92,9 @@ def snr_model(signal_e, dark_e, signal_var_e2, read_noise_e, dn_per_electron, qu
         ``variance``: 1/12 DN², the variance the quantiser adds to the pixel values (what an empirical SNR from
         pixel samples sees); ``mean-square``: 1/3 DN², Eq. 13 literally, the mean square of Eq. 12's error
         including its −½ DN bias.
+    numerator_bits : int, optional
+        nb: the numerator is Eq. 14's quantised noise-free signal [k S]_nb (:func:`quantised_signal_dn`), so the
+        SNR is 0 wherever k S < 1 DN. None (default): the numerator is k S.
 
     Returns
     -------
@@ -86,7 +107,7 @@ def snr_model(signal_e, dark_e, signal_var_e2, read_noise_e, dn_per_electron, qu
     k = _non_negative(dn_per_electron, "dn_per_electron")
     if np.any(k == 0):
         raise ValueError("dn_per_electron must be positive")
-    signal_dn = k * s
+    signal_dn = k * s if numerator_bits is None else quantised_signal_dn(k * s, numerator_bits)
     if quantisation_term not in QUANTISATION_TERMS:
         raise ValueError(f"quantisation_term must be one of {tuple(QUANTISATION_TERMS)}, got {quantisation_term!r}")
     variance = k**2 * (var_s + d + sigma**2) + (QUANTISATION_TERMS[quantisation_term] if quantisation else 0.0)

@@ -16,8 +16,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "experiment",
         help="reproduce the paper's experiments (scenarios I–III, SNR sensitivity) from rendered frames",
         description=(
-            "Render the paper's 20 data points (13 on the convex hull of the Macbeth × illuminant chromaticities, "
-            "7 inside) through the scenario's sensor at its intensity factors, under both photon statistics "
+            "Render the paper's data points (20: 13 on the convex hull of the Macbeth × illuminant chromaticities, "
+            "7 inside; scenarios II, III and the SNR analysis use the 13 hull points, as the paper) through the "
+            "scenario's sensor at its intensity factors, under both photon statistics "
             "('paper' and 'pixel'), analyse the frames from their files, and write the numbers (CSV), the figures "
             "(PNG) and report.md, which says for each of the paper's findings whether it holds here."
         ),
@@ -25,7 +26,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("name", choices=("scenario1", "scenario2", "scenario3", "snr-sensitivity", "all"),
                         help="scenario1: ideal sensor, log10 F = 0 … −14; scenario2: photon + dark noise; "
                              "scenario3: every stage (Table I); snr-sensitivity: ΔSNR for read +10 %%, "
-                             "dark +10 %%, quantisation off; all: each into OUT/NAME")
+                             "dark +10 %%, quantisation on, one noise at a time and all on; all: each into "
+                             "OUT/NAME")
     parser.add_argument("--out", metavar="DIR", type=Path,
                         help="output folder (default outputs/experiments/NAME)")
     parser.add_argument("--size", metavar="WxH",

@@ -124,3 +124,37 @@ def points_radiance(points, radiance, grid: WavelengthGrid, width: int, height: 
     white = scale_to_luminance(illuminant_spd("D65", grid), cmfs_on_grid(grid)[1], grid.step_nm, 100.0)
     spectra = np.vstack([radiance, np.zeros((1, grid.size))])
     return SceneRadiance(labels, spectra, white, [p.label for p in points], rects, "experiment data points")
+
+
+def incident_photons(photon_rate, luminance_cd_m2: float, factors, exposure_s: float = 1.0) -> list[dict]:
+    """The paper's Fig. 4(c): how many photons of one data point arrive, at each intensity factor.
+
+    Counted as Eq. 4 draws them, per m² and steradian (the paper's photons / (s m² sr) times the exposure): over the
+    whole spectrum, and in the spectrum's largest bin (the largest Poisson mean of one draw).
+
+    Parameters
+    ----------
+    photon_rate : numpy.ndarray, shape (N,)
+        g(λi) of the point at F = 1 (Eq. 3). Unit: photons / (s m² sr) per bin.
+    luminance_cd_m2 : float
+        The point's luminance at F = 1. Unit: cd/m².
+    factors : sequence of float
+        Intensity factors F.
+    exposure_s : float
+        Exposure T. Unit: s.
+
+    Returns
+    -------
+    list of dict
+        Per F: ``intensity_factor``, ``luminance_cd_m2`` (F × the point's), ``photons_per_m2_sr`` (T F Σ g) and
+        ``photons_per_m2_sr_peak_bin`` (T F max g), with their log10 (``log10_…``).
+    """
+    rate = np.asarray(photon_rate, dtype=np.float64)
+    rows = []
+    for factor in factors:
+        total, peak = exposure_s * factor * rate.sum(), exposure_s * factor * rate.max()
+        rows.append({"intensity_factor": float(factor), "luminance_cd_m2": float(factor * luminance_cd_m2),
+                     "photons_per_m2_sr": float(total), "photons_per_m2_sr_peak_bin": float(peak),
+                     "log10_photons_per_m2_sr": float(np.log10(total)),
+                     "log10_photons_per_m2_sr_peak_bin": float(np.log10(peak))})
+    return rows

@@ -1,4 +1,4 @@
-"""Figures of ``camsim experiment``: the paper's Figs. 4–6 (per scenario) and Figs. 7–9 (SNR sensitivity).
+"""Figures of ``camsim experiment``: the paper's Figs. 4–6 (per scenario), 4(c) and 7–9 (SNR sensitivity).
 
 Every maker writes PNG files into ``out_dir`` and returns ``{figure_key: file name}``. Scenario figures have two
 panels side by side, ``paper`` and ``pixel`` photon statistics. Undefined values (None) are never plotted; each
@@ -23,7 +23,8 @@ from camsim.io.output_folder import make_folder
 
 MAX_SAMPLES = 300
 STATISTICS = ("paper", "pixel")
-SNR_VARIANTS = {"read+10%": "snr_read", "dark+10%": "snr_dark", "quantisation-off": "snr_quantisation"}
+SNR_VARIANTS = {"read+10%": "read", "dark+10%": "dark", "quantisation": "quantisation"}
+SNR_PROTOCOLS = ("one-at-a-time", "all-on")
 UNDEF = "undefined, not plotted"
 _MARKERS = "os^D"
 _STYLES = ("-", "--", "-.", ":")
@@ -56,9 +57,11 @@ def _colour(number):
     return _colormap("tab20")(2 * k if k < 10 else 2 * (k - 10) + 1)
 
 
-def _save(fig, out_dir, name: str) -> str:
+def _save(fig, out_dir, name: str, tight: bool = True) -> str:
+    """Write ``fig`` as ``out_dir/name``; ``tight=False`` for a figure whose layout engine already fits everything
+    (no second drawing to measure it)."""
     make_folder(Path(out_dir))
-    save_png(fig, Path(out_dir) / name, bbox_inches="tight")
+    save_png(fig, Path(out_dir) / name, **({"bbox_inches": "tight"} if tight else {}))
     return name
 
 
@@ -392,35 +395,70 @@ def scenario_figures(name, results_by_stats, points, black_xy, out_dir, magnifie
     return {key: _save(fig, out_dir, f"{name}_{key}.png") for key, fig in figures.items()}
 
 
+#: The average curves drawn in each SNR panel: (CSV column, quantisation term, label, line style). The first is the
+#: form the verdicts judge; each other changes one thing.
+SNR_CURVES = (
+    ("delta_snr_eq13_pct", "mean-square", "Eqs. 13–14 as printed, σ²_ADC = 1/3 DN²", dict(color="k", lw=2.8)),
+    ("delta_snr_eq13_pct", "variance", "as printed, σ²_ADC = 1/12 DN²", dict(color="k", lw=2.0, ls="--")),
+    ("delta_snr_eq13_unquantised_numerator_pct", "mean-square", "numerator k S (not [k S]_nb)",
+     dict(color="tab:blue", lw=2.0, ls="-.")),
+    ("delta_snr_statistics_variance_pct", "mean-square", "the statistics' own Var S (not S)",
+     dict(color="tab:orange", lw=2.0, ls=":")),
+    ("delta_snr_eq13_unquantised_numerator_pct", "variance", "numerator k S and σ²_ADC = 1/12 DN² (what the pixels "
+     "measure)", dict(color="0.45", lw=2.2, ls="-")),
+)
+
+
 def _snr_panel(ax, rows):
-    """ΔSNR against F for one statistics × channel: thin model lines, empirical markers, thick model mean."""
+    """ΔSNR against F for one statistics × channel: thin lines and empirical circles per point, average curves.
+
+    The y-axis spans the model values: empirical values beyond them (the measured SNR₁ is near 0 where the signal is
+    near the black level, and the ratio explodes) are counted in the legend, not drawn.
+    """
     rows = [r for r in rows if (_num(r.get("intensity_factor")) or 0) > 0 and r.get("point") is not None]
     if not rows:
+        ax.set(xscale="log", xlim=(1e-3, 1e-1), ylim=(0, 1))  # an empty log axis would tick a huge default range
         return ax.text(0.5, 0.5, "no data", transform=ax.transAxes, ha="center", va="center", color="0.4")
+    printed = [r for r in rows if r.get("quantisation_term") == "mean-square"]
+    model = [v for r in rows for column, *_ in SNR_CURVES if (v := _num(r.get(column))) is not None]
+    low, high = min(model + [0.0]), max(model + [0.0])
+    pad = max(0.08 * (high - low), 0.05)
+    low, high = low - pad, high + pad
     notes = []
-    for kind, style in (("model", dict(ls="-", lw=0.9)), ("empirical", dict(ls="none", marker="o", ms=4, mfc="none"))):
-        values = [(int(r["point"]), float(r["intensity_factor"]), _num(r.get(f"delta_snr_{kind}_pct"))) for r in rows]
+    for column, kind, style in (("delta_snr_eq13_pct", "as printed", dict(ls="-", lw=0.9)),
+                                ("delta_snr_empirical_pct", "empirical",
+                                 dict(ls="none", marker="o", ms=4, mfc="none"))):
+        values = [(int(r["point"]), float(r["intensity_factor"]), _num(r.get(column))) for r in printed]
         notes += _count(sum(v is None for *_, v in values), f"{kind} values {UNDEF}")
         good = sorted(x for x in values if x[2] is not None)
+        if kind == "empirical":
+            notes += _count(sum(not low <= v <= high for *_, v in good), "empirical values beyond the axes")
+            good = [x for x in good if low <= x[2] <= high]
         for number in sorted({n for n, _, _ in good}):
-            ax.plot(*np.array([(f, v) for n, f, v in good if n == number]).T, color=_colour(number), alpha=0.8,
+            ax.plot(*np.array([(f, v) for n, f, v in good if n == number]).T, color=_colour(number), alpha=0.7,
                     **style)
-        if kind == "model" and good:
-            fs = sorted({f for _, f, _ in good})
-            ax.plot(fs, [np.mean([v for _, g, v in good if g == f]) for f in fs], color="k", lw=2.8)
+    for rank, (column, term, _, style) in enumerate(SNR_CURVES):  # the verdicts' form (the first) on top
+        good = [(float(r["intensity_factor"]), _num(r.get(column))) for r in rows
+                if r.get("quantisation_term") == term]
+        good = [(f, v) for f, v in good if v is not None]
+        fs = sorted({f for f, _ in good})
+        if fs:
+            ax.plot(fs, [np.mean([v for g, v in good if g == f]) for f in fs], zorder=10 - rank, **style)
     ax.axhline(0.0, color="0.6", lw=0.8)
+    ax.set_ylim(low, high)
     if notes:
         ax.legend(handles=notes, fontsize=7, loc="best")
 
 
 def snr_figures(rows, out_dir) -> dict:
-    """Write the SNR sensitivity figures (the paper's Figs. 7–9), one per variant.
+    """Write the SNR sensitivity figures (the paper's Figs. 7–9), one per noise and protocol.
 
     Parameters
     ----------
     rows : list of dict
-        Keys ``statistics`` ('paper'/'pixel'), ``variant`` ('read+10%', 'dark+10%', 'quantisation-off'),
-        ``intensity_factor``, ``point`` (int), ``channel`` ('R'/'G'/'B'), ``delta_snr_model_pct`` and
+        Keys ``statistics`` ('paper'/'pixel'), ``protocol`` ('one-at-a-time'/'all-on'), ``variant`` ('read+10%',
+        'dark+10%', 'quantisation'), ``quantisation_term`` ('mean-square'/'variance'), ``intensity_factor``,
+        ``point`` (int), ``channel`` ('R'/'G'/'B') and the ΔSNR columns of :data:`SNR_CURVES` and
         ``delta_snr_empirical_pct`` (float or None; unit: %).
     out_dir : path-like
         Folder for the PNG files (created if missing).
@@ -428,31 +466,66 @@ def snr_figures(rows, out_dir) -> dict:
     Returns
     -------
     dict of {str: str}
-        ``snr_read``, ``snr_dark``, ``snr_quantisation`` (and ``snr_<slug>`` for any other variant) → file
-        name ``<key>.png``. Known variants without rows still get a figure, marked "no data".
+        ``snr_<noise>_<protocol>`` (noise ``read``, ``dark``, ``quantisation``; protocol ``one_at_a_time``,
+        ``all_on``) → file name ``<key>.png``. Known noises and protocols without rows still get a figure, marked
+        "no data".
     """
     rows = list(rows or [])
     variants = dict(SNR_VARIANTS)
+    protocols = list(SNR_PROTOCOLS)
     for row in rows:
         variant = str(row.get("variant"))
-        variants.setdefault(variant, "snr_" + "".join(ch if ch.isalnum() else "_" for ch in variant).strip("_"))
+        variants.setdefault(variant, "".join(ch if ch.isalnum() else "_" for ch in variant).strip("_"))
+        if str(row.get("protocol")) not in protocols:
+            protocols.append(str(row.get("protocol")))
     figures = {}
-    for variant, key in variants.items():
-        fig = new_figure(figsize=(16, 8.5), layout="constrained")
-        axes = fig.subplots(2, 3, squeeze=False)
-        fig.suptitle(f"SNR change ΔSNR = 100 (SNR₁ − SNR₂) / SNR₁ for {variant}", fontsize=13)
-        subset = [r for r in rows if str(r.get("variant")) == variant]
-        for a, stat in enumerate(STATISTICS):
-            for b, channel in enumerate(CHANNELS):
-                ax = axes[a][b]
-                _snr_panel(ax, [r for r in subset if r.get("statistics") == stat and r.get("channel") == channel])
-                ax.set_title(f"{stat} statistics, channel {channel}", fontsize=11)
-                _f_axes(ax, "ΔSNR (%)")
-        numbers = sorted({int(r["point"]) for r in subset if r.get("point") is not None})
-        handles = [_entry("model, per point", color="0.4", lw=0.9, linestyle="-"),
-                   _entry("empirical, per point", color="0.4", marker="o", mfc="none"),
-                   _entry("model, mean over points", color="k", lw=2.8, linestyle="-")]
-        handles += [_entry(f"point {n}", color=_colour(n), lw=2, linestyle="-") for n in numbers]
-        fig.legend(handles=handles, loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=8)
-        figures[key] = _save(fig, out_dir, f"{key}.png")
+    for variant, slug in variants.items():
+        for protocol in protocols:
+            key = f"snr_{slug}_{protocol.replace('-', '_')}"
+            fig = new_figure(figsize=(16, 8.5), layout="constrained")
+            axes = fig.subplots(2, 3, squeeze=False)
+            fig.suptitle(f"SNR change ΔSNR = 100 (SNR₁ − SNR₂) / SNR₁ for {variant}, protocol {protocol}",
+                         fontsize=13)
+            subset = [r for r in rows if str(r.get("variant")) == variant and r.get("protocol") == protocol]
+            for a, stat in enumerate(STATISTICS):
+                for b, channel in enumerate(CHANNELS):
+                    ax = axes[a][b]
+                    _snr_panel(ax, [r for r in subset if r.get("statistics") == stat and r.get("channel") == channel])
+                    ax.set_title(f"{stat} statistics, channel {channel}", fontsize=11)
+                    _f_axes(ax, "ΔSNR (%)")
+            numbers = sorted({int(r["point"]) for r in subset if r.get("point") is not None})
+            handles = [_entry("as printed (1/3 DN²), per point", color="0.4", lw=0.9, linestyle="-"),
+                       _entry("empirical, per point", color="0.4", marker="o", mfc="none")]
+            handles += [_entry(f"mean over points: {label}", linestyle=style.get("ls", "-"),
+                               **{k: v for k, v in style.items() if k != "ls"}) for _, _, label, style in SNR_CURVES]
+            handles += [_entry(f"point {n}", color=_colour(n), lw=2, linestyle="-") for n in numbers]
+            fig.legend(handles=handles, loc="outside right center", fontsize=8)
+            figures[key] = _save(fig, out_dir, f"{key}.png", tight=False)
     return figures
+
+
+def _fig_photons(name, rows, label):
+    """Fig. 4(c): log10 of the incident photons per m²·sr against luminance (log axis)."""
+    fig = new_figure(figsize=(8, 5.5), layout="constrained")
+    ax = fig.subplots()
+    rows = [r for r in rows if (_num(r.get("luminance_cd_m2")) or 0) > 0]
+    luminance = [float(r["luminance_cd_m2"]) for r in rows]
+    ax.plot(luminance, [r["log10_photons_per_m2_sr"] for r in rows], "-o", color="k",
+            label="over the spectrum, Σᵢ F g(λᵢ) T")
+    ax.plot(luminance, [r["log10_photons_per_m2_sr_peak_bin"] for r in rows], "--s", color="tab:red", ms=4,
+            label="in the largest wavelength bin (one Poisson draw of Eq. 4)")
+    ax.axhline(2.0, color="0.5", lw=1, ls=":", label="100 photons (the paper: photon noise noticeable below)")
+    ax.set_xscale("log")
+    ax.set(xlabel="luminance (cd/m²)", ylabel="log₁₀ incident photons per m²·sr in T",
+           title=f"{name}: incident photons, data point {label}")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8, loc="best")
+    return fig
+
+
+def photon_figure(name, rows, label, out_dir) -> dict:
+    """Write the paper's Fig. 4(c), ``{name}_photons.png``; returns ``{"photons": file name}``.
+
+    ``rows`` come from :func:`camsim.experiments.datapoints.incident_photons`; ``label`` names the data point.
+    """
+    return {"photons": _save(_fig_photons(name, rows, label), out_dir, f"{name}_photons.png")}

@@ -9,8 +9,6 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.analysis.snr import delta_snr_percent
-from camsim.colorimetry import CHANNELS
 from camsim.experiments.findings import RESOLVED_SIZE, VISIBLE_XY, Verdict
 from camsim.io.atomic import write_text_atomic
 
@@ -29,7 +27,8 @@ class Finding:
         return self.verdicts[statistics].holds
 
 
-def _csv(path: Path, rows: list[dict]) -> Path:
+def write_csv(path: Path, rows: list[dict]) -> Path:
+    """Write ``rows`` (dicts with the same keys) as a CSV file with a header; None is written as an empty cell."""
     buffer = io.StringIO()
     if rows:
         writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
@@ -61,39 +60,7 @@ def write_numbers(path: Path, results_by_stats: dict, black_xy: dict) -> Path:
                     "saturated_pixels_rgb": "/".join(str(ch["saturated_pixels"]) for ch in p["channels"]),
                     "frame_file": result["frame_file"],
                 })
-    return _csv(path, rows)
-
-
-def snr_rows(results: dict, statistics_list, variants) -> list[dict]:
-    """ΔSNR (%) of each variant against the base, per statistics, F, point and channel (Eq. 17).
-
-    ``delta_snr_model_pct`` uses Eq. 13 literally (quantisation error's mean square, 1/3 DN²);
-    ``delta_snr_model_variance_pct`` the variance the quantiser adds (1/12 DN²), which is what the pixels'
-    ``delta_snr_empirical_pct`` measures.
-    """
-    rows = []
-    for statistics in statistics_list:
-        base = {r["intensity_factor"]: r for r in results[f"{statistics}-base"]}
-        for variant in variants:
-            for result in results[f"{statistics}-{variant}"]:
-                f = result["intensity_factor"]
-                for p, p0 in zip(result["patches"], base[f]["patches"]):
-                    for c, name in enumerate(CHANNELS):
-                        one, two = p0["channels"][c], p["channels"][c]
-                        rows.append({
-                            "statistics": statistics, "variant": variant, "intensity_factor": f,
-                            "point": p["index"] + 1, "channel": name,
-                            "snr_base_model": one["snr_model_eq13"], "snr_variant_model": two["snr_model_eq13"],
-                            "delta_snr_model_pct": delta_snr_percent(one["snr_model_eq13"], two["snr_model_eq13"]),
-                            "delta_snr_model_variance_pct": delta_snr_percent(one["snr_model"], two["snr_model"]),
-                            "snr_base_empirical": one["snr_empirical"], "snr_variant_empirical": two["snr_empirical"],
-                            "delta_snr_empirical_pct": delta_snr_percent(one["snr_empirical"], two["snr_empirical"]),
-                        })
-    return rows
-
-
-def write_snr_numbers(path: Path, rows) -> Path:
-    return _csv(path, rows)
+    return write_csv(path, rows)
 
 
 def _mark(verdict: Verdict) -> str:
@@ -101,8 +68,11 @@ def _mark(verdict: Verdict) -> str:
 
 
 def write_report(path: Path, title, setup, prep, sensor, factors, findings, figures: dict, numbers: Path,
-                 preset: str) -> Path:
-    """``report.md``: the set-up, then per finding its verdict in ``paper`` and ``pixel`` statistics."""
+                 preset: str, preamble=()) -> Path:
+    """``report.md``: the set-up, then per finding its verdict in ``paper`` and ``pixel`` statistics.
+
+    ``preamble``: lines of Markdown placed before the findings (e.g. the protocols of an experiment).
+    """
     lines = [f"# {title}", "", "Reproduced by camsim from rendered frames (DNG/EXR + sidecars under `frames/`), "
              "analysed from those files. Both photon statistics are run on the same scene and F values: `paper` "
              "(Eq. 4 literally, per-bin Poisson photons per m²·sr, sampled per bin) and `pixel` (exact Poisson "
@@ -124,7 +94,8 @@ def write_report(path: Path, title, setup, prep, sensor, factors, findings, figu
              "| # | patch | illuminant | x | y | hull |", "|---|---|---|---|---|---|"]
     lines += [f"| {p.number} | {p.patch} | {p.illuminant} | {p.x:.4f} | {p.y:.4f} | {'yes' if p.on_hull else ''} |"
               for p in prep.points]
-    lines += ["", "## Findings", "", "| finding | paper statistics | pixel statistics | figure |", "|---|---|---|---|"]
+    lines += ["", *preamble, "## Findings", "", "| finding | paper statistics | pixel statistics | figure |",
+              "|---|---|---|---|"]
     for f in findings:
         fig = figures.get(f.figure, "")
         lines.append(f"| {f.key}: {f.text} | {_mark(f.verdicts['paper'])} | {_mark(f.verdicts['pixel'])} | "

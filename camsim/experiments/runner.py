@@ -95,9 +95,12 @@ def render_series(prep: Prepared, sensor: SensorParams, factors, statistics: str
     return out_dir
 
 
-def analyse_series(folder: Path, black: str = "none") -> list[dict]:
-    """Analyse a rendered series from its files: DNG where the sensor quantises, EXR otherwise."""
-    return analyse_paths([folder], AnalysisSettings(black=black), source="dng", progress=False)
+def analyse_series(folder: Path, black: str = "none", source: str = "dng") -> list[dict]:
+    """Analyse a rendered series from its files: DNG where the sensor quantises, EXR otherwise.
+
+    ``source="exr"`` reads the EXR even where there is a DNG: the same frame before the ADC (without quantisation).
+    """
+    return analyse_paths([folder], AnalysisSettings(black=black), source=source, progress=False)
 
 
 def black_point_xy(prep: Prepared, sensor: SensorParams) -> tuple[float, float] | None:
