@@ -47,6 +47,27 @@ def test_model_snr_matches_the_pixels(frames, source):
     assert checked > 150
 
 
+def test_model_snr_columns_under_paper_statistics(tmp_path):
+    """``snr_model``: the statistics' own variance and the quantiser's 1/12 DN²; ``snr_model_eq13``: Eqs. 13–14 as
+    printed, [k S]_nb² / (k² (S + D + σ²_read) + 1/3): computed here from the sidecar's numbers."""
+    out = _render(tmp_path, small_scene(statistics="paper", method="poisson", intensity_factors=(0.01,),
+                                        width=240, height=160))
+    meta = json.loads(next(out.glob("test_*.json")).read_text())
+    k, read = meta["dn_per_electron"], meta["read_noise_e"]
+    (result,) = analyse_paths([out], AnalysisSettings(), progress=False)
+    for patch, recorded in zip(result["patches"], meta["patches"]):
+        for c, ch in enumerate(patch["channels"]):
+            s, d, var = recorded["signal_e"][c], recorded["dark_e"][c], recorded["signal_var_e2"][c]
+            assert var < 1e-6 * s  # paper statistics: Var S is tiny against S
+            own = (k * s) ** 2 / (k**2 * (var + d + read**2) + 1 / 12)
+            printed = np.floor(k * s) ** 2 / (k**2 * (s + d + read**2) + 1 / 3)
+            assert ch["snr_model"] == pytest.approx(own, rel=1e-9)
+            if printed == 0:
+                assert ch["snr_model_eq13"] in (0.0, None)
+            else:
+                assert ch["snr_model_eq13"] == pytest.approx(printed, rel=1e-9)
+
+
 def test_delta_e_is_small_at_f1_and_grows_as_light_falls(frames):
     results = analyse_paths([frames], AnalysisSettings(), progress=False)
     by_f = {r["intensity_factor"]: np.mean([p["delta_e_ab_mean"] for p in r["patches"]]) for r in results}

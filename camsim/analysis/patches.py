@@ -229,7 +229,11 @@ def analyse_frame(frame: LoadedFrame, settings: AnalysisSettings, black_dn, matr
                  np.asarray(patch["signal_var_e2"]), meta["read_noise_e"] if stages["read_noise"] else 0.0, k,
                  bool(stages["quantisation"]) and frame.quantised)  # an EXR holds the values before the ADC
         model = snr_model(*terms)  # quantisation as the variance it adds: comparable with the pixels' SNR
-        model_eq13 = snr_model(*terms, quantisation_term="mean-square")  # Eq. 13 literally
+        # Eqs. 13–14 as printed: photon term V·G² = k² S (whatever the statistics' own Var S), σ²_ADC = 1/3 DN²
+        # (Eq. 12's mean square), numerator the quantised noise-free signal [k S]_nb
+        printed = (terms[0], terms[1], terms[0], *terms[3:])
+        model_eq13 = snr_model(*printed, quantisation_term="mean-square",
+                               numerator_bits=int(meta["bits"]) if terms[5] else None)
         channels = [_channel_record(name, sites[c] if pattern else samples[:, c], None if pattern else counts,
                                     black_dn[c], expected_black[c], threshold, k, model, model_eq13, c)
                     for c, name in enumerate(CHANNELS)]
