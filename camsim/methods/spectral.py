@@ -31,12 +31,13 @@ from camsim.stages import (
 
 
 def draw_bins(labels, expected: ExpectedSignal, sensor: SensorParams, statistics: str, rng, out,
-              saturation_e: float | None = None):
+              saturation_e: float | None = None, dark: bool = True):
     """Fill ``out`` (3, h, w) float32 with the collected charge S + D of every pixel, by per-bin draws. Unit: e⁻.
 
     ``saturation_e``: with a full well, the charge at and above which every pixel is saturated (the full well
     minus the most negative DSNU offset); a spectrum whose mean charge is far above it has its bins' means scaled
     down to the saturation cap (:func:`camsim.stages.cap_mean_e`, :func:`bin_scale`), and the dark mean is capped.
+    ``dark`` False: the signal S alone (``auto``'s Eq. 4 path adds the dark charge itself, per channel).
     """
     if not sensor.photon_noise:
         return _draw_without_photon_noise(labels, expected, sensor, statistics, rng, out, saturation_e)
@@ -64,10 +65,10 @@ def draw_bins(labels, expected: ExpectedSignal, sensor: SensorParams, statistics
             signal = poisson(rng, lam).sum(axis=2)
         for c in range(3):
             out_flat[c][start : start + chunk] = signal[:, c]
-    for c in range(3):
-        dark = expected.dark_e[c] if saturation_e is None else cap_mean_e(expected.dark_e[c], saturation_e)
-        if dark > 0:
-            out[c] += poisson(rng, dark, size=out[c].shape)
+    for c in range(3) if dark else ():
+        mean = expected.dark_e[c] if saturation_e is None else cap_mean_e(expected.dark_e[c], saturation_e)
+        if mean > 0:
+            out[c] += poisson(rng, mean, size=out[c].shape)
     return out
 
 
