@@ -131,9 +131,11 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
             "signal_var_e2": "e-^2 (variance of the signal electrons under the photon statistics)",
             "clean_dn": "DN (expected value after saturation, before read noise and quantisation)",
             "xyz_cd_m2": "CIE 1931 XYZ of the patch's light at this F (Y = luminance, cd/m^2)",
-            "sampling": "gaussian and auto methods: how each channel of the patch was drawn (poisson = exact)",
-            "gaussian_ks": "per channel, the KS distance a Gaussian draw has to the exact law (auto takes the "
-                           "Gaussian where it is within auto_tolerance_ks)",
+            "sampling": "gaussian and auto methods: how each channel of the patch was drawn (poisson = exact, "
+                        "under paper statistics the scaled-Poisson stand-in; spectral = Eq. 4's per-bin draws)",
+            "gaussian_ks": "per channel, the KS distance a Gaussian draw has to the exact law of a pixel value "
+                           "before quantisation (paper statistics: an upper bound; auto takes the Gaussian where "
+                           "it is within auto_tolerance_ks)",
             "qe_e_m2_sr_per_photon": "e- m^2 sr / photon, rows R, G, B on wavelengths_nm",
             "rect_xywh": "pixels: x, y of the top-left corner, width, height",
             "exr_channels": "R, G, B (or CFA, the Bayer mosaic): noisy DN before quantisation; clean.R, clean.G, "

@@ -5,7 +5,7 @@ with N ~ Poisson(λ) and r ~ N(0, σ_read²) (MODEL.md §3, ``pixel`` statistics
 """
 
 import numpy as np
-from scipy import stats
+from scipy import special, stats
 
 
 def digital_pmf(lam, dn_per_e, read_noise_e, full_well_e, bits, saturation=True):
@@ -82,3 +82,62 @@ def mean_dn_tail_sum(lam, dn_per_e, sigma_e, bits, full_well_e=None):
     gap = j[None, :] / dn_per_e - charge[:, None]
     tail = stats.norm.sf(gap / sigma_e) if sigma_e > 0 else (dn_per_e * charge[:, None] >= j[None, :]).astype(float)
     return (j_lo - 1) + float(p_n @ tail.sum(axis=1))
+
+
+def digital_pmf_without_read_noise(lam, dn_per_e, full_well_e, bits):
+    """P(I = j), j = 0 … 2^bits − 1, for I = clip(floor(k min(N, c)), 0, 2^bits − 1), N ~ Poisson(λ), from the
+    Poisson CDF alone: P(I ≤ j − 1) = P(min(N, c) < j / k), which is 1 if j / k > c, else P(N ≤ ⌈j / k⌉ − 1)."""
+    top = 2**bits - 1
+    j = np.arange(1, top + 1)
+    below = np.where(j / dn_per_e > full_well_e, 1.0, stats.poisson.cdf(np.ceil(j / dn_per_e) - 1, lam))
+    return np.diff(np.concatenate([[0.0], below, [1.0]]))
+
+
+def compound_poisson_cdf_bounds(mu, w, step, centre_sds=None):
+    """Bounds on the CDF of S = Σᵢ wᵢ Nᵢ, Nᵢ ~ Poisson(μᵢ), wᵢ ≥ 0 (Eq. 4's signal), on the lattice of ``step``.
+
+    Rounding every weight down (up) to the lattice gives S⁻ ≤ S ≤ S⁺, so F_S⁺(x) ≤ F_S(x) ≤ F_S⁻(x) for all x.
+    The laws of S± are compound Poisson on the integers; their pmfs come from the characteristic function,
+    exp(Σ μᵢ (e^{−2πi f mᵢ / L} − 1)), by an inverse FFT of L points. ``centre_sds``: only the window of that many
+    standard deviations either side of the mean is kept (the FFT wraps the rest onto it: keep it ≥ 12).
+
+    Returns
+    -------
+    list of (values, cdf)
+        For S⁻ and S⁺: the lattice values (ascending) and P(S± ≤ value).
+    """
+    mu, w = np.asarray(mu, float), np.asarray(w, float)
+    out = []
+    for rounding in (np.floor, np.ceil):
+        m = rounding(w / step).astype(np.int64)
+        lam = mu.sum()
+        if centre_sds is None:
+            n_max = lam + 12 * np.sqrt(lam) + 25
+            start, size = 0, int(2 ** np.ceil(np.log2(n_max * m.max() + 2)))
+        else:
+            mean, sd = mu @ m, np.sqrt(mu @ (m * m.astype(float)))
+            start = max(0, int(mean - centre_sds * sd))
+            size = int(2 ** np.ceil(np.log2(2 * centre_sds * sd + 2)))
+        jumps = np.bincount(m % size, weights=mu, minlength=size)
+        phi = np.exp(np.fft.fft(jumps) - lam)
+        pmf = np.real(np.fft.ifft(phi))  # pmf of S± mod L
+        values = start + np.arange(size)
+        pmf = np.maximum(pmf[values % size], 0.0)
+        out.append((values * step, np.cumsum(pmf)))
+    return out
+
+
+def ks_to_normal_bounds(bounds, mean, sd):
+    """(lower, upper) bounds on sup |F_S − Φ((x − mean) / sd)| from :func:`compound_poisson_cdf_bounds`.
+
+    Lower: F_S − Φ ≥ F_S⁺ − Φ and Φ − F_S ≥ Φ − F_S⁻ (also just below each atom, with the left limits). Upper:
+    |F_S − Φ| ≤ max(|F_S⁻ − Φ|, |F_S⁺ − Φ|), checked at the atoms and just below them (Φ rises in between).
+    """
+    (x_lo, cdf_lo), (x_hi, cdf_hi) = bounds
+    g_lo, g_hi = special.ndtr((x_lo - mean) / sd), special.ndtr((x_hi - mean) / sd)
+    left_lo = np.concatenate([[0.0], cdf_lo[:-1]])
+    left_hi = np.concatenate([[0.0], cdf_hi[:-1]])
+    lower = max(np.max(cdf_hi - g_hi), np.max(g_lo - left_lo), 0.0)
+    upper = max(np.max(np.abs(cdf_lo - g_lo)), np.max(np.abs(left_lo - g_lo)),
+                np.max(np.abs(cdf_hi - g_hi)), np.max(np.abs(left_hi - g_hi)))
+    return float(lower), float(upper)

@@ -5,25 +5,34 @@ For each sensor (Table I with every stage on; the ideal sensor, whose counts fal
 and each method (spectral, poisson, gaussian, auto) it renders the ColorChecker under D65 (``pixel``
 statistics, 2 worker threads) and measures:
 
-* speed: pixels per second of ``render_frame`` (median of repeats; file writing excluded);
-* error against the exact method on the same work — an independent ``poisson`` frame of the same scene:
-  mean and variance bias against the model's exact moments (in standard errors of the sample, median over
-  patches and channels), the two-sample Kolmogorov–Smirnov statistic of the pixel values before quantisation
-  (largest over patches and channels), and the downstream quantities of ``camsim analyze`` on the written frames
-  (ellipse size, relative; ellipse angle, degrees; mean ΔE_ab), as differences from the exact frame's.
+* speed: pixels per second of ``render_frame`` (the fastest of the repeats, the figure least moved by other work
+  on a shared machine; file writing excluded);
+* error against the exact law, computed analytically (:func:`camsim.dn_law.dn_pmf`): per patch and channel, the
+  total variation (TV) and Kolmogorov–Smirnov distances between the frame's digital numbers (Table I) or its
+  values binned to whole electrons (the ideal sensor, unquantised) and their exact pmf, beside the noise floor of
+  an exact sampler with as many pixels (E[TV], :func:`camsim.dn_law.expected_tv`: the mean over patches and
+  channels of E[TV] is exactly what an exact sampler's mean TV is on average; the KS floor as the median over 16
+  multinomial samples of the exact pmf) — at the chart's size and at a large size (default 4000 × 3000, where the
+  floor is about 4 times lower; ``spectral`` only at the chart's size: its law under ``pixel`` statistics is
+  ``poisson``'s), and a χ² test of each patch and channel against the exact pmf (bins of at least 5 expected
+  counts): how many of the 72 reject at 1 % and the pooled p-value (log10);
+* error against an exact frame, as before: an independent ``poisson`` frame of the same scene: mean and variance
+  bias against the model's exact moments (in standard errors of the sample, median over patches and channels),
+  the two-sample KS statistic of the pixel values before quantisation (largest and median over patches and
+  channels; its own sampling noise, about 1.36 √(2/n) for n pixels a patch, hides smaller differences), and the
+  downstream quantities of ``camsim analyze`` on the written frames (ellipse size, relative; ellipse angle,
+  degrees; mean ΔE_ab), as differences from the exact frame's.
 
-The ``poisson`` rows compare two independent exact frames: their KS statistic is the sampling-noise floor of the
-comparison (about 1.36 √(2/n) for n pixels a patch). Writes CSV and a PNG chart (median KS against speed, one
-curve per method across F).
+Writes CSV and a PNG chart (top: mean TV to the exact law in units of its floor, against speed, one curve per
+method across F; bottom: mean TV against F at both sizes, with the exact sampler's floors).
 
-    python tools/bench_methods.py [--size 1000x700] [--repeats 3] [--out outputs/bench_methods]
+    python tools/bench_methods.py [--size 1000x700] [--large 4000x3000] [--repeats 5] [--out outputs/bench_methods]
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
-import statistics
 import sys
 import tempfile
 import time
@@ -88,34 +97,166 @@ def compare(frame, exact, rects, result, exact_result):
     return out
 
 
+def patch_values(frame, rect, c, border=3):
+    """A patch's integer values in channel ``c``: digital numbers, or (unquantised) floor of the DN value."""
+    x, y, w, h = rect
+    if frame.digital_dn is not None:
+        return frame.digital_dn[c, y + border : y + h - border, x + border : x + w - border].ravel()
+    return np.floor(frame.noisy_dn[c, y + border : y + h - border, x + border : x + w - border]).ravel()
+
+
+def exact_law(frame, index, c):
+    """The exact pmf (camsim.dn_law) of the values :func:`patch_values` returns for spectrum ``index``."""
+    from camsim.dn_law import dn_pmf
+
+    sensor, ex = frame.sensor, frame.expected
+    return dn_pmf(ex.signal_e[index, c] + ex.dark_e[c], sensor.dn_per_electron,
+                  sensor.read_noise_e if sensor.read_noise else 0.0,
+                  sensor.full_well_e if sensor.saturation else None,
+                  sensor.bits if frame.digital_dn is not None else None)
+
+
+def chi_square(law, values, minimum=5.0):
+    """χ² statistic and degrees of freedom of integer ``values`` against ``law``: adjacent levels merged until each
+    bin expects at least ``minimum`` counts; values outside the law's window go to its end bins."""
+    n = values.size
+    index = np.clip(values.astype(np.int64) - law.first, 0, law.pmf.size - 1)
+    observed = np.bincount(index, minlength=law.pmf.size)
+    expected = n * law.pmf
+    bins_o, bins_e, acc_o, acc_e = [], [], 0, 0.0
+    for o, e in zip(observed, expected):
+        acc_o, acc_e = acc_o + o, acc_e + e
+        if acc_e >= minimum:
+            bins_o.append(acc_o), bins_e.append(acc_e)
+            acc_o, acc_e = 0, 0.0
+    if not bins_o:
+        return 0.0, 0
+    bins_o[-1] += acc_o
+    bins_e[-1] += acc_e
+    o, e = np.array(bins_o, dtype=np.float64), np.array(bins_e)
+    return float(np.sum((o - e) ** 2 / e)), o.size - 1
+
+
+def log10_chi2_sf(statistic, dof):
+    """log10 of the χ² p-value, also where it underflows float64: there Q(a, x) = Γ(a, x) / Γ(a), a = dof / 2,
+    x = χ² / 2 ≫ a, from Γ(a, x) ≈ x^(a−1) e^(−x) / (1 − (a − 1) / x)."""
+    from scipy import special, stats
+
+    value = stats.chi2.logsf(statistic, dof)
+    if np.isfinite(value):
+        return float(value / np.log(10))
+    a, x = dof / 2, statistic / 2
+    return float(((a - 1) * np.log(x) - x - special.gammaln(a) - np.log1p(-(a - 1) / x)) / np.log(10))
+
+
+def law_errors(frame, rects, seed, chi2=False, floor_samples=16):
+    """Distances of ``frame`` to the exact law per patch and channel (see the module docstring): medians and
+    largest of TV and KS, their exact-sampler floors, and with ``chi2`` the χ² rejections and pooled p-value."""
+    from scipy import stats
+
+    from camsim.dn_law import expected_tv, sample_distances
+
+    rng = np.random.default_rng(seed)
+    tv, ks, tv_floor, ks_floor, chis, dofs, rejects = [], [], [], [], [], [], 0
+    for index, rect in enumerate(rects):
+        for c in range(3):
+            values = patch_values(frame, rect, c)
+            law = exact_law(frame, index, c)
+            d_tv, d_ks = sample_distances(law, values)
+            tv.append(d_tv)
+            ks.append(d_ks)
+            tv_floor.append(expected_tv(law, values.size))
+            cdf = np.cumsum(law.pmf)
+            ks_floor.append(float(np.median([np.max(np.abs(np.cumsum(rng.multinomial(values.size, law.pmf))
+                                                            / values.size - cdf))
+                                             for _ in range(floor_samples)])))
+            if chi2:
+                statistic, dof = chi_square(law, values)
+                if dof > 0:
+                    chis.append(statistic)
+                    dofs.append(dof)
+                    rejects += bool(stats.chi2.sf(statistic, dof) < 0.01)
+    # the mean over patches × channels of E[TV] is exactly the expected mean TV of an exact sampler
+    out = {"law_tv_mean": float(np.mean(tv)), "law_tv_floor_mean": float(np.mean(tv_floor)),
+           "law_tv_ratio": float(np.mean(tv) / np.mean(tv_floor)),
+           "law_tv_median": float(np.median(tv)), "law_tv_max": float(np.max(tv)),
+           "law_tv_floor_median": float(np.median(tv_floor)), "law_ks_median": float(np.median(ks)),
+           "law_ks_max": float(np.max(ks)), "law_ks_floor_median": float(np.median(ks_floor)),
+           "pixels_per_patch": int(np.median([patch_values(frame, r, 0).size for r in rects]))}
+    if chi2:
+        out.update(chi2_tests=len(chis), chi2_rejects_1pct=rejects,
+                   chi2_pooled_log10_p=log10_chi2_sf(np.sum(chis), np.sum(dofs)) if chis else None)
+    return out
+
+
+COLOURS = {"spectral": "tab:purple", "poisson": "tab:blue", "gaussian": "tab:red", "auto": "tab:green"}
+
+
 def chart(rows, path: Path) -> None:
+    """Top: error in units of the exact sampler's noise floor (mean over patches × channels of TV / E[TV]) against
+    speed, at the large size (spectral: the chart's size). Bottom: mean TV against F at both sizes, with the
+    floors."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
-    fig, axes = plt.subplots(1, len(PRESETS), figsize=(13, 5.5), sharey=True)
-    colours = {"spectral": "tab:purple", "poisson": "tab:blue", "gaussian": "tab:red", "auto": "tab:green"}
-    for ax, preset in zip(axes, PRESETS):
-        floor = [r["ks_median"] for r in rows if r["preset"] == preset and r["method"] == "poisson"]
+    sizes = sorted({r["size"] for r in rows}, key=lambda z: -np.prod([int(v) for v in z.split("x")]))
+    large, small = sizes[0], sizes[-1]
+    styles = dict(zip(sizes, ("-", "--")))
+    fig, axes = plt.subplots(2, len(PRESETS), figsize=(14, 11))
+    for column, preset in enumerate(PRESETS):
+        ax = axes[0, column]
+        speed = {(r["method"], r["intensity_factor"]): r["mpix_per_s"]
+                 for r in rows if r["preset"] == preset and r["size"] == small}
         for method in METHODS:
-            mine = sorted((r for r in rows if r["preset"] == preset and r["method"] == method),
+            size = large if any(r["method"] == method and r["size"] == large for r in rows) else small
+            mine = sorted((r for r in rows if r["preset"] == preset and r["method"] == method and r["size"] == size),
                           key=lambda r: -r["intensity_factor"])
-            xs, ys = [r["ks_median"] for r in mine], [r["mpix_per_s"] for r in mine]
-            ax.plot(xs, ys, "o-", color=colours[method], label=method)
-            for r in mine:
-                ax.annotate(f"{r['intensity_factor']:g}", (r["ks_median"], r["mpix_per_s"]), fontsize=7,
-                            xytext=(3, 3), textcoords="offset points", color=colours[method])
-        if floor:
-            ax.axvspan(1e-4, max(floor), color="0.85",
-                       label="sampling noise (poisson vs poisson)")
-        ax.set(xscale="log", yscale="log", xlabel="error: median two-sample KS against an exact frame",
-               title=f"{preset} (labels: F)")
+            xs = [r["law_tv_ratio"] for r in mine]
+            ys = [speed[(method, r["intensity_factor"])] for r in mine]
+            ax.plot(xs, ys, "-", color=COLOURS[method], lw=2.5 if method == "auto" else 1.2,
+                    alpha=0.6 if method == "auto" else 1.0, label=f"{method} ({size})")
+            ax.scatter(xs, ys, s=[8 + 14 * (np.log10(r["intensity_factor"]) + 5) for r in mine],
+                       color=COLOURS[method], zorder=3)
+        ax.axvline(1.0, color="0.4", lw=4, alpha=0.3, label="an exact sampler (TV = its floor E[TV])")
+        ax.plot([], [], "o", color="0.5", ms=2, label="marker size: F, from 1e-5 (small) to 1 (large)")
+        ax.set(xscale="log", yscale="log", title=f"{preset}: error against speed",
+               xlabel="error: mean over patches × channels of TV to the exact law / its floor E[TV] at that size",
+               ylabel=f"speed: megapixels per second ({small}, 2 threads)")
         ax.grid(alpha=0.3, which="both")
-    axes[0].set_ylabel("speed: megapixels per second (2 threads)")
-    axes[0].legend(fontsize=8)
-    fig.suptitle("Sampling methods: error against speed, ColorChecker under D65, pixel statistics")
-    fig.tight_layout()
+        ax.legend(fontsize=7, loc="best")
+        ax = axes[1, column]
+        for method in METHODS:
+            for size in sizes:
+                mine = sorted((r for r in rows if r["preset"] == preset and r["method"] == method
+                               and r["size"] == size), key=lambda r: r["intensity_factor"])
+                if mine:
+                    ax.plot([r["intensity_factor"] for r in mine], [r["law_tv_mean"] for r in mine], styles[size],
+                            marker="o", ms=3, color=COLOURS[method],
+                            lw=3 if method == "auto" else 1.2, alpha=0.6 if method == "auto" else 1.0)
+        for size in sizes:
+            mine = sorted((r for r in rows if r["preset"] == preset and r["method"] == "poisson" and r["size"] == size),
+                          key=lambda r: r["intensity_factor"])
+            ax.plot([r["intensity_factor"] for r in mine], [r["law_tv_floor_mean"] for r in mine], styles[size],
+                    color="0.3", lw=6, alpha=0.25)
+        same = [r["law_tv_mean"] for r in rows if r["preset"] == preset and r["method"] == "auto"] == \
+            [r["law_tv_mean"] for r in rows if r["preset"] == preset and r["method"] == "gaussian"]
+        if same:
+            ax.text(0.02, 0.28, "auto draws the Gaussian everywhere here: its curves are gaussian's",
+                    transform=ax.transAxes, fontsize=8, color=COLOURS["auto"])
+        ax.set(xscale="log", yscale="log", xlabel="intensity factor F",
+               ylabel="mean over patches × channels of TV to the exact law",
+               title=f"{preset}: error against F at two frame sizes")
+        ax.grid(alpha=0.3, which="both")
+    handles = [Line2D([], [], color=COLOURS[m], lw=2, label=m) for m in METHODS]
+    handles += [Line2D([], [], color="0.2", ls=styles[z], label=f"{z} pixels") for z in sizes]
+    handles += [Line2D([], [], color="0.3", lw=6, alpha=0.25, label="exact sampler's floor E[TV]")]
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
+    fig.suptitle("Sampling methods against the exact law (camsim.dn_law) of the digital numbers (Table I) or of the "
+                 "electrons binned to 1 e⁻ (ideal)\nColorChecker under D65, pixel statistics")
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -124,13 +265,14 @@ def main() -> int:
     sys.path.insert(0, str(ROOT))
     from camsim.camera import load_camera
     from camsim.chart import parse_size
-    from camsim.pipeline import light_scene
+    from camsim.pipeline import light_scene, make_frame
     from camsim.scene import load_scene
     from camsim.sensor import PRESETS as SENSORS
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--size", default="1000x700")
-    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--large", default="4000x3000", help="the large frames' size, or 'none'")
+    parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--out", type=Path, default=ROOT / "outputs" / "bench_methods")
     args = parser.parse_args()
     width, height = parse_size(args.size)
@@ -147,23 +289,31 @@ def main() -> int:
                 exact, exact_result, _ = frame_records(scene, lit, camera, sensor, factor, "poisson", 1, 2,
                                                        Path(tmp) / f"{preset}-{factor}-exact")
                 for method in METHODS:
-                    times, frame, result = [], None, None
-                    for r in range(1 if method == "spectral" else args.repeats):
-                        frame, result, seconds = frame_records(scene, lit, camera, sensor, factor, method, 2 + r,
-                                                               2, Path(tmp) / f"{preset}-{factor}-{method}-{r}")
-                        times.append(seconds)
-                    row = {"preset": preset, "intensity_factor": factor, "method": method,
+                    times = []
+                    for r in range(0 if method == "spectral" else args.repeats - 1):  # timed only
+                        start = time.perf_counter()
+                        make_frame(lit, sensor, factor, method=method, rng=100 + r, workers=2)
+                        times.append(time.perf_counter() - start)
+                    frame, result, seconds = frame_records(scene, lit, camera, sensor, factor, method, 2, 2,
+                                                           Path(tmp) / f"{preset}-{factor}-{method}")
+                    times.append(seconds)
+                    row = {"preset": preset, "size": f"{width}x{height}", "intensity_factor": factor,
+                           "method": method,
                            "mean_charge_e": float(np.median(frame.expected.signal_e + frame.expected.dark_e)),
-                           "mpix_per_s": width * height / 1e6 / statistics.median(times),
-                           **compare(frame, exact, lit.radiance.patch_rects, result, exact_result)}
+                           "mpix_per_s": width * height / 1e6 / min(times),
+                           **compare(frame, exact, lit.radiance.patch_rects, result, exact_result),
+                           **law_errors(frame, lit.radiance.patch_rects, seed=11, chi2=True)}
                     if frame.plan is not None and method == "auto":
                         row["auto_gaussian_fraction"] = float(np.mean(frame.plan.kind == 1))
                     rows.append(row)
-                    print(f"{preset:13s} F={factor:<7g} {method:18s} {row['mpix_per_s']:8.2f} MP/s  "
-                          f"KS median {row['ks_median']:.4f} max {row['ks_max']:.4f}  mean bias {row['mean_bias_se']:.2f} SE  "
-                          f"var bias {row['var_bias_se']:.2f} SE", flush=True)
+                    print(f"{preset:13s} F={factor:<7g} {method:9s} {row['mpix_per_s']:8.2f} MP/s  "
+                          f"KS median {row['ks_median']:.4f} max {row['ks_max']:.4f}  TV to the law mean "
+                          f"{row['law_tv_mean']:.4f} (floor {row['law_tv_floor_mean']:.4f})  mean bias "
+                          f"{row['mean_bias_se']:.2f} SE  var bias {row['var_bias_se']:.2f} SE", flush=True)
+    if args.large != "none":
+        rows += large_frames(scene, camera, parse_size(args.large), make_frame, light_scene, SENSORS)
     args.out.mkdir(parents=True, exist_ok=True)
-    fields = sorted({key for row in rows for key in row}, key=lambda k: list(rows[0]).index(k) if k in rows[0] else 99)
+    fields = list(dict.fromkeys(key for row in rows for key in row))
     with open(args.out / "methods.csv", "w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=fields, lineterminator="\n")
         writer.writeheader()
@@ -171,6 +321,31 @@ def main() -> int:
     chart(rows, args.out / "methods_chart.png")
     print(f"wrote {args.out / 'methods.csv'} and {args.out / 'methods_chart.png'}")
     return 0
+
+
+def large_frames(scene, camera, size, make_frame, light_scene, sensors):
+    """Rows of the large frames: poisson, gaussian and auto, their errors against the exact law and χ² tests."""
+    width, height = size
+    lit = light_scene(scene.replace(width=width, height=height), "D65", camera)
+    rows = []
+    for preset in PRESETS:
+        for factor in FACTORS:
+            for method in ("poisson", "gaussian", "auto"):
+                start = time.perf_counter()
+                frame = make_frame(lit, sensors[preset], factor, method=method, rng=21, workers=2)
+                seconds = time.perf_counter() - start
+                row = {"preset": preset, "size": f"{width}x{height}", "intensity_factor": factor, "method": method,
+                       "mean_charge_e": float(np.median(frame.expected.signal_e + frame.expected.dark_e)),
+                       "mpix_per_s": width * height / 1e6 / seconds,
+                       **law_errors(frame, lit.radiance.patch_rects, seed=12, chi2=True)}
+                rows.append(row)
+                print(f"{preset:13s} F={factor:<7g} {method:9s} {width}x{height}  TV to the law mean "
+                      f"{row['law_tv_mean']:.4f} max {row['law_tv_max']:.4f} (floor {row['law_tv_floor_mean']:.4f})"
+                      f"  KS median {row['law_ks_median']:.4f} (floor {row['law_ks_floor_median']:.4f})  χ² rejects "
+                      f"{row['chi2_rejects_1pct']} of {row['chi2_tests']}, pooled log10 p "
+                      f"{row['chi2_pooled_log10_p']:.1f}", flush=True)
+                del frame
+    return rows
 
 
 if __name__ == "__main__":

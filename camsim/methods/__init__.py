@@ -8,7 +8,12 @@ checked. The command line, the scene-file reader and the dataset spec take their
 * ``spectral`` — per-wavelength-bin draws, N× the work: Eq. 4 literally under ``paper`` statistics.
 * ``gaussian`` — one moment-matched normal per pixel and channel: fast, wrong at low counts.
 * ``auto`` — per spectrum and channel, the Gaussian where its KS distance to the exact law is within the
-  tolerance, else the exact draws.
+  tolerance, else the exact draws (under ``paper`` statistics: ``poisson``'s stand-in where it is within the
+  tolerance of Eq. 4, else Eq. 4's per-bin draws; :mod:`camsim.methods.plan`).
+
+Eq. 4's correlation between the channels under ``paper`` statistics (shared per-bin counts) is kept by
+``spectral``, and by ``auto`` for the spectra it draws by bins; ``poisson`` and ``gaussian`` draw the channels
+independently.
 """
 
 from __future__ import annotations
@@ -20,8 +25,9 @@ from importlib import import_module
 from camsim.errors import CamsimError
 
 #: Default ``auto`` tolerance: the largest KS distance accepted between a pixel value's exact law (before
-#: quantisation) and the Gaussian that replaces it. With Table I's 4 e⁻ read noise the Gaussian never exceeds it
-#: (worst 0.0064, near 30 e⁻); without read noise it needs about 650 e⁻.
+#: quantisation) and the law ``auto`` draws it from, per spectrum and channel. With Table I's 4 e⁻ read noise the
+#: Gaussian never exceeds it (worst 0.0065, near 32 e⁻, ``pixel`` statistics); without read noise it needs about
+#: 800 e⁻. It bounds one pixel's law, not a frame's: n pixels of a patch detect a KS distance ε once √n ε ≳ 1.63.
 DEFAULT_TOLERANCE = 0.01
 
 
@@ -79,7 +85,7 @@ METHODS = {
         "camsim.methods.fused", records_sampling=True),
     "auto": SamplingMethod(
         "auto", "per spectrum and channel the Gaussian where its KS distance to the exact law is within "
-                "--tolerance, else poisson", "camsim.methods.fused", records_sampling=True),
+                "--tolerance, else exact draws", "camsim.methods.fused", records_sampling=True),
 }
 #: The method names, in the order help texts list them.
 METHOD_NAMES = tuple(METHODS)

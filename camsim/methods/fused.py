@@ -5,6 +5,9 @@ walks a block's rectangles of equal label (or, for a cube, its pixels grouped by
 quantisation. The exact path composes the stage functions of :mod:`camsim.stages` (charge, DSNU offset, full
 well, read noise, gain; where the full well can act, the charge's Poisson means are capped far above it,
 :func:`camsim.stages.cap_mean_e`); the Gaussian paths replace charge and read noise by one moment-matched normal.
+``auto``'s Eq. 4 path (:data:`~camsim.methods.plan.BINS`, ``paper`` statistics at low F) takes the signal of
+``spectral``'s per-bin draws (:func:`camsim.methods.spectral.draw_bins`, shared by the three channels of a pixel,
+drawn once per block) and goes on as the exact path.
 """
 
 from __future__ import annotations
@@ -13,7 +16,8 @@ import numpy as np
 
 from camsim.expected import ExpectedSignal
 from camsim.kernels import label_runs, standard_normal_f32
-from camsim.methods.plan import EXACT, GAUSSIAN, GAUSSIAN_CLIPPED, SATURATED, DrawPlan
+from camsim.methods.plan import BINS, EXACT, GAUSSIAN, GAUSSIAN_CLIPPED, SATURATED, DrawPlan
+from camsim.methods.spectral import draw_bins
 from camsim.cfa import cfa_sites
 from camsim.sensor import SensorParams
 from camsim.stages import (
@@ -30,13 +34,14 @@ from camsim.stages import (
 
 
 def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor: SensorParams,
-                 statistics: str, c: int, rng, z, work, offset=None, gain=None, dark_gain=None):
+                 statistics: str, c: int, rng, z, work, offset=None, gain=None, dark_gain=None, bins=None):
     """One channel of a block, in DN before quantisation, by the plan: ``out_c`` (h, w) float32 is written in place.
 
     ``z`` (h, w) float32 and ``work`` are scratch. Each pixel uses one draw from ``z``: its read noise on the exact
     path, or (rescaled) its whole Gaussian value; the clipped Gaussian, and the Gaussian under non-Gaussian read
     noise, draw their own normals. ``offset`` (offset DSNU, e⁻), ``gain`` (PRNU) and ``dark_gain`` (dark-current
-    DSNU) are this block's fixed-pattern maps, (h, w), or None.
+    DSNU) are this block's fixed-pattern maps, (h, w), or None. ``bins`` (h, w): this channel's per-bin signal
+    (:func:`bins_signal`, e⁻) where the plan has :data:`~camsim.methods.plan.BINS`, else None.
     """
     k = sensor.dn_per_electron
     read = sensor.read_noise_e if sensor.read_noise else 0.0
@@ -89,11 +94,16 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
         else:
             size = out_c[where].shape if label is not None else None
             clip = bool(np.any(plan.needs_clip[index, c]))
-            charge = collect_charge_e(rng, expected.signal_e[index, c], expected.dark_e[c],
-                                      expected.signal_var_e2[index, c], statistics=statistics,
-                                      photon_noise=sensor.photon_noise, size=size, gain=g, dark_gain=d,
-                                      saturation_e=None if not clip else saturation_level_e(
-                                          sensor.full_well_e, None if offset is None else offset[where]))
+            level = None if not clip else saturation_level_e(sensor.full_well_e,
+                                                             None if offset is None else offset[where])
+            if kind == BINS:  # Eq. 4's drawn signal, as a known S̄ per pixel: the stage adds Poisson(D̄) to it
+                charge = collect_charge_e(rng, bins[where], expected.dark_e[c], statistics=statistics,
+                                          photon_noise=False, gain=g, dark_gain=d, saturation_e=level)
+            else:
+                charge = collect_charge_e(rng, expected.signal_e[index, c], expected.dark_e[c],
+                                          expected.signal_var_e2[index, c], statistics=statistics,
+                                          photon_noise=sensor.photon_noise, size=size, gain=g, dark_gain=d,
+                                          saturation_e=level)
             charge = add_offset_e(charge, None if offset is None else offset[where])
             if clip:
                 charge = saturate_e(charge, sensor.full_well_e)
@@ -115,6 +125,24 @@ def _masks_by_kind(labels, kinds_of_spectra):
     return [per_pixel == kind for kind in np.unique(per_pixel)]
 
 
+def bins_signal(labels, plan: DrawPlan, expected: ExpectedSignal, sensor: SensorParams, rng, offset=None):
+    """Eq. 4's signal S (3, h, w) float32 of the block's pixels whose spectrum the plan draws by bins in some
+    channel (0 elsewhere), by ``spectral``'s per-bin draws, shared by the channels; None where it has none.
+    Unit: e⁻."""
+    spectra = np.any(plan.kind == BINS, axis=1)
+    if not spectra.any():
+        return None
+    mask = spectra[labels]
+    if not mask.any():
+        return None
+    out = np.zeros((3,) + labels.shape, dtype=np.float32)
+    signal = np.empty((3, int(np.count_nonzero(mask))), dtype=np.float32)
+    level = saturation_level_e(sensor.full_well_e, offset) if sensor.saturation else None
+    draw_bins(labels[mask], expected, sensor, "paper", rng, signal, level, dark=False)
+    out[:, mask] = signal
+    return out
+
+
 def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None:
     """Rows ``r0:r1`` of a frame by its plan: every channel (or CFA site) in one pass, then row noise and the ADC.
 
@@ -125,6 +153,7 @@ def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None
     labels = job.labels[r0:r1]
     offset, gain, dark_gain = job.maps_rows(r0, r1)
     row_noise_dn = sensor.row_noise_e * sensor.dn_per_electron
+    bins = bins_signal(labels, plan, expected, sensor, rng, offset)
     if sensor.cfa is not None:  # each site of the 2 × 2 cell: its channel only
         for dy, dx, c in cfa_sites(sensor.cfa):
             site = (slice(dy, None, 2), slice(dx, None, 2))
@@ -132,7 +161,8 @@ def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None
             value = np.empty(sub_labels.shape, dtype=np.float32)
             fill_channel(value, sub_labels, plan, expected, sensor, job.statistics, c, rng, np.empty_like(value),
                          scratch.work, None if offset is None else offset[c][site],
-                         None if gain is None else gain[c][site], None if dark_gain is None else dark_gain[c][site])
+                         None if gain is None else gain[c][site], None if dark_gain is None else dark_gain[c][site],
+                         None if bins is None else bins[c][site])
             block[0][site] = value
         planes = [0]
     else:
@@ -141,7 +171,8 @@ def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None
         if sensor.cfa is None:
             fill_channel(block[p], labels, plan, expected, sensor, job.statistics, p, rng,
                          scratch.plane[: r1 - r0], scratch.work, None if offset is None else offset[p],
-                         None if gain is None else gain[p], None if dark_gain is None else dark_gain[p])
+                         None if gain is None else gain[p], None if dark_gain is None else dark_gain[p],
+                         None if bins is None else bins[p])
         if sensor.row_noise_e > 0:  # a physical row shares its offset, whatever the colour of its pixels
             add_row_noise(block[p], row_noise_dn, rng)
         if job.digital is not None:

@@ -32,7 +32,7 @@ from camsim.stages import (
 
 
 def draw_bins(labels, expected: ExpectedSignal, sensor: SensorParams, statistics: str, rng, out,
-              saturation_e: float | None = None, dark_gain=None):
+              saturation_e: float | None = None, dark_gain=None, dark: bool = True):
     """Fill ``out`` (3, h, w) float32 with the collected charge S + D of every pixel, by per-bin draws. Unit: e⁻.
 
     ``saturation_e``: with a full well, the charge at and above which every pixel is saturated (the full well
@@ -40,6 +40,7 @@ def draw_bins(labels, expected: ExpectedSignal, sensor: SensorParams, statistics
     down to the saturation cap (:func:`camsim.stages.cap_mean_e`, :func:`bin_scale`), and the dark mean is capped.
     ``dark_gain``: the dark-current DSNU map d of these pixels, (3, h, w), or None: the dark charge is then
     Poisson(D̄ d), one draw per pixel and channel.
+    ``dark`` False: the signal S alone (``auto``'s Eq. 4 path adds the dark charge itself, per channel).
     """
     if not sensor.photon_noise:
         return _draw_without_photon_noise(labels, expected, sensor, statistics, rng, out, saturation_e, dark_gain)
@@ -67,11 +68,11 @@ def draw_bins(labels, expected: ExpectedSignal, sensor: SensorParams, statistics
             signal = poisson(rng, lam).sum(axis=2)
         for c in range(3):
             out_flat[c][start : start + chunk] = signal[:, c]
-    for c in range(3):
-        dark = expected.dark_e[c]
-        if not dark > 0:
+    for c in range(3) if dark else ():
+        dark_mean = expected.dark_e[c]
+        if not dark_mean > 0:
             continue
-        mean = dark if dark_gain is None else dark * dark_gain[c]
+        mean = dark_mean if dark_gain is None else dark_mean * dark_gain[c]
         mean = mean if saturation_e is None else cap_mean_e(mean, saturation_e)
         out[c] += poisson(rng, mean, size=out[c].shape)
     return out
