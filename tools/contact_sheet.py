@@ -6,7 +6,7 @@ one labelled PNG:
 
 * row 1, D65 and row 2, A: the preview's default exposure (``"scene"``): the perfect white at F = 1 is sRGB
   white, so the frames darken with F as the light does — the PNGs ``camsim render --preview`` writes;
-* row 3, D65 with ``exposure="auto"`` (gain 1 / F): every F exposed like F = 1, so the low-light noise
+* row 3, D65 with the preview's ``exposure="auto"`` (a display gain 1 / F, not the sensor's auto exposure): every F shown like F = 1, so the low-light noise
   (shot noise, dark current, read noise and the 8-bit quantisation steps) is amplified with the signal.
 
 The frames are those of ``camsim render scenes/macbeth_26.toml --illuminant D65 A --intensity ... --size WxH``
@@ -29,7 +29,7 @@ ROWS = (("D65", "scene"), ("A", "scene"), ("D65", "auto"))
 ROW_LABELS = {
     ("D65", "scene"): "D65",
     ("A", "scene"): "A (tungsten),\nwhite-balanced",
-    ("D65", "auto"): "D65, auto\nexposure × 1/F",
+    ("D65", "auto"): "D65, preview\ngain × 1/F",
 }
 
 
