@@ -24,6 +24,7 @@ import numpy as np
 from camsim.camera import Camera, absolute_qe, load_camera
 from camsim.errors import CamsimError
 from camsim.expected import ExpectedSignal, expected_signal
+from camsim.fixed_pattern import dark_gain_at
 from camsim.frame_files import FrameInfo
 from camsim.photons import KM_LM_PER_W, photon_radiance
 from camsim.radiance import SceneRadiance, scene_radiance
@@ -301,10 +302,11 @@ def frame_warnings(sensor: SensorParams) -> list[str]:
     Two conditions, on the mean dark charge D̄ = σ²_dark · T of each channel (Eq. 6), with k = G · G_Ve⁻:
 
     * with saturation on, D̄ ≥ full well: the dark current alone fills the well, so every pixel saturates
-      whatever the light ("every" when D̄ − 6 σ ≥ full well, σ² = D̄ + DSNU²; else "most");
+      whatever the light ("every" when D̄_cold − 6 σ ≥ full well, σ² = D̄_cold + DSNU², D̄_cold the dark mean of a
+      pixel 6 σ cold on the dark-current DSNU map (D̄ without it); else "most");
     * otherwise, with quantisation on, k · D̄ ≥ 2^nb − 1 (the white level): the dark level alone reaches the top of
-      the ADC, so every pixel reads the white level ("every" when k (D̄ − 6 σ) ≥ 2^nb − 1, σ² = D̄ + DSNU² + σ_read²
-      + σ_row²) — a high gain does this before the well fills.
+      the ADC, so every pixel reads the white level ("every" when k (D̄_cold − 6 σ) ≥ 2^nb − 1,
+      σ² = D̄_cold + DSNU² + σ_read² + σ_row²) — a high gain does this before the well fills.
 
     Both may put the black level (the mean digital number of an unlit pixel,
     :attr:`camsim.sensor.SensorParams.black_level_dn`) above the white level − 1; the DNG's BlackLevel is then
@@ -324,17 +326,19 @@ def frame_warnings(sensor: SensorParams) -> list[str]:
            f"black_level_tag_dn; black_level_dn keeps the true black level {_channels(black, range(3), '.4g')} DN)"
            if clipped_tag else "")
     read = sensor.read_noise_e if sensor.read_noise else 0.0
+    # the coldest pixels' dark charge: the dark-current DSNU map's factor 6 σ below its normal's mean (1 when off)
+    cold = dark * dark_gain_at(sensor, -EVERY_PIXEL_SIGMA)
     when = f"at T = {sensor.exposure_s:g} s"
     if sensor.saturation and np.any(dark >= full):
         hit = [c for c in range(3) if dark[c] >= full]
-        sigma = np.sqrt(dark + sensor.dsnu_e**2)
-        every = all(dark[c] - EVERY_PIXEL_SIGMA * sigma[c] >= full for c in hit)
+        sigma = np.sqrt(cold + sensor.dsnu_e**2)
+        every = all(cold[c] - EVERY_PIXEL_SIGMA * sigma[c] >= full for c in hit)
         return [f"dark current alone fills the well: σ²_dark·T = {_channels(dark, hit)} e⁻ ≥ full well {full:g} e⁻ "
                 f"{when}; {_pixels(every, hit)} saturate{'s' if every else ''}, whatever the light{tag}"]
     if sensor.quantisation and np.any(k * dark >= white):
         hit = [c for c in range(3) if k * dark[c] >= white]
-        sigma = np.sqrt(dark + sensor.dsnu_e**2 + read**2 + sensor.row_noise_e**2)
-        every = all(k * (dark[c] - EVERY_PIXEL_SIGMA * sigma[c]) >= white for c in hit)
+        sigma = np.sqrt(cold + sensor.dsnu_e**2 + read**2 + sensor.row_noise_e**2)
+        every = all(k * (cold[c] - EVERY_PIXEL_SIGMA * sigma[c]) >= white for c in hit)
         below = f"; the full well, {full:g} e⁻, is not reached" if sensor.saturation else ""
         return [f"dark current alone reaches the top of the ADC: k·σ²_dark·T = {_channels(k * dark, hit, '.4g')} DN ≥ "
                 f"white level {white} DN {when} (k = {k:.4g} DN/e⁻{below}); {_pixels(every, hit)} "

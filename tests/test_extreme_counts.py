@@ -243,6 +243,12 @@ def test_frame_warnings_conditions():
     # only green and blue at 42 s (R 8190 e⁻), and only 2 σ above: "most"
     partial = frame_warnings(dataclasses.replace(TABLE1, exposure_s=42.0))[0]
     assert "G 9660, B 9156 e⁻" in partial and "most G/B pixels saturate" in partial
+    # a dark-current DSNU map of 5 %: at 50 s the coldest pixels (6 σ of the map's normal, d = e^(−6s − s²/2)) hold
+    # 9750 d R electrons: below the well, so only "most" pixels saturate (R 7215 e⁻ in the coldest)
+    s = np.sqrt(np.log(1 + 0.05**2))
+    assert 9750 * np.exp(-6 * s - s * s / 2) < 9000
+    mapped = frame_warnings(dataclasses.replace(TABLE1, exposure_s=50.0, dsnu_dark_current_percent=5.0))[0]
+    assert "most pixels saturate" in mapped
     # a high gain: the ADC's top before the well
     adc = frame_warnings(dataclasses.replace(TABLE1, exposure_s=20.0, analog_gain_dn_per_v=500.0))[0]
     assert adc.startswith("dark current alone reaches the top of the ADC: k·σ²_dark·T = R 390, G 460, B 436 DN ≥ "
