@@ -27,6 +27,8 @@ the full well plus read noise).
 
 from __future__ import annotations
 
+import dataclasses
+
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -259,8 +261,9 @@ def plan_methods(expected: ExpectedSignal, sensor: SensorParams, statistics: str
         below, above = np.ones(lam.shape, bool), np.zeros(lam.shape, bool)
     ks = np.zeros(lam.shape)
     stand_in = np.zeros(lam.shape)  # KS distance of the exact path to the exact law: 0 but for paper's stand-in
-    if method != "poisson" and paper:
-        ks, stand_in = paper_ks_bounds(expected, read, sensor.gaussian_read_noise)
+    if method != "poisson" and paper:  # judged at the coldest pixel of a dark-current DSNU map, as below
+        judged = expected if np.all(cold == 0) else dataclasses.replace(expected, dark_e=expected.dark_e - cold)
+        ks, stand_in = paper_ks_bounds(judged, read, sensor.gaussian_read_noise)
     elif method != "poisson":  # the Poisson part: S + D (pixel statistics) or D alone (no photon noise)
         lam_poisson = (lam if sensor.photon_noise else np.broadcast_to(expected.dark_e, lam.shape)) - cold
         ks[~above] = predicted_ks(lam_poisson[~above], read)  # saturated spectra are exact either way: KS 0
