@@ -17,6 +17,7 @@ import numpy as np
 from scipy import stats
 
 from camsim.errors import CamsimError
+from camsim.rates import FactoredSpectra, all_finite
 from camsim.sensor import SensorParams
 
 
@@ -26,8 +27,9 @@ class ExpectedSignal:
 
     Attributes
     ----------
-    photon_rate : numpy.ndarray, shape (K, N)
-        F · g(λi), photons / (s m² sr) per bin at the frame's intensity factor.
+    photon_rate : numpy.ndarray or camsim.rates.FactoredSpectra, shape (K, N)
+        F · g(λi), photons / (s m² sr) per bin at the frame's intensity factor (factored for an image scene's
+        colours: rows are dense only when indexed).
     qe : numpy.ndarray, shape (3, N)
         Qe_κ(λi). Unit: e⁻ · m² · sr / photon.
     signal_e : numpy.ndarray, shape (K, 3)
@@ -58,8 +60,8 @@ def expected_signal(photon_radiance, qe, sensor: SensorParams, intensity_factor:
 
     Parameters
     ----------
-    photon_radiance : numpy.ndarray, shape (K, N)
-        g(λi) at F = 1. Unit: photons / (s m² sr).
+    photon_radiance : numpy.ndarray or camsim.rates.FactoredSpectra, shape (K, N)
+        g(λi) at F = 1. Unit: photons / (s m² sr). Factored spectra give S = T F c (B Qeᵀ): one J × 3 matrix.
     qe : numpy.ndarray, shape (3, N)
         Unit: e⁻ · m² · sr / photon.
     sensor : SensorParams
@@ -75,7 +77,10 @@ def expected_signal(photon_radiance, qe, sensor: SensorParams, intensity_factor:
     """
     T = sensor.exposure_s
     with np.errstate(over="ignore", invalid="ignore"):  # an overflow is refused below, with its reason
-        rate = intensity_factor * np.asarray(photon_radiance, dtype=np.float64)
+        if isinstance(photon_radiance, FactoredSpectra):  # an image's colours: J basis spectra, never K × N
+            rate = photon_radiance.scaled(intensity_factor)
+        else:
+            rate = intensity_factor * np.asarray(photon_radiance, dtype=np.float64)
         signal = T * (rate @ qe.T)
         if not sensor.photon_noise:
             var = np.zeros_like(signal)
@@ -84,7 +89,7 @@ def expected_signal(photon_radiance, qe, sensor: SensorParams, intensity_factor:
         else:
             var = T * T * (rate @ (qe * qe).T)
         dark = sensor.dark_mean_e
-    if not (np.all(np.isfinite(rate)) and np.all(np.isfinite(signal)) and np.all(np.isfinite(var))
+    if not (all_finite(rate) and np.all(np.isfinite(signal)) and np.all(np.isfinite(var))
             and np.all(np.isfinite(dark))):
         raise CamsimError(_overflow_reason(photon_radiance, qe, sensor, intensity_factor, statistics))
     exact_poisson = statistics == "pixel" or not sensor.photon_noise

@@ -28,6 +28,7 @@ from camsim.fixed_pattern import dark_gain_at
 from camsim.frame_files import FrameInfo
 from camsim.photons import KM_LM_PER_W, photon_radiance
 from camsim.radiance import SceneRadiance, scene_radiance
+from camsim.rates import FactoredSpectra
 from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
 from camsim.render import Frame, check_frame_values, render_frame
 from camsim.scene import Scene
@@ -44,8 +45,9 @@ class LitScene:
     ----------
     labels : numpy.ndarray, shape (H, W), unsigned integer
         Spectrum index of each pixel.
-    photon_rate : numpy.ndarray, shape (K, N)
-        g(λi) of each distinct spectrum at F = 1. Unit: photons / (s m² sr) per bin.
+    photon_rate : numpy.ndarray or camsim.rates.FactoredSpectra, shape (K, N)
+        g(λi) of each distinct spectrum at F = 1. Unit: photons / (s m² sr) per bin. Factored for an image's
+        colours (:mod:`camsim.rates`).
     qe : numpy.ndarray, shape (3, N)
         The camera's absolute Qe_κ(λi). Unit: e⁻ · m² · sr / photon.
     grid : WavelengthGrid
@@ -103,7 +105,9 @@ def lit_scene(radiance: SceneRadiance, camera: Camera, scale, grid: WavelengthGr
     ``qe``: :func:`camsim.camera.absolute_qe` of ``camera`` and ``scale``, when the caller has it (it does not
     depend on the light).
     """
-    g = photon_radiance(radiance.radiance, grid.wavelengths_nm, grid.step_nm)
+    to_photons = lambda spectra: photon_radiance(spectra, grid.wavelengths_nm, grid.step_nm)  # noqa: E731
+    g = radiance.radiance.map_basis(to_photons) if isinstance(radiance.radiance, FactoredSpectra) \
+        else to_photons(radiance.radiance)
     g_white = photon_radiance(radiance.white_radiance, grid.wavelengths_nm, grid.step_nm)
     qe = absolute_qe(camera, scale, grid) if qe is None else qe
     return LitScene(radiance.labels, g, qe, grid, radiance, illuminant, g_white)

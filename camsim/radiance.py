@@ -13,6 +13,7 @@ import numpy as np
 
 from camsim.errors import CamsimError
 from camsim.photons import scale_to_luminance
+from camsim.rates import FactoredSpectra
 from camsim.scene import Scene
 from camsim.spectra import cmfs_on_grid, illuminant_spd
 
@@ -25,8 +26,8 @@ class SceneRadiance:
     ----------
     labels : numpy.ndarray, shape (H, W), unsigned integer
         Index into ``radiance`` for every pixel.
-    radiance : numpy.ndarray, shape (K, N)
-        Spectral radiance of each distinct spectrum. Unit: W / (m² sr nm).
+    radiance : numpy.ndarray or camsim.rates.FactoredSpectra, shape (K, N)
+        Spectral radiance of each distinct spectrum (factored for an image's colours). Unit: W / (m² sr nm).
     white_radiance : numpy.ndarray, shape (N,)
         Radiance of the perfect white (reflectance 1) under the illuminant at the scene's luminance, the absolute
         scale's reference. Unit: W / (m² sr nm).
@@ -58,6 +59,9 @@ def scene_radiance(scene: Scene, illuminant: str) -> SceneRadiance:
         radiance = refl
     elif scene.normalisation == "chart":
         radiance = refl * white
+    elif isinstance(refl, FactoredSpectra):
+        raise CamsimError("normalisation 'per-spectrum' scales each spectrum to the luminance: it applies to charts "
+                          "and cubes, not to an image, whose pixels keep their relative brightness")
     else:
         radiance = np.empty_like(refl)
         for k, row in enumerate(refl):

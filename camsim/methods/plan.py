@@ -178,7 +178,7 @@ def paper_ks_bounds(expected: ExpectedSignal, read_noise_e: float, gaussian_read
     (numpy.ndarray, numpy.ndarray)
         The bounds for the Gaussian and for the stand-in, each at most 1.
     """
-    qe, rate = expected.qe, expected.photon_rate
+    qe, rate = expected.qe, np.asarray(expected.photon_rate)  # dense rows (an image's factored colours too)
     signal, var, dark = expected.signal_e, expected.signal_var_e2, np.asarray(expected.dark_e, dtype=np.float64)
     # B(S) = C Σ μ w³ / (Σ μ w²)^{3/2} is free of the scale of w and falls as 1/√(scale of μ): both normalised
     w = qe / np.where(qe.max(axis=1, keepdims=True) > 0, qe.max(axis=1, keepdims=True), 1.0)

@@ -1,0 +1,81 @@
+"""Spectra given as linear combinations of a few basis spectra: K rows without a K × N array.
+
+An sRGB image recovered with a linear method (Mallett 2019) has, per distinct colour k, the reflectance
+ρ_k(λ) = Σ_j c_kj B_j(λ) over three basis spectra. Everything the model computes from a spectrum is linear in it
+— radiance under a light, photon rate (Eq. 3), signal electrons T F Σ g Qe (Eqs. 5–6) and, under ``paper``
+statistics, their variance T² F Σ g Qe² — so it is computed on the J basis spectra once and applied to the
+coefficients: the expected electrons of every colour are its coefficients times one J × 3 matrix per camera and
+light (MODEL.md §1, "model no more than a scene needs"). :class:`FactoredSpectra` stands where a (K, N) array of
+spectra stands (``@``, scaling by a number or per bin, row indexing), and gives dense rows only when indexed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class FactoredSpectra:
+    """K spectra ``coefficients @ basis``, kept factored.
+
+    Attributes
+    ----------
+    coefficients : numpy.ndarray, shape (K, J)
+        Weights of the basis spectra per row. Unitless.
+    basis : numpy.ndarray, shape (J, N)
+        The basis spectra on the wavelength grid, in the unit of the rows (reflectance, radiance, photon rate).
+    """
+
+    coefficients: np.ndarray
+    basis: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(K, N), as the dense array would have."""
+        return self.coefficients.shape[0], self.basis.shape[1]
+
+    @property
+    def ndim(self) -> int:
+        return 2
+
+    def __len__(self) -> int:
+        return self.coefficients.shape[0]
+
+    def __getitem__(self, index) -> np.ndarray:
+        """Dense rows: ``coefficients[index] @ basis`` (an int, a slice or an index array)."""
+        return np.asarray(self.coefficients[index], dtype=np.float64) @ self.basis
+
+    def __matmul__(self, other) -> np.ndarray:
+        """``dense @ other`` computed as ``coefficients @ (basis @ other)``: (K, J) · (J, M). Exact: a sum reordered."""
+        return np.asarray(self.coefficients, dtype=np.float64) @ (self.basis @ np.asarray(other, dtype=np.float64))
+
+    def scaled(self, factor) -> FactoredSpectra:
+        """Every row times ``factor``: a number or one value per bin, shape (N,) (applied to the basis)."""
+        return FactoredSpectra(self.coefficients, self.basis * np.asarray(factor, dtype=np.float64))
+
+    def __mul__(self, factor) -> FactoredSpectra:
+        return self.scaled(factor)
+
+    __rmul__ = __mul__
+
+    def map_basis(self, function) -> FactoredSpectra:
+        """Apply a per-bin linear map (e.g. radiance → photon rate, Eq. 3) to the basis."""
+        return FactoredSpectra(self.coefficients, np.asarray(function(self.basis), dtype=np.float64))
+
+    def all_finite(self) -> bool:
+        """Whether the coefficients and the basis are finite (so is every row)."""
+        return bool(np.all(np.isfinite(self.coefficients)) and np.all(np.isfinite(self.basis)))
+
+    def __array__(self, dtype=None, copy=None):
+        """The dense (K, N) rows: for small K, or paths that need every bin of every row."""
+        dense = self[:]
+        return dense if dtype is None else dense.astype(dtype)
+
+
+def all_finite(spectra) -> bool:
+    """Whether every value of dense or factored spectra is finite."""
+    if isinstance(spectra, FactoredSpectra):
+        return spectra.all_finite()
+    return bool(np.all(np.isfinite(spectra)))
