@@ -2,7 +2,7 @@
 
 :data:`SOURCES` maps a scene file's table name to its source class (:class:`camsim.sources.base.SceneSource`):
 ``[chart]`` (:class:`ChartSource`, a reflectance chart: a label map plus K spectra) and ``[cube]``
-(:class:`CubeSource`, a hyperspectral ``.npy`` cube). A new kind of scene is one module with one class,
+(:class:`CubeSource`, a hyperspectral cube: ``.npy``, ENVI or ``.mat``). A new kind of scene is one module with one class,
 added to :data:`SOURCES`.
 """
 
