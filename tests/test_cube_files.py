@@ -208,7 +208,6 @@ def render_dng(tmp_path, name, path, extra="", spectral=""):
     return dng.read_bytes()
 
 
-@pytest.mark.slow
 def test_every_format_renders_the_same_frame(tmp_path):
     np.save(tmp_path / "c.npy", REF)
     write_envi(tmp_path / "f4.hdr", REF, interleave="bsq", dtype=">f4")
@@ -222,7 +221,6 @@ def test_every_format_renders_the_same_frame(tmp_path):
     assert render_dng(tmp_path, "half", "half.npy") != frames["c.npy"]
 
 
-@pytest.mark.slow
 def test_31_band_cube_renders_the_same_from_mat_and_npy(tmp_path):
     # the .mat file's 'lambda' vector and the [cube] table's wavelengths_nm for a .npy file lead to the same frame
     scipy.io.savemat(tmp_path / "c31.mat", {"cube": REF31, "lambda": WL31})
@@ -271,7 +269,6 @@ def _bad_cases(tmp_path):
     }
 
 
-@pytest.mark.slow
 def test_bad_cubes_give_one_line_exit_2_and_no_output(tmp_path, capsys):
     cases = _bad_cases(tmp_path)
     (tmp_path / "cube.tif").write_bytes(b"II*\x00")
