@@ -2,7 +2,7 @@
 
 What is in front of the camera is a scene *source* read from its own table (:data:`camsim.sources.SOURCES`:
 ``[chart]``, a reflectance set laid out as a grid of patches on a surround, a label map plus K spectra; or
-``[cube]``, a ``.npy`` array H × W × N of reflectance or radiance). The full schema is documented in the README;
+``[cube]``, a hyperspectral cube file of reflectance or radiance: ``.npy``, ENVI or ``.mat``). The full schema is documented in the README;
 unknown keys are errors, so a typo never goes unnoticed.
 """
 

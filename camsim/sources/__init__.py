@@ -2,8 +2,9 @@
 
 :data:`SOURCES` maps a scene file's table name to its source class (:class:`camsim.sources.base.SceneSource`):
 ``[chart]`` (:class:`ChartSource`, a reflectance chart: a label map plus K spectra), ``[cube]``
-(:class:`CubeSource`, a hyperspectral ``.npy`` cube) and ``[image]`` (:class:`ImageSource`, an RGB picture whose
-distinct colours are recovered as spectra, kept factored on a three-spectrum basis). A new kind of scene is one module with one class,
+(:class:`CubeSource`, a hyperspectral cube: ``.npy``, ENVI or ``.mat``) and ``[image]`` (:class:`ImageSource`, an
+RGB picture whose distinct colours are recovered as spectra, kept factored on a three-spectrum basis). A new kind of
+scene is one module with one class,
 added to :data:`SOURCES`.
 """
 

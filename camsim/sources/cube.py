@@ -1,4 +1,5 @@
-"""A hyperspectral cube: an H × W × N ``.npy`` array of reflectance or radiance on the scene's grid."""
+"""A hyperspectral cube: an H × W × B array of reflectance or radiance in a ``.npy``, ENVI or MATLAB file, read
+onto the scene's wavelength grid by :mod:`camsim.io.cube_files`."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from camsim.errors import CamsimError
+from camsim.io.cube_files import CUBE_READERS, cube_size, read_cube
 from camsim.sources.base import SceneSource, SourceSpectra, typed
 
 CUBE_KINDS = ("reflectance", "radiance")
@@ -20,63 +22,55 @@ class CubeSource(SceneSource):
     Attributes
     ----------
     path : pathlib.Path
-        The ``.npy`` file, H × W × N on the scene's wavelength grid.
+        The cube file: ``.npy`` (H × W × B), ENVI (``.hdr`` or its binary) or MATLAB ``.mat`` (v4 – v7), read by
+        :func:`camsim.io.cube_files.read_cube`.
     kind : {'reflectance', 'radiance'}
         Reflectance (unitless, lit by the scene's illuminants) or radiance (W / (m² sr nm), its own scale).
+    wavelengths_nm : tuple of float or None
+        The cube's B wavelengths in nm, overriding the file's (a ``.npy`` file has none: without this key its
+        bands must be the scene grid's). Cubes off the grid are resampled to it with colour-science.
+    variable : str or None
+        The cube's variable in a ``.mat`` file that holds several 3-D arrays.
     """
 
     table = "cube"
-    keys = frozenset({"path", "kind"})
+    keys = frozenset({"path", "kind", "wavelengths_nm", "variable"})
     has_own_size = True
 
     path: Path
     kind: str = "reflectance"
+    wavelengths_nm: tuple | None = None
+    variable: str | None = None
 
     @classmethod
     def from_table(cls, table: dict, base_dir, where: str) -> CubeSource:
         if "path" not in table:
-            raise CamsimError(f"{where}: [cube] needs a path to an H × W × N .npy file")
+            raise CamsimError(f"{where}: [cube] needs a path to a cube file ({', '.join(sorted(CUBE_READERS))})")
         kind = typed(table, "kind", str, "reflectance", where)
         if kind not in CUBE_KINDS:
             raise CamsimError(f"{where}: [cube] kind must be one of {CUBE_KINDS}, got {kind!r}")
-        return cls(path=base_dir / typed(table, "path", str, "", where), kind=kind)
+        wavelengths = typed(table, "wavelengths_nm", list, None, where)
+        if wavelengths is not None:
+            if not wavelengths or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                          for v in wavelengths):
+                raise CamsimError(f"{where}: [cube] wavelengths_nm must be a list of numbers (nm)")
+            wavelengths = tuple(float(v) for v in wavelengths)
+        return cls(path=base_dir / typed(table, "path", str, "", where), kind=kind, wavelengths_nm=wavelengths,
+                   variable=typed(table, "variable", str, None, where))
 
     def own_size(self) -> tuple[int, int]:
-        """(W, H) of the cube, read from the file's header."""
-        try:
-            height, width = np.load(self.path, mmap_mode="r", allow_pickle=False).shape[:2]
-        except FileNotFoundError:
-            raise CamsimError(f"cube file not found: {self.path}") from None
-        except (OSError, ValueError) as exc:
-            raise CamsimError(f"cannot read cube {self.path}: {exc}") from None
-        return int(width), int(height)
+        """(W, H) of the cube, read from the file's header (``.npy`` / ENVI header, MAT directory); no data read."""
+        return cube_size(self.path, variable=self.variable)
 
     def spectra(self, grid, width: int, height: int) -> SourceSpectra:
-        """Every pixel its own spectrum (the frame has the cube's size)."""
-        cube = load_cube(self.path, grid.size)
-        h, w = cube.shape[:2]
+        """Every pixel its own spectrum (the frame has the cube's size).
+
+        The file is read block by block (checked, converted, resampled), but the result is materialised: labels
+        (H, W) and spectra (H · W, N) float64, H · W · N · 8 bytes. A per-pixel renderer path that keeps memory
+        bounded is a separate piece of work.
+        """
+        cube = read_cube(self.path, grid, wavelengths_nm=self.wavelengths_nm, variable=self.variable)
+        h, w, n = cube.shape
         labels = np.arange(h * w, dtype=np.uint32).reshape(h, w)
-        return SourceSpectra(labels, cube.reshape(-1, grid.size), self.kind, [], [], self.path.name)
+        return SourceSpectra(labels, cube.to_array().reshape(-1, n), self.kind, [], [], self.path.name)
 
-
-def load_cube(path, n_bins: int) -> np.ndarray:
-    """Load a hyperspectral cube (``.npy``, H × W × N, float) and check it against the scene grid."""
-    try:
-        cube = np.load(path, allow_pickle=False)
-    except FileNotFoundError:
-        raise CamsimError(f"cube file not found: {path}") from None
-    except (OSError, ValueError, EOFError) as exc:
-        raise CamsimError(f"cannot read cube file {path}: {exc}") from None
-    if cube.ndim != 3:
-        raise CamsimError(f"cube {path} must be H × W × N, got shape {cube.shape}")
-    if cube.shape[2] != n_bins:
-        raise CamsimError(
-            f"cube {path} has {cube.shape[2]} wavelength bins but the scene's grid has {n_bins}: "
-            "set [spectral] to the cube's grid"
-        )
-    cube = np.asarray(cube, dtype=np.float64)
-    if not np.all(np.isfinite(cube)):
-        raise CamsimError(f"cube {path} contains NaN or infinite values")
-    if np.any(cube < 0):
-        raise CamsimError(f"cube {path} has negative values")
-    return cube
