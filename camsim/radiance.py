@@ -36,6 +36,10 @@ class SceneRadiance:
         Patch rectangles in pixels (empty for a cube).
     reflectance_set : str
         Name of the reflectance set or cube file.
+    surround : bool
+        Whether the spectrum after the patches is a chart's surround.
+    target : dict or None
+        A synthetic target's geometry (:class:`camsim.sources.SourceSpectra`), for the sidecar.
     """
 
     labels: np.ndarray
@@ -44,6 +48,8 @@ class SceneRadiance:
     patch_names: list
     patch_rects: list
     reflectance_set: str
+    surround: bool = True
+    target: dict | None = None
 
 
 def scene_radiance(scene: Scene, illuminant: str) -> SceneRadiance:
@@ -65,4 +71,5 @@ def scene_radiance(scene: Scene, illuminant: str) -> SceneRadiance:
             if not np.any(lit > 0):
                 raise CamsimError(f"spectrum {k} is black under {illuminant}: it cannot be scaled to a luminance")
             radiance[k] = scale_to_luminance(lit, ybar, grid.step_nm, scene.luminance_cd_m2)
-    return SceneRadiance(source.labels, radiance, white, source.patch_names, source.patch_rects, source.name)
+    return SceneRadiance(source.labels, radiance, white, source.patch_names, source.patch_rects, source.name,
+                          source.surround, source.target)

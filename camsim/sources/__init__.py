@@ -1,16 +1,18 @@
 """Scene sources: what is in front of the camera, one module per kind, registered here.
 
 :data:`SOURCES` maps a scene file's table name to its source class (:class:`camsim.sources.base.SceneSource`):
-``[chart]`` (:class:`ChartSource`, a reflectance chart: a label map plus K spectra) and ``[cube]``
-(:class:`CubeSource`, a hyperspectral ``.npy`` cube). A new kind of scene is one module with one class,
+``[chart]`` (:class:`ChartSource`, a reflectance chart: a label map plus K spectra), ``[cube]``
+(:class:`CubeSource`, a hyperspectral ``.npy`` cube) and ``[target]`` (:class:`TargetSource`, a synthetic dead-leaves
+chart or slanted edge: a label map plus K spectra). A new kind of scene is one module with one class,
 added to :data:`SOURCES`.
 """
 
 from camsim.sources.base import SceneSource, SourceSpectra
 from camsim.sources.chart import ChartSource
 from camsim.sources.cube import CubeSource
+from camsim.sources.target import TargetSource
 
 #: Source classes by their scene-file table name.
-SOURCES = {cls.table: cls for cls in (ChartSource, CubeSource)}
+SOURCES = {cls.table: cls for cls in (ChartSource, CubeSource, TargetSource)}
 
-__all__ = ["SOURCES", "ChartSource", "CubeSource", "SceneSource", "SourceSpectra"]
+__all__ = ["SOURCES", "ChartSource", "CubeSource", "SceneSource", "SourceSpectra", "TargetSource"]
