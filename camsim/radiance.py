@@ -1,7 +1,8 @@
 """From a scene and one illuminant to spectral radiance: a label map plus K spectra.
 
-The scene's source gives its spectra (:mod:`camsim.sources`): a chart K = patches + 1 (the surround), a cube one
-per pixel, so the renderer has a single path; but nothing per pixel is spectral for a chart. Reflectances are
+The scene's source gives its spectra (:mod:`camsim.sources`): a chart K = patches + 1 (the surround), a synthetic
+target its K (:mod:`camsim.sources.target`), a cube one per pixel, so the renderer has a single path; but nothing per
+pixel is spectral for a chart or a target. Reflectances are
 lit by the illuminant and scaled to the scene's luminance; an emissive source keeps its own radiance.
 """
 

@@ -1,8 +1,9 @@
 """Scene files (TOML): what is in front of the camera, and the camera and sensor that look at it.
 
 What is in front of the camera is a scene *source* read from its own table (:data:`camsim.sources.SOURCES`:
-``[chart]``, a reflectance set laid out as a grid of patches on a surround, a label map plus K spectra; or
-``[cube]``, a ``.npy`` array H × W × N of reflectance or radiance). The full schema is documented in the README;
+``[chart]``, a reflectance set laid out as a grid of patches on a surround, a label map plus K spectra;
+``[cube]``, a ``.npy`` array H × W × N of reflectance or radiance; or ``[target]``, a synthetic dead-leaves chart or
+slanted edge, also a label map plus K spectra). The full schema is documented in the README;
 unknown keys are errors, so a typo never goes unnoticed.
 """
 
