@@ -46,17 +46,9 @@ MAX_LEVELS = 4096
 
 
 # --------------------------------------------------------------------------------------------------- dead leaves
-def dead_leaves_radius_cdf(r, radius_min_px: float, radius_max_px: float):
-    """The CDF of the dead-leaves radius law, density ∝ r⁻³ on [r_min, r_max]:
-    F(r) = (r_min⁻² − r⁻²) / (r_min⁻² − r_max⁻²) (a point mass at r_min when r_min = r_max)."""
-    r = np.clip(np.asarray(r, dtype=float), radius_min_px, radius_max_px)
-    if radius_min_px == radius_max_px:
-        return np.ones_like(r)
-    return (radius_min_px ** -2 - r ** -2) / (radius_min_px ** -2 - radius_max_px ** -2)
-
-
 def _radii(u: np.ndarray, radius_min_px: float, radius_max_px: float) -> np.ndarray:
-    """Radii (pixels) from uniform ``u`` in [0, 1) by inverting :func:`dead_leaves_radius_cdf`."""
+    """Radii (pixels) from uniform ``u`` in [0, 1) by inverting the CDF of the r⁻³ law on [r_min, r_max],
+    F(r) = (r_min⁻² − r⁻²) / (r_min⁻² − r_max⁻²)."""
     inv_min, inv_max = radius_min_px ** -2, radius_max_px ** -2
     return (inv_min - u * (inv_min - inv_max)) ** -0.5
 
