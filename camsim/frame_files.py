@@ -68,6 +68,8 @@ class FrameInfo:
     as_shot_neutral: np.ndarray
     patch_xyz: np.ndarray | None = None
     exposure: dict | None = None  # how T was chosen: camsim.pipeline.exposure_record (None: a fixed T)
+    surround: bool = True  # whether the spectrum after the patches is a chart's surround
+    target: dict | None = None  # a synthetic target's geometry (camsim.sources.target), the sidecar's "target"
 
 
 def frame_stem(scene: str, illuminant: str, intensity_factor: float) -> str:
@@ -123,8 +125,9 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
         "calibration_illuminant1": CALIBRATION_ILLUMINANT_D65,
         "as_shot_neutral": info.as_shot_neutral.tolist(),
         "patches": patches,
-        # a chart's last spectrum is its surround; a cube has no patches and no surround
-        "surround": {"signal_e": ex.signal_e[len(patches)].tolist()} if patches else None,
+        # a chart's last spectrum is its surround; a cube has no patches and no surround, nor has a target
+        "surround": {"signal_e": ex.signal_e[len(patches)].tolist()} if patches and info.surround else None,
+        **({"target": info.target} if info.target is not None else {}),
         "units": {
             "signal_e": "e- (mean signal electrons per pixel in the exposure)",
             "dark_e": "e- (mean dark electrons per pixel in the exposure)",

@@ -209,6 +209,8 @@ def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, intensity_fa
         as_shot_neutral=lit.as_shot_neutral,
         patch_xyz=intensity_factor * lit.patch_xyz,
         exposure=exposure_record(scene),
+        surround=radiance.surround,
+        target=radiance.target,
     )
 
 

@@ -1,7 +1,8 @@
 """From a scene and one illuminant to spectral radiance: a label map plus K spectra.
 
-The scene's source gives its spectra (:mod:`camsim.sources`): a chart K = patches + 1 (the surround), a cube one
-per pixel, so the renderer has a single path; but nothing per pixel is spectral for a chart. Reflectances are
+The scene's source gives its spectra (:mod:`camsim.sources`): a chart K = patches + 1 (the surround), a synthetic
+target its K (:mod:`camsim.sources.target`), a cube one per pixel, so the renderer has a single path; but nothing per
+pixel is spectral for a chart or a target. Reflectances are
 lit by the illuminant and scaled to the scene's luminance; an emissive source keeps its own radiance.
 """
 
@@ -37,6 +38,10 @@ class SceneRadiance:
         Patch rectangles in pixels (empty for a cube).
     reflectance_set : str
         Name of the reflectance set or cube file.
+    surround : bool
+        Whether the spectrum after the patches is a chart's surround.
+    target : dict or None
+        A synthetic target's geometry (:class:`camsim.sources.SourceSpectra`), for the sidecar.
     """
 
     labels: np.ndarray
@@ -45,6 +50,8 @@ class SceneRadiance:
     patch_names: list
     patch_rects: list
     reflectance_set: str
+    surround: bool = True
+    target: dict | None = None
 
 
 def scene_radiance(scene: Scene, illuminant: str) -> SceneRadiance:
@@ -69,4 +76,5 @@ def scene_radiance(scene: Scene, illuminant: str) -> SceneRadiance:
             if not np.any(lit > 0):
                 raise CamsimError(f"spectrum {k} is black under {illuminant}: it cannot be scaled to a luminance")
             radiance[k] = scale_to_luminance(lit, ybar, grid.step_nm, scene.luminance_cd_m2)
-    return SceneRadiance(source.labels, radiance, white, source.patch_names, source.patch_rects, source.name)
+    return SceneRadiance(source.labels, radiance, white, source.patch_names, source.patch_rects, source.name,
+                          source.surround, source.target)

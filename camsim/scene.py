@@ -1,8 +1,10 @@
 """Scene files (TOML): what is in front of the camera, and the camera and sensor that look at it.
 
 What is in front of the camera is a scene *source* read from its own table (:data:`camsim.sources.SOURCES`:
-``[chart]``, a reflectance set laid out as a grid of patches on a surround, a label map plus K spectra; or
-``[cube]``, a hyperspectral cube file of reflectance or radiance: ``.npy``, ENVI or ``.mat``). The full schema is documented in the README;
+``[chart]``, a reflectance set laid out as a grid of patches on a surround, a label map plus K spectra;
+``[cube]``, a hyperspectral cube file of reflectance or radiance (``.npy``, ENVI or ``.mat``); ``[image]``, an RGB
+picture whose colours are recovered as spectra; or ``[target]``, a synthetic dead-leaves chart or slanted edge, also a
+label map plus K spectra). The full schema is documented in the README;
 unknown keys are errors, so a typo never goes unnoticed.
 """
 

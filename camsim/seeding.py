@@ -18,11 +18,15 @@ a dataset frame's seed      ``SeedSequence(spec seed, spawn_key=sha256(id)[:16] 
                             words)``, its first 64-bit word >> 11 (< 2^53)
 a dataset random parameter  ``SeedSequence(spec seed, spawn_key=(0xDA7A5E7, crc32(name)))`` :func:`dataset_parameter_generator`
 an EMVA 1288 frame          ``SeedSequence(seed, spawn_key=(kind, step, frame))``        :func:`emva_frame_seed_sequence`
+a synthetic target's        ``SeedSequence(target seed, spawn_key=(0x7A263E7,))``         :func:`target_generator`
+  pattern (dead leaves)
 ==========================  ===========================================================  ==================
 
 Frame keys have two words, dataset frame-seed keys four, parameter keys start with ``0xDA7A5E7`` and the fixed
 pattern's with ``0x46504E`` (neither a CRC-32 collision with a frame key in practice nor a small EMVA kind), so
-the namespaces are disjoint by the length or the first word of their keys.
+the namespaces are disjoint by the length or the first word of their keys. A target's pattern has a one-word key
+(``0x7A263E7``, "TARGET"), like the fixed pattern's but a different word: a scene's target seed and its frames' noise
+seed may be the same number and still never share a stream.
 """
 
 from __future__ import annotations
@@ -36,6 +40,8 @@ import numpy as np
 FIXED_PATTERN_KEY = 0x46504E
 #: First spawn-key word of a dataset's random parameter streams.
 DATASET_PARAMETER_KEY = 0xDA7A5E7
+#: Spawn-key word of a synthetic target's pattern (a dead-leaves chart).
+TARGET_KEY = 0x7A263E7
 
 
 def frame_seed_sequence(seed: int, label: str, intensity_factor: float) -> np.random.SeedSequence:
@@ -176,3 +182,8 @@ def dataset_parameter_generator(spec_seed: int, name: str) -> np.random.Generato
 def emva_frame_seed_sequence(seed: int, kind: int, step: int, frame: int) -> np.random.SeedSequence:
     """The seed sequence of one EMVA 1288 frame: measurement ``kind``, irradiation ``step``, ``frame`` of it."""
     return np.random.SeedSequence(seed, spawn_key=(kind, step, frame))
+
+
+def target_generator(seed: int) -> np.random.Generator:
+    """The stream of a synthetic target's pattern (:mod:`camsim.sources.target`): a function of its ``seed`` alone."""
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(TARGET_KEY,)))

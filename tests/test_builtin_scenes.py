@@ -19,6 +19,7 @@ from camsim.experiments.scenarios import DEFAULT_SCENE
 from camsim.scene import load_scene
 from tests.helpers import ROOT
 
+BUILTIN = "dead_leaves, macbeth_26, slanted_edge"
 SCENE_ARGS = ["--illuminant", "D65", "--intensity", "1", "--size", "120x80", "-q"]
 
 
@@ -27,14 +28,16 @@ def _digests(folder):
 
 
 def test_names_and_paths():
-    assert builtin_scene_names() == ("macbeth_26",)  # denoise_small.toml beside it is a dataset spec
+    # denoise_small.toml beside them is a dataset spec
+    assert builtin_scene_names() == ("dead_leaves", "macbeth_26", "slanted_edge")
     path = builtin_scene_path("macbeth_26")
     assert path == SCENES_DIR / "macbeth_26.toml" and path.is_file()
     assert SCENES_DIR.parent == ROOT / "camsim"
     assert DEFAULT_SCENE == path  # the experiments' scene comes from the package
     # the checkout's scenes/ is the package folder itself (a link), not a copy
     assert (ROOT / "scenes").resolve() == SCENES_DIR.resolve()
-    assert sorted(p.name for p in (ROOT / "scenes").glob("*.toml")) == ["denoise_small.toml", "macbeth_26.toml"]
+    assert sorted(p.name for p in (ROOT / "scenes").glob("*.toml")) == [
+        "dead_leaves.toml", "denoise_small.toml", "macbeth_26.toml", "slanted_edge.toml"]
 
 
 def test_load_by_name_equals_load_by_path(tmp_path, monkeypatch):
@@ -54,8 +57,8 @@ def test_an_existing_file_wins_over_the_name(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize(("given", "message"), [
-    ("macbeth", r"no scene file 'macbeth' and no built-in scene of that name: the built-in scenes are macbeth_26"),
-    ("denoise_small", r"'denoise_small' is a built-in dataset spec .*not a scene: the built-in scenes are macbeth_26"),
+    ("macbeth", rf"no scene file 'macbeth' and no built-in scene of that name: the built-in scenes are {BUILTIN}"),
+    ("denoise_small", rf"'denoise_small' is a built-in dataset spec .*not a scene: the built-in scenes are {BUILTIN}"),
     ("missing.toml", r"scene file not found: missing\.toml"),  # a path stays a path
     ("sub/macbeth_26", r"scene file not found: sub/macbeth_26"),
 ])
@@ -83,7 +86,7 @@ def test_cli_renders_a_builtin_scene_by_name_from_anywhere(tmp_path, monkeypatch
     assert set(a) >= {"macbeth_26_D65_F1.dng", "macbeth_26_D65_F1.exr", "macbeth_26_D65_F1.json", "manifest.json"}
     assert a == b
     assert main(["render", "macbeth", *SCENE_ARGS]) == 2
-    assert "built-in scenes are macbeth_26" in capsys.readouterr().err
+    assert "built-in scenes are dead_leaves, macbeth_26, slanted_edge" in capsys.readouterr().err
 
 
 def test_dataset_spec_finds_its_scene_beside_it():
@@ -120,7 +123,7 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
     (wheel,) = (tmp_path / "dist").glob("camsim_lowlight-*.whl")
     with zipfile.ZipFile(wheel) as archive:
         names = set(archive.namelist())
-        for scene in ("macbeth_26.toml", "denoise_small.toml"):
+        for scene in ("macbeth_26.toml", "denoise_small.toml", "dead_leaves.toml", "slanted_edge.toml"):
             assert archive.read(f"camsim/scenes/{scene}") == (SCENES_DIR / scene).read_bytes()
         archive.extractall(tmp_path / "site")
     assert "camsim/builtin_scenes.py" in names and not any(n.startswith(("scenes/", "tests/")) for n in names)
@@ -132,5 +135,6 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=env)
     assert run.returncode == 0, run.stderr
     lines = run.stdout.splitlines()
-    assert lines == [str(tmp_path / "site" / "camsim" / "__init__.py"), "('macbeth_26',)", "macbeth_26",
+    assert lines == [str(tmp_path / "site" / "camsim" / "__init__.py"),
+                     "('dead_leaves', 'macbeth_26', 'slanted_edge')", "macbeth_26",
                      "True camsim/scenes/macbeth_26.toml"]

@@ -2,9 +2,10 @@
 
 :data:`SOURCES` maps a scene file's table name to its source class (:class:`camsim.sources.base.SceneSource`):
 ``[chart]`` (:class:`ChartSource`, a reflectance chart: a label map plus K spectra), ``[cube]``
-(:class:`CubeSource`, a hyperspectral cube: ``.npy``, ENVI or ``.mat``) and ``[image]`` (:class:`ImageSource`, an
-RGB picture whose distinct colours are recovered as spectra, kept factored on a three-spectrum basis). A new kind of
-scene is one module with one class,
+(:class:`CubeSource`, a hyperspectral cube: ``.npy``, ENVI or ``.mat``), ``[image]`` (:class:`ImageSource`, an
+RGB picture whose distinct colours are recovered as spectra, kept factored on a three-spectrum basis) and
+``[target]`` (:class:`TargetSource`, a synthetic dead-leaves chart or slanted edge: a label map plus K spectra). A new
+kind of scene is one module with one class,
 added to :data:`SOURCES`.
 """
 
@@ -12,8 +13,9 @@ from camsim.sources.base import SceneSource, SourceSpectra
 from camsim.sources.chart import ChartSource
 from camsim.sources.cube import CubeSource
 from camsim.sources.image import ImageSource
+from camsim.sources.target import TargetSource
 
 #: Source classes by their scene-file table name.
-SOURCES = {cls.table: cls for cls in (ChartSource, CubeSource, ImageSource)}
+SOURCES = {cls.table: cls for cls in (ChartSource, CubeSource, ImageSource, TargetSource)}
 
-__all__ = ["SOURCES", "ChartSource", "CubeSource", "ImageSource", "SceneSource", "SourceSpectra"]
+__all__ = ["SOURCES", "ChartSource", "CubeSource", "ImageSource", "SceneSource", "SourceSpectra", "TargetSource"]

@@ -26,6 +26,10 @@ class SourceSpectra:
         Patch rectangles in pixels.
     name : str
         The reflectance set or file the spectra come from (the sidecar's ``reflectances``).
+    surround : bool
+        Whether the spectrum after the patches is a surround (a chart's), which the sidecar reports.
+    target : dict or None
+        A synthetic target's geometry and parameters (:mod:`camsim.sources.target`), the sidecar's ``target``.
     """
 
     labels: np.ndarray
@@ -34,6 +38,8 @@ class SourceSpectra:
     patch_names: list
     patch_rects: list
     name: str
+    surround: bool = True
+    target: dict | None = None
 
 
 class SceneSource:
