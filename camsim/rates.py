@@ -36,13 +36,6 @@ class FactoredSpectra:
         """(K, N), as the dense array would have."""
         return self.coefficients.shape[0], self.basis.shape[1]
 
-    @property
-    def ndim(self) -> int:
-        return 2
-
-    def __len__(self) -> int:
-        return self.coefficients.shape[0]
-
     def __getitem__(self, index) -> np.ndarray:
         """Dense rows: ``coefficients[index] @ basis`` (an int, a slice or an index array)."""
         return np.asarray(self.coefficients[index], dtype=np.float64) @ self.basis

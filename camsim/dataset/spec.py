@@ -73,6 +73,9 @@ MAX_PIXELS = 200_000_000
 
 #: Every parameter a spec may set, by name: the frame's choices, the render settings and the sensor's (the schema).
 PARAMETERS = {p.name: p for p in (*FRAME_PARAMS, *RENDER_PARAMS, *SENSOR_PARAMS) if p.name != "seed"}
+#: The render settings of :class:`camsim.scene.Scene` a frame takes from its spec (all but the seed: a frame has
+#: its own).
+RENDER_KEYS = tuple(p.name for p in RENDER_PARAMS if p.name != "seed")
 #: Plural spellings accepted in [grid] (the scene file's [light] names).
 GRID_ALIASES = {"illuminants": "illuminant", "intensity_factors": "intensity_factor"}
 DISTRIBUTIONS = ("uniform", "log_uniform", "integers", "choice")
@@ -632,7 +635,7 @@ def _intensity_factor(value) -> float:
 def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> FrameGroup:
     """Resolve and validate the scene and sensor of a frame with ``params``: its group's."""
     changes = {"illuminants": (params["illuminant"],)}
-    for key in ("statistics", "method", "tolerance", "exposure", "exposure_target_e", "exposure_max_s"):
+    for key in RENDER_KEYS:  # the scene's render settings a spec may set
         if key in params:
             changes[key] = params[key]
     if "camera" in params:  # a camera CSV named in the spec is relative to the spec

@@ -153,10 +153,9 @@ def read_image_codes(path: str) -> tuple[np.ndarray, bool, int]:
     replicated to three; channels beyond three (alpha) are dropped.
     """
     oiio = _oiio()
-    _image_header(path)
     image = oiio.ImageInput.open(path)
     if image is None:
-        raise CamsimError(f"cannot read image {path}: {oiio.geterror()}")
+        raise CamsimError(f"cannot read image {path}: {oiio.geterror() or 'not an image OpenImageIO reads'}")
     try:
         spec = image.spec()
         base = spec.format.basetype
