@@ -6,30 +6,17 @@ colour-science's own 5 nm data; dark charge is σ²_dark · T with Table I's σ�
 """
 
 import json
-import warnings
 
 import numpy as np
 import pytest
 
 from camsim.cli import main
 from tests.helpers import ROOT
-
-with warnings.catch_warnings():
-    warnings.simplefilter("ignore")
-    import colour
+from tests.theory import anchored_signal_e, white_response
 
 SCENE = ROOT / "scenes" / "macbeth_26.toml"
 TABLE1_DARK = np.array([195.0, 230.0, 218.0])  # e⁻/s
 SURROUND = 0.05  # reflectance of the chart's surround
-
-
-def _white_response(illuminant: str) -> np.ndarray:
-    """The Nikon 5100's response to the perfect white under ``illuminant`` at a fixed luminance (colour-science data,
-    energy-basis sensitivities: Σ s E / Σ ȳ E), shape (3,)."""
-    sens = colour.MSDS_CAMERA_SENSITIVITIES["Nikon 5100 (NPL)"]
-    light = colour.SDS_ILLUMINANTS[illuminant].copy().align(sens.shape).values
-    ybar = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(sens.shape).values[:, 1]
-    return sens.values.T @ light / (ybar @ light)
 
 
 def _sidecars(folder):
@@ -49,11 +36,13 @@ def test_fixed_exposure_keeps_one_camera_under_every_light(tmp_path):
     white_d65 = np.array(d65["surround"]["signal_e"]) / SURROUND
     white_a = np.array(a["surround"]["signal_e"]) / SURROUND
     assert white_d65.max() == pytest.approx(8000.0, rel=1e-9)
-    theory = _white_response("A") / _white_response("D65")
+    theory = white_response("A") / white_response("D65")
     np.testing.assert_allclose(white_a / white_d65, theory, rtol=2e-3)
     # the white under A at 100 cd/m²: 8000 · max(response under A) / max(response under D65) e⁻ = 0.80 × 8000
-    expected_a = 8000.0 * _white_response("A").max() / _white_response("D65").max()
+    expected_a = 8000.0 * white_response("A").max() / white_response("D65").max()
     assert white_a.max() == pytest.approx(expected_a, rel=2e-3) and expected_a == pytest.approx(6411, rel=2e-3)
+    for index in (0, 5, 11, 18):  # patches under A, against the fixed anchor integrated on colour-science's data
+        np.testing.assert_allclose(a["patches"][index]["signal_e"], anchored_signal_e(index, "A"), rtol=0.01)
 
 
 def test_auto_exposure_meters_every_frame_and_scales_dark_current(tmp_path, capsys):
@@ -73,7 +62,7 @@ def test_auto_exposure_meters_every_frame_and_scales_dark_current(tmp_path, caps
         factor = meta["intensity_factor"]
         # e⁻/s of the white's strongest channel at F = 1: the anchor's 8000 under D65, scaled by the responses
         light = "A" if "_A_" in stem else "D65"
-        rate = 8000.0 * _white_response(light).max() / _white_response("D65").max()
+        rate = 8000.0 * white_response(light).max() / white_response("D65").max()
         assert meta["exposure_s"] == pytest.approx(6000.0 / (factor * rate), rel=2e-3)
     assert main(["analyze", str(out), "--out", str(tmp_path / "an"), "-q"]) == 0
     summary = json.loads((tmp_path / "an" / "analysis.json").read_text())

@@ -16,6 +16,7 @@ from camsim.pipeline import frame_sensor, light_scene, lit_scene
 from camsim.sensor import PRESETS
 from camsim.spectra import WavelengthGrid, illuminant_spd
 from tests.helpers import ROOT, WHITE, small_scene
+from tests.theory import white_response
 
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")
@@ -80,15 +81,6 @@ def test_anchor_perfect_white_gives_8000_electrons(camera, reference):
         np.testing.assert_allclose(scaled, white * factor * exposure, rtol=1e-12)
 
 
-def _white_response_colour_science(illuminant: str) -> np.ndarray:
-    """Σ s_κ(λ) E(λ) / Σ ȳ(λ) E(λ): the camera's relative response to the perfect white under ``illuminant`` at a
-    fixed luminance, on colour-science's native 5 nm data (energy-basis sensitivities), shape (3,)."""
-    sens = colour.MSDS_CAMERA_SENSITIVITIES["Nikon 5100 (NPL)"]
-    light = colour.SDS_ILLUMINANTS[illuminant].copy().align(sens.shape).values
-    ybar = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(sens.shape).values[:, 1]
-    return sens.values.T @ light / (ybar @ light)
-
-
 @pytest.mark.parametrize("illuminant", ["A", "FL2", "D50"])  # smooth enough for 4 nm against 5 nm
 def test_one_camera_under_every_light(camera, illuminant):
     """MODEL.md §3: Qe is anchored once (on D65) and is the same under every light; the perfect white at the same
@@ -99,7 +91,7 @@ def test_one_camera_under_every_light(camera, illuminant):
     lit = light_scene(scene, illuminant, camera)
     np.testing.assert_array_equal(lit.qe, reference.qe)  # one camera
     assert reference.white_signal_e_per_s.max() == pytest.approx(8000.0, rel=1e-12)
-    theory = _white_response_colour_science(illuminant) / _white_response_colour_science("D65")
+    theory = white_response(illuminant) / white_response("D65")
     np.testing.assert_allclose(lit.white_signal_e_per_s / reference.white_signal_e_per_s, theory, rtol=2e-3)
     if illuminant == "A":
         assert lit.white_signal_e_per_s.max() / 8000 == pytest.approx(0.8013, abs=2e-4)

@@ -47,15 +47,8 @@ def assert_mean_var(samples, mean, var, k=5.0, kurtosis_excess=0.0, what=""):
     assert abs(v - var) <= k * se_var + 1e-12, f"{what}: variance {v} vs model {var} (± {se_var:.3g})"
 
 
-def anchored_signal_e(patch, illuminant, factor=1.0, exposure_s=1.0, reference_e=8000.0,
-                      camera="Nikon 5100 (NPL)", chart="ColorChecker N Ohta"):
-    """Expected signal electrons [R, G, B] of ColorChecker patch ``patch`` (index) under the anchor scale.
-
-    The anchor puts the perfect white under the illuminant at ``reference_e`` electrons in its strongest channel
-    at F = 1 and T = 1 s; a camera whose curves s_c are responses per unit radiant power ('energy' basis) then
-    collects S_c = reference_e · F · T · Σ ρ L s_c / max_c' Σ L s_c'. Integrated with colour-science's own data
-    on the camera's native wavelength sampling (5 nm), independently of camsim's grid and resampling.
-    """
+def _colour_data(illuminant, camera):
+    """colour-science's camera curves, the illuminant and ȳ on the camera's native sampling (5 nm)."""
     import warnings
 
     with warnings.catch_warnings():
@@ -64,9 +57,32 @@ def anchored_signal_e(patch, illuminant, factor=1.0, exposure_s=1.0, reference_e
 
         sens = colour.MSDS_CAMERA_SENSITIVITIES[camera]
         light = colour.SDS_ILLUMINANTS[illuminant].copy().align(sens.shape).values
-        rho = list(colour.SDS_COLOURCHECKERS[chart].values())[patch].copy().align(sens.shape).values
-    white = light @ sens.values
-    return reference_e * factor * exposure_s * ((rho * light) @ sens.values) / white.max()
+        ybar = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(sens.shape).values[:, 1]
+    return colour, sens, light, ybar
+
+
+def white_response(illuminant, camera="Nikon 5100 (NPL)"):
+    """The camera's response to the perfect white under ``illuminant`` at a fixed luminance, [R, G, B]:
+    Σ s_c E / Σ ȳ E with energy-basis curves s_c, on colour-science's own 5 nm data."""
+    _, sens, light, ybar = _colour_data(illuminant, camera)
+    return sens.values.T @ light / (ybar @ light)
+
+
+def anchored_signal_e(patch, illuminant, factor=1.0, exposure_s=1.0, reference_e=8000.0,
+                      camera="Nikon 5100 (NPL)", chart="ColorChecker N Ohta", reference_illuminant="D65"):
+    """Expected signal electrons [R, G, B] of ColorChecker patch ``patch`` (index) under the anchor scale.
+
+    The anchor puts the perfect white under ``reference_illuminant`` at ``reference_e`` electrons in its strongest
+    channel at F = 1 and T = 1 s, once for the camera (MODEL.md §3); with every light scaled to the same luminance
+    and curves s_c that are responses per unit radiant power ('energy' basis), the patch then collects
+    S_c = reference_e · F · T · (Σ ρ E s_c / Σ ȳ E) / max_c' white_response(reference)_c'. Integrated with
+    colour-science's own data on the camera's native wavelength sampling (5 nm), independently of camsim's grid
+    and resampling.
+    """
+    colour, sens, light, ybar = _colour_data(illuminant, camera)
+    rho = list(colour.SDS_COLOURCHECKERS[chart].values())[patch].copy().align(sens.shape).values
+    response = ((rho * light) @ sens.values) / (ybar @ light)
+    return reference_e * factor * exposure_s * response / white_response(reference_illuminant, camera).max()
 
 
 def mean_dn_tail_sum(lam, dn_per_e, sigma_e, bits, full_well_e=None):
