@@ -99,18 +99,14 @@ class LitScene:
 
 
 def lit_scene(radiance: SceneRadiance, camera: Camera, scale, grid: WavelengthGrid,
-              illuminant: str | None = None, qe: np.ndarray | None = None) -> LitScene:
-    """A :class:`LitScene` from spectral radiance, seen by ``camera`` with its one absolute Qe.
-
-    ``qe``: :func:`camsim.camera.absolute_qe` of ``camera`` and ``scale``, when the caller has it (it does not
-    depend on the light).
-    """
+              illuminant: str | None = None) -> LitScene:
+    """A :class:`LitScene` from spectral radiance, seen by ``camera`` with its one absolute Qe (which does not depend
+    on the light: :func:`camsim.camera.absolute_qe`)."""
     to_photons = lambda spectra: photon_radiance(spectra, grid.wavelengths_nm, grid.step_nm)  # noqa: E731
     g = radiance.radiance.map_basis(to_photons) if isinstance(radiance.radiance, FactoredSpectra) \
         else to_photons(radiance.radiance)
     g_white = photon_radiance(radiance.white_radiance, grid.wavelengths_nm, grid.step_nm)
-    qe = absolute_qe(camera, scale, grid) if qe is None else qe
-    return LitScene(radiance.labels, g, qe, grid, radiance, illuminant, g_white)
+    return LitScene(radiance.labels, g, absolute_qe(camera, scale, grid), grid, radiance, illuminant, g_white)
 
 
 def light_scene(scene: Scene, illuminant: str, camera: Camera | None = None) -> LitScene:
