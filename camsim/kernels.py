@@ -131,6 +131,9 @@ def label_runs(labels: np.ndarray):
     if changes.size + 1 > budget:
         return None
     bands = np.concatenate(([0], changes, [height]))
+    first_rows = labels[bands[:-1]]
+    if first_rows.shape[0] + np.count_nonzero(first_rows[:, 1:] != first_rows[:, :-1]) > budget:
+        return None  # counted in one pass: a fragmented block (an image's) is refused before any run is built
     runs = []
     for r0, r1 in zip(bands[:-1], bands[1:]):
         row = labels[r0]

@@ -47,23 +47,29 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
     read = sensor.read_noise_e if sensor.read_noise else 0.0
     z_scale = read if read > 0 else 1.0
     gaussian_z = sensor.gaussian_read_noise or read == 0
+    kinds = plan.kinds_by_channel[c]  # per frame, not per block: K may be one spectrum per pixel
     if read > 0:
         draw_read_noise_e(rng, z, read, sensor.read_noise_model, sensor.tukey_lambda, work)
-    elif np.any(plan.kind[:, c] != EXACT):  # the Gaussian paths' normals
+    elif np.any(kinds != EXACT):  # the Gaussian paths' normals
         standard_normal_f32(rng, z, work, z_scale)
-    lam = expected.signal_e[:, c] + expected.dark_e[c]
-    var_charge = expected.total_var_e2[:, c]
     runs = label_runs(labels)
-    pieces = ([((slice(r0, r1), slice(c0, c1)), label) for r0, r1, c0, c1, label in runs] if runs is not None
-              else [(labels_of, None) for labels_of in _masks_by_kind(labels, plan.kind[:, c])])
+    # a piece is (where, label): a rectangle of one label, the whole block (every spectrum of the channel drawn the
+    # same way: an image's or a cube's pixels, one mean each) or the pixels of one drawing kind (a boolean mask)
+    whole = runs is None and kinds.size == 1
+    if runs is not None:
+        pieces = [((slice(r0, r1), slice(c0, c1)), label) for r0, r1, c0, c1, label in runs]
+    elif whole:
+        pieces = [((slice(None), slice(None)), None)]
+    else:
+        pieces = [(labels_of, None) for labels_of in _masks_by_kind(labels, plan.kind[:, c])]
     dark = expected.dark_e[c]
     if not dark > 0:
         dark_gain = None  # no dark current in this channel: nothing for the map to scale
     simple = offset is None and gain is None and dark_gain is None
     for where, label in pieces:
         index = label if label is not None else labels[where]
-        first = label if label is not None else index[0]
-        kind = plan.kind[first, c]
+        kind = plan.kind[label, c] if label is not None else kinds[0] if whole else plan.kind[index[0], c]
+        in_place = label is not None or whole  # out_c[where] is a view: write straight into it
         zz = z[where]
         g = None if gain is None else gain[where]
         d = None if dark_gain is None else dark_gain[where]
@@ -71,9 +77,10 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
             value = add_read_noise_e(sensor.full_well_e, zz) if read > 0 else np.full(zz.shape, sensor.full_well_e)
         elif kind in (GAUSSIAN, GAUSSIAN_CLIPPED):
             signal = expected.signal_e[index, c]
-            mean = lam[index] if g is None else lam[index] + (g - 1) * signal
+            mean = signal + dark if g is None else signal + dark + (g - 1) * signal
             mean = mean if offset is None else mean + offset[where]
-            var = var_charge[index] if g is None else var_charge[index] + (g - 1) * expected.signal_var_e2[index, c]
+            signal_var = expected.signal_var_e2[index, c]
+            var = signal_var + dark if g is None else signal_var + dark + (g - 1) * signal_var
             if d is not None:  # Poisson(D̄ d): mean and variance both move by (d − 1) D̄
                 mean, var = mean + (d - 1) * dark, var + (d - 1) * dark
             if kind == GAUSSIAN and gaussian_z and simple and label is not None:
@@ -93,7 +100,7 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
                                              else read * rng.standard_normal(zz.shape, np.float32))
         else:
             size = out_c[where].shape if label is not None else None
-            clip = bool(np.any(plan.needs_clip[index, c]))
+            clip = bool(plan.clip_by_channel[c]) and bool(np.any(plan.needs_clip[index, c]))
             level = None if not clip else saturation_level_e(sensor.full_well_e,
                                                              None if offset is None else offset[where])
             if kind == BINS:  # Eq. 4's drawn signal, as a known S̄ per pixel: the stage adds Poisson(D̄) to it
@@ -107,8 +114,8 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
             charge = add_offset_e(charge, None if offset is None else offset[where])
             if clip:
                 charge = saturate_e(charge, sensor.full_well_e)
-            if simple and label is not None:
-                view = out_c[where]  # a rectangle: cast, add the read noise and scale in two passes
+            if simple and in_place:
+                view = out_c[where]  # a rectangle or the block: cast, add the read noise and scale in two passes
                 if read > 0:
                     add_read_noise_e(charge, zz, out=view)
                 else:
@@ -129,8 +136,8 @@ def bins_signal(labels, plan: DrawPlan, expected: ExpectedSignal, sensor: Sensor
     """Eq. 4's signal S (3, h, w) float32 of the block's pixels whose spectrum the plan draws by bins in some
     channel (0 elsewhere), by ``spectral``'s per-bin draws, shared by the channels; None where it has none.
     Unit: e⁻."""
-    spectra = np.any(plan.kind == BINS, axis=1)
-    if not spectra.any():
+    spectra = plan.bins_spectra
+    if spectra is None:
         return None
     mask = spectra[labels]
     if not mask.any():

@@ -30,7 +30,7 @@ from __future__ import annotations
 import dataclasses
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 from scipy import special, stats
@@ -236,6 +236,25 @@ class DrawPlan:
     def names(self, index: int) -> list:
         return [KIND_NAMES[int(k)] for k in self.kind[index]]
 
+    @cached_property
+    def kinds_by_channel(self) -> tuple:
+        """The distinct kinds of each channel, three int8 arrays: computed once per frame, not per block (a cube or
+        an image has one spectrum per colour, up to one per pixel)."""
+        return tuple(np.unique(self.kind[:, c]) for c in range(3))
+
+    @cached_property
+    def clip_by_channel(self) -> np.ndarray:
+        """Whether any spectrum needs the full-well clip, per channel, shape (3,) bool."""
+        if self.needs_clip is None:
+            return np.ones(3, dtype=bool)
+        return np.any(self.needs_clip, axis=0)
+
+    @cached_property
+    def bins_spectra(self) -> np.ndarray | None:
+        """Spectra drawn by :data:`BINS` in some channel, shape (K,) bool; None where there are none."""
+        spectra = np.any(self.kind == BINS, axis=1)
+        return spectra if spectra.any() else None
+
 
 def plan_methods(expected: ExpectedSignal, sensor: SensorParams, statistics: str, method: str,
                  tolerance: float = DEFAULT_TOLERANCE) -> DrawPlan:
@@ -243,6 +262,9 @@ def plan_methods(expected: ExpectedSignal, sensor: SensorParams, statistics: str
     read = sensor.read_noise_e if sensor.read_noise else 0.0
     lam = expected.signal_e + expected.dark_e
     var_charge = expected.total_var_e2
+    needs_clip = _needs_clip(expected, sensor, lam, var_charge)
+    if method == "poisson":  # every spectrum exact: nothing to judge (an image's K may be ~1e6 colours)
+        return DrawPlan(np.zeros(lam.shape, dtype=np.int8), np.zeros(lam.shape), None, needs_clip)
     paper = statistics == "paper" and sensor.photon_noise
     spread = SATURATION_MARGIN_SIGMA * np.sqrt(var_charge)
     # fixed-pattern maps move a pixel's mean: widen the margins by 6 σ of each map
@@ -267,18 +289,25 @@ def plan_methods(expected: ExpectedSignal, sensor: SensorParams, statistics: str
     elif method != "poisson":  # the Poisson part: S + D (pixel statistics) or D alone (no photon noise)
         lam_poisson = (lam if sensor.photon_noise else np.broadcast_to(expected.dark_e, lam.shape)) - cold
         ks[~above] = predicted_ks(lam_poisson[~above], read)  # saturated spectra are exact either way: KS 0
-    # P(X ≥ mean + 10 σ + 10) < 1e-22 for these Poisson-like totals: below that, clipping cannot act
-    fpn = 10 * (sensor.prnu_percent / 100 * expected.signal_e + sensor.dsnu_e)
-    if sensor.dsnu_dark_current_percent > 0:  # the dark map's hot pixels, within 10 σ of its normal
-        hot = expected.dark_e * (dark_gain_at(sensor, 10.0) - 1)
-        fpn = fpn + hot + 10 * (np.sqrt(var_charge + hot) - np.sqrt(var_charge))
-    needs_clip = sensor.saturation & (lam + 10 * np.sqrt(var_charge) + 10 + fpn >= sensor.full_well_e)
-    if method == "poisson":
-        kind, tolerance = np.full(lam.shape, EXACT), None
-    elif method == "gaussian":
+    if method == "gaussian":
         kind, tolerance = np.where(above, SATURATED, np.where(below, GAUSSIAN, GAUSSIAN_CLIPPED)), None
     else:  # a non-Gaussian read noise: the Gaussian replacement's KS is not tabulated, so never taken
         ok = below & (ks <= tolerance) & (sensor.gaussian_read_noise or read == 0)
         exact = np.where(stand_in <= tolerance, EXACT, BINS)  # paper: Eq. 4 itself where the stand-in may be off
         kind = np.where(above, SATURATED, np.where(ok, GAUSSIAN, exact))
     return DrawPlan(kind.astype(np.int8), np.where(above, 0.0, ks), tolerance, needs_clip)
+
+
+def _needs_clip(expected: ExpectedSignal, sensor: SensorParams, lam, var_charge) -> np.ndarray:
+    """(K, 3) bool: whether the full well can be reached by a pixel of the spectrum, in the channel.
+
+    P(X ≥ mean + 10 σ + 10) < 1e-22 for these Poisson-like totals: below that, clipping cannot act (fixed-pattern
+    maps move the mean by up to 10 σ of each map).
+    """
+    if not sensor.saturation:
+        return np.zeros(lam.shape, dtype=bool)
+    fpn = 10 * (sensor.prnu_percent / 100 * expected.signal_e + sensor.dsnu_e)
+    if sensor.dsnu_dark_current_percent > 0:  # the dark map's hot pixels, within 10 σ of its normal
+        hot = expected.dark_e * (dark_gain_at(sensor, 10.0) - 1)
+        fpn = fpn + hot + 10 * (np.sqrt(var_charge + hot) - np.sqrt(var_charge))
+    return lam + 10 * np.sqrt(var_charge) + 10 + fpn >= sensor.full_well_e

@@ -197,10 +197,22 @@ def _cached_distinct(path: str, _mtime_ns: int, _size: int, colourspace: str, cr
         codes = codes[y : y + h, x : x + w]
     height, width = codes.shape[:2]
     flat = codes.reshape(-1, 3)
-    if integer:  # pack the three codes into one integer: np.unique on a 1-D array is fast
+    if integer and bits == 8:  # 24-bit codes: a presence table and its running count, O(pixels), no sort
+        packed = (flat[:, 0].astype(np.uint32) << 16) | (flat[:, 1].astype(np.uint32) << 8) | flat[:, 2]
+        present = np.zeros(1 << 24, dtype=bool)
+        present[packed] = True
+        values = np.flatnonzero(present).astype(np.uint32)
+        index_of = np.cumsum(present, dtype=np.int32)
+        index_of -= 1
+        del present
+        inverse = index_of[packed]
+        del index_of, packed
+        distinct = np.stack([(values >> 16) & 0xFF, (values >> 8) & 0xFF, values & 0xFF], axis=1)
+    elif integer:  # pack the three codes into one integer: np.unique on a 1-D array is fast
         packed = (flat[:, 0].astype(np.uint64) << 32) | (flat[:, 1].astype(np.uint64) << 16) | flat[:, 2]
         values, inverse = np.unique(packed, return_inverse=True)
         distinct = np.stack([(values >> 32) & 0xFFFF, (values >> 16) & 0xFFFF, values & 0xFFFF], axis=1)
+    if integer:  # decode the distinct codes only
         encoded = distinct.astype(np.float64) / (2**bits - 1)
         space = import_colour().RGB_COLOURSPACES[colourspace]
         linear = np.asarray(space.cctf_decoding(encoded), dtype=np.float64)
@@ -211,5 +223,6 @@ def _cached_distinct(path: str, _mtime_ns: int, _size: int, colourspace: str, cr
             raise CamsimError(f"image {path} has negative values: a reflectance image needs values ≥ 0")
         values, inverse = np.unique(flat.view(np.dtype((np.void, 12))).ravel(), return_inverse=True)
         linear = values.view(np.float32).reshape(-1, 3).astype(np.float64)
-    labels = inverse.reshape(height, width).astype(np.uint32)
+    labels = inverse.reshape(height, width)
+    labels = labels.view(np.uint32) if labels.dtype == np.int32 else labels.astype(np.uint32)  # indices are ≥ 0
     return labels, linear
