@@ -127,9 +127,7 @@ class ImageSource(SceneSource):
     def from_table(cls, table: dict, base_dir, where: str) -> ImageSource:
         if "path" not in table:
             raise CamsimError(f"{where}: [image] needs a path to an image file (or skimage:NAME)")
-        kind = typed(table, "kind", str, "reflectance", where)
-        if kind not in IMAGE_KINDS:
-            raise CamsimError(f"{where}: [image] kind must be one of {IMAGE_KINDS}, got {kind!r}")
+        kind = typed(table, "kind", str, "reflectance", where)  # checked by the constructor
         recovery = typed(table, "recovery", str, "Mallett 2019", where)
         if recovery not in RECOVERY_METHODS:
             raise CamsimError(f"{where}: [image] recovery must be one of {', '.join(RECOVERY_METHODS)}, "
@@ -144,11 +142,7 @@ class ImageSource(SceneSource):
                 raise CamsimError(f"{where}: [image] crop must be [x, y, width, height] in pixels, got {crop!r}")
             crop = tuple(crop)
         size = typed(table, "size", list, None, where)
-        if size is not None:
-            if len(size) != 2 or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in size):
-                raise CamsimError(f"{where}: [image] size must be [width, height], two positive integers (pixels), "
-                                  f"got {size!r}")
-            size = tuple(size)
+        size = None if size is None else tuple(size)  # checked by the constructor
         luminance = typed(table, "luminance_cd_m2", float, None, where)
         path = typed(table, "path", str, "", where)
         try:
