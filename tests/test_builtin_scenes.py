@@ -1,6 +1,7 @@
 """Built-in scenes: shipped as package data, addressable by name from any directory, and in the wheel."""
 
 import hashlib
+import json
 import importlib.metadata
 import os
 import shutil
@@ -9,6 +10,7 @@ import sys
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from camsim.builtin_scenes import SCENES_DIR, builtin_scene_names, builtin_scene_path, resolve_scene_file
@@ -17,9 +19,11 @@ from camsim.dataset import load_spec
 from camsim.errors import CamsimError
 from camsim.experiments.scenarios import DEFAULT_SCENE
 from camsim.scene import load_scene
+from camsim.sources import ImageSource
 from tests.helpers import ROOT
 
-BUILTIN = "dead_leaves, macbeth_26, slanted_edge"
+BUILTIN = "astronaut, chelsea, coffee, dead_leaves, macbeth_26, slanted_edge"
+PHOTOGRAPHS = ("astronaut", "chelsea", "coffee")
 SCENE_ARGS = ["--illuminant", "D65", "--intensity", "1", "--size", "120x80", "-q"]
 
 
@@ -29,7 +33,7 @@ def _digests(folder):
 
 def test_names_and_paths():
     # denoise_small.toml beside them is a dataset spec
-    assert builtin_scene_names() == ("dead_leaves", "macbeth_26", "slanted_edge")
+    assert builtin_scene_names() == ("astronaut", "chelsea", "coffee", "dead_leaves", "macbeth_26", "slanted_edge")
     path = builtin_scene_path("macbeth_26")
     assert path == SCENES_DIR / "macbeth_26.toml" and path.is_file()
     assert SCENES_DIR.parent == ROOT / "camsim"
@@ -37,7 +41,8 @@ def test_names_and_paths():
     # the checkout's scenes/ is the package folder itself (a link), not a copy
     assert (ROOT / "scenes").resolve() == SCENES_DIR.resolve()
     assert sorted(p.name for p in (ROOT / "scenes").glob("*.toml")) == [
-        "dead_leaves.toml", "denoise_small.toml", "macbeth_26.toml", "slanted_edge.toml"]
+        "astronaut.toml", "chelsea.toml", "coffee.toml", "dead_leaves.toml", "denoise_small.toml", "macbeth_26.toml",
+        "slanted_edge.toml"]
 
 
 def test_load_by_name_equals_load_by_path(tmp_path, monkeypatch):
@@ -86,7 +91,7 @@ def test_cli_renders_a_builtin_scene_by_name_from_anywhere(tmp_path, monkeypatch
     assert set(a) >= {"macbeth_26_D65_F1.dng", "macbeth_26_D65_F1.exr", "macbeth_26_D65_F1.json", "manifest.json"}
     assert a == b
     assert main(["render", "macbeth", *SCENE_ARGS]) == 2
-    assert "built-in scenes are dead_leaves, macbeth_26, slanted_edge" in capsys.readouterr().err
+    assert f"built-in scenes are {BUILTIN}" in capsys.readouterr().err
 
 
 def test_dataset_spec_finds_its_scene_beside_it():
@@ -123,7 +128,8 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
     (wheel,) = (tmp_path / "dist").glob("camsim_lowlight-*.whl")
     with zipfile.ZipFile(wheel) as archive:
         names = set(archive.namelist())
-        for scene in ("macbeth_26.toml", "denoise_small.toml", "dead_leaves.toml", "slanted_edge.toml"):
+        for scene in ("macbeth_26.toml", "denoise_small.toml", "dead_leaves.toml", "slanted_edge.toml",
+                      "astronaut.toml", "chelsea.toml", "coffee.toml"):
             assert archive.read(f"camsim/scenes/{scene}") == (SCENES_DIR / scene).read_bytes()
         archive.extractall(tmp_path / "site")
     assert "camsim/builtin_scenes.py" in names and not any(n.startswith(("scenes/", "tests/")) for n in names)
@@ -136,5 +142,68 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
     assert run.returncode == 0, run.stderr
     lines = run.stdout.splitlines()
     assert lines == [str(tmp_path / "site" / "camsim" / "__init__.py"),
-                     "('dead_leaves', 'macbeth_26', 'slanted_edge')", "macbeth_26",
+                     f"{tuple(BUILTIN.split(', '))}", "macbeth_26",
                      "True camsim/scenes/macbeth_26.toml"]
+
+
+def _skimage_photograph(name):
+    """The photograph as scikit-image itself loads it (skimage.data.<name>()), shape (H, W, 3) uint8."""
+    import skimage.data
+
+    return {"astronaut": skimage.data.astronaut, "chelsea": skimage.data.chelsea, "coffee": skimage.data.coffee}[name]()
+
+
+def _srgb_luminance(codes):
+    """Relative luminance of 8-bit sRGB codes (IEC 61966-2-1 decoding, Rec. 709 weights), written out here."""
+    v = codes.astype(float) / 255
+    linear = np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+    return linear @ np.array([0.2126, 0.7152, 0.0722])
+
+
+@pytest.mark.parametrize("name", PHOTOGRAPHS)
+def test_builtin_photographs_are_skimage_files_at_their_size(name):
+    """Each photograph scene loads by name; its image is scikit-image's installed file (not a copy in camsim),
+    and the frame has the photograph's size as scikit-image reads it."""
+    import skimage
+
+    scene = load_scene(name)
+    source = scene.source
+    assert isinstance(source, ImageSource) and source.kind == "reflectance" and source.recovery == "Mallett 2019"
+    assert source.path.is_file() and source.path.name == f"{name}.png"
+    assert Path(skimage.__file__).parent in source.path.resolve().parents
+    assert ROOT.resolve() not in source.path.resolve().parents
+    height, width = _skimage_photograph(name).shape[:2]
+    assert source.own_size() == (width, height)
+    assert scene.illuminants == ("D65",) and scene.preset_name == "emva-12bit"
+    # the licence and the source are cited in the scene file
+    text = builtin_scene_path(name).read_text()
+    assert ("public domain" if name == "astronaut" else "CC0") in text and f'path = "skimage:{name}"' in text
+
+
+@pytest.mark.parametrize("name", PHOTOGRAPHS)
+def test_a_crop_of_each_builtin_photograph_renders(tmp_path, name):
+    """camsim render of the built-in scene with a crop added: frames at the crop's size, and the clean layer's green
+    follows the photograph's own luminance there (sRGB decoded here) pixel by pixel."""
+    from camsim.io.exr import read_exr
+
+    x, y, w, h = 100, 60, 64, 48
+    text = builtin_scene_path(name).read_text().replace("# crop = [x, y, width, height]", f"crop = [{x}, {y}, {w}, {h}]")
+    assert f"crop = [{x}" in text
+    scene = tmp_path / f"{name}.toml"
+    scene.write_text(text)
+    out = tmp_path / "out"
+    assert main(["render", str(scene), "--intensity", "1", "--out", str(out), "-q"]) == 0
+    meta = json.loads((out / f"{name}_D65_F1.json").read_text())
+    assert (meta["width_px"], meta["height_px"]) == (w, h) and meta["reflectances"] == f"{name}.png"
+    noisy, clean, _ = read_exr(out / f"{name}_D65_F1.exr")
+    assert noisy.shape[-2:] == (h, w) and np.all(np.isfinite(noisy))
+    luminance = _srgb_luminance(_skimage_photograph(name)[y : y + h, x : x + w])
+    assert np.corrcoef(clean[1].ravel(), luminance.ravel())[0, 1] > 0.95
+
+
+@pytest.mark.slow
+def test_cli_renders_the_astronaut_end_to_end(tmp_path):
+    assert main(["render", "astronaut", "--intensity", "1", "0.1", "--illuminant", "D65", "--out", str(tmp_path),
+                 "-q"]) == 0
+    meta = json.loads((tmp_path / "astronaut_D65_F0.1.json").read_text())
+    assert (meta["width_px"], meta["height_px"]) == (512, 512)

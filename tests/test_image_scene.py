@@ -2,7 +2,8 @@
 
 Independent references: a chart whose reflectance CSV holds the same recovered spectrum (the dense K × N path);
 colour-science's own ColorChecker XYZ under D65; the exact law of each pixel's digital number (tests.theory);
-sRGB's transfer function written out here.
+sRGB's transfer function written out here; luminance and chromaticity from colour-science's CIE 1931 CMFs
+(683 lm/W); the camera's anchor (MODEL.md §3: the perfect white at 100 cd/m² under D65 gives 8000 e⁻).
 """
 
 import json
@@ -14,6 +15,7 @@ import numpy as np
 import pytest
 
 from camsim.camera import load_camera
+from camsim.rates import FactoredSpectra
 from camsim.chart import ChartGeometry
 from camsim.cli import main
 from camsim.pipeline import light_scene, make_frame
@@ -44,6 +46,87 @@ def _mallett_on_grid(grid) -> np.ndarray:
 
 def _image_scene(path: Path, **changes):
     return small_scene(source=ImageSource(path=path), **changes)
+
+
+def _write_exr(path: Path, values: np.ndarray) -> None:
+    """A float32 RGB OpenEXR file of ``values`` (H, W, 3), linear."""
+    import OpenImageIO as oiio
+
+    height, width = values.shape[:2]
+    out = oiio.ImageOutput.create(str(path))
+    out.open(str(path), oiio.ImageSpec(width, height, 3, oiio.FLOAT))
+    out.write_image(np.ascontiguousarray(values, dtype=np.float32))
+    out.close()
+
+
+def _cie1931(grid) -> np.ndarray:
+    """colour-science's CIE 1931 2° x̄ ȳ z̄, interpolated here with numpy onto the grid, shape (3, N)."""
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    return np.stack([np.interp(grid.wavelengths_nm, cmfs.wavelengths, cmfs.values[:, j]) for j in range(3)])
+
+
+def test_a_radiance_image_has_its_stated_luminance_whatever_the_illuminant(tmp_path):
+    """kind = "radiance": linear (1, 1, 1) is D65 light at the [image]'s luminance_cd_m2 (Y = 683 Σ L ȳ δ with
+    colour-science's CMFs, within 0.5 %; chromaticity D65's), 0.5 is half of it, the spectra stay factored, and
+    neither the scene's illuminant nor its [light] luminance changes the electrons. At 100 cd/m² the white gives
+    the anchor's 8000 e⁻ in the strongest channel (MODEL.md §3), as the perfect white under D65 does."""
+    values = np.ones((20, 30, 3))
+    values[:, 15:] = 0.5
+    _write_exr(tmp_path / "glow.exr", values)
+    grid = small_scene().grid
+    source = ImageSource(path=tmp_path / "glow.exr", kind="radiance", luminance_cd_m2=250.0)
+    spectra = source.spectra(grid, 0, 0)
+    assert spectra.kind == "radiance" and isinstance(spectra.spectra, FactoredSpectra)
+    white, grey = spectra.spectra[int(spectra.labels[0, 0])], spectra.spectra[int(spectra.labels[0, 20])]
+    xyz = 683.0 * grid.step_nm * (_cie1931(grid) @ np.stack([white, grey]).T).T
+    assert abs(xyz[0, 1] / 250.0 - 1) < 0.005, xyz[0, 1]
+    assert abs(xyz[1, 1] / 125.0 - 1) < 0.005, xyz[1, 1]
+    np.testing.assert_allclose(xyz[0, :2] / xyz[0].sum(), [0.3127, 0.3290], atol=1e-3)  # D65's xy
+    scene = small_scene(source=source)
+    camera = load_camera(scene.camera, grid)
+    under = {light: light_scene(scene, light, camera).expected(IDEAL, 1.0, "pixel").signal_e for light in
+             ("D65", "A", "FL2")}
+    dimmer_light = light_scene(scene.replace(luminance_cd_m2=20.0), "A", camera).expected(IDEAL, 1.0, "pixel")
+    for signal in (under["A"], under["FL2"], dimmer_light.signal_e):
+        np.testing.assert_allclose(signal, under["D65"], rtol=1e-12)
+    at_100 = small_scene(source=ImageSource(path=tmp_path / "glow.exr", kind="radiance", luminance_cd_m2=100.0))
+    lit = light_scene(at_100, "A", camera)
+    signal = lit.expected(IDEAL, 1.0, "pixel").signal_e
+    assert abs(signal[lit.labels[0, 0]].max() / 8000.0 - 1) < 0.005, signal[lit.labels[0, 0]]
+    np.testing.assert_allclose(signal[lit.labels[0, 20]], signal[lit.labels[0, 0]] / 2, rtol=1e-6)
+
+
+def test_resampling_averages_in_linear_light(tmp_path):
+    """size = [w, h]: a 2 × 2 checker of two 8-bit sRGB colours shrunk to 1 × 1 (and an 8 × 8 one to 4 × 4) is
+    their linear-light mean (sRGB decoded here), and its electrons are the mean of the two colours' electrons."""
+    a, b = np.array([200, 30, 90], dtype=np.uint8), np.array([20, 240, 160], dtype=np.uint8)
+    mean = (_srgb_decode(a) + _srgb_decode(b)) / 2
+    grid = small_scene().grid
+    camera = load_camera(small_scene().camera, grid)
+
+    def electrons(source):
+        lit = light_scene(small_scene(source=source), "D65", camera)
+        return lit.expected(IDEAL, 1.0, "pixel").signal_e[lit.labels]
+
+    for n, size in ((2, (1, 1)), (8, (4, 4))):
+        checker = np.where((np.indices((n, n)).sum(0) % 2 == 0)[..., None], a, b)
+        iio.imwrite(tmp_path / f"checker{n}.png", checker)
+        source = ImageSource(path=tmp_path / f"checker{n}.png", size=size)
+        assert source.own_size() == size
+        spectra = source.spectra(grid, 0, 0)
+        assert spectra.labels.shape == size[::-1]
+        np.testing.assert_allclose(spectra.spectra.coefficients[spectra.labels], np.broadcast_to(mean, (*size, 3)),
+                                   rtol=1e-9)
+    for colour_code, name in ((a, "a"), (b, "b")):
+        iio.imwrite(tmp_path / f"{name}.png", np.broadcast_to(colour_code, (2, 2, 3)).copy())
+    pair = electrons(ImageSource(path=tmp_path / "a.png"))[0, 0] + electrons(ImageSource(path=tmp_path / "b.png"))[0, 0]
+    np.testing.assert_allclose(electrons(ImageSource(path=tmp_path / "checker2.png", size=(1, 1)))[0, 0], pair / 2,
+                               rtol=1e-9)
+    # crop first, then resample; size equal to the crop keeps the file's codes
+    crop = ImageSource(path=tmp_path / "checker8.png", crop=(2, 2, 4, 4), size=(3, 5))
+    assert crop.own_size() == (3, 5) and crop.spectra(grid, 0, 0).labels.shape == (5, 3)
+    same = ImageSource(path=tmp_path / "checker8.png", size=(8, 8)).spectra(grid, 0, 0)
+    assert same.spectra.shape[0] == 2
 
 
 def test_a_flat_image_region_equals_a_chart_patch_of_its_recovered_spectrum(tmp_path):
@@ -150,6 +233,12 @@ def test_render_an_image_scene_end_to_end(tmp_path):
     ("nan", "NaN"),
     ("negative", "negative"),
     ("crop", "reaches beyond"),
+    ("size", "size must be [width, height], two positive integers"),
+    ("size-float", "size must be [width, height], two positive integers"),
+    ("radiance", "kind 'radiance' needs luminance_cd_m2"),
+    ("luminance", "luminance_cd_m2 applies to kind 'radiance'"),
+    ("aces", "the white of 'ACES2065-1' is 'ACES'"),
+    ("skimage", "no image 'nope' ships with scikit-image: skimage: names are astronaut, "),
 ])
 def test_bad_images_are_one_line_errors(tmp_path, capsys, case, message):
     table = {"path": "picture.png"}
@@ -171,6 +260,18 @@ def test_bad_images_are_one_line_errors(tmp_path, capsys, case, message):
         table["colourspace"] = "no such space"
     if case == "crop":
         table["crop"] = [10, 10, 20, 5]
+    if case == "size":
+        table["size"] = [0, 10]
+    if case == "size-float":
+        table["size"] = [10.5, 10]
+    if case in ("radiance", "aces"):
+        table["kind"] = "radiance"
+    if case == "aces":
+        table["colourspace"], table["luminance_cd_m2"] = "ACES2065-1", 100
+    if case == "luminance":
+        table["luminance_cd_m2"] = 100
+    if case == "skimage":
+        table["path"] = "skimage:nope"
     lines = "\n".join(f'{key} = {json.dumps(value)}' for key, value in table.items())
     scene = tmp_path / "bad.toml"
     scene.write_text(f'name = "bad"\n[image]\n{lines}\n')

@@ -104,7 +104,8 @@ def apply_overrides(scene, args):
         changes["preset_name"] = args.preset
     if args.size:
         if scene.source.has_own_size:
-            raise CamsimError("--size applies to chart and target scenes; a cube scene has the size of its cube")
+            raise CamsimError("--size applies to chart and target scenes; a cube or image scene has a size of its own "
+                              "(an image's can be set with [image] size = [width, height])")
         changes["width"], changes["height"] = parse_size(args.size)
     scene = scene.replace(**changes)
     overrides = sensor_overrides(args)

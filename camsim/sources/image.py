@@ -1,12 +1,37 @@
-"""A picture as a scene: an RGB image file, its colours recovered as reflectance spectra (scene table ``[image]``).
+"""A picture as a scene: an RGB image file, its colours recovered as spectra (scene table ``[image]``).
 
-A photograph of surfaces (``kind = "reflectance"``): pixel value 1 is the perfect white, lit by the scene's
-illuminants at the scene's luminance. Its distinct colours become the scene's spectra (a label map plus K colours,
-as a chart is a label map plus its patches); with the ``Mallett 2019`` recovery each colour's reflectance is a
-non-negative combination of three basis spectra, ρ(λ) = r B_r(λ) + g B_g(λ) + b B_b(λ) for its linear sRGB (r, g, b),
-so the spectra stay factored (:class:`camsim.rates.FactoredSpectra`): the expected electrons of every colour are one
-3 × 3 matrix per camera and light applied to its linear RGB — never an H × W × N cube. The other methods of
-:data:`camsim.recovery.RECOVERY_METHODS` give one spectrum per distinct colour.
+A photograph of surfaces (``kind = "reflectance"``, the default): pixel value 1 is the perfect white, lit by the
+scene's illuminants at the scene's luminance. Its distinct colours become the scene's spectra (a label map plus K
+colours, as a chart is a label map plus its patches); with the ``Mallett 2019`` recovery each colour's reflectance
+is a non-negative combination of three basis spectra, ρ(λ) = r B_r(λ) + g B_g(λ) + b B_b(λ) for its linear sRGB
+(r, g, b), so the spectra stay factored (:class:`camsim.rates.FactoredSpectra`): the expected electrons of every
+colour are one 3 × 3 matrix per camera and light applied to its linear RGB — never an H × W × N cube. The other
+methods of :data:`camsim.recovery.RECOVERY_METHODS` give one spectrum per distinct colour.
+
+An emissive picture (``kind = "radiance"``), e.g. a display or a light box, has its own absolute scale and is not
+lit by the scene's illuminants (as a ``[cube]`` of radiance: every illuminant of the scene gives the same frame).
+The linear RGB (1, 1, 1) is the colourspace's whitepoint light — CIE D65's spectrum for sRGB (and Adobe RGB,
+Display P3, BT.2020), D50's for ProPhoto RGB; a colourspace whose white has no CIE spectrum in colour-science
+(ACES2065-1, DCI-P3) is refused — at the luminance ``luminance_cd_m2`` of the ``[image]`` table (cd/m²,
+required for this kind: the scene's ``[light] luminance_cd_m2`` scales reflectances and does not apply). Every
+colour's spectral radiance is its recovered reflectance-like spectrum times that white's spectral radiance
+W(λ) (W / (m² sr nm), Y = 683 Σ W ȳ δ = ``luminance_cd_m2``): L_k(λ) = ρ_k(λ) W(λ). With Mallett the basis sums to
+1, so (1, 1, 1) is exactly W and (0.5, 0.5, 0.5) exactly half of it; the radiance stays factored (the basis times
+W). Otsu and Jakob do not make (1, 1, 1) exactly flat (see :mod:`camsim.recovery`), so the white is then their
+recovered white times W.
+
+Paths. ``path`` is a file, relative to the scene file; or ``"skimage:NAME"``, one of the photographs shipped inside
+the installed scikit-image package (``skimage:astronaut``, ``skimage:coffee``, ``skimage:chelsea``, … — the stems
+of the image files in the ``skimage.data`` package folder; nothing is downloaded, and an unknown name is an error
+that lists them).
+
+Resampling. ``size = [width, height]`` resamples the picture (after ``crop``) in linear light with
+``skimage.transform.resize`` (bilinear, order 1; Gaussian anti-aliasing, skimage's σ = (factor − 1) / 2, on each
+axis that shrinks), so an edge between two colours becomes their linear-light mixture, as a camera's pixel would
+average it. The resampled values are floats: the image then has many distinct colours (up to one per pixel,
+e.g. about 10⁵ for a photograph) instead of its file's codes. That costs nothing with Mallett (three numbers a
+colour); with Otsu (about 1 ms a colour) or Jakob (about 0.3 s a colour) it is slow — use ``size`` with them only
+for synthetic pictures of few colours.
 
 Reading: OpenImageIO, 8- and 16-bit files (PNG, TIFF, JPEG, …) have their colourspace's transfer function decoded
 (colour-science's ``cctf_decoding``); float files (EXR, HDR) are taken as linear. One channel is grey (R = G = B);
@@ -23,12 +48,17 @@ from pathlib import Path
 import numpy as np
 
 from camsim.errors import CamsimError
+from camsim.photons import scale_to_luminance
 from camsim.rates import FactoredSpectra
 from camsim.sources.base import SceneSource, SourceSpectra, typed
 from camsim.recovery import RECOVERY_METHODS, linear_srgb, mallett_basis, rgb_to_distinct_spectra
-from camsim.spectra import WavelengthGrid, import_colour
+from camsim.spectra import WavelengthGrid, cmfs_on_grid, illuminant_spd, import_colour
 
-IMAGE_KINDS = ("reflectance",)
+IMAGE_KINDS = ("reflectance", "radiance")
+#: The prefix of a ``path`` that names a photograph shipped with scikit-image (``"skimage:astronaut"``).
+SKIMAGE_PREFIX = "skimage:"
+#: The file types looked for among scikit-image's shipped data files.
+_SKIMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
 
 
 @dataclass(frozen=True)
@@ -38,9 +68,12 @@ class ImageSource(SceneSource):
     Attributes
     ----------
     path : pathlib.Path
-        The image file (relative paths are relative to the scene file).
-    kind : {'reflectance'}
-        A photograph of surfaces: 1 = the perfect white.
+        The image file (in a scene file: relative to the scene file, or ``"skimage:NAME"`` for a photograph shipped
+        with scikit-image, resolved by :func:`skimage_data_file`).
+    kind : {'reflectance', 'radiance'}
+        ``reflectance``: a photograph of surfaces, 1 = the perfect white, lit by the scene's illuminants.
+        ``radiance``: an emissive picture, (1, 1, 1) = the colourspace's whitepoint light at ``luminance_cd_m2``,
+        not lit by the illuminants (module docstring).
     colourspace : str
         colour-science RGB colourspace name of the file's values (default ``"sRGB"``).
     recovery : str
@@ -50,10 +83,15 @@ class ImageSource(SceneSource):
         Jakob — for synthetic images with few colours).
     crop : tuple of int or None
         (x, y, width, height) in pixels of the file: the part that is the scene.
+    size : tuple of int or None
+        (width, height) in pixels: the (cropped) picture resampled to this size in linear light (module
+        docstring); None keeps the file's pixels.
+    luminance_cd_m2 : float or None
+        ``radiance`` only (and required there): the luminance of the linear RGB (1, 1, 1). Unit: cd / m².
     """
 
     table = "image"
-    keys = frozenset({"path", "kind", "colourspace", "recovery", "crop"})
+    keys = frozenset({"path", "kind", "colourspace", "recovery", "crop", "size", "luminance_cd_m2"})
     has_own_size = True
 
     path: Path
@@ -61,15 +99,35 @@ class ImageSource(SceneSource):
     colourspace: str = "sRGB"
     recovery: str = "Mallett 2019"
     crop: tuple | None = None
+    size: tuple | None = None
+    luminance_cd_m2: float | None = None
+
+    def __post_init__(self):
+        if self.kind not in IMAGE_KINDS:
+            raise CamsimError(f"[image] kind must be one of {IMAGE_KINDS}, got {self.kind!r}")
+        if self.kind == "radiance":
+            value = self.luminance_cd_m2
+            if value is None:
+                raise CamsimError("[image] kind 'radiance' needs luminance_cd_m2, the luminance of the linear RGB "
+                                  "(1, 1, 1) in cd/m² (an emissive picture has its own scale)")
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (np.isfinite(value)
+                                                                                      and value > 0):
+                raise CamsimError(f"[image] luminance_cd_m2 must be a positive number (cd/m²), got {value!r}")
+            whitepoint_name(self.colourspace)  # the white must have a spectrum
+        elif self.luminance_cd_m2 is not None:
+            raise CamsimError("[image] luminance_cd_m2 applies to kind 'radiance'; a reflectance image's white is "
+                              "set by [light] luminance_cd_m2")
+        if self.size is not None and not (
+                isinstance(self.size, tuple) and len(self.size) == 2
+                and all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in self.size)):
+            raise CamsimError(f"[image] size must be [width, height], two positive integers (pixels), "
+                              f"got {list(self.size) if isinstance(self.size, tuple) else self.size!r}")
 
     @classmethod
     def from_table(cls, table: dict, base_dir, where: str) -> ImageSource:
         if "path" not in table:
-            raise CamsimError(f"{where}: [image] needs a path to an image file")
-        kind = typed(table, "kind", str, "reflectance", where)
-        if kind not in IMAGE_KINDS:
-            raise CamsimError(f"{where}: [image] kind must be one of {IMAGE_KINDS}, got {kind!r} (emissive image "
-                              "scenes are not available yet: use a [cube] of radiance)")
+            raise CamsimError(f"{where}: [image] needs a path to an image file (or skimage:NAME)")
+        kind = typed(table, "kind", str, "reflectance", where)  # checked by the constructor
         recovery = typed(table, "recovery", str, "Mallett 2019", where)
         if recovery not in RECOVERY_METHODS:
             raise CamsimError(f"{where}: [image] recovery must be one of {', '.join(RECOVERY_METHODS)}, "
@@ -83,11 +141,22 @@ class ImageSource(SceneSource):
                     or crop[0] < 0 or crop[1] < 0 or crop[2] < 1 or crop[3] < 1:
                 raise CamsimError(f"{where}: [image] crop must be [x, y, width, height] in pixels, got {crop!r}")
             crop = tuple(crop)
-        return cls(path=base_dir / typed(table, "path", str, "", where), kind=kind, colourspace=colourspace,
-                   recovery=recovery, crop=crop)
+        size = typed(table, "size", list, None, where)
+        size = None if size is None else tuple(size)  # checked by the constructor
+        luminance = typed(table, "luminance_cd_m2", float, None, where)
+        path = typed(table, "path", str, "", where)
+        try:
+            if path.startswith(SKIMAGE_PREFIX):
+                path = skimage_data_file(path[len(SKIMAGE_PREFIX):])
+            else:
+                path = base_dir / path
+            return cls(path=path, kind=kind, colourspace=colourspace, recovery=recovery, crop=crop, size=size,
+                       luminance_cd_m2=luminance)
+        except CamsimError as exc:
+            raise CamsimError(f"{where}: {exc}") from None
 
-    def own_size(self) -> tuple[int, int]:
-        """(W, H) of the scene: the crop's, or the file's (read from its header)."""
+    def _cropped_size(self) -> tuple[int, int]:
+        """(W, H) of the file's pixels that are the scene: the crop's, or the file's (read from its header)."""
         width, height, _ = _image_header(str(self.path))
         if self.crop is None:
             return width, height
@@ -96,17 +165,88 @@ class ImageSource(SceneSource):
             raise CamsimError(f"[image] crop {list(self.crop)} reaches beyond the {width} × {height} image {self.path}")
         return w, h
 
+    def own_size(self) -> tuple[int, int]:
+        """(W, H) of the scene: ``size`` if set, else the crop's, or the file's (read from its header)."""
+        cropped = self._cropped_size()  # checks the crop against the file
+        return cropped if self.size is None else self.size
+
+    def white_radiance(self, grid: WavelengthGrid) -> np.ndarray:
+        """``radiance`` kind: the spectral radiance W(λ) of the linear RGB (1, 1, 1), shape (N,).
+
+        The colourspace's whitepoint illuminant (colour-science's spectrum) scaled to :attr:`luminance_cd_m2`
+        with the CIE 1931 ȳ on ``grid``. Unit: W / (m² sr nm).
+        """
+        if self.kind != "radiance":
+            raise CamsimError("[image] white_radiance is defined for kind 'radiance' only")
+        spd = illuminant_spd(whitepoint_name(self.colourspace), grid)
+        return scale_to_luminance(spd, cmfs_on_grid(grid)[1], grid.step_nm, float(self.luminance_cd_m2))
+
     def spectra(self, grid: WavelengthGrid, width: int, height: int) -> SourceSpectra:
-        """Labels (H, W) of the distinct colours and their reflectances, factored on Mallett's basis."""
+        """Labels (H, W) of the distinct colours and their spectra, factored on Mallett's basis with that method.
+
+        ``reflectance``: reflectance factors (unitless). ``radiance``: each reflectance-like spectrum times
+        :meth:`white_radiance` (W / (m² sr nm)); still factored with Mallett (the basis times the white).
+        """
         self.own_size()  # checks the crop against the file
-        labels, rgb = distinct_linear_rgb(str(self.path), self.colourspace, self.crop)
+        labels, rgb = distinct_linear_rgb(str(self.path), self.colourspace, self.crop, self.size)
         if self.recovery == "Mallett 2019":  # linear: the colours stay factored on the basis
             srgb, _ = linear_srgb(rgb, self.colourspace)
             spectra = FactoredSpectra(srgb, np.asarray(mallett_basis(grid)))
         else:  # one spectrum per distinct colour
             recovered = rgb_to_distinct_spectra(rgb, self.recovery, self.colourspace, grid)
             spectra, labels = recovered.spectra, recovered.labels[labels].astype(np.uint32)
+        if self.kind == "radiance":  # emissive: ρ_k(λ) W(λ), the illuminants play no part
+            spectra = spectra * self.white_radiance(grid)
         return SourceSpectra(labels, spectra, self.kind, [], [], self.path.name)
+
+
+def whitepoint_name(colourspace: str) -> str:
+    """The colour-science illuminant name of ``colourspace``'s whitepoint (``"D65"`` for sRGB).
+
+    Raises
+    ------
+    CamsimError
+        If the colourspace is unknown, or its whitepoint has no spectrum in ``colour.SDS_ILLUMINANTS``.
+    """
+    colour = import_colour()
+    if colourspace not in colour.RGB_COLOURSPACES:
+        raise CamsimError(f"[image] colourspace {colourspace!r} is not a colour-science RGB colourspace")
+    name = colour.RGB_COLOURSPACES[colourspace].whitepoint_name
+    if name not in colour.SDS_ILLUMINANTS:
+        raise CamsimError(f"[image] kind 'radiance' needs a colourspace whose white is a CIE illuminant with a "
+                          f"spectrum (sRGB: D65, ProPhoto RGB: D50); the white of {colourspace!r} is {name!r}")
+    return name
+
+
+def skimage_data_files() -> dict[str, Path]:
+    """``{name: file}`` of the images shipped inside the installed scikit-image (no download).
+
+    The files of the ``skimage.data`` package folder (``astronaut.png``, ``coffee.png``, ``chelsea.png``, …), by
+    stem. That folder is :data:`skimage.data.data_dir` unless ``pooch`` is installed, when ``data_dir`` names
+    a download cache instead; the shipped files stay in the package.
+    """
+    try:
+        from importlib.resources import files
+
+        folder = Path(str(files("skimage.data")))
+    except ModuleNotFoundError:
+        raise CamsimError("[image] skimage: paths need scikit-image (pip install scikit-image)") from None
+    return {p.stem: p for p in sorted(folder.iterdir()) if p.suffix.lower() in _SKIMAGE_SUFFIXES and p.is_file()}
+
+
+def skimage_data_file(name: str) -> Path:
+    """The file of the photograph ``name`` shipped with scikit-image (``"astronaut"`` → ``.../astronaut.png``).
+
+    Raises
+    ------
+    CamsimError
+        For a name that is not one of :func:`skimage_data_files`; the message lists them.
+    """
+    available = skimage_data_files()
+    if name not in available:
+        raise CamsimError(f"[image] no image {name!r} ships with scikit-image: skimage: names are "
+                          f"{', '.join(available)}")
+    return available[name]
 
 
 def _oiio():
@@ -175,8 +315,20 @@ def read_image_codes(path: str) -> tuple[np.ndarray, bool, int]:
     return np.ascontiguousarray(pixels[:, :, :3]), integer is not None, integer[1] if integer else 0
 
 
-def distinct_linear_rgb(path: str, colourspace: str = "sRGB", crop: tuple | None = None):
+def distinct_linear_rgb(path: str, colourspace: str = "sRGB", crop: tuple | None = None, size: tuple | None = None):
     """The distinct colours of an image file as linear RGB in ``colourspace``, and each pixel's colour index.
+
+    Parameters
+    ----------
+    path : str
+        The image file.
+    colourspace : str
+        colour-science name of the file's RGB colourspace (its transfer function decodes integer codes).
+    crop : tuple of int or None
+        (x, y, width, height) in pixels: the part of the file read.
+    size : tuple of int or None
+        (width, height) in pixels: the cropped pixels resampled to this size in linear light
+        (``skimage.transform.resize``, bilinear, anti-aliased when shrinking); None or the cropped size keeps them.
 
     Returns
     -------
@@ -186,16 +338,41 @@ def distinct_linear_rgb(path: str, colourspace: str = "sRGB", crop: tuple | None
         Linear RGB of each distinct colour, ≥ 0 (the file's transfer function decoded for integer files). Cached
         per file version: do not modify.
     """
-    return _cached_distinct(*_file_key(path), colourspace, crop)
+    return _cached_distinct(*_file_key(path), colourspace, crop, size)
+
+
+def _resized_linear(codes: np.ndarray, integer: bool, bits: int, colourspace: str, size: tuple) -> np.ndarray:
+    """The pixels as linear RGB (float64), resampled to ``size`` = (width, height) in linear light."""
+    from skimage.transform import resize
+
+    if integer:  # decode every code once, then look each pixel's up
+        space = import_colour().RGB_COLOURSPACES[colourspace]
+        table = np.asarray(space.cctf_decoding(np.arange(2**bits) / (2**bits - 1)), dtype=np.float64)
+        linear = table[codes]
+    else:
+        linear = codes.astype(np.float64)
+    height, width = linear.shape[:2]
+    shrinks = size[0] < width or size[1] < height
+    resized = resize(linear, (size[1], size[0], 3), order=1, mode="reflect", anti_aliasing=shrinks,
+                     preserve_range=True)
+    return np.maximum(resized, 0.0) + 0.0  # bilinear and Gaussian weights are ≥ 0: a guard, and −0 → 0
 
 
 @lru_cache(maxsize=4)
-def _cached_distinct(path: str, _mtime_ns: int, _size: int, colourspace: str, crop: tuple | None):
+def _cached_distinct(path: str, _mtime_ns: int, _size: int, colourspace: str, crop: tuple | None,
+                     size: tuple | None = None):
     codes, integer, bits = read_image_codes(path)
     if crop is not None:
         x, y, w, h = crop
         codes = codes[y : y + h, x : x + w]
     height, width = codes.shape[:2]
+    if not integer:
+        _check_float_pixels(codes, path)
+    if size is not None and tuple(size) != (width, height):
+        linear = _resized_linear(codes, integer, bits, colourspace, tuple(size))
+        values, inverse = np.unique(linear.reshape(-1, 3).view(np.dtype((np.void, 24))).ravel(), return_inverse=True)
+        distinct = values.view(np.float64).reshape(-1, 3).copy()
+        return inverse.reshape(size[1], size[0]).astype(np.uint32), distinct
     flat = codes.reshape(-1, 3)
     if integer and bits == 8:  # 24-bit codes: a presence table and its running count, O(pixels), no sort
         packed = (flat[:, 0].astype(np.uint32) << 16) | (flat[:, 1].astype(np.uint32) << 8) | flat[:, 2]
@@ -217,12 +394,16 @@ def _cached_distinct(path: str, _mtime_ns: int, _size: int, colourspace: str, cr
         space = import_colour().RGB_COLOURSPACES[colourspace]
         linear = np.asarray(space.cctf_decoding(encoded), dtype=np.float64)
     else:
-        if not np.all(np.isfinite(flat)):
-            raise CamsimError(f"image {path} has NaN or infinite values")
-        if np.any(flat < 0):
-            raise CamsimError(f"image {path} has negative values: a reflectance image needs values ≥ 0")
         values, inverse = np.unique(flat.view(np.dtype((np.void, 12))).ravel(), return_inverse=True)
         linear = values.view(np.float32).reshape(-1, 3).astype(np.float64)
     labels = inverse.reshape(height, width)
     labels = labels.view(np.uint32) if labels.dtype == np.int32 else labels.astype(np.uint32)  # indices are ≥ 0
     return labels, linear
+
+
+def _check_float_pixels(pixels: np.ndarray, path: str) -> None:
+    """A float image's values must be finite and ≥ 0 (reflectance-like, or relative radiance)."""
+    if not np.all(np.isfinite(pixels)):
+        raise CamsimError(f"image {path} has NaN or infinite values")
+    if np.any(pixels < 0):
+        raise CamsimError(f"image {path} has negative values: an image scene needs values ≥ 0")
