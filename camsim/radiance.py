@@ -66,10 +66,11 @@ def scene_radiance(scene: Scene, illuminant: str) -> SceneRadiance:
         radiance = refl
     elif scene.normalisation == "chart":
         radiance = refl * white
-    elif isinstance(refl, FactoredSpectra):
+    elif isinstance(refl, FactoredSpectra) and scene.source.table == "image":
         raise CamsimError("normalisation 'per-spectrum' scales each spectrum to the luminance: it applies to charts "
                           "and cubes, not to an image, whose pixels keep their relative brightness")
-    else:
+    else:  # each spectrum its own scale: dense rows (a cube's too: H · W · N values)
+        refl = np.asarray(refl, dtype=np.float64)
         radiance = np.empty_like(refl)
         for k, row in enumerate(refl):
             lit = row * spd

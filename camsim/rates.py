@@ -12,6 +12,7 @@ spectra stands (``@``, scaling by a number or per bin, row indexing), and gives 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -38,11 +39,25 @@ class FactoredSpectra:
 
     def __getitem__(self, index) -> np.ndarray:
         """Dense rows: ``coefficients[index] @ basis`` (an int, a slice or an index array)."""
-        return np.asarray(self.coefficients[index], dtype=np.float64) @ self.basis
+        if isinstance(self.coefficients, np.ndarray):
+            rows = self.coefficients[index]
+        else:  # rows read from a file (a cube's pixels)
+            rows = self.coefficients.rows(index)
+        return np.asarray(rows, dtype=np.float64) @ self.basis
 
     def __matmul__(self, other) -> np.ndarray:
-        """``dense @ other`` computed as ``coefficients @ (basis @ other)``: (K, J) · (J, M). Exact: a sum reordered."""
-        return np.asarray(self.coefficients, dtype=np.float64) @ (self.basis @ np.asarray(other, dtype=np.float64))
+        """``dense @ other`` computed as ``coefficients @ (basis @ other)``: (K, J) · (J, M). Exact: a sum reordered.
+
+        Coefficients read from a file (:class:`CoefficientRows`) are taken block by block: memory for a block and
+        the (K, M) result, never for the K × J coefficients as float64.
+        """
+        product = self.basis @ np.asarray(other, dtype=np.float64)
+        if isinstance(self.coefficients, np.ndarray):
+            return np.asarray(self.coefficients, dtype=np.float64) @ product
+        out = np.empty((self.shape[0],) + product.shape[1:])
+        for start, block in self.coefficients.blocks():
+            out[start:start + block.shape[0]] = block @ product
+        return out
 
     def scaled(self, factor) -> FactoredSpectra:
         """Every row times ``factor``: a number or one value per bin, shape (N,) (applied to the basis)."""
@@ -59,12 +74,35 @@ class FactoredSpectra:
 
     def all_finite(self) -> bool:
         """Whether the coefficients and the basis are finite (so is every row)."""
-        return bool(np.all(np.isfinite(self.coefficients)) and np.all(np.isfinite(self.basis)))
+        finite = (np.all(np.isfinite(self.coefficients)) if isinstance(self.coefficients, np.ndarray)
+                  else self.coefficients.all_finite())
+        return bool(finite and np.all(np.isfinite(self.basis)))
 
     def __array__(self, dtype=None, copy=None):
         """The dense (K, N) rows: for small K, or paths that need every bin of every row."""
         dense = self[:]
         return dense if dtype is None else dense.astype(dtype)
+
+
+class CoefficientRows(Protocol):
+    """What :class:`FactoredSpectra` needs of coefficients that are not an array in memory (a cube file's pixels:
+    :class:`camsim.io.cube_files.CubeRows`).
+
+    Attributes
+    ----------
+    shape : (K, J)
+    """
+
+    shape: tuple[int, int]
+
+    def blocks(self):
+        """Yield ``(start, rows)``: consecutive rows as float64 arrays (n, J), covering all K."""
+
+    def rows(self, index) -> np.ndarray:
+        """Rows ``index`` (an int, a slice or an index array) as float64, shape (..., J)."""
+
+    def all_finite(self) -> bool:
+        """Whether every coefficient is finite."""
 
 
 def all_finite(spectra) -> bool:

@@ -300,3 +300,29 @@ def test_scene_file_keys(tmp_path, capsys):
     assert main(["render", scene, "--out", str(out)]) == 2
     assert "variable applies to .mat cubes only" in capsys.readouterr().err
     assert not out.exists()
+
+
+# --- the cube as factored spectra: each pixel its own spectrum, read block by block ------------------------------
+
+def test_cube_source_rows_are_each_pixels_resampled_spectrum(tmp_path, monkeypatch, expected31):
+    """A [cube] scene's spectra are factored on the file (camsim.io.cube_files.CubeRows): rows, products and the
+    expected electrons agree with colour-science's per-pixel resampling (``expected31``), computed independently,
+    with blocks of 7 rows and an ENVI scale factor (integer codes)."""
+    from camsim.sources import CubeSource
+
+    monkeypatch.setattr(cube_files, "BLOCK_BYTES", 7 * W * WL31.size * 8)
+    codes = np.rint(REF31 * SCALE)
+    header = write_envi(tmp_path / "c.hdr", codes, interleave="bil", dtype="<u2",
+                        extra=wavelength_lines(WL31) + f"reflectance scale factor = {SCALE:g}\n")
+    expected = colour_resampled(codes / SCALE, WL31, GRID31).reshape(-1, GRID31.size)
+    source = CubeSource(path=header).spectra(GRID31, W, H)
+    spectra = source.spectra
+    assert spectra.shape == (H * W, GRID31.size)
+    assert not isinstance(spectra.coefficients, np.ndarray)  # never materialised
+    pixels = np.array([0, 1, W, 7 * W + 3, H * W - 1])
+    np.testing.assert_allclose(spectra[pixels], expected[pixels], rtol=1e-12)
+    np.testing.assert_allclose(spectra[3:5], expected[3:5], rtol=1e-12)
+    weights = np.random.default_rng(3).uniform(0, 1, size=(GRID31.size, 3))
+    np.testing.assert_allclose(spectra @ weights, expected @ weights, rtol=1e-12)
+    y, x = 17, 23
+    assert source.labels[y, x] == y * W + x

@@ -5,7 +5,10 @@ to a temporary folder, then in a fresh Python process for each case reads it wit
 value in one pass, block by block) and converts every block to float64 on the scene grid (``CubeData.blocks``, the
 pass a renderer makes), printing the process's peak RSS (``VmHWM``, which counts the file pages mapped into the
 process as well as its own memory) before and after. Cases: the default, and the same with the mapped pages left
-resident (``CubeData._release`` off), to show what releasing them does.
+resident (``CubeData._release`` off), to show what releasing them does; and a render of one frame of a ``[cube]``
+scene of the file (``paper-table1``, D65, F = 1, ``poisson``, 2 workers): the cube's pixels are the coefficients
+of factored spectra (:class:`camsim.io.cube_files.CubeRows`), so its expected electrons are one pass over the file
+and the frame needs (H · W, 3) moments, not the H · W · N spectra (9.7 GB as float64).
 
     PYTHONPATH=. python tools/bench_cube_rss.py [--interleave bsq|bil|bip] [--keep DIR]
 
@@ -82,15 +85,46 @@ def measure(header: str, release: bool) -> None:
           f"checksum {total:.6g}")
 
 
+def measure_render(header: str) -> None:
+    """Run in a child process: render one frame of a [cube] scene of the file (paper-table1, D65, F = 1, poisson,
+    2 workers), print the peak RSS and the times."""
+
+    from camsim.pipeline import light_scene, make_frame
+    from camsim.scene import load_scene
+    from camsim.sources import CubeSource
+
+    scene = load_scene(Path(__file__).resolve().parents[1] / "scenes" / "macbeth_26.toml")
+    scene = scene.replace(source=CubeSource(path=Path(header)), illuminants=("D65",), intensity_factors=(1.0,),
+                          preset_name="paper-table1", statistics="pixel")
+    before = vm_hwm_mib()
+    t0 = time.perf_counter()
+    lit = light_scene(scene, "D65")
+    t1 = time.perf_counter()
+    expected = lit.expected(scene.sensor, 1.0, "pixel")
+    t2 = time.perf_counter()
+    after_expected = vm_hwm_mib()
+    frame = make_frame(lit, scene.sensor, 1.0, statistics="pixel", method="poisson", rng=0,
+                       workers=2)
+    t3 = time.perf_counter()
+    print(f"  render: peak RSS after imports {before:.0f} MiB; light_scene (reads, checks) {t1 - t0:.1f} s; expected "
+          f"electrons of every pixel (one pass over the file) {t2 - t1:.1f} s, peak {after_expected:.0f} MiB; "
+          f"make_frame (expected again + draws, 2 workers) {t3 - t2:.1f} s, peak {vm_hwm_mib():.0f} MiB; "
+          f"mean DN {float(frame.digital_dn.mean()):.2f}; spectra per pixel: {expected.signal_e.shape[0]}")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--interleave", choices=("bsq", "bil", "bip"), default="bsq")
     parser.add_argument("--keep", help="write the cube here (kept) instead of a temporary folder")
     parser.add_argument("--measure", help=argparse.SUPPRESS)
     parser.add_argument("--no-release", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--measure-render", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.measure:
         measure(args.measure, release=not args.no_release)
+        return 0
+    if args.measure_render:
+        measure_render(args.measure_render)
         return 0
     with tempfile.TemporaryDirectory(dir=args.keep) as tmp:
         folder = Path(args.keep or tmp)
@@ -100,8 +134,9 @@ def main() -> int:
         print(f"{WIDTH} × {HEIGHT} × {BANDS} float32 ENVI cube, {args.interleave}: {size / 2**30:.2f} GiB "
               f"(written in {time.perf_counter() - t0:.0f} s)")
         env = dict(os.environ)
-        for flags in ([], ["--no-release"]):
-            subprocess.run([sys.executable, __file__, "--measure", str(header), *flags], check=True, env=env)
+        for flags in (["--measure", str(header)], ["--measure", str(header), "--no-release"],
+                      ["--measure-render", str(header)]):
+            subprocess.run([sys.executable, __file__, *flags], check=True, env=env)
     return 0
 
 

@@ -178,6 +178,53 @@ class CubeData:
             self._mapping.madvise(mmap.MADV_DONTNEED)
 
 
+@dataclass(frozen=True, eq=False)
+class CubeRows:
+    """A cube's pixels as the K = H · W coefficient rows of :class:`camsim.rates.FactoredSpectra` (the
+    :class:`camsim.rates.CoefficientRows` protocol): row p is pixel
+    (p // W, p % W), its B stored values as float64 (unscaled: the scale and the resampling to the grid are the
+    factored spectra's basis, :meth:`basis`). Read block by block from the file, the mapped pages dropped after
+    each block: the cube is never copied whole.
+    """
+
+    cube: CubeData
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        height, width, bands = self.cube.stored.shape
+        return height * width, bands
+
+    def basis(self) -> np.ndarray:
+        """(B, N): band b's contribution to each grid bin, the resampling divided by the file's scale factor."""
+        cube = self.cube
+        resample = np.eye(cube.grid.size) if cube.resample is None else cube.resample.T
+        return resample / cube.scale
+
+    def blocks(self):
+        stored, width = self.cube.stored, self.cube.stored.shape[1]
+        step = self.cube.block_rows
+        for start in range(0, stored.shape[0], step):
+            block = np.array(stored[start:start + step], dtype=np.float64)
+            self.cube._release()
+            yield start * width, block.reshape(-1, block.shape[2])
+
+    def rows(self, index) -> np.ndarray:
+        height, width, bands = self.cube.stored.shape
+        if isinstance(index, slice):
+            index = np.arange(height * width)[index]
+        flat = np.asarray(index)
+        if flat.size and (flat.min() < -height * width or flat.max() >= height * width):
+            raise IndexError(f"pixel index out of range for a {width} × {height} cube")
+        y, x = np.divmod(flat % (height * width), width)
+        rows = np.array(self.cube.stored[y, x], dtype=np.float64)
+        self.cube._release()
+        return rows
+
+    def all_finite(self) -> bool:
+        """True: :func:`read_cube` checked every value (finite, non-negative) when it read the file."""
+        return True
+
+
 @dataclass(frozen=True)
 class _Stored:
     """What a format reader found: the H × W × B array as stored, and what the file says about it."""

@@ -178,20 +178,22 @@ def paper_ks_bounds(expected: ExpectedSignal, read_noise_e: float, gaussian_read
     (numpy.ndarray, numpy.ndarray)
         The bounds for the Gaussian and for the stand-in, each at most 1.
     """
-    qe, rate = expected.qe, np.asarray(expected.photon_rate)  # dense rows (an image's factored colours too)
+    qe, rate = expected.qe, expected.photon_rate  # (K, N) rows, or factored (an image's colours, a cube's pixels)
     signal, var, dark = expected.signal_e, expected.signal_var_e2, np.asarray(expected.dark_e, dtype=np.float64)
-    # B(S) = C Σ μ w³ / (Σ μ w²)^{3/2} is free of the scale of w and falls as 1/√(scale of μ): both normalised
+    # B(S) = C Σ μ w³ / (Σ μ w²)^{3/2}: both sums are linear in μ, so factored rows need no K × N array; the scale
+    # of w cancels (normalised), and the ratio is taken in logarithms so that no power of a huge μ overflows
     w = qe / np.where(qe.max(axis=1, keepdims=True) > 0, qe.max(axis=1, keepdims=True), 1.0)
-    peak = rate.max(axis=1, keepdims=True)
-    mu = rate / np.where(peak > 0, peak, 1.0)
-    m2, m3 = mu @ (w * w).T, mu @ (w**3).T
+    m2, m3 = rate @ (w * w).T, rate @ (w**3).T
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        berry_esseen = np.where(m2 > 0, np.minimum(1.0, BERRY_ESSEEN_C * m3 / m2**1.5 / np.sqrt(peak)), 0.0)
+        ratio = np.exp(np.log(m3) - 1.5 * np.log(m2))
+        berry_esseen = np.where(m2 > 0, np.minimum(1.0, BERRY_ESSEEN_C * ratio), 0.0)
         counts = np.where(var > 0, signal / (var / signal), 0.0)  # S̄ / s, the stand-in's Poisson mean
     sd_signal = np.sqrt(var)
     sigma_a = _sigma_below(np.sqrt(read_noise_e**2 + var))
-    dark_part = np.array([[_ks_at(float(dark[c]), float(sigma_a[k, c])) for c in range(3)]
-                          for k in range(var.shape[0])]).reshape(var.shape)
+    dark_part = np.empty(var.shape)
+    for c in range(3):  # σ is on a 2 % grid: one KS per distinct σ, not per spectrum
+        sigmas, where = np.unique(sigma_a[:, c], return_inverse=True)
+        dark_part[:, c] = np.array([_ks_at(float(dark[c]), float(s)) for s in sigmas])[where.ravel()]
     gaussian = berry_esseen + dark_part
     stand_in = predicted_ks(counts, 0.0) + berry_esseen
     phi0 = stats.norm.pdf(0)

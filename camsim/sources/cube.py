@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from camsim.errors import CamsimError
-from camsim.io.cube_files import CUBE_READERS, cube_size, read_cube
+from camsim.io.cube_files import CUBE_READERS, CubeRows, cube_size, read_cube
+from camsim.rates import FactoredSpectra
 from camsim.sources.base import SceneSource, SourceSpectra, typed
 
 CUBE_KINDS = ("reflectance", "radiance")
@@ -63,14 +64,18 @@ class CubeSource(SceneSource):
         return cube_size(self.path, variable=self.variable)
 
     def spectra(self, grid, width: int, height: int) -> SourceSpectra:
-        """Every pixel its own spectrum (the frame has the cube's size).
+        """Every pixel its own spectrum (the frame has the cube's size), kept factored on the file.
 
-        The file is read block by block (checked, converted, resampled), but the result is materialised: labels
-        (H, W) and spectra (H · W, N) float64, H · W · N · 8 bytes. A per-pixel renderer path that keeps memory
-        bounded is a separate piece of work.
+        The spectra are :class:`camsim.rates.FactoredSpectra` whose coefficients are the cube's stored values,
+        read block by block from the file (:class:`camsim.io.cube_files.CubeRows`), and whose basis is the
+        B → N resampling divided by the file's scale factor (the identity on the grid). Everything linear in the
+        spectra — radiance under a light, photon rate, expected electrons (Eqs. 3–6), Eq. 4's variance — is one pass
+        over the file into (H · W, 3) arrays: a 12 MP × 101-band cube is never copied whole. The labels are
+        (H, W) uint32, pixel p = y · W + x.
         """
         cube = read_cube(self.path, grid, wavelengths_nm=self.wavelengths_nm, variable=self.variable)
-        h, w, n = cube.shape
+        h, w, _ = cube.shape
         labels = np.arange(h * w, dtype=np.uint32).reshape(h, w)
-        return SourceSpectra(labels, cube.to_array().reshape(-1, n), self.kind, [], [], self.path.name)
+        rows = CubeRows(cube)
+        return SourceSpectra(labels, FactoredSpectra(rows, rows.basis()), self.kind, [], [], self.path.name)
 
