@@ -311,3 +311,35 @@ def test_every_method_and_stage_on_an_image(tmp_path, method, statistics, sensor
         expected = lit.expected(TABLE1, 1.0, statistics)
         np.testing.assert_allclose(clean, np.moveaxis((expected.clean_e * TABLE1.dn_per_electron)[lit.labels],
                                                       -1, 0), rtol=1e-6)
+
+
+@pytest.mark.parametrize("method", ["spectral", "poisson"])
+def test_paper_statistics_on_an_image_draw_eq4s_moments(tmp_path, method):
+    """Under ``paper`` statistics a basis-collapsed image draws, per pixel and channel, S with Eq. 4's mean S̄ and
+    variance T² F Σ g Qe² of its colour's spectrum: ``spectral`` by Eq. 4's per-bin Poisson counts (dense rows of
+    the factored spectrum, a chunk of pixels at a time), ``poisson`` by the stand-in s · Poisson(S̄ / s). The
+    reference is a chart patch whose CSV holds the same recovered spectrum (the dense K × N route). At F = 1e-15 the
+    bins' photon means are of order one, so Var S is far from S̄ (what ``pixel`` statistics would give): the test
+    fails if the image were drawn under the other statistics."""
+    code = np.array([200, 120, 60], dtype=np.uint8)
+    iio.imwrite(tmp_path / "flat.png", np.broadcast_to(code, (160, 200, 3)).copy())
+    grid = small_scene().grid
+    spectrum = _srgb_decode(code) @ _mallett_on_grid(grid)
+    csv = tmp_path / "patch.csv"
+    rows = ["wavelength_nm,painted"] + [f"{w:g},{r:.17g}" for w, r in zip(grid.wavelengths_nm, spectrum)]
+    csv.write_text("\n".join(rows) + "\n")
+    chart = small_scene(source=ChartSource(reflectances=str(csv), geometry=ChartGeometry(columns=1, rows=1)))
+    camera = load_camera(chart.camera, grid)
+    factor = 1e-15
+    reference = light_scene(chart, "D65", camera).expected(IDEAL, factor, "paper")
+    mean_ref, var_ref = reference.signal_e[0], reference.signal_var_e2[0]
+    assert np.all(var_ref < 0.5 * mean_ref) or np.all(var_ref > 2 * mean_ref)  # Eq. 4 is not Poisson here
+    lit = light_scene(_image_scene(tmp_path / "flat.png"), "D65", camera)
+    frame = make_frame(lit, IDEAL, factor, statistics="paper", method=method, rng=2024)
+    n = lit.labels.size
+    for c in range(3):
+        values = frame.noisy_dn[c].astype(np.float64).ravel() / IDEAL.dn_per_electron
+        mean, var = values.mean(), values.var(ddof=1)
+        m4 = np.mean((values - mean) ** 4)
+        assert abs(mean - mean_ref[c]) <= 5 * np.sqrt(var_ref[c] / n), (c, mean, mean_ref[c])
+        assert abs(var - var_ref[c]) <= 5 * np.sqrt(max(m4 - var**2, 0) / n), (c, var, var_ref[c])
