@@ -34,7 +34,7 @@ import numpy as np
 
 from camsim.colorimetry import CHANNELS
 from camsim.errors import CamsimError
-from camsim.io.exr import read_exr
+from camsim.io.exr import read_exr_clean
 from camsim.frame_files import EXR_METADATA_KEY, LoadedFrame
 from camsim.optional_numbers import finite_or_none
 
@@ -58,7 +58,7 @@ def load_clean_dn(frame: LoadedFrame) -> tuple[np.ndarray | None, str]:
     if not path.is_file():
         return None, "no-clean-layer"
     try:
-        _, clean, header = read_exr(path)
+        clean, header = read_exr_clean(path)
     except CamsimError:
         return None, "no-clean-layer"
     if clean is None:
@@ -77,7 +77,7 @@ def load_clean_dn(frame: LoadedFrame) -> tuple[np.ndarray | None, str]:
 
 def _planes(frame: LoadedFrame, channel: int):
     """(values (h, w), (row slice, column slice)) of each plane of one channel: the whole plane, or a Bayer
-    frame's sites of that colour (one plane per site of the 2 × 2 cell)."""
+    frame's sites of that colour (one plane per site of the 2 × 2 cell, a strided view: no copy)."""
     if not frame.cfa_pattern:
         return [(frame.pixels_dn[channel], (slice(None), slice(None)))]
     from camsim.cfa import cfa_sites
@@ -86,19 +86,22 @@ def _planes(frame: LoadedFrame, channel: int):
             for dy, dx, c in cfa_sites(frame.cfa_pattern) if c == channel]
 
 
-def _row_mean_se(values: np.ndarray, rows: np.ndarray) -> tuple[float, float | None]:
-    """Mean of ``values`` and its standard error over clusters ``rows`` (row ids, one per value).
+#: Rows of a plane handled at a time: the float64 work of a block stays a few MiB whatever the frame's size.
+BLOCK_ROWS = 64
 
-    Ratio estimator: m = Σ s_r / Σ n_r, SE² = R / (R − 1) · Σ (s_r − m n_r)² / (Σ n_r)², R rows.
+
+def _row_mean_se(sums: np.ndarray, counts: np.ndarray) -> tuple[float, float | None]:
+    """Mean of values given as per-row ``sums`` and ``counts``, and its standard error over rows (clusters).
+
+    Ratio estimator: m = Σ s_r / Σ n_r, SE² = R / (R − 1) · Σ (s_r − m n_r)² / (Σ n_r)², R rows with values.
     """
-    ids, inverse = np.unique(rows, return_inverse=True)
-    sums = np.bincount(inverse, weights=values)
-    counts = np.bincount(inverse).astype(np.float64)
+    used = counts > 0
+    sums, counts = sums[used], counts[used].astype(np.float64)
     total = counts.sum()
     mean = float(sums.sum() / total)
-    if ids.size < 2:
+    if sums.size < 2:
         return mean, None
-    se = np.sqrt(ids.size / (ids.size - 1) * np.sum((sums - mean * counts) ** 2)) / total
+    se = np.sqrt(sums.size / (sums.size - 1) * np.sum((sums - mean * counts) ** 2)) / total
     return mean, float(se)
 
 
@@ -122,69 +125,73 @@ def predicted_var_dn2(meta: dict, clean_dn: np.ndarray, quantised: bool, channel
 
 
 def _channel_stats(frame: LoadedFrame, channel: int, black: float, clean, clean_status: str) -> dict:
+    """One channel's record (:func:`frame_statistics`), block of rows by block of rows."""
     meta = frame.meta
-    white = float(meta["white_level_dn"])
-    planes = _planes(frame, channel)
-    values = [p.astype(np.float64).ravel() for p, _ in planes]
-    flat = np.concatenate(values)
-    n = flat.size
-    if frame.quantised:
-        low, high = np.count_nonzero(flat <= 0), np.count_nonzero(flat >= white)
-    else:  # before the ADC: what it would clip
-        low, high = np.count_nonzero(flat <= 0), np.count_nonzero(flat >= white) if meta["stages"].get(
-            "quantisation") else 0
+    k, white = float(meta["dn_per_electron"]), float(meta["white_level_dn"])
+    clip_high = frame.quantised or bool(meta["stages"].get("quantisation"))  # an EXR: what the ADC would clip
+    residual = clean is not None
+    n = low = high = 0
+    ref = total = total_sq = 0.0
+    row_sums, row_squares, row_counts = [], [], []
+    predicted_sum, n_near = 0.0, 0
+    for number, (plane, where) in enumerate(_planes(frame, channel)):
+        expected_plane = clean[channel][where] if residual else None
+        for r0 in range(0, plane.shape[0], BLOCK_ROWS):
+            block = plane[r0 : r0 + BLOCK_ROWS].astype(np.float64)
+            if n == 0:
+                ref = float(block.mean())  # a shift for the sums' precision
+            n += block.size
+            total += float(np.sum(block - ref))
+            total_sq += float(np.sum((block - ref) ** 2))
+            low += int(np.count_nonzero(block <= 0))
+            high += int(np.count_nonzero(block >= white)) if clip_high else 0
+            if not residual:
+                continue
+            expected = expected_plane[r0 : r0 + BLOCK_ROWS].astype(np.float64)
+            var = predicted_var_dn2(meta, expected, frame.quantised, channel)
+            if var is None:
+                residual, clean_status = False, "paper-statistics"
+                continue
+            sigma = np.sqrt(var)
+            keep = np.ones(block.shape, dtype=bool)
+            if frame.quantised:
+                keep &= (expected - CLIP_MARGIN_SIGMA * sigma >= 0) & (expected + CLIP_MARGIN_SIGMA * sigma <= white)
+            if meta["stages"].get("saturation"):
+                keep &= expected + CLIP_MARGIN_SIGMA * sigma <= k * float(meta["full_well_e"])
+            n_near += int(keep.size - np.count_nonzero(keep))
+            r = np.where(keep, block + (0.5 if frame.quantised else 0.0) - expected, 0.0)  # Eq. 11: E[floor x] ≈ x − ½
+            row_sums.append(r.sum(axis=1))
+            row_squares.append((r * r).sum(axis=1))
+            row_counts.append(keep.sum(axis=1))
+            predicted_sum += float(np.sum(var, where=keep))
+    mean = total / n
     record = {
         "channel": CHANNELS[channel],
         "n_pixels": int(n),
         "black_dn": float(black),
-        "mean_dn": float(flat.mean()) - black,
-        "std_dn": float(flat.std(ddof=1)) if n > 1 else None,
+        "mean_dn": ref + mean - black,
+        "std_dn": float(np.sqrt(max(total_sq - n * mean**2, 0.0) / (n - 1))) if n > 1 else None,
         "clip_low_fraction": low / n,
         "clip_high_fraction": high / n,
     }
-    record.update(_residual(frame, channel, planes, values, clean, clean_status))
-    return record
-
-
-def _residual(frame: LoadedFrame, channel: int, planes, values, clean, status: str) -> dict:
     empty = dict.fromkeys(FRAME_STAT_COLUMNS[8:], None)
-    if clean is None:
-        return {"residual_status": status, **empty}
-    meta = frame.meta
-    k, white = float(meta["dn_per_electron"]), float(meta["white_level_dn"])
-    residuals, predicted, row_ids = [], [], []
-    n_near = 0
-    for number, ((plane, where), flat) in enumerate(zip(planes, values)):
-        expected = clean[channel][where].astype(np.float64)
-        var = predicted_var_dn2(meta, expected, frame.quantised, channel)
-        if var is None:
-            return {"residual_status": "paper-statistics", **empty}
-        sigma = np.sqrt(var).ravel()
-        expected = expected.ravel()
-        keep = np.ones(expected.size, dtype=bool)
-        if frame.quantised:
-            keep &= (expected - CLIP_MARGIN_SIGMA * sigma >= 0) & (expected + CLIP_MARGIN_SIGMA * sigma <= white)
-        if meta["stages"].get("saturation"):
-            keep &= expected + CLIP_MARGIN_SIGMA * sigma <= k * float(meta["full_well_e"])
-        n_near += int(keep.size - np.count_nonzero(keep))
-        shift = 0.5 if frame.quantised else 0.0  # Eq. 11's floor: E[floor(x)] ≈ x − ½
-        residuals.append((flat + shift - expected)[keep])
-        predicted.append(var.ravel()[keep])
-        row_ids.append((number * plane.shape[0] + np.arange(plane.size) // plane.shape[1])[keep])
-    r, v, rows = np.concatenate(residuals), np.concatenate(predicted), np.concatenate(row_ids)
-    if r.size < 2:
-        return {"residual_status": "no-pixel-clear-of-clipping", **empty, "n_residual": int(r.size),
-                "n_near_clip": n_near}
-    mean, mean_se = _row_mean_se(r, rows)
-    square, square_se = _row_mean_se(r**2, rows)
-    measured = square - mean**2
-    prediction = float(v.mean())
-    return {
+    if not residual:
+        return record | {"residual_status": clean_status, **empty}
+    sums, squares, counts = (np.concatenate(x) for x in (row_sums, row_squares, row_counts))
+    n_residual = int(counts.sum())
+    if n_residual < 2:
+        return record | {"residual_status": "no-pixel-clear-of-clipping", **empty, "n_residual": n_residual,
+                         "n_near_clip": n_near}
+    bias, bias_se = _row_mean_se(sums, counts)
+    square, square_se = _row_mean_se(squares, counts)
+    measured = square - bias**2
+    prediction = predicted_sum / n_residual
+    return record | {
         "residual_status": "ok",
-        "n_residual": int(r.size),
+        "n_residual": n_residual,
         "n_near_clip": n_near,
-        "residual_mean_dn": mean,
-        "residual_mean_se_dn": mean_se,
+        "residual_mean_dn": bias,
+        "residual_mean_se_dn": bias_se,
         "residual_var_dn2": measured,
         "residual_var_se_dn2": square_se,
         "predicted_var_dn2": prediction,
