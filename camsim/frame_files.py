@@ -35,6 +35,7 @@ from camsim.io.dng import read_dng, write_dng, write_dng_cfa
 from camsim.io.exr import read_exr, read_exr_header, write_exr
 from camsim.io.output_folder import make_folder
 from camsim.rawcolour import CALIBRATION_ILLUMINANT_D65
+from camsim.regions import weighted_rows
 from camsim.methods import get_method
 from camsim.render import Frame
 
@@ -70,6 +71,8 @@ class FrameInfo:
     exposure: dict | None = None  # how T was chosen: camsim.pipeline.exposure_record (None: a fixed T)
     surround: bool = True  # whether the spectrum after the patches is a chart's surround
     target: dict | None = None  # a synthetic target's geometry (camsim.sources.target), the sidecar's "target"
+    # regions as patches (camsim.regions): per patch (spectrum indices, pixel counts); None: patch i is spectrum i
+    patch_weights: tuple | None = None
 
 
 def frame_stem(scene: str, illuminant: str, intensity_factor: float) -> str:
@@ -85,18 +88,23 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
     k = sensor.dn_per_electron
     patches = []
     for index, (name, rect) in enumerate(zip(info.patch_names, info.patch_rects)):
+        if info.patch_weights is None:  # a chart's patch: one spectrum
+            per_patch = lambda rows: np.asarray(rows[index])  # noqa: E731
+        else:  # a region: the pixel-weighted mean over the spectra inside it
+            per_patch = partial(weighted_rows, indices=info.patch_weights[index][0],
+                                counts=info.patch_weights[index][1])
         patches.append(
             {
                 "name": name,
                 "rect_xywh": [int(v) for v in rect],
-                "signal_e": ex.signal_e[index].tolist(),
+                "signal_e": per_patch(ex.signal_e).tolist(),
                 "dark_e": ex.dark_e.tolist(),
-                "signal_var_e2": ex.signal_var_e2[index].tolist(),
-                "clean_dn": (ex.clean_e[index] * k).tolist(),
+                "signal_var_e2": per_patch(ex.signal_var_e2).tolist(),
+                "clean_dn": (per_patch(ex.clean_e) * k).tolist(),
                 "xyz_cd_m2": None if info.patch_xyz is None else info.patch_xyz[index].tolist(),
             }
             | ({"sampling": frame.plan.names(index), "gaussian_ks": frame.plan.predicted_ks[index].tolist()}
-               if get_method(info.method).records_sampling else {}),
+               if get_method(info.method).records_sampling and info.patch_weights is None else {}),
         )
     height, width = frame.labels.shape
     return {
@@ -129,7 +137,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
         "surround": {"signal_e": ex.signal_e[len(patches)].tolist()} if patches and info.surround else None,
         **({"target": info.target} if info.target is not None else {}),
         "units": {
-            "signal_e": "e- (mean signal electrons per pixel in the exposure)",
+            "signal_e": "e- (mean signal electrons per pixel in the exposure; a region's: the mean over its pixels)",
             "dark_e": "e- (mean dark electrons per pixel in the exposure)",
             "signal_var_e2": "e-^2 (variance of the signal electrons under the photon statistics)",
             "clean_dn": "DN (expected value after saturation, before read noise and quantisation)",

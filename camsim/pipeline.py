@@ -30,6 +30,7 @@ from camsim.photons import KM_LM_PER_W, photon_radiance
 from camsim.radiance import SceneRadiance, scene_radiance
 from camsim.rates import FactoredSpectra
 from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
+from camsim.regions import weighted_rows
 from camsim.render import Frame, check_frame_values, render_frame
 from camsim.scene import Scene
 from camsim.seeding import frame_seed_sequence
@@ -176,9 +177,16 @@ def make_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, *, 
 
 
 def patch_xyz(radiance: SceneRadiance, grid: WavelengthGrid) -> np.ndarray:
-    """CIE 1931 XYZ of each patch's light at F = 1, shape (patches, 3); Y is the luminance in cd/m²."""
+    """CIE 1931 XYZ of each patch's light at F = 1, shape (patches, 3); Y is the luminance in cd/m².
+
+    A chart's patch is one spectrum; a region (:mod:`camsim.regions`) the mean of its pixels' spectra, weighted by
+    pixel count (on a factored image's coefficients: no per-pixel spectra are made).
+    """
     n = len(radiance.patch_names)
-    return KM_LM_PER_W * grid.step_nm * (radiance.radiance[:n] @ cmfs_on_grid(grid).T)
+    if radiance.patch_weights is None:
+        return KM_LM_PER_W * grid.step_nm * (radiance.radiance[:n] @ cmfs_on_grid(grid).T)
+    means = np.array([weighted_rows(radiance.radiance, *w) for w in radiance.patch_weights]).reshape(n, -1)
+    return KM_LM_PER_W * grid.step_nm * (means @ cmfs_on_grid(grid).T)
 
 
 def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, intensity_factor: float,
@@ -207,6 +215,7 @@ def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, intensity_fa
         exposure=exposure_record(scene),
         surround=radiance.surround,
         target=radiance.target,
+        patch_weights=radiance.patch_weights,
     )
 
 

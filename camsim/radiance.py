@@ -15,6 +15,7 @@ import numpy as np
 from camsim.errors import CamsimError
 from camsim.photons import scale_to_luminance
 from camsim.rates import FactoredSpectra
+from camsim.regions import check_regions, region_weights
 from camsim.scene import Scene
 from camsim.spectra import cmfs_on_grid, illuminant_spd
 
@@ -42,6 +43,9 @@ class SceneRadiance:
         Whether the spectrum after the patches is a chart's surround.
     target : dict or None
         A synthetic target's geometry (:class:`camsim.sources.SourceSpectra`), for the sidecar.
+    patch_weights : tuple or None
+        For patches that are the scene file's regions (:mod:`camsim.regions`): per patch ``(indices, counts)``, the
+        spectra inside its rectangle and their pixel counts. None: patch i is spectrum i (a chart's patches).
     """
 
     labels: np.ndarray
@@ -52,6 +56,7 @@ class SceneRadiance:
     reflectance_set: str
     surround: bool = True
     target: dict | None = None
+    patch_weights: tuple | None = None
 
 
 def scene_radiance(scene: Scene, illuminant: str) -> SceneRadiance:
@@ -77,5 +82,14 @@ def scene_radiance(scene: Scene, illuminant: str) -> SceneRadiance:
             if not np.any(lit > 0):
                 raise CamsimError(f"spectrum {k} is black under {illuminant}: it cannot be scaled to a luminance")
             radiance[k] = scale_to_luminance(lit, ybar, grid.step_nm, scene.luminance_cd_m2)
-    return SceneRadiance(source.labels, radiance, white, source.patch_names, source.patch_rects, source.name,
-                          source.surround, source.target)
+    if not scene.regions:
+        return SceneRadiance(source.labels, radiance, white, source.patch_names, source.patch_rects, source.name,
+                             source.surround, source.target)
+    if source.patch_names:
+        raise CamsimError(f"[[region]] is for scenes without patches of their own (an image, a cube, dead leaves): "
+                          f"this scene's source already has {len(source.patch_names)} patches, which analyze measures")
+    height, width = source.labels.shape
+    check_regions(scene.regions, width, height, "scene")
+    weights = tuple(region_weights(source.labels, region.rect) for region in scene.regions)
+    return SceneRadiance(source.labels, radiance, white, [r.name for r in scene.regions],
+                         [r.rect for r in scene.regions], source.name, False, source.target, weights)

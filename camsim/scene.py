@@ -21,6 +21,7 @@ from camsim.builtin_scenes import resolve_scene_file
 from camsim.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
 from camsim.errors import CamsimError
 from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
+from camsim.regions import Region, check_regions, parse_regions
 from camsim.schema import Param, param, params_of, validate
 from camsim.sensor import PRESETS, SENSOR_PARAMS, SensorParams, preset
 from camsim.sources import SOURCES, ChartSource, SceneSource
@@ -46,6 +47,9 @@ class Scene:
         What is in front of the camera (:data:`camsim.sources.SOURCES`): a chart by default.
     width, height : int
         Frame size in pixels (unless the source has a size of its own, as a cube has).
+    regions : tuple of camsim.regions.Region
+        Named rectangles (``[[region]]``) that become the frame's patches, for a source without patches of its own
+        (an image, a cube, a dead-leaves target); empty by default.
     """
 
     name: str
@@ -79,6 +83,7 @@ class Scene:
                                          "that need more are exposed this long, and darker); none = no limit", "s",
                                          above=0, optional=True)
     base_dir: Path | None = None
+    regions: tuple = ()
 
     def __post_init__(self):
         if not isinstance(self.source, SceneSource):
@@ -93,6 +98,10 @@ class Scene:
         if self.normalisation not in NORMALISATIONS:
             raise CamsimError(f"normalisation must be one of {NORMALISATIONS}, got {self.normalisation!r}")
         validate(self, "scene")
+        if not all(isinstance(r, Region) for r in self.regions):
+            raise CamsimError(f"a scene's regions must be camsim.regions.Region, got {self.regions!r}")
+        if self.regions and not self.source.has_own_size:  # else checked when the source gives its size
+            check_regions(self.regions, self.width, self.height, "scene")
         self.sensor  # validate the preset and overrides now
 
     @property
@@ -136,7 +145,7 @@ def read_toml(path: Path, what: str) -> dict:
         raise CamsimError(f"cannot read {what} {path}: {exc}") from None
 
 
-_TOP_KEYS = {"name", "description", "spectral", "light", "frame", "camera", "sensor", "render", *SOURCES}
+_TOP_KEYS = {"name", "description", "spectral", "light", "frame", "camera", "sensor", "render", "region", *SOURCES}
 
 
 def _table(doc: dict, key: str, allowed: set, where: str) -> dict:
@@ -210,6 +219,11 @@ def load_scene(path: str | Path) -> Scene:
     sensor_table = {p.name: p.coerce(sensor_table[p.name], f"{where} [sensor]")
                     for p in SENSOR_PARAMS if p.name in sensor_table}
 
+    regions = parse_regions(doc["region"], where) if "region" in doc else ()
+    if regions and not source.has_own_size:  # an image's or a cube's size is checked when it is read
+        check_regions(regions, typed(frame, "width", int, 600, where), typed(frame, "height", int, 400, where),
+                      where)
+
     render = _table(doc, "render", {p.name for p in RENDER_PARAMS}, where)
     render = {p.name: p.coerce(render[p.name], f"{where} [render]") for p in RENDER_PARAMS if p.name in render}
     return Scene(
@@ -228,5 +242,6 @@ def load_scene(path: str | Path) -> Scene:
         preset_name=preset_name,
         sensor_overrides=_frozen(sensor_table),
         base_dir=base_dir,
+        regions=regions,
         **render,
     )

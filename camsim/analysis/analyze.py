@@ -14,6 +14,7 @@ from tqdm import tqdm
 from camsim.frame_files import (LoadedFrame, load_frame, no_frames_message, read_frame_meta, search_frames,
                                 uncommitted_lines)
 from camsim.analysis.dark import DarkFrame, load_dark
+from camsim.analysis.frame_stats import FRAME_STAT_COLUMNS, frame_statistics
 from camsim.analysis.patches import AnalysisSettings, analyse_frame, frame_matrix
 from camsim.errors import CamsimError
 from camsim.io.atomic import write_json_atomic, write_text_atomic
@@ -22,6 +23,7 @@ from camsim.sensor import EXPOSURE_KEYS, SENSOR_PARAMS, SensorParams
 from camsim.io.output_folder import make_folder
 
 CSV_NAME = "analysis.csv"
+FRAME_CSV_NAME = "frame_statistics.csv"
 SUMMARY_NAME = "analysis.json"
 FRAME_COLUMNS = ("frame_file", "source", "scene", "illuminant", "intensity_factor", "photon_statistics", "method",
                  "seed")
@@ -153,13 +155,18 @@ def measure_frame(frame: LoadedFrame, settings: AnalysisSettings, black: np.ndar
     ``references`` maps a group key to the patches' reference Lab: the first F = 1 frame of a group enters it,
     the others of its group are measured against it.
     """
-    matrix = frame_matrix(frame, settings.matrix)
     meta = frame.meta
     key = group_key(meta)
-    is_reference = meta["intensity_factor"] == 1.0 and key not in references
-    patches, labs = analyse_frame(frame, settings, black, matrix, "self" if is_reference else references.get(key))
-    if is_reference:
-        references[key] = labs
+    patches = []
+    if meta["patches"]:  # (a frame without patches needs no matrix: least-squares fits one on the patches)
+        matrix = frame_matrix(frame, settings.matrix)
+        is_reference = meta["intensity_factor"] == 1.0 and key not in references
+        patches, labs = analyse_frame(frame, settings, black, matrix,
+                                      "self" if is_reference else references.get(key))
+        if is_reference:
+            references[key] = labs
+    # the whole frame, black-level subtracted (the sidecar's level when the patches are measured without)
+    frame_black = frame.expected_black_dn() if settings.black == "none" else black
     return {
         "frame_file": str(frame.path),
         "source": frame.source,
@@ -170,6 +177,7 @@ def measure_frame(frame: LoadedFrame, settings: AnalysisSettings, black: np.ndar
         "black_subtraction": settings.black,
         "black_dn": black.tolist(),
         "patches": patches,
+        "frame_statistics": frame_statistics(frame, frame_black),
     }
 
 
@@ -305,9 +313,15 @@ def tidy_rows(results) -> list[dict]:
     return rows
 
 
-def csv_text(rows) -> str:
+def frame_rows(results) -> list[dict]:
+    """One row per frame × channel: the frame's columns and its whole-frame statistics."""
+    return [{**{k: result[k] for k in FRAME_COLUMNS}, **channel} for result in results
+            for channel in result["frame_statistics"]]
+
+
+def csv_text(rows, columns=FRAME_COLUMNS + PATCH_COLUMNS + CHANNEL_COLUMNS) -> str:
     buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=FRAME_COLUMNS + PATCH_COLUMNS + CHANNEL_COLUMNS, lineterminator="\n")
+    writer = csv.DictWriter(buffer, fieldnames=columns, lineterminator="\n")
     writer.writeheader()
     for row in rows:
         writer.writerow({k: ("" if v is None else v) for k, v in row.items()})
@@ -318,11 +332,15 @@ def summary(results, settings: AnalysisSettings, skipped=(), uncommitted=()) -> 
     """The settings, the counts of undefined cases in total and per frame, the files left out (``skipped``: bad
     files with their reasons, ``uncommitted``: frame files no sidecar claims) and every frame's patch records."""
     totals = dict.fromkeys(("frames", "patches", "xy_undefined_samples", "y_nonpositive_samples",
-                            "degenerate_ellipses", "saturated_patches", "constant_channels", "snr_undefined"), 0)
+                            "degenerate_ellipses", "saturated_patches", "constant_channels", "snr_undefined",
+                            "frames_without_patches", "frames_without_residual"), 0)
     frames = []
     for result in results:
         counts = dict.fromkeys(totals, 0)
         counts["frames"] = 1
+        counts["frames_without_patches"] = int(not result["patches"])
+        counts["frames_without_residual"] = int(any(ch["residual_status"] != "ok"
+                                                    for ch in result["frame_statistics"]))
         for patch in result["patches"]:
             counts["patches"] += 1
             counts["xy_undefined_samples"] += patch["n_xy_undefined"]
@@ -351,14 +369,37 @@ def table(results) -> str:
         fmt = lambda v, spec: "—" if v is None else format(v, spec)  # noqa: E731
         lines.append(f"{Path(result['frame_file']).name[:44]:44s} {result['intensity_factor']:>8g} "
                      f"{result['photon_statistics']:5s} {fmt(size, '12.3g')} {fmt(de, '8.2f')} {fmt(snr, '8.1f')} "
-                     f"{flags}")
+                     f"{flags}" + ("" if patches else "  (no patches: frame statistics below)"))
+    return "\n".join(lines)
+
+
+def frame_table(results) -> str:
+    """A short text table of the whole-frame statistics: one line per frame × channel (mean and σ less the black
+    level, clipped percentages, and the residual noisy − clean: bias ± its standard error, measured / predicted
+    variance)."""
+    fmt = lambda v, spec: "—" if v is None else format(v, spec)  # noqa: E731
+    lines = [f"{'frame':44s} {'ch':2s} {'mean DN':>9s} {'σ DN':>8s} {'clip0 %':>7s} {'clipW %':>7s} "
+             f"{'bias DN ± se':>18s} {'var/model':>9s}"]
+    for result in results:
+        for ch in result["frame_statistics"]:
+            if ch["residual_status"] == "ok":
+                bias = f"{ch['residual_mean_dn']:+.4f} ± {fmt(ch['residual_mean_se_dn'], '.4f')}"
+                ratio = fmt(ch["residual_var_ratio"], "9.4f")
+            else:
+                bias, ratio = ch["residual_status"], ""
+            lines.append(f"{Path(result['frame_file']).name[:44]:44s} {ch['channel']:2s} {ch['mean_dn']:9.3f} "
+                         f"{fmt(ch['std_dn'], '8.3f')} {100 * ch['clip_low_fraction']:7.3f} "
+                         f"{100 * ch['clip_high_fraction']:7.3f} {bias:>18s} {ratio:>9s}")
     return "\n".join(lines)
 
 
 def write_outputs(results, settings, out_dir: Path, skipped=(), uncommitted=()) -> tuple[Path, Path]:
-    """Write ``out_dir/analysis.csv`` and ``out_dir/analysis.json`` (:func:`summary`); returns their paths."""
+    """Write ``out_dir/analysis.csv`` (per frame × patch × channel), ``out_dir/frame_statistics.csv`` (per frame ×
+    channel, :func:`camsim.analysis.frame_stats.frame_statistics`) and ``out_dir/analysis.json`` (:func:`summary`);
+    returns the paths of the first and the last."""
     make_folder(out_dir)
     csv_path, json_path = out_dir / CSV_NAME, out_dir / SUMMARY_NAME
     write_text_atomic(csv_path, csv_text(tidy_rows(results)))
+    write_text_atomic(out_dir / FRAME_CSV_NAME, csv_text(frame_rows(results), FRAME_COLUMNS + FRAME_STAT_COLUMNS))
     write_json_atomic(json_path, summary(results, settings, skipped, uncommitted))
     return csv_path, json_path

@@ -19,7 +19,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "Measure every patch of every frame (DNG + sidecar, or EXR) in the given files and folders: per-channel "
             "mean, variance and standard deviation in DN and e⁻, the xy chromaticity ellipse (PCA, 1 σ), ΔE_ab by "
             "the paper's 5-step procedure against the same patch at F = 1, and SNR from the model and from the "
-            "pixels. Writes OUT/analysis.csv (one row per frame × patch × channel) and OUT/analysis.json. "
+            "pixels. For every frame, with or without patches: per channel the black-level-subtracted mean and σ, the "
+            "fractions clipped at 0 and at the white level, and (with the EXR's clean layer) the residual noisy − "
+            "clean, its bias and its variance against the model's. Writes OUT/analysis.csv (one row per frame × "
+            "patch × channel), OUT/frame_statistics.csv (one row per frame × channel) and OUT/analysis.json. "
             "Folders give their committed frames only (the sidecar, written last, names the file); other frame "
             "files there are ignored with one warning per folder, hidden files silently. A bad file (unreadable, "
             "truncated, foreign, a missing or mismatched sidecar) is skipped with a warning and the rest analysed; "
@@ -62,7 +65,7 @@ def _warn(line: str) -> None:
 
 def run(args) -> int:
     """Carry out ``camsim analyze``; returns the exit status (0)."""
-    from camsim.analysis.analyze import analyse, table, write_outputs
+    from camsim.analysis.analyze import FRAME_CSV_NAME, analyse, frame_table, table, write_outputs
     from camsim.analysis.patches import AnalysisSettings
 
     black = "dark-frame" if args.dark is not None else ("sidecar" if args.subtract_black else "none")
@@ -75,7 +78,8 @@ def run(args) -> int:
         csv_path, json_path = write_outputs(results, settings, out, analysis.skipped, analysis.uncommitted)
     if not args.quiet:
         print(table(results))
+        print(frame_table(results))
     ignored = f", ignored {len(analysis.uncommitted)} uncommitted file(s)" if analysis.uncommitted else ""
     print(f"analysed {len(results)} frames, skipped {len(analysis.skipped)} bad file(s){ignored}: {csv_path} "
-          f"(one row per frame × patch × channel), {json_path}")
+          f"(one row per frame × patch × channel), {out / FRAME_CSV_NAME} (one row per frame × channel), {json_path}")
     return 0

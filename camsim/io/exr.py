@@ -232,6 +232,50 @@ def _read_noisy(name: str) -> tuple[np.ndarray, None, dict[str, str]]:
         exr.close()
 
 
+def read_exr_clean(path: str | os.PathLike[str]) -> tuple[np.ndarray | None, dict[str, str]]:
+    """The clean layer and the string attributes of an EXR written by :func:`write_exr`, without its noisy image.
+
+    As :func:`read_exr` with ``clean=False`` reads the noisy channels only, this decodes only ``clean.R``,
+    ``clean.G``, ``clean.B`` (12 B per pixel, freed plane by plane).
+
+    Returns
+    -------
+    clean : numpy.ndarray, shape (3, H, W), dtype float32, or None
+        None if the file has no clean layer (or only part of it).
+    header : dict of str to str
+
+    Raises
+    ------
+    CamsimError
+        Naming ``path``, for a missing, unreadable, truncated or non-EXR file.
+    """
+    import Imath  # the older bindings' types, installed with OpenEXR
+
+    name = os.fspath(path)
+    _configure_threads()
+    try:
+        header, (_, height, width) = _header(name)
+        exr = OpenEXR.InputFile(name)
+        try:
+            channels = exr.header()["channels"]
+            if any(c not in channels or channels[c].type.v == Imath.PixelType.UINT for c in CLEAN_CHANNELS):
+                return None, header
+            if not exr.isComplete():
+                raise CamsimError(f"cannot read EXR {name}: the file is incomplete (truncated?)")
+            planes = exr.channels(list(CLEAN_CHANNELS), Imath.PixelType(Imath.PixelType.FLOAT))
+            clean = np.empty((len(CLEAN_CHANNELS), height, width), dtype=np.float32)
+            for i in range(len(CLEAN_CHANNELS)):
+                clean[i] = np.frombuffer(planes[i], dtype=np.float32).reshape(height, width)
+                planes[i] = None
+            return clean, header
+        finally:
+            exr.close()
+    except CamsimError:
+        raise
+    except Exception as exc:  # the bindings raise RuntimeError or ValueError, depending on where the file breaks
+        raise CamsimError(f"cannot read EXR {name}: {type(exc).__name__}: {exc}") from exc
+
+
 def _present_channels(name: str, channels: list[str]) -> tuple[str, ...]:
     """The noisy channels of a file with ``channels``: ``R, G, B`` or the mosaic's ``CFA``; else CamsimError."""
     names = MOSAIC_CHANNELS if MOSAIC_CHANNELS[0] in channels and "R" not in channels else NOISY_CHANNELS
