@@ -37,13 +37,15 @@ class FactoredSpectra:
         """(K, N), as the dense array would have."""
         return self.coefficients.shape[0], self.basis.shape[1]
 
+    def coefficient_rows(self, index) -> np.ndarray:
+        """``coefficients[index]`` as float64 (an int, a slice or an index array), read from the file for a cube."""
+        if isinstance(self.coefficients, np.ndarray):
+            return np.asarray(self.coefficients[index], dtype=np.float64)
+        return self.coefficients.rows(index)  # rows read from a file (a cube's pixels)
+
     def __getitem__(self, index) -> np.ndarray:
         """Dense rows: ``coefficients[index] @ basis`` (an int, a slice or an index array)."""
-        if isinstance(self.coefficients, np.ndarray):
-            rows = self.coefficients[index]
-        else:  # rows read from a file (a cube's pixels)
-            rows = self.coefficients.rows(index)
-        return np.asarray(rows, dtype=np.float64) @ self.basis
+        return self.coefficient_rows(index) @ self.basis
 
     def __matmul__(self, other) -> np.ndarray:
         """``dense @ other`` computed as ``coefficients @ (basis @ other)``: (K, J) · (J, M). Exact: a sum reordered.

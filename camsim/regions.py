@@ -120,6 +120,6 @@ def weighted_rows(rows, indices: np.ndarray, counts: np.ndarray) -> np.ndarray:
     """
     weights = counts.astype(np.float64) / float(np.sum(counts))
     if isinstance(rows, FactoredSpectra):
-        coefficients = np.asarray(rows.coefficients[indices], dtype=np.float64)
+        coefficients = rows.coefficient_rows(indices)
         return (weights @ coefficients) @ rows.basis
     return np.tensordot(weights, np.asarray(rows[indices], dtype=np.float64), axes=1)
