@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "camsim" / "scenes" / "images"
 NAMES = ("astronaut", "coffee", "chelsea")
 #: Pixels on the long side of each image.
-LONG_SIDE = 448
+LONG_SIDE = 432
 
 
 def srgb_decode(v: np.ndarray) -> np.ndarray:
