@@ -96,7 +96,7 @@ def test_cli_renders_a_builtin_scene_by_name_from_anywhere(tmp_path, monkeypatch
 
 def test_dataset_spec_finds_its_scene_beside_it():
     spec = load_spec(ROOT / "scenes" / "denoise_small.toml")  # scene = "macbeth_26.toml", relative to the spec
-    assert len(spec.frames) == 48
+    assert len(spec.frames) == 96
     assert {Path(f.scene_path) for f in spec.frames} == {(SCENES_DIR / "macbeth_26.toml").resolve()}
     assert load_spec(SCENES_DIR / "denoise_small.toml").frames == spec.frames
 
@@ -131,11 +131,14 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
         for scene in ("macbeth_26.toml", "denoise_small.toml", "dead_leaves.toml", "slanted_edge.toml",
                       "astronaut.toml", "chelsea.toml", "coffee.toml"):
             assert archive.read(f"camsim/scenes/{scene}") == (SCENES_DIR / scene).read_bytes()
+        for image in ("astronaut.png", "chelsea.png", "coffee.png", "README.md"):  # denoise_small's [images]
+            assert archive.read(f"camsim/scenes/images/{image}") == (SCENES_DIR / "images" / image).read_bytes()
         archive.extractall(tmp_path / "site")
     assert "camsim/builtin_scenes.py" in names and not any(n.startswith(("scenes/", "tests/")) for n in names)
     code = ("import camsim, camsim.builtin_scenes as b, camsim.scene as s, camsim.experiments.scenarios as e\n"
             "print(camsim.__file__); print(b.builtin_scene_names()); print(s.load_scene('macbeth_26').name)\n"
-            "print(e.DEFAULT_SCENE.is_file(), e.DEFAULT_SCENE.relative_to(b.SCENES_DIR.parent.parent))\n")
+            "print(e.DEFAULT_SCENE.is_file(), e.DEFAULT_SCENE.relative_to(b.SCENES_DIR.parent.parent))\n"
+            "from camsim.dataset import load_spec; print(len(load_spec(b.SCENES_DIR / 'denoise_small.toml')))\n")
     env = {**os.environ, "PYTHONPATH": str(tmp_path / "site")}
     env.pop("PYTHONSAFEPATH", None)
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=env)
@@ -143,7 +146,7 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
     lines = run.stdout.splitlines()
     assert lines == [str(tmp_path / "site" / "camsim" / "__init__.py"),
                      f"{tuple(BUILTIN.split(', '))}", "macbeth_26",
-                     "True camsim/scenes/macbeth_26.toml"]
+                     "True camsim/scenes/macbeth_26.toml", "96"]
 
 
 def _skimage_photograph(name):

@@ -282,4 +282,4 @@ def test_cli_functions(serial, spec_path, tmp_path, capsys):
 
 def test_example_spec_is_valid():
     spec = load_spec(ROOT / "scenes" / "denoise_small.toml")
-    assert len(spec) == 48 and (spec.width, spec.height) == (256, 192)
+    assert len(spec) == 96 and (spec.width, spec.height) == (256, 192)

@@ -18,8 +18,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "dataset",
         help="render a dataset of frames (grid or random draws of parameters) with a manifest, resumably",
         description=(
-            "Render every frame of SPEC.toml (see scenes/denoise_small.toml): scenes × illuminants × intensity "
-            "factors × exposure and sensor parameters, over a grid and/or random draws, each frame as "
+            "Render every frame of SPEC.toml (see scenes/denoise_small.toml): scenes (or random crops of a folder "
+            "of images) × illuminants × intensity factors × exposure and sensor parameters, over a grid and/or "
+            "random draws, each frame as "
             "OUT/frames/ID.dng, ID.exr (noisy R, G, B and the clean.R/G/B layer) and ID.json, and "
             "OUT/manifest.jsonl with one line per frame (every parameter, the seed, each file's size and SHA-256). "
             "A re-run renders only the frames that are not complete and verified. Frames run in parallel on "

@@ -6,6 +6,7 @@ consecutive frames of a spec share them.
 
 from __future__ import annotations
 
+import dataclasses
 from functools import lru_cache
 from pathlib import Path
 
@@ -29,24 +30,35 @@ def _camera(name: str, grid, basis: str, base_dir):
 
 
 @lru_cache(maxsize=64)
-def _lit(path: str, width: int, height: int, illuminant: str, camera: str):
+def _lit(path: str, width: int, height: int, illuminant: str, camera: str, source=None):
+    """The scene file ``path`` (its source replaced by ``source``, if given) lit and seen by ``camera``."""
     scene = _scene(path).replace(width=width, height=height, camera=camera)
+    if source is not None:
+        scene = scene.replace(source=source)
     return light_scene(scene, illuminant, _camera(camera, scene.grid, scene.sensitivity_basis, scene.base_dir))
 
 
 def render_files(frame: FrameSpec, directory: Path, threads: int = 1) -> dict:
     """Render one frame and write ``<id>.dng`` (if quantised), ``<id>.exr`` and ``<id>.json`` into ``directory``.
 
-    :func:`camsim.pipeline.scene_frame`, as for ``camsim render``, with the frame's own seed. Returns the file
-    names by kind (``dng`` None without quantisation).
+    :func:`camsim.pipeline.scene_frame`, as for ``camsim render``, with the frame's own seed. A frame of an
+    ``[images]`` spec has the scene file's source replaced by its crop of an image, lit as a reflectance image;
+    its flips mirror the lit scene's label map (every pixel keeps its colour's spectrum). Returns the file names
+    by kind (``dng`` None without quantisation).
     """
     base = _scene(frame.scene_path)
+    image = frame.image
+    source = None if image is None else image.source()
+    if source is not None:
+        base = base.replace(source=source)
     scene = base.replace(width=frame.width, height=frame.height, illuminants=(frame.illuminant,),
                          intensity_factors=(frame.intensity_factor,), **frame.scene_changes)
     if frame.sensor_overrides:
         scene = scene.with_sensor(**frame.sensor_overrides)
     camera = _camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
-    lit = _lit(frame.scene_path, frame.width, frame.height, frame.illuminant, scene.camera)
+    lit = _lit(frame.scene_path, frame.width, frame.height, frame.illuminant, scene.camera, source)
+    if image is not None and (image.flip_horizontal or image.flip_vertical):
+        lit = dataclasses.replace(lit, labels=image.flip(lit.labels))
     rendered, info = scene_frame(scene, frame.illuminant, frame.intensity_factor, seed=frame.seed, lit=lit,
                                  camera=camera, workers=threads)
     return write_frame(Path(directory), frame.id, rendered, info)

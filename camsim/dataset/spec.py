@@ -35,6 +35,24 @@ Distributions of ``[random]``: ``uniform = [a, b]``, ``log_uniform = [a, b]`` (a
 :func:`camsim.seeding.dataset_parameter_generator`, one value per frame in frame order, so
 the frame list is the same on every run and adding a parameter leaves the others' draws unchanged.
 
+Scenes may come from a folder of images (an ``[images]`` table): each frame is a random crop of a randomly chosen
+image, lit, seen and sensed as the ``scene`` file says (its light, camera, sensor, spectral grid and luminance; its
+chart, cube or image replaced by the crop, a reflectance image: :class:`camsim.sources.image.ImageSource`)::
+
+    [images]
+    folder = "images"                  # relative to the spec file
+    pattern = "*.png"                  # glob in the folder (default: *.png, *.jpg, *.jpeg, *.tif, *.tiff, *.exr)
+    crop = [256, 192]                  # the frame size: width, height in pixels (no [frame] table then)
+    flips = true                       # random horizontal and vertical flips (default false)
+
+Each grid point's draw (its repeats share it: noise2noise pairs of one crop) picks an image (uniformly among the
+files, in name order), the crop's offset (x, y uniform over every position inside the image) and, with
+``flips``, whether it is flipped left-right and upside-down (each with probability 1/2), each from its own stream
+(:func:`camsim.seeding.dataset_parameter_generator` of ``images.file``, ``images.x``, ``images.y``,
+``images.flip_horizontal``, ``images.flip_vertical``). The frame's record holds them (:data:`IMAGE_KEYS`: the file
+name relative to the folder, its SHA-256, ``crop_x``, ``crop_y``, ``flip_horizontal``, ``flip_vertical``), so that
+the id changes with the image's bytes. A crop is of the file as stored; a flip mirrors the cropped frame.
+
 Frame order: scene, the scene's inherited axes, the ``[grid]`` keys in file order, the random draw, the repeat.
 Each frame gets an id ``<index>-<hash>`` (the hash covers every resolved parameter, the scene file's bytes and the
 seed) and its own seed, a function of the spec seed and the id alone, so that a frame's content does not depend
@@ -63,9 +81,11 @@ from camsim.camera import load_camera
 from camsim.errors import CamsimError
 from camsim.pipeline import exposure_record
 from camsim.run import check_scene
+from camsim.io.dng import MIN_SIZE
 from camsim.scene import FRAME_PARAMS, RENDER_PARAMS, Scene, load_scene, read_toml
 from camsim.seeding import dataset_frame_seeds, dataset_parameter_generator
 from camsim.sensor import SENSOR_PARAMS
+from camsim.sources.image import ImageSource
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT = 256, 192
 MAX_FRAMES = 1_000_000
@@ -79,7 +99,13 @@ RENDER_KEYS = tuple(p.name for p in RENDER_PARAMS if p.name != "seed")
 #: Plural spellings accepted in [grid] (the scene file's [light] names).
 GRID_ALIASES = {"illuminants": "illuminant", "intensity_factors": "intensity_factor"}
 DISTRIBUTIONS = ("uniform", "log_uniform", "integers", "choice")
-_TOP_KEYS = {"name", "description", "scene", "seed", "repeats", "frame", "fixed", "grid", "random"}
+_TOP_KEYS = {"name", "description", "scene", "seed", "repeats", "frame", "fixed", "grid", "random", "images"}
+#: Keys of an ``[images]`` table.
+IMAGES_TABLE_KEYS = ("folder", "pattern", "crop", "flips")
+#: File name suffixes an ``[images]`` folder is searched for without a ``pattern`` (any case).
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr")
+#: A frame's own values when its scene is a crop of an image of an ``[images]`` folder (after the others).
+IMAGE_KEYS = ("image_file", "image_sha256", "crop_x", "crop_y", "flip_horizontal", "flip_vertical")
 #: Digits of a frame id's index at least (more where a spec has more than 10**ID_DIGITS frames).
 ID_DIGITS = 5
 
@@ -125,6 +151,9 @@ class FrameGroup:
         frames' own values.
     canonical_slots : tuple
         ``(position in canonical_parts, '"key":')`` of each of ``value_keys``.
+    image_folder : str or None
+        Absolute path of the ``[images]`` folder whose crops the frames are (their last own values are then
+        :data:`IMAGE_KEYS`), or None.
     """
 
     scene_path: str
@@ -137,6 +166,13 @@ class FrameGroup:
     value_keys: tuple
     canonical_parts: tuple
     canonical_slots: tuple
+    image_folder: str | None = None
+
+    @property
+    def sensor_keys(self) -> tuple:
+        """The names of the own values that are sensor parameters."""
+        end = len(self.value_keys) - (len(IMAGE_KEYS) if self.image_folder is not None else 0)
+        return self.value_keys[_FACTOR + 1:end]
 
     def canonical(self, values: tuple) -> str:
         """The canonical JSON (:func:`_canonical`) of the record of a frame with ``values``, without its id,
@@ -145,6 +181,43 @@ class FrameGroup:
         for (position, prefix), value in zip(self.canonical_slots, values):
             parts[position] = prefix + _canonical_scalar(value)
         return "{" + ",".join(parts) + "}"
+
+
+@dataclass(frozen=True)
+class ImageCrop:
+    """The scene of a frame of an ``[images]`` spec: a crop of an image file, perhaps flipped.
+
+    Attributes
+    ----------
+    path : str
+        Absolute path of the image file.
+    x, y : int
+        Offset of the crop's top-left corner in the file (column, row). Unit: pixels.
+    width, height : int
+        The crop's size: the frame's. Unit: pixels.
+    flip_horizontal, flip_vertical : bool
+        Whether the cropped frame is mirrored left-right, upside-down.
+    """
+
+    path: str
+    x: int
+    y: int
+    width: int
+    height: int
+    flip_horizontal: bool
+    flip_vertical: bool
+
+    def source(self) -> ImageSource:
+        """The (unflipped) crop as a scene source: a reflectance image."""
+        return ImageSource(path=Path(self.path), crop=(self.x, self.y, self.width, self.height))
+
+    def flip(self, labels):
+        """``labels`` (H, W), mirrored as the frame is (a new contiguous array; the same one without flips)."""
+        if not (self.flip_horizontal or self.flip_vertical):
+            return labels
+        rows = slice(None, None, -1) if self.flip_vertical else slice(None)
+        columns = slice(None, None, -1) if self.flip_horizontal else slice(None)
+        return labels[rows, columns].copy()
 
 
 @dataclass(frozen=True, slots=True)
@@ -215,8 +288,18 @@ class FrameSpec:
     @property
     def sensor_overrides(self) -> dict:
         overrides = dict(self.group.sensor_overrides)
-        overrides.update(zip(self.group.value_keys[_FACTOR + 1:], self.values[_FACTOR + 1:]))
+        overrides.update(zip(self.group.sensor_keys, self.values[_FACTOR + 1:]))
         return overrides
+
+    @property
+    def image(self) -> ImageCrop | None:
+        """The crop of an ``[images]`` folder's image that is the frame's scene, or None (the scene file's own)."""
+        folder = self.group.image_folder
+        if folder is None:
+            return None
+        name, _, x, y, flip_h, flip_v = self.values[-len(IMAGE_KEYS):]
+        return ImageCrop(path=str(Path(folder) / name), x=x, y=y, width=self.width, height=self.height,
+                         flip_horizontal=flip_h, flip_vertical=flip_v)
 
     @property
     def record(self) -> dict:
@@ -401,6 +484,91 @@ def _scene_sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+@dataclass(frozen=True)
+class _ImageFolder:
+    """An ``[images]`` table, checked: the folder as the spec gives it and its absolute path, its image files
+    (name relative to the folder, width, height, SHA-256), the crop size and whether frames are flipped."""
+
+    text: str
+    folder: Path
+    files: tuple  # (name, width, height, sha256)
+    width: int
+    height: int
+    flips: bool
+
+
+def _images(table, base: Path, where: str) -> _ImageFolder:
+    """Read and check an ``[images]`` table: its folder, the images in it and the crop size.
+
+    Raises
+    ------
+    CamsimError
+        An unknown key, a value of the wrong type, a missing or empty folder, a file that is not an image camsim
+        reads, or an image smaller than the crop (naming the file).
+    """
+    if not isinstance(table, dict):
+        raise CamsimError(f"{where}: [images] must be a table")
+    unknown = set(table) - set(IMAGES_TABLE_KEYS)
+    if unknown:
+        raise CamsimError(f"{where}: unknown key(s) in [images]: {', '.join(sorted(unknown))}; "
+                          f"known: {', '.join(IMAGES_TABLE_KEYS)}")
+    text = table.get("folder")
+    if not isinstance(text, str) or not text:
+        raise CamsimError(f"{where}: [images] needs folder = \"FOLDER\" (of image files, relative to the spec)")
+    pattern = table.get("pattern")
+    if pattern is not None and (not isinstance(pattern, str) or not pattern):
+        raise CamsimError(f"{where}: [images] pattern must be a glob pattern such as \"*.png\", got {pattern!r}")
+    crop = table.get("crop")
+    if (not isinstance(crop, list) or len(crop) != 2
+            or any(isinstance(v, bool) or not isinstance(v, int) or v < 1 for v in crop)):
+        raise CamsimError(f"{where}: [images] needs crop = [width, height] (the frame size, positive integers "
+                          f"in pixels), got {crop!r}")
+    width, height = crop
+    if width * height > MAX_PIXELS:
+        raise CamsimError(f"{where}: [images] crop {width}x{height} is over {MAX_PIXELS // 1_000_000} megapixels")
+    flips = table.get("flips", False)
+    if not isinstance(flips, bool):
+        raise CamsimError(f"{where}: [images] flips must be true or false, got {flips!r}")
+    folder = (base / text).resolve()
+    if not folder.is_dir():
+        raise CamsimError(f"{where}: [images] folder {text!r} is not a folder ({folder})")
+    if pattern is None:
+        paths = [p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")]
+    else:
+        paths = list(folder.glob(pattern))
+    paths = sorted((p for p in paths if p.is_file()), key=lambda p: p.relative_to(folder).as_posix())
+    if not paths:
+        wanted = f"matching {pattern!r}" if pattern is not None else f"({', '.join(IMAGE_SUFFIXES)})"
+        raise CamsimError(f"{where}: [images] folder {folder} holds no image files {wanted}")
+    files = []
+    for path in paths:
+        name = path.relative_to(folder).as_posix()
+        try:
+            file_width, file_height = ImageSource(path=path).own_size()
+        except CamsimError as exc:
+            raise CamsimError(f"{where}: [images] {exc}") from None
+        if file_width < width or file_height < height:
+            raise CamsimError(f"{where}: [images] image {path} is {file_width}x{file_height} pixels, smaller than "
+                              f"the crop {width}x{height}")
+        files.append((name, file_width, file_height, _scene_sha256(path)))
+    return _ImageFolder(text=text, folder=folder, files=tuple(files), width=width, height=height, flips=flips)
+
+
+def _image_draws(images: _ImageFolder, n: int, seed: int) -> list:
+    """The image values (:data:`IMAGE_KEYS`) of ``n`` grid-point draws: an image, the crop's offset and the flips,
+    each from its own stream (uniform variates, one per draw: a longer list starts with the shorter one's)."""
+    streams = {name: dataset_parameter_generator(seed, f"images.{name}").random(n)
+               for name in ("file", "x", "y", "flip_horizontal", "flip_vertical")}
+    count = len(images.files)
+    draws = []
+    for u_file, u_x, u_y, u_h, u_v in zip(*streams.values()):
+        name, file_width, file_height, digest = images.files[min(count - 1, int(u_file * count))]
+        span_x, span_y = file_width - images.width + 1, file_height - images.height + 1
+        x, y = min(span_x - 1, int(u_x * span_x)), min(span_y - 1, int(u_y * span_y))
+        draws.append((name, digest, x, y, bool(images.flips and u_h < 0.5), bool(images.flips and u_v < 0.5)))
+    return draws
+
+
 def load_spec(path: str | Path) -> DatasetSpec:
     """Read a dataset spec, build its frame list and validate every frame before anything is rendered.
 
@@ -463,6 +631,14 @@ def plan_spec(path: str | Path) -> SpecPlan:
     if width * height > MAX_PIXELS:
         raise CamsimError(f"{where}: [frame] {width}x{height} is over {MAX_PIXELS // 1_000_000} megapixels")
 
+    images = None
+    if "images" in doc:
+        if "frame" in doc:
+            raise CamsimError(f"{where}: [frame] sets a size, but the frames are [images] crops, whose size is "
+                              "[images] crop = [width, height]")
+        images = _images(doc["images"], base, where)
+        width, height = images.width, images.height
+
     fixed_table = _table(doc, "fixed", where)
     grid_table = _table(doc, "grid", where)
     random_table = _table(doc, "random", where)
@@ -499,10 +675,14 @@ def plan_spec(path: str | Path) -> SpecPlan:
     for scene_file in scene_files:
         scene_path = (base / scene_file).resolve()
         scene = load_scene(scene_path)
-        if scene.source.has_own_size and "frame" in doc:
+        if images is not None:  # the first image's first crop stands for every crop in the checks
+            first = images.folder / images.files[0][0]
+            scene = scene.replace(source=ImageSource(path=first, crop=(0, 0, width, height)))
+            width_px, height_px = width, height
+        elif scene.source.has_own_size and "frame" in doc:
             raise CamsimError(f"{where}: [frame] sets a size, but {scene_file} is a {scene.source.table} scene, "
                               "whose size is its own")
-        if scene.source.has_own_size:  # a cube's size is its own: read it from the file's header
+        elif scene.source.has_own_size:  # a cube's size is its own: read it from the file's header
             try:
                 width_px, height_px = scene.source.own_size()
             except CamsimError as exc:
@@ -522,9 +702,14 @@ def plan_spec(path: str | Path) -> SpecPlan:
                      for p, k in random_names.items()}
     varied = {p for p, how in axes.items() if how != "fixed"}
     own_sensor = tuple(p.name for p in SENSOR_PARAMS if p.name in varied and p.name in OWN_VALUE_PARAMS)
+    if images is not None:
+        shown = ("image_file", "crop_x", "crop_y") + (("flip_horizontal", "flip_vertical") if images.flips else ())
+        axes.update(dict.fromkeys(shown, "images"))
     job = _Job(where=where, base=base, seed=seed, repeats=repeats, count=count, scenes=tuple(scenes), fixed=fixed,
-               random_values=random_values, value_keys=("repeat", "intensity_factor", *own_sensor),
-               id_digits=max(ID_DIGITS, len(str(points * repeats - 1))))
+               random_values=random_values,
+               value_keys=("repeat", "intensity_factor", *own_sensor, *(IMAGE_KEYS if images else ())),
+               id_digits=max(ID_DIGITS, len(str(points * repeats - 1))), images=images,
+               image_values=_image_draws(images, points, seed) if images is not None else None)
     sizes = tuple(dict.fromkeys((entry.scene.width, entry.scene.height) for entry in scenes))
     return SpecPlan(name=name, path=path, seed=seed, width=width, height=height, axes=axes, count=points * repeats,
                     sizes=sizes, make_frames=partial(_frames, job))
@@ -571,6 +756,8 @@ class _Job:
     random_values: dict  # parameter -> one value per grid point and draw
     value_keys: tuple  # the frames' own values (FrameSpec.values)
     id_digits: int
+    images: _ImageFolder | None = None
+    image_values: list | None = None  # IMAGE_KEYS' values of each grid point and draw
 
 
 def _frames(job: _Job) -> Iterator[FrameSpec]:
@@ -597,7 +784,7 @@ def _frame_values(job: _Job) -> Iterator[tuple]:
     differ only in their own values share a FrameGroup."""
     groups: dict = {}
     checked: dict = {}  # memo of the costly checks (illuminants, cameras), across groups
-    own_sensor = job.value_keys[_FACTOR + 1:]
+    own_sensor = job.value_keys[_FACTOR + 1:len(job.value_keys) - (len(IMAGE_KEYS) if job.images else 0)]
     point = index = 0
     for s, entry in enumerate(job.scenes):
         names = tuple(entry.axes)
@@ -610,6 +797,7 @@ def _frame_values(job: _Job) -> Iterator[tuple]:
                 params = dict(combo_params)
                 params.update({p: values[point] for p, values in job.random_values.items()})
                 key = (combo_key, *(_canonical(params[p]) for p in shared_random))
+                image = job.image_values[point] if job.image_values is not None else ()
                 point += 1
                 try:
                     factor = _intensity_factor(params["intensity_factor"])
@@ -621,7 +809,7 @@ def _frame_values(job: _Job) -> Iterator[tuple]:
                     label = f"{job.where}: frame {index} ({', '.join(f'{k}={v!r}' for k, v in params.items())})"
                     raise CamsimError(f"{label}: {exc}") from None
                 for repeat in range(job.repeats):
-                    yield index, (repeat, factor, *own), group
+                    yield index, (repeat, factor, *own, *image), group
                     index += 1
 
 
@@ -657,9 +845,13 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> Fram
     if key not in checked:
         checked[key] = load_camera(frame_scene.camera, frame_scene.grid, frame_scene.sensitivity_basis,
                                    frame_scene.base_dir).name
-    if sensor.cfa is not None and not frame_scene.source.has_own_size and (scene.width % 2 or scene.height % 2):
+    own_size = frame_scene.source.has_own_size and job.images is None  # a cube's: its own, checked when read
+    if sensor.cfa is not None and not own_size and (scene.width % 2 or scene.height % 2):
         raise CamsimError(f"a {sensor.cfa} colour filter array needs an even frame size, got "
                           f"{scene.width}x{scene.height}")
+    if job.images is not None and sensor.quantisation and min(scene.width, scene.height) < MIN_SIZE:
+        raise CamsimError(f"[images] crop {scene.width}x{scene.height} is smaller than {MIN_SIZE}x{MIN_SIZE} "
+                          "pixels, which raw readers (LibRaw) refuse")
     if sensor.prnu_percent > 0 and frame_scene.method == "spectral":
         raise CamsimError("PRNU needs a per-pixel mean: use method poisson, gaussian or auto, not spectral")
 
@@ -683,6 +875,8 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> Fram
         **(exposure_record(frame_scene) if frame_scene.exposure == "auto" else {}),
         "spec_seed": job.seed,
     }
+    if job.images is not None:  # the frame's own image, crop and flips (IMAGE_KEYS) fill these in
+        record.update({"image_folder": job.images.text, **dict.fromkeys(IMAGE_KEYS)})
     # as JSON gives it back (lists, not tuples), so that a record read from disk compares equal
     record = json.loads(json.dumps(record, allow_nan=False))
     keys = sorted(record)
@@ -693,8 +887,9 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> Fram
         record=record, value_keys=job.value_keys,
         canonical_parts=tuple(f"{_canonical(k)}:{_canonical(record[k])}" for k in keys),
         canonical_slots=tuple((keys.index(k), f"{_canonical(k)}:") for k in job.value_keys),
+        image_folder=None if job.images is None else str(job.images.folder),
     )
 
 
-__all__ = ["DatasetSpec", "FrameSpec", "FrameGroup", "SpecPlan", "PARAMETERS", "DISTRIBUTIONS",
-           "OWN_VALUE_PARAMS", "load_spec", "plan_spec"]
+__all__ = ["DatasetSpec", "FrameSpec", "FrameGroup", "ImageCrop", "SpecPlan", "PARAMETERS", "DISTRIBUTIONS",
+           "OWN_VALUE_PARAMS", "IMAGE_KEYS", "IMAGE_SUFFIXES", "load_spec", "plan_spec"]
