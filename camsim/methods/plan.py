@@ -242,7 +242,8 @@ class DrawPlan:
     def kinds_by_channel(self) -> tuple:
         """The distinct kinds of each channel, three int8 arrays: computed once per frame, not per block (a cube or
         an image has one spectrum per colour, up to one per pixel)."""
-        return tuple(np.unique(self.kind[:, c]) for c in range(3))
+        return tuple(np.flatnonzero(np.bincount(self.kind[:, c], minlength=BINS + 1)).astype(np.int8)
+                     for c in range(3))
 
     @cached_property
     def clip_by_channel(self) -> np.ndarray:
