@@ -207,6 +207,7 @@ def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, intensity_fa
         exposure=exposure_record(scene),
         surround=radiance.surround,
         target=radiance.target,
+        white_signal_e_per_s=None if lit.white_photon_rate is None else lit.white_signal_e_per_s,
     )
 
 
