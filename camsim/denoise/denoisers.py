@@ -87,8 +87,8 @@ def estimate_noise_sigma(image: np.ndarray) -> np.ndarray:
 
 MODEL_SIGMA_TEXT = (
     "the sensor model's noise per channel from the sidecar: σ² = K·max(mean(noisy) − black, 0) (signal shot noise, "
-    "Poisson, if photon_noise) + K²·(dark_e (if dark_current) + read_noise_e² + row_noise_e² (if read_noise) + "
-    "dsnu_e² + (prnu_percent/100 · mean signal_e)²), K = dn_per_electron, dark_e = dark_current_e_per_s · "
+    "Poisson, if photon_noise) + K²·(dark_e (if dark_current) + read_noise_e² + row_noise_e² (if read_noise)), "
+    "K = dn_per_electron, dark_e = dark_current_e_per_s · "
     "exposure_s: the RMS over the frame of each pixel's expected σ (the variance is linear in the signal, so its "
     "frame mean needs only the noisy frame's mean; the clean layer is not used)")
 """How :func:`model_noise_sigma` computes the noise level (for the report)."""
@@ -102,19 +102,18 @@ SIGMA_MODEL = "model"
 def model_noise_sigma(meta: dict, image: np.ndarray, black_dn) -> np.ndarray:
     """The frame's noise level per channel from the sensor model in its sidecar. Unit: DN.
 
-    Each pixel's variance under the model is linear in its expected signal s (e⁻): K²·(s + d + r² + ρ² + u² +
-    (p·s)²) with K the gain (DN/e⁻), d the dark electrons (``dark_current_e_per_s`` × ``exposure_s``), r, ρ, u the
-    read, row and DSNU noise (e⁻) and p the PRNU fraction; each term only where its stage is on (``stages``). The
-    result is the square root of its mean over the frame, with the mean signal taken from the noisy image itself
-    (mean(image) − black, unbiased) — the clean layer is never used. The PRNU term uses the mean signal's square,
-    a slight underestimate for frames of uneven brightness. Under ``photon_statistics = "paper"`` the shot-noise
-    term is the Poisson one all the same.
+    Each pixel's variance about its expectation (the clean layer, which holds the fixed pattern — DSNU, PRNU — so
+    that they are no noise to remove) is linear in its expected signal s (e⁻): K²·(s + d + r² + ρ²) with K the
+    gain (DN/e⁻), d the dark electrons (``dark_current_e_per_s`` × ``exposure_s``), r and ρ the read and row noise
+    (e⁻); each term only where its stage is on (``stages``). The result is the square root of its mean over the
+    frame, with the mean signal taken from the noisy image itself (mean(image) − black, unbiased) — the clean layer
+    is never used. Under ``photon_statistics = "paper"`` the shot-noise term is the Poisson one all the same.
 
     Parameters
     ----------
     meta : dict
         The frame's sidecar (``dn_per_electron``, ``read_noise_e``, ``dark_current_e_per_s``, ``exposure_s``,
-        ``stages``; ``row_noise_e``, ``dsnu_e``, ``prnu_percent`` if present).
+        ``stages``; ``row_noise_e`` if present).
     image : numpy.ndarray, shape (H, W, 3)
         The noisy frame, black level included. Unit: DN.
     black_dn : array_like, shape (3,)
@@ -136,7 +135,6 @@ def model_noise_sigma(meta: dict, image: np.ndarray, black_dn) -> np.ndarray:
         var_e += np.asarray(meta.get("dark_current_e_per_s", 0.0), dtype=np.float64) * float(meta["exposure_s"])
     if stages.get("read_noise", True):
         var_e += float(meta.get("read_noise_e") or 0.0) ** 2 + float(meta.get("row_noise_e") or 0.0) ** 2
-    var_e += float(meta.get("dsnu_e") or 0.0) ** 2 + (float(meta.get("prnu_percent") or 0.0) / 100.0 * signal_e) ** 2
     return k * np.sqrt(var_e)
 
 
