@@ -234,7 +234,10 @@ def test_cli_outputs_report_and_comparison(dataset_with_bayer, tmp_path, capsys)
     assert len(summary) == 2 * len(FACTORS)
     assert len((out / "patches.csv").read_text().splitlines()) == 1 + 2 * 24 * len(FACTORS)
     report = (out / "report.md").read_text()
-    assert "## Criterion" in report and "≤ 3" in report and "≤ 0.005" in report
+    assert "## Chart colour" in report and "≤ 3" in report and "≤ 0.005" in report
+    assert "≥ 0.8" in report and "≤ 5" in report  # the chart-free criteria (SSIM, ΔE00), stated
+    assert re.search(r"\*\*nl-means\*\* preserves detail down to F = [0-9.]+", report)
+    assert (out / "bands.csv").is_file() and (out / "crops_by_band.png").is_file()
     assert re.search(r"\*\*nl-means\*\* preserves colour down to F = [0-9.]+ and stops at F = [0-9.]+", report)
     assert "Comparison per light level" in report  # two denoisers: one comparison table
     assert "Bayer" in report and "bayer" in report  # the skipped CFA frame is named, with the reason

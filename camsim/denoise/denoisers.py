@@ -213,7 +213,12 @@ def total_variation(image: np.ndarray, sigma_dn=None) -> np.ndarray:
 
 
 BM3D_PROFILE = "np"
-"""The ``bm3d`` package's parameter profile used (its default, "normal profile")."""
+"""The ``bm3d`` package's parameter profile whose settings are used (its default, "normal profile"), but for
+:data:`BM3D_STEP_PX`."""
+BM3D_STEP_PX = 5
+"""Reference blocks of both BM3D stages are taken every 5 pixels instead of the profile's 3: on 256 × 192 frames of
+``scenes/denoise_small.toml`` (2 idle cores) 3.3 s a frame instead of 5.9, for an RMSE against the clean layer
+larger by 0.1–0.9 %."""
 BM3D_MISSING = ("the bm3d denoiser needs the Python package 'bm3d' (PyPI; free for non-commercial use), which is not "
                 "installed: pip install bm3d")
 
@@ -243,7 +248,9 @@ def bm3d(image: np.ndarray, sigma_dn=None) -> np.ndarray:
     image64 = np.asarray(image, dtype=np.float64)
     if not float(np.ptp(image64)) > 0:
         return identity(image)
-    out = bm3d_package.bm3d_rgb(image64, [float(s) for s in sigma], profile=BM3D_PROFILE)
+    profile = bm3d_package.BM3DProfile()  # the "np" profile's settings
+    profile.step_ht = profile.step_wiener = BM3D_STEP_PX
+    out = bm3d_package.bm3d_rgb(image64, [float(s) for s in sigma], profile=profile)
     return np.asarray(out, dtype=np.float32)
 
 
@@ -268,8 +275,8 @@ BUILTIN_DESCRIPTIONS = {
     "wavelet": "wavelet shrinkage (scikit-image's denoise_wavelet algorithm), BayesShrink, soft thresholds, Haar, "
                "per channel",
     "tv": f"scikit-image total variation (Chambolle), weight = {TV_WEIGHT_PER_SIGMA:g} σ, per channel",
-    "bm3d": f"BM3D (PyPI bm3d, bm3d_rgb, profile '{BM3D_PROFILE}', opponent colour space), given the sensor "
-            "model's noise σ per channel",
+    "bm3d": f"BM3D (PyPI bm3d, bm3d_rgb, profile '{BM3D_PROFILE}' with reference blocks every {BM3D_STEP_PX} px, "
+            "opponent colour space), given the sensor model's noise σ per channel",
 }
 
 #: Which noise level each built-in is given (:data:`SIGMA_BLIND` unless listed).
