@@ -73,6 +73,7 @@ class FrameInfo:
     target: dict | None = None  # a synthetic target's geometry (camsim.sources.target), the sidecar's "target"
     # regions as patches (camsim.regions): per patch (spectrum indices, pixel counts); None: patch i is spectrum i
     patch_weights: tuple | None = None
+    white_signal_e_per_s: np.ndarray | None = None  # the perfect white's e⁻/s per channel at F = 1 (LitScene)
 
 
 def frame_stem(scene: str, illuminant: str, intensity_factor: float) -> str:
@@ -136,9 +137,14 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
         # a chart's last spectrum is its surround; a cube has no patches and no surround, nor has a target
         "surround": {"signal_e": ex.signal_e[len(patches)].tolist()} if patches and info.surround else None,
         **({"target": info.target} if info.target is not None else {}),
+        # the perfect white (reflectance 1) under the frame's light at this F, in this exposure: the colour white
+        **({"white_signal_e": (info.white_signal_e_per_s * info.intensity_factor * sensor.exposure_s).tolist()}
+           if info.white_signal_e_per_s is not None else {}),
         "units": {
             "signal_e": "e- (mean signal electrons per pixel in the exposure; a region's: the mean over its pixels)",
             "dark_e": "e- (mean dark electrons per pixel in the exposure)",
+            "white_signal_e": "e- (mean signal electrons of the perfect white under the frame's light at this F, "
+                              "in the exposure; no saturation)",
             "signal_var_e2": "e-^2 (variance of the signal electrons under the photon statistics)",
             "clean_dn": "DN (expected value after saturation, before read noise and quantisation)",
             "xyz_cd_m2": "CIE 1931 XYZ of the patch's light at this F (Y = luminance, cd/m^2)",

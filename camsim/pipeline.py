@@ -216,6 +216,7 @@ def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, intensity_fa
         surround=radiance.surround,
         target=radiance.target,
         patch_weights=radiance.patch_weights,
+        white_signal_e_per_s=None if lit.white_photon_rate is None else lit.white_signal_e_per_s,
     )
 
 

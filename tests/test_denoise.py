@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from camsim.commands.denoise_eval import add_parser, run
-from camsim.denoise.denoisers import DENOISERS, estimate_noise_sigma, resolve_denoiser
+from camsim.denoise.denoisers import (DENOISERS, bm3d_available, estimate_noise_sigma, model_noise_sigma,
+                                     resolve_denoiser)
 from camsim.denoise.evaluate import EvalSettings, evaluate
 from camsim.denoise.summary import Criterion, verdict
 from camsim.errors import CamsimError
@@ -233,7 +234,10 @@ def test_cli_outputs_report_and_comparison(dataset_with_bayer, tmp_path, capsys)
     assert len(summary) == 2 * len(FACTORS)
     assert len((out / "patches.csv").read_text().splitlines()) == 1 + 2 * 24 * len(FACTORS)
     report = (out / "report.md").read_text()
-    assert "## Criterion" in report and "≤ 3" in report and "≤ 0.005" in report
+    assert "## Chart colour" in report and "≤ 3" in report and "≤ 0.005" in report
+    assert "≥ 0.8" in report and "≤ 5" in report  # the chart-free criteria (SSIM, ΔE00), stated
+    assert re.search(r"\*\*nl-means\*\* preserves detail down to F = [0-9.]+", report)
+    assert (out / "bands.csv").is_file() and (out / "crops_by_band.png").is_file()
     assert re.search(r"\*\*nl-means\*\* preserves colour down to F = [0-9.]+ and stops at F = [0-9.]+", report)
     assert "Comparison per light level" in report  # two denoisers: one comparison table
     assert "Bayer" in report and "bayer" in report  # the skipped CFA frame is named, with the reason
@@ -289,12 +293,14 @@ def test_every_builtin_denoiser_resolves_keeps_the_mean_and_removes_noise(sigma_
     """Each built-in name resolves and, on a piecewise-flat image (known truth) plus N(0, 8²) DN noise, keeps each
     channel's mean and (the identity control excepted, which returns its input unchanged) removes at least half
     of the noise's RMS error; blind (σ estimated from the image) and with σ given."""
-    assert set(DENOISERS) == {"identity", "nl-means", "wavelet", "tv"}  # the names the docs and --help list
+    assert set(DENOISERS) == {"identity", "nl-means", "wavelet", "tv", "bm3d"}  # the names the docs and --help list
     rng = np.random.default_rng(2)
     clean = np.kron(rng.uniform(20, 200, size=(4, 6, 3)), np.ones((16, 16, 1))).astype(np.float32)
     noisy = (clean + rng.normal(0.0, 8.0, clean.shape)).astype(np.float32)
     sigma = None if sigma_dn is None else np.full(3, sigma_dn)
     for name in DENOISERS:
+        if name == "bm3d" and not bm3d_available():
+            continue  # its own test reports the skip
         out = resolve_denoiser(name)(noisy, sigma)
         assert out.shape == clean.shape and out.dtype == np.float32, name
         # the mean of 6144 pixels per channel: standard error 8 / √6144 ≈ 0.1 DN
@@ -311,3 +317,158 @@ def test_wavelet_denoiser_runs(dataset):
     ev = evaluate([dataset / "three_chip" / "macbeth_26_D65_F0.1.exr"], [resolve_denoiser("wavelet")],
                   progress=False)
     assert ev.frame_rows[0]["psnr_gain_db"] > 1.0
+
+
+# ------------------------------------------------------------------------------------ chart-free colour fidelity
+
+# A camera → XYZ matrix (any invertible one: the score goes through it both ways) and a white in its scale.
+_M = np.array([[0.41, 0.36, 0.18], [0.21, 0.72, 0.07], [0.02, 0.12, 0.95]])
+_WHITE_DN = np.array([800.0, 1000.0, 900.0])
+
+
+def _dn_of_lab(lab, white_xyz):
+    """Camera DN whose XYZ has the given Lab against ``white_xyz`` (colour-science's Lab_to_XYZ, the inverse way)."""
+    import colour
+
+    xy = white_xyz[:2] / white_xyz.sum()
+    xyz = np.asarray(colour.Lab_to_XYZ(lab, illuminant=xy)) * white_xyz[1]
+    return xyz @ np.linalg.inv(_M).T
+
+
+def test_delta_e00_is_zero_for_clean_and_the_published_value_for_a_known_shift():
+    from camsim.denoise.colour_fidelity import frame_white_xyz, lab_against_white, mean_delta_e00
+
+    meta = {"white_signal_e": (_WHITE_DN / 0.4).tolist(), "dn_per_electron": 0.4}
+    white, _ = frame_white_xyz(meta, _M)
+    # The perfect white itself is L* = 100, a* = b* = 0.
+    np.testing.assert_allclose(lab_against_white(_WHITE_DN @ _M.T, white), [100.0, 0.0, 0.0], atol=1e-9)
+    rng = np.random.default_rng(5)
+    clean = rng.uniform(10.0, 700.0, size=(12, 16, 3))
+    assert mean_delta_e00(clean, clean, _M, white) == 0.0
+    # Sharma, Wu & Dalal (2005), CIEDE2000 test data, pairs 1, 7 and 17: Lab pairs and their published ΔE00.
+    pairs = [((50.0, 2.6772, -79.7751), (50.0, 0.0, -82.7485), 2.0425),
+             ((50.0, 0.0, 0.0), (50.0, -1.0, 2.0), 2.3669),
+             ((50.0, 2.5, 0.0), (73.0, 25.0, -18.0), 27.1492)]
+    for lab_clean, lab_test, expected in pairs:
+        clean_px = np.broadcast_to(_dn_of_lab(np.array(lab_clean), white), (4, 5, 3))
+        test_px = np.broadcast_to(_dn_of_lab(np.array(lab_test), white), (4, 5, 3))
+        assert mean_delta_e00(test_px, clean_px, _M, white) == pytest.approx(expected, abs=1e-4)
+    # Half the pixels shifted by pair 1, half unchanged: the mean is half the pair's ΔE00.
+    clean_px = np.broadcast_to(_dn_of_lab(np.array(pairs[0][0]), white), (4, 6, 3)).copy()
+    test_px = clean_px.copy()
+    test_px[:, :3] = _dn_of_lab(np.array(pairs[0][1]), white)
+    assert mean_delta_e00(test_px, clean_px, _M, white) == pytest.approx(pairs[0][2] / 2, abs=1e-4)
+
+
+def test_delta_e00_grows_with_noise_and_a_denoiser_lowers_it(evaluation):
+    for name in ("nl-means", "tv"):
+        noisy = [_summary(evaluation, name, f)["delta_e_noisy"] for f in FACTORS]  # chart ΔE, for comparison
+        assert all(v is not None for v in noisy)
+    rows = {f: _rows(evaluation.frame_rows, "nl-means", f)[0] for f in FACTORS}
+    de_noisy = [rows[f]["delta_e00_noisy"] for f in FACTORS]
+    assert de_noisy[0] < de_noisy[1] < de_noisy[2]  # less light, more visible noise
+    assert all(rows[f]["delta_e00_denoised"] < rows[f]["delta_e00_noisy"] for f in FACTORS)
+    for r in _rows(evaluation.frame_rows, "identity"):
+        assert r["delta_e00_denoised"] == r["delta_e00_noisy"]
+    assert all(r["white_source"].startswith("perfect white") for r in evaluation.frame_rows)
+
+
+@pytest.fixture(scope="module")
+def chartless(tmp_path_factory):
+    """Dead-leaves frames (no chart) at F = 0.1 and 0.01: no F = 1 frame."""
+    out = tmp_path_factory.mktemp("chartless")
+    scene = load_scene(ROOT / "scenes" / "dead_leaves.toml")
+    scene = scene.replace(width=128, height=96, intensity_factors=(0.1, 0.01))
+    render_scene(scene, out / "dead_leaves", progress=False)
+    return out
+
+
+def test_chart_free_colour_judges_a_frame_with_no_chart_and_no_f1(chartless, tmp_path):
+    ev = evaluate([chartless], [resolve_denoiser("identity"), resolve_denoiser("tv")], progress=False)
+    assert not ev.patch_rows  # no chart in view
+    for r in ev.frame_rows:
+        assert r["delta_e00_noisy"] is not None and r["delta_e00_noisy"] > 0
+    for name in ("identity", "tv", "noisy"):
+        assert ev.band_verdicts[name]["colour"]["status"] != "undetermined"
+        assert ev.band_verdicts[name]["detail"]["status"] != "undetermined"
+    from camsim.denoise import write_outputs
+
+    paths = write_outputs(ev, tmp_path / "eval")
+    report = paths["report"].read_text(encoding="utf-8")
+    table_lines = [line for line in report.splitlines() if line.startswith("|")]
+    assert table_lines and not any("?" in line for line in table_lines)
+    assert "cannot be judged" not in report and "No chart in view" in report
+    assert re.search(r"\*\*tv\*\* (preserves|does not preserve) colour", report)
+    assert (tmp_path / "eval" / "crops_by_band.png").is_file() and "crops_by_band.png" in report
+    bands = list(csv.DictReader(paths["bands"].read_text().splitlines()))
+    assert {b["band"] for b in bands} == {"0.1–0.316", "0.01–0.0316"}
+
+
+# ------------------------------------------------------------------------------------------------------ BM3D
+
+def test_bm3d_lowers_the_error_of_a_noisy_frame():
+    if not bm3d_available():
+        with pytest.raises(CamsimError, match="pip install bm3d"):
+            resolve_denoiser("bm3d")
+        pytest.skip("the bm3d package is not installed")
+    bm3d = resolve_denoiser("bm3d")
+    assert bm3d.sigma_source == "model"
+    rng = np.random.default_rng(11)
+    clean = np.kron(rng.uniform(50, 400, size=(3, 4, 3)), np.ones((24, 24, 1)))
+    yy, xx = np.mgrid[0:72, 0:96]
+    clean = (clean + 40.0 * np.sin(xx / 5.0)[..., None]).astype(np.float32)  # some texture too
+    sigma = np.array([6.0, 8.0, 10.0])
+    noisy = (clean + rng.normal(0.0, 1.0, clean.shape) * sigma).astype(np.float32)
+    out = bm3d(noisy, sigma)
+    rmse_noisy = float(np.sqrt(np.mean((noisy - clean) ** 2)))
+    rmse_out = float(np.sqrt(np.mean((out - clean) ** 2)))
+    assert rmse_out < 0.5 * rmse_noisy
+
+
+def test_model_sigma_matches_the_true_noise(dataset):
+    from camsim.frame_files import load_frame
+    from camsim.io.exr import read_exr
+
+    for f in FACTORS:
+        path = dataset / "three_chip" / f"macbeth_26_D65_F{f:g}.exr"
+        frame = load_frame(path)
+        noisy = np.moveaxis(frame.pixels_dn, 0, -1).astype(np.float64)
+        _, clean, _ = read_exr(path)
+        true = (noisy - np.moveaxis(clean, 0, -1)).std(axis=(0, 1))
+        model = model_noise_sigma(frame.meta, noisy, frame.expected_black_dn())
+        np.testing.assert_allclose(model, true, rtol=0.05)
+
+
+# ------------------------------------------------------------------------------------------- band verdicts
+
+def test_band_verdicts_on_a_constructed_table():
+    from camsim.denoise.summary import band_verdicts, f_band, summarise_bands
+
+    assert f_band(1.0) == pytest.approx((1.0, 10 ** 0.5))
+    assert f_band(0.1) == pytest.approx((0.1, 10 ** -0.5))
+    assert f_band(0.05) == pytest.approx((10 ** -1.5, 0.1))
+    table = [  # F, SSIM noisy, SSIM denoised, ΔE00 noisy, ΔE00 denoised
+        (0.8, 0.95, 0.97, 2.0, 1.0), (0.5, 0.93, 0.96, 3.0, 1.5),  # band 0.316–1
+        (0.2, 0.85, 0.93, 6.0, 3.0),  # band 0.1–0.316
+        (0.05, 0.6, 0.85, 12.0, 6.0), (0.04, 0.5, 0.81, 14.0, 7.0),  # band 0.0316–0.1: mean SSIM 0.83, ΔE00 6.5
+        (0.02, 0.4, 0.7, 25.0, 12.0),  # band 0.01–0.0316
+        (0.005, 0.2, 0.9, 50.0, 2.0),  # band 0.00316–0.01: passes again (an odd denoiser), below the stops
+    ]
+    rows = [{"denoiser": "d", "intensity_factor": f, "ssim_noisy": sn, "ssim_denoised": sd, "ssim_gain": sd - sn,
+             "psnr_gain_db": None, "delta_e00_noisy": en, "delta_e00_denoised": ed, "seconds": 0.1}
+            for f, sn, sd, en, ed in table]
+    crit = Criterion(min_ssim=0.8, max_delta_e00=5.0)
+    bands = summarise_bands(rows, ["d"], crit)
+    assert [b["n_frames"] for b in bands] == [2, 1, 2, 1, 1]
+    assert bands[2]["ssim_denoised"] == pytest.approx(0.83) and bands[2]["delta_e00_denoised"] == pytest.approx(6.5)
+    v = band_verdicts(bands, ["d"])
+    detail, colour = v["d"]["detail"], v["d"]["colour"]
+    assert (detail["status"], detail["preserved_down_to"], detail["stops_at"]) == ("stops", 0.04, 0.02)
+    assert detail["recovers_below"] == [0.005]
+    assert (colour["status"], colour["preserved_down_to"], colour["stops_at"]) == ("stops", 0.2, 0.04)
+    noisy = v["noisy"]
+    assert (noisy["detail"]["preserved_down_to"], noisy["detail"]["stops_at"]) == (0.2, 0.04)
+    assert (noisy["colour"]["status"], noisy["colour"]["stops_at"]) == ("stops", 0.2)
+    assert noisy["colour"]["preserved_down_to"] == 0.5
+    with pytest.raises(CamsimError):
+        Criterion(min_ssim=1.5)

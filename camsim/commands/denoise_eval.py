@@ -24,10 +24,14 @@ DESCRIPTION = (
     "DN, layer clean.R/G/B = their expected value, header camsim:metadata = the sidecar) found recursively in "
     "DATASET_DIR — and score each against the clean layer: PSNR and SSIM (scikit-image), and per patch the "
     "chromaticity bias of the patch mean, the chromaticity-noise ellipse before and after, and ΔE_ab (the paper's "
-    "5-step procedure) against the same patch at F = 1; per intensity factor F. Writes OUT/frames.csv, "
-    "OUT/patches.csv, OUT/summary.csv, PNG plots, OUT/summary.json and OUT/report.md, which states down to which "
-    "light level each denoiser preserves colour (criterion: mean ΔE ≤ --max-delta-e and mean chromaticity bias ≤ "
-    "--max-bias, no patch colour undefined). Bayer (CFA) frames are skipped and listed in the report."
+    "5-step procedure) against the same patch at F = 1; per intensity factor F. Every frame, chart or not, also "
+    "gets a chart-free colour score: the mean CIEDE2000 of every pixel against the clean layer (CIELAB against the "
+    "perfect white at the frame's F). Writes OUT/frames.csv, OUT/patches.csv, OUT/summary.csv, OUT/bands.csv, PNG "
+    "plots (crops per band of F among them), OUT/summary.json and OUT/report.md, which states per half-decade band "
+    "of F down to which light level each denoiser preserves detail (mean SSIM ≥ --min-ssim) and colour (mean ΔE00 ≤ "
+    "--max-delta-e00), and, with a chart and an F = 1 frame, down to which it preserves the chart's colour "
+    "(mean ΔE ≤ --max-delta-e and mean chromaticity bias ≤ --max-bias, no patch colour undefined). Bayer (CFA) "
+    "frames are skipped and listed in the report."
 )
 
 EPILOG = """\
@@ -37,6 +41,8 @@ included, and the noise sigma per channel estimated blindly from the frame itsel
   nl-means                  scikit-image non-local means (fast mode, h = 0.8 sigma)
   wavelet                   wavelet shrinkage (BayesShrink, soft, Haar), scikit-image's algorithm
   tv                        scikit-image total variation (Chambolle, weight = 1 sigma)
+  bm3d                      BM3D (PyPI bm3d, bm3d_rgb), given the sensor model's sigma per channel from the
+                            sidecar (it has no blind mode); needs `pip install bm3d`
   MODULE:FUNCTION           your Python function, e.g. mypkg.filters:denoise or path/to/file.py:denoise
                             (the current directory is on sys.path); called as FUNCTION(image), or
                             FUNCTION(image, sigma_dn=...) if it has a parameter named sigma_dn; must return an
@@ -67,7 +73,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("dataset", nargs="+", metavar="DATASET_DIR",
                         help="folder(s) searched recursively for camsim .exr frames (or .exr files)")
     parser.add_argument("--denoiser", "-d", metavar="NAME_OR_TARGET", action="append", required=True,
-                        help="a built-in (identity, nl-means, wavelet, tv), MODULE:FUNCTION or "
+                        help="a built-in (identity, nl-means, wavelet, tv, bm3d), MODULE:FUNCTION or "
                              "'cmd:PROGRAM ARGS... {input} {output}' (see below); repeat to compare several")
     parser.add_argument("--out", metavar="DIR", type=Path,
                         help="output folder (default outputs/denoise-eval/NAME, NAME the denoiser's, or the "
@@ -83,6 +89,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--max-bias", metavar="DXY", type=positive_float, default=0.005,
                         help="criterion: largest mean chromaticity bias |Δxy| of patch means at which colour counts "
                              "as preserved (default 0.005)")
+    parser.add_argument("--min-ssim", metavar="SSIM", type=positive_float, default=0.8,
+                        help="criterion: smallest mean SSIM against the clean layer at which detail counts as "
+                             "preserved in a band of F (default 0.8)")
+    parser.add_argument("--max-delta-e00", metavar="DE00", type=positive_float, default=5.0,
+                        help="criterion: largest mean ΔE00 against the clean layer (chart-free, every pixel) at "
+                             "which colour counts as preserved in a band of F (default 5)")
     parser.add_argument("--timeout", metavar="SECONDS", type=positive_float,
                         help="time limit per frame for a 'cmd:' denoiser (default none)")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
@@ -113,21 +125,27 @@ def run(args) -> int:
     from camsim.denoise.denoisers import resolve_denoiser
     from camsim.denoise.evaluate import EvalSettings, evaluate
     from camsim.denoise.summary import NOISY, Criterion
-    from camsim.denoise.report import verdict_sentence, write_outputs
+    from camsim.denoise.report import band_verdict_sentence, verdict_sentence, write_outputs
 
     denoisers = _unique_names([resolve_denoiser(t, timeout_s=args.timeout) for t in args.denoiser])
     settings = EvalSettings(border_px=args.border, subtract_black=not args.keep_black,
-                            criterion=Criterion(args.max_delta_e, args.max_bias))
+                            criterion=Criterion(args.max_delta_e, args.max_bias, args.min_ssim,
+                                                args.max_delta_e00))
     out = args.out if args.out is not None else default_out(denoisers)
     with writing_to(out):
         evaluation = evaluate(args.dataset, denoisers, settings, progress=not args.quiet)
         paths = write_outputs(evaluation, out)
     n = len(evaluation.dataset.frames)
-    print(f"scored {len(denoisers)} denoiser(s) on {n} frame(s); criterion: {settings.criterion.text()}")
-    for d in denoisers:
-        sentence = verdict_sentence(evaluation, d.name).replace("**", "")
-        print(f"  {sentence} [{evaluation.seconds.get(d.name, 0.0):.1f} s]")
-    print(f"  {verdict_sentence(evaluation, NOISY).replace('**', '')}")
+    print(f"scored {len(denoisers)} denoiser(s) on {n} frame(s); criterion: {settings.criterion.band_text()}")
+    for name in [*(d.name for d in denoisers), NOISY]:
+        for aspect in ("detail", "colour"):
+            print(f"  {band_verdict_sentence(evaluation, name, aspect).replace('**', '')}")
+        if name != NOISY:
+            print(f"    [{evaluation.seconds.get(name, 0.0):.1f} s, {evaluation.seconds.get(name, 0.0) / n:.3g} s/frame]")
+    if any(v["status"] != "undetermined" for v in evaluation.verdicts.values()) and evaluation.patch_rows:
+        print(f"chart (criterion: {settings.criterion.text()}):")
+        for name in [*(d.name for d in denoisers), NOISY]:
+            print(f"  {verdict_sentence(evaluation, name).replace('**', '')}")
     from camsim.denoise.frames import UNCOMMITTED
 
     uncommitted = [s["file"] for s in evaluation.dataset.skipped if s["reason"] == UNCOMMITTED]

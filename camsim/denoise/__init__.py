@@ -1,11 +1,12 @@
 """``camsim denoise-eval``: run denoisers on rendered frames and score them against the clean layer.
 
-* :mod:`camsim.denoise.denoisers` — the built-in baselines (:data:`DENOISERS`) and user targets
+* :mod:`camsim.denoise.denoisers` — the built-in baselines (:data:`DENOISERS`, BM3D among them) and user targets
   (``MODULE:FUNCTION``, ``cmd:PROGRAM ... {input} {output}``);
 * :mod:`camsim.denoise.frames` — the scorable frames of a dataset (three-chip camsim EXR with a clean layer);
 * :mod:`camsim.denoise.image_scores` — PSNR / SSIM of a frame against its clean layer;
 * :mod:`camsim.denoise.patch_colour` — the colour quantities per patch (bias, noise ellipse, ΔE against F = 1);
-* :mod:`camsim.denoise.summary` — means per light level, the criterion and the verdicts;
+* :mod:`camsim.denoise.colour_fidelity` — chart-free colour: mean ΔE00 of every pixel against the clean layer;
+* :mod:`camsim.denoise.summary` — means per light level and per band of F, the criteria and the verdicts;
 * :mod:`camsim.denoise.evaluate` — the loop: every denoiser on every frame, scored;
 * :mod:`camsim.denoise.report` — CSV, plots, ``report.md`` and ``summary.json``;
 * the sub-command itself is :mod:`camsim.commands.denoise_eval`.

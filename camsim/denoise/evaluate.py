@@ -10,7 +10,11 @@ denoiser sees each noisy frame as a (H, W, 3) float32 DN array; it is scored
   the chromaticity bias |xy(mean of the patch) − xy(mean of the clean patch)|, the PCA noise ellipse of the
   pixels' xy before (noisy) and after (denoised), and ΔE_ab by the paper's 5-step procedure against the same
   patch in the clean layer of the F = 1 frame of the same measurement (:func:`camsim.analysis.analyze.group_key`);
-* per intensity factor: means, undefined counts and the colour-preservation verdicts (:mod:`camsim.denoise.summary`).
+* per frame, with no chart and no reference frame needed: the mean CIEDE2000 of every pixel to the clean layer,
+  both through M against the perfect white at the frame's F (:mod:`camsim.denoise.colour_fidelity`), of the
+  denoised and of the noisy frame;
+* per intensity factor: means, undefined counts and the chart's colour-preservation verdicts; per half-decade band
+  of F the detail (SSIM) and colour (ΔE00) verdicts (:mod:`camsim.denoise.summary`).
 
 Undefined quantities (no chromaticity where X + Y + Z ≤ 0, degenerate ellipses, no F = 1 reference, an
 infinite PSNR of a perfect result) are None and counted, never NaN.
@@ -27,11 +31,13 @@ from camsim.analysis.analyze import group_key
 from camsim.frame_files import load_frame
 from camsim.analysis.patches import frame_matrix, patch_samples
 from camsim.colorimetry import CHANNELS
-from camsim.denoise.denoisers import Denoiser, estimate_noise_sigma
+from camsim.denoise.colour_fidelity import frame_white_xyz, mean_delta_e00
+from camsim.denoise.denoisers import SIGMA_MODEL, Denoiser, estimate_noise_sigma, model_noise_sigma
 from camsim.denoise.frames import Dataset, DatasetFrame, find_dataset
 from camsim.denoise.image_scores import image_scores
 from camsim.denoise.patch_colour import patch_colour, patch_row, reference_labs
-from camsim.denoise.summary import NOISY, Criterion, summarise, undefined_counts, verdict
+from camsim.denoise.summary import (NOISY, Criterion, band_verdicts, f_band, summarise, summarise_bands,
+                                    undefined_counts, verdict)
 from camsim.errors import CamsimError
 
 __all__ = ["EvalSettings", "FrameResult", "Evaluation", "evaluate", "evaluate_frame"]
@@ -72,10 +78,12 @@ class FrameResult:
     denoised_rows: dict  # denoiser name -> frame-level scores of the denoised frame
     patch_rows: dict  # denoiser name -> list of per-patch dicts
     examples: dict = field(default_factory=dict)  # denoiser name -> (H', W', 3) crop; plus "noisy", "clean"
+    band_crops: dict = field(default_factory=dict)  # the same, a centre crop, for the crops-per-band figure
     seconds: dict = field(default_factory=dict)  # denoiser name -> run time on this frame
 
 
 EXAMPLE_CROP = (240, 320)  # rows, columns of the crop kept for the example figure
+BAND_CROP = (96, 128)  # rows, columns of the centre crop kept per F band for the crops figure
 
 
 def _frame_fields(frame: DatasetFrame) -> dict:
@@ -85,8 +93,15 @@ def _frame_fields(frame: DatasetFrame) -> dict:
             "height_px": meta.get("height_px")}
 
 
+def _centre_crop(shape) -> tuple:
+    h, w = shape[:2]
+    ch, cw = min(h, BAND_CROP[0]), min(w, BAND_CROP[1])
+    y0, x0 = (h - ch) // 2, (w - cw) // 2
+    return slice(y0, y0 + ch), slice(x0, x0 + cw)
+
+
 def evaluate_frame(frame: DatasetFrame, denoisers: list[Denoiser], settings: EvalSettings, ref_labs,
-                   keep_example: bool = False) -> tuple[FrameResult, list | None]:
+                   keep_example: bool = False, keep_band_crop: bool = False) -> tuple[FrameResult, list | None]:
     """Score every denoiser on one frame. Returns the result and, for an F = 1 frame, its reference Labs."""
     from camsim.io.exr import read_exr
 
@@ -108,11 +123,18 @@ def evaluate_frame(frame: DatasetFrame, denoisers: list[Denoiser], settings: Eva
     if not data_range > 0:
         data_range, data_range_source = float(loaded.meta.get("white_level_dn") or 1.0), "white level"
     sigma = estimate_noise_sigma(noisy)
+    model_black = loaded.expected_black_dn()  # the noise model needs the true dark level, --keep-black or not
+    sigma_model = model_noise_sigma(loaded.meta, noisy, model_black)
     true_sigma = (noisy.astype(np.float64) - clean_hw3).std(axis=(0, 1))
     psnr_noisy, ssim_noisy = image_scores(clean_hw3, noisy, data_range)
+    clean_signal = clean_hw3.astype(np.float64) - model_black  # ΔE00: always the light's own signal
+    white, white_source = frame_white_xyz(loaded.meta, matrix, clean_signal)
+    de00_noisy = mean_delta_e00(noisy.astype(np.float64) - model_black, clean_signal, matrix, white)
     row = _frame_fields(frame)
     row.update({"data_range_dn": data_range, "data_range_source": data_range_source,
                 **{f"sigma_est_{c}_dn": float(s) for c, s in zip(CHANNELS, sigma)},
+                **{f"sigma_model_{c}_dn": float(s) for c, s in zip(CHANNELS, sigma_model)},
+                "white_source": white_source, "delta_e00_noisy": de00_noisy,
                 **{f"noise_std_{c}_dn": float(s) for c, s in zip(CHANNELS, true_sigma)},
                 "psnr_noisy_db": psnr_noisy, "ssim_noisy": ssim_noisy})
 
@@ -131,20 +153,29 @@ def evaluate_frame(frame: DatasetFrame, denoisers: list[Denoiser], settings: Eva
     result = FrameResult(row, {}, {})
     h, w = noisy.shape[:2]
     crop = (slice(0, min(h, EXAMPLE_CROP[0])), slice(0, min(w, EXAMPLE_CROP[1])))
+    centre = _centre_crop(noisy.shape)
     if keep_example:
         result.examples.update(noisy=noisy[crop].copy(), clean=clean_hw3[crop].copy(), black=np.asarray(black))
+    if keep_band_crop:
+        result.band_crops.update(noisy=noisy[centre].copy(), clean=clean_hw3[centre].copy(), black=np.asarray(black),
+                                 file=frame.name, intensity_factor=float(frame.meta["intensity_factor"]))
     for denoiser in denoisers:
+        given = sigma_model if denoiser.sigma_source == SIGMA_MODEL else sigma
         start = time.perf_counter()
-        denoised = denoiser(noisy, sigma)
+        denoised = denoiser(noisy, given)
         result.seconds[denoiser.name] = time.perf_counter() - start
         psnr, ssim = image_scores(clean_hw3, denoised, data_range)
         result.denoised_rows[denoiser.name] = {
-            "psnr_denoised_db": psnr, "ssim_denoised": ssim,
+            "psnr_denoised_db": psnr, "ssim_denoised": ssim, "sigma_given": denoiser.sigma_source,
+            "seconds": result.seconds[denoiser.name],
+            "delta_e00_denoised": mean_delta_e00(denoised.astype(np.float64) - model_black, clean_signal, matrix, white),
             "psnr_gain_db": None if psnr is None or psnr_noisy is None else psnr - psnr_noisy,
             "ssim_gain": None if ssim is None or ssim_noisy is None else ssim - ssim_noisy,
         }
         if keep_example:
             result.examples[denoiser.name] = denoised[crop].copy()
+        if keep_band_crop:
+            result.band_crops[denoiser.name] = denoised[centre].copy()
         denoised_chw = np.moveaxis(denoised, -1, 0)
         rows = []
         for index, patch, ref, truth, before in base:
@@ -168,7 +199,10 @@ class Evaluation:
     verdicts: dict  # denoiser name (and NOISY) -> verdict dict
     examples: dict  # F -> {"noisy", "clean", "black", denoiser name: crop}
     counts: dict  # undefined cases
-    seconds: dict = field(default_factory=dict)  # denoiser name -> total run time (printed, never written)
+    seconds: dict = field(default_factory=dict)  # denoiser name -> total run time (printed; s/frame in the report)
+    band_rows: list = field(default_factory=list)  # one per denoiser × F band (summarise_bands)
+    band_verdicts: dict = field(default_factory=dict)  # denoiser name (and NOISY) -> {"detail": .., "colour": ..}
+    band_crops: dict = field(default_factory=dict)  # band (lo, hi) -> crops of one frame in it
     plot_files: dict = field(default_factory=dict)  # filled by report.write_outputs
 
 
@@ -193,6 +227,16 @@ def evaluate(paths, denoisers: list[Denoiser], settings: EvalSettings | None = N
     factors = sorted({float(f.meta["intensity_factor"]) for f in frames if group_key(f.meta) == example_group},
                      reverse=True)
     example_factors = {factors[0], factors[len(factors) // 2], factors[-1]}
+    # Per half-decade band of F, the frame closest (in log F) to the band's centre gives the band's crops.
+    band_pick = {}
+    for frame in order:
+        factor = float(frame.meta["intensity_factor"])
+        band = f_band(factor)
+        distance = abs(np.log10(factor) - 0.5 * (np.log10(band[0]) + np.log10(band[1])))
+        if band not in band_pick or distance < band_pick[band][0]:
+            band_pick[band] = (distance, frame.path)
+    crop_paths = {path: band for band, (_, path) in band_pick.items()}
+    band_crops = {}
     references: dict[str, list] = {}
     frame_rows, patch_rows, examples = [], [], {}
     seconds = dict.fromkeys(names, 0.0)
@@ -201,7 +245,10 @@ def evaluate(paths, denoisers: list[Denoiser], settings: EvalSettings | None = N
         factor = float(frame.meta["intensity_factor"])
         is_ref = factor == 1.0 and key not in references
         keep = key == example_group and factor in example_factors and factor not in examples
-        result, own = evaluate_frame(frame, denoisers, settings, "self" if is_ref else references.get(key), keep)
+        result, own = evaluate_frame(frame, denoisers, settings, "self" if is_ref else references.get(key), keep,
+                                     keep_band_crop=frame.path in crop_paths)
+        if frame.path in crop_paths:
+            band_crops[crop_paths[frame.path]] = result.band_crops
         if is_ref:
             references[key] = own
         if keep:
@@ -223,5 +270,6 @@ def evaluate(paths, denoisers: list[Denoiser], settings: EvalSettings | None = N
                 for name in names}
     verdicts[NOISY] = verdict([r for r in summary_rows if r["denoiser"] == names[0]], "colour_preserved_noisy")
     counts = undefined_counts(frame_rows, patch_rows, names)
+    band_rows = summarise_bands(frame_rows, names, settings.criterion)
     return Evaluation(dataset, denoisers, settings, frame_rows, patch_rows, summary_rows, verdicts, examples, counts,
-                      seconds)
+                      seconds, band_rows, band_verdicts(band_rows, names), band_crops)

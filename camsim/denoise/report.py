@@ -6,8 +6,11 @@
   chromaticity bias, the ellipse centre and size before and after, their ratio, ΔE (clean, noisy, denoised).
 * ``summary.csv`` — one row per denoiser × intensity factor: the means, the undefined counts and whether colour is
   preserved by the criterion.
+* ``bands.csv`` — one row per denoiser × half-decade band of F: mean SSIM, PSNR gain, chart-free ΔE00 (noisy and
+  denoised), run time, and whether detail and colour are preserved.
 * ``psnr_ssim.png``, ``chromaticity_bias.png``, ``delta_e.png``, ``ellipse_size.png`` (each against F, noisy
-  baseline and denoised), ``examples.png`` (crops: clean, noisy, denoised).
+  baseline and denoised), ``delta_e00.png`` (chart-free ΔE00 against F), ``examples.png`` (crops: clean, noisy,
+  denoised), ``crops_by_band.png`` (a centre crop per band of F: clean, noisy, each denoiser).
 * ``report.md`` and ``summary.json`` (settings, criterion, verdicts, undefined counts, skipped frames).
 
 Empty CSV cells are undefined values (counted in ``summary.csv`` and ``summary.json``); no file holds NaN.
@@ -22,17 +25,23 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.denoise.denoisers import SIGMA_ESTIMATOR, WAVELET_IMPLEMENTATION
+from camsim.denoise.colour_fidelity import WHITE_CLEAN_MAX
+from camsim.denoise.denoisers import MODEL_SIGMA_TEXT, SIGMA_ESTIMATOR, SIGMA_MODEL, WAVELET_IMPLEMENTATION
 from camsim.denoise.evaluate import Evaluation
-from camsim.denoise.summary import NOISY
+from camsim.denoise.summary import NOISY, band_label
 from camsim.io.atomic import write_json_atomic, write_text_atomic
 from camsim.plotting import new_figure, save_png
 from camsim.io.output_folder import make_folder
 
 FRAME_COLUMNS = ("denoiser", "file", "scene", "illuminant", "intensity_factor", "width_px", "height_px",
                  "data_range_dn", "data_range_source", "sigma_est_R_dn", "sigma_est_G_dn", "sigma_est_B_dn",
+                 "sigma_model_R_dn", "sigma_model_G_dn", "sigma_model_B_dn", "sigma_given",
                  "noise_std_R_dn", "noise_std_G_dn", "noise_std_B_dn", "psnr_noisy_db", "psnr_denoised_db",
-                 "psnr_gain_db", "ssim_noisy", "ssim_denoised", "ssim_gain")
+                 "psnr_gain_db", "ssim_noisy", "ssim_denoised", "ssim_gain", "white_source", "delta_e00_noisy",
+                 "delta_e00_denoised", "seconds")
+BAND_COLUMNS = ("denoiser", "band", "f_band_low", "f_band_high", "f_min", "f_max", "n_frames", "ssim_noisy",
+                "ssim_denoised", "ssim_gain", "psnr_gain_db", "delta_e00_noisy", "delta_e00_denoised", "seconds",
+                "detail_preserved", "colour_preserved_e00", "detail_preserved_noisy", "colour_preserved_e00_noisy")
 PATCH_COLUMNS = ("denoiser", "file", "illuminant", "intensity_factor", "patch_index", "patch_name", "clean_x",
                  "clean_y", "noisy_mean_x", "noisy_mean_y", "denoised_mean_x", "denoised_mean_y", "bias_noisy_xy",
                  "bias_denoised_xy", "noisy_center_x", "noisy_center_y", "denoised_center_x", "denoised_center_y",
@@ -47,7 +56,8 @@ SUMMARY_COLUMNS = ("denoiser", "intensity_factor", "n_frames", "n_patches", "psn
                    "n_bias_undefined", "n_ellipse_ratio_undefined", "n_delta_e_undefined", "n_psnr_undefined",
                    "colour_preserved", "colour_preserved_noisy")
 PLOTS = {"psnr_ssim": "psnr_ssim.png", "bias": "chromaticity_bias.png", "delta_e": "delta_e.png",
-         "ellipse": "ellipse_size.png", "examples": "examples.png"}
+         "ellipse": "ellipse_size.png", "delta_e00": "delta_e00.png", "examples": "examples.png",
+         "crops": "crops_by_band.png"}
 NOISY_LABEL = "noisy (no denoising)"
 
 
@@ -109,7 +119,8 @@ def _against_f(ax, ev: Evaluation, key_noisy: str, key_denoised: str, ylabel: st
     ax.set_xlabel("intensity factor F (light level)")
     ax.set_ylabel(ylabel)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8)
 
 
 def _plots(ev: Evaluation, out: Path) -> dict:
@@ -157,9 +168,74 @@ def _plots(ev: Evaluation, out: Path) -> dict:
     fig.suptitle("Chromaticity noise ellipses before (noisy) and after (denoised)")
     save_png(fig, out / PLOTS["ellipse"])
 
+    fig = new_figure(figsize=(6.5, 4.4), layout="constrained")
+    ax = fig.subplots()
+    _against_f_frames(ax, ev, "delta_e00_noisy", "delta_e00_denoised", "mean ΔE00 against the clean layer",
+                      threshold=crit.max_delta_e00)
+    ax.set_title("Chart-free colour fidelity (every pixel, vs clean)")
+    save_png(fig, out / PLOTS["delta_e00"])
+
     if ev.examples:
         _example_plot(ev, out / PLOTS["examples"])
-    return {k: v for k, v in PLOTS.items() if (out / v).exists() and (k != "examples" or ev.examples)}
+    if ev.band_crops:
+        crops_by_band_figure(ev, out / PLOTS["crops"])
+    return {k: v for k, v in PLOTS.items() if (out / v).exists() and (k != "examples" or ev.examples)
+            and (k != "crops" or ev.band_crops)}
+
+
+def _against_f_frames(ax, ev: Evaluation, key_noisy: str, key_denoised: str, ylabel: str, threshold=None):
+    """Per-frame values against F (one point per frame, log-log): the noisy baseline and each denoiser."""
+    colours = _colours(ev)
+    first = ev.denoisers[0].name
+    pts = sorted((r["intensity_factor"], r[key_noisy]) for r in ev.frame_rows
+                 if r["denoiser"] == first and r[key_noisy] is not None)
+    if pts:
+        ax.plot(*zip(*pts), "ko", mfc="none", ms=6, label=NOISY_LABEL)
+    for d in ev.denoisers:
+        if d.name == "identity":
+            continue  # the same points as the noisy baseline
+        pts = sorted((r["intensity_factor"], r[key_denoised]) for r in ev.frame_rows
+                     if r["denoiser"] == d.name and r[key_denoised] is not None)
+        if pts:
+            ax.plot(*zip(*pts), ".", color=colours[d.name], ms=7, label=d.name)
+    if threshold is not None:
+        ax.axhline(threshold, color="crimson", lw=1, ls=":", label=f"criterion ≤ {threshold:g}")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("intensity factor F (light level)")
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+
+
+def crops_by_band_figure(ev: Evaluation, path: Path) -> Path:
+    """The crops figure: per half-decade band of F (rows, brightest first) a centre crop of one frame in the band
+    (the one closest to the band's centre in log F) — noisy, then each denoiser, then clean (columns). Black level
+    subtracted, each row scaled to its clean crop's maximum, γ 1/2.2. Written as a PNG with matplotlib's Agg
+    canvas, chosen here for this figure alone (no process-wide backend)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    bands = sorted(ev.band_crops, reverse=True)
+    columns = ["noisy", *[d.name for d in ev.denoisers if d.name != "identity"], "clean"]
+    fig = new_figure(figsize=(2.2 * len(columns), 1.8 * len(bands) + 0.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(len(bands), len(columns), squeeze=False)
+    for i, band in enumerate(bands):
+        crops = ev.band_crops[band]
+        black = crops["black"]
+        scale = float(np.max(crops["clean"] - black)) or 1.0
+        for j, col in enumerate(columns):
+            ax = axes[i, j]
+            ax.imshow(_display(crops[col], black, scale), interpolation="nearest")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if i == 0:
+                ax.set_title(col, fontsize=9)
+            if j == 0:
+                ax.set_ylabel(f"F {band_label(band)}\n(F = {crops['intensity_factor']:.3g})", fontsize=8)
+    fig.suptitle("Noisy / denoised / clean per band of F\n(centre crop; black subtracted, row scaled to its clean "
+                 "maximum, γ 1/2.2)", fontsize=9)
+    return save_png(fig, path)
 
 
 def _display(img, black, scale):
@@ -252,7 +328,112 @@ def _stops(v) -> str:
 
 
 def _mark(value: str) -> str:
-    return {"yes": "✓", "no": "✗"}.get(value, "?")
+    return {"yes": "✓", "no": "✗"}.get(value, "—")
+
+
+def _chart_judged(ev: Evaluation) -> bool:
+    """Whether the chart's ΔE verdicts could be formed (a chart in view and an F = 1 frame as the reference)."""
+    return any(v["status"] != "undetermined" for v in ev.verdicts.values()) and bool(ev.patch_rows)
+
+
+ASPECTS = {"detail": ("detail", "ssim_denoised", "mean SSIM", "<", "min_ssim"),
+           "colour": ("colour", "delta_e00_denoised", "mean ΔE00", ">", "max_delta_e00")}
+
+
+def _band_row(ev: Evaluation, name: str, f_min: float) -> dict | None:
+    source = ev.denoisers[0].name if name == NOISY else name
+    for r in ev.band_rows:
+        if r["denoiser"] == source and r["f_min"] == f_min:
+            return r
+    return None
+
+
+def band_verdict_sentence(ev: Evaluation, name: str, aspect: str) -> str:
+    """One sentence: down to which light level ``name`` preserves ``aspect`` ("detail" or "colour")."""
+    word, key, label, cmp, limit_name = ASPECTS[aspect]
+    if name == NOISY:
+        key = key.replace("_denoised", "_noisy")
+    limit = getattr(ev.settings.criterion, limit_name)
+    v = ev.band_verdicts[name][aspect]
+    who = NOISY_LABEL if name == NOISY else name
+    if v["status"] == "undetermined":
+        return f"**{who}**: {word} cannot be judged ({label} undefined in every band)."
+    if v["status"] == "all-preserved":
+        return (f"**{who}** preserves {word} in every tested band, down to F = {v['preserved_down_to']:.3g} (the "
+                "lowest tested).")
+    row = _band_row(ev, name, v["stops_at"])
+    value = row[key] if row else None
+    why = (f"in band {row['band']} (F = {row['f_min']:.3g}…{row['f_max']:.3g}, {row['n_frames']} frame"
+           f"{'s' if row['n_frames'] != 1 else ''}) the {label} is {_fmt(value, '.3g')} {cmp} {limit:g}"
+           if row else "")
+    if v["status"] == "never-preserved":
+        text = f"**{who}** does not preserve {word} even in the brightest tested band: {why}."
+    else:
+        text = (f"**{who}** preserves {word} down to F = {v['preserved_down_to']:.3g} and stops below it: {why}.")
+    if v["recovers_below"]:
+        text += f" It passes again in lower bands (F = {', '.join(f'{f:.3g}' for f in v['recovers_below'])})."
+    return text
+
+
+def _band_down_to(v) -> str:
+    if v["status"] == "undetermined":
+        return "undetermined"
+    if v["status"] == "never-preserved":
+        return "none"
+    return f"{v['preserved_down_to']:.3g}" + (" (lowest tested)" if v["status"] == "all-preserved" else "")
+
+
+def _seconds_per_frame(ev: Evaluation, name: str) -> float | None:
+    n = len(ev.dataset.frames)
+    return ev.seconds.get(name, 0.0) / n if n else None
+
+
+def _band_lines(ev: Evaluation) -> list[str]:
+    crit = ev.settings.criterion
+    names = [d.name for d in ev.denoisers]
+    first = names[0]
+    bands = [r for r in ev.band_rows if r["denoiser"] == first]
+    lines = ["## Detail and colour per light level (every frame, no chart needed)", "",
+             "Frames are grouped in half-decade bands of the intensity factor F (10^(k/2) ≤ F < 10^((k+1)/2)). In a "
+             "band, a denoiser:", "",
+             f"* **preserves detail** when the mean SSIM of its output against the clean layer is **≥ "
+             f"{crit.min_ssim:g}**;",
+             f"* **preserves colour** when the mean ΔE00 (CIEDE2000, per pixel, against the clean layer; see *How it "
+             f"was measured*) is **≤ {crit.max_delta_e00:g}**.", "",
+             "It preserves an aspect *down to* the lowest F tested in the last band, from the brightest down, in "
+             "which the criterion holds in that band and every brighter one; below it, it stops. The noisy frames "
+             "(no denoising) are judged by the same rule: a denoiser is worth running where it passes and they "
+             "fail.", ""]
+    for name in [*names, NOISY]:
+        lines.append(f"* {band_verdict_sentence(ev, name, 'detail')} {band_verdict_sentence(ev, name, 'colour')}")
+    lines += ["", "| denoiser | detail down to F | colour down to F | s/frame | "
+              + " | ".join(f"F {r['band']}" for r in bands) + " |", "|---|---|---|---|" + "---|" * len(bands)]
+    for name in [*names, NOISY]:
+        v = ev.band_verdicts[name]
+        suffix = "_noisy" if name == NOISY else ""
+        source = first if name == NOISY else name
+        marks = []
+        for b in bands:
+            r = next(x for x in ev.band_rows if x["denoiser"] == source and x["band"] == b["band"])
+            marks.append(f"{_mark(r['detail_preserved' + suffix])} {_mark(r['colour_preserved_e00' + suffix])}")
+        spf = None if name == NOISY else _seconds_per_frame(ev, name)
+        lines.append(f"| {NOISY_LABEL if name == NOISY else name} | {_band_down_to(v['detail'])} | "
+                     f"{_band_down_to(v['colour'])} | {_fmt(spf, '.3g')} | " + " | ".join(marks) + " |")
+    lines += ["", "Each band's cell: detail, then colour — ✓ preserved, ✗ not, — undetermined. s/frame: the "
+              "denoiser's mean run time per frame on this machine (this run).", "",
+              "Mean SSIM / mean ΔE00 against the clean layer per band (noisy first):", "",
+              "| F band (frames) | " + " | ".join([NOISY_LABEL, *names]) + " |", "|---|" + "---|" * (len(names) + 1)]
+    for b in bands:
+        cells = [f"{_fmt(b['ssim_noisy'], '.3f')} / {_fmt(b['delta_e00_noisy'], '.3g')}"]
+        for name in names:
+            r = next(x for x in ev.band_rows if x["denoiser"] == name and x["band"] == b["band"])
+            cells.append(f"{_fmt(r['ssim_denoised'], '.3f')} / {_fmt(r['delta_e00_denoised'], '.3g')}")
+        lines.append(f"| {b['band']} ({b['n_frames']}) | " + " | ".join(cells) + " |")
+    lines.append("")
+    if "crops" in ev.plot_files:
+        lines += [f"Crops per band: [{ev.plot_files['crops']}]({ev.plot_files['crops']}).", "",
+                  f"![noisy, denoised and clean crops per band of F]({ev.plot_files['crops']})", ""]
+    return lines
 
 
 def report_text(ev: Evaluation) -> str:
@@ -263,41 +444,55 @@ def report_text(ev: Evaluation) -> str:
     illuminants = sorted({str(f.meta.get("illuminant")) for f in frames})
     scenes = sorted({str(f.meta.get("scene")) for f in frames})
     n_frames = len(frames)
+    shown = factors if len(factors) <= 8 else [factors[0], factors[-1]]
+    f_text = (", ".join(_f(f) for f in shown) if len(factors) <= 8
+              else f"{len(factors)} levels from {factors[0]:.3g} down to {factors[-1]:.3g}")
     lines = [f"# Denoiser evaluation: {', '.join(names)}", ""]
     lines += [f"Dataset: {', '.join(f'`{r}`' for r in ev.dataset.roots)} — {n_frames} frame"
               f"{'s' if n_frames != 1 else ''} scored (scene {', '.join(scenes)}; illuminant"
-              f"{'s' if len(illuminants) != 1 else ''} {', '.join(illuminants)}; F = "
-              f"{', '.join(_f(f) for f in factors)})"
+              f"{'s' if len(illuminants) != 1 else ''} {', '.join(illuminants)}; F = {f_text})"
               + (f"; {len(ev.dataset.skipped)} file(s) skipped (see the end)." if ev.dataset.skipped else "."), ""]
 
-    lines += ["## Criterion", "",
-              "Colour is **preserved** at a light level (intensity factor F) when, over every patch of every frame at "
-              "that F, after denoising:", "",
-              f"* the mean ΔE_ab (the paper's 5-step procedure: each pixel scaled to Y = 100, CIELAB against D65, "
-              f"ΔE to the same patch at F = 1) is **≤ {crit.max_delta_e:g}**, and",
-              f"* the mean chromaticity bias |xy(mean of the denoised patch) − xy(mean of the clean patch)| is "
-              f"**≤ {crit.max_bias_xy:g}**, and",
-              "* no patch's denoised colour is undefined (a patch mean with X + Y + Z ≤ 0, or no pixel with Y > 0).",
-              "",
-              "ΔE is averaged over the pixels of a patch, so it judges each pixel's colour, noise included; the bias "
-              "judges the patch mean alone (a denoiser that averages noise away but shifts colours fails on it).",
-              "",
-              "A denoiser preserves colour *down to* the lowest F at which the criterion holds there and at every "
-              "higher tested F; it *stops* at the next lower tested F. The noisy frames themselves (no denoising; "
-              "`identity` gives exactly the same) are judged by the same rule.", ""]
+    lines += _band_lines(ev)
 
-    lines += ["## Where colour stops being preserved", ""]
-    lines += [f"* {verdict_sentence(ev, name)}" for name in [*names, NOISY]]
-    lines += ["", "| denoiser | colour preserved down to F | stops at F | " + " | ".join(
-        f"F = {_f(f)}" for f in factors) + " |", "|---|---|---|" + "---|" * len(factors)]
-    for name in [*names, NOISY]:
-        v = ev.verdicts[name]
-        label = NOISY_LABEL if name == NOISY else name
-        marks = " | ".join(_mark(v["by_factor"].get(f, "")) for f in factors)
-        lines.append(f"| {label} | {_down_to(v)} | {_stops(v)} | {marks} |")
-    lines += ["", "✓ preserved, ✗ not, ? undetermined.", ""]
+    chart = _chart_judged(ev)
+    lines += ["## Chart colour (ColorChecker patches, against F = 1)", ""]
+    if not ev.patch_rows:
+        lines += ["No chart in view: the chart metrics (patch bias, noise ellipses, 5-step ΔE_ab) do not apply; "
+                  "colour is judged by the chart-free ΔE00 above.", ""]
+    elif not chart:
+        lines += ["A chart is in view but no F = 1 frame of the same measurement gives the 5-step ΔE_ab reference, so "
+                  "the chart verdict is not formed; the patch bias and noise ellipses are in the tables below and in "
+                  "`patches.csv`, and colour is judged by the chart-free ΔE00 above.", ""]
+    if chart:
+        lines += ["Colour is **preserved** on the chart at a light level (intensity factor F) when, over every patch "
+                  "of every frame at that F, after denoising:", "",
+                  f"* the mean ΔE_ab (the paper's 5-step procedure: each pixel scaled to Y = 100, CIELAB against D65, "
+                  f"ΔE to the same patch at F = 1) is **≤ {crit.max_delta_e:g}**, and",
+                  f"* the mean chromaticity bias |xy(mean of the denoised patch) − xy(mean of the clean patch)| is "
+                  f"**≤ {crit.max_bias_xy:g}**, and",
+                  "* no patch's denoised colour is undefined (a patch mean with X + Y + Z ≤ 0, or no pixel with "
+                  "Y > 0).", "",
+                  "ΔE is averaged over the pixels of a patch, so it judges each pixel's colour, noise included; the "
+                  "bias judges the patch mean alone (a denoiser that averages noise away but shifts colours fails on "
+                  "it).", "",
+                  "A denoiser preserves colour *down to* the lowest F at which the criterion holds there and at every "
+                  "higher tested F; it *stops* at the next lower tested F. The noisy frames themselves (no denoising; "
+                  "`identity` gives exactly the same) are judged by the same rule.", ""]
 
-    if len(names) > 1:
+    if chart:
+        lines += ["### Where colour stops being preserved on the chart", ""]
+        lines += [f"* {verdict_sentence(ev, name)}" for name in [*names, NOISY]]
+        lines += ["", "| denoiser | colour preserved down to F | stops at F | " + " | ".join(
+            f"F = {_f(f)}" for f in factors) + " |", "|---|---|---|" + "---|" * len(factors)]
+        for name in [*names, NOISY]:
+            v = ev.verdicts[name]
+            label = NOISY_LABEL if name == NOISY else name
+            marks = " | ".join(_mark(v["by_factor"].get(f, "")) for f in factors)
+            lines.append(f"| {label} | {_down_to(v)} | {_stops(v)} | {marks} |")
+        lines += ["", "✓ preserved, ✗ not, — undetermined.", ""]
+
+    if chart and len(names) > 1:
         lines += ["### Comparison per light level", "",
                   "Mean ΔE_ab / mean chromaticity bias / PSNR gain (dB) of each denoiser; the noisy baseline first.",
                   "", "| F | " + " | ".join([NOISY_LABEL, *names]) + " |", "|---|" + "---|" * (len(names) + 1)]
@@ -338,7 +533,9 @@ def report_text(ev: Evaluation) -> str:
     lines += ["## Figures", ""]
     captions = {"psnr_ssim": "PSNR and SSIM against F", "bias": "chromaticity bias against F",
                 "delta_e": "ΔE against F", "ellipse": "ellipse size before and after, and their ratio",
-                "examples": "clean, noisy and denoised crops"}
+                "delta_e00": "chart-free ΔE00 against the clean layer, per frame",
+                "examples": "clean, noisy and denoised crops",
+                "crops": "noisy, denoised and clean crops per band of F"}
     for key, file in ev.plot_files.items():
         lines.append(f"![{captions[key]}]({file})")
     lines.append("")
@@ -347,8 +544,23 @@ def report_text(ev: Evaluation) -> str:
     lines += ["## How it was measured", "",
               f"* **Noise level given to the denoisers**: estimated blindly from each noisy frame — "
               f"{SIGMA_ESTIMATOR}. The sidecar's noise model (signal variance, dark and read noise) is not used: "
-              "a real denoiser does not know it. `frames.csv` also lists the true σ (std of noisy − clean) for "
-              "comparison only.",
+              "a real denoiser does not know it"
+              + ("" if not any(d.sigma_source == SIGMA_MODEL for d in ev.denoisers) else
+                 f" — except {', '.join(d.name for d in ev.denoisers if d.sigma_source == SIGMA_MODEL)}, which has "
+                 f"no blind mode and is given {MODEL_SIGMA_TEXT}")
+              + ". `frames.csv` lists the blind estimate, the model's σ and the true σ (std of noisy − clean, for "
+              "comparison only).",
+              "* **Chart-free colour (ΔE00)**: per frame, the mean over its pixels of CIEDE2000 "
+              "(`colour.delta_E(..., method=\"CIE 2000\")`) between the test frame (noisy or denoised) and the clean "
+              "layer, both black-level subtracted (always, `--keep-black` or not) and taken through the same camera "
+              "→ XYZ matrix M as the chart, then to CIELAB against one white: the perfect white (reflectance 1) "
+              "under the frame's light at the frame's F and exposure (the sidecar's `white_signal_e` through M; L* "
+              "= 100 there), the white a viewer of the frame exposed for its light would see. Noise is thus judged "
+              "relative to the scene's white at that light level, lightness included"
+              + (" (older sidecars without `white_signal_e`: " + WHITE_CLEAN_MAX + ")"
+                 if any(r.get("white_source") == WHITE_CLEAN_MAX for r in ev.frame_rows) else "") + ".",
+              "* **Run time**: " + "; ".join(f"{d.name} {_fmt(_seconds_per_frame(ev, d.name), '.3g')} s/frame"
+                                             for d in ev.denoisers) + " (mean per frame, this run, this machine).",
               "* **PSNR and SSIM** (scikit-image): against the clean layer, with `data_range` = the clean layer's "
               "range in the frame (max − min over pixels and channels, DN; the white level only if that range is "
               "0). At low light the signal spans a few DN of the 8-bit white level, and a white-level range would "
@@ -402,13 +614,21 @@ def summary_json(ev: Evaluation) -> dict:
         "skipped": ev.dataset.skipped,
         "settings": {"border_px": s.border_px, "black_subtraction": "sidecar" if s.subtract_black else "none",
                      "camera_to_xyz": s.matrix, "data_range": "clean layer range per frame",
-                     "sigma_estimator": SIGMA_ESTIMATOR,
+                     "sigma_estimator": SIGMA_ESTIMATOR, "sigma_model": MODEL_SIGMA_TEXT,
+                     "delta_e00": "mean CIEDE2000 per pixel against the clean layer, CIELAB against the perfect "
+                                  "white at the frame's F (sidecar white_signal_e) through the camera → XYZ matrix",
                      "delta_e_reference": "clean layer of the F = 1 frame of the same measurement"},
         "criterion": {"max_delta_e": s.criterion.max_delta_e, "max_bias_xy": s.criterion.max_bias_xy,
                       "text": s.criterion.text()},
         "denoisers": [{"name": d.name, "target": d.target, "kind": d.kind, "description": d.description,
                        "verdict": _json_verdict(ev.verdicts[d.name])} for d in ev.denoisers],
         "noisy_baseline_verdict": _json_verdict(ev.verdicts[NOISY]),
+        "band_criterion": {"min_ssim": s.criterion.min_ssim, "max_delta_e00": s.criterion.max_delta_e00,
+                           "text": s.criterion.band_text()},
+        "band_verdicts": {name: {aspect: _json_verdict(v) for aspect, v in vs.items()}
+                          for name, vs in ev.band_verdicts.items()},
+        "seconds_per_frame": {d.name: _seconds_per_frame(ev, d.name) for d in ev.denoisers},
+        "bands": ev.band_rows,
         "summary": ev.summary_rows,
         "undefined": ev.counts,
     }
@@ -427,6 +647,8 @@ def write_outputs(ev: Evaluation, out_dir: Path) -> dict:
     write_text_atomic(paths["frames"], csv_text(ev.frame_rows, FRAME_COLUMNS))
     write_text_atomic(paths["patches"], csv_text(ev.patch_rows, PATCH_COLUMNS))
     write_text_atomic(paths["summary"], csv_text(ev.summary_rows, SUMMARY_COLUMNS))
+    paths["bands"] = out_dir / "bands.csv"
+    write_text_atomic(paths["bands"], csv_text(ev.band_rows, BAND_COLUMNS))
     ev.plot_files = _plots(ev, out_dir)
     paths.update({k: out_dir / v for k, v in ev.plot_files.items()})
     write_text_atomic(paths["report"], report_text(ev))

@@ -1,6 +1,7 @@
 """Summaries of ``camsim denoise-eval``: per denoiser and intensity factor the means over frames and patches, the
 counts of undefined values, whether colour is preserved by the :class:`Criterion`, and down to which light level
-(:func:`verdict`)."""
+(:func:`verdict`); per half-decade band of F (:func:`f_band`) the chart-free verdicts on detail (SSIM against the
+clean layer) and colour (mean ΔE00 against the clean layer) (:func:`summarise_bands`, :func:`band_verdicts`)."""
 
 from __future__ import annotations
 
@@ -21,13 +22,21 @@ class Criterion:
     Colour is preserved when the mean ΔE_ab (5-step, against F = 1) ≤ ``max_delta_e``, the mean chromaticity bias
     ≤ ``max_bias_xy``, and no patch's denoised colour is undefined (its mean with X + Y + Z ≤ 0, or not one
     sample with Y > 0 for ΔE).
+
+    Chart-free (every frame): detail is preserved in a band of F when the mean SSIM of the denoised frames
+    against their clean layer is ≥ ``min_ssim``; colour when their mean ΔE00 against the clean layer (per pixel,
+    :mod:`camsim.denoise.colour_fidelity`) is ≤ ``max_delta_e00``.
     """
 
     max_delta_e: float = 3.0
     max_bias_xy: float = 0.005
+    min_ssim: float = 0.8
+    max_delta_e00: float = 5.0
 
     def __post_init__(self):
-        for name in ("max_delta_e", "max_bias_xy"):
+        if not (isinstance(self.min_ssim, (int, float)) and 0 < self.min_ssim <= 1):
+            raise CamsimError(f"criterion min_ssim must lie in (0, 1], got {self.min_ssim!r}")
+        for name in ("max_delta_e", "max_bias_xy", "max_delta_e00"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise CamsimError(f"criterion {name} must be a positive finite number, got {value!r}")
@@ -35,6 +44,71 @@ class Criterion:
     def text(self) -> str:
         return (f"mean ΔE_ab ≤ {self.max_delta_e:g} and mean chromaticity bias ≤ {self.max_bias_xy:g} (xy), "
                 "with no patch's colour undefined")
+
+    def band_text(self) -> str:
+        return (f"detail: mean SSIM against the clean layer ≥ {self.min_ssim:g}; colour: mean ΔE00 against the "
+                f"clean layer ≤ {self.max_delta_e00:g}")
+
+
+def f_band(factor: float) -> tuple[float, float]:
+    """The half-decade band [10^(k/2), 10^((k+1)/2)) of F that holds ``factor`` (k an integer), e.g. (0.1, 0.316).
+
+    Random light levels (a dataset's log-uniform F) are grouped by band; a grid's F = 1, 0.1, 0.01 fall one to a
+    band.
+    """
+    if not (math.isfinite(factor) and factor > 0):
+        raise CamsimError(f"intensity factor must be a positive finite number, got {factor!r}")
+    k = math.floor(2.0 * math.log10(factor) + 1e-9)
+    return 10.0 ** (k / 2.0), 10.0 ** ((k + 1) / 2.0)
+
+
+def band_label(band) -> str:
+    """``0.1–0.316`` for the band (0.1, 0.316...)."""
+    return f"{band[0]:.3g}–{band[1]:.3g}"
+
+
+def _judge(value, threshold, at_least: bool) -> str:
+    if value is None:
+        return "undetermined"
+    return "yes" if (value >= threshold if at_least else value <= threshold) else "no"
+
+
+def summarise_bands(frame_rows, names, criterion: Criterion) -> list[dict]:
+    """One row per denoiser × band of F (:func:`f_band`): means over its frames of SSIM, PSNR gain and ΔE00 (noisy
+    and denoised), run time, and whether detail and colour are preserved (denoised and noisy) by ``criterion``."""
+    by = defaultdict(list)
+    for r in frame_rows:
+        by[(r["denoiser"], f_band(r["intensity_factor"]))].append(r)
+    rows = []
+    for name in names:
+        for band in sorted({k[1] for k in by if k[0] == name}, reverse=True):
+            fr = by[(name, band)]
+            factors = [r["intensity_factor"] for r in fr]
+            row = {"denoiser": name, "band": band_label(band), "f_band_low": band[0], "f_band_high": band[1],
+                   "f_min": min(factors), "f_max": max(factors), "n_frames": len(fr)}
+            for key in ("ssim_noisy", "ssim_denoised", "ssim_gain", "psnr_gain_db", "delta_e00_noisy",
+                        "delta_e00_denoised", "seconds"):
+                row[key] = mean_of_defined(r.get(key) for r in fr)
+            row.update({
+                "detail_preserved": _judge(row["ssim_denoised"], criterion.min_ssim, True),
+                "colour_preserved_e00": _judge(row["delta_e00_denoised"], criterion.max_delta_e00, False),
+                "detail_preserved_noisy": _judge(row["ssim_noisy"], criterion.min_ssim, True),
+                "colour_preserved_e00_noisy": _judge(row["delta_e00_noisy"], criterion.max_delta_e00, False),
+            })
+            rows.append(row)
+    return rows
+
+
+def band_verdicts(band_rows, names) -> dict:
+    """Per denoiser (and :data:`NOISY`, from the first denoiser's rows) the :func:`verdict` on detail and on colour
+    over the bands of F, each band standing at the lowest F tested in it (``f_min``): ``preserved_down_to`` is
+    then the lowest F of the last band, from the top, where the criterion holds in every band above."""
+    out = {}
+    for name, suffix in [*((n, "") for n in names), *(((names[0], "_noisy"),) if names else ())]:
+        rows = [{**r, "intensity_factor": r["f_min"]} for r in band_rows if r["denoiser"] == name]
+        out[NOISY if suffix else name] = {"detail": verdict(rows, "detail_preserved" + suffix),
+                                          "colour": verdict(rows, "colour_preserved_e00" + suffix)}
+    return out
 
 
 def _preserved(delta_e, bias, n_undefined_colour, has_reference, criterion: Criterion) -> str:
