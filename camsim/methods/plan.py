@@ -36,6 +36,7 @@ import numpy as np
 from scipy import special, stats
 
 from camsim.expected import ExpectedSignal
+from camsim.rates import FactoredSpectra
 from camsim.fixed_pattern import dark_gain_at
 from camsim.methods import DEFAULT_TOLERANCE
 from camsim.sensor import SensorParams
@@ -180,12 +181,22 @@ def paper_ks_bounds(expected: ExpectedSignal, read_noise_e: float, gaussian_read
     """
     qe, rate = expected.qe, expected.photon_rate  # (K, N) rows, or factored (an image's colours, a cube's pixels)
     signal, var, dark = expected.signal_e, expected.signal_var_e2, np.asarray(expected.dark_e, dtype=np.float64)
-    # B(S) = C Σ μ w³ / (Σ μ w²)^{3/2}: both sums are linear in μ, so factored rows need no K × N array; the scale
-    # of w cancels (normalised), and the ratio is taken in logarithms so that no power of a huge μ overflows
+    # B(S) = C Σ μ w³ / (Σ μ w²)^{3/2} is free of the scale of w and falls as 1/√(scale of μ): both normalised, μ
+    # by each row's peak (dense rows) or by one bound on every value (factored rows: both sums are linear in μ, so
+    # they need no K × N array), so that no sum of a huge μ overflows; the ratio is taken in logarithms
     w = qe / np.where(qe.max(axis=1, keepdims=True) > 0, qe.max(axis=1, keepdims=True), 1.0)
-    m2, m3 = rate @ (w * w).T, rate @ (w**3).T
+    if isinstance(rate, FactoredSpectra):
+        bound = float(np.max(np.abs(rate.coefficients) if isinstance(rate.coefficients, np.ndarray) else 1.0)
+                      * np.max(np.abs(rate.basis)) * rate.basis.shape[0]) if rate.shape[0] else 1.0
+        peak = np.full((rate.shape[0], 1), bound if bound > 0 else 1.0)
+        mu = rate.scaled(1.0 / peak[0, 0]) if rate.shape[0] else rate
+    else:
+        rate = np.asarray(rate, dtype=np.float64)
+        peak = rate.max(axis=1, keepdims=True)
+        mu = rate / np.where(peak > 0, peak, 1.0)
+    m2, m3 = mu @ (w * w).T, mu @ (w**3).T
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        ratio = np.exp(np.log(m3) - 1.5 * np.log(m2))
+        ratio = np.exp(np.log(m3) - 1.5 * np.log(m2) - 0.5 * np.log(np.where(peak > 0, peak, 1.0)))
         berry_esseen = np.where(m2 > 0, np.minimum(1.0, BERRY_ESSEEN_C * ratio), 0.0)
         counts = np.where(var > 0, signal / (var / signal), 0.0)  # S̄ / s, the stand-in's Poisson mean
     sd_signal = np.sqrt(var)
