@@ -177,11 +177,10 @@ def _poisson_min(lam, c):
     # Where m − 1 lies beyond λ + 40 √λ + 40, λ − E[min(X, c)] = λ P(X ≥ m) − c P(X > m) is below λ · 1e-118 (computed
     # with scipy's log survival function for λ from 1e-12 to 1e15), so E[min(X, c)] is λ to the last bit of a
     # float64: the tail is summed only where it can show (an image has a mean per colour, ~1e6 of them)
-    far = m - 1 > lam + 40 * np.sqrt(lam) + 40
-    if np.all(far):
-        return lam.copy()
+    near = m - 1 <= lam + 40 * np.sqrt(lam) + 40
     out = lam.copy()
-    near = ~far
+    if not near.any():
+        return out
     lam_n, c_n, m_n = lam[near], c[near], m[near]
     below = np.where(lam_n > 0, lam_n * stats.poisson.cdf(m_n - 1, lam_n), 0.0)
     out[near] = below + c_n * stats.poisson.sf(m_n, lam_n)

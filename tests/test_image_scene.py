@@ -48,6 +48,20 @@ def _image_scene(path: Path, **changes):
     return small_scene(source=ImageSource(path=path), **changes)
 
 
+def _flat_image_and_its_chart(tmp_path: Path, shape: tuple):
+    """Write ``tmp_path/flat.png``, one 8-bit sRGB colour (200, 120, 60) over ``shape`` (H, W), and return the
+    one-patch chart scene whose CSV reflectance is that colour's Mallett spectrum (built here: sRGB decoded and
+    the basis interpolated with numpy) — the dense K × N route to the same spectrum."""
+    code = np.array([200, 120, 60], dtype=np.uint8)
+    iio.imwrite(tmp_path / "flat.png", np.broadcast_to(code, (*shape, 3)).copy())
+    grid = small_scene().grid
+    spectrum = _srgb_decode(code) @ _mallett_on_grid(grid)
+    csv = tmp_path / "patch.csv"
+    rows = ["wavelength_nm,painted"] + [f"{w:g},{r:.17g}" for w, r in zip(grid.wavelengths_nm, spectrum)]
+    csv.write_text("\n".join(rows) + "\n")
+    return small_scene(source=ChartSource(reflectances=str(csv), geometry=ChartGeometry(columns=1, rows=1)))
+
+
 def _write_exr(path: Path, values: np.ndarray) -> None:
     """A float32 RGB OpenEXR file of ``values`` (H, W, 3), linear."""
     import OpenImageIO as oiio
@@ -132,14 +146,8 @@ def test_resampling_averages_in_linear_light(tmp_path):
 def test_a_flat_image_region_equals_a_chart_patch_of_its_recovered_spectrum(tmp_path):
     """One colour painted flat and the chart patch whose CSV reflectance is that colour's Mallett spectrum give the
     same expected electrons (the factored 3 × 3 route against the dense K × N one), under D65 and A."""
-    code = np.array([200, 120, 60], dtype=np.uint8)
-    iio.imwrite(tmp_path / "flat.png", np.broadcast_to(code, (30, 40, 3)).copy())
-    grid = small_scene().grid
-    spectrum = _srgb_decode(code) @ _mallett_on_grid(grid)
-    csv = tmp_path / "patch.csv"
-    rows = ["wavelength_nm,painted"] + [f"{w:g},{r:.17g}" for w, r in zip(grid.wavelengths_nm, spectrum)]
-    csv.write_text("\n".join(rows) + "\n")
-    chart = small_scene(source=ChartSource(reflectances=str(csv), geometry=ChartGeometry(columns=1, rows=1)))
+    chart = _flat_image_and_its_chart(tmp_path, (30, 40))
+    grid = chart.grid
     image = _image_scene(tmp_path / "flat.png")
     camera = load_camera(chart.camera, grid)
     for illuminant in ("D65", "A"):
@@ -321,15 +329,8 @@ def test_paper_statistics_on_an_image_draw_eq4s_moments(tmp_path, method):
     reference is a chart patch whose CSV holds the same recovered spectrum (the dense K × N route). At F = 1e-15 the
     bins' photon means are of order one, so Var S is far from S̄ (what ``pixel`` statistics would give): the test
     fails if the image were drawn under the other statistics."""
-    code = np.array([200, 120, 60], dtype=np.uint8)
-    iio.imwrite(tmp_path / "flat.png", np.broadcast_to(code, (160, 200, 3)).copy())
-    grid = small_scene().grid
-    spectrum = _srgb_decode(code) @ _mallett_on_grid(grid)
-    csv = tmp_path / "patch.csv"
-    rows = ["wavelength_nm,painted"] + [f"{w:g},{r:.17g}" for w, r in zip(grid.wavelengths_nm, spectrum)]
-    csv.write_text("\n".join(rows) + "\n")
-    chart = small_scene(source=ChartSource(reflectances=str(csv), geometry=ChartGeometry(columns=1, rows=1)))
-    camera = load_camera(chart.camera, grid)
+    chart = _flat_image_and_its_chart(tmp_path, (160, 200))
+    camera = load_camera(chart.camera, chart.grid)
     factor = 1e-15
     reference = light_scene(chart, "D65", camera).expected(IDEAL, factor, "paper")
     mean_ref, var_ref = reference.signal_e[0], reference.signal_var_e2[0]

@@ -219,9 +219,19 @@ def crops_by_band_figure(ev: Evaluation, path: Path) -> Path:
     columns = ["noisy", *[d.name for d in ev.denoisers if d.name != "identity"], "clean"]
     fig = new_figure(figsize=(2.2 * len(columns), 1.8 * len(bands) + 0.6), layout="constrained")
     FigureCanvasAgg(fig)
-    axes = fig.subplots(len(bands), len(columns), squeeze=False)
-    for i, band in enumerate(bands):
-        crops = ev.band_crops[band]
+    _crop_grid(fig, [ev.band_crops[band] for band in bands], columns,
+               [f"F {band_label(band)}\n(F = {ev.band_crops[band]['intensity_factor']:.3g})" for band in bands], 8)
+    fig.suptitle("Noisy / denoised / clean per band of F\n(centre crop; black subtracted, row scaled to its clean "
+                 "maximum, γ 1/2.2)", fontsize=9)
+    return save_png(fig, path)
+
+
+def _crop_grid(fig, rows: list, columns: list, row_labels: list, label_size: int) -> None:
+    """Rows of crops (each a dict: column name → crop, plus ``black``) as an image grid on ``fig``: black level
+    subtracted, each row scaled to its clean crop's maximum, γ 1/2.2; column titles on the first row, ``row_labels``
+    on the first column."""
+    axes = fig.subplots(len(rows), len(columns), squeeze=False)
+    for i, crops in enumerate(rows):
         black = crops["black"]
         scale = float(np.max(crops["clean"] - black)) or 1.0
         for j, col in enumerate(columns):
@@ -232,10 +242,7 @@ def crops_by_band_figure(ev: Evaluation, path: Path) -> Path:
             if i == 0:
                 ax.set_title(col, fontsize=9)
             if j == 0:
-                ax.set_ylabel(f"F {band_label(band)}\n(F = {crops['intensity_factor']:.3g})", fontsize=8)
-    fig.suptitle("Noisy / denoised / clean per band of F\n(centre crop; black subtracted, row scaled to its clean "
-                 "maximum, γ 1/2.2)", fontsize=9)
-    return save_png(fig, path)
+                ax.set_ylabel(row_labels[i], fontsize=label_size)
 
 
 def _display(img, black, scale):
@@ -247,20 +254,7 @@ def _example_plot(ev: Evaluation, path: Path) -> None:
     factors = sorted(ev.examples, reverse=True)
     columns = ["clean", "noisy", *[d.name for d in ev.denoisers]]
     fig = new_figure(figsize=(2.3 * len(columns), 1.9 * len(factors) + 0.5), layout="constrained")
-    axes = fig.subplots(len(factors), len(columns), squeeze=False)
-    for i, factor in enumerate(factors):
-        crops = ev.examples[factor]
-        black = crops["black"]
-        scale = float(np.max(crops["clean"] - black)) or 1.0
-        for j, col in enumerate(columns):
-            ax = axes[i, j]
-            ax.imshow(_display(crops[col], black, scale), interpolation="nearest")
-            ax.set_xticks([])
-            ax.set_yticks([])
-            if i == 0:
-                ax.set_title(col, fontsize=9)
-            if j == 0:
-                ax.set_ylabel(f"F = {_f(factor)}", fontsize=9)
+    _crop_grid(fig, [ev.examples[factor] for factor in factors], columns, [f"F = {_f(f)}" for f in factors], 9)
     fig.suptitle("Clean, noisy and denoised (black subtracted, each row scaled to its clean maximum, γ 1/2.2)",
                  fontsize=9)
     save_png(fig, path)

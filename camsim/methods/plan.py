@@ -185,11 +185,11 @@ def paper_ks_bounds(expected: ExpectedSignal, read_noise_e: float, gaussian_read
     # by each row's peak (dense rows) or by one bound on every value (factored rows: both sums are linear in μ, so
     # they need no K × N array), so that no sum of a huge μ overflows; the ratio is taken in logarithms
     w = qe / np.where(qe.max(axis=1, keepdims=True) > 0, qe.max(axis=1, keepdims=True), 1.0)
-    if isinstance(rate, FactoredSpectra):
-        bound = float(np.max(np.abs(rate.coefficients) if isinstance(rate.coefficients, np.ndarray) else 1.0)
-                      * np.max(np.abs(rate.basis)) * rate.basis.shape[0]) if rate.shape[0] else 1.0
-        peak = np.full((rate.shape[0], 1), bound if bound > 0 else 1.0)
-        mu = rate.scaled(1.0 / peak[0, 0]) if rate.shape[0] else rate
+    if isinstance(rate, FactoredSpectra):  # one bound for every row (a cube's stored values taken as ≤ 1)
+        coefficients = rate.coefficients
+        largest = float(np.max(np.abs(coefficients), initial=0.0)) if isinstance(coefficients, np.ndarray) else 1.0
+        peak = largest * float(np.max(np.abs(rate.basis), initial=0.0)) * rate.basis.shape[0] or 1.0
+        mu = rate.scaled(1.0 / peak)
     else:
         rate = np.asarray(rate, dtype=np.float64)
         peak = rate.max(axis=1, keepdims=True)
