@@ -12,6 +12,7 @@ and sidecars (what the frame should show):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy import stats
@@ -48,6 +49,12 @@ class ExpectedSignal:
     signal_var_e2: np.ndarray
     dark_e: np.ndarray
     clean_e: np.ndarray
+
+    @cached_property
+    def charge_mean_e(self) -> np.ndarray:
+        """S̄ + D̄ per channel, shape (3, K), each row contiguous: the Poisson means of ``pixel`` statistics, gathered
+        per pixel (an image's colours) without a 2-D gather. Unit: e⁻."""
+        return np.ascontiguousarray((self.signal_e + self.dark_e).T)
 
     @property
     def total_var_e2(self) -> np.ndarray:

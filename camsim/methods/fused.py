@@ -100,12 +100,19 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
                                              else read * rng.standard_normal(zz.shape, np.float32))
         else:
             size = out_c[where].shape if label is not None else None
-            clip = bool(plan.clip_by_channel[c]) and bool(np.any(plan.needs_clip[index, c]))
+            # the whole block (an image's pixels): clip wherever any spectrum of the channel may reach the full well
+            # (a clip that cannot act changes nothing) rather than gather the per-spectrum flags of every pixel
+            clip = bool(plan.clip_by_channel[c]) and (whole or bool(np.any(plan.needs_clip[index, c])))
             level = None if not clip else saturation_level_e(sensor.full_well_e,
                                                              None if offset is None else offset[where])
             if kind == BINS:  # Eq. 4's drawn signal, as a known S̄ per pixel: the stage adds Poisson(D̄) to it
                 charge = collect_charge_e(rng, bins[where], expected.dark_e[c], statistics=statistics,
                                           photon_noise=False, gain=g, dark_gain=d, saturation_e=level)
+            elif statistics == "pixel" and sensor.photon_noise and label is None and g is None and d is None:
+                # S + D ~ Poisson(S̄ + D̄), one draw per pixel: gather the sums from the channel's contiguous row
+                # (computed once per frame) instead of S̄ and Var S by a 2-D gather each, then adding D̄
+                charge = collect_charge_e(rng, np.take(expected.charge_mean_e[c], index), 0.0,
+                                          statistics=statistics, saturation_e=level)
             else:
                 charge = collect_charge_e(rng, expected.signal_e[index, c], expected.dark_e[c],
                                           expected.signal_var_e2[index, c], statistics=statistics,
