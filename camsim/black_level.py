@@ -53,7 +53,7 @@ _CHUNK = 1 << 20
 def unlit_mean_dn(dark_mean_e, *, dn_per_electron: float, bits: int, quantisation: bool = True,
                   full_well_e: float | None = None, dsnu_e: float = 0.0, dark_rate_rel_sigma: float = 0.0,
                   read_noise_e: float = 0.0, read_noise_model: str = "gaussian", tukey_lambda: float = -0.1,
-                  row_noise_e: float = 0.0) -> np.ndarray:
+                  row_noise_e: float = 0.0, pedestal_dn: int = 0) -> np.ndarray:
     """The exact expected digital number of an unlit pixel, per channel (the true black level).
 
     Parameters
@@ -79,6 +79,10 @@ def unlit_mean_dn(dark_mean_e, *, dn_per_electron: float, bits: int, quantisatio
         Shape of the Tukey λ read noise.
     row_noise_e : float
         σ_row. Unit: e⁻.
+    pedestal_dn : int
+        The ADC's black-level pedestal P: I = clip(floor(k X) + P, 0, 2^nb − 1), whose mean is
+        Σ_{j=1−P}^{2^nb−1−P} P(k X ≥ j) — the sum without a pedestal, with X moved up by P / k electrons after the
+        full well (computed so; the noiseless lattice adds P to floor(k X) exactly). Quantised values only. Unit: DN.
 
     Returns
     -------
@@ -88,15 +92,17 @@ def unlit_mean_dn(dark_mean_e, *, dn_per_electron: float, bits: int, quantisatio
     tukey = read_noise_model == "tukey-lambda" and read_noise_e > 0
     common = (float(dn_per_electron), int(bits), bool(quantisation),
               None if full_well_e is None else float(full_well_e), float(dsnu_e), float(dark_rate_rel_sigma),
-              float(read_noise_e), float(tukey_lambda) if tukey else None, float(row_noise_e))
+              float(read_noise_e), float(tukey_lambda) if tukey else None, float(row_noise_e),
+              int(pedestal_dn) if quantisation else 0)
     means = np.asarray(dark_mean_e, dtype=np.float64)
     return np.array([_channel_mean_dn(float(mu), *common) for mu in means.ravel()]).reshape(means.shape)
 
 
 @lru_cache(maxsize=256)
-def _channel_mean_dn(mu, k, bits, quantised, full_well, sigma_o, rel, sigma_read, lam, sigma_row) -> float:
+def _channel_mean_dn(mu, k, bits, quantised, full_well, sigma_o, rel, sigma_read, lam, sigma_row, pedestal) -> float:
     """:func:`unlit_mean_dn` of one channel; ``lam`` None: Gaussian read noise."""
     top = 2**bits - 1
+    lift = pedestal / k  # the pedestal in electrons: X + P / k is read by the ADC without a pedestal
     lo, hi = _dark_support(mu, rel)
     sat = full_well is not None and hi + _FIXED_HALF * sigma_o >= full_well  # the full well can act
     if sat and lo - _FIXED_HALF * sigma_o >= full_well:  # it always acts: every pixel holds the full well
@@ -117,20 +123,22 @@ def _channel_mean_dn(mu, k, bits, quantised, full_well, sigma_o, rel, sigma_read
     if not sat or sigma_o == 0:
         if not sat:
             gauss_var += sigma_o**2
-        if k * (lo + shift - _noise_half(gauss_var, tukey)) >= top:  # every code is the top one
+        if k * (lo + shift - _noise_half(gauss_var, tukey)) + pedestal >= top:  # every code is the top one
             return float(top)
         d, p = _dark_pmf(mu, rel)
         atoms = d + shift
         if sat:  # the dark charges at or above the full well: one atom there
             below = d < full_well
             atoms, p = np.append(d[below], full_well), np.append(p[below], p[~below].sum())
-        return _atoms_mean(atoms, p, k, top, gauss_var, tukey)
+        return _atoms_mean(atoms, p, k, top, gauss_var, tukey, pedestal)
     d, p = _dark_pmf(mu, rel)
     if gauss_var == 0 and tukey is None:  # min(d + o, FW) ≥ x ⇔ d + o ≥ x and x ≤ FW
+        if pedestal:  # X + P/k = min(d + o + P/k, FW + P/k)
+            return _atoms_mean(d + lift, p, k, min(top, int(np.floor(k * full_well)) + pedestal), sigma_o**2, None)
         return _atoms_mean(d, p, k, min(top, int(np.floor(k * full_well))), sigma_o**2, None)
     if tukey is None:
-        return _saturated_gaussian_mean(d, p, k, top, full_well, sigma_o, np.sqrt(gauss_var))
-    return _saturated_panels_mean(d, p, k, top, full_well, sigma_o, gauss_var, tukey)
+        return _saturated_gaussian_mean(d + lift, p, k, top, full_well + lift, sigma_o, np.sqrt(gauss_var))
+    return _saturated_panels_mean(d, p, k, top, full_well, sigma_o, gauss_var, tukey, pedestal)
 
 
 def _phi(x):
@@ -240,8 +248,10 @@ def _pair_sum(atoms, weights, first, count, k, term):
     return total
 
 
-def _atoms_mean(atoms, weights, k, top, gauss_var, tukey):
-    """Σ_i w_i E[clip(floor(k (c_i + Z)), 0, top)] for atoms c_i and the continuous noise Z (none: a lattice).
+def _atoms_mean(atoms, weights, k, top, gauss_var, tukey, pedestal=0):
+    """Σ_i w_i E[clip(floor(k (c_i + Z)) + P, 0, top)] for atoms c_i and the continuous noise Z (none: a lattice).
+
+    ``pedestal`` P (DN): the atoms move up by P / k (the noiseless lattice adds P to the floor, exactly).
 
     Z = N(0, gauss_var) plus, if ``tukey`` = (λ, scale), a Tukey λ variable. The sum of the two is averaged over
     one of them, whichever leaves a smooth integrand: over the Tukey law (u = expit(s), trapezoid in s) when the
@@ -263,7 +273,8 @@ def _atoms_mean(atoms, weights, k, top, gauss_var, tukey):
         keep = weights > _NEGLIGIBLE
         atoms, weights = atoms[keep], weights[keep]
     if gauss_var == 0 and tukey is None:
-        return float(weights @ np.clip(np.floor(k * atoms), 0, top))
+        return float(weights @ np.clip(np.floor(k * atoms) + pedestal, 0, top))
+    atoms = atoms + pedestal / k if pedestal else atoms
     half = _noise_half(gauss_var, tukey)
     first, count = _windows(atoms, k, top, half, half)
     sure = np.minimum(first - 1, top)  # codes below the window: P(k X ≥ j) = 1
@@ -302,7 +313,7 @@ def _saturated_gaussian_mean(d, p, k, top, full_well, sigma_o, sigma_n):
     return float(p @ np.minimum(first - 1, top)) + _pair_sum(d, p, first, count, k, term)
 
 
-def _saturated_panels_mean(d, p, k, top, full_well, sigma_o, gauss_var, tukey):
+def _saturated_panels_mean(d, p, k, top, full_well, sigma_o, gauss_var, tukey, pedestal=0):
     """E[I] with saturation, DSNU and Tukey read noise: E over o of E[I | o], by Gauss–Legendre on unit panels.
 
     E[I | o] = Σ_d p_d h(min(d + o, FW)) with h smooth: its kinks lie at o ∈ FW − ℤ, the panels' edges.
@@ -320,5 +331,5 @@ def _saturated_panels_mean(d, p, k, top, full_well, sigma_o, gauss_var, tukey):
             below = charge < full_well
             atoms = np.append(charge[below], full_well)
             weights = np.append(p[below], p[~below].sum())
-            total += wi * _atoms_mean(atoms, weights, k, top, gauss_var, tukey)
+            total += wi * _atoms_mean(atoms, weights, k, top, gauss_var, tukey, pedestal)
     return total

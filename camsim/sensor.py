@@ -79,6 +79,10 @@ class SensorParams:
     prnu_percent: float = param(0.0, "float", "photo-response non-uniformity: spatial σ of a fixed per-pixel gain on "
                                 "the mean signal, so that a pixel collects Poisson(g S̄); 0 = off", "%", low=0,
                                 below=30)
+    pedestal_dn: int = param(0, "int", "black-level pedestal: a constant the ADC adds to every digital number before "
+                             "its clip to [0, 2^nb − 1], as raw cameras do (Sony 14-bit: 512); the DNG carries it, "
+                             "the EXR's values (before the ADC) do not; 0 = off (and not written to records)", "DN",
+                             low=0, omit_default=True)
     row_noise_e: float = param(0.0, "float", "temporal row noise: one Gaussian offset per row, channel and frame, "
                                "added at readout; 0 = off", "e⁻", low=0)
     read_noise_model: str = param("gaussian", "str", "law of the read noise (its σ is read_noise_e either way); "
@@ -91,6 +95,9 @@ class SensorParams:
 
     def __post_init__(self):
         validate(self, "sensor parameter")
+        if self.pedestal_dn >= 2**self.bits - 1:
+            raise CamsimError(f"sensor parameter pedestal_dn must be below the white level {2**self.bits - 1} DN "
+                              f"of a {self.bits}-bit ADC, got {self.pedestal_dn}")
         dark = tuple(float(v) for v in np.broadcast_to(np.asarray(self.dark_current_e_per_s, float), (3,)))
         object.__setattr__(self, "dark_current_e_per_s", dark)
 
@@ -127,7 +134,8 @@ class SensorParams:
             full_well_e=self.full_well_e if self.saturation else None, dsnu_e=self.dsnu_e,
             dark_rate_rel_sigma=self.dsnu_dark_current_percent / 100 if self.dark_current else 0.0,
             read_noise_e=self.read_noise_e if self.read_noise else 0.0,
-            read_noise_model=self.read_noise_model, tukey_lambda=self.tukey_lambda, row_noise_e=self.row_noise_e)
+            read_noise_model=self.read_noise_model, tukey_lambda=self.tukey_lambda, row_noise_e=self.row_noise_e,
+            pedestal_dn=self.pedestal_dn if quantisation else 0)
 
     @property
     def black_level_dn(self) -> np.ndarray:

@@ -213,8 +213,8 @@ def electrons_to_dn(electrons: np.ndarray, dn_per_electron: float, out: np.ndarr
     return np.multiply(electrons, electrons.dtype.type(dn_per_electron), out=out)
 
 
-def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None) -> np.ndarray:
-    """nb-bit quantisation: the integer part of the DN, clipped to [0, 2^nb − 1] (Eq. 11).
+def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None, pedestal_dn: int = 0) -> np.ndarray:
+    """nb-bit quantisation: the integer part of the DN plus the pedestal, clipped to [0, 2^nb − 1] (Eq. 11).
 
     Parameters
     ----------
@@ -222,6 +222,8 @@ def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None) -> np.
         Unquantised digital numbers. Unit: DN.
     out : numpy.ndarray, optional
         Integer output array (uint8 for nb ≤ 8, uint16 otherwise).
+    pedestal_dn : int
+        Black-level pedestal P: the ADC's output is clip(floor(dn) + P, 0, 2^nb − 1) (integers: exact in float).
 
     Returns
     -------
@@ -231,6 +233,9 @@ def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None) -> np.
     # clip straight into the integer output: for values in [0, 2^nb − 1] the cast's truncation is the floor
     if out is None:
         out = np.empty(np.shape(dn), dtype=dn_dtype(bits))
+    if pedestal_dn:  # floor first: floor(dn) + P is exact where dn + P would round in float32
+        dn = np.floor(dn)
+        dn += dn.dtype.type(pedestal_dn)
     np.clip(dn, 0, 2**bits - 1, out=out, casting="unsafe")
     return out
 

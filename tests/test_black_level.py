@@ -25,6 +25,54 @@ BAYER = SensorParams(cfa="RGGB", bits=12, conversion_gain_v_per_e=4e-5, analog_g
 #: DN/e⁻ and a dark mean of 3–4 e⁻: the floor and the zero clip make the black level depend on the map.
 DARK_MAP = SensorParams(conversion_gain_v_per_e=5e-3, analog_gain_dn_per_v=100.0, exposure_s=0.015,
                         read_noise_e=1.0, dsnu_dark_current_percent=60.0)
+#: A 14-bit Bayer raw with a 512 DN pedestal, as Sony's (k = 0.8 DN/e⁻, Tukey read noise, row noise).
+PEDESTAL = SensorParams(cfa="RGGB", bits=14, conversion_gain_v_per_e=8e-5, analog_gain_dn_per_v=1e4,
+                        dark_current_e_per_s=(2.0, 3.0, 2.5), read_noise_e=2.5, full_well_e=20000.0, row_noise_e=0.4,
+                        read_noise_model="tukey-lambda", tukey_lambda=-0.05, pedestal_dn=512)
+
+
+def _floor_law_mean(mu, k, sigma, pedestal, top, full_well=None):
+    """E[clip(floor(k X) + P, 0, top)], X = min(D, FW) + N(0, σ²), D ~ Poisson(μ): the law of floor(k X) summed
+    code by code over a wide window (differences of normal CDFs), then shifted and clipped — no tail sums."""
+    d = np.arange(0, int(mu + 20 * np.sqrt(mu) + 30))
+    p = stats.poisson.pmf(d, mu)
+    if full_well is not None:
+        d = np.minimum(d, full_well)
+    codes = np.arange(-2000, top + 2001)
+    cdf = stats.norm.cdf((codes[None, :] / k - d[:, None]) / sigma)
+    return float(p @ (np.diff(cdf, axis=1) @ np.clip(codes[:-1] + pedestal, 0, top)))
+
+
+@pytest.mark.parametrize("mu, k, sigma, pedestal, bits, full_well", [
+    (10.0, 0.5, 3.0, 512, 14, None),     # Sony's 14-bit pedestal: nothing clips at 0
+    (0.0, 0.5, 3.0, 512, 14, None),      # no dark current: P − ½ exactly
+    (5.0, 2.0, 1.5, 3, 10, None),        # a pedestal of a few DN: the zero clip still acts
+    (1000.0, 1.0, 2.0, 64, 10, 990.0),   # the full well below the top code, with a pedestal
+    (0.0, 1.3, 0.7, 1, 8, None),
+])
+def test_the_pedestal_against_the_floors_law(mu, k, sigma, pedestal, bits, full_well):
+    got = unlit_mean_dn([mu], dn_per_electron=k, bits=bits, read_noise_e=sigma, pedestal_dn=pedestal,
+                        full_well_e=full_well)[0]
+    assert got == pytest.approx(_floor_law_mean(mu, k, sigma, pedestal, 2**bits - 1, full_well), abs=1e-8)
+    # the EXR's level (before the ADC) has no pedestal: k E[min(D, FW)]
+    d = np.arange(0, 3000)
+    charge = stats.poisson.pmf(d, mu) @ (d if full_well is None else np.minimum(d, full_well))
+    assert unlit_mean_dn([mu], dn_per_electron=k, bits=bits, read_noise_e=sigma, pedestal_dn=pedestal,
+                         full_well_e=full_well, quantisation=False)[0] == pytest.approx(k * charge, rel=1e-9)
+
+
+@pytest.mark.parametrize("lam, dsnu, full_well", [(-0.1, 0.0, None), (0.1, 2.0, 1010.0)])
+def test_the_pedestal_with_tukey_noise_and_dsnu_at_the_well_against_monte_carlo(lam, dsnu, full_well):
+    from camsim.kernels import tukey_lambda
+
+    rng, n, mu, k, sigma, pedestal = np.random.default_rng(5), 2_000_000, 1000.0, 1.0, 2.0, 64
+    charge = rng.poisson(mu, n) + (rng.normal(0, dsnu, n) if dsnu else 0.0)
+    read = tukey_lambda(rng, np.empty(n), lam, sigma)
+    values = np.clip(np.floor(k * ((np.minimum(charge, full_well) if full_well else charge) + read)) + pedestal,
+                     0, 1023)
+    got = unlit_mean_dn([mu], dn_per_electron=k, bits=10, read_noise_e=sigma, pedestal_dn=pedestal,
+                        full_well_e=full_well, dsnu_e=dsnu, read_noise_model="tukey-lambda", tukey_lambda=lam)[0]
+    assert abs(got - values.mean()) < 5 * values.std() / np.sqrt(n)
 
 
 def test_table1_is_the_tail_sum_of_poisson_and_normal():
@@ -163,7 +211,8 @@ def _per_channel_rows(frame, sensor):
             m[1::2, 1::2].mean(axis=1)]
 
 
-@pytest.mark.parametrize("sensor", [TABLE1, BAYER, DARK_MAP], ids=["table1", "bayer12", "dark-current-map"])
+@pytest.mark.parametrize("sensor", [TABLE1, BAYER, DARK_MAP, PEDESTAL],
+                         ids=["table1", "bayer12", "dark-current-map", "pedestal-14bit"])
 def test_a_rendered_dark_frame_averages_to_the_black_level(sensor):
     frame, _ = render(small_scene(), sensor, factor=1e-30, seed=3)  # F tiny: signal ≪ 1e-20 e⁻
     for c, rows in enumerate(_per_channel_rows(frame, sensor)):

@@ -69,7 +69,7 @@ def predicted_saturation_e(sensor: SensorParams) -> float:
     The charge clips at the full well, the ADC at 2^nb − 1 DN, i.e. at (2^nb − 1) / K electrons; whichever comes
     first, minus the dark electrons already in the pixel.
     """
-    limits = [sensor.max_dn / sensor.dn_per_electron]
+    limits = [(sensor.max_dn - sensor.pedestal_dn) / sensor.dn_per_electron]
     if sensor.saturation:
         limits.append(sensor.full_well_e)
     return float(min(limits) - sensor.dark_mean_e[CHANNEL])
@@ -121,6 +121,6 @@ def _dark_pixel_moments(sensor: SensorParams, lam: float, offset: float, sigma: 
         values, probs = edges[:-1], np.diff(cdf)
     else:
         values, probs = np.floor(centre), pmf
-    values = np.clip(values, 0, sensor.max_dn)
+    values = np.clip(values + sensor.pedestal_dn, 0, sensor.max_dn)
     mean = float(probs @ values / probs.sum())
     return mean, float(probs @ (values - mean) ** 2 / probs.sum())

@@ -190,4 +190,4 @@ def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None
         if sensor.row_noise_e > 0:  # a physical row shares its offset, whatever the colour of its pixels
             add_row_noise(block[p], row_noise_dn, rng)
         if job.digital is not None:
-            quantise_dn(block[p], sensor.bits, out=job.digital[p, r0:r1])
+            quantise_dn(block[p], sensor.bits, out=job.digital[p, r0:r1], pedestal_dn=sensor.pedestal_dn)

@@ -153,4 +153,4 @@ def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None
             add_row_noise(e, sensor.row_noise_e, rng)
         electrons_to_dn(e, sensor.dn_per_electron, out=e)
         if job.digital is not None:
-            quantise_dn(e, sensor.bits, out=job.digital[p, r0:r1])
+            quantise_dn(e, sensor.bits, out=job.digital[p, r0:r1], pedestal_dn=sensor.pedestal_dn)
