@@ -74,6 +74,7 @@ class FrameInfo:
     # regions as patches (camsim.regions): per patch (spectrum indices, pixel counts); None: patch i is spectrum i
     patch_weights: tuple | None = None
     white_signal_e_per_s: np.ndarray | None = None  # the perfect white's e⁻/s per channel at F = 1 (LitScene)
+    preset: dict | None = None  # a camera preset's name (or file) and ISO: the sidecar's "preset" and "iso"
 
 
 def frame_stem(scene: str, illuminant: str, intensity_factor: float) -> str:
@@ -125,6 +126,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
         "height_px": height,
         "channels": ["R", "G", "B"],
         **sensor.sidecar_record(),
+        **(info.preset or {}),
         "luminance_cd_m2": info.luminance_cd_m2,
         "normalisation": info.normalisation,
         "scale": info.scale,

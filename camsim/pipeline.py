@@ -217,7 +217,20 @@ def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, intensity_fa
         target=radiance.target,
         patch_weights=radiance.patch_weights,
         white_signal_e_per_s=None if lit.white_photon_rate is None else lit.white_signal_e_per_s,
+        preset=preset_record(scene),
     )
+
+
+def preset_record(scene: Scene) -> dict | None:
+    """A camera preset's name (or file) and ISO, for the sidecar: ``{"preset": …, "iso": …}``; None for the
+    model's sensor presets (their parameters are the sensor's keys)."""
+    from camsim.camera_presets import camera_preset
+
+    camera = camera_preset(scene.preset_name, scene.base_dir)
+    if camera is None:
+        return None
+    return {"preset": scene.preset_name, "preset_source": camera.source,
+            "iso": camera.point_at(scene.iso).iso}
 
 
 def exposure_record(scene: Scene) -> dict:

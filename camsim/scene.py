@@ -23,7 +23,8 @@ from camsim.errors import CamsimError
 from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
 from camsim.regions import Region, check_regions, parse_regions
 from camsim.schema import Param, param, params_of, validate
-from camsim.sensor import PRESETS, SENSOR_PARAMS, SensorParams, preset
+from camsim.camera_presets import sensor_preset
+from camsim.sensor import SENSOR_PARAMS, SensorParams
 from camsim.sources import SOURCES, ChartSource, SceneSource
 from camsim.sources.base import typed
 from camsim.spectra import WavelengthGrid
@@ -47,6 +48,11 @@ class Scene:
         What is in front of the camera (:data:`camsim.sources.SOURCES`): a chart by default.
     width, height : int
         Frame size in pixels (unless the source has a size of its own, as a cube has).
+    preset_name : str
+        The sensor preset (:func:`camsim.camera_presets.sensor_preset`): a model preset, a camera preset or a
+        camera preset file (``.toml``, relative to the scene file).
+    iso : float or None
+        The camera preset's ISO (None: its default, ISO 100 where published).
     regions : tuple of camsim.regions.Region
         Named rectangles (``[[region]]``) that become the frame's patches, for a source without patches of its own
         (an image, a cube, a dead-leaves target); empty by default.
@@ -65,6 +71,7 @@ class Scene:
     sensitivity_basis: str = "energy"
     scale: AnchorScale | PhysicalScale = field(default_factory=AnchorScale)
     preset_name: str = "paper-table1"
+    iso: float | None = None
     sensor_overrides: tuple = ()
     statistics: str = param("pixel", "str", "photon statistics: 'pixel' = photons per pixel thinned by QE (exact "
                             "Poisson electrons, MODEL.md §4); 'paper' = Eq. 4 literally, per m²·sr",
@@ -106,8 +113,8 @@ class Scene:
 
     @property
     def sensor(self) -> SensorParams:
-        """The sensor: the named preset with the scene's (and the command line's) overrides applied."""
-        return preset(self.preset_name, **dict(self.sensor_overrides))
+        """The sensor: the named preset (at the scene's ISO) with the scene's (and the command line's) overrides."""
+        return sensor_preset(self.preset_name, self.iso, self.base_dir, **dict(self.sensor_overrides))
 
     def with_sensor(self, **overrides) -> Scene:
         """A copy with more sensor overrides (later ones win)."""
@@ -130,7 +137,8 @@ FRAME_PARAMS = (
     Param("illuminant", "str", "D65", "colour-science illuminant name"),
     Param("intensity_factor", "float", 1.0, "F: the light is F × the scene radiance (F > 1 saturates)"),
     Param("camera", "str", DEFAULT_CAMERA, "colour-science camera name or a CSV of wavelength_nm, R, G, B"),
-    Param("preset", "str", "paper-table1", "sensor preset", choices=tuple(PRESETS)),
+    Param("preset", "str", "paper-table1", "sensor preset: a model preset, a camera preset (camsim list) or a "
+          "camera preset file PATH.toml"),
 )
 
 
@@ -212,10 +220,13 @@ def load_scene(path: str | Path) -> Scene:
     scale = scale_cls(**{k: typed(scale_table, k, str if k == "reference_illuminant" else float, None, where)
                          for k in scale_table if k != "kind"})
 
-    sensor_table = dict(_table(doc, "sensor", {"preset"} | {p.name for p in SENSOR_PARAMS}, where))
+    sensor_table = dict(_table(doc, "sensor", {"preset", "iso"} | {p.name for p in SENSOR_PARAMS}, where))
     preset_name = sensor_table.pop("preset", "paper-table1")
     if not isinstance(preset_name, str):
         raise CamsimError(f"{where}: [sensor] preset must be a name")
+    iso = sensor_table.pop("iso", None)
+    if iso is not None and (isinstance(iso, bool) or not isinstance(iso, (int, float))):
+        raise CamsimError(f"{where}: [sensor] iso must be a number, got {iso!r}")
     sensor_table = {p.name: p.coerce(sensor_table[p.name], f"{where} [sensor]")
                     for p in SENSOR_PARAMS if p.name in sensor_table}
 
@@ -240,6 +251,7 @@ def load_scene(path: str | Path) -> Scene:
         sensitivity_basis=typed(camera, "sensitivity_basis", str, "energy", where),
         scale=scale,
         preset_name=preset_name,
+        iso=None if iso is None else float(iso),
         sensor_overrides=_frozen(sensor_table),
         base_dir=base_dir,
         regions=regions,

@@ -99,7 +99,10 @@ BAD_CASES = {
     "negative exposure": (["--exposure", "-1"], "--exposure"),
     "zero intensity": (["--intensity", "0"], "positive"),
     "bad size": (["--size", "12by8"], "WIDTHxHEIGHT"),
-    "unknown preset": (["--preset", "nope"], "invalid choice"),
+    "unknown preset": (["--preset", "nope"], "unknown preset 'nope'"),
+    "ISO outside a camera's range": (["--preset", "sony-a7s2", "--iso", "30000"], "outside preset sony-a7s2's range"),
+    "ISO on a preset without an ISO axis": (["--iso", "800"], "has no ISO axis"),
+    "missing preset file": (["--preset", "nowhere.toml"], "camera preset file not found"),
     "unknown camera": (["--camera", "Canon 5D"], "unknown camera"),
     "missing camera file": (["--camera", "nowhere.csv"], "not found"),
 }

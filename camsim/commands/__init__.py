@@ -27,6 +27,14 @@ def camera_argument(name_or_csv: str | None) -> str | None:
     return name_or_csv
 
 
+def preset_argument(name_or_toml: str) -> str:
+    """A ``--preset`` value as a scene takes it: a camera preset file (``.toml``) named on the command line is
+    relative to the working directory, so its path is made absolute; a preset name is returned as it is."""
+    if name_or_toml.lower().endswith(".toml"):
+        return str(Path(name_or_toml).resolve())
+    return name_or_toml
+
+
 @contextlib.contextmanager
 def writing_to(out: Path) -> Iterator[Path]:
     """Hold the command's output folder for its work: made ready before the work starts (created, checked writable,

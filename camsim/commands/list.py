@@ -24,5 +24,10 @@ def run(args) -> int:
     print("cameras:", ", ".join(camera_names()))
     print("reflectance sets:", ", ".join(reflectance_set_names()))
     print("presets:", ", ".join(PRESETS))
+    from camsim.camera_presets import CAMERA_PRESETS
+
+    print("camera presets (--preset NAME --iso N; figures in DN of the raw, converted to electrons):")
+    for camera in CAMERA_PRESETS.values():
+        print("  " + camera.describe())
     print("sampling methods:", ", ".join(METHOD_NAMES))
     return 0

@@ -7,11 +7,11 @@ import sys
 from pathlib import Path
 
 from camsim.cli_types import exposure_setting, positive_float, positive_int, schema_value, sensor_setting
-from camsim.commands import DEFAULT_OUT, camera_argument
+from camsim.commands import DEFAULT_OUT, camera_argument, preset_argument
 from camsim.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS
 from camsim.scene import RENDER_PARAMS
-from camsim.sensor import PRESETS, SENSOR_PARAMS, STAGES
+from camsim.sensor import SENSOR_PARAMS, STAGES
 
 _RENDER = {p.name: p for p in RENDER_PARAMS}
 _SENSOR = {p.name: p for p in SENSOR_PARAMS}
@@ -41,10 +41,15 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="sampling: " + "; ".join(f"'{m.name}' = {m.summary}" for m in METHODS.values()))
     parser.add_argument("--tolerance", metavar="KS", type=schema_value(_RENDER["tolerance"]),
                         help=f"{_RENDER['tolerance'].doc} (unitless, 0–1; default {_RENDER['tolerance'].default})")
-    parser.add_argument("--preset", choices=sorted(PRESETS),
+    parser.add_argument("--preset", metavar="NAME|PATH.toml",
                         help="sensor preset: paper-table1 (Table I, all stages on; default), paper-photon-dark "
                              "(photon + dark noise only), ideal (photon noise only, output in electrons), "
-                             "emva-12bit (a 12-bit machine-vision-like sensor)")
+                             "emva-12bit (a 12-bit machine-vision-like sensor); a real camera (camsim list: "
+                             "sony-a7s2, nikon-d850, canon-eos-5d4, …, with --iso); or a camera preset file written "
+                             "by camsim calibrate")
+    parser.add_argument("--iso", metavar="ISO", type=positive_float,
+                        help="ISO of a camera preset (default: ISO 100 where published); between published ISO "
+                             "points the figures are interpolated (README, 'Real cameras')")
     parser.add_argument("--sensor", metavar="NAME=VALUE", type=sensor_setting, action="append", default=[],
                         help="set any sensor parameter, after the preset and the scene file (repeatable; VALUE as "
                              "in a scene file: 2.5, [1, 2, 3], true, RGGB, none): "
@@ -101,7 +106,9 @@ def apply_overrides(scene, args):
     if args.camera is not None:
         changes["camera"] = camera_argument(args.camera)
     if args.preset:
-        changes["preset_name"] = args.preset
+        changes["preset_name"] = preset_argument(args.preset)
+    if args.iso is not None:
+        changes["iso"] = args.iso
     if args.size:
         if scene.source.has_own_size:
             raise CamsimError("--size applies to chart and target scenes; a cube or image scene has a size of its own "
