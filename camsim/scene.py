@@ -139,6 +139,8 @@ FRAME_PARAMS = (
     Param("camera", "str", DEFAULT_CAMERA, "colour-science camera name or a CSV of wavelength_nm, R, G, B"),
     Param("preset", "str", "paper-table1", "sensor preset: a model preset, a camera preset (camsim list) or a "
           "camera preset file PATH.toml"),
+    Param("iso", "float", None, "ISO of a camera preset (none: its default, ISO 100 where published)", above=0,
+          optional=True),
 )
 
 

@@ -86,6 +86,7 @@ from camsim.scene import FRAME_PARAMS, RENDER_PARAMS, Scene, load_scene, read_to
 from camsim.seeding import dataset_frame_seeds, dataset_parameter_generator
 from camsim.sensor import SENSOR_PARAMS
 from camsim.sources.image import ImageSource
+from camsim.camera_presets.virtual import VIRTUAL_KEYS
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT = 256, 192
 MAX_FRAMES = 1_000_000
@@ -99,7 +100,10 @@ RENDER_KEYS = tuple(p.name for p in RENDER_PARAMS if p.name != "seed")
 #: Plural spellings accepted in [grid] (the scene file's [light] names).
 GRID_ALIASES = {"illuminants": "illuminant", "intensity_factors": "intensity_factor"}
 DISTRIBUTIONS = ("uniform", "log_uniform", "integers", "choice")
-_TOP_KEYS = {"name", "description", "scene", "seed", "repeats", "frame", "fixed", "grid", "random", "images"}
+_TOP_KEYS = {"name", "description", "scene", "seed", "repeats", "frame", "fixed", "grid", "random", "images",
+             "virtual_camera"}
+#: Keys of a ``[virtual_camera]`` table.
+VIRTUAL_CAMERA_TABLE_KEYS = ("cameras", "k_range", "read_noise_model")
 #: Keys of an ``[images]`` table.
 IMAGES_TABLE_KEYS = ("folder", "pattern", "crop", "flips")
 #: File name suffixes an ``[images]`` folder is searched for without a ``pattern`` (any case).
@@ -700,6 +704,10 @@ def plan_spec(path: str | Path) -> SpecPlan:
         axes.setdefault(param, "scene")
     random_values = {p: _draw(p, random_table[k], points, seed, f"{where} [random]")
                      for p, k in random_names.items()}
+    if "virtual_camera" in doc:  # each grid point and draw: a camera, its K and its noise scales
+        drawn = _virtual_cameras(doc["virtual_camera"], points, seed, axes, where)
+        random_values.update({key: [d[key] for d in drawn] for key in VIRTUAL_KEYS})
+        axes.update(dict.fromkeys(VIRTUAL_KEYS, "virtual_camera"))
     varied = {p for p, how in axes.items() if how != "fixed"}
     own_sensor = tuple(p.name for p in SENSOR_PARAMS if p.name in varied and p.name in OWN_VALUE_PARAMS)
     if images is not None:
@@ -713,6 +721,44 @@ def plan_spec(path: str | Path) -> SpecPlan:
     sizes = tuple(dict.fromkeys((entry.scene.width, entry.scene.height) for entry in scenes))
     return SpecPlan(name=name, path=path, seed=seed, width=width, height=height, axes=axes, count=points * repeats,
                     sizes=sizes, make_frames=partial(_frames, job))
+
+
+def _virtual_cameras(table, points: int, seed: int, axes: dict, where: str) -> list:
+    """The ``[virtual_camera]`` draws (:func:`camsim.camera_presets.virtual.draw_virtual_cameras`), one per grid
+    point and draw, each parameter from its own stream (``virtual_camera.camera``, ``.k``, ``.shape`` and one per
+    noise quantity)."""
+    from camsim.camera_presets import CAMERA_PRESETS
+    from camsim.camera_presets.virtual import K_RANGES, cameras_with_fits, draw_virtual_cameras
+
+    at = f"{where} [virtual_camera]"
+    if not isinstance(table, dict):
+        raise CamsimError(f"{where}: [virtual_camera] must be a table")
+    unknown = set(table) - set(VIRTUAL_CAMERA_TABLE_KEYS)
+    if unknown:
+        raise CamsimError(f"{at}: unknown key(s) {', '.join(sorted(unknown))}; known: "
+                          f"{', '.join(VIRTUAL_CAMERA_TABLE_KEYS)}")
+    clash = sorted(set(VIRTUAL_KEYS) & set(axes))
+    if clash:
+        raise CamsimError(f"{at} sets {', '.join(clash)}, which [{axes[clash[0]]}] sets too")
+    usable = cameras_with_fits(CAMERA_PRESETS)
+    names = table.get("cameras", "all")
+    names = list(cameras_with_fits(CAMERA_PRESETS, distinct=True)) if names == "all" else names
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        raise CamsimError(f"{at}: cameras must be \"all\" or a non-empty list of camera presets with noise fits "
+                          f"({', '.join(usable)})")
+    bad = [n for n in names if n not in usable]
+    if bad:
+        raise CamsimError(f"{at}: {', '.join(bad)} cannot be drawn from (no noise fits); cameras with fits: "
+                          f"{', '.join(usable)}")
+    k_range = table.get("k_range", "camera")
+    if k_range not in K_RANGES:
+        raise CamsimError(f"{at}: k_range must be one of {', '.join(K_RANGES)}, got {k_range!r}")
+    model = table.get("read_noise_model")
+    if model is not None:
+        model = _coerce("read_noise_model", model, at)
+    streams = {name: dataset_parameter_generator(seed, f"virtual_camera.{name}")
+               for name in ("camera", "k", "shape", "tukey_scale_dn", "gaussian_sigma_dn", "row_sigma_dn")}
+    return draw_virtual_cameras([CAMERA_PRESETS[n] for n in names], points, streams, k_range, model)
 
 
 # --- the frames ----------------------------------------------------------------------------------------------
@@ -830,7 +876,10 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> Fram
         camera = params["camera"]
         changes["camera"] = str((job.base / camera).resolve()) if camera.lower().endswith(".csv") else camera
     if "preset" in params:
-        changes["preset_name"] = params["preset"]
+        camera = params["preset"]  # a camera preset file named in the spec is relative to the spec
+        changes["preset_name"] = str((job.base / camera).resolve()) if camera.lower().endswith(".toml") else camera
+    if params.get("iso") is not None:
+        changes["iso"] = params["iso"]
     overrides = {p.name: params[p.name] for p in SENSOR_PARAMS if p.name in params}
     scene = entry.scene
     frame_scene = scene.replace(intensity_factors=(params["intensity_factor"],), **changes)
@@ -869,6 +918,7 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> Fram
         "tolerance": frame_scene.tolerance,
         "camera": checked[("camera", str(entry.path), frame_scene.camera)],
         "preset": frame_scene.preset_name,
+        **({"iso": frame_scene.iso} if frame_scene.iso is not None else {}),
         **sensor.to_dict(),
         # auto exposure only: a fixed exposure is the sensor's exposure_s (and frame ids stay those of earlier
         # versions); with auto, exposure_s is the sensor's setting and each frame's T is in its sidecar
