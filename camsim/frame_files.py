@@ -37,6 +37,7 @@ from camsim.io.output_folder import make_folder
 from camsim.rawcolour import CALIBRATION_ILLUMINANT_D65
 from camsim.regions import weighted_rows
 from camsim.methods import get_method
+from camsim.noise_profile import frame_noise_profile
 from camsim.render import Frame
 
 
@@ -109,6 +110,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
                if get_method(info.method).records_sampling and info.patch_weights is None else {}),
         )
     height, width = frame.labels.shape
+    profile = frame_noise_profile(frame, info.photon_statistics)
     return {
         "camsim_version": camsim.__version__,
         "scene": info.scene,
@@ -127,6 +129,8 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
         "channels": ["R", "G", "B"],
         **sensor.sidecar_record(),
         **(info.preset or {}),
+        # the DNG's NoiseProfile: per channel (S, O), the temporal variance of the normalised value is S x + O
+        "noise_profile": None if profile is None else profile.tolist(),
         "luminance_cd_m2": info.luminance_cd_m2,
         "normalisation": info.normalisation,
         "scale": info.scale,
@@ -157,6 +161,11 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
                            "it is within auto_tolerance_ks)",
             "qe_e_m2_sr_per_photon": "e- m^2 sr / photon, rows R, G, B on wavelengths_nm",
             "rect_xywh": "pixels: x, y of the top-left corner, width, height",
+            "noise_profile": "per channel R, G, B: [S, O] of the DNG's NoiseProfile tag (unitless): the temporal "
+                             "noise variance of x = (DN - B) / (W - B) is S x + O, B the DNG's BlackLevel "
+                             "(black_level_tag_dn where given, else black_level_dn) and W white_level_dn (shot, "
+                             "dark-shot, read and row noise and the quantiser's 1/12 DN^2; no DSNU or PRNU); null "
+                             "where no DNG is written or without photon noise",
             "exr_channels": "R, G, B (or CFA, the Bayer mosaic): noisy DN before quantisation; clean.R, clean.G, "
                             "clean.B: expected DN of every channel at every pixel",
         },
@@ -216,6 +225,7 @@ def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo
             calibration_illuminant1=CALIBRATION_ILLUMINANT_D65,
             model=info.camera,
             software=f"camsim {camsim.__version__}",
+            noise_profile=meta["noise_profile"],  # the sidecar's pairs, exactly
         )
     header = {
         "camsim:scene": info.scene,

@@ -9,6 +9,7 @@ import rawpy
 import camsim.render as render_module
 from camsim.io.dng import read_dng
 from camsim.io.exr import read_exr, read_exr_oiio
+from camsim.noise_profile import frame_noise_profile
 from camsim.seeding import frame_seed_sequence
 from camsim.run import render_scene
 from tests.helpers import render, small_scene
@@ -64,6 +65,7 @@ def test_files_hold_exactly_the_simulated_frame(rendered, scene, illuminant, fac
     assert picture.shape == (scene.height, scene.width, 3)
     dn, info = read_dng(out / files["dng"])
     np.testing.assert_allclose(info["black_level_exact"], frame.sensor.black_level_dn, atol=1e-6)
+    assert info["noise_profile"] == frame_noise_profile(frame, "pixel").tolist()  # the DNG's, as the sidecar's
     noisy, clean, header = read_exr(out / files["exr"])
     noisy_oiio, clean_oiio, header_oiio = read_exr_oiio(out / files["exr"])
     for n, c in ((noisy, clean), (noisy_oiio, clean_oiio)):
@@ -75,6 +77,7 @@ def test_files_hold_exactly_the_simulated_frame(rendered, scene, illuminant, fac
         assert h["camsim:illuminant"] == illuminant and float(h["camsim:intensity_factor"]) == factor
         assert float(h["camsim:dn_per_electron"]) == frame.sensor.dn_per_electron
     assert SIDECAR_KEYS <= set(sidecar)
+    assert sidecar["noise_profile"] == info["noise_profile"]
     assert sidecar["files"] == files and sidecar["illuminant"] == illuminant
     assert sidecar["camera"] == "Nikon 5100 (NPL)" and sidecar["reflectances"] == "ColorChecker N Ohta"
     assert len(sidecar["patches"]) == 24 and sidecar["patches"][18]["name"] == "white 9.5 (.05 D)"
@@ -121,6 +124,7 @@ def test_no_dng_without_quantisation(scene, tmp_path):
     assert files["dng"] is None and not list(tmp_path.glob("*.dng"))
     sidecar = json.loads((tmp_path / files["json"]).read_text())
     assert sidecar["stages"]["quantisation"] is False
+    assert sidecar["noise_profile"] is None  # no DNG, no NoiseProfile
 
 
 def test_render_frame_accepts_a_generator_seed_or_seed_sequence(scene):

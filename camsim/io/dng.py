@@ -1,5 +1,4 @@
-"""Three-chip LinearRaw and Bayer (CFA) DNG writers and reader (8-bit; 16-bit containers for ADCs of more than
-8 bits).
+"""Three-chip LinearRaw and Bayer (CFA) DNG writers and reader (8-bit; 16-bit containers for ADCs of 9 to 16 bits).
 
 The simulator's digital numbers are stored as an uncompressed, interleaved, 8-bit, 3-sample LinearRaw DNG (one
 R, G and B value per pixel, no mosaic) written with :mod:`tifffile`, so that LibRaw (``rawpy``), dcraw-style raw
@@ -24,6 +23,18 @@ What LibRaw 0.22 (rawpy 0.28) makes of these files, measured and pinned by ``tes
   stays in the file and :func:`read_dng` returns it too.
 * ``white_level`` is the WhiteLevel written (e.g. 255).
 * LibRaw rejects images smaller than 22 pixels in either dimension, so :func:`write_dng` refuses them.
+
+An ADC of 9 to 16 bits is stored in a 16-bit container (BitsPerSample 16, uint16 samples, unpacked) whose
+WhiteLevel is the ADC's top code 2^nb − 1 (16383 for 14 bits): LibRaw takes the WhiteLevel as ``white_level`` and
+returns the samples unchanged (no scaling to 16 bits), for every nb from 9 to 16, LinearRaw and CFA alike, pinned by
+``tests/test_dng_noise_profile.py``. Samples above the WhiteLevel are not refused (a reader clips them).
+
+The DNG NoiseProfile (tag 51041, DNG 1.3; the files say DNGVersion 1.4.0.0, DNGBackwardVersion 1.1.0.0, as a
+reader that ignores the tag still renders them) is written when a ``noise_profile`` is given: pairs (S, O), one per
+sample or CFA plane colour (R, G, B) or one for all, as DOUBLE, such that the temporal noise variance of the
+normalised value x = (DN − BlackLevel) / (WhiteLevel − BlackLevel) is S · x + O
+(:mod:`camsim.noise_profile` computes them from the model). LibRaw reads the files as it does without the tag;
+ExifTool shows it as ``NoiseProfile``.
 
 A Bayer sensor's mosaic (one digital number per pixel) is stored by :func:`write_dng_cfa` as an uncompressed
 1-sample CFA DNG (PhotometricInterpretation 32803, a 2x2 CFAPattern). What LibRaw 0.22 makes of these files, pinned
@@ -68,6 +79,7 @@ _BLACK_LEVEL_REPEAT_DIM, _BLACK_LEVEL, _WHITE_LEVEL = 50713, 50714, 50717
 _COLOR_MATRIX1, _AS_SHOT_NEUTRAL, _CALIBRATION_ILLUMINANT1 = 50721, 50728, 50778
 _MAKE, _MODEL, _ORIENTATION = 271, 272, 274
 _CFA_REPEAT_PATTERN_DIM, _CFA_PATTERN, _CFA_PLANE_COLOR, _CFA_LAYOUT = 33421, 33422, 50710, 50711
+_NOISE_PROFILE = 51041  # DNG 1.3: DOUBLE, (S, O) per colour plane
 
 _CFA_CODE = {"R": 0, "G": 1, "B": 2}  # DNG CFAPattern colour codes, in the CFAPlaneColor order (0, 1, 2)
 
@@ -101,6 +113,21 @@ def _per_sample(value: Any, name: str) -> np.ndarray:
     return arr
 
 
+def _noise_profile(value: Any) -> tuple[float, ...] | None:
+    """Validate NoiseProfile pairs: one (S, O) for all planes or one per plane (R, G, B); flattened, or None.
+
+    The DNG SDK takes a noise function as valid only with S > 0 and O >= 0 (``dng_noise_function::IsValid``).
+    """
+    if value is None:
+        return None
+    pairs = np.asarray(value, dtype=np.float64)
+    if pairs.ndim != 2 or pairs.shape[0] not in (1, 3) or pairs.shape[1] != 2:
+        raise CamsimError(f"noise_profile must be 1 or 3 pairs (S, O), got shape {pairs.shape}")
+    if not (np.all(np.isfinite(pairs)) and np.all(pairs[:, 0] > 0) and np.all(pairs[:, 1] >= 0)):
+        raise CamsimError(f"noise_profile pairs (S, O) must be finite with S > 0 and O >= 0, got {pairs.tolist()}")
+    return tuple(float(v) for v in pairs.ravel())
+
+
 def _check_three_chip(dn: Any) -> None:
     if (not isinstance(dn, np.ndarray) or dn.dtype not in (np.uint8, np.uint16) or dn.ndim != 3
             or dn.shape[0] != 3):
@@ -126,12 +153,13 @@ def _check_mosaic(mosaic: Any, pattern: Any) -> None:
 
 def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_camera_model: str, color_matrix1: Any,
               as_shot_neutral: Any, calibration_illuminant1: int, make: str, model: str | None,
-              pattern: str | None = None) -> list[tuple]:
+              pattern: str | None = None, noise_profile: Any = None) -> list[tuple]:
     """Validate the metadata shared by both writers and return tifffile ``extratags`` for the DNG tags.
 
     ``pattern`` None gives the tags of a 3-sample LinearRaw DNG (one BlackLevel and WhiteLevel per sample); a
     CFA pattern (one of :data:`CFA_PATTERNS`, already validated) gives those of a 1-sample CFA DNG: the CFA tags,
-    one WhiteLevel, and the per-colour black levels mapped onto the 2x2 CFA positions.
+    one WhiteLevel, and the per-colour black levels mapped onto the 2x2 CFA positions. ``noise_profile`` (pairs
+    (S, O), see :func:`_noise_profile`) adds the NoiseProfile tag; None omits it.
     """
     black = _per_sample(black_level_dn, "black_level_dn")
     white = _per_sample(white_level, "white_level")
@@ -148,6 +176,8 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
     if not (isinstance(calibration_illuminant1, (int, np.integer)) and 0 <= calibration_illuminant1 <= 65535):
         raise CamsimError(f"calibration_illuminant1 must be an EXIF LightSource code, got {calibration_illuminant1!r}")
     ucm = _ascii(unique_camera_model, "unique_camera_model")
+    profile = _noise_profile(noise_profile)
+    profile_tags = [] if profile is None else [(_NOISE_PROFILE, "d", len(profile), profile, True)]
     if pattern is None:
         layout_tags: list[tuple] = []
         black_dim, black_values = (1, 1), black
@@ -181,12 +211,13 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
         (_COLOR_MATRIX1, "2i", 9, _rationals(cm, "color_matrix1", signed=True), True),
         (_AS_SHOT_NEUTRAL, "2I", 3, _rationals(neutral, "as_shot_neutral", signed=False), True),
         (_CALIBRATION_ILLUMINANT1, "H", 1, int(calibration_illuminant1), True),
+        *profile_tags,
     ]
 
 
 def _write(path: str | os.PathLike[str], frame: Any, cfa: bool, pattern: Any, black_level_dn: Any, white_level: Any,
            unique_camera_model: str, color_matrix1: Any, as_shot_neutral: Any, calibration_illuminant1: int,
-           make: str, model: str | None, software: str | None) -> None:
+           make: str, model: str | None, software: str | None, noise_profile: Any = None) -> None:
     """Validate everything, then write a three-chip (``cfa`` False, ``pattern`` None) or CFA DNG atomically."""
     name = os.fspath(path)
     try:
@@ -195,7 +226,7 @@ def _write(path: str | os.PathLike[str], frame: Any, cfa: bool, pattern: Any, bl
         else:
             _check_three_chip(frame)
         extratags = _dng_tags(frame.dtype, black_level_dn, white_level, unique_camera_model, color_matrix1,
-                              as_shot_neutral, calibration_illuminant1, make, model, pattern)
+                              as_shot_neutral, calibration_illuminant1, make, model, pattern, noise_profile)
         software_tag = _ascii(software, "software") if software is not None else False
     except (TypeError, ValueError) as exc:  # CamsimError is a ValueError; so are numpy's failed conversions
         raise CamsimError(f"cannot write DNG {name}: {exc}") from None
@@ -215,8 +246,9 @@ def _write(path: str | os.PathLike[str], frame: Any, cfa: bool, pattern: Any, bl
 
 def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: float | Any, white_level: int | Any,
               unique_camera_model: str, color_matrix1: Any, as_shot_neutral: Any, calibration_illuminant1: int = 21,
-              make: str = "camsim", model: str | None = None, software: str | None = None) -> None:
-    """Write an uncompressed 8-bit three-chip LinearRaw DNG, atomically and byte-deterministically.
+              make: str = "camsim", model: str | None = None, software: str | None = None,
+              noise_profile: Any = None) -> None:
+    """Write an uncompressed 8- or 16-bit three-chip LinearRaw DNG, atomically and byte-deterministically.
 
     Parameters
     ----------
@@ -228,7 +260,8 @@ def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: f
         Black level per sample [DN]; fractional values are stored exactly as RATIONAL (LibRaw rounds them, see
         the module docstring).
     white_level : int or array_like of int, shape (3,)
-        Saturation level per sample [DN], ``<= 255`` and above the black level.
+        Saturation level per sample [DN], ``<= 255`` (``<= 65535`` for uint16: 2^nb − 1 for an nb-bit ADC) and
+        above the black level.
     unique_camera_model : str
         DNG UniqueCameraModel (ASCII).
     color_matrix1 : array_like, shape (3, 3)
@@ -239,24 +272,29 @@ def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: f
         EXIF LightSource code of ``color_matrix1``'s illuminant; 21 = D65 (default), 17 = Standard light A.
     make, model, software : str, optional
         TIFF Make, Model (default: ``unique_camera_model``) and Software (omitted when None).
+    noise_profile : array_like, shape (3, 2) or (1, 2), optional
+        DNG NoiseProfile: per sample (R, G, B), or one for all, the pair (S, O) such that the temporal noise
+        variance of a normalised value x = (DN − BlackLevel) / (WhiteLevel − BlackLevel) is S · x + O (unitless;
+        :func:`camsim.noise_profile.dng_noise_profile`). S > 0, O >= 0, stored as DOUBLE. None (default): no tag.
 
     Raises
     ------
     CamsimError
-        If ``dn`` is not a ``(3, H, W)`` uint8 array with ``H, W >= 22``, or a metadata value is out of range.
+        If ``dn`` is not a ``(3, H, W)`` uint8 or uint16 array with ``H, W >= 22``, or a metadata value (the
+        noise profile included) is out of range.
 
     Notes
     -----
     The file has no date/time or other varying content: the same inputs give byte-identical files.
     """
     _write(path, dn, False, None, black_level_dn, white_level, unique_camera_model, color_matrix1, as_shot_neutral,
-           calibration_illuminant1, make, model, software)
+           calibration_illuminant1, make, model, software, noise_profile)
 
 
 def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: str, black_level_dn: float | Any,
                   white_level: int, unique_camera_model: str, color_matrix1: Any, as_shot_neutral: Any,
                   calibration_illuminant1: int = 21, make: str = "camsim", model: str | None = None,
-                  software: str | None = None) -> None:
+                  software: str | None = None, noise_profile: Any = None) -> None:
     """Write an uncompressed Bayer (CFA) DNG, atomically and byte-deterministically.
 
     Parameters
@@ -277,6 +315,8 @@ def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: 
         equal values are accepted too.
     unique_camera_model, color_matrix1, as_shot_neutral, calibration_illuminant1, make, model, software
         As for :func:`write_dng`; ``color_matrix1`` maps XYZ to the camera's R, G, B (CFAPlaneColor order).
+    noise_profile : array_like, shape (3, 2) or (1, 2), optional
+        As for :func:`write_dng`, per colour plane in CFAPlaneColor order (R, G, B); None (default): no tag.
 
     Raises
     ------
@@ -289,7 +329,7 @@ def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: 
     The file has no date/time or other varying content: the same inputs give byte-identical files.
     """
     _write(path, mosaic, True, pattern, black_level_dn, white_level, unique_camera_model, color_matrix1,
-           as_shot_neutral, calibration_illuminant1, make, model, software)
+           as_shot_neutral, calibration_illuminant1, make, model, software, noise_profile)
 
 
 def _tag(page: Any, code: int) -> Any:
@@ -302,6 +342,13 @@ def _floats(rationals: Any) -> list[float] | None:
         return None
     vals = np.atleast_1d(np.asarray(rationals, dtype=np.float64)).ravel()
     return (vals[0::2] / vals[1::2]).tolist()
+
+
+def _pairs(values: Any) -> list[list[float]] | None:
+    """The NoiseProfile tag's DOUBLEs as pairs [S, O]."""
+    if values is None:
+        return None
+    return np.reshape(np.atleast_1d(np.asarray(values, dtype=np.float64)), (-1, 2)).tolist()
 
 
 def _cfa_pattern(page: Any, name: str) -> str:
@@ -360,7 +407,8 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
         files), ``black_level_exact`` (list of 3 float, the BlackLevel tag; for a CFA file per colour R, G, B),
         ``white_level`` (int [DN], LibRaw), ``unique_camera_model``, ``make``, ``model`` (str or None),
         ``as_shot_neutral`` (list of 3 float), ``color_matrix1`` (3x3 nested list, XYZ -> camera) and
-        ``calibration_illuminant1`` (int or None), from the DNG tags.
+        ``calibration_illuminant1`` (int or None) and ``noise_profile`` (list of [S, O] pairs, per sample or CFA
+        plane colour, or None), from the DNG tags.
 
     Raises
     ------
@@ -401,6 +449,7 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
                 "as_shot_neutral": _floats(_tag(page, _AS_SHOT_NEUTRAL)),
                 "color_matrix1": None if cm is None else np.reshape(cm, (3, 3)).tolist(),
                 "calibration_illuminant1": _tag(page, _CALIBRATION_ILLUMINANT1),
+                "noise_profile": _pairs(_tag(page, _NOISE_PROFILE)),
             }
         with rawpy.imread(name) as raw:
             image = raw.raw_image
