@@ -10,6 +10,10 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
+	@# ExifTool (Debian's libimage-exiftool-perl) for the DNG NoiseProfile check; optional: its test skips without it
+	@command -v exiftool >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 && \
+		timeout 180 apt-get install -y -qq --no-install-recommends libimage-exiftool-perl >/dev/null 2>&1; } || \
+		echo "ExifTool not installed (apt-get install libimage-exiftool-perl): its DNG check will skip"
 	touch $(STAMP)
 
 setup: $(STAMP)
