@@ -236,3 +236,23 @@ def test_bad_isos():
         sensor_preset("paper-table1", 800)
     with pytest.raises(CamsimError, match="outside"):
         sensor_preset("sony-imx174", 200)  # one published setting
+
+
+def test_a_preset_render_writes_a_14_bit_bayer_dng_raw_readers_understand(tmp_path):
+    import json
+
+    import rawpy
+
+    from camsim.cli import main
+
+    out = tmp_path / "o"
+    assert main(["render", "macbeth_26", "--preset", "sony-a7s2", "--iso", "3200", "--illuminant", "D65",
+                 "--intensity", "0.01", "--size", "96x64", "--out", str(out), "-q"]) == 0
+    sidecar = json.loads((out / "macbeth_26_D65_F0.01.json").read_text())
+    assert (sidecar["preset"], sidecar["iso"], sidecar["bits"], sidecar["pedestal_dn"]) == ("sony-a7s2", 3200.0, 14, 512)
+    assert sidecar["dn_per_electron"] == pytest.approx(3.06)
+    with rawpy.imread(str(out / "macbeth_26_D65_F0.01.dng")) as raw:
+        assert raw.white_level == 16383
+        assert raw.raw_image_visible.shape == (64, 96)  # one mosaic: RGGB
+        assert list(raw.black_level_per_channel) == [511] * 4  # 511.5 written, truncated by LibRaw (CFA)
+        assert 400 < raw.raw_image_visible.mean() < 16383

@@ -7,8 +7,7 @@ import argparse
 from pathlib import Path
 
 from camsim.cli_types import integer_between, non_negative_int, positive_float, sensor_setting
-from camsim.commands import DEFAULT_OUT, writing_to
-from camsim.sensor import PRESETS
+from camsim.commands import DEFAULT_OUT, preset_argument, writing_to
 
 #: ``--size``: the range :class:`camsim.emva.EmvaSetup` accepts for the side of the region of interest.
 ROI_SIDE_PX = integer_between(16, 4096, "the side of the EMVA region of interest in pixels")
@@ -27,10 +26,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "OUT/report.md, OUT/emva.json and PNG plots."
         ),
     )
-    parser.add_argument("--preset", choices=sorted(PRESETS),
+    parser.add_argument("--preset", metavar="NAME|PATH.toml",
                         help="sensor preset to measure (default emva-12bit: a 12-bit machine-vision-like sensor, "
                              "K = 0.4 DN/e⁻; paper-table1 shows the 8-bit, 35 e⁻/DN case, where quantisation "
-                             "dominates the dark noise)")
+                             "dominates the dark noise), or a camera preset (camsim list) or preset file")
+    parser.add_argument("--iso", metavar="ISO", type=positive_float, help="ISO of a camera preset")
     parser.add_argument("--sensor", metavar="NAME=VALUE", type=sensor_setting, action="append", default=[],
                         help="set a sensor parameter of the preset (repeatable; as camsim render's --sensor), e.g. "
                              "dsnu_dark_current_percent=10 for a dark-current DSNU")
@@ -52,15 +52,20 @@ def run(args) -> int:
     """Carry out ``camsim emva``; returns the exit status (0)."""
     from camsim.emva import DEFAULT_PRESET, EmvaSetup, write_outputs
     from camsim.emva import run as measure
-    from camsim.sensor import preset
+    from camsim.camera_presets import camera_preset, sensor_preset
 
     setup = EmvaSetup(size=args.size, seed=args.seed, dsnu_exposure_factor=args.dsnu_exposure_factor)
     name, sensor = args.preset, None
-    if args.sensor:
+    if name is not None:
+        name = preset_argument(name)
+    if args.sensor or args.iso is not None or (name is not None and camera_preset(name) is not None):
         overrides = dict(args.sensor)
-        name = args.preset or DEFAULT_PRESET
-        sensor = preset(name, **overrides)
-        name += " with " + ", ".join(f"{key}={value}" for key, value in overrides.items())
+        name = name or DEFAULT_PRESET
+        sensor = sensor_preset(name, args.iso, **overrides)
+        if args.iso is not None:
+            name += f" at ISO {args.iso:g}"
+        if overrides:
+            name += " with " + ", ".join(f"{key}={value}" for key, value in overrides.items())
     out = args.out if args.out is not None else DEFAULT_OUT / "emva"
     with writing_to(out):
         result = measure(name, setup, sensor=sensor, progress=not args.quiet)

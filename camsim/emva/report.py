@@ -270,7 +270,8 @@ def _saturation_and_pattern_notes(result: EmvaResult) -> list:
     return [
         "* **Saturation.** The standard defines saturation as the step where the temporal variance peaks, and "
         "μ_e,sat = η μ_p,sat counts the photo-electrons there (the dark electrons are subtracted). camsim clips the "
-        f"charge at the full well ({s.full_well_e:g} e⁻) and the ADC at {s.max_dn} DN = {s.max_dn / k:.5g} e⁻; "
+        f"charge at the full well ({s.full_well_e:g} e⁻) and the ADC at {s.max_dn} DN = "
+        f"{(s.max_dn - s.pedestal_dn) / k:.5g} e⁻{' above its pedestal' if s.pedestal_dn else ''}; "
         f"whichever comes first, less the dark electrons, the signal clips at {sat:.5g} e⁻. The variance peaks "
         f"before that, when the temporal noise (√μ_e ≈ {math.sqrt(sat):.0f} e⁻){prnu} can carry some pixels to the "
         f"clip, and the steps ({(m.photons[-1] - m.photons[-2]) * m.eta:.0f} e⁻ apart near the top) quantise where: "
