@@ -148,7 +148,9 @@ def test_bayer_sensor_is_measured_on_its_green_sites():
 @pytest.mark.parametrize("args, message", [
     (["--size", "8"], "region of interest"),
     (["--preset", "ideal"], "quantisation off"),
-    (["--preset", "nope"], "invalid choice"),
+    (["--preset", "nope"], "unknown preset 'nope'"),
+    (["--iso", "800"], "has no ISO axis"),
+    (["--preset", "sony-a7s2", "--iso", "10"], "outside preset sony-a7s2's range"),
     (["--seed", "-1"], "must be ≥ 0"),
     (["--dsnu-exposure-factor", "1"], "dsnu_exposure_factor (the DSNU's second exposure time over the first) must be"),
     (["--sensor", "dsnu_dark_current_percent=100"], "must be < 100"),
