@@ -11,7 +11,8 @@ The few objects a Python user needs are here (imported on first use, so ``import
 * :func:`render_scene` — every frame of a scene into a folder, as ``camsim render`` does;
 * :func:`write_frame`, :func:`load_frame` — the frame files (DNG, EXR, JSON sidecar), both ways;
 * :func:`analyse_paths` with :class:`AnalysisSettings` — the measurements of ``camsim analyze``;
-* :class:`SensorParams`, :data:`PRESETS` and :func:`preset` — the sensor; :data:`METHODS` — the samplers.
+* :class:`SensorParams`, :data:`PRESETS` and :func:`preset` — the sensor; :data:`METHODS` — the samplers;
+* :data:`CAMERA_PRESETS` and :func:`sensor_preset` — real cameras at an ISO (``sensor_preset("sony-a7s2", 3200)``).
 
 Example
 -------
@@ -43,6 +44,8 @@ _EXPORTS = {
     "SensorParams": "camsim.sensor",
     "PRESETS": "camsim.sensor",
     "preset": "camsim.sensor",
+    "CAMERA_PRESETS": "camsim.camera_presets",
+    "sensor_preset": "camsim.camera_presets",
     "METHODS": "camsim.methods",
     "CamsimError": "camsim.errors",
 }
