@@ -105,9 +105,9 @@ def test_ranges_come_from_the_schema():
 
 def test_render_settings_and_methods_share_one_registry(tmp_path):
     method = next(p for p in RENDER_PARAMS if p.name == "method")
-    assert method.choices == METHOD_NAMES == tuple(METHODS) == ("poisson", "spectral", "gaussian", "auto")
+    assert method.choices == METHOD_NAMES == tuple(METHODS) == ("poisson", "table", "spectral", "gaussian", "auto")
     assert PARAMETERS["method"].choices == METHOD_NAMES
-    with pytest.raises(CamsimError, match="unknown sampling method 'magic'; methods: poisson, spectral"):
+    with pytest.raises(CamsimError, match="unknown sampling method 'magic'; methods: poisson, table, spectral"):
         get_method("magic")
     scene_file = tmp_path / "s.toml"
     scene_file.write_text('[chart]\n[render]\nmethod = "magic"\n')

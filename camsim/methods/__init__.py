@@ -5,6 +5,9 @@ checked. The command line, the scene-file reader and the dataset spec take their
 :data:`METHOD_NAMES`.
 
 * ``poisson`` — one exact draw per pixel and channel (the default).
+* ``table`` — exact as ``poisson``: each spectrum and channel's charge drawn from its exact law by an alias table
+  (:mod:`camsim.methods.table`); pixels with laws of their own (fixed-pattern maps, images, ``paper`` statistics)
+  are drawn as ``poisson`` draws them.
 * ``spectral`` — per-wavelength-bin draws, N× the work: Eq. 4 literally under ``paper`` statistics.
 * ``gaussian`` — one moment-matched normal per pixel and channel: fast, wrong at low counts.
 * ``auto`` — per spectrum and channel, the Gaussian where its KS distance to the exact law is within the
@@ -77,6 +80,10 @@ class SamplingMethod:
 METHODS = {
     "poisson": SamplingMethod(
         "poisson", "one exact draw per pixel and channel (default)", "camsim.methods.fused"),
+    "table": SamplingMethod(
+        "table", "exact like poisson, each spectrum's charge drawn from its law's alias table (charts: about 5× "
+                 "faster per draw; per-pixel laws fall back to poisson's draws)", "camsim.methods.fused",
+        records_sampling=True),
     "spectral": SamplingMethod(
         "spectral", "per-wavelength-bin draws (N× slower, the paper's literal method)", "camsim.methods.spectral",
         planned=False, per_pixel_mean=False),

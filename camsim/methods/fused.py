@@ -15,8 +15,9 @@ from __future__ import annotations
 import numpy as np
 
 from camsim.expected import ExpectedSignal
-from camsim.kernels import label_runs, standard_normal_f32
-from camsim.methods.plan import BINS, EXACT, GAUSSIAN, GAUSSIAN_CLIPPED, SATURATED, DrawPlan
+from camsim.kernels import alias_draw, label_runs, standard_normal_f32
+from camsim.methods.plan import BINS, EXACT, GAUSSIAN, GAUSSIAN_CLIPPED, SATURATED, TABLE, DrawPlan
+from camsim.methods.table import charge_table
 from camsim.methods.spectral import draw_bins
 from camsim.cfa import cfa_sites
 from camsim.sensor import SensorParams
@@ -50,7 +51,7 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
     kinds = plan.kinds_by_channel[c]  # per frame, not per block: K may be one spectrum per pixel
     if read > 0:
         draw_read_noise_e(rng, z, read, sensor.read_noise_model, sensor.tukey_lambda, work)
-    elif np.any(kinds != EXACT):  # the Gaussian paths' normals
+    elif np.any((kinds != EXACT) & (kinds != TABLE)):  # the Gaussian paths' normals
         standard_normal_f32(rng, z, work, z_scale)
     runs = label_runs(labels)
     # a piece is (where, label): a rectangle of one label, the whole block (every spectrum of the channel drawn the
@@ -100,12 +101,15 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
                                              else read * rng.standard_normal(zz.shape, np.float32))
         else:
             size = out_c[where].shape if label is not None else None
+            table = _charge_table(expected, sensor, label, c) if kind == TABLE and label is not None else None
             # the whole block (an image's pixels): clip wherever any spectrum of the channel may reach the full well
             # (a clip that cannot act changes nothing) rather than gather the per-spectrum flags of every pixel
-            clip = bool(plan.clip_by_channel[c]) and (whole or bool(np.any(plan.needs_clip[index, c])))
+            clip = table is None and bool(plan.clip_by_channel[c]) and (whole or bool(np.any(plan.needs_clip[index, c])))
             level = None if not clip else saturation_level_e(sensor.full_well_e,
                                                              None if offset is None else offset[where])
-            if kind == BINS:  # Eq. 4's drawn signal, as a known S̄ per pixel: the stage adds Poisson(D̄) to it
+            if table is not None:  # min(N, c) from its alias table: one 64-bit word a pixel
+                charge = alias_draw(rng, table, np.empty(size, dtype=np.float32))
+            elif kind == BINS:  # Eq. 4's drawn signal, as a known S̄ per pixel: the stage adds Poisson(D̄) to it
                 charge = collect_charge_e(rng, bins[where], expected.dark_e[c], statistics=statistics,
                                           photon_noise=False, gain=g, dark_gain=d, saturation_e=level)
             elif statistics == "pixel" and sensor.photon_noise and label is None and g is None and d is None:
@@ -131,6 +135,13 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
                 continue
             value = add_read_noise_e(charge, zz) if read > 0 else charge
         out_c[where] = electrons_to_dn(value, k)
+
+
+def _charge_table(expected: ExpectedSignal, sensor: SensorParams, label: int, c: int):
+    """The alias table of spectrum ``label``'s charge in channel ``c`` (:func:`camsim.methods.table.charge_table`),
+    or None where its law does not fit one (then drawn as ``poisson`` draws it)."""
+    return charge_table(float(expected.signal_e[label, c] + expected.dark_e[c]),
+                        float(sensor.full_well_e) if sensor.saturation else None)
 
 
 def _masks_by_kind(labels, kinds_of_spectra):
