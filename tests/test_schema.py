@@ -111,7 +111,7 @@ def test_render_settings_and_methods_share_one_registry(tmp_path):
         get_method("magic")
     scene_file = tmp_path / "s.toml"
     scene_file.write_text('[chart]\n[render]\nmethod = "magic"\n')
-    with pytest.raises(CamsimError, match="method must be one of poisson, spectral, gaussian, auto"):
+    with pytest.raises(CamsimError, match="method must be one of poisson, table, spectral, gaussian, auto"):
         load_scene(scene_file)
     scene_file.write_text('[chart]\n[render]\ntolerance = 1\n')
     with pytest.raises(CamsimError, match="tolerance must be > 0 and < 1"):
