@@ -164,30 +164,31 @@ def tukey_lambda(rng: np.random.Generator, out: np.ndarray, lam: float, std: flo
 
 
 class AliasTable:
-    """Walker's alias table of a discrete law over ``values``: draws by one 64-bit word each (:func:`alias_draw`).
+    """Walker's alias table of a discrete law over ``values``: draws by one 63-bit word each (:func:`alias_draw`).
 
-    m = 2^b columns (the law's support padded with zero-probability entries). A draw takes b bits of a raw 64-bit
-    word as the column j and the next 63 − b bits as a coin: the value is ``values[j]`` if the coin is below
-    ``threshold[j]`` (the column's own probability in units of 2^-(63−b)), else ``values[alias[j]]``. The column's
-    own probabilities are exact to float64 rounding and their coins to 2^-(63−b) (≤ 2^-47 for 65 536 values), so
-    the law drawn is the given one to within that resolution.
+    m = 2^b columns (the law's support padded with zero-probability entries). A draw's word w picks the column
+    j = w >> (63 − b) (its top b bits) and keeps ``values[j]`` if its low 63 − b bits, the coin, are below the
+    column's own probability in units of 2^-(63−b), else takes ``values[alias[j]]``; with the column's bits in
+    front, that is one comparison, w < ``limits[j]`` = (j << (63 − b)) + threshold_j. The columns' own
+    probabilities are exact to float64 rounding and their coins to 2^-(63−b) (≤ 2^-47 for 65 536 values), so the
+    law drawn is the given one to within that resolution.
 
     Attributes
     ----------
     shift : int
-        63 − b: the column is ``word >> shift`` (of the word's low 63 bits).
-    thresholds : numpy.ndarray, int64, shape (m,)
+        63 − b.
+    limits : numpy.ndarray, int64, shape (m,)
     pairs : numpy.ndarray, float32, shape (2m,)
-        ``values[j]`` and ``values[alias[j]]`` side by side: the draw is ``pairs[2j + (coin ≥ threshold[j])]``.
+        ``values[j]`` and ``values[alias[j]]`` side by side: the draw is ``pairs[2j + (w ≥ limits[j])]``.
     """
 
-    __slots__ = ("shift", "thresholds", "pairs")
+    __slots__ = ("shift", "limits", "pairs")
 
-    def __init__(self, shift: int, thresholds: np.ndarray, pairs: np.ndarray):
-        self.shift, self.thresholds, self.pairs = shift, thresholds, pairs
+    def __init__(self, shift: int, limits: np.ndarray, pairs: np.ndarray):
+        self.shift, self.limits, self.pairs = shift, limits, pairs
 
 
-def alias_columns(probabilities) -> tuple:
+def alias_columns(probabilities, columns: int | None = None) -> tuple:
     """Walker's alias construction, vectorised (the sweep of Hübschle-Schneider & Sanders, 2019).
 
     Light columns (mass below 1/m, in index order) are laid end to end by their deficits on one line, the heavy
@@ -200,16 +201,20 @@ def alias_columns(probabilities) -> tuple:
     ----------
     probabilities : numpy.ndarray, shape (n,)
         Non-negative, not all 0 (normalised here).
+    columns : int, optional
+        m, a power of two ≥ n (default: the smallest).
 
     Returns
     -------
     own : numpy.ndarray, float64, shape (m,)
-        Each column's own probability (of m = 2^⌈log2 n⌉ columns), in [0, 1].
+        Each column's own probability, in [0, 1].
     alias : numpy.ndarray, intp, shape (m,)
     """
     p = np.asarray(probabilities, dtype=np.float64)
     n = p.size
-    m = 1 << max(1, int(np.ceil(np.log2(max(n, 1)))))
+    m = columns if columns is not None else 1 << max(1, int(np.ceil(np.log2(max(n, 1)))))
+    if m < n or m & (m - 1):
+        raise ValueError(f"columns must be a power of two ≥ {n}, got {m}")
     q = np.zeros(m)
     q[:n] = p * (m / p.sum())
     light, heavy = np.flatnonzero(q < 1.0), np.flatnonzero(q >= 1.0)
@@ -231,32 +236,46 @@ def alias_columns(probabilities) -> tuple:
     return own, alias
 
 
-def alias_table(values, probabilities) -> AliasTable:
-    """:class:`AliasTable` of the law P(``values[i]``) = ``probabilities[i]`` (values stored as float32)."""
-    own, alias = alias_columns(probabilities)
+def alias_table(values, probabilities, columns: int | None = None) -> AliasTable:
+    """:class:`AliasTable` of the law P(``values[i]``) = ``probabilities[i]`` (values stored as float32), with
+    ``columns`` columns (default: the fewest, a power of two)."""
+    own, alias = alias_columns(probabilities, columns)
     m = own.size
     shift = 63 - (m.bit_length() - 1)
     thresholds = np.minimum(np.round(own * 2.0**shift), 2.0**shift).astype(np.int64)
+    limits = (np.arange(m, dtype=np.int64) << shift) + thresholds
     padded = np.zeros(m, dtype=np.float32)
     padded[: len(values)] = values
     pairs = np.empty(2 * m, dtype=np.float32)
     pairs[0::2], pairs[1::2] = padded, padded[alias]
-    return AliasTable(shift, thresholds, pairs)
+    return AliasTable(shift, limits, pairs)
 
 
-def alias_draw(rng: np.random.Generator, table: AliasTable, out: np.ndarray) -> np.ndarray:
-    """Fill ``out`` (float32) with independent draws of ``table``'s law, one raw 64-bit word of ``rng`` each.
+def alias_words(rng: np.random.Generator, n: int) -> np.ndarray:
+    """``n`` raw words of ``rng``'s bit generator, 63 bits each (int64, ≥ 0): the draws of :func:`alias_draw_words`."""
+    words = rng.bit_generator.random_raw(n).view(np.int64)
+    np.bitwise_and(words, np.int64(0x7FFFFFFFFFFFFFFF), out=words)
+    return words
 
-    About 9 ns a draw (numpy's Poisson sampler: about 50): the raw words, two shifts and masks, a gather of the
-    thresholds, a comparison and a gather of the values.
+
+def alias_draw_words(table: AliasTable, words: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """One draw of ``table``'s law per word of ``words`` (:func:`alias_words`), into ``out`` (float32, C-contiguous,
+    ``words.size`` values).
+
+    About 6 ns a draw besides the words' 3.5 (numpy's Poisson sampler: about 50 here): a shift, a gather of the
+    limits, a comparison and a gather of the values.
     """
     flat = out.reshape(-1)
-    words = rng.bit_generator.random_raw(flat.size).view(np.int64)
-    np.bitwise_and(words, np.int64(0x7FFFFFFFFFFFFFFF), out=words)  # 63 bits: ≥ 0 as int64
+    if not np.shares_memory(flat, out):
+        raise ValueError("alias_draw_words needs a C-contiguous output array")
     column = words >> table.shift
-    np.bitwise_and(words, np.int64((1 << table.shift) - 1), out=words)  # the coin
-    over = words >= table.thresholds[column]
+    over = words >= table.limits[column]
     column <<= 1
     column += over
     np.take(table.pairs, column, out=flat)
     return out
+
+
+def alias_draw(rng: np.random.Generator, table: AliasTable, out: np.ndarray) -> np.ndarray:
+    """Fill ``out`` (float32, C-contiguous) with independent draws of ``table``'s law, one word of ``rng`` each."""
+    return alias_draw_words(table, alias_words(rng, out.size), out)

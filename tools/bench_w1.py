@@ -30,8 +30,15 @@ What it measures (seconds are wall-clock; MB = 2^20 bytes):
    distinct colours and recovering them (Mallett: three basis spectra, one 3 × 3 matrix per frame); and
    ``peak_rss_mb_image``, the peak RSS of a fresh child that sets up and renders it.
 
+7. Method ``table`` (issue 14: exact, each spectrum's charge from its alias table), measured like ``poisson`` on
+   2 workers (``table_2t_s``, ``ratio_table_2t``; ``table_first_s``, the first call in a process, which builds the
+   frame's 72 tables; ``peak_rss_mb_table``), and its accuracy: a χ² test of the digital numbers of a whole frame
+   against their exact pmf (camsim.dn_law), per patch and channel (``table_chi2_p_min``) and pooled over the 72
+   (``table_chi2_p_pooled``: the statistics and degrees of freedom summed).
+
 Targets: the render (no file writing) within 1.5× of the bare draws, and peak memory under 600 MB; the image scene
-within 1.3× of its bare draws, peak memory under 1 GB (1024 MB).
+within 1.3× of its bare draws, peak memory under 1 GB (1024 MB); ``table`` at most 0.25× the bare draws with
+every χ² p > 1e-6 and the pooled p > 1e-3.
 
 Run:  python tools/bench_w1.py [--repeats N] [--quick] [--pyxel]
 ``--pyxel`` adds the comparison with ESA's Pyxel (tools/bench_pyxel.py, which installs Pyxel into its own venv).
@@ -58,6 +65,7 @@ ILLUMINANT, FACTOR, SEED = "D65", 1.0, 0
 TARGET_RATIO, TARGET_RSS_MB = 1.5, 600.0  # issue 2
 TARGET_RATIO_POISSON = 1.2  # issue 4: method poisson on 2 threads; auto must be ≥ 2× faster than the draws
 TARGET_RATIO_IMAGE, TARGET_RSS_MB_IMAGE = 1.3, 1024.0  # issue 12
+TARGET_RATIO_TABLE, TABLE_P_MIN, TABLE_P_POOLED = 0.25, 1e-6, 1e-3  # issue 14: exact at the approximation's speed
 MiB = 2**20
 
 
@@ -169,7 +177,7 @@ def child_rss(args) -> dict:
     from camsim.methods import METHOD_NAMES
 
     return {"rss_start_mb": start, "rss_setup_mb": after_setup, "rss_peak_mb": peak_rss_mb(), "render_s": seconds,
-            "has_auto": "auto" in METHOD_NAMES}
+            "has_auto": "auto" in METHOD_NAMES, "has_table": "table" in METHOD_NAMES}
 
 
 def child_rss_image(args) -> dict:
@@ -220,8 +228,12 @@ def child_timing(args) -> dict:
     has_auto = "auto" in METHOD_NAMES
     if has_auto:
         runs.append(("auto_2t", render, w, "auto", 2))
+    has_table = "table" in METHOD_NAMES
+    if has_table:
+        runs.append(("table_2t", render, w, "table", 2))
     times = {name: [] for name, *_ in runs}
     auto_first = timed(render, w, "auto", 2) if has_auto else None  # builds auto's KS table once per process
+    table_first = timed(render, w, "table", 2) if has_table else None  # builds the frame's 72 alias tables
     for r in range(args.repeats):
         for name, fn, *fn_args in runs:
             progress(f"repeat {r + 1}/{args.repeats}: {name}")
@@ -245,10 +257,49 @@ def child_timing(args) -> dict:
         progress(f"repeat {r + 1}/{args.repeats}: spectral {SPECTRAL_SIZE[0]}x{SPECTRAL_SIZE[1]}")
         spectral_times.append(timed(render, small, "spectral", 2))
     auto_max_ks = auto_accuracy(w) if has_auto else None
+    table_chi2 = table_accuracy(w) if has_table else (None, None)
     del w, small
     return {"times": times, "write": write_times, "sizes": sizes, "spectral": spectral_times,
             "analysis": analysis_times, "auto_max_ks": auto_max_ks, "auto_first_s": auto_first,
+            "table_first_s": table_first, "table_chi2_p_min": table_chi2[0], "table_chi2_p_pooled": table_chi2[1],
             "image": image_timings(args)}
+
+
+def table_accuracy(w: dict) -> tuple:
+    """χ² of the ``table`` frame's digital numbers against their exact pmf (camsim.dn_law), per patch and channel
+    (every pixel of the patch; levels of expected count < 5 pooled into one cell): the smallest p-value, and the
+    p-value of the pooled χ² (the statistics and degrees of freedom summed over the 72 patch-channels)."""
+    import numpy as np
+    from scipy import stats
+
+    from camsim.dn_law import dn_pmf
+
+    frame = render(w, "table", 2, rng=SEED + 2)
+    sensor, ex = frame.sensor, frame.expected
+    read = sensor.read_noise_e if sensor.read_noise else 0.0
+    pvalues, chi2_sum, dof_sum = [], 0.0, 0
+    order = np.argsort(frame.labels, axis=None, kind="stable")
+    bounds = np.searchsorted(frame.labels.ravel()[order], np.arange(ex.signal_e.shape[0] + 1))
+    for i in range(len(w["radiance"].patch_names)):
+        pixels = order[bounds[i] : bounds[i + 1]]
+        for c in range(3):
+            law = dn_pmf(ex.signal_e[i, c] + ex.dark_e[c], sensor.dn_per_electron, read,
+                         sensor.full_well_e if sensor.saturation else None, sensor.bits)
+            values = frame.digital_dn[c].ravel()[pixels].astype(np.int64) - law.first
+            inside = (values >= 0) & (values < law.pmf.size)
+            counts = np.bincount(values[inside], minlength=law.pmf.size)
+            expected = law.pmf * values.size
+            keep = expected >= 5
+            observed = np.append(counts[keep], values.size - counts[keep].sum())
+            want = np.append(expected[keep], values.size - expected[keep].sum())
+            cells = want > 0
+            if cells.sum() < 2:
+                continue
+            chi2 = float(np.sum((observed[cells] - want[cells]) ** 2 / want[cells]))
+            dof = int(cells.sum() - 1)
+            pvalues.append(float(stats.chi2.sf(chi2, dof)))
+            chi2_sum, dof_sum = chi2_sum + chi2, dof_sum + dof
+    return min(pvalues), float(stats.chi2.sf(chi2_sum, dof_sum))
 
 
 def auto_accuracy(w: dict) -> float:
@@ -317,6 +368,10 @@ def main() -> None:
     if has_auto:
         progress("peak RSS: fresh child rendering with method auto, 2 workers")
         rss["auto"] = run_child("rss", args, "--method", "auto")
+    has_table = rss["poisson"].get("has_table", False)
+    if has_table:
+        progress("peak RSS: fresh child rendering with method table, 2 workers")
+        rss["table"] = run_child("rss", args, "--method", "table")
     with tempfile.TemporaryDirectory(prefix="bench_w1_image_") as tmp:
         image = str(Path(tmp) / "astronaut_w1.png")
         progress("image scene: writing its photograph")
@@ -375,6 +430,18 @@ def main() -> None:
               "(digital numbers, independent seeds)")
     else:
         print("Method auto is not available: auto keys are null.")
+    if has_table:
+        table_ratio = med["table_2t"] / med["floor_2t"]
+        ok_table = (table_ratio <= TARGET_RATIO_TABLE and t["table_chi2_p_min"] > TABLE_P_MIN
+                    and t["table_chi2_p_pooled"] > TABLE_P_POOLED)
+        print("\nMethod table (exact: alias-table charges), workers=2")
+        print(f"   render               {fmt(t['times']['table_2t'])}   table/floor {table_ratio:.2f}x; first call "
+              f"in a process {t['table_first_s']:.2f} s (it builds the frame's alias tables)")
+        print(f"   χ² of the digital numbers against the exact pmf, 72 patch-channels: smallest p "
+              f"{t['table_chi2_p_min']:.3g}, pooled p {t['table_chi2_p_pooled']:.3g}")
+        print(f"   memory: peak {rss['table']['rss_peak_mb']:.0f} MB")
+        print(f"   target: ≤ {TARGET_RATIO_TABLE}x the bare draws with every χ² p > {TABLE_P_MIN:g} and the pooled p > "
+              f"{TABLE_P_POOLED:g}: {table_ratio:.2f}x -> {'MET' if ok_table else 'NOT MET'}")
     img = t["image"]
     med_img = {k: statistics.median(v) for k, v in img["times"].items()}
     ratio_img = med_img["image_poisson_2t"] / med_img["floor_image_2t"]
@@ -403,6 +470,9 @@ def main() -> None:
         "image_poisson_2t_s": med_img["image_poisson_2t"], "floor_image_poisson_2t_s": med_img["floor_image_2t"],
         "ratio_image_poisson_2t": ratio_img, "peak_rss_mb_image": rss_img, "image_recovery_s": img["recovery_s"],
         "image_colours": img["colours"],
+        "table_2t_s": med.get("table_2t"), "ratio_table_2t": med["table_2t"] / med["floor_2t"] if has_table else None,
+        "table_chi2_p_min": t["table_chi2_p_min"], "table_chi2_p_pooled": t["table_chi2_p_pooled"],
+        "peak_rss_mb_table": rss["table"]["rss_peak_mb"] if has_table else None, "table_first_s": t["table_first_s"],
         "min_s": {k: min(v) for k, v in {**t["times"], **img["times"]}.items()},
         "width": args.width, "height": args.height, "repeats": args.repeats, "quick": args.quick,
     }

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from camsim.expected import ExpectedSignal
-from camsim.kernels import alias_draw, label_runs, standard_normal_f32
+from camsim.kernels import alias_draw_words, alias_words, label_runs, standard_normal_f32
 from camsim.methods.plan import BINS, EXACT, GAUSSIAN, GAUSSIAN_CLIPPED, SATURATED, TABLE, DrawPlan
 from camsim.methods.table import charge_table
 from camsim.methods.spectral import draw_bins
@@ -54,6 +54,9 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
     elif np.any((kinds != EXACT) & (kinds != TABLE)):  # the Gaussian paths' normals
         standard_normal_f32(rng, z, work, z_scale)
     runs = label_runs(labels)
+    # the table kind's rectangles draw their charges from one buffer of raw words and one of charges (a block's)
+    words = alias_words(rng, labels.size) if runs is not None and np.any(kinds == TABLE) else None
+    charges, used = (np.empty(labels.size, dtype=np.float32), 0) if words is not None else (None, 0)
     # a piece is (where, label): a rectangle of one label, the whole block (every spectrum of the channel drawn the
     # same way: an image's or a cube's pixels, one mean each) or the pixels of one drawing kind (a boolean mask)
     whole = runs is None and kinds.size == 1
@@ -101,14 +104,16 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
                                              else read * rng.standard_normal(zz.shape, np.float32))
         else:
             size = out_c[where].shape if label is not None else None
-            table = _charge_table(expected, sensor, label, c) if kind == TABLE and label is not None else None
+            table = _charge_table(expected, sensor, label, c) if kind == TABLE and words is not None else None
             # the whole block (an image's pixels): clip wherever any spectrum of the channel may reach the full well
             # (a clip that cannot act changes nothing) rather than gather the per-spectrum flags of every pixel
             clip = table is None and bool(plan.clip_by_channel[c]) and (whole or bool(np.any(plan.needs_clip[index, c])))
             level = None if not clip else saturation_level_e(sensor.full_well_e,
                                                              None if offset is None else offset[where])
             if table is not None:  # min(N, c) from its alias table: one 64-bit word a pixel
-                charge = alias_draw(rng, table, np.empty(size, dtype=np.float32))
+                n = size[0] * size[1]
+                charge = alias_draw_words(table, words[used : used + n], charges[used : used + n]).reshape(size)
+                used += n
             elif kind == BINS:  # Eq. 4's drawn signal, as a known S̄ per pixel: the stage adds Poisson(D̄) to it
                 charge = collect_charge_e(rng, bins[where], expected.dark_e[c], statistics=statistics,
                                           photon_noise=False, gain=g, dark_gain=d, saturation_e=level)

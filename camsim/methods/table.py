@@ -53,3 +53,5 @@ def charge_tables_fit(expected, sensor) -> np.ndarray:
     top = np.minimum(lam + half, sensor.full_well_e if sensor.saturation else np.inf)
     width = np.maximum(top - np.maximum(lam - half, 0.0), 0.0) + 2
     return (width <= MAX_TABLE_VALUES) & (top < MAX_TABLE_CHARGE) & np.isfinite(lam)
+
+
