@@ -380,6 +380,8 @@ def small_set(tmp_path_factory):
              "flat": [write(f"f{j}{i}.dng", level) for j, level in enumerate((200, 800, 2000)) for i in range(2)],
              "saturated": write("sat.dng", 5000), "small": write("small.dng", 0.0, (48, 64)),
              "extra": write("extra.dng", 3000)}
+    files["copy"] = str(folder / "copy.dng")
+    (folder / "copy.dng").write_bytes((folder / "d0.dng").read_bytes())
     (folder / "garbage.dng").write_bytes(b"not a raw file at all" * 10)
     files["garbage"] = str(folder / "garbage.dng")
     return files
@@ -399,6 +401,7 @@ def test_the_small_set_calibrates(small_set, tmp_path, capsys):
     ("unpaired", "has 1 file"),
     ("two levels", "needs at least 3 pairs of flat frames"),
     ("twice", "is given twice"),
+    ("copies", "do not vary from one to the next"),
 ])
 def test_bad_input_is_one_line_exit_2_and_no_files(small_set, tmp_path, capsys, case, message):
     darks, flat_files = list(small_set["dark"]), list(small_set["flat"])
@@ -416,6 +419,8 @@ def test_bad_input_is_one_line_exit_2_and_no_files(small_set, tmp_path, capsys, 
         flat_files = flat_files[:4]
     elif case == "twice":
         darks.append(darks[0])
+    elif case == "copies":
+        darks = [darks[0], small_set["copy"]]
     out = tmp_path / "o"
     assert main(["calibrate", "--dark", *darks, "--flat", *flat_files, "--out", str(out), "-q"]) == 2
     err = capsys.readouterr().err

@@ -334,6 +334,10 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
     plane_w = layout.plane_shape[1]
 
     dark_var = [dark.temporal_variance(v, n) for v in var_planes]
+    for pname, dv in zip(layout.plane_names, dark_var):
+        if not dv.value > 0:
+            raise CamsimError(f"the dark frames do not vary from one to the next (plane {pname}): are they copies "
+                              "of one frame? Temporal noise needs separate exposures")
     read = [dark.read_noise(sq[p], int(count[p]), n, plane_w) for p in range(len(mean_planes))]
     pixel_var = [r[1] for r in read]
     row_planes = [dark.row_noise(plane_rows[p], pixel_var[p], plane_w) for p in range(len(mean_planes))]
@@ -367,6 +371,9 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
                                   row_planes[p], dsnu[p], fitted, plain, fit, pairs[brightest].prnu_percent[p],
                                   brightest, mean_planes[p].size, plot))
     k = ptc.combine([pl.ptc.k_dn_per_e for pl in planes])
+    if not k.value > 0:
+        raise CamsimError(f"the photon transfer curve does not rise with the signal (K = {k.value:.3g} DN/e⁻): are "
+                          "the flats lit, and each pair of one exposure?")
     lam = _mean_with_spread([pl.tukey.lam for pl in planes])
     scale = _mean_with_spread([pl.tukey.scale_dn for pl in planes])
     lam_tol = max(GAUSSIAN_LAMBDA_TOLERANCE, 2 * (lam.standard_error or 0.0))
@@ -397,19 +404,22 @@ _PLOT_POINTS = 4000
 
 
 def _tukey_fits(samples, pixel_var, frames, row_pixels):
-    """The matched and the plain PPCC fits of one plane's samples, and its probability plot's points."""
-    order = (*tukey.order_statistics(samples), samples.size)
-    matched = tukey.fit_tukey(order=order, variance_dn2=pixel_var, frames=frames, row_pixels=row_pixels)
-    plain = tukey.fit_tukey(order=order)
-    pick = np.unique(np.round(np.linspace(0, order[0].size - 1, _PLOT_POINTS)).astype(np.int64))
-    x, p = order[0][pick], order[1][pick]
-    a = matched.scale_dn
-    shrink = (1 - 1 / frames) * (1 - 1 / row_pixels)
+    """The matched and the plain PPCC fits of one plane's samples, and its probability plot's points (the fitted
+    law's quantiles and the sorted samples, DN). Without a read noise above 0.1 DN the ADC's step is all there is
+    and the matched law has no scale: the plain fit stands for both."""
+    values, p = tukey.order_statistics(samples)
+    plain = tukey.fit_tukey(order=(values, p, samples.size))
+    pick = np.unique(np.round(np.linspace(0, values.size - 1, _PLOT_POINTS)).astype(np.int64))
     read_var = dark.sheppard_read_variance_dn2(pixel_var)
-    a_var = math.sqrt(read_var / tukey_lambda_variance(matched.lam))
+    if not read_var > 0.1**2:
+        return plain, plain, (tukey.tukey_quantiles(plain.lam, p[pick]) * plain.scale_dn, values[pick])
+    matched = tukey.fit_tukey(order=(values, p, samples.size), variance_dn2=pixel_var, frames=frames,
+                              row_pixels=row_pixels)
+    shrink = (1 - 1 / frames) * (1 - 1 / row_pixels)
+    a = math.sqrt(read_var / tukey_lambda_variance(matched.lam))  # the scale the blur was set with
     gauss = math.sqrt(pixel_var / (frames - 1) + pixel_var * frames / ((frames - 1) * row_pixels))
-    q = tukey.blurred_tukey_quantiles(matched.lam, p, 1.0 / a_var, gauss / a_var) * a * shrink
-    return matched, plain, (q, x)
+    q = tukey.blurred_tukey_quantiles(matched.lam, p[pick], 1.0 / a, gauss / a) * matched.scale_dn * shrink
+    return matched, plain, (q, values[pick])
 
 
 def _warnings(planes, read_all: Estimate, k: Estimate, levels: int) -> list:

@@ -201,8 +201,12 @@ def read_raw(path, *, metadata: bool = False) -> RawFrame:
 
 
 def check_same_layout(first: RawFrame, frame: RawFrame) -> None:
-    """Refuse a frame whose size, mosaic or white level differs from the first's (one message naming both)."""
+    """Refuse a frame whose size, mosaic, white level or ISO (where both files say) differs from the first's (one
+    message naming both)."""
     if frame.layout != first.layout:
         raise CamsimError(f"mixed frames: {frame.path} is {frame.layout.describe()} but {first.path} is "
                           f"{first.layout.describe()}; every dark and flat frame must come from the same camera "
                           "mode")
+    if frame.iso is not None and first.iso is not None and frame.iso != first.iso:
+        raise CamsimError(f"mixed ISO: {frame.path} is ISO {frame.iso:g} but {first.path} is ISO {first.iso:g}; "
+                          "noise parameters belong to one ISO: calibrate each ISO on its own")
