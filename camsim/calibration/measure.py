@@ -339,7 +339,7 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
             raise CamsimError(f"the dark frames do not vary from one to the next (plane {pname}): are they copies "
                               "of one frame? Temporal noise needs separate exposures")
     read = [dark.read_noise(sq[p], int(count[p]), n, plane_w) for p in range(len(mean_planes))]
-    pixel_var = [r[1] for r in read]
+    pixel_var = [r[1] for r in read]  # σ_Y², per plane
     row_planes = [dark.row_noise(plane_rows[p], pixel_var[p], plane_w) for p in range(len(mean_planes))]
     blacks_est = [dark.black_level(m, v, n, row.value**2) for m, v, row in zip(mean_planes, var_planes, row_planes)]
     blacks = np.array([b.value for b in blacks_est])
@@ -355,21 +355,10 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
     pairs = _flat_pairs(flat_files, levels, layout, blacks, mean_planes, dark_frames_var, n, progress)
     full_scale = layout.white_level_dn - blacks
 
-    warnings = []
-    planes = []
-    for p, (pname, colour) in enumerate(zip(layout.plane_names, layout.plane_colours)):
-        mu = np.array([pair.mean_dn[p] for pair in pairs])
-        var = np.array([pair.variance_dn2[p] for pair in pairs])
-        used = ptc.fit_range(mu, var, full_scale[p])
-        if np.unique(np.round(mu[used], 6)).size < 2:
-            raise CamsimError(f"plane {pname}: only {np.count_nonzero(used)} flat pair(s) lie below "
-                              f"{100 * ptc.FIT_FRACTION:g} % of saturation; shoot more levels below it")
-        fit = ptc.fit_photon_transfer(mu, var, dark_var[p].value, mean_planes[p].size, used)
-        brightest = int(np.flatnonzero(used)[np.argmax(mu[used])])
-        fitted, plain, plot = _tukey_fits(samples[p], pixel_var[p], n, plane_w)
-        planes.append(PlaneResult(pname, colour, blacks_est[p], dark_var[p], pixel_var[p], read[p][0],
-                                  row_planes[p], dsnu[p], fitted, plain, fit, pairs[brightest].prnu_percent[p],
-                                  brightest, mean_planes[p].size, plot))
+    planes = tuple(
+        _plane_result(p, layout, pairs, full_scale[p], blacks_est[p], dark_var[p], read[p], row_planes[p], dsnu[p],
+                      samples[p], mean_planes[p].size, n, plane_w)
+        for p in range(len(layout.plane_names)))
     k = ptc.combine([pl.ptc.k_dn_per_e for pl in planes])
     if not k.value > 0:
         raise CamsimError(f"the photon transfer curve does not rise with the signal (K = {k.value:.3g} DN/e⁻): are "
@@ -379,18 +368,34 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
     lam_tol = max(GAUSSIAN_LAMBDA_TOLERANCE, 2 * (lam.standard_error or 0.0))
     model = "gaussian" if abs(lam.value - tukey.GAUSSIAN_LAMBDA) <= lam_tol else "tukey-lambda"
     read_all = _rms([pl.read_dn for pl in planes])
-    warnings += _warnings(planes, read_all, k, len(levels))
     meta_iso = first.iso
     return Calibration(
         dark_files=dark_files, flat_files=flat_files, layout=layout,
         name=name if name else (first.model or DEFAULT_NAME),
         iso=_iso(iso if iso is not None else (meta_iso if meta_iso else DEFAULT_ISO)),
-        date=datetime.date.today().isoformat(), planes=tuple(planes), pairs=tuple(pairs), k_dn_per_e=k,
+        date=datetime.date.today().isoformat(), planes=planes, pairs=tuple(pairs), k_dn_per_e=k,
         black_dn=black_all, read_dn=read_all, row_dn=row_all,
         dsnu_dn=_rms([pl.dsnu_dn for pl in planes]), prnu_percent=_rms([pl.prnu_percent for pl in planes]),
         tukey_lambda=lam, tukey_scale_dn=scale, read_noise_model=model, row_spectrum=spectrum,
         row_white_level_dn2=(1 - 1 / n) * (row_all.value**2 + float(np.mean(pixel_var)) / row_pixels),
-        warnings=tuple(warnings))
+        warnings=tuple(_warnings(planes, read_all, k, len(levels), n)))
+
+
+def _plane_result(p, layout, pairs, full_scale_dn, black, dark_var, read, row, dsnu, samples, pixels, frames,
+                  plane_w) -> PlaneResult:
+    """One plane's photon transfer fit, PRNU and read-noise law, with its dark estimates."""
+    name = layout.plane_names[p]
+    mu = np.array([pair.mean_dn[p] for pair in pairs])
+    var = np.array([pair.variance_dn2[p] for pair in pairs])
+    used = ptc.fit_range(mu, var, full_scale_dn)
+    if np.unique(np.round(mu[used], 6)).size < 2:
+        raise CamsimError(f"plane {name}: only {np.count_nonzero(used)} flat pair(s) lie below "
+                          f"{100 * ptc.FIT_FRACTION:g} % of saturation; shoot more levels below it")
+    fit = ptc.fit_photon_transfer(mu, var, dark_var.value, pixels, used)
+    brightest = int(np.flatnonzero(used)[np.argmax(mu[used])])
+    fitted, plain, plot = _tukey_fits(samples, read[1], frames, plane_w)
+    return PlaneResult(name, layout.plane_colours[p], black, dark_var, read[1], read[0], row, dsnu, fitted, plain,
+                       fit, pairs[brightest].prnu_percent[p], brightest, pixels, plot)
 
 
 def _iso(value: float):
@@ -422,9 +427,12 @@ def _tukey_fits(samples, pixel_var, frames, row_pixels):
     return matched, plain, (q, values[pick])
 
 
-def _warnings(planes, read_all: Estimate, k: Estimate, levels: int) -> list:
+def _warnings(planes, read_all: Estimate, k: Estimate, levels: int, darks: int) -> list:
     """What the report and the command line should point out."""
     out = []
+    if darks < 8:
+        out.append(f"only {darks} dark frames: the read noise's law (λ) is blurred by the mean of so few; 8–16 make "
+                   "it surer")
     if read_all.value < MIN_READ_NOISE_DN:
         out.append(f"the read noise is {read_all.value:.2f} DN, below {MIN_READ_NOISE_DN} DN: the ADC's step then "
                    "dominates the dark noise, and the read noise and its λ are uncertain beyond their standard errors")

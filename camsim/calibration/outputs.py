@@ -24,6 +24,7 @@ from camsim.calibration.measure import GAUSSIAN_LAMBDA_TOLERANCE, Calibration
 from camsim.calibration.ptc import FIT_FRACTION
 from camsim.calibration.tukey import GAUSSIAN_LAMBDA
 from camsim.io.atomic import write_json_atomic, write_text_atomic
+from camsim.optional_numbers import finite_or_none
 
 FILES = {
     "preset": "preset.toml",
@@ -77,8 +78,9 @@ def preset_toml(cal: Calibration) -> str:
 
 
 def _fit_record(fit) -> dict:
-    return {"lambda": round(fit.lam, 5), "ppcc": round(fit.ppcc, 7), "scale_dn": float(f"{fit.scale_dn:.6g}"),
-            "std_dn": float(f"{fit.std_dn:.6g}"), "samples": fit.samples}
+    return {"lambda": round(fit.lam, 5), "ppcc": finite_or_none(round(fit.ppcc, 7)),
+            "scale_dn": finite_or_none(f"{fit.scale_dn:.6g}"), "std_dn": finite_or_none(f"{fit.std_dn:.6g}"),
+            "samples": fit.samples}
 
 
 def calibration_record(cal: Calibration) -> dict:
