@@ -290,7 +290,7 @@ def test_read_row_and_dsnu_estimators_on_synthetic_darks(row_sigma):
         assert row.value < 4 * row.standard_error
     temporal = dark.temporal_variance(var, n)
     assert abs(temporal.value - (sigma**2 + 1 / 12 + row_sigma**2)) < 4 * temporal.standard_error
-    fixed = dark.dsnu(mean, temporal.value, n)
+    fixed = dark.dsnu(mean, temporal, n, row.value**2)
     assert fixed.value == pytest.approx(dsnu, rel=0.02)  # the drawn map's σ is within 0.3 % of 2
     black = dark.black_level(mean, var, n, row.value**2)
     assert abs(black.value - 99.5) < 5 * black.standard_error + 0.002  # E floor(X) = level − ½

@@ -158,20 +158,28 @@ def row_noise(row_means_dn: np.ndarray, pixel_variance_dn2: float, row_pixels: i
     return sqrt_estimate(Estimate(v_m - pixel_variance_dn2 / row_pixels, v_m * math.sqrt(2.0 / dof)))
 
 
-def dsnu(mean_dn: np.ndarray, temporal_variance_dn2: float, frames: int) -> Estimate:
+def dsnu(mean_dn: np.ndarray, temporal_variance: Estimate, frames: int, row_variance_dn2: float = 0.0) -> Estimate:
     """Dark signal non-uniformity: the spatial standard deviation of the per-pixel mean dark level, less the
     temporal noise left in a mean of n frames: √(s²(x̄) − σ²_temporal / n). Unit: DN.
+
+    The square's standard error adds three parts: the sample variance's over N pixels, 2 s⁴/N; the row noise left in
+    the mean, σ_row²/n, which only H rows sample, 2 (σ_row²/n)²/H; and the temporal variance's own, SE(σ²)/n.
 
     Parameters
     ----------
     mean_dn : numpy.ndarray
-        Per-pixel mean over the dark frames (one plane). Unit: DN.
-    temporal_variance_dn2 : float
+        Per-pixel mean over the dark frames (one plane, (H, W)). Unit: DN.
+    temporal_variance : Estimate
         The dark temporal variance (:func:`temporal_variance`). Unit: DN².
     frames : int
+    row_variance_dn2 : float
+        σ_row². Unit: DN².
     """
     spatial = float(np.var(mean_dn, ddof=1))
-    return sqrt_estimate(Estimate(spatial - temporal_variance_dn2 / frames, spatial * math.sqrt(2.0 / mean_dn.size)))
+    rows = mean_dn.shape[0] if mean_dn.ndim > 1 else mean_dn.size
+    se2 = (2 * spatial**2 / mean_dn.size + 2 * (max(row_variance_dn2, 0.0) / frames) ** 2 / rows
+           + ((temporal_variance.standard_error or 0.0) / frames) ** 2)
+    return sqrt_estimate(Estimate(spatial - temporal_variance.value / frames, math.sqrt(se2)))
 
 
 def row_power_spectrum(row_means_dn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

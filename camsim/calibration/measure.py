@@ -277,7 +277,7 @@ def _flat_levels(flat_files, first, blacks, progress):
     return flats.group_levels(signals, list(flat_files))
 
 
-def _flat_pairs(flat_files, levels, layout, blacks, dark_mean_planes, dark_var, dark_frames, progress):
+def _flat_pairs(flat_files, levels, layout, blacks, dark_mean_planes, dark_var, dark_frames, row_var, progress):
     """Second pass: each pair's μ and var(A − B)/2 per plane, and its PRNU."""
     pairs = []
     todo = [(level, pair) for level, level_pairs in enumerate(levels) for pair in level_pairs]
@@ -285,7 +285,7 @@ def _flat_pairs(flat_files, levels, layout, blacks, dark_mean_planes, dark_var, 
         a = layout.planes(read_raw(flat_files[i]).image)
         b = layout.planes(read_raw(flat_files[j]).image)
         stats = [ptc.pair_statistics(pa, pb, black) for pa, pb, black in zip(a, b, blacks)]
-        prnu = tuple(ptc.prnu(0.5 * (pa.astype(np.float64) + pb), dm, var, dv, dark_frames)
+        prnu = tuple(ptc.prnu(0.5 * (pa.astype(np.float64) + pb), dm, var, dv, dark_frames, row_var)
                      for pa, pb, dm, (_, var), dv in zip(a, b, dark_mean_planes, stats, dark_var))
         pairs.append(FlatPair((flat_files[i], flat_files[j]), level, np.array([s[0] for s in stats]),
                               np.array([s[1] for s in stats]), prnu))
@@ -343,7 +343,7 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
     row_planes = [dark.row_noise(plane_rows[p], pixel_var[p], plane_w) for p in range(len(mean_planes))]
     blacks_est = [dark.black_level(m, v, n, row.value**2) for m, v, row in zip(mean_planes, var_planes, row_planes)]
     blacks = np.array([b.value for b in blacks_est])
-    dsnu = [dark.dsnu(m, dv.value, n) for m, dv in zip(mean_planes, dark_var)]
+    dsnu = [dark.dsnu(m, dv, n, row.value**2) for m, dv, row in zip(mean_planes, dark_var, row_planes)]
     row_pixels = layout.shape[1]  # a physical row: both colours of a Bayer row; one chip's row of a stack
     row_all = dark.row_noise(rows, float(np.mean(pixel_var)), row_pixels)
     spectrum = dark.row_power_spectrum(rows)
@@ -352,7 +352,8 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
 
     levels = _flat_levels(flat_files, first, blacks, progress)
     dark_frames_var = [d.value for d in dark_var]
-    pairs = _flat_pairs(flat_files, levels, layout, blacks, mean_planes, dark_frames_var, n, progress)
+    pairs = _flat_pairs(flat_files, levels, layout, blacks, mean_planes, dark_frames_var, n, row_all.value**2,
+                        progress)
     full_scale = layout.white_level_dn - blacks
 
     planes = tuple(

@@ -180,7 +180,7 @@ def detrend(plane: np.ndarray, block: int = 16) -> np.ndarray:
 
 
 def prnu(flat_mean_dn: np.ndarray, dark_mean_dn: np.ndarray, pair_variance_dn2: float,
-         dark_variance_dn2: float, dark_frames: int) -> Estimate:
+         dark_variance_dn2: float, dark_frames: int, row_variance_dn2: float = 0.0) -> Estimate:
     """Photo-response non-uniformity of one plane from one flat pair: the spatial standard deviation of the
     signal, relative to its mean, in %.
 
@@ -199,18 +199,24 @@ def prnu(flat_mean_dn: np.ndarray, dark_mean_dn: np.ndarray, pair_variance_dn2: 
     dark_variance_dn2 : float
         The dark temporal variance. Unit: DN².
     dark_frames : int
+    row_variance_dn2 : float
+        σ_row², for the standard error: the row noise left in both means (σ_row²/2 + σ_row²/n), which only the
+        H rows sample. Unit: DN².
 
     Returns
     -------
     Estimate
-        PRNU in % (0 where the estimate of its square is negative).
+        PRNU in % (0 where the estimate of its square is negative; NaN where the plane is not brighter than the
+        darks).
     """
     signal = detrend(flat_mean_dn.astype(np.float64) - dark_mean_dn)
     mu = float(np.mean(signal))
     if not mu > 0:
-        raise CamsimError("the PRNU needs a flat brighter than the dark frames")
+        return Estimate(math.nan)
     spatial = float(np.var(signal, ddof=1))
-    square = Estimate(spatial - pair_variance_dn2 / 2 - dark_variance_dn2 / dark_frames,
-                      spatial * math.sqrt(2.0 / signal.size))
+    row_part = max(row_variance_dn2, 0.0) * (0.5 + 1.0 / dark_frames)
+    se2 = (2 * spatial**2 / signal.size + 2 * row_part**2 / signal.shape[0]
+           + pair_variance_dn2**2 / (2 * signal.size))  # the last: var(A − B)/2's own error, halved
+    square = Estimate(spatial - pair_variance_dn2 / 2 - dark_variance_dn2 / dark_frames, math.sqrt(se2))
     return sqrt_estimate(square).scaled(100.0 / mu)
 
