@@ -127,6 +127,7 @@ def test_round_trip_recovers_the_rendered_sensor(tmp_path, capsys, seed):
     assert not list(out.glob(".*partial"))
 
 
+@pytest.mark.slow
 def test_a_three_chip_linear_raw_file_gives_three_planes_and_no_cfa(tmp_path, capsys):
     sensor = SensorParams(bits=12, conversion_gain_v_per_e=1e-4, analog_gain_dn_per_v=1e4, dark_current=False,
                           read_noise_e=2.5, full_well_e=8000.0, row_noise_e=0.5, pedestal_dn=64)
@@ -387,6 +388,7 @@ def small_set(tmp_path_factory):
     return files
 
 
+@pytest.mark.slow
 def test_the_small_set_calibrates(small_set, tmp_path, capsys):
     _ok(capsys, ["calibrate", "--dark", *small_set["dark"], "--flat", *small_set["flat"], "--out",
                  str(tmp_path / "o"), "-q"])
@@ -428,6 +430,7 @@ def test_bad_input_is_one_line_exit_2_and_no_files(small_set, tmp_path, capsys, 
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_a_full_disk_at_the_last_file_leaves_no_file(small_set, tmp_path, capsys, monkeypatch):
     """The preset is written last; when it cannot be, the files written before it are removed too."""
     import errno
