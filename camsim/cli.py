@@ -14,7 +14,7 @@ import signal
 import sys
 
 from camsim import __version__
-from camsim.commands import analyze, dataset, denoise_eval, emva, experiment, render
+from camsim.commands import analyze, calibrate, dataset, denoise_eval, emva, experiment, render
 from camsim.commands import list as list_command
 from camsim.errors import CamsimError, describe_os_error
 from camsim.signals import handlers_installed
@@ -25,6 +25,7 @@ COMMANDS = {
     "analyze": analyze,
     "experiment": experiment,
     "emva": emva,
+    "calibrate": calibrate,
     "dataset": dataset,
     "denoise-eval": denoise_eval,
     "list": list_command,

@@ -1,0 +1,212 @@
+"""Raw files for ``camsim calibrate``: read through LibRaw (``rawpy``), split into the planes of one colour site each.
+
+A Bayer mosaic (``raw_image_visible`` of shape (H, W), its 2 × 2 ``raw_pattern``) gives four planes, one per site of
+the cell, named by colour (``R``, ``Gr``: the green on the red rows, ``Gb``, ``B``); a colour-stacked file (camsim's
+3-sample LinearRaw DNGs, which LibRaw returns as (H, W, 4) with channel 3 unused) three planes ``R``, ``G``, ``B``;
+a monochrome file one plane ``Y``. Other mosaics (X-Trans, 4-colour) are refused.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from camsim.errors import CamsimError
+
+#: LibRaw's colour letters beyond R, G, B: a second green (``RGBG``) is G.
+_LETTER = {"R": "R", "G": "G", "B": "B"}
+
+
+@dataclass(frozen=True)
+class Layout:
+    """How a raw image splits into planes.
+
+    Attributes
+    ----------
+    kind : {"bayer", "stack", "mono"}
+        A 2 × 2 mosaic, a colour stack (one value per colour per pixel: a three-chip sensor) or one channel.
+    cfa : str or None
+        The Bayer pattern (colours of the cell's sites, row by row), e.g. ``"RGGB"``; None otherwise.
+    shape : tuple of int
+        (H, W) of the image. Unit: pixels.
+    white_level_dn : int
+        LibRaw's white level. Unit: DN.
+    """
+
+    kind: str
+    cfa: str | None
+    shape: tuple
+    white_level_dn: int
+
+    @property
+    def plane_names(self) -> tuple:
+        """Names of the planes, in :meth:`planes` order."""
+        if self.kind == "stack":
+            return ("R", "G", "B")
+        if self.kind == "mono":
+            return ("Y",)
+        names = []
+        for i, colour in enumerate(self.cfa):
+            if colour == "G":  # named after the colour its row shares
+                colour = "Gr" if self.cfa[2 * (i // 2) + 1 - i % 2] == "R" else "Gb"
+            names.append(colour)
+        return tuple(names)
+
+    @property
+    def plane_colours(self) -> tuple:
+        """The colour (``R``, ``G``, ``B``, or ``Y``) of each plane."""
+        return tuple(name[0] for name in self.plane_names)
+
+    @property
+    def plane_shape(self) -> tuple:
+        """(H', W') of one plane. Unit: pixels."""
+        h, w = self.shape
+        return (h // 2, w // 2) if self.kind == "bayer" else (h, w)
+
+    @property
+    def bits(self) -> int:
+        """The ADC's bits, ceil(log2(white + 1))."""
+        return max(1, math.ceil(math.log2(self.white_level_dn + 1)))
+
+    def planes(self, image: np.ndarray) -> list:
+        """The planes of ``image`` (views): the four sites of the cell, the stack's colours, or the image."""
+        if self.kind == "bayer":
+            return [image[dy::2, dx::2] for dy in (0, 1) for dx in (0, 1)]
+        if self.kind == "stack":
+            return [image[..., c] for c in range(3)]
+        return [image]
+
+    def rows(self, image: np.ndarray) -> np.ndarray:
+        """The physical rows' images, (rows, values per row): a Bayer row holds both colours of its sites (one
+        readout), a stack's planes are separate sensors (each of their rows is a row); shape (R, V)."""
+        if self.kind == "stack":
+            return np.concatenate([image[..., c] for c in range(3)], axis=0)
+        return image
+
+    def describe(self) -> str:
+        """E.g. ``"1024x512 RGGB mosaic, 14-bit"``."""
+        what = {"bayer": f"{self.cfa} mosaic", "stack": "3-colour stack", "mono": "monochrome"}[self.kind]
+        return f"{self.shape[1]}x{self.shape[0]} {what}, white level {self.white_level_dn} DN"
+
+
+@dataclass(frozen=True)
+class RawFrame:
+    """One raw file's pixels and what calibration needs of its metadata.
+
+    Attributes
+    ----------
+    path : str
+    image : numpy.ndarray
+        (H, W) mosaic or (H, W, 3) stack, uint16. Unit: DN.
+    layout : Layout
+    iso : float or None
+        LibRaw's ISO speed (None where the file has none).
+    model : str or None
+        The camera: the DNG UniqueCameraModel, or Make and Model of a TIFF-based raw (None where unknown).
+    """
+
+    path: str
+    image: np.ndarray
+    layout: Layout
+    iso: float | None
+    model: str | None
+
+
+def _cfa_pattern(raw, name: str) -> str:
+    colours = raw.raw_colors_visible
+    desc = raw.color_desc.decode("ascii", "replace")
+    cell = raw.raw_pattern
+    if cell is None or np.shape(cell) != (2, 2) or colours.shape[0] < 2 or colours.shape[1] < 2:
+        shape = None if cell is None else np.shape(cell)
+        raise CamsimError(f"cannot calibrate from {name}: its colour filter array (pattern {shape}) is not a 2x2 "
+                          "Bayer mosaic; camsim calibrate reads 2x2 Bayer, 3-colour stacked and monochrome raws")
+    letters = "".join(_LETTER.get(desc[int(i)], "?") if int(i) < len(desc) else "?" for i in colours[:2, :2].ravel())
+    if sorted(letters) != ["B", "G", "G", "R"]:
+        raise CamsimError(f"cannot calibrate from {name}: its 2x2 colour filter array {letters!r} is not an RGB "
+                          "Bayer pattern")
+    return letters
+
+
+def _camera_model(name: str) -> str | None:
+    """UniqueCameraModel, else Make + Model, of a TIFF-based raw (DNG, NEF, CR2, ARW, ...); None otherwise."""
+    import tifffile
+
+    try:
+        with tifffile.TiffFile(name) as tif:
+            tags = tif.pages.first.tags
+            unique = tags.get(50708)
+            if unique is not None and str(unique.value).strip():
+                return str(unique.value).strip()
+            make, model = tags.get(271), tags.get(272)
+            parts = [str(t.value).strip() for t in (make, model) if t is not None and str(t.value).strip()]
+            if len(parts) == 2 and parts[1].startswith(parts[0]):
+                parts = parts[1:]
+            return " ".join(parts) or None
+    except Exception:  # not a TIFF container (CR3, RAF, ...): the model is then unknown
+        return None
+
+
+def read_raw(path, *, metadata: bool = False) -> RawFrame:
+    """Read a raw file's visible pixels through LibRaw.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    metadata : bool
+        Also read the camera model (a second open of the file, with tifffile).
+
+    Returns
+    -------
+    RawFrame
+
+    Raises
+    ------
+    CamsimError
+        Naming the file, if it is missing, unreadable or not a raw LibRaw decodes, or not one of the layouts
+        (2 × 2 Bayer, 3-colour stack, monochrome).
+    """
+    import rawpy
+
+    name = str(os.fspath(path))
+    try:
+        with rawpy.imread(name) as raw:
+            image = raw.raw_image_visible
+            if image.ndim == 3:
+                if raw.num_colors != 3 or image.shape[2] < 3:
+                    raise CamsimError(f"cannot calibrate from {name}: a stacked image of {raw.num_colors} colours "
+                                      "(expected 3)")
+                layout_kind, cfa = "stack", None
+                image = np.array(image[..., :3], dtype=np.uint16, copy=True)
+            elif raw.num_colors == 1:
+                layout_kind, cfa = "mono", None
+                image = np.array(image, dtype=np.uint16, copy=True)
+            else:
+                layout_kind, cfa = "bayer", _cfa_pattern(raw, name)
+                image = np.array(image, dtype=np.uint16, copy=True)
+            white = int(raw.white_level)
+            iso = float(raw.other.iso_speed) if raw.other.iso_speed and raw.other.iso_speed > 0 else None
+    except CamsimError:
+        raise
+    except Exception as exc:  # rawpy.LibRawError (unsupported, truncated, I/O), OSError
+        reason = str(exc) or type(exc).__name__
+        raise CamsimError(f"cannot read raw file {name}: {reason}") from None
+    h, w = image.shape[:2]
+    if layout_kind == "bayer" and (h % 2 or w % 2):
+        image = image[: h - h % 2, : w - w % 2]  # whole 2x2 cells only
+    layout = Layout(layout_kind, cfa, tuple(image.shape[:2]), white)
+    return RawFrame(name, image, layout, iso, _camera_model(name) if metadata else None)
+
+
+def check_same_layout(first: RawFrame, frame: RawFrame) -> None:
+    """Refuse a frame whose size, mosaic, white level or ISO (where both files say) differs from the first's (one
+    message naming both)."""
+    if frame.layout != first.layout:
+        raise CamsimError(f"mixed frames: {frame.path} is {frame.layout.describe()} but {first.path} is "
+                          f"{first.layout.describe()}; every dark and flat frame must come from the same camera "
+                          "mode")
+    if frame.iso is not None and first.iso is not None and frame.iso != first.iso:
+        raise CamsimError(f"mixed ISO: {frame.path} is ISO {frame.iso:g} but {first.path} is ISO {first.iso:g}; "
+                          "noise parameters belong to one ISO: calibrate each ISO on its own")
