@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 from scipy import optimize, special, stats
 
+from camsim.camera_presets import sensor_preset
 from camsim.calibration import dark, flats, ptc, tukey
 from camsim.calibration.estimate import Estimate
 from camsim.cli import main
@@ -125,6 +126,16 @@ def test_round_trip_recovers_the_rendered_sensor(tmp_path, capsys, seed):
     for name in ("report.md", "ptc.png", "probability_plot.png", "row_spectrum.png"):
         assert (out / name).stat().st_size > 0
     assert not list(out.glob(".*partial"))
+    # the preset file is camsim's own: the recovered sensor, in electrons, and a render with --preset PATH.toml
+    recovered = sensor_preset(str(out / "preset.toml"), 3200, read_noise_model="gaussian")
+    assert recovered.dn_per_electron == pytest.approx(k, rel=0.02)
+    assert recovered.read_noise_e == pytest.approx(sensor.read_noise_e, rel=0.03)
+    assert recovered.row_noise_e == pytest.approx(sensor.row_noise_e, rel=0.10)
+    assert (recovered.bits, recovered.pedestal_dn, recovered.cfa) == (14, 512, "RGGB")
+    frames = tmp_path / "frames"
+    _ok(capsys, ["render", "macbeth_26", "--preset", str(out / "preset.toml"), "--iso", "3200", "--illuminant",
+                 "D65", "--intensity", "0.1", "--size", "64x48", "--out", str(frames), "-q"])
+    assert json.loads((frames / "macbeth_26_D65_F0.1.json").read_text())["iso"] == 3200
 
 
 @pytest.mark.slow
