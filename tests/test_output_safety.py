@@ -64,6 +64,9 @@ def command_argv(name: str, out: Path, frames: Path, tmp: Path) -> list[str]:
         return ["emva", "--size", "16", "-q", "--out", str(out)]
     if name == "experiment":
         return ["experiment", "scenario1", "--size", "24x20", "-q", "--out", str(out)]
+    if name == "calibrate":  # the frames are no darks and flats: only the folder check is reached (its own file
+        dngs = sorted(str(p) for p in frames.glob("*.dng"))  # tests the rest, a full disk included)
+        return ["calibrate", "--dark", *dngs, "--flat", *dngs, "-q", "--out", str(out)]
     raise AssertionError(name)
 
 
@@ -82,7 +85,7 @@ def files_in(folder: Path) -> list[str]:
     return sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file()) if folder.exists() else []
 
 
-@pytest.mark.parametrize("name", COMMANDS)
+@pytest.mark.parametrize("name", COMMANDS + ("calibrate",))
 def test_output_under_a_file_fails_before_any_work(name, frames, tmp_path, capsys, monkeypatch):
     blocker = tmp_path / "a-file"
     blocker.write_text("not a folder")
@@ -102,6 +105,7 @@ def test_output_under_a_file_fails_before_any_work(name, frames, tmp_path, capsy
     monkeypatch.setattr(camsim.experiments.runner, "make_frame", no_work)
     monkeypatch.setattr(camsim.analysis.analyze, "analyse", no_work)
     monkeypatch.setattr(camsim.emva, "run", no_work)
+    monkeypatch.setattr(importlib.import_module("camsim.calibration"), "calibrate", no_work)
     monkeypatch.setattr(importlib.import_module("camsim.denoise.evaluate"), "evaluate", no_work)
     out = blocker / "out"
     assert main(command_argv(name, out, frames, tmp_path)) == 2
