@@ -14,7 +14,7 @@ import signal
 import sys
 
 from camsim import __version__
-from camsim.commands import analyze, calibrate, dataset, denoise_eval, emva, experiment, render
+from camsim.commands import analyze, calibrate, dataset, denoise_eval, emva, experiment, optimise, render
 from camsim.commands import list as list_command
 from camsim.errors import CamsimError, describe_os_error
 from camsim.signals import handlers_installed
@@ -26,6 +26,7 @@ COMMANDS = {
     "experiment": experiment,
     "emva": emva,
     "calibrate": calibrate,
+    "optimise": optimise,
     "dataset": dataset,
     "denoise-eval": denoise_eval,
     "list": list_command,
