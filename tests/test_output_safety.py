@@ -64,13 +64,15 @@ def command_argv(name: str, out: Path, frames: Path, tmp: Path) -> list[str]:
         return ["emva", "--size", "16", "-q", "--out", str(out)]
     if name == "experiment":
         return ["experiment", "scenario1", "--size", "24x20", "-q", "--out", str(out)]
+    if name == "optimise":
+        return ["optimise", "macbeth_26", "--preset", "sony-a7s2", "-F", "0.1", "--no-verify", "-q", "--out", str(out)]
     if name == "calibrate":  # the frames are no darks and flats: only the folder check is reached (its own file
         dngs = sorted(str(p) for p in frames.glob("*.dng"))  # tests the rest, a full disk included)
         return ["calibrate", "--dark", *dngs, "--flat", *dngs, "-q", "--out", str(out)]
     raise AssertionError(name)
 
 
-COMMANDS = ("render", "dataset", "analyze", "denoise-eval", "emva", "experiment")
+COMMANDS = ("render", "dataset", "analyze", "denoise-eval", "emva", "experiment", "optimise")
 
 
 def one_error_line(capsys) -> str:
