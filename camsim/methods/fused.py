@@ -107,7 +107,8 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
             table = _charge_table(expected, sensor, label, c) if kind == TABLE and words is not None else None
             # the whole block (an image's pixels): clip wherever any spectrum of the channel may reach the full well
             # (a clip that cannot act changes nothing) rather than gather the per-spectrum flags of every pixel
-            clip = table is None and bool(plan.clip_by_channel[c]) and (whole or bool(np.any(plan.needs_clip[index, c])))
+            clip = table is None and bool(plan.clip_by_channel[c]) and (
+                whole or bool(np.any(plan.needs_clip[index, c])))
             level = None if not clip else saturation_level_e(sensor.full_well_e,
                                                              None if offset is None else offset[where])
             if table is not None:  # min(N, c) from its alias table: one 64-bit word a pixel
