@@ -149,7 +149,8 @@ def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_v
     if dark_gain is not None:  # per-pixel dark means (the signal's draw keeps its size)
         D = D * dark_gain
     if photon_noise and statistics == "pixel":  # one draw covers photons and dark current
-        lam = S + D if saturation_e is None else cap_mean_e(S + D, saturation_e)
+        total = S if dark_gain is None and isinstance(D, (int, float)) and D == 0 else S + D  # (no copy for D̄ = 0)
+        lam = total if saturation_e is None else cap_mean_e(total, saturation_e)
         return poisson(rng, lam) if size is None or dark_gain is not None else poisson_run(rng, lam, size)
     if saturation_e is not None:
         D = cap_mean_e(D, saturation_e)
