@@ -177,6 +177,36 @@ def _overflow_reason(photon_radiance, qe, sensor: SensorParams, intensity_factor
             f"about {_sci(allowed - 0.01)} at this exposure")
 
 
+def clean_charge_e(poisson_mean_e, sensor: SensorParams, base_e=0.0):
+    """A pixel's expected charge after saturation, E[min(base + X, c)], X ~ Poisson(λ) (c the full well; without
+    saturation base + λ), elementwise on numpy or CuPy arrays: the clean value of a pixel with a mean of its own.
+    Unit: e⁻.
+
+    Parameters
+    ----------
+    poisson_mean_e : array
+        λ, the mean of the pixel's Poisson charge: g S̄ + d D̄ under ``pixel`` statistics (PRNU gain g, dark-current
+        factor d), d D̄ alone without photon noise. Unit: e⁻.
+    sensor : SensorParams
+    base_e : float or array
+        What the pixel holds besides the Poisson count: its DSNU offset o, plus S̄ without photon noise. Unit: e⁻.
+
+    Notes
+    -----
+    Exact: min(base + X, c) = base + min(X, c − base) where c ≥ base, else c (X ≥ 0), so the value is
+    base + :func:`poisson_min_e` (λ, c − base) or c; the saturation cap of the draws changes it by at most
+    :data:`camsim.stages.SATURATION_CAP_TAIL`.
+    """
+    xp = namespace_of(poisson_mean_e, base_e)
+    if not sensor.saturation:
+        return poisson_mean_e + base_e
+    c = float(sensor.full_well_e)
+    room = c - xp.asarray(base_e, dtype=xp.float64)
+    lam = xp.asarray(poisson_mean_e, dtype=xp.float64)
+    room = xp.broadcast_to(room, lam.shape)
+    return xp.where(room <= 0, c, (c - room) + poisson_min_e(lam, xp.maximum(room, 0.0)))
+
+
 def poisson_min_e(lam, c):
     """E[min(X, c)] for X ~ Poisson(lam), elementwise; ``c`` ≥ 0 may be fractional. Unit: e⁻.
 

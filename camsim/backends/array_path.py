@@ -32,7 +32,7 @@ import numpy as np
 from camsim.backends import device_generator, device_method
 from camsim.cfa import cfa_sites
 from camsim.expected import ExpectedSignal
-from camsim.fixed_pattern import FixedPattern, fixed_pattern
+from camsim.fixed_pattern import FixedPattern, _dark_gain_map, _unit_maps, fixed_pattern
 from camsim.render import Frame, block_rows, check_frame_values
 from camsim.sensor import SensorParams
 from camsim.stages import (
@@ -159,23 +159,33 @@ def plane_inputs(xp, labels, expected: ExpectedSignal, sensor: SensorParams, map
     return out
 
 
-@lru_cache(maxsize=2)
-def _device_maps(xp, sensor_seed: int, shape: tuple, dsnu_e: float, prnu_percent: float, dark_percent: float):
-    sensor = SensorParams(sensor_seed=sensor_seed, dsnu_e=dsnu_e, prnu_percent=prnu_percent,
-                          dsnu_dark_current_percent=dark_percent)
-    maps = fixed_pattern(sensor, shape)
-    if maps is None:
-        return None
-    return FixedPattern(*(None if m is None else xp.asarray(m) for m in (maps.offset_e, maps.gain, maps.dark_gain)))
+@lru_cache(maxsize=4)
+def _device_unit_maps(xp, sensor_seed: int, shape: tuple) -> tuple:
+    """The unit DSNU-offset and PRNU normals of a sensor on ``xp``'s device (drawn on the host, as every frame's)."""
+    offset, gain = _unit_maps(sensor_seed, shape)
+    return xp.asarray(offset), xp.asarray(gain)
+
+
+@lru_cache(maxsize=4)
+def _device_dark_gain(xp, sensor_seed: int, shape: tuple, relative_sigma: float):
+    return xp.asarray(_dark_gain_map(sensor_seed, shape, relative_sigma))
 
 
 def device_maps(xp, sensor: SensorParams, shape) -> FixedPattern | None:
-    """The sensor's fixed-pattern maps (:func:`camsim.fixed_pattern.fixed_pattern`) on ``xp``'s device, kept for the
-    next frame of the same sensor and size (the maps belong to the sensor, not the frame)."""
+    """The sensor's fixed-pattern maps on ``xp``'s device: :func:`camsim.fixed_pattern.fixed_pattern`'s values (the
+    same float32 arithmetic on the same unit maps, which are copied to the device once per sensor seed and size:
+    the maps belong to the sensor, not the frame)."""
     if not sensor.fixed_pattern:
         return None
-    return _device_maps(xp, sensor.sensor_seed, tuple(shape), sensor.dsnu_e, sensor.prnu_percent,
-                        sensor.dsnu_dark_current_percent)
+    shape = tuple(shape)
+    offset = gain = None
+    if sensor.dsnu_e > 0 or sensor.prnu_percent > 0:
+        unit_offset, unit_gain = _device_unit_maps(xp, sensor.sensor_seed, shape)
+        offset = unit_offset * np.float32(sensor.dsnu_e) if sensor.dsnu_e > 0 else None
+        gain = 1 + unit_gain * np.float32(sensor.prnu_percent / 100) if sensor.prnu_percent > 0 else None
+    p = sensor.dsnu_dark_current_percent
+    dark_gain = _device_dark_gain(xp, sensor.sensor_seed, shape, p / 100) if p > 0 else None
+    return FixedPattern(offset, gain, dark_gain)
 
 
 def render_frame_xp(xp, labels, expected: ExpectedSignal, sensor: SensorParams, *, rng, statistics: str = "pixel",
