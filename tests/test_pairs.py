@@ -130,3 +130,16 @@ def test_noisy_minus_clean_has_mean_zero_and_the_model_variance(device, intensit
         model = k * clean[far] + (k * read) ** 2  # k² (λ + σ²) with λ = clean / k
         ratio = np.mean(residual[far] ** 2) / np.mean(model)
         assert abs(ratio - 1) < 5 * np.sqrt(2 / far.sum()) + 0.01, ratio
+
+
+def test_readme_pairs_example_runs(monkeypatch, capsys):
+    """The README's numpy example of "Training pairs on the fly" (the first python block of that section) runs."""
+    import re
+
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("### Training pairs on the fly"):]
+    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    monkeypatch.chdir(ROOT)
+    exec(compile(code, "README.md", "exec"), {})
+    lines = capsys.readouterr().out.splitlines()
+    assert lines == ["(4, 1, 48, 64) float32 True"] * 2
