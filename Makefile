@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup run test test-fast bench clean
+.PHONY: setup run test test-fast bench bench-gpu clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,10 @@ test-fast: $(STAMP)
 ## Set up, then run the W1 speed/memory benchmark (prints a JSON line last)
 bench: $(STAMP)
 	$(BIN)/python tools/bench_w1.py
+
+## Set up, then run the GPU benchmark (prints a JSON line last; CPU figures only without a GPU)
+bench-gpu: $(STAMP)
+	$(BIN)/python tools/bench_gpu.py
 
 clean:
 	rm -rf $(VENV) outputs/macbeth_26

@@ -20,6 +20,7 @@ from scipy import stats
 from camsim.errors import CamsimError
 from camsim.rates import FactoredSpectra, all_finite
 from camsim.sensor import SensorParams
+from camsim.xp import namespace_of, special_namespace
 
 
 @dataclass(frozen=True)
@@ -118,10 +119,10 @@ def expected_saturated(signal, var, dark, sensor: SensorParams, exact_poisson: b
     if exact_poisson:
         if sensor.photon_noise:
             # S + D ~ Poisson(λ): E[min(X, c)] = λ P(X ≤ m − 1) + c P(X > m), m = floor(c).
-            return _poisson_min(mean, c)
+            return poisson_min_e(mean, c)
         # S constant, D ~ Poisson: E[min(S + D, c)] = S + E[min(D, c − S)].
         room = c - signal
-        return np.where(room <= 0, c, signal + _poisson_min(dark_b, np.maximum(room, 0)))
+        return np.where(room <= 0, c, signal + poisson_min_e(dark_b, np.maximum(room, 0)))
     sd = np.sqrt(var + dark_b)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         z = (mean - c) / sd
@@ -176,19 +177,58 @@ def _overflow_reason(photon_radiance, qe, sensor: SensorParams, intensity_factor
             f"about {_sci(allowed - 0.01)} at this exposure")
 
 
-def _poisson_min(lam, c):
-    """E[min(X, c)] for X ~ Poisson(lam), elementwise; ``c`` ≥ 0 may be fractional."""
-    lam = np.asarray(lam, dtype=np.float64)
-    c = np.broadcast_to(np.asarray(c, dtype=np.float64), lam.shape)
-    m = np.floor(c)
+def clean_charge_e(poisson_mean_e, sensor: SensorParams, base_e=0.0):
+    """A pixel's expected charge after saturation, E[min(base + X, c)], X ~ Poisson(λ) (c the full well; without
+    saturation base + λ), elementwise on numpy or CuPy arrays: the clean value of a pixel with a mean of its own.
+    Unit: e⁻.
+
+    Parameters
+    ----------
+    poisson_mean_e : array
+        λ, the mean of the pixel's Poisson charge: g S̄ + d D̄ under ``pixel`` statistics (PRNU gain g, dark-current
+        factor d), d D̄ alone without photon noise. Unit: e⁻.
+    sensor : SensorParams
+    base_e : float or array
+        What the pixel holds besides the Poisson count: its DSNU offset o, plus S̄ without photon noise. Unit: e⁻.
+
+    Notes
+    -----
+    Exact: min(base + X, c) = base + min(X, c − base) where c ≥ base, else c (X ≥ 0), so the value is
+    base + :func:`poisson_min_e` (λ, c − base) or c; the saturation cap of the draws changes it by at most
+    :data:`camsim.stages.SATURATION_CAP_TAIL`.
+    """
+    xp = namespace_of(poisson_mean_e, base_e)
+    if not sensor.saturation:
+        return poisson_mean_e + base_e
+    c = float(sensor.full_well_e)
+    room = c - xp.asarray(base_e, dtype=xp.float64)
+    lam = xp.asarray(poisson_mean_e, dtype=xp.float64)
+    room = xp.broadcast_to(room, lam.shape)
+    return xp.where(room <= 0, c, (c - room) + poisson_min_e(lam, xp.maximum(room, 0.0)))
+
+
+def poisson_min_e(lam, c):
+    """E[min(X, c)] for X ~ Poisson(lam), elementwise; ``c`` ≥ 0 may be fractional. Unit: e⁻.
+
+    λ P(X ≤ m − 1) + c P(X > m), m = ⌊c⌋, with the Poisson CDF and survival function as regularised incomplete
+    gamma functions (``pdtr``, ``pdtrc``: scipy's, or CuPy's for arrays on a GPU, :mod:`camsim.xp`). The clean
+    value of a pixel of mean λ under a full well c: per spectrum here, per pixel on the device
+    (:mod:`camsim.pairs`).
+    """
+    xp = namespace_of(lam, c)
+    special = special_namespace(xp)
+    lam = xp.asarray(lam, dtype=xp.float64)
+    c = xp.broadcast_to(xp.asarray(c, dtype=xp.float64), lam.shape)
+    m = xp.floor(c)
     # Where m − 1 lies beyond λ + 40 √λ + 40, λ − E[min(X, c)] = λ P(X ≥ m) − c P(X > m) is below λ · 1e-118 (computed
     # with scipy's log survival function for λ from 1e-12 to 1e15), so E[min(X, c)] is λ to the last bit of a
     # float64: the tail is summed only where it can show (an image has a mean per colour, ~1e6 of them)
-    near = m - 1 <= lam + 40 * np.sqrt(lam) + 40
+    near = m - 1 <= lam + 40 * xp.sqrt(lam) + 40
     out = lam.copy()
-    if not near.any():
+    if not bool(near.any()):
         return out
     lam_n, c_n, m_n = lam[near], c[near], m[near]
-    below = np.where(lam_n > 0, lam_n * stats.poisson.cdf(m_n - 1, lam_n), 0.0)
-    out[near] = below + c_n * stats.poisson.sf(m_n, lam_n)
+    cdf = xp.where(m_n >= 1, special.pdtr(xp.maximum(m_n - 1, 0.0), lam_n), 0.0)  # P(X ≤ m − 1); 0 for m = 0
+    below = xp.where(lam_n > 0, lam_n * cdf, 0.0)
+    out[near] = below + c_n * special.pdtrc(m_n, lam_n)
     return out

@@ -76,6 +76,9 @@ class FrameInfo:
     patch_weights: tuple | None = None
     white_signal_e_per_s: np.ndarray | None = None  # the perfect white's e⁻/s per channel at F = 1 (LitScene)
     preset: dict | None = None  # a camera preset's name (or file) and ISO: the sidecar's "preset" and "iso"
+    # the device that drew the frame, where not the CPU (camsim.backends.device_record): the sidecar's "device",
+    # "device_name", "device_library" and, where a device draws another method, "method_requested"
+    device: dict | None = None
 
 
 def frame_stem(scene: str, illuminant: str, intensity_factor: float) -> str:
@@ -119,6 +122,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
         "seed": info.seed,
         "photon_statistics": info.photon_statistics,
         "method": info.method,
+        **(info.device or {}),
         "auto_tolerance_ks": None if frame.plan is None else frame.plan.tolerance,
         **(info.exposure if info.exposure is not None else {"exposure": "fixed"}),
         "camera": info.camera,

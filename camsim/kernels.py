@@ -1,12 +1,13 @@
-"""Fast exact samplers and block helpers: pure numpy, importing no camsim module.
+"""Fast exact samplers and block helpers: pure numpy, importing no camsim module but :mod:`camsim.xp`.
 
 These are the kernels every sampling method and stage draws with:
 
-* :func:`poisson` — numpy's Poisson sampler, extended past its largest mean (a rounded normal there);
+* :func:`poisson` — the generator's Poisson sampler (numpy's, or CuPy's on a GPU), extended past its largest mean
+  (a rounded normal there);
 * :func:`poisson_run` — n iid Poisson(λ) draws of one mean as a multinomial histogram plus a shuffle (exact,
   about twice numpy's per-draw speed);
 * :func:`standard_normal_f32` — float32 Box–Muller normals (three times numpy's float32 ziggurat);
-* :func:`tukey_lambda` — heavy-tailed Tukey-λ draws by inverse CDF;
+* :func:`tukey_lambda` — heavy-tailed Tukey-λ draws by inverse CDF (numpy or CuPy);
 * :func:`label_runs` — the rectangles of equal label of a block (a chart's row block is a few of them).
 """
 
@@ -17,25 +18,32 @@ from functools import lru_cache
 import numpy as np
 from scipy import special, stats
 
+from camsim.xp import generator_namespace
+
 #: numpy's Poisson sampler refuses means above about 9.2e18; beyond this the Poisson law is a Gaussian to
 #: within a relative skew of 1e-9, and a rounded normal draw is used.
 POISSON_LAM_MAX = 1e18
 
 
-def poisson(rng: np.random.Generator, lam, size=None) -> np.ndarray:
+def poisson(rng, lam, size=None):
     """Poisson draws that also accept means beyond numpy's limit (rounded Gaussian there).
 
-    Unit: counts (int64, or float64 when a mean exceeds :data:`POISSON_LAM_MAX`).
+    ``rng`` is a ``numpy.random.Generator`` or a ``cupy.random.Generator``: the means are taken to its device and
+    drawn there. Unit: counts (int64, or float64 when a mean exceeds :data:`POISSON_LAM_MAX`).
     """
-    lam = np.asarray(lam, dtype=np.float64)
-    if lam.size == 0 or lam.max() <= POISSON_LAM_MAX:
+    xp = generator_namespace(rng)
+    lam = xp.asarray(lam, dtype=xp.float64)
+    if lam.size == 0 or bool(lam.max() <= POISSON_LAM_MAX):
         return rng.poisson(lam, size=size)
     shape = size if size is not None else lam.shape
-    lam = np.broadcast_to(lam, shape)
+    lam = xp.broadcast_to(lam, shape)
     big = lam > POISSON_LAM_MAX
-    out = np.empty(shape, dtype=np.float64)
+    out = xp.empty(shape, dtype=xp.float64)
     out[~big] = rng.poisson(lam[~big])
-    out[big] = np.rint(rng.normal(lam[big], np.sqrt(lam[big])))
+    if xp is np:
+        out[big] = np.rint(rng.normal(lam[big], np.sqrt(lam[big])))
+    else:  # CuPy's generator has no normal(loc, scale): the same transform of its standard normals
+        out[big] = xp.rint(lam[big] + xp.sqrt(lam[big]) * rng.standard_normal(int(xp.count_nonzero(big))))
     return out
 
 
@@ -67,7 +75,8 @@ def poisson_run(rng: np.random.Generator, lam: float, shape) -> np.ndarray:
     numpy.ndarray of ``shape``, float32 (histogram sampler) or int64 (numpy's sampler). Unit: counts.
     """
     n = int(np.prod(shape))
-    if not 0 < lam <= HISTOGRAM_MAX_LAMBDA or n < HISTOGRAM_MIN_PIXELS_PER_VALUE * (26 * np.sqrt(lam) + 41):
+    if (not isinstance(rng, np.random.Generator) or not 0 < lam <= HISTOGRAM_MAX_LAMBDA
+            or n < HISTOGRAM_MIN_PIXELS_PER_VALUE * (26 * np.sqrt(lam) + 41)):
         return poisson(rng, lam, size=shape)
     values, pmf = _poisson_support(float(lam))
     draws = np.repeat(values, rng.multinomial(n, pmf))
@@ -154,11 +163,14 @@ def tukey_lambda_variance(lam: float) -> float:
 def tukey_lambda(rng: np.random.Generator, out: np.ndarray, lam: float, std: float) -> np.ndarray:
     """Fill ``out`` with Tukey lambda draws of shape ``lam``, scaled to standard deviation ``std``.
 
-    Inverse-CDF sampling on float64 uniforms in (0, 1); heavier tails than the Gaussian for λ < 0.14.
+    Inverse-CDF sampling on float64 uniforms in (0, 1); heavier tails than the Gaussian for λ < 0.14. ``rng`` and
+    ``out`` are numpy's or CuPy's (CuPy's uniforms come from 32-bit cuRAND draws, single precision near 1: the
+    upper tail is cut where 1 − u < 2⁻²⁴, about 20 σ at λ = −0.1, a probability of 6e-8).
     """
+    xp = generator_namespace(rng)
     u = rng.random(out.shape)
     u[u == 0] = np.finfo(float).tiny
-    x = np.log(u / (1 - u)) if abs(lam) < 1e-9 else (u**lam - (1 - u) ** lam) / lam
+    x = xp.log(u / (1 - u)) if abs(lam) < 1e-9 else (u**lam - (1 - u) ** lam) / lam
     out[...] = x * (std / np.sqrt(tukey_lambda_variance(lam)))
     return out
 

@@ -148,7 +148,7 @@ def frame_sensor(scene: Scene, lit: LitScene, intensity_factor: float) -> Sensor
 
 def make_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, *, statistics: str = "pixel",
                method: str = "poisson", rng=None, tolerance: float | None = None,
-               workers: int | None = None) -> Frame:
+               workers: int | None = None, device: str = "cpu") -> Frame:
     """Draw one frame: the expected signal of ``lit`` at F, then per-pixel noise by ``method``.
 
     Parameters
@@ -166,12 +166,25 @@ def make_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, *, 
         ``auto``'s KS tolerance.
     workers : int, optional
         Threads (default: every core).
+    device : {'cpu', 'cuda', 'numpy'}
+        ``cpu``: the block renderer (:func:`camsim.render.render_frame`). ``cuda``: the array path on an NVIDIA GPU
+        with CuPy; ``numpy``: the same code on the CPU (:mod:`camsim.backends`). On a device every method but
+        ``spectral`` draws the exact per-pixel law, ``pixel`` statistics only; the frame's pixels are copied to
+        the host (its ``plan`` is None). The same seed, device and library version give the same frame; the
+        devices agree in distribution, not in bits.
 
     Returns
     -------
     Frame
     """
     expected = lit.expected(sensor, intensity_factor, statistics)
+    if device != "cpu":
+        from camsim.backends import array_module
+        from camsim.backends.array_path import render_frame_xp
+
+        drawn = render_frame_xp(array_module(device), lit.labels, expected, sensor, rng=rng, statistics=statistics,
+                                method=method)
+        return drawn.to_frame(lit.labels, expected, sensor)
     return render_frame(lit.labels, expected, sensor, statistics=statistics, method=method, rng=rng,
                         workers=workers, tolerance=tolerance)
 
@@ -190,16 +203,28 @@ def patch_xyz(radiance: SceneRadiance, grid: WavelengthGrid) -> np.ndarray:
 
 
 def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, intensity_factor: float,
-                     seed: int) -> FrameInfo:
-    """The :class:`FrameInfo` of one frame of ``scene`` under ``lit``: what its files say besides its pixels."""
+                     seed: int, device: str = "cpu") -> FrameInfo:
+    """The :class:`FrameInfo` of one frame of ``scene`` under ``lit``: what its files say besides its pixels.
+
+    On a device (``device`` other than ``cpu``) the method is the one drawn there
+    (:func:`camsim.backends.device_method`) and the sidecar records the device (:func:`camsim.backends.device_record`)
+    and, where it differs, the scene's method as ``method_requested``.
+    """
     radiance, grid = lit.radiance, scene.grid
+    method, record = scene.method, None
+    if device != "cpu":
+        from camsim.backends import array_module, device_method, device_record
+
+        method = device_method(scene.method, scene.statistics)
+        record = device_record(array_module(device)) | (
+            {"method_requested": scene.method} if method != scene.method else {})
     return FrameInfo(
         scene=scene.name,
         illuminant=lit.illuminant,
         intensity_factor=intensity_factor,
         seed=seed,
         photon_statistics=scene.statistics,
-        method=scene.method,
+        method=method,
         camera=camera_name,
         sensitivity_basis=scene.sensitivity_basis,
         reflectances=radiance.reflectance_set,
@@ -218,6 +243,7 @@ def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, intensity_fa
         patch_weights=radiance.patch_weights,
         white_signal_e_per_s=None if lit.white_photon_rate is None else lit.white_signal_e_per_s,
         preset=preset_record(scene),
+        device=record,
     )
 
 
@@ -245,7 +271,7 @@ def exposure_record(scene: Scene) -> dict:
 
 def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed: int | None = None,
                 lit: LitScene | None = None, camera: Camera | None = None,
-                workers: int | None = None) -> tuple[Frame, FrameInfo]:
+                workers: int | None = None, device: str = "cpu") -> tuple[Frame, FrameInfo]:
     """One frame of ``scene`` (its sensor, statistics, method and tolerance) and its :class:`FrameInfo`.
 
     Parameters
@@ -256,6 +282,8 @@ def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed:
         whether it is rendered alone or in a longer run.
     lit, camera : optional
         ``light_scene(scene, illuminant)`` and the scene's camera, when the caller keeps them between frames.
+    device : {'cpu', 'cuda', 'numpy'}
+        Where the frame is drawn (:func:`make_frame`); its sidecar records a device other than the CPU.
     """
     seed = scene.seed if seed is None else seed
     if camera is None:
@@ -266,8 +294,8 @@ def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed:
     frame = make_frame(lit, frame_sensor(scene, lit, intensity_factor), intensity_factor,
                        statistics=scene.statistics, method=scene.method,
                        rng=frame_seed_sequence(seed, illuminant, intensity_factor), tolerance=scene.tolerance,
-                       workers=workers)
-    return frame, scene_frame_info(scene, lit, camera.name, intensity_factor, seed)
+                       workers=workers, device=device)
+    return frame, scene_frame_info(scene, lit, camera.name, intensity_factor, seed, device)
 
 
 def check_frames(scene: Scene, camera: Camera | None = None) -> list[str]:

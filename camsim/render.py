@@ -22,6 +22,7 @@ from camsim.methods import get_method
 from camsim.seeding import block_generators
 from camsim.sensor import SensorParams
 from camsim.stages import dn_dtype, saturating_mean_e, saturation_level_e
+from camsim.xp import namespace_of
 
 if TYPE_CHECKING:  # the plan's module imports scipy: only its type is needed here
     from camsim.methods.plan import DrawPlan
@@ -58,51 +59,62 @@ class Frame:
     def clean_dn(self) -> np.ndarray:
         """Expected value of ``noisy_dn`` per pixel: G · G_Ve⁻ · E[f_sat(S + D)], shape (3, H, W), float32.
 
-        With fixed-pattern maps, each pixel's shift of the mean — (g − 1) S̄ (PRNU), (d − 1) D̄ (dark-current DSNU)
-        and its offset o — is added to its spectrum's value and the sum clipped at the full well: exact below
-        saturation, and for spectra whose every pixel is saturated (their mean, with the smallest PRNU gain, the
-        smallest dark-current factor and the most negative DSNU offset, at or above the saturation cap of
-        :func:`camsim.stages.saturating_mean_e`) the full well itself; an approximation in between.
+        :func:`clean_dn` of the frame's labels, expected signal, sensor and fixed-pattern maps.
         """
-        k = self.sensor.dn_per_electron
-        table = (self.expected.clean_e * k).astype(np.float32)
-        out = np.empty((3,) + self.labels.shape, dtype=np.float32)
-        full = self._saturated_spectra() if self.maps is not None and self.sensor.saturation else None
-        for c in range(3):
-            out[c] = table[:, c][self.labels]  # fancy indexing: ~4× faster than np.take with small ints
-            # fixed-pattern maps are part of the sensor, so of the expectation (exact below saturation)
-            if self.maps is not None and self.maps.gain is not None:
-                signal = k * self.expected.signal_e[:, c]
-                if full is not None:  # saturated spectra get the full well below: no shift (and no overflow)
-                    signal = np.where(full[:, c], 0.0, signal)
-                out[c] += (self.maps.gain[c] - 1) * signal.astype(np.float32)[self.labels]
-            dark = self.expected.dark_e[c]
-            if self.maps is not None and self.maps.dark_gain is not None and dark > 0 and not (
-                    full is not None and np.all(full[:, c])):  # (every spectrum saturated: the full well below)
-                out[c] += np.float32(k * dark) * (self.maps.dark_gain[c] - np.float32(1))
-            if self.maps is not None and self.maps.offset_e is not None:
-                out[c] += np.float32(k) * self.maps.offset_e[c]
-            if self.maps is not None and self.sensor.saturation:
-                np.minimum(out[c], np.float32(k * self.sensor.full_well_e), out=out[c])
-                if np.any(full[:, c]):
-                    out[c][full[:, c][self.labels]] = np.float32(k * self.sensor.full_well_e)
-        return out
+        return clean_dn(self.labels, self.expected, self.sensor, self.maps)
 
-    def _saturated_spectra(self) -> np.ndarray:
-        """(K, 3) bool: spectra and channels whose every pixel saturates but with probability ≤ ε (fixed-pattern
-        maps on): S̄ · min g + D̄ · min d ≥ M(L, max(1, Var S / S̄)), L the full well minus the most negative offset
-        (g the PRNU gains, d the dark-current DSNU factors: a pixel with a larger mean only saturates more).
 
-        The total charge is a sum of scaled Poisson counts whose variance is at most max(1, s) times its mean, so
-        :func:`camsim.stages.saturating_mean_e`'s bound holds with that step.
-        """
-        ex, maps = self.expected, self.maps
-        g_min = float(np.min(maps.gain)) if maps.gain is not None else 1.0
-        dark = ex.dark_e if maps.dark_gain is None else ex.dark_e * float(np.min(maps.dark_gain))
-        level = saturation_level_e(self.sensor.full_well_e, maps.offset_e)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = np.maximum(1.0, np.where(ex.signal_e > 0, ex.signal_var_e2 / ex.signal_e, 0.0))
-        return ex.signal_e * max(g_min, 0.0) + dark >= saturating_mean_e(level, step)
+def clean_dn(labels, expected: ExpectedSignal, sensor: SensorParams, maps: FixedPattern | None = None):
+    """The clean layer: the expected DN before quantisation per pixel, G · G_Ve⁻ · E[f_sat(S + D)], shape (3, H, W),
+    float32, on the device of ``labels`` (numpy, or CuPy with ``maps`` there too: :mod:`camsim.xp`).
+
+    With fixed-pattern maps, each pixel's shift of the mean — (g − 1) S̄ (PRNU), (d − 1) D̄ (dark-current DSNU)
+    and its offset o — is added to its spectrum's value and the sum clipped at the full well: exact below
+    saturation, and for spectra whose every pixel is saturated (their mean, with the smallest PRNU gain, the
+    smallest dark-current factor and the most negative DSNU offset, at or above the saturation cap of
+    :func:`camsim.stages.saturating_mean_e`) the full well itself; an approximation in between.
+    """
+    xp = namespace_of(labels)
+    k = sensor.dn_per_electron
+    table = xp.asarray((expected.clean_e * k).astype(np.float32))
+    out = xp.empty((3,) + labels.shape, dtype=np.float32)
+    full = saturated_spectra(expected, sensor, maps) if maps is not None and sensor.saturation else None
+    for c in range(3):
+        out[c] = table[:, c][labels]  # fancy indexing: ~4× faster than np.take with small ints
+        # fixed-pattern maps are part of the sensor, so of the expectation (exact below saturation)
+        if maps is not None and maps.gain is not None:
+            signal = k * expected.signal_e[:, c]
+            if full is not None:  # saturated spectra get the full well below: no shift (and no overflow)
+                signal = np.where(full[:, c], 0.0, signal)
+            out[c] += (maps.gain[c] - 1) * xp.asarray(signal.astype(np.float32))[labels]
+        dark = expected.dark_e[c]
+        if maps is not None and maps.dark_gain is not None and dark > 0 and not (
+                full is not None and np.all(full[:, c])):  # (every spectrum saturated: the full well below)
+            out[c] += np.float32(k * dark) * (maps.dark_gain[c] - np.float32(1))
+        if maps is not None and maps.offset_e is not None:
+            out[c] += np.float32(k) * maps.offset_e[c]
+        if maps is not None and sensor.saturation:
+            xp.minimum(out[c], np.float32(k * sensor.full_well_e), out=out[c])
+            if np.any(full[:, c]):
+                out[c][xp.asarray(full[:, c])[labels]] = np.float32(k * sensor.full_well_e)
+    return out
+
+
+def saturated_spectra(expected: ExpectedSignal, sensor: SensorParams, maps: FixedPattern) -> np.ndarray:
+    """(K, 3) bool: spectra and channels whose every pixel saturates but with probability ≤ ε (fixed-pattern maps
+    on): S̄ · min g + D̄ · min d ≥ M(L, max(1, Var S / S̄)), L the full well minus the most negative offset (g the
+    PRNU gains, d the dark-current DSNU factors: a pixel with a larger mean only saturates more).
+
+    The total charge is a sum of scaled Poisson counts whose variance is at most max(1, s) times its mean, so
+    :func:`camsim.stages.saturating_mean_e`'s bound holds with that step. The maps may be on a device.
+    """
+    ex = expected
+    g_min = float(namespace_of(maps.gain).min(maps.gain)) if maps.gain is not None else 1.0
+    dark = ex.dark_e if maps.dark_gain is None else ex.dark_e * float(namespace_of(maps.dark_gain).min(maps.dark_gain))
+    level = saturation_level_e(sensor.full_well_e, maps.offset_e)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        step = np.maximum(1.0, np.where(ex.signal_e > 0, ex.signal_var_e2 / ex.signal_e, 0.0))
+    return ex.signal_e * max(g_min, 0.0) + dark >= saturating_mean_e(level, step)
 
 
 #: The largest charge (e⁻) or digital number a frame may hold. Its pixels are float32, which ends at 3.4e38: this

@@ -32,14 +32,15 @@ def check_scene(scene: Scene) -> None:
 
 
 def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = None, progress: bool = True,
-                 preview: bool = False) -> dict:
+                 preview: bool = False, device: str = "cpu") -> dict:
     """Render every frame of ``scene`` into ``out_dir``, keeping ``manifest.json`` there up to date.
 
     The folder is made ready and held before any work (:func:`camsim.io.output_folder.output_folder`: created,
     checked writable, locked against other camsim runs, swept of temporaries left by killed runs). Each frame
     commits on its own (:func:`camsim.frame_files.write_frame`) and the manifest follows each commit, adding to
     the frames of earlier runs in the folder (:class:`camsim.frame_manifest.FrameManifest`). With ``preview``,
-    each frame also gets an sRGB PNG (:mod:`camsim.preview`), listed in its ``files``.
+    each frame also gets an sRGB PNG (:mod:`camsim.preview`), listed in its ``files``. ``device`` draws the frames
+    on the CPU (default) or a device (:func:`camsim.pipeline.make_frame`; checked before the folder is touched).
 
     Returns
     -------
@@ -47,6 +48,11 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
         The manifest: per frame of the folder, scene, illuminant, F, seed and file paths relative to ``out_dir``.
     """
     check_scene(scene)
+    if device != "cpu":
+        from camsim.backends import check_device, device_method
+
+        check_device(device)
+        device_method(scene.method, scene.statistics)
     with output_folder(out_dir) as out_dir:
         camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
         manifest = FrameManifest(out_dir, scene.name)
@@ -59,7 +65,8 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
             for illuminant, factor in jobs:
                 if lit is None or lit.illuminant != illuminant:  # jobs come grouped by illuminant: lit once each
                     lit = light_scene(scene, illuminant, camera)
-                frame, info = scene_frame(scene, illuminant, factor, lit=lit, camera=camera, workers=workers)
+                frame, info = scene_frame(scene, illuminant, factor, lit=lit, camera=camera, workers=workers,
+                                          device=device)
                 stem = frame_stem(scene.name, illuminant, factor)
                 manifest.withdraw(stem)
                 files = write_frame(out_dir, stem, frame, info, preview=preview)

@@ -11,6 +11,7 @@ one field in :class:`camsim.sensor.SensorParams` (plus the physics that uses it)
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import tomllib
 from collections.abc import Callable
@@ -159,8 +160,10 @@ def param(default, kind: str, doc: str, unit: str = "", **checks):
     return dataclasses.field(default=default, metadata={"param": Param("", kind, default, doc, unit, **checks)})
 
 
+@functools.lru_cache(maxsize=None)
 def params_of(cls) -> tuple[Param, ...]:
-    """The :class:`Param` of every field of dataclass ``cls`` declared with :func:`param`, in field order."""
+    """The :class:`Param` of every field of dataclass ``cls`` declared with :func:`param`, in field order (computed
+    once per class: every validated instance asks)."""
     return tuple(dataclasses.replace(f.metadata["param"], name=f.name)
                  for f in dataclasses.fields(cls) if "param" in f.metadata)
 

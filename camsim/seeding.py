@@ -20,13 +20,17 @@ a dataset random parameter  ``SeedSequence(spec seed, spawn_key=(0xDA7A5E7, crc3
 an EMVA 1288 frame          ``SeedSequence(seed, spawn_key=(kind, step, frame))``        :func:`emva_frame_seed_sequence`
 a synthetic target's        ``SeedSequence(target seed, spawn_key=(0x7A263E7,))``         :func:`target_generator`
   pattern (dead leaves)
+a batch of training pairs   ``SeedSequence(seed, spawn_key=(0x9A125, b >> 32, b & ``     :func:`pair_batch_seed_sequence`
+  (:mod:`camsim.pairs`)     ``0xFFFFFFFF))`` for batch b; children 0 (noise), 1 (images
+                            and crops), 2 (light), 3–8 (cameras)
 ==========================  ===========================================================  ==================
 
 Frame keys have two words, dataset frame-seed keys four, parameter keys start with ``0xDA7A5E7`` and the fixed
 pattern's with ``0x46504E`` (neither a CRC-32 collision with a frame key in practice nor a small EMVA kind), so
 the namespaces are disjoint by the length or the first word of their keys. A target's pattern has a one-word key
 (``0x7A263E7``, "TARGET"), like the fixed pattern's but a different word: a scene's target seed and its frames' noise
-seed may be the same number and still never share a stream.
+seed may be the same number and still never share a stream. A batch of training pairs has a three-word key, like an
+EMVA frame's, whose first word ``0x9A125`` ("PAIRS") is no small EMVA kind.
 """
 
 from __future__ import annotations
@@ -42,6 +46,8 @@ FIXED_PATTERN_KEY = 0x46504E
 DATASET_PARAMETER_KEY = 0xDA7A5E7
 #: Spawn-key word of a synthetic target's pattern (a dead-leaves chart).
 TARGET_KEY = 0x7A263E7
+#: First spawn-key word of a batch of training pairs ("PAIRS").
+PAIRS_KEY = 0x9A125
 
 
 def frame_seed_sequence(seed: int, label: str, intensity_factor: float) -> np.random.SeedSequence:
@@ -187,3 +193,10 @@ def emva_frame_seed_sequence(seed: int, kind: int, step: int, frame: int) -> np.
 def target_generator(seed: int) -> np.random.Generator:
     """The stream of a synthetic target's pattern (:mod:`camsim.sources.target`): a function of its ``seed`` alone."""
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(TARGET_KEY,)))
+
+
+def pair_batch_seed_sequence(seed: int, index: int) -> np.random.SeedSequence:
+    """The seed sequence of batch ``index`` of training pairs (:mod:`camsim.pairs`): a function of the seed and the
+    batch index only, so that a batch is the same whichever worker draws it and whatever was drawn before."""
+    index = int(index)
+    return np.random.SeedSequence(entropy=seed, spawn_key=(PAIRS_KEY, index >> 32, index & 0xFFFFFFFF))

@@ -4,6 +4,12 @@ Every sampling method composes these (:mod:`camsim.methods`): the exact and the 
 fused per channel, straight to digital numbers; ``spectral`` runs them in sequence on electrons. Work stays in
 electrons until :func:`electrons_to_dn`.
 
+The functions take numpy or CuPy arrays (:mod:`camsim.xp`: the namespace follows the arrays, the random draws the
+generator): the device path (:mod:`camsim.backends.array_path`) composes the same functions on a GPU. Two CPU
+kernels are used only where the CPU's block renderer asks for them — the histogram sampler of one mean over a
+rectangle (``size`` with a scalar mean) and float32 Box–Muller (``work`` scratch) — and two numpy calls that CuPy
+does not take with the same keywords (a casting rule) have a CuPy form with the same casts.
+
 =============================  ====================================  ===========
 stage                          function                              unit
 =============================  ====================================  ===========
@@ -29,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from camsim.kernels import poisson, poisson_run, standard_normal_f32, tukey_lambda
+from camsim.xp import namespace_of
 
 #: ε of the saturation cap: a pixel whose mean charge is at or above :func:`saturating_mean_e` stays below its
 #: full well with probability at most ε, and drawing it at that mean changes the law of its value by at most ε in
@@ -62,9 +69,10 @@ def saturating_mean_e(level_e, step_e=1.0):
     float or numpy.ndarray
         M. Unit: e⁻.
     """
+    xp = namespace_of(level_e, step_e)
     a = -np.log(SATURATION_CAP_TAIL)
-    level = np.maximum(level_e, 0.0)
-    return level + a * step_e + np.sqrt((a * step_e) ** 2 + 2 * a * step_e * level)
+    level = xp.maximum(level_e, 0.0)
+    return level + a * step_e + xp.sqrt((a * step_e) ** 2 + 2 * a * step_e * level)
 
 
 def cap_mean_e(mean_e, level_e, step_e=1.0):
@@ -80,9 +88,10 @@ def cap_mean_e(mean_e, level_e, step_e=1.0):
     Unit: e⁻ (``mean_e`` float or array; the result has its shape).
     """
     cap = saturating_mean_e(level_e, step_e)
-    if np.all(np.asarray(mean_e) <= cap):
+    xp = namespace_of(mean_e, cap)
+    if bool(xp.all(xp.asarray(mean_e) <= cap)):
         return mean_e
-    return np.minimum(mean_e, cap)
+    return xp.minimum(mean_e, cap)
 
 
 def saturation_level_e(full_well_e: float, offset_e=None) -> float:
@@ -91,7 +100,7 @@ def saturation_level_e(full_well_e: float, offset_e=None) -> float:
     """
     if offset_e is None:
         return float(full_well_e)
-    return float(full_well_e) - min(0.0, float(np.min(offset_e)))
+    return float(full_well_e) - min(0.0, float(namespace_of(offset_e).min(offset_e)))
 
 
 def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_var_e2=None, *,
@@ -103,8 +112,8 @@ def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_v
     ----------
     signal_e : float or numpy.ndarray
         Mean signal S̄ of each pixel (one value, with ``size`` giving the shape, or one per pixel). Unit: e⁻.
-    dark_e : float
-        Mean dark charge D̄ = σ²_dark · T. Unit: e⁻.
+    dark_e : float or numpy.ndarray
+        Mean dark charge D̄ = σ²_dark · T (one value, or one per pixel: a colour filter array's sites). Unit: e⁻.
     signal_var_e2 : float or numpy.ndarray, optional
         Var S under ``paper`` statistics (Eq. 4), shaped like ``signal_e``. Unit: e⁻².
     statistics : {'pixel', 'paper'}
@@ -133,28 +142,30 @@ def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_v
         Unit: e⁻ (float32 histogram draws, int64 or float64 otherwise).
     """
     S, D = signal_e, dark_e
-    shape = size if size is not None else np.shape(signal_e)
+    shape = size if size is not None else getattr(signal_e, "shape", ())
     if gain is not None:  # per-pixel means: numpy's sampler, one mean per pixel
         S = S * gain
         size = None
     if dark_gain is not None:  # per-pixel dark means (the signal's draw keeps its size)
         D = D * dark_gain
     if photon_noise and statistics == "pixel":  # one draw covers photons and dark current
-        lam = S + D if saturation_e is None else cap_mean_e(S + D, saturation_e)
+        total = S if dark_gain is None and isinstance(D, (int, float)) and D == 0 else S + D  # (no copy for D̄ = 0)
+        lam = total if saturation_e is None else cap_mean_e(total, saturation_e)
         return poisson(rng, lam) if size is None or dark_gain is not None else poisson_run(rng, lam, size)
     if saturation_e is not None:
         D = cap_mean_e(D, saturation_e)
+    xp = namespace_of(S, signal_var_e2, gain)
     if photon_noise:
         var = signal_var_e2 * (1 if gain is None else gain)
         with np.errstate(divide="ignore", invalid="ignore"):
-            step = np.where(S > 0, var / S, 0.0)
+            step = xp.where(S > 0, var / S, 0.0)
             if saturation_e is not None:
                 S = cap_mean_e(S, saturation_e, step)
-            lam = np.where(step > 0, S / step, 0.0)
+            lam = xp.where(step > 0, S / step, 0.0)
         charge = step * poisson(rng, lam, size=size)
     else:
-        charge = np.broadcast_to(np.asarray(S, dtype=np.float64), shape)
-    return charge + poisson(rng, D, size=shape) if dark_e > 0 else charge
+        charge = xp.broadcast_to(xp.asarray(S, dtype=xp.float64), shape)
+    return charge + poisson(rng, D, size=shape) if bool(namespace_of(dark_e).any(dark_e > 0)) else charge
 
 
 def add_offset_e(charge_e: np.ndarray, offset_e: np.ndarray | None) -> np.ndarray:
@@ -167,39 +178,47 @@ def saturate_e(electrons: np.ndarray, full_well_e: float, out: np.ndarray | None
 
     Float arrays keep their type; an integer count array becomes float64 (a full well may be fractional).
     """
-    return np.minimum(electrons, float(full_well_e), out=out)
+    return namespace_of(electrons).minimum(electrons, float(full_well_e), out=out)
 
 
 def draw_read_noise_e(rng: np.random.Generator, out: np.ndarray, read_noise_e: float, model: str = "gaussian",
                       tukey_shape: float = -0.1, work: np.ndarray | None = None) -> np.ndarray:
     """Fill ``out`` with white read noise of standard deviation σ_read (Eqs. 7 and 10, referred to the charge).
 
-    The paper adds N(0, σ_read · G_Ve⁻) to the voltage; dividing by G_Ve⁻ gives this. ``gaussian``: float32
-    arrays draw with :func:`camsim.kernels.standard_normal_f32` (Box–Muller; ``work``, float32 of at least half
-    the size, is its scratch), float64 with numpy. ``tukey-lambda``: the Tukey λ law of shape ``tukey_shape``,
-    scaled to the same σ (heavier tails). Unit: e⁻.
+    The paper adds N(0, σ_read · G_Ve⁻) to the voltage; dividing by G_Ve⁻ gives this. ``gaussian``: with ``work``
+    (float32 of at least half the size: the CPU block renderer's scratch) float32 arrays draw with
+    :func:`camsim.kernels.standard_normal_f32` (Box–Muller); otherwise the generator's own normals
+    (``standard_normal(size, dtype)``: numpy's ziggurat, CuPy's cuRAND normals). ``tukey-lambda``: the Tukey λ law
+    of shape ``tukey_shape``, scaled to the same σ (heavier tails), by inverse CDF. Unit: e⁻.
     """
     if model == "tukey-lambda":
         return tukey_lambda(rng, out, tukey_shape, read_noise_e)
-    if out.dtype == np.float32:
-        return standard_normal_f32(rng, out, work if work is not None else np.empty(out.size // 2, np.float32),
-                                   read_noise_e)
-    rng.standard_normal(out=out)
-    out *= read_noise_e
+    if work is not None and out.dtype == np.float32:
+        return standard_normal_f32(rng, out, work, read_noise_e)
+    out[...] = rng.standard_normal(out.shape, dtype=out.dtype)
+    out *= out.dtype.type(read_noise_e)
     return out
 
 
 def add_read_noise_e(charge_e, noise_e: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """The charge plus its read noise (drawn by :func:`draw_read_noise_e`), into ``out`` if given. Unit: e⁻."""
-    return np.add(charge_e, noise_e, out=out, dtype=None if out is None else out.dtype, casting="unsafe")
+    """The charge plus its read noise (drawn by :func:`draw_read_noise_e`), into ``out`` if given (both cast to its
+    type first). Unit: e⁻."""
+    if out is None:
+        return charge_e + noise_e
+    if isinstance(out, np.ndarray):
+        return np.add(charge_e, noise_e, out=out, dtype=out.dtype, casting="unsafe")
+    out[...] = charge_e  # CuPy's ufuncs take no casting rule: the same casts, in two passes
+    out += noise_e
+    return out
 
 
 def add_row_noise(values: np.ndarray, row_noise: float, rng: np.random.Generator) -> np.ndarray:
-    """Temporal row noise: one Gaussian offset N(0, σ_row) per row of ``values`` (h, w), in place.
+    """Temporal row noise: one Gaussian offset N(0, σ_row) per row of ``values`` (h, w), in place; for a stack of
+    planes (…, h, w), one per row of each plane.
 
     Unit: that of ``values`` (σ_row in the same unit: e⁻ on charge, σ_row · G · G_Ve⁻ on digital numbers).
     """
-    values += rng.standard_normal((values.shape[0], 1), dtype=values.dtype) * values.dtype.type(row_noise)
+    values += rng.standard_normal(values.shape[:-1] + (1,), dtype=values.dtype) * values.dtype.type(row_noise)
     return values
 
 
@@ -210,7 +229,7 @@ def electrons_to_dn(electrons: np.ndarray, dn_per_electron: float, out: np.ndarr
     """
     if not np.issubdtype(electrons.dtype, np.floating):
         electrons = electrons.astype(np.float64)
-    return np.multiply(electrons, electrons.dtype.type(dn_per_electron), out=out)
+    return namespace_of(electrons).multiply(electrons, electrons.dtype.type(dn_per_electron), out=out)
 
 
 def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None, pedestal_dn: int = 0) -> np.ndarray:
@@ -231,12 +250,16 @@ def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None, pedest
         Quantised digital numbers. Unit: DN.
     """
     # clip straight into the integer output: for values in [0, 2^nb − 1] the cast's truncation is the floor
+    xp = namespace_of(dn)
     if out is None:
-        out = np.empty(np.shape(dn), dtype=dn_dtype(bits))
+        out = xp.empty(dn.shape, dtype=dn_dtype(bits))
     if pedestal_dn:  # floor first: floor(dn) + P is exact where dn + P would round in float32
-        dn = np.floor(dn)
+        dn = xp.floor(dn)
         dn += dn.dtype.type(pedestal_dn)
-    np.clip(dn, 0, 2**bits - 1, out=out, casting="unsafe")
+    if isinstance(dn, np.ndarray):
+        np.clip(dn, 0, 2**bits - 1, out=out, casting="unsafe")
+    else:  # CuPy's clip takes no casting rule: clip, then the assignment's cast (the same truncation)
+        out[...] = xp.clip(dn, 0, 2**bits - 1)
     return out
 
 

@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from camsim.backends import DEVICES
 from camsim.cli_types import exposure_setting, positive_float, positive_int, schema_value, sensor_setting
 from camsim.commands import DEFAULT_OUT, camera_argument, preset_argument
 from camsim.errors import CamsimError
@@ -78,6 +79,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="output directory (default: outputs/SCENE_NAME)")
     parser.add_argument("--workers", metavar="N", type=positive_int, help="threads per frame (default: all cores; "
                         "the output does not depend on it)")
+    parser.add_argument("--device", choices=DEVICES, default="cpu",
+                        help="where frames are drawn: cpu (default; every method and statistics) or cuda (an NVIDIA "
+                             "GPU through CuPy, the optional extra 'gpu': pip install 'camsim-lowlight[gpu]'); on "
+                             "cuda every pixel is drawn from its exact law (poisson; table, gaussian and auto map to "
+                             "it), pixel statistics only, and the sidecar records the device. The same seed, device "
+                             "and library give the same files; CPU and GPU agree in distribution, not in bits")
     parser.add_argument("--preview", action="store_true",
                         help="also write an sRGB PNG of each frame (camera RGB → XYZ → sRGB, white-balanced from the "
                              "illuminant; the perfect white at F = 1 is sRGB white, so low light looks dark)")
@@ -143,10 +150,20 @@ def run(args) -> int:
     from camsim.scene import load_scene
 
     scene = apply_overrides(load_scene(args.scene), args)
+    device = getattr(args, "device", "cpu")
+    if device != "cpu":  # one line and exit 2 before anything is written: no CuPy, no GPU, a method it cannot draw
+        from camsim.backends import check_device, device_method
+
+        drawn = device_method(scene.method, scene.statistics)
+        check_device(device)
+        if drawn != scene.method:
+            print(f"camsim: warning: --device {device} draws every pixel from its exact law: method {scene.method} "
+                  f"is rendered as {drawn} (the sidecar records method_requested)", file=sys.stderr)
     for warning in check_frames(scene):
         print(f"camsim: warning: {warning}", file=sys.stderr)
     out = args.out if args.out is not None else DEFAULT_OUT / scene.name
-    manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet, preview=args.preview)
+    manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet, preview=args.preview,
+                            device=device)
     rendered = len(scene.illuminants) * len(scene.intensity_factors)
     earlier = len(manifest["frames"]) - rendered
     print(f"wrote {rendered} frames (DNG, EXR, JSON) to {out}/ — index: {out / 'manifest.json'}"
