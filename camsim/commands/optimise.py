@@ -56,7 +56,6 @@ def run(args) -> int:
 
     from camsim.camera_presets import camera_preset, sensor_preset
     from camsim.chart import parse_size
-    from camsim.commands.render import apply_overrides
     from camsim.optimise.model import SensorAtIso
     from camsim.optimise.report import write_report
     from camsim.optimise.search import exposure_axis, iso_axis, optimise, patch_rates

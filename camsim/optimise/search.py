@@ -24,7 +24,6 @@ import numpy as np
 
 from camsim.errors import CamsimError
 from camsim.optimise.model import (
-    SensorAtIso,
     expected_delta_e,
     lab_of,
     noise_terms_e2,
