@@ -234,11 +234,16 @@ def preset(name: str, **overrides) -> SensorParams:
     """A named preset, optionally with fields overridden."""
     if name not in PRESETS:
         raise CamsimError(f"unknown sensor preset {name!r}; presets: {', '.join(PRESETS)}")
+    return with_overrides(PRESETS[name], **overrides)
+
+
+def with_overrides(sensor: SensorParams, **overrides) -> SensorParams:
+    """``sensor`` with fields overridden; an unknown name or a bad value is a :class:`CamsimError`."""
     fields = {f.name for f in dataclasses.fields(SensorParams)}
     unknown = set(overrides) - fields
     if unknown:
         raise CamsimError(f"unknown sensor parameter(s) {sorted(unknown)}; known: {', '.join(sorted(fields))}")
     try:
-        return dataclasses.replace(PRESETS[name], **overrides)
+        return dataclasses.replace(sensor, **overrides)
     except TypeError as exc:
         raise CamsimError(f"bad sensor parameter: {exc}") from None

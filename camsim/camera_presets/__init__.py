@@ -7,7 +7,6 @@ ISO axis), a camera preset by name (``sony-a7s2``), or a camera preset file (a p
 
 from __future__ import annotations
 
-import dataclasses
 from functools import lru_cache
 from pathlib import Path
 
@@ -15,7 +14,7 @@ from camsim.camera_presets.data import build_presets
 from camsim.camera_presets.files import read_preset_file
 from camsim.camera_presets.model import CameraPreset, IsoPoint, NoiseFit
 from camsim.errors import CamsimError
-from camsim.sensor import PRESETS, SensorParams, preset
+from camsim.sensor import PRESETS, SensorParams, preset, with_overrides
 
 #: The built-in camera presets, by name.
 CAMERA_PRESETS = build_presets()
@@ -67,15 +66,7 @@ def sensor_preset(name: str, iso: float | None = None, base_dir: str | Path | No
             raise CamsimError(f"preset {name} has no ISO axis; --iso needs a camera preset "
                               f"({', '.join(CAMERA_PRESETS)})")
         return preset(name, **overrides)
-    base = camera.sensor(iso, overrides.get("read_noise_model"))
-    fields = {f.name for f in dataclasses.fields(SensorParams)}
-    unknown = set(overrides) - fields
-    if unknown:
-        raise CamsimError(f"unknown sensor parameter(s) {sorted(unknown)}; known: {', '.join(sorted(fields))}")
-    try:
-        return dataclasses.replace(base, **overrides)
-    except TypeError as exc:
-        raise CamsimError(f"bad sensor parameter: {exc}") from None
+    return with_overrides(camera.sensor(iso, overrides.get("read_noise_model")), **overrides)
 
 
 __all__ = ["CAMERA_PRESETS", "CameraPreset", "IsoPoint", "NoiseFit", "camera_preset", "is_preset_file",
