@@ -60,6 +60,20 @@ class DnPmf:
         return out
 
 
+def charge_support(mean_e, full_well_e: float | None = None):
+    """The integer charges :func:`charge_pmf` holds below the full well, as bounds (lo, hi) broadcast over
+    ``mean_e``: λ ± (13 √λ + 20), clipped at 0 and at ⌈c⌉ − 1 (hi < lo: none, far above the well). λ ≤ 0: (0, 0).
+    Unit: e⁻."""
+    lam = np.asarray(mean_e, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        half = _POISSON_HALF_WIDTH * np.sqrt(np.maximum(lam, 0.0)) + 20.0
+    lo = np.maximum(0.0, np.floor(lam - half))
+    hi = np.ceil(lam + half)
+    if full_well_e is not None:
+        hi = np.minimum(hi, np.ceil(full_well_e) - 1)
+    return np.where(lam > 0, lo, 0.0), np.where(lam > 0, hi, 0.0)
+
+
 def charge_pmf(mean_e: float, full_well_e: float | None = None):
     """The law of min(N, c), N ~ Poisson(λ): (charges, probabilities), charges ascending. Unit: e⁻.
 
@@ -69,10 +83,7 @@ def charge_pmf(mean_e: float, full_well_e: float | None = None):
     lam = float(mean_e)
     if lam <= 0:
         return np.zeros(1), np.ones(1)
-    half = _POISSON_HALF_WIDTH * np.sqrt(lam) + 20.0
-    lo, hi = max(0, int(np.floor(lam - half))), int(np.ceil(lam + half))
-    if full_well_e is not None:
-        hi = min(hi, int(np.ceil(full_well_e)) - 1)
+    lo, hi = (int(v) for v in charge_support(lam, full_well_e))
     n = np.arange(min(lo, hi + 1), hi + 1, dtype=np.float64)  # empty far above the full well
     # differences of the CDF below the mean and of the survival function above it: absolute errors of order 1e-16
     # (scipy's pmf has relative errors of order λ · 1e-16: 3e-12 at 9000 e⁻, 5e-10 in its sum at 1e6)

@@ -20,7 +20,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from camsim.dn_law import charge_pmf
+from camsim.dn_law import charge_pmf, charge_support
 from camsim.kernels import AliasTable, alias_table
 
 #: Largest support (values of the charge) a table is made for; wider laws are drawn by numpy's Poisson sampler.
@@ -49,9 +49,10 @@ def charge_tables_fit(expected, sensor) -> np.ndarray:
     """(K, 3) bool: whether each spectrum and channel's charge law fits a table (:func:`charge_table` not None),
     judged from the support's size alone (no table is built)."""
     lam = expected.signal_e + expected.dark_e
-    half = 13.0 * np.sqrt(lam) + 20.0
-    top = np.minimum(lam + half, sensor.full_well_e if sensor.saturation else np.inf)
-    width = np.maximum(top - np.maximum(lam - half, 0.0), 0.0) + 2
-    return (width <= MAX_TABLE_VALUES) & (top < MAX_TABLE_CHARGE) & np.isfinite(lam)
+    well = sensor.full_well_e if sensor.saturation else None
+    lo, hi = charge_support(lam, well)  # the charges charge_pmf holds, and the well's atom
+    values = np.maximum(hi - lo + 1, 0) + (well is not None)
+    top = hi if well is None else np.full(lam.shape, float(well))
+    return (values <= MAX_TABLE_VALUES) & (top < MAX_TABLE_CHARGE) & np.isfinite(lam)
 
 
