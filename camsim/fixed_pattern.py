@@ -68,6 +68,20 @@ def _unit_maps(sensor_seed: int, shape: tuple) -> tuple:
     return offset, gain
 
 
+@lru_cache(maxsize=1)
+def _scaled_maps(sensor_seed: int, shape: tuple, dsnu_e: float, prnu_percent: float) -> tuple:
+    """The offset DSNU map o (e⁻) and the PRNU gain map g (unitless), float32, read-only (None where off): the unit
+    maps scaled, once per sensor and frame size: consecutive frames of a dataset share them (one entry: a spec whose
+    frames draw their own DSNU or PRNU scales them per frame, as before)."""
+    unit_offset, unit_gain = _unit_maps(sensor_seed, shape)
+    offset = unit_offset * np.float32(dsnu_e) if dsnu_e > 0 else None
+    gain = 1 + unit_gain * np.float32(prnu_percent / 100) if prnu_percent > 0 else None
+    for array in (offset, gain):
+        if array is not None:
+            array.setflags(write=False)  # cached: shared by every frame of the sensor
+    return offset, gain
+
+
 @lru_cache(maxsize=2)
 def _dark_gain_map(sensor_seed: int, shape: tuple, relative_sigma: float) -> np.ndarray:
     """d = exp(s z − s²/2) on the third fixed-pattern stream's standard normals z, float32, read-only."""
@@ -93,9 +107,7 @@ def fixed_pattern(sensor: SensorParams, shape) -> FixedPattern | None:
         return None
     offset = gain = None
     if sensor.dsnu_e > 0 or sensor.prnu_percent > 0:
-        unit_offset, unit_gain = _unit_maps(sensor.sensor_seed, tuple(shape))
-        offset = unit_offset * np.float32(sensor.dsnu_e) if sensor.dsnu_e > 0 else None
-        gain = 1 + unit_gain * np.float32(sensor.prnu_percent / 100) if sensor.prnu_percent > 0 else None
+        offset, gain = _scaled_maps(sensor.sensor_seed, tuple(shape), sensor.dsnu_e, sensor.prnu_percent)
     p = sensor.dsnu_dark_current_percent
     dark_gain = _dark_gain_map(sensor.sensor_seed, tuple(shape), p / 100) if p > 0 else None
     return FixedPattern(offset, gain, dark_gain)
