@@ -11,6 +11,7 @@ from camsim.errors import CamsimError
 from camsim.frame_files import frame_stem, write_frame
 from camsim.frame_manifest import MANIFEST_NAME, FrameManifest
 from camsim.io.dng import MIN_SIZE
+from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression
 from camsim.io.output_folder import output_folder
 from camsim.methods import get_method
 from camsim.pipeline import light_scene, scene_frame
@@ -32,14 +33,15 @@ def check_scene(scene: Scene) -> None:
 
 
 def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = None, progress: bool = True,
-                 preview: bool = False) -> dict:
+                 preview: bool = False, exr_compression: str = DEFAULT_EXR_COMPRESSION) -> dict:
     """Render every frame of ``scene`` into ``out_dir``, keeping ``manifest.json`` there up to date.
 
     The folder is made ready and held before any work (:func:`camsim.io.output_folder.output_folder`: created,
     checked writable, locked against other camsim runs, swept of temporaries left by killed runs). Each frame
     commits on its own (:func:`camsim.frame_files.write_frame`) and the manifest follows each commit, adding to
     the frames of earlier runs in the folder (:class:`camsim.frame_manifest.FrameManifest`). With ``preview``,
-    each frame also gets an sRGB PNG (:mod:`camsim.preview`), listed in its ``files``.
+    each frame also gets an sRGB PNG (:mod:`camsim.preview`), listed in its ``files``. ``exr_compression``: a
+    lossless name of :data:`camsim.io.exr.EXR_COMPRESSIONS` (checked before anything is written).
 
     Returns
     -------
@@ -47,6 +49,7 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
         The manifest: per frame of the folder, scene, illuminant, F, seed and file paths relative to ``out_dir``.
     """
     check_scene(scene)
+    check_exr_compression(exr_compression)
     with output_folder(out_dir) as out_dir:
         camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
         manifest = FrameManifest(out_dir, scene.name)
@@ -62,7 +65,7 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
                 frame, info = scene_frame(scene, illuminant, factor, lit=lit, camera=camera, workers=workers)
                 stem = frame_stem(scene.name, illuminant, factor)
                 manifest.withdraw(stem)
-                files = write_frame(out_dir, stem, frame, info, preview=preview)
+                files = write_frame(out_dir, stem, frame, info, preview=preview, exr_compression=exr_compression)
                 manifest.commit(info, files)
                 bar.update()
     return manifest.as_dict()

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from camsim.cli_types import exposure_setting, positive_float, positive_int, schema_value, sensor_setting
-from camsim.commands import DEFAULT_OUT, camera_argument, preset_argument
+from camsim.commands import DEFAULT_OUT, camera_argument, exr_compression_argument, preset_argument
 from camsim.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS
 from camsim.scene import RENDER_PARAMS
@@ -78,6 +78,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="output directory (default: outputs/SCENE_NAME)")
     parser.add_argument("--workers", metavar="N", type=positive_int, help="threads per frame (default: all cores; "
                         "the output does not depend on it)")
+    exr_compression_argument(parser)
     parser.add_argument("--preview", action="store_true",
                         help="also write an sRGB PNG of each frame (camera RGB → XYZ → sRGB, white-balanced from the "
                              "illuminant; the perfect white at F = 1 is sRGB white, so low light looks dark)")
@@ -146,7 +147,8 @@ def run(args) -> int:
     for warning in check_frames(scene):
         print(f"camsim: warning: {warning}", file=sys.stderr)
     out = args.out if args.out is not None else DEFAULT_OUT / scene.name
-    manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet, preview=args.preview)
+    manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet, preview=args.preview,
+                            exr_compression=args.exr_compression)
     rendered = len(scene.illuminants) * len(scene.intensity_factors)
     earlier = len(manifest["frames"]) - rendered
     print(f"wrote {rendered} frames (DNG, EXR, JSON) to {out}/ — index: {out / 'manifest.json'}"
