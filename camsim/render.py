@@ -75,7 +75,8 @@ class Frame:
                 signal = k * self.expected.signal_e[:, c]
                 if full is not None:  # saturated spectra get the full well below: no shift (and no overflow)
                     signal = np.where(full[:, c], 0.0, signal)
-                out[c] += (self.maps.gain[c] - 1) * signal.astype(np.float32)[self.labels]
+                excess = self.maps.gain[c] - 1 if self.maps.gain_excess is None else self.maps.gain_excess[c]
+                out[c] += excess * signal.astype(np.float32)[self.labels]
             dark = self.expected.dark_e[c]
             if self.maps is not None and self.maps.dark_gain is not None and dark > 0 and not (
                     full is not None and np.all(full[:, c])):  # (every spectrum saturated: the full well below)

@@ -16,19 +16,13 @@ from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION
 __all__ = ["render_task", "zarr_task", "exr_threads"]
 
 
-def exr_threads(count: int) -> int | None:
-    """Set OpenEXR's process-wide compression threads (camsim's EXR writer otherwise gives it every core);
-    returns the previous count (None where the bindings cannot tell). The files do not depend on it."""
-    try:
-        import OpenEXR
-    except ImportError:  # pragma: no cover - camsim needs OpenEXR
-        return None
-    if not hasattr(OpenEXR, "set_global_thread_count"):
-        return None
-    previous = OpenEXR.global_thread_count()
-    if previous != count:
-        OpenEXR.set_global_thread_count(count)
-    return previous
+def exr_threads(count: int) -> tuple | None:
+    """Have OpenEXR write with ``count`` threads per frame in all (1: in the calling thread, no pool; camsim's EXR
+    writer otherwise gives it every core): :func:`camsim.io.exr.set_exr_threads`. Returns the previous setting, for
+    :func:`camsim.io.exr.restore_exr_threads`. The files do not depend on it."""
+    from camsim.io.exr import set_exr_threads
+
+    return set_exr_threads(count)
 
 
 def render_task(frame: FrameSpec, out_dir: str | None, threads: int = 1,
@@ -40,7 +34,7 @@ def render_task(frame: FrameSpec, out_dir: str | None, threads: int = 1,
     ``out_dir``, size, SHA-256). Without, they are rendered into a private temporary folder and the result also
     carries their bytes (``blobs``), for a worker that shares no file system with the caller.
     """
-    exr_threads(threads)  # 1 thread: one compression thread while the caller waits, i.e. one core
+    exr_threads(threads)  # 1 thread: OpenEXR works in this thread, i.e. one core
     if out_dir is not None:
         folder = Path(out_dir) / FRAMES_DIR
         names = render_files(frame, folder, threads, exr_compression)
