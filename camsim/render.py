@@ -207,7 +207,6 @@ class _Scratch:
 
     plane: np.ndarray  # (rows, W) float32: one block plane
     work: np.ndarray  # float32, half a block plane: Box–Muller's scratch
-    charge: np.ndarray | None = None  # float64, one block plane: the exact path's per-pixel means, then charge
 
 
 def block_rows(shape, cfa: str | None) -> int:
@@ -282,8 +281,7 @@ def render_frame(
     def run_block(index: int) -> None:
         if getattr(per_thread, "scratch", None) is None:
             per_thread.scratch = _Scratch(np.empty((rows, width), dtype=np.float32),
-                                          np.empty(rows * width // 2 + 1, dtype=np.float32),
-                                          np.empty(rows * width, dtype=np.float64))
+                                          np.empty(rows * width // 2 + 1, dtype=np.float32))
         r0 = starts[index]
         impl.draw_block(job, r0, min(height, r0 + rows), generators[index], per_thread.scratch)
 

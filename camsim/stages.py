@@ -96,7 +96,7 @@ def saturation_level_e(full_well_e: float, offset_e=None) -> float:
 
 def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_var_e2=None, *,
                      statistics: str = "pixel", photon_noise: bool = True, size=None, gain=None,
-                     dark_gain=None, saturation_e=None, work=None) -> np.ndarray:
+                     dark_gain=None, saturation_e=None) -> np.ndarray:
     """The charge S + D collected in the exposure, drawn exactly (Eqs. 4–6); capped where saturation hides it.
 
     Parameters
@@ -126,9 +126,6 @@ def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_v
         ``pixel`` statistics; S̄ (step s) and D̄ each on its own under ``paper`` statistics and without photon
         noise, as either alone saturates the pixel — which changes the law of the saturated value by at most
         :data:`SATURATION_CAP_TAIL` in total variation. None (no full well): the means are drawn as they are.
-    work : numpy.ndarray, optional
-        float64 scratch of the draws' shape: with PRNU under ``pixel`` statistics the per-pixel means are made in
-        it (the same values; fresh arrays cost more than the maths). The result never shares it.
 
     Returns
     -------
@@ -137,16 +134,13 @@ def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_v
     """
     S, D = signal_e, dark_e
     shape = size if size is not None else np.shape(signal_e)
-    in_work = (work is not None and gain is not None and photon_noise and statistics == "pixel"
-               and np.result_type(S, gain, D) == np.float64 and work.shape == np.shape(gain))
     if gain is not None:  # per-pixel means: numpy's sampler, one mean per pixel
-        S = np.multiply(S, gain, out=work) if in_work else S * gain
+        S = S * gain
         size = None
     if dark_gain is not None:  # per-pixel dark means (the signal's draw keeps its size)
         D = D * dark_gain
     if photon_noise and statistics == "pixel":  # one draw covers photons and dark current
-        total = np.add(S, D, out=S) if in_work else S + D
-        lam = total if saturation_e is None else cap_mean_e(total, saturation_e)
+        lam = S + D if saturation_e is None else cap_mean_e(S + D, saturation_e)
         return poisson(rng, lam) if size is None or dark_gain is not None else poisson_run(rng, lam, size)
     if saturation_e is not None:
         D = cap_mean_e(D, saturation_e)
@@ -163,12 +157,9 @@ def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_v
     return charge + poisson(rng, D, size=shape) if dark_e > 0 else charge
 
 
-def add_offset_e(charge_e: np.ndarray, offset_e: np.ndarray | None, out: np.ndarray | None = None) -> np.ndarray:
-    """DSNU: add each pixel's fixed dark offset to its charge (before saturation), into ``out`` if given (of the
-    sum's own dtype). Unit: e⁻."""
-    if offset_e is None:
-        return charge_e
-    return charge_e + offset_e if out is None else np.add(charge_e, offset_e, out=out)
+def add_offset_e(charge_e: np.ndarray, offset_e: np.ndarray | None) -> np.ndarray:
+    """DSNU: add each pixel's fixed dark offset to its charge (before saturation). Unit: e⁻."""
+    return charge_e if offset_e is None else charge_e + offset_e
 
 
 def saturate_e(electrons: np.ndarray, full_well_e: float, out: np.ndarray | None = None) -> np.ndarray:

@@ -35,7 +35,7 @@ from camsim.stages import (
 
 def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor: SensorParams,
                  statistics: str, c: int, rng, z, work, offset=None, gain=None, dark_gain=None, bins=None,
-                 runs=..., charge_work=None):
+                 runs=...):
     """One channel of a block, in DN before quantisation, by the plan: ``out_c`` (h, w) float32 is written in place.
 
     ``z`` (h, w) float32 and ``work`` are scratch. Each pixel uses one draw from ``z``: its read noise on the exact
@@ -44,8 +44,6 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
     DSNU) are this block's fixed-pattern maps, (h, w), or None. ``bins`` (h, w): this channel's per-bin signal
     (:func:`bins_signal`, e⁻) where the plan has :data:`~camsim.methods.plan.BINS`, else None. ``runs``:
     :func:`camsim.kernels.label_runs` of ``labels``, when the caller has it (the three channels of a block share it).
-    ``charge_work``: float64 scratch of at least the block's size, in which the exact path makes the per-pixel
-    means and the charge of pixels with fixed-pattern maps (the same values as fresh arrays, without their cost).
     """
     k = sensor.dn_per_electron
     read = sensor.read_noise_e if sensor.read_noise else 0.0
@@ -72,7 +70,6 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
         dark_gain = None  # no dark current in this channel: nothing for the map to scale
     simple = offset is None and gain is None and dark_gain is None
     for where, label in pieces:
-        own = False  # whether value is the piece's view of charge_work
         index = label if label is not None else labels[where]
         kind = plan.kind[label, c] if label is not None else kinds[0] if whole else plan.kind[index[0], c]
         in_place = label is not None or whole  # out_c[where] is a view: write straight into it
@@ -123,14 +120,10 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
                 charge = collect_charge_e(rng, expected.signal_e[index, c], expected.dark_e[c],
                                           expected.signal_var_e2[index, c], statistics=statistics,
                                           photon_noise=sensor.photon_noise, size=size, gain=g, dark_gain=d,
-                                          saturation_e=level, work=_piece(charge_work, zz))
-            piece_offset = None if offset is None else offset[where]
-            # the offset, the clip, the read noise and the gain in one float64 buffer where the sum is float64
-            own = charge_work is not None and piece_offset is not None and \
-                np.result_type(charge, piece_offset) == np.float64
-            charge = add_offset_e(charge, piece_offset, out=_piece(charge_work, zz) if own else None)
+                                          saturation_e=level)
+            charge = add_offset_e(charge, None if offset is None else offset[where])
             if clip:
-                charge = saturate_e(charge, sensor.full_well_e, out=charge if own else None)
+                charge = saturate_e(charge, sensor.full_well_e)
             if simple and in_place:
                 view = out_c[where]  # a rectangle or the block: cast, add the read noise and scale in two passes
                 if read > 0:
@@ -139,13 +132,8 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
                     view[...] = charge
                 electrons_to_dn(view, k, out=view)
                 continue
-            value = add_read_noise_e(charge, zz, out=charge if own else None) if read > 0 else charge
-        out_c[where] = electrons_to_dn(value, k, out=value if own else None)
-
-
-def _piece(charge_work, zz):
-    """The first ``zz.size`` values of ``charge_work`` shaped as ``zz`` (None without scratch)."""
-    return None if charge_work is None else charge_work[: zz.size].reshape(zz.shape)
+            value = add_read_noise_e(charge, zz) if read > 0 else charge
+        out_c[where] = electrons_to_dn(value, k)
 
 
 def _masks_by_kind(labels, kinds_of_spectra):
@@ -191,7 +179,7 @@ def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None
             fill_channel(value, sub_labels, plan, expected, sensor, job.statistics, c, rng, np.empty_like(value),
                          scratch.work, None if offset is None else offset[c][site],
                          None if gain is None else gain[c][site], None if dark_gain is None else dark_gain[c][site],
-                         None if bins is None else bins[c][site], charge_work=scratch.charge)
+                         None if bins is None else bins[c][site])
             block[0][site] = value
         planes = [0]
     else:
@@ -202,7 +190,7 @@ def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None
             fill_channel(block[p], labels, plan, expected, sensor, job.statistics, p, rng,
                          scratch.plane[: r1 - r0], scratch.work, None if offset is None else offset[p],
                          None if gain is None else gain[p], None if dark_gain is None else dark_gain[p],
-                         None if bins is None else bins[p], runs, scratch.charge)
+                         None if bins is None else bins[p], runs)
         if sensor.row_noise_e > 0:  # a physical row shares its offset, whatever the colour of its pixels
             add_row_noise(block[p], row_noise_dn, rng)
         if job.digital is not None:
