@@ -15,7 +15,9 @@ Configurations, each run as a fresh ``camsim dataset``-like process (as a user w
   arrays, sidecars, parameter table);
 * with ``--baseline DIR`` (a checkout of an earlier camsim, e.g. ``git worktree add /tmp/base <commit>``):
   ``before_processes2``, ``--workers 2`` with that checkout's code (``PYTHONPATH=DIR``), its default EXR
-  compression and all.
+  compression and all;
+* with ``--compressions NAME ...``: ``processes2_NAME``, ``--workers 2 --exr-compression NAME`` (the dataset's
+  frames per second and bytes by EXR compression).
 
 For each: ``fps`` = frames / wall time of the rendering phase (from the back-end's start, including the process
 pool's start-up, to the last frame recorded; not the imports and the spec's validation), and ``steady_fps`` =
@@ -23,7 +25,8 @@ frames per second between the first and the last completed frame of each worker 
 times), i.e. without start-up; ``MB/frame``: the output's bytes per frame (frame files or store, records and
 manifest). Runs are interleaved (every configuration once per round, rounds repeated) and medians are reported,
 so that the machine's load hits every configuration alike. The outputs of every configuration of this checkout
-are checked byte for byte against the serial one (the Zarr store against its first run).
+are checked byte for byte against the serial one (the Zarr store, and each other EXR compression, against its own
+first run).
 
 Run:  python tools/bench_dataset.py [--frames N] [--repeats R] [--preset NAME] [--baseline DIR]
 Progress goes to stderr; the last stdout line is one JSON object.
@@ -82,6 +85,8 @@ def child(args) -> None:
     from camsim.dataset.runner import run_dataset
 
     options = {"output": "zarr"} if args.format == "zarr" else {}  # a baseline has no output option
+    if args.exr_compression:
+        options["exr_compression"] = args.exr_compression
     summary = run_dataset(args.spec, args.out, workers=args.workers, threads=args.threads, progress=False,
                           echo=None, **options)
     records = Path(args.out) / ("records" if args.format == "zarr" else FRAMES_DIR)
@@ -110,12 +115,15 @@ def main() -> None:
                              "before_processes2 configuration, in the same rounds")
     parser.add_argument("--configs", nargs="+", choices=list(CONFIGS),
                         help="run only these configurations (default: all; before_* need --baseline)")
+    parser.add_argument("--compressions", nargs="+", default=[], metavar="NAME",
+                        help="also processes2 with each of these EXR compressions (processes2_NAME)")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--spec", help=argparse.SUPPRESS)
     parser.add_argument("--out", help=argparse.SUPPRESS)
     parser.add_argument("--workers", type=int, default=1, help=argparse.SUPPRESS)
     parser.add_argument("--threads", type=int, default=1, help=argparse.SUPPRESS)
     parser.add_argument("--format", default="files", help=argparse.SUPPRESS)
+    parser.add_argument("--exr-compression", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
         child(args)
@@ -126,6 +134,7 @@ def main() -> None:
         parser.error(f"--baseline {args.baseline}: no camsim checkout there")
     configs = {name: config for name, config in CONFIGS.items()
                if (args.configs is None or name in args.configs) and (config[3] == "after" or args.baseline)}
+    configs.update({f"processes2_{name}": (2, 1, "files", "after", name) for name in args.compressions})
 
     results = {name: [] for name in configs}
     with tempfile.TemporaryDirectory(prefix="camsim-bench-dataset-") as tmp:
@@ -136,10 +145,11 @@ def main() -> None:
                         encoding="utf-8")
         references = {}  # format -> the first run's files (this checkout's)
         for repeat in range(args.repeats):
-            for name, (workers, threads, output, code) in configs.items():
+            for name, (workers, threads, output, code, *compression) in configs.items():
                 out = tmp / f"{name}-{repeat}"
                 command = [sys.executable, __file__, "--child", "--spec", str(spec), "--out", str(out),
-                           "--workers", str(workers), "--threads", str(threads), "--format", output]
+                           "--workers", str(workers), "--threads", str(threads), "--format", output,
+                           *(["--exr-compression", compression[0]] if compression else [])]
                 path = str(ROOT if code == "after" else args.baseline.resolve())
                 env = os.environ | {"PYTHONPATH": os.pathsep.join(filter(None, [path, os.environ.get("PYTHONPATH")]))}
                 # cwd: a folder without camsim, so that the code is PYTHONPATH's (the pool's fork server, started
@@ -149,7 +159,7 @@ def main() -> None:
                 results[name].append(summary)
                 if code == "after":
                     files = tree(out)
-                    reference = references.setdefault(output, files)
+                    reference = references.setdefault((output, *compression), files)
                     if files != reference:
                         raise SystemExit(f"{name} run {repeat}: files differ from the first {output} run")
                 print(f"run {repeat} {name:<17} {summary['rendered']} frames in {summary['seconds']:.2f} s: "
@@ -169,7 +179,7 @@ def main() -> None:
     print(f"camsim dataset, {args.frames} frames of {WIDTH}x{HEIGHT} ({mp:.3f} MP), preset {args.preset}, "
           f"DNG + EXR + JSON + manifest (zarr2: one Zarr store), median of {args.repeats} fresh-process runs, "
           "interleaved:")
-    for name, (workers, threads, output, code) in configs.items():
+    for name, (workers, threads, output, code, *_) in configs.items():
         print(f"  {name:<17} workers {workers}, threads {threads}: {median(name, 'frames_per_second'):6.2f} "
               f"frames/s ({median(name, 'megapixels_per_second'):5.2f} MP/s), steady state "
               f"{median(name, 'steady_fps'):6.2f} frames/s, {mb_per_frame(name):5.1f} MB/frame")
@@ -194,7 +204,7 @@ def main() -> None:
                 print(f"  {name} / before_processes2 ({args.baseline}): {ratio:.2f}x (steady state {steady:.2f}x)")
                 summary[f"speedup_{name}_vs_before"] = ratio
                 summary[f"steady_speedup_{name}_vs_before"] = steady
-    print("  every configuration's output is byte-identical to its format's first run (this checkout)")
+    print("  every configuration's output is byte-identical to its first run (this checkout)")
     summary["identical"] = True
     print(json.dumps(summary))
 
