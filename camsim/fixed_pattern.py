@@ -74,9 +74,9 @@ def _unit_maps(sensor_seed: int, shape: tuple) -> tuple:
 
 @lru_cache(maxsize=1)
 def _scaled_maps(sensor_seed: int, shape: tuple, dsnu_e: float, prnu_percent: float) -> tuple:
-    """The offset DSNU map o (e⁻), the PRNU gain map g and g − 1 (unitless), float32, read-only (None where off): the
-    unit maps scaled, once per sensor and frame size: consecutive frames of a dataset share them (one entry: a spec
-    whose frames draw their own DSNU or PRNU scales them per frame, as before)."""
+    """The offset DSNU map o (e⁻), the PRNU gain map g and g − 1 (unitless), float32, read-only (None where
+    off): the unit maps scaled, once per sensor and frame size: consecutive frames of a dataset share them (one
+    entry: a spec whose frames draw their own DSNU or PRNU scales them per frame, as before)."""
     unit_offset, unit_gain = _unit_maps(sensor_seed, shape)
     offset = unit_offset * np.float32(dsnu_e) if dsnu_e > 0 else None
     gain = 1 + unit_gain * np.float32(prnu_percent / 100) if prnu_percent > 0 else None

@@ -172,8 +172,8 @@ def main() -> None:
                                for p in PRESETS for layer in ("noisy", "clean", "both"))
             print(f"| {name} | {label} | {cells} |")
     if zarr_results:
-        print(f"Zarr chunks of the same frame (one chunk per layer; digital: the DNG's numbers), zarr's codec threads 1, "
-              f"median of {args.repeats} interleaved rounds:")
+        print("Zarr chunks of the same frame (one chunk per layer; digital: the DNG's numbers), zarr's codec threads "
+              f"1, median of {args.repeats} interleaved rounds:")
         for preset in PRESETS:
             print(f"  {preset}:")
             for codec in ZARR_CODECS:

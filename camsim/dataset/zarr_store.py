@@ -157,8 +157,9 @@ def open_store(layout: StoreLayout, spec, echo=None):
     if held is not None:
         mismatch = {k: (held.get(k), v) for k, v in layout.describe().items() if k != "frames" and held.get(k) != v}
         if mismatch:
-            raise CamsimError(f"{root} holds frames of another layout ({', '.join(f'{k} {a} there, {b} here' for k, (a, b) in mismatch.items())}): "
-                              "choose another --out, or remove the store")
+            differences = ", ".join(f"{k} {there} there, {here} here" for k, (there, here) in mismatch.items())
+            raise CamsimError(f"{root} holds frames of another layout ({differences}): choose another --out, or "
+                              "remove the store")
     members = set(group.array_keys())
     columns = parameter_columns([frame.record for frame in spec.frames])
     coordinates = " ".join(columns)
