@@ -38,11 +38,15 @@ class FixedPattern:
         PRNU: factor on the mean signal, around 1. Unitless.
     dark_gain : numpy.ndarray or None
         Dark-current DSNU: factor d on the mean dark charge σ²_dark · T, log-normal of mean 1. Unitless.
+    gain_excess : numpy.ndarray or None
+        ``gain - 1`` (float32, the same values), kept with the maps so that each frame's clean layer does not
+        compute it again; None where ``gain`` is None or it was not kept. Unitless.
     """
 
     offset_e: np.ndarray | None
     gain: np.ndarray | None
     dark_gain: np.ndarray | None = None
+    gain_excess: np.ndarray | None = None
 
 
 def lognormal_log_sigma(relative_sigma: float) -> float:
@@ -68,6 +72,21 @@ def _unit_maps(sensor_seed: int, shape: tuple) -> tuple:
     return offset, gain
 
 
+@lru_cache(maxsize=1)
+def _scaled_maps(sensor_seed: int, shape: tuple, dsnu_e: float, prnu_percent: float) -> tuple:
+    """The offset DSNU map o (e⁻), the PRNU gain map g and g − 1 (unitless), float32, read-only (None where
+    off): the unit maps scaled, once per sensor and frame size: consecutive frames of a dataset share them (one
+    entry: a spec whose frames draw their own DSNU or PRNU scales them per frame, as before)."""
+    unit_offset, unit_gain = _unit_maps(sensor_seed, shape)
+    offset = unit_offset * np.float32(dsnu_e) if dsnu_e > 0 else None
+    gain = 1 + unit_gain * np.float32(prnu_percent / 100) if prnu_percent > 0 else None
+    excess = None if gain is None else gain - 1
+    for array in (offset, gain, excess):
+        if array is not None:
+            array.setflags(write=False)  # cached: shared by every frame of the sensor
+    return offset, gain, excess
+
+
 @lru_cache(maxsize=2)
 def _dark_gain_map(sensor_seed: int, shape: tuple, relative_sigma: float) -> np.ndarray:
     """d = exp(s z − s²/2) on the third fixed-pattern stream's standard normals z, float32, read-only."""
@@ -91,11 +110,9 @@ def fixed_pattern(sensor: SensorParams, shape) -> FixedPattern | None:
     """
     if not sensor.fixed_pattern:
         return None
-    offset = gain = None
+    offset = gain = excess = None
     if sensor.dsnu_e > 0 or sensor.prnu_percent > 0:
-        unit_offset, unit_gain = _unit_maps(sensor.sensor_seed, tuple(shape))
-        offset = unit_offset * np.float32(sensor.dsnu_e) if sensor.dsnu_e > 0 else None
-        gain = 1 + unit_gain * np.float32(sensor.prnu_percent / 100) if sensor.prnu_percent > 0 else None
+        offset, gain, excess = _scaled_maps(sensor.sensor_seed, tuple(shape), sensor.dsnu_e, sensor.prnu_percent)
     p = sensor.dsnu_dark_current_percent
     dark_gain = _dark_gain_map(sensor.sensor_seed, tuple(shape), p / 100) if p > 0 else None
-    return FixedPattern(offset, gain, dark_gain)
+    return FixedPattern(offset, gain, dark_gain, excess)

@@ -32,7 +32,7 @@ import camsim
 from camsim.io.atomic import undo_on_failure, write_json_atomic
 from camsim.errors import CamsimError, output_error
 from camsim.io.dng import read_dng, write_dng, write_dng_cfa
-from camsim.io.exr import read_exr, read_exr_header, write_exr
+from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression, read_exr, read_exr_header, write_exr
 from camsim.io.output_folder import make_folder
 from camsim.rawcolour import CALIBRATION_ILLUMINANT_D65
 from camsim.regions import weighted_rows
@@ -87,8 +87,12 @@ def frame_stem(scene: str, illuminant: str, intensity_factor: float) -> str:
     return f"{scene}_{slug}_F{intensity_factor:g}"
 
 
-def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
-    """The JSON sidecar of a frame: every parameter with its unit, and per patch the model's expectations."""
+def sidecar(frame: Frame, info: FrameInfo, files: dict | None, exr_compression: str | None = None) -> dict:
+    """The JSON sidecar of a frame: every parameter with its unit, and per patch the model's expectations.
+
+    ``files`` names the frame's files by kind (None: the frame is not in files of its own, e.g. it is a frame of a
+    Zarr store); ``exr_compression`` the compression of its EXR, recorded as ``exr_compression`` (None: no key).
+    """
     sensor = frame.sensor
     ex = frame.expected
     k = sensor.dn_per_electron
@@ -173,15 +177,18 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict) -> dict:
             "exr_channels": "R, G, B (or CFA, the Bayer mosaic): noisy DN before quantisation; clean.R, clean.G, "
                             "clean.B: expected DN of every channel at every pixel",
         },
+        **({"exr_compression": exr_compression} if exr_compression is not None else {}),
         "files": files,
     }
 
 
-def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo, preview: bool = False) -> dict:
+def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo, preview: bool = False,
+                exr_compression: str = DEFAULT_EXR_COMPRESSION) -> dict:
     """Write ``stem.dng`` (if quantised), ``stem.exr`` and ``stem.json`` into ``out_dir``.
 
     With ``preview``, also ``stem.png``: an 8-bit sRGB picture of the frame (:func:`camsim.preview.preview_srgb`,
-    default exposure), listed in the sidecar's ``files`` as ``png``.
+    default exposure), listed in the sidecar's ``files`` as ``png``. ``exr_compression``: a lossless name of
+    :data:`camsim.io.exr.EXR_COMPRESSIONS`, recorded in the sidecar.
 
     Returns
     -------
@@ -189,15 +196,16 @@ def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo, preview
         File names relative to ``out_dir`` by kind (``dng`` is None when quantisation is off: an integer raw
         file cannot hold unquantised values).
     """
+    check_exr_compression(exr_compression)  # before any file is touched
     files = {"dng": f"{stem}.dng" if frame.digital_dn is not None else None, "exr": f"{stem}.exr",
              "json": f"{stem}{SIDECAR_SUFFIX}"}
     if preview:
         files["png"] = f"{stem}.png"
-    meta = sidecar(frame, info, files)
+    meta = sidecar(frame, info, files, exr_compression)
     make_folder(out_dir)
     uncommit_frame(out_dir, stem)
     with undo_on_failure():  # a failed or interrupted write leaves none of the frame's files
-        _write_pixel_files(out_dir, files, frame, info, meta)
+        _write_pixel_files(out_dir, files, frame, info, meta, exr_compression)
         write_json_atomic(out_dir / files["json"], meta)  # last: the commit record
     return files
 
@@ -213,7 +221,8 @@ def uncommit_frame(out_dir: Path, stem: str) -> None:
             raise output_error(out_dir / name, exc) from None
 
 
-def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo, meta: dict) -> None:
+def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo, meta: dict,
+                       exr_compression: str = DEFAULT_EXR_COMPRESSION) -> None:
     """The frame's DNG (if quantised), EXR and preview PNG (if asked for), each written atomically."""
     sensor = frame.sensor
     if frame.digital_dn is not None:
@@ -245,7 +254,7 @@ def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo
         "camsim:units": "DN",
         EXR_METADATA_KEY: json.dumps(meta, ensure_ascii=False),
     }
-    write_exr(out_dir / files["exr"], frame.noisy_dn, frame.clean_dn(), header)
+    write_exr(out_dir / files["exr"], frame.noisy_dn, frame.clean_dn(), header, exr_compression)
     if "png" in files:
         from camsim.preview import preview_srgb, write_preview_png
 

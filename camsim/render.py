@@ -86,7 +86,8 @@ def clean_dn(labels, expected: ExpectedSignal, sensor: SensorParams, maps: Fixed
             signal = k * expected.signal_e[:, c]
             if full is not None:  # saturated spectra get the full well below: no shift (and no overflow)
                 signal = np.where(full[:, c], 0.0, signal)
-            out[c] += (maps.gain[c] - 1) * xp.asarray(signal.astype(np.float32))[labels]
+            excess = maps.gain[c] - 1 if maps.gain_excess is None else maps.gain_excess[c]  # g − 1, cached per run
+            out[c] += excess * xp.asarray(signal.astype(np.float32))[labels]
         dark = expected.dark_e[c]
         if maps is not None and maps.dark_gain is not None and dark > 0 and not (
                 full is not None and np.all(full[:, c])):  # (every spectrum saturated: the full well below)

@@ -11,6 +11,7 @@ from camsim.errors import CamsimError
 from camsim.frame_files import frame_stem, write_frame
 from camsim.frame_manifest import MANIFEST_NAME, FrameManifest
 from camsim.io.dng import MIN_SIZE
+from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression
 from camsim.io.output_folder import output_folder
 from camsim.methods import get_method
 from camsim.pipeline import light_scene, scene_frame
@@ -32,7 +33,7 @@ def check_scene(scene: Scene) -> None:
 
 
 def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = None, progress: bool = True,
-                 preview: bool = False, device: str = "cpu") -> dict:
+                 preview: bool = False, device: str = "cpu", exr_compression: str = DEFAULT_EXR_COMPRESSION) -> dict:
     """Render every frame of ``scene`` into ``out_dir``, keeping ``manifest.json`` there up to date.
 
     The folder is made ready and held before any work (:func:`camsim.io.output_folder.output_folder`: created,
@@ -41,6 +42,8 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
     the frames of earlier runs in the folder (:class:`camsim.frame_manifest.FrameManifest`). With ``preview``,
     each frame also gets an sRGB PNG (:mod:`camsim.preview`), listed in its ``files``. ``device`` draws the frames
     on the CPU (default) or a device (:func:`camsim.pipeline.make_frame`; checked before the folder is touched).
+    ``exr_compression``: a lossless name of :data:`camsim.io.exr.EXR_COMPRESSIONS` (checked before anything is
+    written).
 
     Returns
     -------
@@ -48,6 +51,7 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
         The manifest: per frame of the folder, scene, illuminant, F, seed and file paths relative to ``out_dir``.
     """
     check_scene(scene)
+    check_exr_compression(exr_compression)
     if device != "cpu":
         from camsim.backends import check_device, device_method
 
@@ -69,7 +73,7 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
                                           device=device)
                 stem = frame_stem(scene.name, illuminant, factor)
                 manifest.withdraw(stem)
-                files = write_frame(out_dir, stem, frame, info, preview=preview)
+                files = write_frame(out_dir, stem, frame, info, preview=preview, exr_compression=exr_compression)
                 manifest.commit(info, files)
                 bar.update()
     return manifest.as_dict()

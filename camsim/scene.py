@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import tomllib
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -111,9 +112,11 @@ class Scene:
             check_regions(self.regions, self.width, self.height, "scene")
         self.sensor  # validate the preset and overrides now
 
-    @property
+    @cached_property
     def sensor(self) -> SensorParams:
-        """The sensor: the named preset (at the scene's ISO) with the scene's (and the command line's) overrides."""
+        """The sensor: the named preset (at the scene's ISO) with the scene's (and the command line's) overrides.
+
+        Made once per scene (a frozen value; :meth:`replace` and :meth:`with_sensor` make new scenes)."""
         return sensor_preset(self.preset_name, self.iso, self.base_dir, **dict(self.sensor_overrides))
 
     def with_sensor(self, **overrides) -> Scene:

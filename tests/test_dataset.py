@@ -151,7 +151,8 @@ def test_serial_run_writes_every_frame_and_the_manifest(serial, spec_path):
     manifest = read_manifest(out)
     assert [m["id"] for m in manifest] == [f.id for f in spec.frames]
     for entry, frame in zip(manifest, spec.frames):
-        assert {k: v for k, v in entry.items() if k != "files"} == frame.record
+        assert {k: v for k, v in entry.items() if k not in ("files", "exr_compression")} == frame.record
+        assert entry["exr_compression"] == "none"
         for kind in ("dng", "exr", "json"):
             data = (out / entry["files"][kind]["name"]).read_bytes()
             assert len(data) == entry["files"][kind]["bytes"]
@@ -191,9 +192,9 @@ def test_damaged_frames_are_rendered_again_identically(serial, spec_path, tmp_pa
     calls = []
     real = runner.render_task
 
-    def counting(frame, out_dir, threads=1):
+    def counting(frame, out_dir, threads=1, **options):
         calls.append(frame.index)
-        return real(frame, out_dir, threads)
+        return real(frame, out_dir, threads, **options)
 
     monkeypatch.setattr(runner, "render_task", counting)
     summary = run_dataset(spec_path, out, workers=1, progress=False, echo=None)
@@ -217,11 +218,11 @@ def test_an_interrupted_run_keeps_its_completed_frames(serial, spec_path, tmp_pa
     real = runner.render_task
     done = []
 
-    def crashing(frame, out_dir, threads=1):
+    def crashing(frame, out_dir, threads=1, **options):
         if len(done) == 3:
             raise RuntimeError("simulated crash")
         done.append(frame.index)
-        return real(frame, out_dir, threads)
+        return real(frame, out_dir, threads, **options)
 
     monkeypatch.setattr(runner, "render_task", crashing)
     with pytest.raises(RuntimeError, match="simulated crash"):

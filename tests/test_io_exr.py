@@ -1,5 +1,6 @@
 """Float EXR frames: bit-exact pixels and exact string metadata through OpenEXR and OpenImageIO."""
 
+import json
 import re
 
 import numpy as np
@@ -8,7 +9,16 @@ import pytest
 
 from camsim.errors import CamsimError, OutputError
 from camsim.io import exr as exr_mod
-from camsim.io.exr import read_exr, read_exr_header, read_exr_oiio, write_exr
+from camsim.io.exr import (
+    DEFAULT_EXR_COMPRESSION,
+    EXR_COMPRESSIONS,
+    check_exr_compression,
+    exr_compressions,
+    read_exr,
+    read_exr_header,
+    read_exr_oiio,
+    write_exr,
+)
 
 from tests.helpers import FullDiskExrFile
 
@@ -90,7 +100,8 @@ def test_file_layout(tmp_path):
         channels = {name: (ch.type(), ch.pixels.copy()) for name, ch in f.channels().items()}
         n_parts = len(f.parts)
     assert n_parts == 1
-    assert header["compression"] == OpenEXR.ZIP_COMPRESSION and header["type"] == OpenEXR.scanlineimage
+    assert header["compression"] == getattr(OpenEXR, EXR_COMPRESSIONS[DEFAULT_EXR_COMPRESSION][0])
+    assert header["type"] == OpenEXR.scanlineimage
     assert sorted(channels) == ["B", "G", "R", "clean.B", "clean.G", "clean.R"]
     assert all(t == OpenEXR.FLOAT for t, _ in channels.values())
     for i, c in enumerate("RGB"):
@@ -198,3 +209,115 @@ def test_exception_mid_write_leaves_no_file(tmp_path, monkeypatch):
     monkeypatch.undo()
     assert final.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["f.exr"]
+
+
+# --- compressions ----------------------------------------------------------------------------------------------
+
+LOSSLESS = exr_compressions()  # the lossless ones the installed OpenEXR offers
+REFUSED = [name for name, (_, lossless, _) in EXR_COMPRESSIONS.items() if not lossless]
+
+
+def written_compression(path) -> int:
+    with OpenEXR.File(str(path), header_only=True) as f:
+        return f.header()["compression"]
+
+
+def test_every_compression_of_the_bindings_is_classified():
+    """A newer OpenEXR's new compression must be measured and classified before camsim offers it."""
+    offered = {n for n in dir(OpenEXR) if n.endswith("_COMPRESSION") and not n.startswith("NUM_")}
+    assert offered <= {constant for constant, _, _ in EXR_COMPRESSIONS.values()}
+    assert {"none", "zip", "piz"} <= set(LOSSLESS) and DEFAULT_EXR_COMPRESSION in LOSSLESS
+
+
+@pytest.mark.parametrize("reader", READERS)
+@pytest.mark.parametrize("name", LOSSLESS)
+def test_every_lossless_compression_round_trips_bit_exact(tmp_path, reader, name):
+    noisy, clean = frames(9, 37, 53)  # odd sizes: partial blocks of every method
+    path = tmp_path / f"{name}.exr"
+    write_exr(path, noisy, clean, HEADER, compression=name)
+    assert written_compression(path) == getattr(OpenEXR, EXR_COMPRESSIONS[name][0])
+    n2, c2, hdr = reader(path)
+    np.testing.assert_array_equal(bits(n2), bits(noisy))  # every bit: -0.0, subnormals, inf, NaN payloads
+    np.testing.assert_array_equal(bits(c2), bits(clean))
+    assert hdr == HEADER
+    mosaic = noisy[:1].copy()  # a colour filter array's one channel
+    write_exr(path, mosaic, clean, HEADER, compression=name)
+    np.testing.assert_array_equal(bits(read_exr(path)[0]), bits(mosaic))
+
+
+@pytest.mark.parametrize("name", LOSSLESS)
+def test_every_lossless_compression_is_deterministic_whatever_the_threads(tmp_path, name):
+    noisy, clean = frames(10, 70, 90)
+    previous = OpenEXR.global_thread_count()
+    try:
+        contents = []
+        for threads in (1, 4):
+            OpenEXR.set_global_thread_count(threads)
+            write_exr(tmp_path / "f.exr", noisy, clean, HEADER, compression=name)
+            contents.append((tmp_path / "f.exr").read_bytes())
+    finally:
+        OpenEXR.set_global_thread_count(previous)
+    assert contents[0] == contents[1]
+
+
+@pytest.mark.parametrize("name", REFUSED)
+def test_lossy_compressions_are_refused_and_are_what_the_table_says(tmp_path, name):
+    noisy, clean = frames(11)
+    path = tmp_path / "f.exr"
+    with pytest.raises(CamsimError, match=f"cannot write EXR .*{name}.* is refused: .*keep every float32 bit"):
+        write_exr(path, noisy, clean, HEADER, compression=name)
+    assert list(tmp_path.iterdir()) == []
+    constant = EXR_COMPRESSIONS[name][0]
+    if not hasattr(OpenEXR, constant):
+        pytest.skip(f"this OpenEXR has no {constant}")
+    # written by OpenEXR directly: the label is right
+    channels = {c: np.ascontiguousarray(noisy[i]) for i, c in enumerate("RGB")}
+    with OpenEXR.File({"compression": getattr(OpenEXR, constant), "type": OpenEXR.scanlineimage},
+                      dict(channels)) as f:
+        f.write(str(path))
+    back, _, _ = read_exr(path)
+    exact = np.array_equal(bits(back), bits(noisy))
+    if name in ("b44", "b44a"):  # HALF channels only: float32 is stored as it is, uncompressed
+        assert exact and path.stat().st_size > noisy.nbytes
+    else:
+        assert not exact
+
+
+@pytest.mark.parametrize(("name", "message"), [("zap", "unknown EXR compression 'zap'"), (None, "unknown"),
+                                               ("ZIP", "unknown")])
+def test_unknown_compressions_are_refused(tmp_path, name, message):
+    noisy, clean = frames(12)
+    with pytest.raises(CamsimError, match=message):
+        write_exr(tmp_path / "f.exr", noisy, clean, HEADER, compression=name)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_compression_newer_than_the_bindings_is_refused(monkeypatch):
+    monkeypatch.delattr(OpenEXR, "ZSTD_COMPRESSION", raising=False)
+    with pytest.raises(CamsimError, match="'zstd' needs a newer OpenEXR"):
+        check_exr_compression("zstd")
+    assert "zstd" not in exr_compressions()
+
+
+def test_render_writes_the_chosen_compression_and_records_it(tmp_path, capsys):
+    from camsim.cli import main
+
+    argv = ["render", "macbeth_26", "--size", "64x48", "--illuminant", "D65", "--intensity", "0.5", "-q"]
+    assert main([*argv, "--out", str(tmp_path / "default")]) == 0
+    assert main([*argv, "--out", str(tmp_path / "zip"), "--exr-compression", "zip"]) == 0
+    frames_written = {}
+    for name, expected in (("default", DEFAULT_EXR_COMPRESSION), ("zip", "zip")):
+        exr = tmp_path / name / "macbeth_26_D65_F0.5.exr"
+        assert written_compression(exr) == getattr(OpenEXR, EXR_COMPRESSIONS[expected][0])
+        sidecar = json.loads(exr.with_suffix(".json").read_text())
+        assert sidecar["exr_compression"] == expected
+        noisy, clean, header = read_exr(exr)
+        assert json.loads(header["camsim:metadata"])["exr_compression"] == expected
+        frames_written[name] = (noisy, clean)
+    for a, b in zip(frames_written["default"], frames_written["zip"]):  # the same pixels, however compressed
+        np.testing.assert_array_equal(bits(a), bits(b))
+    capsys.readouterr()
+    assert main([*argv, "--out", str(tmp_path / "lossy"), "--exr-compression", "dwab"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("camsim: error: EXR compression 'dwab' is refused: lossy")
+    assert not (tmp_path / "lossy").exists()  # refused before the folder is made

@@ -45,3 +45,16 @@ def writing_to(out: Path) -> Iterator[Path]:
 
     with output_folder(out) as folder, undo_on_failure():
         yield folder
+
+
+def exr_compression_argument(parser, spec_key: bool = False) -> None:
+    """Add ``--exr-compression NAME`` to ``parser``, checked when the command runs (the installed OpenEXR decides
+    which names exist). With ``spec_key``, it defaults to None: the spec's ``exr_compression``, else camsim's."""
+    from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION, LOSSLESS_EXR_COMPRESSIONS
+
+    default = f"the spec's exr_compression, else {DEFAULT_EXR_COMPRESSION}" if spec_key else DEFAULT_EXR_COMPRESSION
+    parser.add_argument("--exr-compression", metavar="NAME", default=None if spec_key else DEFAULT_EXR_COMPRESSION,
+                        help="compression of the EXR files, one of OpenEXR's lossless ones: "
+                             f"{', '.join(LOSSLESS_EXR_COMPRESSIONS)} (zstd and htj2k* need OpenEXR >= 3.5 / 3.4 "
+                             f"to read them). Default: {default} (noisy float32 barely compresses: README, 'EXR "
+                             "compression'). The lossy ones (pxr24, b44, b44a, dwaa, dwab, lj2k) are refused")

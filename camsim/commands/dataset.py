@@ -9,7 +9,7 @@ import argparse
 from pathlib import Path
 
 from camsim.cli_types import positive_int
-from camsim.commands import DEFAULT_OUT
+from camsim.commands import DEFAULT_OUT, exr_compression_argument
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -24,7 +24,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "OUT/frames/ID.dng, ID.exr (noisy R, G, B and the clean.R/G/B layer) and ID.json, and "
             "OUT/manifest.jsonl with one line per frame (every parameter, the seed, each file's size and SHA-256). "
             "A re-run renders only the frames that are not complete and verified. Frames run in parallel on "
-            "this machine's cores, or on a Dask cluster with --scheduler; the files do not depend on which."
+            "this machine's cores, or on a Dask cluster with --scheduler; the files do not depend on which. "
+            "With --format zarr, the frames go to one Zarr store instead, OUT/dataset.zarr: one chunked array per "
+            "layer (noisy, clean, digital), the sidecars and the parameter table, for xarray and Dask."
         ),
     )
     parser.add_argument("spec", metavar="SPEC.toml", type=Path, help="dataset spec file")
@@ -39,6 +41,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="address of a dask.distributed scheduler, e.g. tcp://10.0.0.5:8786: one task per "
                              "frame on the cluster, whose workers need camsim installed (not a shared disk: "
                              "they send the files back)")
+    parser.add_argument("--format", choices=("files", "zarr"), default="files",
+                        help="files (default): OUT/frames/ID.dng, .exr, .json per frame; zarr: one Zarr store, "
+                             "OUT/dataset.zarr, with arrays noisy, clean (float32) and digital (uint8/uint16) of "
+                             "shape (frame, channel, y, x), one chunk per frame, plus the sidecars, done flags and "
+                             "the parameters (README, 'Zarr output'); every frame must have the same size")
+    exr_compression_argument(parser, spec_key=True)
     parser.add_argument("--verify", choices=("sha256", "size"), default="sha256",
                         help="how a re-run checks the files of complete frames: size and SHA-256 (default) or "
                              "size only")
@@ -53,7 +61,7 @@ def run(args) -> int:
     from camsim.dataset._pool import start_fork_server
 
     if args.scheduler is None and args.workers != 1 and not args.dry_run:
-        start_fork_server()  # the pool's fork server imports camsim while this process does the same
+        start_fork_server(zarr=args.format == "zarr")  # the pool's fork server imports camsim meanwhile
 
     from camsim.dataset.runner import run_dataset
     from camsim.dataset.spec import load_spec, plan_spec
@@ -64,7 +72,8 @@ def run(args) -> int:
     spec = load_spec(args.spec)
     out = args.out if args.out is not None else DEFAULT_OUT / spec.name
     run_dataset(spec, out, workers=args.workers, threads=args.threads, scheduler=args.scheduler,
-                verify=args.verify, progress=not args.quiet)
+                verify=args.verify, progress=not args.quiet, exr_compression=args.exr_compression,
+                output=args.format)
     return 0
 
 

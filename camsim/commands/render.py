@@ -8,7 +8,7 @@ from pathlib import Path
 
 from camsim.backends import DEVICES
 from camsim.cli_types import exposure_setting, positive_float, positive_int, schema_value, sensor_setting
-from camsim.commands import DEFAULT_OUT, camera_argument, preset_argument
+from camsim.commands import DEFAULT_OUT, camera_argument, exr_compression_argument, preset_argument
 from camsim.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS
 from camsim.scene import RENDER_PARAMS
@@ -85,6 +85,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "cuda every pixel is drawn from its exact law (poisson; table, gaussian and auto map to "
                              "it), pixel statistics only, and the sidecar records the device. The same seed, device "
                              "and library give the same files; CPU and GPU agree in distribution, not in bits")
+    exr_compression_argument(parser)
     parser.add_argument("--preview", action="store_true",
                         help="also write an sRGB PNG of each frame (camera RGB → XYZ → sRGB, white-balanced from the "
                              "illuminant; the perfect white at F = 1 is sRGB white, so low light looks dark)")
@@ -163,7 +164,7 @@ def run(args) -> int:
         print(f"camsim: warning: {warning}", file=sys.stderr)
     out = args.out if args.out is not None else DEFAULT_OUT / scene.name
     manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet, preview=args.preview,
-                            device=device)
+                            device=device, exr_compression=args.exr_compression)
     rendered = len(scene.illuminants) * len(scene.intensity_factors)
     earlier = len(manifest["frames"]) - rendered
     print(f"wrote {rendered} frames (DNG, EXR, JSON) to {out}/ — index: {out / 'manifest.json'}"

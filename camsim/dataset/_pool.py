@@ -32,24 +32,30 @@ ORPHAN_EXIT_STATUS = 70
 _PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 
 
-def pool_context():
-    """The multiprocessing context of the local pool (its fork server preloads camsim)."""
+#: Also preloaded for a Zarr store's workers (zarr takes about 0.5 s to import).
+PRELOAD_ZARR = ["zarr"]
+
+
+def pool_context(zarr: bool = False):
+    """The multiprocessing context of the local pool (its fork server preloads camsim; with ``zarr``, zarr too,
+    if the fork server is not running yet)."""
     method = POOL_START_METHOD
     if method is None:
         method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
     context = multiprocessing.get_context(method)
     if method == "forkserver":
-        context.set_forkserver_preload(PRELOAD)
+        context.set_forkserver_preload(PRELOAD + (PRELOAD_ZARR if zarr else []))
     return context
 
 
-def start_fork_server() -> None:
-    """Start the fork server now (it imports camsim while the caller goes on); a no-op without one.
+def start_fork_server(zarr: bool = False) -> None:
+    """Start the fork server now (it imports camsim, and with ``zarr`` zarr, while the caller goes on); a no-op
+    without one, or with one running (whose preloads stay what they were: a worker imports the rest itself).
 
     On Linux the fork server dies with the thread that starts it (:func:`bind_to_parent`): call this from the
     thread that runs the pool (the command line's main thread); multiprocessing starts a new one when needed.
     """
-    context = pool_context()
+    context = pool_context(zarr)
     if context.get_start_method() == "forkserver":
         from multiprocessing import forkserver
 

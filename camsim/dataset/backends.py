@@ -19,6 +19,7 @@ from camsim.dataset._pool import pool_context, worker_init
 from camsim.dataset.manifest import FRAMES_DIR
 from camsim.dataset.task import exr_threads
 from camsim.errors import CamsimError
+from camsim.io.exr import restore_exr_threads
 
 __all__ = ["run_serial", "run_pool", "run_dask"]
 
@@ -38,8 +39,7 @@ def run_serial(task, todo, out_dir, threads, on_done) -> None:
         for frame in todo:
             on_done(frame, task(frame, str(out_dir), threads))
     finally:  # this process's OpenEXR setting is the caller's
-        if previous:
-            exr_threads(previous)
+        restore_exr_threads(previous)
 
 
 def run_pool(task, todo, out_dir, workers, threads, on_done) -> None:

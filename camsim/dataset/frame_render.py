@@ -1,4 +1,5 @@
-"""One frame of a dataset, rendered and written: :func:`render_files` (in a worker process, or in this one).
+"""One frame of a dataset, rendered (:func:`render_frame`) and written as files (:func:`render_files`), in a worker
+process or in this one.
 
 The scene, the camera and the lit scene (radiance, Qe and the DNG colour tags) are cached per process, since
 consecutive frames of a spec share them.
@@ -13,10 +14,11 @@ from pathlib import Path
 from camsim.camera import load_camera
 from camsim.dataset.spec import FrameSpec
 from camsim.frame_files import write_frame
+from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION
 from camsim.pipeline import light_scene, scene_frame
 from camsim.scene import load_scene
 
-__all__ = ["render_files"]
+__all__ = ["render_frame", "render_files"]
 
 
 @lru_cache(maxsize=16)
@@ -38,13 +40,12 @@ def _lit(path: str, width: int, height: int, illuminant: str, camera: str, sourc
     return light_scene(scene, illuminant, _camera(camera, scene.grid, scene.sensitivity_basis, scene.base_dir))
 
 
-def render_files(frame: FrameSpec, directory: Path, threads: int = 1) -> dict:
-    """Render one frame and write ``<id>.dng`` (if quantised), ``<id>.exr`` and ``<id>.json`` into ``directory``.
+def render_frame(frame: FrameSpec, threads: int = 1):
+    """Render one frame of a dataset in memory: its :class:`camsim.render.Frame` and :class:`FrameInfo`.
 
     :func:`camsim.pipeline.scene_frame`, as for ``camsim render``, with the frame's own seed. A frame of an
     ``[images]`` spec has the scene file's source replaced by its crop of an image, lit as a reflectance image;
-    its flips mirror the lit scene's label map (every pixel keeps its colour's spectrum). Returns the file names
-    by kind (``dng`` None without quantisation).
+    its flips mirror the lit scene's label map (every pixel keeps its colour's spectrum).
     """
     base = _scene(frame.scene_path)
     image = frame.image
@@ -59,6 +60,14 @@ def render_files(frame: FrameSpec, directory: Path, threads: int = 1) -> dict:
     lit = _lit(frame.scene_path, frame.width, frame.height, frame.illuminant, scene.camera, source)
     if image is not None and (image.flip_horizontal or image.flip_vertical):
         lit = dataclasses.replace(lit, labels=image.flip(lit.labels))
-    rendered, info = scene_frame(scene, frame.illuminant, frame.intensity_factor, seed=frame.seed, lit=lit,
-                                 camera=camera, workers=threads)
-    return write_frame(Path(directory), frame.id, rendered, info)
+    return scene_frame(scene, frame.illuminant, frame.intensity_factor, seed=frame.seed, lit=lit, camera=camera,
+                       workers=threads)
+
+
+def render_files(frame: FrameSpec, directory: Path, threads: int = 1,
+                 exr_compression: str = DEFAULT_EXR_COMPRESSION) -> dict:
+    """Render one frame (:func:`render_frame`) and write ``<id>.dng`` (if quantised), ``<id>.exr`` (with
+    ``exr_compression``) and ``<id>.json`` into ``directory``. Returns the file names by kind (``dng`` None without
+    quantisation)."""
+    rendered, info = render_frame(frame, threads)
+    return write_frame(Path(directory), frame.id, rendered, info, exr_compression=exr_compression)

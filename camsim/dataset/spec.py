@@ -6,6 +6,7 @@ A spec names one or more scene files and the parameters to vary over them::
     scene = "macbeth_26.toml"          # or a list; relative to the spec file
     seed = 0                           # the random draws and every frame's noise derive from it
     repeats = 1                        # noisy realisations of each parameter set (each its own seed)
+    exr_compression = "none"           # optional: the EXR files' lossless compression (camsim.io.exr_compression)
 
     [frame]                            # frame size in pixels (default 256 x 192)
     width = 256
@@ -82,6 +83,7 @@ from camsim.errors import CamsimError
 from camsim.pipeline import exposure_record
 from camsim.run import check_scene
 from camsim.io.dng import MIN_SIZE
+from camsim.io.exr_compression import check_exr_compression
 from camsim.scene import FRAME_PARAMS, RENDER_PARAMS, Scene, load_scene, read_toml
 from camsim.seeding import dataset_frame_seeds, dataset_parameter_generator
 from camsim.sensor import SENSOR_PARAMS
@@ -101,7 +103,7 @@ RENDER_KEYS = tuple(p.name for p in RENDER_PARAMS if p.name != "seed")
 GRID_ALIASES = {"illuminants": "illuminant", "intensity_factors": "intensity_factor"}
 DISTRIBUTIONS = ("uniform", "log_uniform", "integers", "choice")
 _TOP_KEYS = {"name", "description", "scene", "seed", "repeats", "frame", "fixed", "grid", "random", "images",
-             "virtual_camera"}
+             "virtual_camera", "exr_compression"}
 #: Keys of a ``[virtual_camera]`` table.
 VIRTUAL_CAMERA_TABLE_KEYS = ("cameras", "k_range", "read_noise_model")
 #: Keys of an ``[images]`` table.
@@ -344,6 +346,7 @@ class DatasetSpec:
     height: int
     frames: tuple
     axes: dict  # parameter -> "fixed" | "grid" | "random" | "scene": how it is set
+    exr_compression: str | None = None  # the spec's exr_compression, if it sets one (the files, not the frames)
 
     def __len__(self) -> int:
         return len(self.frames)
@@ -371,6 +374,7 @@ class SpecPlan:
     count: int  # frames
     sizes: tuple  # the frames' (width, height), without repetition
     make_frames: Callable[[], Iterator[FrameSpec]] = field(repr=False, compare=False)
+    exr_compression: str | None = None  # the spec's exr_compression, if it sets one (the files, not the frames)
 
     def __len__(self) -> int:
         return self.count
@@ -387,7 +391,7 @@ class SpecPlan:
     def spec(self) -> DatasetSpec:
         """The spec with every frame made and validated."""
         return DatasetSpec(name=self.name, path=self.path, seed=self.seed, width=self.width, height=self.height,
-                           frames=tuple(self.frames()), axes=self.axes)
+                           frames=tuple(self.frames()), axes=self.axes, exr_compression=self.exr_compression)
 
 
 # --- values --------------------------------------------------------------------------------------------------
@@ -615,6 +619,12 @@ def plan_spec(path: str | Path) -> SpecPlan:
     repeats = doc.get("repeats", 1)
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise CamsimError(f"{where}: repeats must be an integer ≥ 1, got {repeats!r}")
+    exr_compression = doc.get("exr_compression")
+    if exr_compression is not None:
+        try:
+            check_exr_compression(exr_compression)
+        except CamsimError as exc:
+            raise CamsimError(f"{where}: exr_compression: {exc}") from None
     scene_files = doc.get("scene")
     if scene_files is None:
         raise CamsimError(f"{where}: needs scene = \"SCENE.toml\" (or a list of scene files)")
@@ -720,7 +730,7 @@ def plan_spec(path: str | Path) -> SpecPlan:
                image_values=_image_draws(images, points, seed) if images is not None else None)
     sizes = tuple(dict.fromkeys((entry.scene.width, entry.scene.height) for entry in scenes))
     return SpecPlan(name=name, path=path, seed=seed, width=width, height=height, axes=axes, count=points * repeats,
-                    sizes=sizes, make_frames=partial(_frames, job))
+                    sizes=sizes, make_frames=partial(_frames, job), exr_compression=exr_compression)
 
 
 def _virtual_cameras(table, points: int, seed: int, axes: dict, where: str) -> list:

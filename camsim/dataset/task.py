@@ -1,55 +1,69 @@
-"""The task a worker runs for one frame of a dataset (:func:`render_task`), in a local process or on a Dask
-worker, and the OpenEXR thread setting it runs under."""
+"""The tasks a worker runs for one frame of a dataset, in a local process or on a Dask worker: :func:`render_task`
+(the file layout) and :func:`zarr_task` (a Zarr store), and the OpenEXR thread setting they run under."""
 
 from __future__ import annotations
 
 import hashlib
+import json
 import tempfile
 from pathlib import Path
 
-from camsim.dataset.frame_render import render_files
+from camsim.dataset.frame_render import render_files, render_frame
 from camsim.dataset.manifest import FRAMES_DIR, sha256_file
 from camsim.dataset.spec import FrameSpec
+from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION
 
-__all__ = ["render_task", "exr_threads"]
-
-
-def exr_threads(count: int) -> int | None:
-    """Set OpenEXR's process-wide compression threads (camsim's EXR writer otherwise gives it every core);
-    returns the previous count (None where the bindings cannot tell). The files do not depend on it."""
-    try:
-        import OpenEXR
-    except ImportError:  # pragma: no cover - camsim needs OpenEXR
-        return None
-    if not hasattr(OpenEXR, "set_global_thread_count"):
-        return None
-    previous = OpenEXR.global_thread_count()
-    if previous != count:
-        OpenEXR.set_global_thread_count(count)
-    return previous
+__all__ = ["render_task", "zarr_task", "exr_threads"]
 
 
-def render_task(frame: FrameSpec, out_dir: str | None, threads: int = 1) -> dict:
-    """A worker's task: render one frame on ``threads`` threads (the noise draws' and the EXR compression's).
+def exr_threads(count: int) -> tuple | None:
+    """Have OpenEXR write with ``count`` threads per frame in all (1: in the calling thread, no pool; camsim's EXR
+    writer otherwise gives it every core): :func:`camsim.io.exr.set_exr_threads`. Returns the previous setting, for
+    :func:`camsim.io.exr.restore_exr_threads`. The files do not depend on it."""
+    from camsim.io.exr import set_exr_threads
+
+    return set_exr_threads(count)
+
+
+def render_task(frame: FrameSpec, out_dir: str | None, threads: int = 1,
+                exr_compression: str = DEFAULT_EXR_COMPRESSION) -> dict:
+    """A worker's task: render one frame on ``threads`` threads (the noise draws' and the EXR compression's), its
+    EXR compressed with ``exr_compression``.
 
     With ``out_dir``, the files go to ``out_dir/frames/`` and the result lists them (name relative to
     ``out_dir``, size, SHA-256). Without, they are rendered into a private temporary folder and the result also
     carries their bytes (``blobs``), for a worker that shares no file system with the caller.
     """
-    exr_threads(threads)  # 1 thread: one compression thread while the caller waits, i.e. one core
+    exr_threads(threads)  # 1 thread: OpenEXR works in this thread, i.e. one core
     if out_dir is not None:
         folder = Path(out_dir) / FRAMES_DIR
-        names = render_files(frame, folder, threads)
+        names = render_files(frame, folder, threads, exr_compression)
         files = {kind: None if name is None else
                  {"name": f"{FRAMES_DIR}/{name}", "bytes": (folder / name).stat().st_size,
                   "sha256": sha256_file(folder / name)}
                  for kind, name in names.items()}
-        return {"id": frame.id, "files": files}
+        return {"id": frame.id, "exr_compression": exr_compression, "files": files}
     with tempfile.TemporaryDirectory(prefix="camsim-frame-") as tmp:
-        names = render_files(frame, Path(tmp), threads)
+        names = render_files(frame, Path(tmp), threads, exr_compression)
         blobs = {kind: (Path(tmp) / name).read_bytes() for kind, name in names.items() if name is not None}
     files = {kind: None if name is None else
              {"name": f"{FRAMES_DIR}/{name}", "bytes": len(blobs[kind]),
               "sha256": hashlib.sha256(blobs[kind]).hexdigest()}
              for kind, name in names.items()}
-    return {"id": frame.id, "files": files, "blobs": blobs}
+    return {"id": frame.id, "exr_compression": exr_compression, "files": files, "blobs": blobs}
+
+
+def zarr_task(frame: FrameSpec, out_dir: str | None, threads: int = 1, *, layout) -> dict:
+    """A worker's task for a Zarr store (:mod:`camsim.dataset.zarr_store`, whose ``layout`` it is): render one
+    frame on ``threads`` threads and write its chunks into the store (with ``out_dir``; the result lists them), or,
+    without, send its arrays and sidecar back (``data``, ``sidecar``) for the caller to write."""
+    from camsim.dataset.zarr_store import STORE_NAME, frame_arrays, write_frame_arrays
+    from camsim.frame_files import sidecar
+
+    rendered, info = render_frame(frame, threads)
+    data = frame_arrays(rendered, layout)
+    meta = sidecar(rendered, info, None) | {"zarr": {"store": STORE_NAME, "index": frame.index}}
+    text = json.dumps(meta, ensure_ascii=False, allow_nan=False)
+    if out_dir is None:
+        return {"id": frame.id, "data": data, "sidecar": text}
+    return {"id": frame.id, "arrays": write_frame_arrays(layout, frame.index, data, text, threads)}

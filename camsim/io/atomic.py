@@ -23,7 +23,7 @@ from typing import Any
 from camsim.errors import CamsimError, output_error
 
 __all__ = ["atomic_path", "write_json_atomic", "write_text_atomic", "undo_on_failure", "record_created",
-           "PARTIAL_SUFFIX"]
+           "fsync_path", "PARTIAL_SUFFIX"]
 
 #: The suffix of a temporary file (``.NAME.PID.partial``) while it is being written.
 PARTIAL_SUFFIX = ".partial"
@@ -53,6 +53,12 @@ def _fsync_path(path: Path, *, directory: bool = False) -> None:
             raise
     finally:
         os.close(fd)
+
+
+def fsync_path(path: str | os.PathLike[str], *, directory: bool = False) -> None:
+    """Flush a file written by another writer (or, with ``directory``, a folder's entries) to disk; a folder that
+    cannot be opened or synced is passed over (durability is best effort there)."""
+    _fsync_path(Path(path), directory=directory)
 
 
 @contextlib.contextmanager

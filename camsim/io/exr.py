@@ -1,14 +1,23 @@
 """Float EXR frames: the noisy signal in ``R, G, B`` and the noise-free signal in ``clean.R, clean.G, clean.B``.
 
 Written with the OpenEXR 3.x Python bindings (``OpenEXR.File``) as a single-part, scanline, 32-bit float file with
-lossless ZIP compression and extra string header attributes. :func:`read_exr` reads it back with OpenEXR and
-:func:`read_exr_oiio` with OpenImageIO, an independent reader used by the tests to cross-check pixels and metadata.
+extra string header attributes and a lossless compression (:data:`EXR_COMPRESSIONS`; default
+:data:`DEFAULT_EXR_COMPRESSION`). :func:`read_exr` reads it back with OpenEXR and :func:`read_exr_oiio` with
+OpenImageIO, an independent reader used by the tests to cross-check pixels and metadata.
 
-Compression choice, measured on a 2000x1500 frame (6 float channels, smooth signal plus noise) on 2 CPUs with
-OpenEXR 3.5.3 and 2 worker threads: ZIP writes in 0.28 s and gives 36.5 MB; PIZ needs 0.46 s for 38.8 MB; ZIPS
-0.31 s for 47.5 MB; uncompressed 0.06 s for 72 MB. With no worker threads ZIP takes 0.48 s and PIZ 0.87 s. ZIP and
-PIZ are both lossless and byte-deterministic (identical bytes on repeated writes and for any thread count), so ZIP,
-the faster and smaller one, is used.
+Compression choice, measured on a 1152 x 864 frame (``python tools/bench_exr_compression.py``, whose table is in
+the README; one OpenEXR thread, as a dataset worker writes; OpenEXR 3.5.3): the noisy layer is noise down to the
+last bits of the mantissa, and no lossless method takes much off it (ZIP 4 %, ZSTD 19 %, HTJ2K 27 %), while ZIP
+spends 4 to 6 times the time of an uncompressed write on a frame (0.27 to 0.44 s against 0.07 to 0.08 s) and reads
+2 to 3 times slower; a dataset on two processes makes about half the frames per second with it. The clean layer compresses only without PRNU and DSNU (piecewise constant: ZIP makes it 1 % of its size);
+with them it is as incompressible as the noisy one. ``none`` is the default: a dataset is then bound by the noise
+draws and the disk, not by the encoder, and every EXR reader reads the files. Each lossless name of
+:data:`EXR_COMPRESSIONS` that the installed OpenEXR offers can be chosen (``--exr-compression``: ``zip`` halves
+the files of sensors without fixed-pattern noise, ``htj2k32`` and ``zstd`` are the smallest, for readers with
+OpenEXR 3.4 / 3.5); those that are lossy for float32 (PXR24 rounds it to 24 bits; DWAA, DWAB and LJ2K are lossy
+transforms) are refused, and so are B44 and B44A, which compress HALF channels only and store camsim's float32
+channels uncompressed (bit-exact, no smaller than ``none``). Every offered method is byte-deterministic (identical
+bytes on repeated writes and for any thread count).
 """
 
 from __future__ import annotations
@@ -23,8 +32,16 @@ import OpenEXR
 
 from camsim.errors import CamsimError, output_error
 from camsim.io.atomic import atomic_path
+from camsim.io.exr_compression import (
+    DEFAULT_EXR_COMPRESSION,
+    EXR_COMPRESSIONS,
+    check_exr_compression,
+    exr_compressions,
+)
 
-__all__ = ["write_exr", "read_exr", "read_exr_header", "read_exr_oiio", "NOISY_CHANNELS", "CLEAN_CHANNELS"]
+__all__ = ["write_exr", "read_exr", "read_exr_header", "read_exr_oiio", "NOISY_CHANNELS", "CLEAN_CHANNELS",
+           "EXR_COMPRESSIONS", "DEFAULT_EXR_COMPRESSION", "exr_compressions", "check_exr_compression",
+           "set_exr_threads", "restore_exr_threads"]
 
 NOISY_CHANNELS = ("R", "G", "B")
 MOSAIC_CHANNELS = ("CFA",)  # a colour filter array frame: one value per pixel
@@ -43,6 +60,8 @@ _RESERVED = frozenset({
     "zipCompressionLevel", "idManifest", "preview",
 })
 _RESERVED_PREFIXES = ("oiio:", "openexr:")
+
+
 # String attributes OpenImageIO synthesises from the standard ones (besides the reserved prefixes).
 _OIIO_SYNTHESISED = frozenset({"compression", "Copyright", "ImageDescription", "DateTime", "wrapmodes"})
 
@@ -50,12 +69,43 @@ _threads_configured = False
 
 
 def _configure_threads() -> None:
-    """Give OpenEXR's process-wide pool workers once (it defaults to 0 = single-threaded); output is unchanged."""
+    """Give OpenEXR's process-wide pool workers once (it defaults to 0 = single-threaded), unless the thread count
+    was set (:func:`set_exr_threads`); output is unchanged."""
     global _threads_configured
     if not _threads_configured:
         if hasattr(OpenEXR, "set_global_thread_count") and OpenEXR.global_thread_count() == 0:
             OpenEXR.set_global_thread_count(min(os.cpu_count() or 1, 8))
         _threads_configured = True
+
+
+def set_exr_threads(threads: int) -> tuple | None:
+    """Have OpenEXR read and write with ``threads`` threads in all, process-wide: 1 = in the calling thread alone
+    (no pool: measured 40 ms against 65 ms with one pool thread, for an uncompressed 1 MP frame), n > 1 = a pool of
+    n threads while the caller waits. The files do not depend on it.
+
+    Returns
+    -------
+    tuple or None
+        The previous setting, for :func:`restore_exr_threads` (None where the bindings cannot set it).
+    """
+    global _threads_configured
+    if not hasattr(OpenEXR, "set_global_thread_count"):
+        return None
+    previous = (OpenEXR.global_thread_count(), _threads_configured)
+    size = 0 if threads == 1 else threads
+    if previous[0] != size:
+        OpenEXR.set_global_thread_count(size)
+    _threads_configured = True
+    return previous
+
+
+def restore_exr_threads(previous: tuple | None) -> None:
+    """Undo :func:`set_exr_threads` (``previous``: what it returned)."""
+    global _threads_configured
+    if previous is not None:
+        count, _threads_configured = previous
+        if OpenEXR.global_thread_count() != count:
+            OpenEXR.set_global_thread_count(count)
 
 
 def _check_frame(arr: Any, what: str, name: str, planes=(3,)) -> np.ndarray:
@@ -84,7 +134,7 @@ def _check_header(header: Mapping[str, str] | None, name: str) -> dict[str, str]
 
 
 def write_exr(path: str | os.PathLike[str], noisy: np.ndarray, clean: np.ndarray | None,
-              header: Mapping[str, str] | None) -> None:
+              header: Mapping[str, str] | None, compression: str = DEFAULT_EXR_COMPRESSION) -> None:
     """Write a float32 EXR with noisy and clean RGB planes and string metadata, atomically and deterministically.
 
     Parameters
@@ -100,18 +150,24 @@ def write_exr(path: str | os.PathLike[str], noisy: np.ndarray, clean: np.ndarray
         Extra header attributes, stored as EXR ``string`` attributes so that values survive byte-exactly. Keys
         must not be OpenEXR standard attribute names nor start with ``oiio:``/``openexr:``; values must be
         non-empty (OpenImageIO drops empty strings).
+    compression : str
+        A lossless name of :data:`EXR_COMPRESSIONS` (default :data:`DEFAULT_EXR_COMPRESSION`).
 
     Raises
     ------
     CamsimError
-        For arrays of the wrong dtype/shape, mismatched shapes, or an unusable header entry.
+        For arrays of the wrong dtype/shape, mismatched shapes, an unusable header entry or compression.
 
     Notes
     -----
-    Single-part scanline file, ZIP compression (see the module docstring for why), 32-bit FLOAT channels. The
-    same inputs give byte-identical files.
+    Single-part scanline file, 32-bit FLOAT channels (see the module docstring for the compression). The same
+    inputs give byte-identical files.
     """
     name = os.fspath(path)
+    try:
+        constant = getattr(OpenEXR, EXR_COMPRESSIONS[check_exr_compression(compression)][0])
+    except CamsimError as exc:
+        raise CamsimError(f"cannot write EXR {name}: {exc}") from None
     noisy = _check_frame(noisy, "noisy", name, planes=(3, 1))
     names = NOISY_CHANNELS if noisy.shape[0] == 3 else MOSAIC_CHANNELS
     channels = {c: np.ascontiguousarray(noisy[i]) for i, c in enumerate(names)}
@@ -121,7 +177,7 @@ def write_exr(path: str | os.PathLike[str], noisy: np.ndarray, clean: np.ndarray
             raise CamsimError(f"cannot write EXR {name}: clean shape {clean.shape} differs from noisy shape "
                               f"{noisy.shape}")
         channels.update({c: np.ascontiguousarray(clean[i]) for i, c in enumerate(CLEAN_CHANNELS)})
-    exr_header: dict[str, Any] = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage,
+    exr_header: dict[str, Any] = {"compression": constant, "type": OpenEXR.scanlineimage,
                                   "lineOrder": OpenEXR.INCREASING_Y}
     exr_header.update(_check_header(header, name))
     _configure_threads()

@@ -35,14 +35,16 @@ from camsim.stages import (
 
 
 def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor: SensorParams,
-                 statistics: str, c: int, rng, z, work, offset=None, gain=None, dark_gain=None, bins=None):
+                 statistics: str, c: int, rng, z, work, offset=None, gain=None, dark_gain=None, bins=None,
+                 runs=...):
     """One channel of a block, in DN before quantisation, by the plan: ``out_c`` (h, w) float32 is written in place.
 
     ``z`` (h, w) float32 and ``work`` are scratch. Each pixel uses one draw from ``z``: its read noise on the exact
     path, or (rescaled) its whole Gaussian value; the clipped Gaussian, and the Gaussian under non-Gaussian read
     noise, draw their own normals. ``offset`` (offset DSNU, e⁻), ``gain`` (PRNU) and ``dark_gain`` (dark-current
     DSNU) are this block's fixed-pattern maps, (h, w), or None. ``bins`` (h, w): this channel's per-bin signal
-    (:func:`bins_signal`, e⁻) where the plan has :data:`~camsim.methods.plan.BINS`, else None.
+    (:func:`bins_signal`, e⁻) where the plan has :data:`~camsim.methods.plan.BINS`, else None. ``runs``:
+    :func:`camsim.kernels.label_runs` of ``labels``, when the caller has it (the three channels of a block share it).
     """
     k = sensor.dn_per_electron
     read = sensor.read_noise_e if sensor.read_noise else 0.0
@@ -53,7 +55,8 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
         draw_read_noise_e(rng, z, read, sensor.read_noise_model, sensor.tukey_lambda, work)
     elif np.any((kinds != EXACT) & (kinds != TABLE)):  # the Gaussian paths' normals
         standard_normal_f32(rng, z, work, z_scale)
-    runs = label_runs(labels)
+    if runs is ...:
+        runs = label_runs(labels)
     # the table kind's rectangles draw their charges from one buffer of raw words and one of charges (a block's)
     words = alias_words(rng, labels.size) if runs is not None and np.any(kinds == TABLE) else None
     charges, used = (np.empty(labels.size, dtype=np.float32), 0) if words is not None else (None, 0)
@@ -198,12 +201,13 @@ def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None
         planes = [0]
     else:
         planes = range(3)
+        runs = label_runs(labels)  # once for the three channels
     for p in planes:
         if sensor.cfa is None:
             fill_channel(block[p], labels, plan, expected, sensor, job.statistics, p, rng,
                          scratch.plane[: r1 - r0], scratch.work, None if offset is None else offset[p],
                          None if gain is None else gain[p], None if dark_gain is None else dark_gain[p],
-                         None if bins is None else bins[p])
+                         None if bins is None else bins[p], runs)
         if sensor.row_noise_e > 0:  # a physical row shares its offset, whatever the colour of its pixels
             add_row_noise(block[p], row_noise_dn, rng)
         if job.digital is not None:

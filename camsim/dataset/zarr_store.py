@@ -1,0 +1,376 @@
+"""A dataset as one Zarr store (``camsim dataset SPEC --format zarr``): chunked arrays for training loaders that
+read arrays, not files.
+
+Layout of ``OUT``::
+
+    OUT/dataset.zarr/            the store (Zarr format 3; consolidated metadata)
+        noisy     (frame, channel, y, x) float32   the EXR's R, G, B (or (frame, cfa, y, x): the mosaic), DN
+        clean     (frame, channel, y, x) float32   the EXR's clean.R, clean.G, clean.B, DN
+        digital   (frame, channel, y, x) uint8/16  the DNG's digital numbers (if any frame is quantised)
+        sidecar   (frame,) str                     each frame's sidecar, as JSON (as the file layout's ID.json)
+        done      (frame,) bool                    whether the frame is complete (written after its chunks)
+        records   (frame,) str                     each frame's parameters, as JSON (a manifest line, less its
+                                                   arrays): the whole parameter table
+        <key>     (frame,) or (frame, channel)     one array per parameter of the records with one scalar (or R,
+                                                   G, B) value per frame: id, illuminant, intensity_factor, seed,
+                                                   read_noise_e, … (coordinates of the frame dimension in xarray)
+        channel   (channel,) str                   R, G, B
+    OUT/records/<id>.done        each complete frame's record (atomic, written after its chunks)
+    OUT/manifest.jsonl           one line per complete frame, in frame order (as for the file layout)
+
+One chunk is one frame of one layer (so that a loader reads a frame with one request per layer, and workers write
+distinct chunks: no two processes write one chunk), compressed by Blosc LZ4 with byte shuffle
+(:data:`COMPRESSORS`: about 22 % off the float layers and half of the digital numbers' 16-bit containers, at
+nearly the speed of no compression: ``python tools/bench_exr_compression.py`` measures it beside the EXR
+compressions). Frames not yet rendered read as NaN (float layers), 0 (digital numbers) and "" (sidecar), with
+``done`` False.
+
+Resuming works as for the file layout (:mod:`camsim.dataset.manifest`): a frame is complete when its record in
+``OUT/records`` describes the same frame and every chunk it lists is there with the recorded size and (``verify =
+"sha256"``) its array's bytes have the recorded SHA-256. Chunks are written by zarr under temporary names and
+renamed (zarr's local store), then flushed to disk (``fsync``), before the record is written; ``done`` is
+rewritten from the records when a run starts and ends, and set as each frame is recorded. A store holds frames of
+one size and one kind of sensor (three-chip, or a colour filter array): a spec that mixes them is refused.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import warnings
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from camsim.errors import CamsimError
+from camsim.io.atomic import fsync_path
+
+__all__ = ["STORE_NAME", "RECORDS_DIR", "LAYERS", "COMPRESSORS", "StoreLayout", "store_layout", "open_store",
+           "write_frame_arrays", "verified_record", "store_result", "write_done", "frame_arrays", "record_path"]
+
+STORE_NAME = "dataset.zarr"
+RECORDS_DIR = "records"
+#: The frame arrays of the store, one chunk per frame each.
+LAYERS = ("noisy", "clean", "digital")
+#: Arrays that are not parameters of the records (their names are taken).
+_RESERVED = frozenset({*LAYERS, "sidecar", "done", "records", "channel", "cfa", "frame", "y", "x"})
+#: Frames per chunk of ``done`` and ``records`` (written by the main process only).
+TABLE_CHUNK = 4096
+_KEY_ENCODING = {"name": "default", "separator": "."}  # c.<frame>.0.0.0: one flat folder per array
+CHANNELS = ("R", "G", "B")
+
+
+def compressors():
+    """The chunks' compressor: Blosc LZ4, level 5, byte shuffle (measured: see the module docstring)."""
+    from zarr.codecs import BloscCodec
+
+    return [BloscCodec(cname="lz4", clevel=5, shuffle="shuffle")]
+
+
+COMPRESSORS = "blosc lz4 clevel 5, byte shuffle"
+
+
+@dataclass(frozen=True)
+class StoreLayout:
+    """The shape of a spec's store: what a worker needs to write a frame into it (plain picklable data).
+
+    Attributes
+    ----------
+    path : str
+        Absolute path of the store (``OUT/dataset.zarr``).
+    frames : int
+        Frames of the spec.
+    planes : int
+        Planes of ``noisy`` and ``digital``: 3 (R, G, B) or 1 (a colour filter array's mosaic).
+    height, width : int
+        Frame size. Unit: pixels.
+    digital : str or None
+        NumPy dtype name of the digital numbers (``uint8`` for at most 8 bits, else ``uint16``), or None if no
+        frame is quantised.
+    """
+
+    path: str
+    frames: int
+    planes: int
+    height: int
+    width: int
+    digital: str | None
+
+    def shape(self, layer: str) -> tuple:
+        planes = 3 if layer == "clean" else self.planes
+        return (self.frames, planes, self.height, self.width)
+
+    def dims(self, layer: str) -> tuple:
+        plane = "channel" if layer == "clean" or self.planes == 3 else "cfa"
+        return ("frame", plane, "y", "x")
+
+    def describe(self) -> dict:
+        """The layout as the store's attributes record it (without its path)."""
+        return {k: v for k, v in asdict(self).items() if k != "path"}
+
+
+def store_layout(spec, out_dir: Path) -> StoreLayout:
+    """The layout of ``spec``'s store in ``out_dir``; :class:`CamsimError` for a spec whose frames differ in size or
+    in the kind of sensor (three-chip or colour filter array), which one store cannot hold."""
+    sizes = sorted({(f.width, f.height) for f in spec.frames})
+    if len(sizes) > 1:
+        raise CamsimError(f"--format zarr needs frames of one size (one array per layer), but {spec.name} has "
+                          f"{', '.join(f'{w}x{h}' for w, h in sizes)}: write it as files (--format files) or split "
+                          "the spec by size")
+    kinds = {f.get("cfa") is not None for f in spec.frames}
+    if len(kinds) > 1:
+        raise CamsimError(f"--format zarr needs one kind of sensor, but {spec.name} mixes three-chip frames and "
+                          "colour filter array (mosaic) frames: write it as files (--format files) or split the spec")
+    bits = [f.get("bits") for f in spec.frames if f.get("quantisation")]
+    (width, height), = sizes or [(spec.width, spec.height)]
+    return StoreLayout(path=str(Path(out_dir).resolve() / STORE_NAME), frames=len(spec.frames),
+                       planes=1 if kinds == {True} else 3, height=height, width=width,
+                       digital=None if not bits else np.dtype(np.uint8 if max(bits) <= 8 else np.uint16).name)
+
+
+# --- the main process: the store, its parameter table and its done flags ---------------------------------------
+
+
+def open_store(layout: StoreLayout, spec, echo=None):
+    """Create the store of ``layout`` (or open the one there, checking that it has this layout, and resizing it to
+    the spec's frame count), write the parameter table of ``spec`` and consolidate the metadata. Returns the
+    ``zarr.Group``.
+
+    Raises
+    ------
+    CamsimError
+        The folder holds something else than a camsim store, or a store of frames of another size or sensor.
+    """
+    try:
+        import zarr
+    except ImportError:
+        raise CamsimError("--format zarr needs the zarr package (3 or newer): pip install zarr") from None
+
+    root = Path(layout.path)
+    _remove_partials(root)
+    if root.exists() and not (root / "zarr.json").is_file():
+        raise CamsimError(f"{root} exists but is not a Zarr store: remove it or choose another --out")
+    group = zarr.open_group(root, mode="a", zarr_format=3)
+    held = group.attrs.get("camsim", {}).get("layout")
+    if held is not None:
+        mismatch = {k: (held.get(k), v) for k, v in layout.describe().items() if k != "frames" and held.get(k) != v}
+        if mismatch:
+            differences = ", ".join(f"{k} {there} there, {here} here" for k, (there, here) in mismatch.items())
+            raise CamsimError(f"{root} holds frames of another layout ({differences}): choose another --out, or "
+                              "remove the store")
+    members = set(group.array_keys())
+    columns = parameter_columns([frame.record for frame in spec.frames])
+    coordinates = " ".join(columns)
+    for layer in LAYERS:
+        if layer == "digital" and layout.digital is None:
+            continue
+        dtype = layout.digital if layer == "digital" else "float32"
+        attributes = {"units": "DN", "description": _DESCRIPTIONS[layer], "coordinates": coordinates}
+        _frame_array(group, members, layer, layout.shape(layer), (1, *layout.shape(layer)[1:]), dtype,
+                     0 if layer == "digital" else np.nan, layout.dims(layer), attributes)
+    _frame_array(group, members, "sidecar", (layout.frames,), (1,), str, "", ("frame",),
+                 {"description": "each frame's sidecar (the file layout's ID.json), as JSON; '' until rendered",
+                  "coordinates": coordinates})
+    _frame_array(group, members, "done", (layout.frames,), (min(layout.frames, TABLE_CHUNK),), bool, False,
+                 ("frame",), {"description": "whether the frame is complete (set after its chunks are written)",
+                              "coordinates": coordinates})
+    _table_array(group, "records", np.array([json.dumps(frame.record, ensure_ascii=False, allow_nan=False)
+                                             for frame in spec.frames], dtype=object), ("frame",),
+                 {"description": "each frame's parameters (a manifest line without its arrays), as JSON"})
+    _table_array(group, "channel", np.array(CHANNELS, dtype=object), ("channel",), {})
+    for name in members - set(LAYERS) - {"sidecar", "done", "records", "channel"} - set(columns):
+        del group[name]  # a parameter of an earlier spec
+    for name, values in columns.items():
+        dims = ("frame",) if values.ndim == 1 else ("frame", "channel")
+        _table_array(group, name, values, dims, {"description": f"the records' {name}, frame by frame"})
+    group.attrs["camsim"] = {"layout": layout.describe(), "spec": spec.name, "spec_seed": spec.seed,
+                             "compressors": COMPRESSORS, "records_dir": RECORDS_DIR}
+    with warnings.catch_warnings():  # consolidated metadata is zarr-python's extension of format 3: said in README
+        warnings.filterwarnings("ignore", message="Consolidated metadata", category=UserWarning)
+        zarr.consolidate_metadata(root)
+    return zarr.open_group(root, mode="r+", zarr_format=3, use_consolidated=False)
+
+
+_DESCRIPTIONS = {
+    "noisy": "the noisy signal before quantisation (the EXR's R, G, B, or CFA: the mosaic), NaN until rendered",
+    "clean": "its expected value per pixel (the EXR's clean.R, clean.G, clean.B), NaN until rendered",
+    "digital": "the quantised digital numbers I (the DNG's), 0 until rendered or where not quantised",
+}
+
+
+def _frame_array(group, members, name, shape, chunks, dtype, fill, dims, attributes):
+    """The array ``name``: created if missing, resized to ``shape`` along the frame axis if it has another count."""
+    if name in members:
+        array = group[name]
+        if array.shape != shape:
+            array.resize(shape)
+        array.update_attributes(attributes)
+        return array
+    return group.create_array(name, shape=shape, chunks=chunks, dtype=dtype, fill_value=fill,
+                              compressors=compressors(), chunk_key_encoding=_KEY_ENCODING, dimension_names=dims,
+                              attributes=attributes)
+
+
+def _table_array(group, name, values, dims, attributes):
+    """Write ``values`` as the array ``name`` (replacing any array of that name)."""
+    dtype = str if values.dtype == object else values.dtype
+    array = group.create_array(name, shape=values.shape, chunks=(min(len(values), TABLE_CHUNK), *values.shape[1:]),
+                               dtype=dtype, compressors=compressors() if dtype is not str else "auto",
+                               chunk_key_encoding=_KEY_ENCODING, dimension_names=dims, attributes=attributes,
+                               overwrite=True)
+    array[...] = values
+    return array
+
+
+def parameter_columns(records: list) -> dict:
+    """The per-key arrays of the parameter table: every key that all ``records`` have with a value of one kind —
+    bool, int (int64), number (float64), str, or a list of three numbers (float64, (frames, 3)); keys with a None or
+    another value somewhere are left to the ``records`` array."""
+    columns = {}
+    for key in records[0] if records else ():
+        if key in _RESERVED or not all(key in r for r in records):
+            continue
+        values = [r[key] for r in records]
+        kinds = {type(v) for v in values}
+        if kinds == {bool}:
+            columns[key] = np.array(values, dtype=bool)
+        elif kinds == {int} and all(-2**63 <= v < 2**63 for v in values):
+            columns[key] = np.array(values, dtype=np.int64)
+        elif kinds <= {int, float} and kinds:
+            columns[key] = np.array(values, dtype=np.float64)
+        elif kinds == {str}:
+            columns[key] = np.array(values, dtype=object)
+        elif kinds == {list} and all(len(v) == 3 and all(type(x) in (int, float) for x in v) for v in values):
+            columns[key] = np.array(values, dtype=np.float64)
+    return columns
+
+
+def write_done(group, records: dict) -> None:
+    """Rewrite ``done`` from the records of the complete frames (``{index: record}``)."""
+    done = np.zeros(group["done"].shape, dtype=bool)
+    done[[i for i in records if i < len(done)]] = True
+    group["done"][...] = done
+
+
+def _remove_partials(root: Path) -> None:
+    """Remove the temporary files zarr's local store leaves when a write is killed (``NAME.HEX.partial``)."""
+    if not root.is_dir():
+        return
+    for folder in (root, *(p for p in root.iterdir() if p.is_dir())):
+        for path in folder.glob("*.partial"):
+            with contextlib.suppress(OSError):
+                path.unlink()
+
+
+# --- a worker: one frame's chunks ------------------------------------------------------------------------------
+
+
+def frame_arrays(rendered, layout: StoreLayout) -> dict:
+    """A rendered :class:`camsim.render.Frame` as the store's layers (``digital`` None where not quantised)."""
+    digital = rendered.digital_dn
+    return {"noisy": rendered.noisy_dn, "clean": rendered.clean_dn(),
+            "digital": None if digital is None else digital.astype(layout.digital, copy=False)}
+
+
+_open_arrays: dict = {}  # store path -> {name: zarr.Array}, per process
+
+
+def _arrays(path: str, threads: int) -> dict:
+    """The store's frame arrays, opened once per process (``threads``: zarr's codec threads)."""
+    arrays = _open_arrays.get(path)
+    if arrays is None:
+        import zarr
+
+        zarr.config.set({"threading.max_workers": threads})
+        group = zarr.open_group(path, mode="r+", zarr_format=3, use_consolidated=False)
+        arrays = {name: group[name] for name in (*LAYERS, "sidecar") if name in group}
+        _open_arrays.clear()  # one store at a time
+        _open_arrays[path] = arrays
+    return arrays
+
+
+def write_frame_arrays(layout: StoreLayout, index: int, data: dict, sidecar_text: str, threads: int = 1) -> dict:
+    """Write frame ``index``'s chunks (``data``: :func:`frame_arrays`; its sidecar as JSON text), flush them to
+    disk, and return what its record lists: per layer (and ``sidecar``) the chunk's name in the store, its size in
+    bytes and the SHA-256 of the frame's array (C order; the sidecar's UTF-8 text), or None for a missing layer."""
+    arrays = _arrays(layout.path, threads)
+    root = Path(layout.path)
+    entries = {}
+    for name, value in (*data.items(), ("sidecar", sidecar_text)):
+        if value is None:
+            entries[name] = None
+            continue
+        array = arrays[name]
+        if name == "sidecar":
+            array[index] = value
+            digest = hashlib.sha256(value.encode("utf-8")).hexdigest()
+            key = array.metadata.encode_chunk_key((index,))
+        else:
+            value = np.ascontiguousarray(value, dtype=array.dtype)
+            array[index] = value
+            digest = hashlib.sha256(memoryview(value).cast("B")).hexdigest()
+            key = array.metadata.encode_chunk_key((index, 0, 0, 0))
+        chunk = root / name / key
+        fsync_path(chunk)
+        entries[name] = {"chunk": f"{name}/{key}", "bytes": chunk.stat().st_size, "sha256": digest}
+    for name in entries:
+        fsync_path(root / name, directory=True)
+    return entries
+
+
+# --- resuming --------------------------------------------------------------------------------------------------
+
+
+def record_path(out_dir: Path, frame_id: str) -> Path:
+    return Path(out_dir) / RECORDS_DIR / f"{frame_id}.done"
+
+
+def verified_record(out_dir: Path, group, frame, verify: str = "sha256") -> dict | None:
+    """The frame's record if it is complete and verified in the store, else None: the record describes this very
+    frame, and each chunk it lists is there with the recorded size and (``verify="sha256"``) the recorded SHA-256
+    of its array."""
+    try:
+        record = json.loads(record_path(out_dir, frame.id).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(record, dict) or {k: v for k, v in record.items() if k not in ("arrays", "zarr")} \
+            != frame.record:
+        return None
+    entries = record.get("arrays")
+    if not isinstance(entries, dict) or not entries.get("noisy") or not entries.get("sidecar"):
+        return None
+    root = Path(str(group.store.root))
+    for name, entry in entries.items():
+        if entry is None:
+            continue
+        try:
+            if (root / entry["chunk"]).stat().st_size != entry["bytes"]:
+                return None
+            if verify == "sha256" and _digest(group[name], frame.index) != entry["sha256"]:
+                return None
+        except (OSError, KeyError, TypeError, ValueError):
+            return None
+    return record
+
+
+def _digest(array, index: int) -> str:
+    value = array[index]
+    if array.ndim == 1:
+        return hashlib.sha256(str(value).encode("utf-8")).hexdigest()
+    return hashlib.sha256(memoryview(np.ascontiguousarray(value)).cast("B")).hexdigest()
+
+
+def store_result(out_dir: Path, group, layout: StoreLayout, frame, result: dict, threads: int = 1) -> dict:
+    """Record a rendered frame: write its chunks (if its arrays were sent back), then its record, then its
+    ``done`` flag; returns the record."""
+    from camsim.io.atomic import write_json_atomic
+
+    entries = result.get("arrays")
+    if entries is None:
+        entries = write_frame_arrays(layout, frame.index, result["data"], result["sidecar"], threads)
+    record = {**frame.record, "arrays": entries}
+    write_json_atomic(record_path(out_dir, frame.id), record)
+    group["done"][frame.index] = True
+    return record
