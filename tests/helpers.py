@@ -15,6 +15,19 @@ ROOT = Path(__file__).resolve().parents[1]
 WHITE = 18  # "white 9.5 (.05 D)" in ColorChecker order
 
 
+def write_text_file(folder: Path, name: str, text: str) -> Path:
+    """``folder/name`` with ``text`` (UTF-8), the folder made if need be (a dataset spec, a scene file)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def file_tree(out: Path) -> dict:
+    """Every file under ``out`` by relative path: its bytes (an output folder, compared whole)."""
+    return {p.relative_to(out).as_posix(): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
+
+
 def small_scene(**changes) -> Scene:
     """A ColorChecker scene with large patches, so that each patch gives thousands of samples."""
     base = Scene(

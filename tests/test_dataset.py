@@ -14,8 +14,8 @@ from camsim.commands.dataset import add_parser, run
 from camsim.dataset import _pool
 from camsim.dataset import load_spec, read_manifest, run_dataset
 from camsim.errors import CamsimError
+from tests.helpers import ROOT, file_tree, write_text_file
 
-ROOT = Path(__file__).resolve().parents[1]
 SCENE = (ROOT / "scenes" / "macbeth_26.toml").as_posix()
 
 # 2 illuminants x 2 layouts (three-chip, Bayer) x 2 random draws = 8 frames of 64 x 48
@@ -43,16 +43,10 @@ read_noise_e = {{ uniform = [2, 6] }}
 
 
 def write_spec(folder: Path, text: str = TINY, name: str = "tiny.toml") -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / name
-    path.write_text(text, encoding="utf-8")
-    return path
+    return write_text_file(folder, name, text)
 
 
-def tree(out: Path) -> dict:
-    """Every file of an output folder by relative path: its bytes."""
-    return {p.relative_to(out).as_posix(): p.read_bytes() for p in sorted(out.rglob("*"))
-            if p.is_file()}
+tree = file_tree
 
 
 def assert_same_frames(out: Path, reference: Path) -> None:

@@ -18,6 +18,7 @@ from camsim.dataset.zarr_store import RECORDS_DIR, STORE_NAME
 from camsim.errors import CamsimError
 from camsim.io.dng import read_dng
 from camsim.io.exr import read_exr
+from tests.helpers import ROOT, file_tree, write_text_file
 
 try:
     import zarr
@@ -25,7 +26,6 @@ except ImportError:  # a dependency of camsim; the EXR tests run without it
     zarr = None
 needs_zarr = pytest.mark.skipif(zarr is None, reason="zarr is not installed")
 
-ROOT = Path(__file__).resolve().parents[1]
 SCENE = (ROOT / "scenes" / "macbeth_26.toml").as_posix()
 
 # 2 illuminants x 2 random draws x 2 repeats = 8 frames of 64 x 48, three-chip, 12 bits
@@ -53,15 +53,10 @@ read_noise_e = {{ uniform = [2, 6] }}
 
 
 def write_spec(folder: Path, text: str = SPEC, name: str = "formats.toml") -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / name
-    path.write_text(text, encoding="utf-8")
-    return path
+    return write_text_file(folder, name, text)
 
 
-def tree(out: Path) -> dict:
-    """Every file under ``out`` by relative path: its bytes."""
-    return {p.relative_to(out).as_posix(): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
+tree = file_tree
 
 
 def bits(a):

@@ -17,7 +17,9 @@ Configurations, each run as a fresh ``camsim dataset``-like process (as a user w
   ``before_processes2``, ``--workers 2`` with that checkout's code (``PYTHONPATH=DIR``), its default EXR
   compression and all;
 * with ``--compressions NAME ...``: ``processes2_NAME``, ``--workers 2 --exr-compression NAME`` (the dataset's
-  frames per second and bytes by EXR compression).
+  frames per second and bytes by EXR compression);
+* with ``--methods NAME ...``: ``processes2_method_NAME``, ``--workers 2`` with the spec's ``method = NAME``
+  instead of ``poisson`` (e.g. ``table``, exact as well: the same laws, other draws, so other bytes).
 
 For each: ``fps`` = frames / wall time of the rendering phase (from the back-end's start, including the process
 pool's start-up, to the last frame recorded; not the imports and the spec's validation), and ``steady_fps`` =
@@ -28,7 +30,7 @@ so that the machine's load hits every configuration alike. The outputs of every 
 are checked byte for byte against the serial one (the Zarr store, and each other EXR compression, against its own
 first run).
 
-Run:  python tools/bench_dataset.py [--frames N] [--repeats R] [--preset NAME] [--baseline DIR]
+Run:  python tools/bench_dataset.py [--frames N] [--repeats R] [--preset NAME] [--baseline DIR] [--methods NAME ...]
 Progress goes to stderr; the last stdout line is one JSON object.
 """
 
@@ -62,7 +64,7 @@ height = {height}
 
 [fixed]
 preset = "{preset}"
-method = "poisson"
+method = "{method}"
 
 [grid]
 illuminants = ["D65", "A", "FL2"]
@@ -117,6 +119,8 @@ def main() -> None:
                         help="run only these configurations (default: all; before_* need --baseline)")
     parser.add_argument("--compressions", nargs="+", default=[], metavar="NAME",
                         help="also processes2 with each of these EXR compressions (processes2_NAME)")
+    parser.add_argument("--methods", nargs="+", default=[], metavar="NAME",
+                        help="also processes2 with each of these sampling methods (processes2_method_NAME)")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--spec", help=argparse.SUPPRESS)
     parser.add_argument("--out", help=argparse.SUPPRESS)
@@ -132,24 +136,28 @@ def main() -> None:
         parser.error("--frames must be a positive multiple of 3")
     if args.baseline is not None and not (args.baseline / "camsim" / "__init__.py").is_file():
         parser.error(f"--baseline {args.baseline}: no camsim checkout there")
-    configs = {name: config for name, config in CONFIGS.items()
+    # name: (workers, threads, format, code, EXR compression or None for the default, method)
+    configs = {name: (*config, None, "poisson") for name, config in CONFIGS.items()
                if (args.configs is None or name in args.configs) and (config[3] == "after" or args.baseline)}
-    configs.update({f"processes2_{name}": (2, 1, "files", "after", name) for name in args.compressions})
+    configs.update({f"processes2_{name}": (2, 1, "files", "after", name, "poisson") for name in args.compressions})
+    configs.update({f"processes2_method_{name}": (2, 1, "files", "after", None, name) for name in args.methods})
 
     results = {name: [] for name in configs}
     with tempfile.TemporaryDirectory(prefix="camsim-bench-dataset-") as tmp:
         tmp = Path(tmp)
-        spec = tmp / "bench_1mp.toml"
-        spec.write_text(SPEC.format(scene=(ROOT / "scenes" / "macbeth_26.toml").as_posix(), width=WIDTH,
-                                    height=HEIGHT, count=args.frames // 3, preset=args.preset),
-                        encoding="utf-8")
+        specs = {}  # method -> its spec file
+        for method in {config[5] for config in configs.values()}:
+            specs[method] = tmp / f"bench_1mp_{method}.toml"
+            specs[method].write_text(SPEC.format(scene=(ROOT / "scenes" / "macbeth_26.toml").as_posix(), width=WIDTH,
+                                                 height=HEIGHT, count=args.frames // 3, preset=args.preset,
+                                                 method=method), encoding="utf-8")
         references = {}  # format -> the first run's files (this checkout's)
         for repeat in range(args.repeats):
-            for name, (workers, threads, output, code, *compression) in configs.items():
+            for name, (workers, threads, output, code, compression, method) in configs.items():
                 out = tmp / f"{name}-{repeat}"
-                command = [sys.executable, __file__, "--child", "--spec", str(spec), "--out", str(out),
+                command = [sys.executable, __file__, "--child", "--spec", str(specs[method]), "--out", str(out),
                            "--workers", str(workers), "--threads", str(threads), "--format", output,
-                           *(["--exr-compression", compression[0]] if compression else [])]
+                           *(["--exr-compression", compression] if compression else [])]
                 path = str(ROOT if code == "after" else args.baseline.resolve())
                 env = os.environ | {"PYTHONPATH": os.pathsep.join(filter(None, [path, os.environ.get("PYTHONPATH")]))}
                 # cwd: a folder without camsim, so that the code is PYTHONPATH's (the pool's fork server, started
@@ -159,7 +167,7 @@ def main() -> None:
                 results[name].append(summary)
                 if code == "after":
                     files = tree(out)
-                    reference = references.setdefault((output, *compression), files)
+                    reference = references.setdefault((output, compression, method), files)
                     if files != reference:
                         raise SystemExit(f"{name} run {repeat}: files differ from the first {output} run")
                 print(f"run {repeat} {name:<17} {summary['rendered']} frames in {summary['seconds']:.2f} s: "
@@ -179,7 +187,7 @@ def main() -> None:
     print(f"camsim dataset, {args.frames} frames of {WIDTH}x{HEIGHT} ({mp:.3f} MP), preset {args.preset}, "
           f"DNG + EXR + JSON + manifest (zarr2: one Zarr store), median of {args.repeats} fresh-process runs, "
           "interleaved:")
-    for name, (workers, threads, output, code, *_) in configs.items():
+    for name, (workers, threads, *_) in configs.items():
         print(f"  {name:<17} workers {workers}, threads {threads}: {median(name, 'frames_per_second'):6.2f} "
               f"frames/s ({median(name, 'megapixels_per_second'):5.2f} MP/s), steady state "
               f"{median(name, 'steady_fps'):6.2f} frames/s, {mb_per_frame(name):5.1f} MB/frame")
@@ -196,8 +204,8 @@ def main() -> None:
         print(f"  2 processes / serial: {speedup:.2f}x (steady state "
               f"{median('processes2', 'steady_fps') / median('serial', 'steady_fps'):.2f}x)")
         summary["speedup_processes2"] = speedup
-    if "before_processes2" in configs and "processes2" in configs:
-        for name in ("processes2", "zarr2"):
+    if "before_processes2" in configs:
+        for name in ("processes2", "zarr2", *(n for n in configs if n.startswith("processes2_method_"))):
             if name in configs:
                 ratio = median(name, "frames_per_second") / median("before_processes2", "frames_per_second")
                 steady = median(name, "steady_fps") / median("before_processes2", "steady_fps")
