@@ -98,8 +98,9 @@ def charge_pmf(mean_e: float, full_well_e: float | None = None):
 
 
 def dn_pmf(mean_e: float, dn_per_electron: float, read_noise_e: float = 0.0, full_well_e: float | None = None,
-           bits: int | None = None) -> DnPmf:
-    """The pmf of I = clip(floor(k (min(N, c) + R)), 0, 2^nb − 1), N ~ Poisson(λ), R ~ N(0, σ²).
+           bits: int | None = None, pedestal_dn: int = 0) -> DnPmf:
+    """The pmf of I = clip(floor(k (min(N, c) + R)) + P, 0, 2^nb − 1), N ~ Poisson(λ), R ~ N(0, σ²), P the pedestal
+    (:func:`camsim.stages.quantise_dn`).
 
     Parameters
     ----------
@@ -114,6 +115,8 @@ def dn_pmf(mean_e: float, dn_per_electron: float, read_noise_e: float = 0.0, ful
     bits : int, optional
         nb: the levels are clipped to 0 … 2^nb − 1; None: not clipped (floor(k · value) on its own, which may
         be negative with read noise).
+    pedestal_dn : int
+        P, the ADC's black-level pedestal (0: none), added before the clip. Unit: DN.
 
     Returns
     -------
@@ -146,6 +149,9 @@ def dn_pmf(mean_e: float, dn_per_electron: float, read_noise_e: float = 0.0, ful
         level = np.floor(k * charges).astype(np.int64)
         first = int(level[0])
         pmf = np.bincount(level - first, weights=p)
+    if pedestal_dn != int(pedestal_dn):
+        raise ValueError(f"pedestal_dn must be an integer, got {pedestal_dn!r}")
+    first += int(pedestal_dn)
     if bits is not None:
         top = 2**bits - 1
         levels = first + np.arange(pmf.size)

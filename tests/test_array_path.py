@@ -110,7 +110,7 @@ def test_digital_numbers_follow_the_exact_law(xp, sensor, means):
     read = sensor.read_noise_e if sensor.read_noise else 0.0
     for c in range(3):
         lam = float(expected.signal_e[0, c] + expected.dark_e[c])
-        law = dn_pmf(lam, sensor.dn_per_electron, read, sensor.full_well_e, sensor.bits)
+        law = dn_pmf(lam, sensor.dn_per_electron, read, sensor.full_well_e, sensor.bits, sensor.pedestal_dn)
         values = digital[c].ravel()
         assert chi2_p(values, law.first, law.pmf) > P_MIN, f"channel {c}, λ = {lam}"
         sd = np.sqrt(max(law.pmf @ (law.levels - law.mean) ** 2, 1e-12) / values.size)

@@ -1,5 +1,7 @@
 """camsim.dn_law: the digital number's pmf against independent closed forms, and against rendered frames."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy import stats
@@ -54,6 +56,19 @@ def test_dense_refuses_a_window_outside_the_levels():
         dn_pmf(400.0, 1.0, read_noise_e=5.0).dense(256)
 
 
+def chi2_p(counts, p) -> float:
+    """χ² p-value of the level counts against the pmf ``p`` (same levels), bins under 5 expected pooled."""
+    keep = p * counts.sum() >= 5
+    observed = np.append(counts[keep], counts[~keep].sum())
+    wanted = counts.sum() * np.append(p[keep], p[~keep].sum())
+    if wanted[-1] < 5:  # merge the thin remainder into the largest bin
+        observed, wanted = observed[:-1], wanted[:-1]
+        observed[np.argmax(wanted)] += counts[~keep].sum()
+        wanted[np.argmax(wanted)] += counts.sum() * p[~keep].sum()
+    chi2 = np.sum((observed - wanted) ** 2 / wanted)
+    return float(stats.chi2.sf(chi2, observed.size - 1))
+
+
 def test_pmf_is_the_law_of_rendered_digital_numbers():
     """A χ² test of a poisson-rendered frame's DN against dn_pmf (one spectrum per channel, 240 000 pixels)."""
     sensor = preset("paper-table1")
@@ -64,15 +79,37 @@ def test_pmf_is_the_law_of_rendered_digital_numbers():
     for c, lam in enumerate(means[0]):
         p = dn_pmf(lam, sensor.dn_per_electron, sensor.read_noise_e, sensor.full_well_e, sensor.bits).dense(256)
         counts = np.bincount(frame.digital_dn[c].ravel(), minlength=256)
-        keep = p * counts.sum() >= 5
-        observed = np.append(counts[keep], counts[~keep].sum())
-        wanted = counts.sum() * np.append(p[keep], p[~keep].sum())
-        if wanted[-1] < 5:  # merge the thin remainder into the largest bin
-            observed, wanted = observed[:-1], wanted[:-1]
-            observed[np.argmax(wanted)] += counts[~keep].sum()
-            wanted[np.argmax(wanted)] += counts.sum() * p[~keep].sum()
-        chi2 = np.sum((observed - wanted) ** 2 / wanted)
-        assert stats.chi2.sf(chi2, observed.size - 1) > 1e-4, (lam, chi2, observed.size)
+        assert chi2_p(counts, p) > 1e-4, lam
+
+
+@pytest.mark.parametrize("lam", [0.0, 3.0, 500.0, 8990.0])
+@pytest.mark.parametrize("read", [0.0, 2.5])
+@pytest.mark.parametrize("pedestal, bits", [(64, 12), (200, 8), (4090, 12)])
+def test_pmf_with_a_pedestal_is_the_sum_over_charges(lam, read, pedestal, bits):
+    """I = clip(floor(k (charge + R)) + P, 0, 2^nb − 1): the pedestal lifts the levels before the clip (dark
+    values below the black level are kept; a pedestal near the top clips there)."""
+    k = 0.9
+    law = dn_pmf(lam, k, read, 9000.0, bits, pedestal_dn=pedestal)
+    np.testing.assert_allclose(law.dense(2**bits), digital_pmf(lam, k, read, 9000.0, bits, pedestal_dn=pedestal),
+                               rtol=0, atol=1e-11)
+    with pytest.raises(ValueError):
+        dn_pmf(lam, k, read, 9000.0, bits, pedestal_dn=0.5)
+
+
+def test_pmf_with_a_pedestal_is_the_law_of_rendered_digital_numbers():
+    """χ² of a 12-bit frame with pedestal 64 and 3 e⁻ of read noise (dark and dim spectra: levels below the
+    pedestal occur) against dn_pmf with the pedestal."""
+    sensor = dataclasses.replace(preset("paper-table1"), bits=12, pedestal_dn=64, read_noise_e=3.0,
+                                 dark_current=False)
+    means = np.array([[0.0, 4.0, 150.0]])
+    expected = expected_signal(means, np.eye(3), sensor, 1.0, "pixel")
+    frame = render_frame(np.zeros((400, 600), np.uint8), expected, sensor, method="poisson", rng=11)
+    for c, lam in enumerate(means[0]):
+        p = dn_pmf(lam, sensor.dn_per_electron, sensor.read_noise_e, sensor.full_well_e, sensor.bits,
+                   pedestal_dn=64).dense(4096)
+        counts = np.bincount(frame.digital_dn[c].ravel(), minlength=4096)
+        assert counts[:64].sum() > 0 or lam > 0  # the dark channel reaches below the black level
+        assert chi2_p(counts, p) > 1e-4, lam
 
 
 def test_expected_tv_of_an_exact_sample_by_enumeration():

@@ -8,15 +8,15 @@ import numpy as np
 from scipy import special, stats
 
 
-def digital_pmf(lam, dn_per_e, read_noise_e, full_well_e, bits, saturation=True):
-    """P(I = j) for j = 0 … 2^bits − 1, shape (2^bits,)."""
+def digital_pmf(lam, dn_per_e, read_noise_e, full_well_e, bits, saturation=True, pedestal_dn=0):
+    """P(I = j) for j = 0 … 2^bits − 1, shape (2^bits,), I = clip(floor(k (min(N, c) + R)) + P, 0, 2^bits − 1)."""
     n_max = int(lam + 12 * np.sqrt(lam) + 20)
     n_min = max(0, int(lam - 12 * np.sqrt(lam) - 20))
     n = np.arange(n_min, n_max + 1)
     p_n = stats.poisson.pmf(n, lam)
     charge = np.minimum(n, full_well_e) if saturation else n.astype(float)
     top = 2**bits - 1
-    edges = np.arange(1, top + 1) / dn_per_e  # I ≥ j  ⇔  e ≥ j / k, for j = 1 … top
+    edges = (np.arange(1, top + 1) - pedestal_dn) / dn_per_e  # I ≥ j  ⇔  e ≥ (j − P) / k, for j = 1 … top
     if read_noise_e > 0:
         cdf = stats.norm.cdf((edges[None, :] - charge[:, None]) / read_noise_e)
     else:

@@ -113,7 +113,8 @@ def exact_law(frame, index, c):
     return dn_pmf(ex.signal_e[index, c] + ex.dark_e[c], sensor.dn_per_electron,
                   sensor.read_noise_e if sensor.read_noise else 0.0,
                   sensor.full_well_e if sensor.saturation else None,
-                  sensor.bits if frame.digital_dn is not None else None)
+                  sensor.bits if frame.digital_dn is not None else None,
+                  sensor.pedestal_dn if frame.digital_dn is not None else 0)
 
 
 def chi_square(law, values, minimum=5.0):

@@ -284,7 +284,7 @@ def table_accuracy(w: dict) -> tuple:
         pixels = order[bounds[i] : bounds[i + 1]]
         for c in range(3):
             law = dn_pmf(ex.signal_e[i, c] + ex.dark_e[c], sensor.dn_per_electron, read,
-                         sensor.full_well_e if sensor.saturation else None, sensor.bits)
+                         sensor.full_well_e if sensor.saturation else None, sensor.bits, sensor.pedestal_dn)
             values = frame.digital_dn[c].ravel()[pixels].astype(np.int64) - law.first
             inside = (values >= 0) & (values < law.pmf.size)
             counts = np.bincount(values[inside], minlength=law.pmf.size)
