@@ -126,6 +126,8 @@ def dn_pmf(mean_e: float, dn_per_electron: float, read_noise_e: float = 0.0, ful
     k = float(dn_per_electron)
     if not k > 0:
         raise ValueError(f"dn_per_electron must be positive, got {dn_per_electron!r}")
+    if pedestal_dn != int(pedestal_dn):
+        raise ValueError(f"pedestal_dn must be an integer, got {pedestal_dn!r}")
     charges, p = charge_pmf(mean_e, full_well_e)
     sigma = float(read_noise_e)
     if sigma > 0:
@@ -149,8 +151,6 @@ def dn_pmf(mean_e: float, dn_per_electron: float, read_noise_e: float = 0.0, ful
         level = np.floor(k * charges).astype(np.int64)
         first = int(level[0])
         pmf = np.bincount(level - first, weights=p)
-    if pedestal_dn != int(pedestal_dn):
-        raise ValueError(f"pedestal_dn must be an integer, got {pedestal_dn!r}")
     first += int(pedestal_dn)
     if bits is not None:
         top = 2**bits - 1

@@ -449,14 +449,14 @@ def test_a_full_disk_at_the_last_file_leaves_no_file(small_set, tmp_path, capsys
 
     from camsim.io import atomic
 
-    real = atomic._fsync_path
+    real = atomic.fsync_path
 
     def fsync(path, *, directory=False):
         if not directory and path.name.startswith(".preset.toml."):
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         return real(path, directory=directory)
 
-    monkeypatch.setattr(atomic, "_fsync_path", fsync)
+    monkeypatch.setattr(atomic, "fsync_path", fsync)
     out = tmp_path / "o"
     assert main(["calibrate", "--dark", *small_set["dark"], "--flat", *small_set["flat"], "--out", str(out),
                  "-q"]) == 2

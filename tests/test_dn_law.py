@@ -1,7 +1,5 @@
 """camsim.dn_law: the digital number's pmf against independent closed forms, and against rendered frames."""
 
-import dataclasses
-
 import numpy as np
 import pytest
 from scipy import stats
@@ -99,8 +97,7 @@ def test_pmf_with_a_pedestal_is_the_sum_over_charges(lam, read, pedestal, bits):
 def test_pmf_with_a_pedestal_is_the_law_of_rendered_digital_numbers():
     """χ² of a 12-bit frame with pedestal 64 and 3 e⁻ of read noise (dark and dim spectra: levels below the
     pedestal occur) against dn_pmf with the pedestal."""
-    sensor = dataclasses.replace(preset("paper-table1"), bits=12, pedestal_dn=64, read_noise_e=3.0,
-                                 dark_current=False)
+    sensor = preset("paper-table1", bits=12, pedestal_dn=64, read_noise_e=3.0, dark_current=False)
     means = np.array([[0.0, 4.0, 150.0]])
     expected = expected_signal(means, np.eye(3), sensor, 1.0, "pixel")
     frame = render_frame(np.zeros((400, 600), np.uint8), expected, sensor, method="poisson", rng=11)

@@ -119,14 +119,14 @@ def test_output_under_a_file_fails_before_any_work(name, frames, tmp_path, capsy
 def _full_disk(monkeypatch, only_suffix: str | None = None):
     """Every atomic write (all of camsim's writers go through one) fails with ENOSPC when it flushes its file,
     as a full disk does; with ``only_suffix``, only files of that suffix."""
-    real = atomic._fsync_path
+    real = atomic.fsync_path
 
     def fsync(path, *, directory=False):
         if not directory and (only_suffix is None or path.name.split(".")[-3] == only_suffix):
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         return real(path, directory=directory)
 
-    monkeypatch.setattr(atomic, "_fsync_path", fsync)
+    monkeypatch.setattr(atomic, "fsync_path", fsync)
 
 
 @pytest.mark.parametrize("name", COMMANDS)

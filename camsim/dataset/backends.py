@@ -17,9 +17,8 @@ from pathlib import Path
 
 from camsim.dataset._pool import pool_context, worker_init
 from camsim.dataset.manifest import FRAMES_DIR
-from camsim.dataset.task import exr_threads
 from camsim.errors import CamsimError
-from camsim.io.exr import restore_exr_threads
+from camsim.io.exr import restore_exr_threads, set_exr_threads
 
 __all__ = ["run_serial", "run_pool", "run_dask"]
 
@@ -34,7 +33,7 @@ AHEAD_PER_WORKER = 2
 
 def run_serial(task, todo, out_dir, threads, on_done) -> None:
     """Run ``task`` on every frame of ``todo`` in this process, one after the other."""
-    previous = exr_threads(threads)
+    previous = set_exr_threads(threads)
     try:
         for frame in todo:
             on_done(frame, task(frame, str(out_dir), threads))

@@ -1,5 +1,6 @@
 """The tasks a worker runs for one frame of a dataset, in a local process or on a Dask worker: :func:`render_task`
-(the file layout) and :func:`zarr_task` (a Zarr store), and the OpenEXR thread setting they run under."""
+(the file layout, with OpenEXR set to the task's ``threads``: :func:`camsim.io.exr.set_exr_threads`) and
+:func:`zarr_task` (a Zarr store)."""
 
 from __future__ import annotations
 
@@ -11,18 +12,10 @@ from pathlib import Path
 from camsim.dataset.frame_render import render_files, render_frame
 from camsim.dataset.manifest import FRAMES_DIR, sha256_file
 from camsim.dataset.spec import FrameSpec
+from camsim.io.exr import set_exr_threads
 from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION
 
-__all__ = ["render_task", "zarr_task", "exr_threads"]
-
-
-def exr_threads(count: int) -> tuple | None:
-    """Have OpenEXR write with ``count`` threads per frame in all (1: in the calling thread, no pool; camsim's EXR
-    writer otherwise gives it every core): :func:`camsim.io.exr.set_exr_threads`. Returns the previous setting, for
-    :func:`camsim.io.exr.restore_exr_threads`. The files do not depend on it."""
-    from camsim.io.exr import set_exr_threads
-
-    return set_exr_threads(count)
+__all__ = ["render_task", "zarr_task"]
 
 
 def render_task(frame: FrameSpec, out_dir: str | None, threads: int = 1,
@@ -34,7 +27,7 @@ def render_task(frame: FrameSpec, out_dir: str | None, threads: int = 1,
     ``out_dir``, size, SHA-256). Without, they are rendered into a private temporary folder and the result also
     carries their bytes (``blobs``), for a worker that shares no file system with the caller.
     """
-    exr_threads(threads)  # 1 thread: OpenEXR works in this thread, i.e. one core
+    set_exr_threads(threads)  # 1 thread: OpenEXR works in this thread, i.e. one core
     if out_dir is not None:
         folder = Path(out_dir) / FRAMES_DIR
         names = render_files(frame, folder, threads, exr_compression)

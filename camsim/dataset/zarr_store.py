@@ -45,7 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from camsim.errors import CamsimError
-from camsim.io.atomic import fsync_path
+from camsim.io import atomic  # atomic.fsync_path: one flush, which tests can fail as a full disk does
 
 __all__ = ["STORE_NAME", "RECORDS_DIR", "LAYERS", "COMPRESSORS", "StoreLayout", "store_layout", "open_store",
            "write_frame_arrays", "verified_record", "store_result", "write_done", "frame_arrays", "record_path"]
@@ -313,10 +313,10 @@ def write_frame_arrays(layout: StoreLayout, index: int, data: dict, sidecar_text
             digest = hashlib.sha256(memoryview(value).cast("B")).hexdigest()
             key = array.metadata.encode_chunk_key((index, 0, 0, 0))
         chunk = root / name / key
-        fsync_path(chunk)
+        atomic.fsync_path(chunk)
         entries[name] = {"chunk": f"{name}/{key}", "bytes": chunk.stat().st_size, "sha256": digest}
     for name in entries:
-        fsync_path(root / name, directory=True)
+        atomic.fsync_path(root / name, directory=True)
     return entries
 
 
@@ -365,12 +365,10 @@ def _digest(array, index: int) -> str:
 def store_result(out_dir: Path, group, layout: StoreLayout, frame, result: dict, threads: int = 1) -> dict:
     """Record a rendered frame: write its chunks (if its arrays were sent back), then its record, then its
     ``done`` flag; returns the record."""
-    from camsim.io.atomic import write_json_atomic
-
     entries = result.get("arrays")
     if entries is None:
         entries = write_frame_arrays(layout, frame.index, result["data"], result["sidecar"], threads)
     record = {**frame.record, "arrays": entries}
-    write_json_atomic(record_path(out_dir, frame.id), record)
+    atomic.write_json_atomic(record_path(out_dir, frame.id), record)
     group["done"][frame.index] = True
     return record

@@ -38,7 +38,9 @@ def _temp_name(path: Path) -> Path:
     return path.with_name(f".{path.name}.{os.getpid()}{PARTIAL_SUFFIX}")
 
 
-def _fsync_path(path: Path, *, directory: bool = False) -> None:
+def fsync_path(path: str | os.PathLike[str], *, directory: bool = False) -> None:
+    """Flush a file (or, with ``directory``, a folder's entries) to disk; a folder that cannot be opened or synced
+    is passed over (durability is best effort there)."""
     flags = os.O_RDONLY | (getattr(os, "O_DIRECTORY", 0) if directory else 0)
     try:
         fd = os.open(path, flags)
@@ -53,12 +55,6 @@ def _fsync_path(path: Path, *, directory: bool = False) -> None:
             raise
     finally:
         os.close(fd)
-
-
-def fsync_path(path: str | os.PathLike[str], *, directory: bool = False) -> None:
-    """Flush a file written by another writer (or, with ``directory``, a folder's entries) to disk; a folder that
-    cannot be opened or synced is passed over (durability is best effort there)."""
-    _fsync_path(Path(path), directory=directory)
 
 
 @contextlib.contextmanager
@@ -96,7 +92,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     try:
         tmp.unlink(missing_ok=True)
         yield tmp
-        _fsync_path(tmp)
+        fsync_path(tmp)
         os.replace(tmp, final)
     except BaseException as exc:
         with contextlib.suppress(OSError):
@@ -105,7 +101,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
             raise output_error(final, exc) from None
         raise
     record_created(final)
-    _fsync_path(final.parent, directory=True)
+    fsync_path(final.parent, directory=True)
 
 
 def record_created(path: Path) -> None:
