@@ -24,7 +24,7 @@ from pathlib import Path
 from camsim.dataset.spec import FrameSpec
 from camsim.io.atomic import atomic_path, write_json_atomic, write_text_atomic
 
-__all__ = ["FRAMES_DIR", "MANIFEST_NAME", "DONE_SUFFIX", "VERIFY_MODES", "sha256_file", "done_path",
+__all__ = ["FRAMES_DIR", "MANIFEST_NAME", "DONE_SUFFIX", "VERIFY_MODES", "sha256_file", "done_path", "frame_record",
            "verified_record", "write_manifest", "read_manifest", "store_result"]
 
 FRAMES_DIR = "frames"
@@ -46,17 +46,27 @@ def done_path(out_dir: Path, frame_id: str) -> Path:
     return Path(out_dir) / FRAMES_DIR / f"{frame_id}{DONE_SUFFIX}"
 
 
+def frame_record(path: Path, frame: FrameSpec, output_keys) -> dict | None:
+    """The record (a ``.done`` file's JSON object) at ``path`` if it describes this very frame — every parameter
+    and the seed, the keys ``output_keys`` aside, which say how the frame was written — else None (no record, or
+    not one of this frame)."""
+    try:
+        record = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(record, dict) or {k: v for k, v in record.items() if k not in output_keys} != frame.record:
+        return None
+    return record
+
+
 def verified_record(out_dir: Path, frame: FrameSpec, verify: str = "sha256") -> dict | None:
     """The frame's record if the frame is complete and verified, else None.
 
     Complete and verified: the ``.done`` record describes this very frame (every parameter and the seed), and
     every file it lists exists with the recorded size and (``verify="sha256"``) SHA-256.
     """
-    try:
-        record = json.loads(done_path(out_dir, frame.id).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    if not isinstance(record, dict) or {k: v for k, v in record.items() if k not in _OUTPUT_KEYS} != frame.record:
+    record = frame_record(done_path(out_dir, frame.id), frame, _OUTPUT_KEYS)
+    if record is None:
         return None
     files = record.get("files")
     if not isinstance(files, dict) or not files.get("exr") or not files.get("json"):

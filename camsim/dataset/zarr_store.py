@@ -44,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
+from camsim.dataset.manifest import DONE_SUFFIX, frame_record
 from camsim.errors import CamsimError
 from camsim.io import atomic  # atomic.fsync_path: one flush, which tests can fail as a full disk does
 
@@ -324,19 +325,15 @@ def write_frame_arrays(layout: StoreLayout, index: int, data: dict, sidecar_text
 
 
 def record_path(out_dir: Path, frame_id: str) -> Path:
-    return Path(out_dir) / RECORDS_DIR / f"{frame_id}.done"
+    return Path(out_dir) / RECORDS_DIR / f"{frame_id}{DONE_SUFFIX}"
 
 
 def verified_record(out_dir: Path, group, frame, verify: str = "sha256") -> dict | None:
     """The frame's record if it is complete and verified in the store, else None: the record describes this very
     frame, and each chunk it lists is there with the recorded size and (``verify="sha256"``) the recorded SHA-256
     of its array."""
-    try:
-        record = json.loads(record_path(out_dir, frame.id).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    if not isinstance(record, dict) or {k: v for k, v in record.items() if k not in ("arrays", "zarr")} \
-            != frame.record:
+    record = frame_record(record_path(out_dir, frame.id), frame, ("arrays", "zarr"))
+    if record is None:
         return None
     entries = record.get("arrays")
     if not isinstance(entries, dict) or not entries.get("noisy") or not entries.get("sidecar"):
