@@ -23,6 +23,24 @@ def write_text_file(folder: Path, name: str, text: str) -> Path:
     return path
 
 
+def libraw_black_levels(path: Path) -> list[int]:
+    """What LibRaw reports as black level for each BlackLevel value stored in the DNG at ``path``, in file order.
+
+    LibRaw reads each RATIONAL n/d as a double and keeps an integer: it truncates a CFA file's levels
+    (``floor(n/d)``) and rounds a LinearRaw file's with halves up (``floor(n/d + 1/2)``). The model works on the
+    rational the file stores, in integer arithmetic, not on the float it was made from: a level of
+    803.9999999999999 DN is stored as 804/1 (within the writer's 1e-6 DN) and read as 804.
+    """
+    import tifffile
+
+    with tifffile.TiffFile(path) as tif:
+        page = tif.pages.first
+        pairs = page.tags[50714].value
+        cfa = page.photometric == 32803
+    nums, dens = pairs[0::2], pairs[1::2]
+    return [n // d if cfa else (2 * n + d) // (2 * d) for n, d in zip(nums, dens)]
+
+
 def file_tree(out: Path) -> dict:
     """Every file under ``out`` by relative path: its bytes (an output folder, compared whole)."""
     return {p.relative_to(out).as_posix(): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
