@@ -31,6 +31,7 @@ import numpy as np
 from scipy import special, stats
 
 from camsim.kernels import tukey_lambda_variance
+from camsim.stages import adc_offset_dn
 
 #: Half-width of the Gaussian windows, in standard deviations: Φ(−9.5) = 1e-21.
 _GAUSS_HALF = 9.5
@@ -80,9 +81,11 @@ def unlit_mean_dn(dark_mean_e, *, dn_per_electron: float, bits: int, quantisatio
     row_noise_e : float
         σ_row. Unit: e⁻.
     pedestal_dn : int
-        The ADC's black-level pedestal P: I = clip(floor(k X) + P, 0, 2^nb − 1), whose mean is
-        Σ_{j=1−P}^{2^nb−1−P} P(k X ≥ j) — the sum without a pedestal, with X moved up by P / k electrons after the
-        full well (computed so; the noiseless lattice adds P to floor(k X) exactly). Quantised values only. Unit: DN.
+        The ADC's black-level pedestal P: with P > 0 the ADC adds an offset O = P + ½ before its floor
+        (:func:`camsim.stages.adc_offset_dn`), I = clip(floor(k X + O), 0, 2^nb − 1), whose mean is
+        Σ_{j=1}^{2^nb−1} P(k X + O ≥ j) — the sum without a pedestal, with X moved up by O / k electrons after the
+        full well (computed so; the noiseless lattice is floor(k X + ½) + P). With no dark charge and symmetric
+        noise that nothing clips, the mean is P exactly. Quantised values only. Unit: DN.
 
     Returns
     -------
@@ -102,7 +105,8 @@ def unlit_mean_dn(dark_mean_e, *, dn_per_electron: float, bits: int, quantisatio
 def _channel_mean_dn(mu, k, bits, quantised, full_well, sigma_o, rel, sigma_read, lam, sigma_row, pedestal) -> float:
     """:func:`unlit_mean_dn` of one channel; ``lam`` None: Gaussian read noise."""
     top = 2**bits - 1
-    lift = pedestal / k  # the pedestal in electrons: X + P / k is read by the ADC without a pedestal
+    offset = adc_offset_dn(pedestal)
+    lift = offset / k  # the ADC's offset in electrons: X + O / k is read by the ADC without an offset
     lo, hi = _dark_support(mu, rel)
     sat = full_well is not None and hi + _FIXED_HALF * sigma_o >= full_well  # the full well can act
     if sat and lo - _FIXED_HALF * sigma_o >= full_well:  # it always acts: every pixel holds the full well
@@ -123,7 +127,7 @@ def _channel_mean_dn(mu, k, bits, quantised, full_well, sigma_o, rel, sigma_read
     if not sat or sigma_o == 0:
         if not sat:
             gauss_var += sigma_o**2
-        if k * (lo + shift - _noise_half(gauss_var, tukey)) + pedestal >= top:  # every code is the top one
+        if k * (lo + shift - _noise_half(gauss_var, tukey)) + offset >= top:  # every code is the top one
             return float(top)
         d, p = _dark_pmf(mu, rel)
         atoms = d + shift
@@ -133,9 +137,9 @@ def _channel_mean_dn(mu, k, bits, quantised, full_well, sigma_o, rel, sigma_read
         return _atoms_mean(atoms, p, k, top, gauss_var, tukey, pedestal)
     d, p = _dark_pmf(mu, rel)
     if gauss_var == 0 and tukey is None:  # min(d + o, FW) ≥ x ⇔ d + o ≥ x and x ≤ FW
-        if pedestal:  # X + P/k = min(d + o + P/k, FW + P/k)
-            return _atoms_mean(d + lift, p, k, min(top, int(np.floor(k * full_well)) + pedestal), sigma_o**2, None)
-        return _atoms_mean(d, p, k, min(top, int(np.floor(k * full_well))), sigma_o**2, None)
+        # X + O/k = min(d + o + O/k, FW + O/k): the top code floor(k FW + O)
+        return _atoms_mean(d + lift, p, k, min(top, int(np.floor(k * full_well + offset - pedestal)) + pedestal),
+                           sigma_o**2, None)
     if tukey is None:
         return _saturated_gaussian_mean(d + lift, p, k, top, full_well + lift, sigma_o, np.sqrt(gauss_var))
     return _saturated_panels_mean(d, p, k, top, full_well, sigma_o, gauss_var, tukey, pedestal)
@@ -249,9 +253,10 @@ def _pair_sum(atoms, weights, first, count, k, term):
 
 
 def _atoms_mean(atoms, weights, k, top, gauss_var, tukey, pedestal=0):
-    """Σ_i w_i E[clip(floor(k (c_i + Z)) + P, 0, top)] for atoms c_i and the continuous noise Z (none: a lattice).
+    """Σ_i w_i E[clip(floor(k (c_i + Z) + O), 0, top)] for atoms c_i and the continuous noise Z (none: a lattice).
 
-    ``pedestal`` P (DN): the atoms move up by P / k (the noiseless lattice adds P to the floor, exactly).
+    ``pedestal`` P (DN): the ADC's offset O = P + ½ for P > 0, else 0 (:func:`camsim.stages.adc_offset_dn`); the
+    atoms move up by O / k (the noiseless lattice is floor(k c + ½) + P).
 
     Z = N(0, gauss_var) plus, if ``tukey`` = (λ, scale), a Tukey λ variable. The sum of the two is averaged over
     one of them, whichever leaves a smooth integrand: over the Tukey law (u = expit(s), trapezoid in s) when the
@@ -273,8 +278,9 @@ def _atoms_mean(atoms, weights, k, top, gauss_var, tukey, pedestal=0):
         keep = weights > _NEGLIGIBLE
         atoms, weights = atoms[keep], weights[keep]
     if gauss_var == 0 and tukey is None:
-        return float(weights @ np.clip(np.floor(k * atoms) + pedestal, 0, top))
-    atoms = atoms + pedestal / k if pedestal else atoms
+        half = adc_offset_dn(pedestal) - pedestal
+        return float(weights @ np.clip(np.floor(k * atoms + half) + pedestal, 0, top))
+    atoms = atoms + adc_offset_dn(pedestal) / k if pedestal else atoms
     half = _noise_half(gauss_var, tukey)
     first, count = _windows(atoms, k, top, half, half)
     sure = np.minimum(first - 1, top)  # codes below the window: P(k X ≥ j) = 1

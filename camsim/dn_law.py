@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
+from camsim.stages import adc_offset_dn
+
 #: Charges further than this many √λ (plus 20) from the mean carry less than 1e-36 of the Poisson law.
 _POISSON_HALF_WIDTH = 13.0
 #: Read noise beyond this many σ is neglected (Φ(−10) = 7.6e-24).
@@ -99,8 +101,8 @@ def charge_pmf(mean_e: float, full_well_e: float | None = None):
 
 def dn_pmf(mean_e: float, dn_per_electron: float, read_noise_e: float = 0.0, full_well_e: float | None = None,
            bits: int | None = None, pedestal_dn: int = 0) -> DnPmf:
-    """The pmf of I = clip(floor(k (min(N, c) + R)) + P, 0, 2^nb − 1), N ~ Poisson(λ), R ~ N(0, σ²), P the pedestal
-    (:func:`camsim.stages.quantise_dn`).
+    """The pmf of I = clip(floor(k (min(N, c) + R) + h) + P, 0, 2^nb − 1), N ~ Poisson(λ), R ~ N(0, σ²), P the
+    pedestal and h = ½ with a pedestal, 0 without (:func:`camsim.stages.quantise_dn`, :func:`camsim.stages.adc_offset_dn`).
 
     Parameters
     ----------
@@ -116,7 +118,7 @@ def dn_pmf(mean_e: float, dn_per_electron: float, read_noise_e: float = 0.0, ful
         nb: the levels are clipped to 0 … 2^nb − 1; None: not clipped (floor(k · value) on its own, which may
         be negative with read noise).
     pedestal_dn : int
-        P, the ADC's black-level pedestal (0: none), added before the clip. Unit: DN.
+        P, the ADC's black-level pedestal (0: none): the ADC adds P + ½ before its floor. Unit: DN.
 
     Returns
     -------
@@ -129,13 +131,15 @@ def dn_pmf(mean_e: float, dn_per_electron: float, read_noise_e: float = 0.0, ful
     if pedestal_dn != int(pedestal_dn):
         raise ValueError(f"pedestal_dn must be an integer, got {pedestal_dn!r}")
     charges, p = charge_pmf(mean_e, full_well_e)
+    half = adc_offset_dn(int(pedestal_dn)) - int(pedestal_dn)  # ½ with a pedestal, else 0
     sigma = float(read_noise_e)
     if sigma > 0:
         reach = _READ_NOISE_SIGMAS * sigma
-        first = int(np.floor(k * (charges[0] - reach)))
-        last = int(np.floor(k * (charges[-1] + reach)))
-        # P(I ≤ j) = P(charge + R < (j + 1) / k), j = first … last − 1; banded: only charges within 10 σ of an edge
-        edges = (np.arange(first, last) + 1) / k
+        first = int(np.floor(k * (charges[0] - reach) + half))
+        last = int(np.floor(k * (charges[-1] + reach) + half))
+        # P(I ≤ j) = P(charge + R < (j + 1 − h) / k), j = first … last − 1; banded: only charges within 10 σ of an
+        # edge
+        edges = (np.arange(first, last) + 1 - half) / k
         below = np.concatenate([[0.0], np.cumsum(p)])
         cdf = np.empty(edges.size)
         # edges in chunks of m, each against the (m / k + 2 · 10 σ) charges in its reach: at most ~2M values of Φ
@@ -148,7 +152,7 @@ def dn_pmf(mean_e: float, dn_per_electron: float, read_noise_e: float = 0.0, ful
                                                                          / sigma)
         pmf = np.diff(np.concatenate([[0.0], cdf, [below[-1]]]))
     else:
-        level = np.floor(k * charges).astype(np.int64)
+        level = np.floor(k * charges + half).astype(np.int64)
         first = int(level[0])
         pmf = np.bincount(level - first, weights=p)
     first += int(pedestal_dn)

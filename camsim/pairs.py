@@ -56,7 +56,7 @@ class PairBatch:
     clean : array, shape (B, planes, H, W), float32
         Each pixel's expectation of ``noisy``, k · E[min(X + o, full well)]: ``noisy − clean`` has mean 0. Unit: DN.
     digital : array or None, shape (B, planes, H, W), uint16
-        The raw numbers a camera writes, clip(⌊noisy⌋ + pedestal, 0, 2^nb − 1); None without quantisation. Unit: DN.
+        The raw numbers a camera writes, clip(⌊noisy + ½⌋ + pedestal, 0, 2^nb − 1) (⌊noisy⌋ without a pedestal); None without quantisation. Unit: DN.
     params : list of dict
         Per pair: ``image``, ``crop_x``, ``crop_y``, ``flip_horizontal``, ``flip_vertical``, ``illuminant``,
         ``intensity_factor``, ``preset``, ``iso`` (None for a virtual camera), ``exposure_s``, ``dn_per_electron``,

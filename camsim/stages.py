@@ -232,8 +232,29 @@ def electrons_to_dn(electrons: np.ndarray, dn_per_electron: float, out: np.ndarr
     return namespace_of(electrons).multiply(electrons, electrons.dtype.type(dn_per_electron), out=out)
 
 
+def adc_offset_dn(pedestal_dn: int) -> float:
+    """The analogue offset the ADC adds before its floor, for a black-level pedestal P.
+
+    With a pedestal (P > 0) the offset is P + ½: the ADC's output is floor(dn + ½) + P, a mid-tread quantiser
+    around P, so an unlit pixel without dark charge reads P on average (its symmetric read noise rounds as often up
+    as down), which is what a camera maker publishes as its black level. Without one (P = 0) the ADC is the paper's
+    (Eq. 11): floor(dn), no offset.
+
+    Parameters
+    ----------
+    pedestal_dn : int
+        P. Unit: DN.
+
+    Returns
+    -------
+    float
+        P + ½ for P > 0, else 0. Unit: DN.
+    """
+    return pedestal_dn + 0.5 if pedestal_dn else 0.0
+
+
 def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None, pedestal_dn: int = 0) -> np.ndarray:
-    """nb-bit quantisation: the integer part of the DN plus the pedestal, clipped to [0, 2^nb − 1] (Eq. 11).
+    """nb-bit quantisation: the integer part of the DN (plus ½ and the pedestal), clipped to [0, 2^nb − 1] (Eq. 11).
 
     Parameters
     ----------
@@ -242,7 +263,8 @@ def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None, pedest
     out : numpy.ndarray, optional
         Integer output array (uint8 for nb ≤ 8, uint16 otherwise).
     pedestal_dn : int
-        Black-level pedestal P: the ADC's output is clip(floor(dn) + P, 0, 2^nb − 1) (integers: exact in float).
+        Black-level pedestal P: the ADC's output is clip(floor(dn + ½) + P, 0, 2^nb − 1) for P > 0 (see
+        :func:`adc_offset_dn`), clip(floor(dn), 0, 2^nb − 1) for P = 0. Computed exactly in the array's float type.
 
     Returns
     -------
@@ -253,9 +275,12 @@ def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None, pedest
     xp = namespace_of(dn)
     if out is None:
         out = xp.empty(dn.shape, dtype=dn_dtype(bits))
-    if pedestal_dn:  # floor first: floor(dn) + P is exact where dn + P would round in float32
-        dn = xp.floor(dn)
-        dn += dn.dtype.type(pedestal_dn)
+    if pedestal_dn:  # floor(dn + ½) + P, exactly: dn − floor(dn) has no rounding error (Sterbenz), dn + ½ may
+        whole = xp.floor(dn)
+        up = (dn - whole) >= 0.5
+        whole += dn.dtype.type(pedestal_dn)
+        whole += up
+        dn = whole
     if isinstance(dn, np.ndarray):
         np.clip(dn, 0, 2**bits - 1, out=out, casting="unsafe")
     else:  # CuPy's clip takes no casting rule: clip, then the assignment's cast (the same truncation)

@@ -32,20 +32,21 @@ PEDESTAL = SensorParams(cfa="RGGB", bits=14, conversion_gain_v_per_e=8e-5, analo
 
 
 def _floor_law_mean(mu, k, sigma, pedestal, top, full_well=None):
-    """E[clip(floor(k X) + P, 0, top)], X = min(D, FW) + N(0, σ²), D ~ Poisson(μ): the law of floor(k X) summed
-    code by code over a wide window (differences of normal CDFs), then shifted and clipped — no tail sums."""
+    """E[clip(round(k X) + P, 0, top)] (halves up: the ADC's offset P + ½ before its floor), X = min(D, FW) +
+    N(0, σ²), D ~ Poisson(μ): the law of round(k X) summed code by code over a wide window (differences of normal
+    CDFs between the half-integers), then shifted and clipped — no tail sums."""
     d = np.arange(0, int(mu + 20 * np.sqrt(mu) + 30))
     p = stats.poisson.pmf(d, mu)
     if full_well is not None:
         d = np.minimum(d, full_well)
     codes = np.arange(-2000, top + 2001)
-    cdf = stats.norm.cdf((codes[None, :] / k - d[:, None]) / sigma)
+    cdf = stats.norm.cdf(((codes[None, :] - 0.5) / k - d[:, None]) / sigma)  # P(round(k X) < code)
     return float(p @ (np.diff(cdf, axis=1) @ np.clip(codes[:-1] + pedestal, 0, top)))
 
 
 @pytest.mark.parametrize("mu, k, sigma, pedestal, bits, full_well", [
     (10.0, 0.5, 3.0, 512, 14, None),     # Sony's 14-bit pedestal: nothing clips at 0
-    (0.0, 0.5, 3.0, 512, 14, None),      # no dark current: P − ½ exactly
+    (0.0, 0.5, 3.0, 512, 14, None),      # no dark current: P exactly (the published black level)
     (5.0, 2.0, 1.5, 3, 10, None),        # a pedestal of a few DN: the zero clip still acts
     (1000.0, 1.0, 2.0, 64, 10, 990.0),   # the full well below the top code, with a pedestal
     (0.0, 1.3, 0.7, 1, 8, None),
@@ -68,8 +69,8 @@ def test_the_pedestal_with_tukey_noise_and_dsnu_at_the_well_against_monte_carlo(
     rng, n, mu, k, sigma, pedestal = np.random.default_rng(5), 2_000_000, 1000.0, 1.0, 2.0, 64
     charge = rng.poisson(mu, n) + (rng.normal(0, dsnu, n) if dsnu else 0.0)
     read = tukey_lambda(rng, np.empty(n), lam, sigma)
-    values = np.clip(np.floor(k * ((np.minimum(charge, full_well) if full_well else charge) + read)) + pedestal,
-                     0, 1023)
+    values = np.clip(np.round(k * ((np.minimum(charge, full_well) if full_well else charge) + read)) + pedestal,
+                     0, 1023)  # round half to even: the ties have probability 0
     got = unlit_mean_dn([mu], dn_per_electron=k, bits=10, read_noise_e=sigma, pedestal_dn=pedestal,
                         full_well_e=full_well, dsnu_e=dsnu, read_noise_model="tukey-lambda", tukey_lambda=lam)[0]
     assert abs(got - values.mean()) < 5 * values.std() / np.sqrt(n)

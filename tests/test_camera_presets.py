@@ -135,8 +135,43 @@ def test_rendered_dark_frames_have_the_published_sigmas(name, iso, model):
     assert abs(var - (read_dn**2 * (1 - 1 / w) + 1 / 12)) < 5 * var_se, (var, read_dn**2 + 1 / 12, var_se)
     expected_row = point.row_sigma_dn**2 + (read_dn**2 + 1 / 12) / w
     assert abs(row_var - expected_row) < 5 * row_se + 1e-3, (row_var, expected_row, row_se)
-    # the pedestal, less the floor's ½ DN (rows are independent: the mean's SE from the row means)
-    assert frame.digital_dn.mean() == pytest.approx(camera.pedestal_dn - 0.5, abs=5 * np.sqrt(row_var / h))
+    # the published black level: the pedestal exactly (rows are independent: the mean's SE from the row means)
+    assert frame.digital_dn.mean() == pytest.approx(camera.pedestal_dn, abs=5 * np.sqrt(row_var / h))
+
+
+@pytest.mark.parametrize("name", sorted(n for n, c in CAMERA_PRESETS.items() if c.pedestal_dn))
+def test_an_unlit_pixel_reads_the_published_black_level(name):
+    """With no dark charge, a preset's exact unlit mean is its published black level (PMN's and ELD's 512 for
+    the A7S2, say), at its lowest and highest ISO: the ADC's offset P + ½ before the floor centres the read noise's
+    rounding on P."""
+    camera = CAMERA_PRESETS[name]
+    checked = []
+    for point in camera.iso_points:
+        sensor = sensor_preset(name, point.iso, dark_current=False)
+        # where the read noise's tail below −P (scipy's Tukey λ or normal law, 1e-13 quantile) plus 8 σ of row noise
+        # stays above the zero clip, nothing lifts the mean: it is P (beyond that, the clip at 0 DN adds its share)
+        law = (stats.tukeylambda(sensor.tukey_lambda) if sensor.read_noise_model == "tukey-lambda"
+               else stats.norm())
+        low_dn = (law.ppf(1e-13) / law.std() * sensor.read_noise_e - 8 * sensor.row_noise_e) * sensor.dn_per_electron
+        if low_dn > -camera.pedestal_dn + 1:
+            np.testing.assert_allclose(sensor.black_level_dn, camera.pedestal_dn, rtol=0, atol=1e-9)
+            checked.append(point.iso)
+    assert camera.iso_points[0].iso in checked
+
+
+def test_quantisation_with_a_pedestal_rounds_exactly():
+    """floor(dn + ½) + P in float32, checked against float64 (where dn + ½ is exact for float32 dn) at the
+    values next to each half-integer, where a float32 dn + ½ would round."""
+    from camsim.stages import quantise_dn
+
+    halves = np.arange(-3, 4100, dtype=np.float64) + 0.5
+    dn = np.concatenate([np.nextafter(halves.astype(np.float32), np.float32(-np.inf)), halves.astype(np.float32),
+                         np.nextafter(halves.astype(np.float32), np.float32(np.inf))])
+    got = quantise_dn(dn, 14, pedestal_dn=64)
+    expected = np.clip(np.floor(dn.astype(np.float64) + 0.5) + 64, 0, 16383)
+    np.testing.assert_array_equal(got, expected)
+    assert got[halves.size + 3] == 64 + 1  # 0.5 rounds up: 1 + P
+    np.testing.assert_array_equal(quantise_dn(dn, 14), np.clip(np.floor(dn.astype(np.float64)), 0, 16383))
 
 
 def test_dark_frames_show_the_dual_gain_step():
@@ -254,5 +289,7 @@ def test_a_preset_render_writes_a_14_bit_bayer_dng_raw_readers_understand(tmp_pa
     with rawpy.imread(str(out / "macbeth_26_D65_F0.01.dng")) as raw:
         assert raw.white_level == 16383
         assert raw.raw_image_visible.shape == (64, 96)  # one mosaic: RGGB
-        assert list(raw.black_level_per_channel) == [511] * 4  # 511.5 written, truncated by LibRaw (CFA)
+        # the exact black level (512 plus a dark charge of < 0.01 DN at 1/30 s) stored, truncated by LibRaw (CFA)
+        assert list(raw.black_level_per_channel) == [512] * 4
+        np.testing.assert_allclose(sidecar["black_level_dn"], 512, atol=0.01)
         assert 400 < raw.raw_image_visible.mean() < 16383

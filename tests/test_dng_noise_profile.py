@@ -76,19 +76,20 @@ def test_no_profile_without_a_dng_or_shot_noise():
 @pytest.mark.parametrize("fields, shots", [(SONY14, (0.0, 100.0, 1000.0, 4000.0, 8000.0)),
                                            (QUANT, (0.0, 10.0, 1000.0, 6000.0))], ids=["sony14", "quant12"])
 def test_the_profile_is_the_models_exact_variance_below_saturation(fields, shots):
-    """Against the exact law of a pixel's DN (camsim.dn_law: floor of k (Poisson + Gaussian noise), clipped, plus
-    the pedestal, which nothing clips here): mean and variance at several signals, below the full well."""
+    """Against the exact law of a pixel's DN (camsim.dn_law: floor of k (Poisson + Gaussian noise) plus the ADC's
+    offset, clipped, which clips nothing here): mean and variance at several signals, below the full well."""
     sensor = SensorParams(**(fields | dict(dsnu_e=0.0, prnu_percent=0.0)))  # fixed patterns are no temporal noise
     profile = dng_noise_profile(sensor)
     white, black = sensor.max_dn, sensor.black_level_tag_dn
     sigma = np.hypot(sensor.read_noise_e, sensor.row_noise_e)
     for c in range(3):
         for signal in shots:
-            law = dn_pmf(signal + sensor.dark_mean_e[c], sensor.dn_per_electron, sigma, sensor.full_well_e)
-            levels = law.levels + sensor.pedestal_dn
+            law = dn_pmf(signal + sensor.dark_mean_e[c], sensor.dn_per_electron, sigma, sensor.full_well_e,
+                         pedestal_dn=sensor.pedestal_dn)
+            levels = law.levels
             assert levels[0] > 0 and law.pmf[levels >= white].sum() < 1e-15  # the ADC clips nothing
-            mean = law.mean + sensor.pedestal_dn
-            var = law.pmf @ (law.levels + sensor.pedestal_dn - mean) ** 2
+            mean = law.mean
+            var = law.pmf @ (levels - mean) ** 2
             x = (mean - black[c]) / (white - black[c])
             s, o = profile[c]
             # to float64 rounding but for the quantiser's 1/12 DN² (Sheppard's), off by < 1e-6 DN² with 1 DN of noise

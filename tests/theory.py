@@ -9,14 +9,17 @@ from scipy import special, stats
 
 
 def digital_pmf(lam, dn_per_e, read_noise_e, full_well_e, bits, saturation=True, pedestal_dn=0):
-    """P(I = j) for j = 0 … 2^bits − 1, shape (2^bits,), I = clip(floor(k (min(N, c) + R)) + P, 0, 2^bits − 1)."""
+    """P(I = j) for j = 0 … 2^bits − 1, shape (2^bits,), I = clip(round(k (min(N, c) + R)) + P, 0, 2^bits − 1) with
+    a pedestal P > 0 (the ADC's offset P + ½ before its floor: rounding to the nearest level, halves up), and
+    I = clip(floor(k (min(N, c) + R)), 0, 2^bits − 1) without one (the paper's Eq. 11)."""
     n_max = int(lam + 12 * np.sqrt(lam) + 20)
     n_min = max(0, int(lam - 12 * np.sqrt(lam) - 20))
     n = np.arange(n_min, n_max + 1)
     p_n = stats.poisson.pmf(n, lam)
     charge = np.minimum(n, full_well_e) if saturation else n.astype(float)
     top = 2**bits - 1
-    edges = (np.arange(1, top + 1) - pedestal_dn) / dn_per_e  # I ≥ j  ⇔  e ≥ (j − P) / k, for j = 1 … top
+    # I ≥ j  ⇔  k e ≥ j − P − ½ (with a pedestal; j without), for j = 1 … top
+    edges = (np.arange(1, top + 1) - (pedestal_dn + 0.5 if pedestal_dn else 0.0)) / dn_per_e
     if read_noise_e > 0:
         cdf = stats.norm.cdf((edges[None, :] - charge[:, None]) / read_noise_e)
     else:

@@ -11,7 +11,7 @@ draws the exact law of ``pixel`` statistics per pixel and plane:
     charge  = min(charge, full well)            saturate_e
     value   = charge + read noise               draw_read_noise_e (Gaussian or Tukey λ), add_read_noise_e
     noisy   = k · value (+ row noise)           electrons_to_dn, add_row_noise        (float32, DN)
-    digital = clip(⌊noisy⌋ + P, 0, 2^nb − 1)    quantise_dn
+    digital = clip(⌊noisy + ½⌋ + P, 0, 2^nb − 1)    quantise_dn (⌊noisy⌋ without a pedestal)
 
 with g, d, o the sensor's fixed-pattern maps (PRNU, dark-current DSNU, offset DSNU; drawn on the CPU from
 ``sensor_seed`` as for every frame, and copied to the device once). A Bayer sensor draws one plane, each site its own

@@ -145,9 +145,9 @@ class Calibration:
 
     @property
     def pedestal_dn(self) -> int:
-        """The integer pedestal P for camsim's ADC, whose floor puts an unlit pixel's mean at about P − ½ (with no
-        dark current): round(black + ½). Unit: DN."""
-        return int(math.floor(self.black_dn.value + 1.0))
+        """The integer pedestal P for camsim's ADC, which adds P + ½ before its floor so that an unlit pixel's mean
+        (with no dark current) is P: the black level rounded to the nearest integer. Unit: DN."""
+        return int(math.floor(self.black_dn.value + 0.5))
 
     @property
     def read_e(self) -> Estimate:

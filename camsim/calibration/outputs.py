@@ -55,7 +55,7 @@ def preset_toml(cal: Calibration) -> str:
         f"name = {_string(cal.name)}",
         f"source = {_string(cal.source)}",
         f"bits = {cal.layout.bits}",
-        f"pedestal_dn = {cal.pedestal_dn}                    # round(black level + ½): camsim's ADC floors",
+        f"pedestal_dn = {cal.pedestal_dn}                    # the black level, rounded (the ADC adds P + ½)",
     ]
     if cal.layout.cfa:
         lines.append(f"cfa = {_string(cal.layout.cfa)}")
@@ -167,7 +167,7 @@ def report_markdown(cal: Calibration) -> str:
         ci = "—" if e.ci95 is None else f"{e.ci95[0]:.{digits}g} … {e.ci95[1]:.{digits}g}"
         lines.append(f"| {label} | {_fmt(e, digits)} | {ci} | {how} |")
 
-    row("black level (DN)", cal.black_dn, f"mean of the darks; pedestal_dn = round(black + ½) = {cal.pedestal_dn}",
+    row("black level (DN)", cal.black_dn, f"mean of the darks; pedestal_dn = round(black) = {cal.pedestal_dn}",
         7)
     row("K (DN/e⁻)", cal.k_dn_per_e, "photon transfer: slope of var(A − B)/2 − σ²_dark against μ, weighted least "
         f"squares up to {100 * FIT_FRACTION:g} % of saturation; planes combined by inverse variance")

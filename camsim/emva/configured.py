@@ -9,6 +9,7 @@ import numpy as np
 from camsim.errors import CamsimError
 from camsim.fixed_pattern import lognormal_log_sigma
 from camsim.sensor import PRESETS, SensorParams
+from camsim.stages import adc_offset_dn
 
 #: The preset ``camsim emva`` measures by default: 12 bits, so that quantisation does not dominate the dark noise.
 DEFAULT_PRESET = "emva-12bit"
@@ -67,9 +68,10 @@ def predicted_saturation_e(sensor: SensorParams) -> float:
     """Signal (photo-)electrons at which the analysed channel saturates, ignoring noise. Unit: e⁻.
 
     The charge clips at the full well, the ADC at 2^nb − 1 DN, i.e. at (2^nb − 1) / K electrons; whichever comes
-    first, minus the dark electrons already in the pixel.
+    first, minus the dark electrons already in the pixel. With a pedestal P the ADC adds P + ½ before its floor
+    (:func:`camsim.stages.adc_offset_dn`), so its top code is reached at (2^nb − 1 − P − ½) / K electrons.
     """
-    limits = [(sensor.max_dn - sensor.pedestal_dn) / sensor.dn_per_electron]
+    limits = [(sensor.max_dn - adc_offset_dn(sensor.pedestal_dn)) / sensor.dn_per_electron]
     if sensor.saturation:
         limits.append(sensor.full_well_e)
     return float(min(limits) - sensor.dark_mean_e[CHANNEL])
@@ -78,11 +80,12 @@ def predicted_saturation_e(sensor: SensorParams) -> float:
 def model_dark_temporal_dn(sensor: SensorParams) -> tuple[float, float]:
     """The dark signal's mean and temporal variance in quantised DN, exactly from camsim's model, over pixels.
 
-    A dark pixel reads floor(K · (D + o + r)) clipped to [0, 2^nb − 1], with D ~ Poisson(μ_dark · d), o its offset
+    A dark pixel reads floor(K · (D + o + r) + h) + P clipped to [0, 2^nb − 1] (P the pedestal, h = ½ with one,
+    else 0: :func:`camsim.stages.adc_offset_dn`), with D ~ Poisson(μ_dark · d), o its offset
     DSNU (fixed), d its dark-current DSNU factor (fixed, log-normal of mean 1; 1 when off) and
     r ~ N(0, σ²_read + σ²_row). The variance is taken per pixel (temporal) and averaged over the offsets and the
     factors (Gauss–Hermite in their normals), which is what the pair difference of the photon transfer method
-    estimates; the mean includes the quantiser's −½ DN. Returns (mean DN, variance DN²).
+    estimates; without a pedestal the mean includes the quantiser's −½ DN. Returns (mean DN, variance DN²).
     """
     dark = float(sensor.dark_mean_e[CHANNEL])
     sigma = math.hypot(sensor.read_noise_e if sensor.read_noise else 0.0, sensor.row_noise_e)
@@ -106,13 +109,14 @@ def model_dark_temporal_dn(sensor: SensorParams) -> tuple[float, float]:
 
 
 def _dark_pixel_moments(sensor: SensorParams, lam: float, offset: float, sigma: float) -> tuple[float, float]:
-    """Mean (DN) and temporal variance (DN²) of floor(K (D + o + r)), clipped, D ~ Poisson(λ), r ~ N(0, σ²)."""
+    """Mean (DN) and temporal variance (DN²) of floor(K (D + o + r) + h) + P, clipped, D ~ Poisson(λ), r ~ N(0, σ²)."""
     from scipy import stats
 
     k = sensor.dn_per_electron
     d = np.arange(max(0, int(lam - 12 * math.sqrt(lam) - 12)), int(lam + 12 * math.sqrt(lam) + 13))
     pmf = stats.poisson.pmf(d, lam) if lam > 0 else (d == 0).astype(float)
-    centre = k * (d + offset)  # DN before the read noise
+    half = adc_offset_dn(sensor.pedestal_dn) - sensor.pedestal_dn
+    centre = k * (d + offset) + half  # DN before the read noise, with the ADC's half step
     if sigma > 0:
         lo = int(math.floor(centre.min() - 10 * k * sigma)) - 1
         hi = int(math.ceil(centre.max() + 10 * k * sigma)) + 1

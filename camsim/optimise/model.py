@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from camsim.stages import adc_offset_dn
+
 #: A setting may not bring any patch within this many standard deviations of the well or the ADC's top.
 CLIP_SIGMAS = 4.0
 #: Gauss–Hermite nodes per axis of the ΔE expectation (a 2-D rule on (a*, b*): 24² points per patch).
@@ -34,7 +36,7 @@ class SensorAtIso:
     row_noise_e: float
     dark_current_e_per_s: np.ndarray  # (3,)
     full_well_e: float | None
-    adc_range_e: float  # (white − pedestal) / k: the charge at the top of the ADC
+    adc_range_e: float  # (white − P − ½) / k (P > 0; white / k without a pedestal): the charge at the ADC's top
     quantisation: bool
 
     @classmethod
@@ -45,7 +47,7 @@ class SensorAtIso:
                    dark_current_e_per_s=np.asarray(sensor.dark_current_e_per_s) if sensor.dark_current
                    else np.zeros(3),
                    full_well_e=sensor.full_well_e if sensor.saturation else None,
-                   adc_range_e=(sensor.max_dn - sensor.pedestal_dn) / k if sensor.quantisation else np.inf,
+                   adc_range_e=(sensor.max_dn - adc_offset_dn(sensor.pedestal_dn)) / k if sensor.quantisation else np.inf,
                    quantisation=sensor.quantisation)
 
     @property
