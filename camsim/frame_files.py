@@ -301,7 +301,8 @@ def exr_view(frame: Frame, info: FrameInfo) -> tuple[np.ndarray, dict[str, str]]
     """
     from camsim.preview import linear_srgb, preview_transform
 
-    for matrix in ("least-squares", "paper"):
+    fit = info.patch_xyz is not None and len(info.patch_xyz) >= 3  # else preview_transform takes Eq. 15's
+    for matrix in ("least-squares", "paper") if fit else ("paper",):
         try:
             transform = preview_transform(frame, info, matrix=matrix)
         except (CamsimError, ValueError):  # no white balance, or a singular fit

@@ -221,6 +221,18 @@ def linear_srgb(frame, info, *, matrix: str = "least-squares", transform: np.nda
     t = preview_transform(frame, info, exposure="scene", matrix=matrix) if transform is None else transform
     height, width = frame.labels.shape
     out = np.empty((3, height, width), dtype=np.float32)
+    if frame.sensor.cfa is None:
+        # float32, element by element, the black level folded into one offset per channel: 3 × 3 products and
+        # sums over whole planes, a third of the float64 blocks' time (absolute error about 2e-7 on 1 = white)
+        t32, offset = t.astype(np.float32), (t @ frame.sensor.dark_level_dn).astype(np.float32)
+        noisy, term = frame.noisy_dn, np.empty((height, width), dtype=np.float32)
+        for c in range(3):
+            np.multiply(noisy[0], t32[c, 0], out=out[c])
+            for j in (1, 2):
+                np.multiply(noisy[j], t32[c, j], out=term)
+                out[c] += term
+            out[c] -= offset[c]
+        return out
     rows = max(2, BLOCK_PIXELS // width)
     rows -= rows % 2  # blocks start on even rows (a Bayer pattern's first row)
     for r0 in range(0, height, rows):

@@ -145,6 +145,16 @@ def test_a_bayer_frame_shows_the_scene_and_keeps_its_mosaic(tmp_path):
         np.testing.assert_array_equal(bits(reader(path)[0]), bits(frame.noisy_dn))
 
 
+def test_without_patches_to_fit_on_the_view_takes_eq_15s_matrix_and_still_shows_white_near_1():
+    scene = small_scene(width=240, height=160, intensity_factors=(1.0,))
+    frame, info = scene_frame(scene, "D65", 1.0)
+    view, header = exr_view(frame, dataclasses.replace(info, patch_xyz=None))  # as a cube or an image scene
+    assert "Eq. 15" in header["camsim:view"] and "fitted" not in header["camsim:view"]
+    sidecar = {"patches": [{"name": n, "rect_xywh": r} for n, r in zip(info.patch_names, info.patch_rects)]}
+    means = patch_means(np.moveaxis(view, 0, -1), sidecar)
+    assert np.all((means[WHITE] > 0.8) & (means[WHITE] <= 1.0)) and np.all(np.abs(means[BLACK]) < 0.06), means
+
+
 def test_without_a_white_balance_the_view_is_the_camera_rgb_between_dark_and_white_level():
     """The last resort of :func:`exr_view`: where no camera → sRGB matrix can be made (here: a scene white of 0),
     the camera's R, G, B with the dark level at 0 and the white level at 1."""
