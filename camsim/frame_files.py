@@ -1,7 +1,8 @@
 """The frame format, both ways: writing a rendered frame and reading one back — never from the renderer's memory.
 
-A frame is ``STEM.dng`` (the quantised digital numbers; none without quantisation), ``STEM.exr`` (float DN before
-quantisation plus the ``clean`` layer; its header carries the whole sidecar under ``camsim:metadata``) and
+A frame is ``STEM.dng`` (the quantised digital numbers; none without quantisation), ``STEM.exr`` (a picture for
+image viewers in ``R, G, B`` (:func:`exr_view`), the float DN before quantisation in the ``noisy`` layer and their
+expected values in the ``clean`` layer; its header carries the whole sidecar under ``camsim:metadata``) and
 ``STEM.json``, the sidecar (:func:`sidecar`). A DNG is read with its sidecar beside it, an EXR on its own, so
 frames that were moved or renamed (with their sidecar) still read.
 
@@ -174,8 +175,9 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict | None, exr_compression: 
                              "(black_level_tag_dn where given, else black_level_dn) and W white_level_dn (shot, "
                              "dark-shot, read and row noise and the quantiser's 1/12 DN^2; no DSNU or PRNU); null "
                              "where no DNG is written or without photon noise",
-            "exr_channels": "R, G, B (or CFA, the Bayer mosaic): noisy DN before quantisation; clean.R, clean.G, "
-                            "clean.B: expected DN of every channel at every pixel",
+            "exr_channels": "noisy.R, noisy.G, noisy.B (or noisy.CFA, the Bayer mosaic): noisy DN before "
+                            "quantisation; clean.R, clean.G, clean.B: expected DN of every channel at every pixel; "
+                            "R, G, B: the picture for viewers (the header's camsim:view says what it is)",
         },
         **({"exr_compression": exr_compression} if exr_compression is not None else {}),
         "files": files,
@@ -251,14 +253,77 @@ def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo
         "camsim:dn_per_electron": repr(sensor.dn_per_electron),
         "camsim:black_level_dn": json.dumps(sensor.black_level_dn.tolist()),
         "camsim:dark_level_dn": json.dumps(sensor.dark_level_dn.tolist()),  # the mean of these values in the dark
-        "camsim:units": "DN",
+        "camsim:white_level_dn": str(sensor.max_dn),
+        "camsim:units": "DN (layers noisy and clean; R, G, B: see camsim:view)",
         EXR_METADATA_KEY: json.dumps(meta, ensure_ascii=False),
     }
-    write_exr(out_dir / files["exr"], frame.noisy_dn, frame.clean_dn(), header, exr_compression)
+    view, view_header = exr_view(frame, info)
+    header.update(view_header)
+    write_exr(out_dir / files["exr"], frame.noisy_dn, frame.clean_dn(), header, exr_compression, view=view)
     if "png" in files:
         from camsim.preview import preview_srgb, write_preview_png
 
         write_preview_png(out_dir / files["png"], preview_srgb(frame, info))
+
+
+#: What the EXR's ``R, G, B`` hold, by the matrix that made them (the header's ``camsim:view``).
+VIEW_DESCRIPTIONS = {
+    "least-squares": "linear sRGB (IEC 61966-2-1 primaries, D65 white), 1 = the perfect white at F = 1: "
+                     "camsim:view_matrix @ (noisy DN - camsim:dark_level_dn), a Bayer mosaic demosaiced "
+                     "(bilinear) first; the matrix fitted on the chart, white-balanced to D65",
+    "paper": "linear sRGB (IEC 61966-2-1 primaries, D65 white), 1 = the perfect white at F = 1: "
+             "camsim:view_matrix @ (noisy DN - camsim:dark_level_dn), a Bayer mosaic demosaiced (bilinear) first; "
+             "the matrix of Eq. 15 (no chart to fit on), white-balanced to D65",
+    "camera": "camera R, G, B (noisy DN - camsim:view_black_dn) / (camsim:white_level_dn - camsim:view_black_dn): "
+              "0 = the dark level, 1 = the white level; a Bayer mosaic as grey (R = G = B)",
+}
+
+
+def exr_view(frame: Frame, info: FrameInfo) -> tuple[np.ndarray, dict[str, str]]:
+    """The picture a frame's EXR holds in ``R, G, B`` for image viewers, and the header attributes saying what it is.
+
+    Linear sRGB, 1 = the perfect white at F = 1, from the values before quantisation
+    (:func:`camsim.preview.linear_srgb`: the ``--preview`` PNG's picture before its clip and transfer function), so
+    that a viewer shows the scene in its colours, at its light level (a frame at F is F times darker), with black at
+    0. The camera → XYZ matrix is fitted on the chart's patches; where that fit cannot be made (a frame without
+    patches, or patches that do not span the colours, such as a dark or a flat frame) Eq. 15's matrix is taken; where
+    that cannot white-balance either, the camera's own R, G, B scaled so that the dark level is 0 and the white level
+    1 (a Bayer mosaic as grey).
+
+    Returns
+    -------
+    view : numpy.ndarray, shape (3, H, W), float32
+        Linear R, G, B. Unit: 1 = the perfect white at F = 1 (``camera``: 1 = the white level).
+    header : dict of str to str
+        ``camsim:view`` (what the picture is: :data:`VIEW_DESCRIPTIONS`), ``camsim:view_matrix`` (the 3 × 3 matrix
+        from black-subtracted camera DN to linear sRGB, rows R, G, B, as JSON) or, for ``camera``,
+        ``camsim:view_black_dn`` (per channel, DN, as JSON).
+    """
+    from camsim.preview import linear_srgb, preview_transform
+
+    fit = info.patch_xyz is not None and len(info.patch_xyz) >= 3  # else preview_transform takes Eq. 15's
+    for matrix in ("least-squares", "paper") if fit else ("paper",):
+        try:
+            transform = preview_transform(frame, info, matrix=matrix)
+        except (CamsimError, ValueError):  # no white balance, or a singular fit
+            continue
+        if np.all(np.isfinite(transform)):
+            return (linear_srgb(frame, info, matrix=matrix, transform=transform),
+                    {"camsim:view": VIEW_DESCRIPTIONS[matrix], "camsim:view_matrix": json.dumps(transform.tolist())})
+    sensor = frame.sensor
+    black = np.minimum(sensor.dark_level_dn, sensor.max_dn - 1.0)  # below the white level: a positive scale
+    view = np.empty((3, *frame.noisy_dn.shape[1:]), dtype=np.float32)
+    if sensor.cfa is None:
+        for c in range(3):
+            view[c] = (frame.noisy_dn[c].astype(np.float64) - black[c]) / (sensor.max_dn - black[c])
+    else:
+        from camsim.cfa import cfa_sites
+
+        for dy, dx, c in cfa_sites(sensor.cfa):
+            view[0, dy::2, dx::2] = ((frame.noisy_dn[0, dy::2, dx::2].astype(np.float64) - black[c])
+                                     / (sensor.max_dn - black[c]))
+        view[1:] = view[0]
+    return view, {"camsim:view": VIEW_DESCRIPTIONS["camera"], "camsim:view_black_dn": json.dumps(black.tolist())}
 
 
 # --- reading ----------------------------------------------------------------------------------------------

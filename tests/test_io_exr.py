@@ -211,6 +211,52 @@ def test_exception_mid_write_leaves_no_file(tmp_path, monkeypatch):
     assert [p.name for p in tmp_path.iterdir()] == ["f.exr"]
 
 
+
+@pytest.mark.parametrize("reader", READERS)
+@pytest.mark.parametrize("planes", [3, 1])
+def test_with_a_view_the_picture_takes_rgb_and_the_values_the_noisy_layer(tmp_path, reader, planes):
+    noisy, clean = frames(13)
+    noisy = noisy[:planes].copy()  # 1: a colour filter array's mosaic
+    view = np.random.default_rng(13).random((3, H, W), dtype=np.float32)
+    path = tmp_path / "f.exr"
+    write_exr(path, noisy, clean, HEADER, view=view)
+    with OpenEXR.File(str(path), separate_channels=True) as f:  # the layout, as OpenEXR reads it
+        channels = {name: ch.pixels.copy() for name, ch in f.channels().items()}
+    layer = ["noisy.R", "noisy.G", "noisy.B"] if planes == 3 else ["noisy.CFA"]
+    assert sorted(channels) == sorted(["R", "G", "B", *layer, "clean.R", "clean.G", "clean.B"])
+    for i, c in enumerate("RGB"):
+        np.testing.assert_array_equal(bits(channels[c]), bits(view[i]))
+    for i, c in enumerate(layer):
+        np.testing.assert_array_equal(bits(channels[c]), bits(noisy[i]))
+    n2, c2, hdr = reader(path)  # the values, not the picture
+    np.testing.assert_array_equal(bits(n2), bits(noisy))
+    np.testing.assert_array_equal(bits(c2), bits(clean))
+    assert hdr == HEADER
+    n3, c3, _ = read_noisy(path)
+    np.testing.assert_array_equal(bits(n3), bits(noisy))
+    assert c3 is None and read_header(path) == ((planes, H, W), None, HEADER)
+
+
+@pytest.mark.parametrize("view", [np.zeros((3, H, W), np.float64), np.zeros((3, H, W + 1), np.float32),
+                                  np.zeros((1, H, W), np.float32)])
+def test_rejects_a_bad_view_without_writing(tmp_path, view):
+    noisy, clean = frames(14)
+    path = tmp_path / "bad.exr"
+    with pytest.raises(CamsimError, match=re.escape(str(path)) + ".*view"):
+        write_exr(path, noisy, clean, HEADER, view=view)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("reader", [*READERS, read_noisy, read_header])
+def test_a_partial_noisy_layer_is_a_user_error(tmp_path, reader):
+    path = tmp_path / "foreign.exr"
+    plane = np.ones((H, W), np.float32)
+    with OpenEXR.File({"compression": OpenEXR.NO_COMPRESSION, "type": OpenEXR.scanlineimage},
+                      {n: plane for n in ("R", "G", "B", "noisy.R", "noisy.G")}) as f:
+        f.write(str(path))
+    with pytest.raises(CamsimError, match=re.escape(str(path)) + ".*lacks channel.*noisy.B"):
+        reader(path)
+
 # --- compressions ----------------------------------------------------------------------------------------------
 
 LOSSLESS = exr_compressions()  # the lossless ones the installed OpenEXR offers

@@ -4,7 +4,7 @@ read arrays, not files.
 Layout of ``OUT``::
 
     OUT/dataset.zarr/            the store (Zarr format 3; consolidated metadata)
-        noisy     (frame, channel, y, x) float32   the EXR's R, G, B (or (frame, cfa, y, x): the mosaic), DN
+        noisy     (frame, channel, y, x) float32   the EXR's noisy layer (or (frame, cfa, y, x): the mosaic), DN
         clean     (frame, channel, y, x) float32   the EXR's clean.R, clean.G, clean.B, DN
         digital   (frame, channel, y, x) uint8/16  the DNG's digital numbers (if any frame is quantised)
         sidecar   (frame,) str                     each frame's sidecar, as JSON (as the file layout's ID.json)
@@ -195,7 +195,8 @@ def open_store(layout: StoreLayout, spec, echo=None):
 
 
 _DESCRIPTIONS = {
-    "noisy": "the noisy signal before quantisation (the EXR's R, G, B, or CFA: the mosaic), NaN until rendered",
+    "noisy": "the noisy signal before quantisation (the EXR's noisy.R, noisy.G, noisy.B, or noisy.CFA: the "
+             "mosaic), NaN until rendered",
     "clean": "its expected value per pixel (the EXR's clean.R, clean.G, clean.B), NaN until rendered",
     "digital": "the quantised digital numbers I (the DNG's), 0 until rendered or where not quantised",
 }

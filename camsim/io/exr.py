@@ -1,4 +1,13 @@
-"""Float EXR frames: the noisy signal in ``R, G, B`` and the noise-free signal in ``clean.R, clean.G, clean.B``.
+"""Float EXR frames: a picture for viewers in ``R, G, B``, the noisy signal in ``noisy.R, noisy.G, noisy.B`` (or
+``noisy.CFA``, a Bayer mosaic) and the noise-free signal in ``clean.R, clean.G, clean.B``.
+
+Image viewers (OpenImageIO's ``iv`` and ``oiiotool``, and the OpenEXR convention that Nuke, Photoshop, Blender and
+tev follow) show a file's unprefixed ``R, G, B`` channels as linear light with Rec. 709 / sRGB primaries, 1 being
+white. :func:`write_exr` with a ``view`` stores that picture there and the numbers a program needs (DN) in the
+``noisy`` and ``clean`` layers, bit for bit; without a ``view`` the noisy values themselves go into ``R, G, B``
+(or ``CFA``): the layout of camsim's frames before the view existed, and of the EXR a denoiser command reads
+(:mod:`camsim.denoise.denoisers`). The readers take the noisy values from the ``noisy`` layer where there is one,
+else from ``R, G, B`` (or ``CFA``), so both layouts read the same way.
 
 Written with the OpenEXR 3.x Python bindings (``OpenEXR.File``) as a single-part, scanline, 32-bit float file with
 extra string header attributes and a lossless compression (:data:`EXR_COMPRESSIONS`; default
@@ -39,12 +48,19 @@ from camsim.io.exr_compression import (
     exr_compressions,
 )
 
-__all__ = ["write_exr", "read_exr", "read_exr_header", "read_exr_oiio", "NOISY_CHANNELS", "CLEAN_CHANNELS",
+__all__ = ["write_exr", "read_exr", "read_exr_header", "read_exr_oiio", "VIEW_CHANNELS", "NOISY_CHANNELS",
+           "MOSAIC_CHANNELS", "CLEAN_CHANNELS",
            "EXR_COMPRESSIONS", "DEFAULT_EXR_COMPRESSION", "exr_compressions", "check_exr_compression",
            "set_exr_threads", "restore_exr_threads"]
 
-NOISY_CHANNELS = ("R", "G", "B")
-MOSAIC_CHANNELS = ("CFA",)  # a colour filter array frame: one value per pixel
+#: The picture a viewer shows (written with a ``view``).
+VIEW_CHANNELS = ("R", "G", "B")
+#: The noisy values beside a view: R, G, B at every pixel, or a colour filter array's mosaic (one per pixel).
+NOISY_CHANNELS = ("noisy.R", "noisy.G", "noisy.B")
+MOSAIC_CHANNELS = ("noisy.CFA",)
+#: The noisy values without a view (and in every camsim frame written before the view existed).
+PLAIN_NOISY_CHANNELS = ("R", "G", "B")
+PLAIN_MOSAIC_CHANNELS = ("CFA",)
 CLEAN_CHANNELS = ("clean.R", "clean.G", "clean.B")
 
 # Header names the writer refuses: OpenEXR's standard attributes (they have fixed non-string types) and names
@@ -134,16 +150,20 @@ def _check_header(header: Mapping[str, str] | None, name: str) -> dict[str, str]
 
 
 def write_exr(path: str | os.PathLike[str], noisy: np.ndarray, clean: np.ndarray | None,
-              header: Mapping[str, str] | None, compression: str = DEFAULT_EXR_COMPRESSION) -> None:
-    """Write a float32 EXR with noisy and clean RGB planes and string metadata, atomically and deterministically.
+              header: Mapping[str, str] | None, compression: str = DEFAULT_EXR_COMPRESSION,
+              view: np.ndarray | None = None) -> None:
+    """Write a float32 EXR with noisy and clean planes, optionally a viewer's picture, and string metadata,
+    atomically and deterministically.
 
     Parameters
     ----------
     path : str or os.PathLike
         Destination ``.exr`` file (its directory must exist).
     noisy : numpy.ndarray, shape (3, H, W) or (1, H, W), dtype float32
-        Planar R, G, B of the simulated (noisy) signal, stored as channels ``R``, ``G``, ``B``; or a colour filter
-        array's mosaic, stored as one channel ``CFA``. Any float32 value (negative, inf, NaN) is stored bit-exactly.
+        Planar R, G, B of the simulated (noisy) signal, or a colour filter array's mosaic. Stored as channels
+        ``noisy.R``, ``noisy.G``, ``noisy.B`` (a mosaic: ``noisy.CFA``) with a ``view``; without one as ``R``,
+        ``G``, ``B`` (a mosaic: ``CFA``). Any float32 value (negative, inf, NaN) is stored bit-exactly. Unit: the
+        caller's (camsim's frames: DN).
     clean : numpy.ndarray, shape (3, H, W), dtype float32, or None
         Planar noise-free signal, stored as ``clean.R``, ``clean.G``, ``clean.B``; omitted when None.
     header : Mapping[str, str] or None
@@ -152,6 +172,9 @@ def write_exr(path: str | os.PathLike[str], noisy: np.ndarray, clean: np.ndarray
         non-empty (OpenImageIO drops empty strings).
     compression : str
         A lossless name of :data:`EXR_COMPRESSIONS` (default :data:`DEFAULT_EXR_COMPRESSION`).
+    view : numpy.ndarray, shape (3, H, W), dtype float32, or None
+        The picture viewers show, stored as the unprefixed ``R``, ``G``, ``B`` (linear light, Rec. 709 / sRGB
+        primaries, 1 = white, by the OpenEXR convention). None: no picture; the noisy values take ``R, G, B``.
 
     Raises
     ------
@@ -169,8 +192,17 @@ def write_exr(path: str | os.PathLike[str], noisy: np.ndarray, clean: np.ndarray
     except CamsimError as exc:
         raise CamsimError(f"cannot write EXR {name}: {exc}") from None
     noisy = _check_frame(noisy, "noisy", name, planes=(3, 1))
-    names = NOISY_CHANNELS if noisy.shape[0] == 3 else MOSAIC_CHANNELS
-    channels = {c: np.ascontiguousarray(noisy[i]) for i, c in enumerate(names)}
+    channels = {}
+    if view is not None:
+        view = _check_frame(view, "view", name)
+        if view.shape[1:] != noisy.shape[1:]:
+            raise CamsimError(f"cannot write EXR {name}: view shape {view.shape} differs from noisy shape "
+                              f"{noisy.shape}")
+        channels.update({c: np.ascontiguousarray(view[i]) for i, c in enumerate(VIEW_CHANNELS)})
+        names = NOISY_CHANNELS if noisy.shape[0] == 3 else MOSAIC_CHANNELS
+    else:
+        names = PLAIN_NOISY_CHANNELS if noisy.shape[0] == 3 else PLAIN_MOSAIC_CHANNELS
+    channels.update({c: np.ascontiguousarray(noisy[i]) for i, c in enumerate(names)})
     if clean is not None:
         clean = _check_frame(clean, "clean", name)
         if clean.shape[1:] != noisy.shape[1:]:
@@ -222,15 +254,16 @@ def read_exr(path: str | os.PathLike[str], *, clean: bool = True) \
     Parameters
     ----------
     path : str or os.PathLike
-        EXR file with at least float channels ``R``, ``G``, ``B``.
+        EXR file written by :func:`write_exr` (with or without a view).
     clean : bool, optional
         Also read the clean layer (default). False reads only the noisy channels, which for a frame with a
         clean layer takes half the memory: 12 B per pixel instead of 24 B (plus the returned array).
 
     Returns
     -------
-    noisy : numpy.ndarray, shape (3, H, W), dtype float32
-        Channels ``R``, ``G``, ``B``.
+    noisy : numpy.ndarray, shape (3, H, W) or (1, H, W), dtype float32
+        The noisy values: channels ``noisy.R``, ``noisy.G``, ``noisy.B`` (a mosaic: ``noisy.CFA``) where the file
+        has that layer, else ``R``, ``G``, ``B`` (a mosaic: ``CFA``). A viewer's picture is not returned.
     clean : numpy.ndarray, shape (3, H, W), dtype float32, or None
         Channels ``clean.R``, ``clean.G``, ``clean.B``, or None if the file has none of them or ``clean`` is
         False.
@@ -333,8 +366,14 @@ def read_exr_clean(path: str | os.PathLike[str]) -> tuple[np.ndarray | None, dic
 
 
 def _present_channels(name: str, channels: list[str]) -> tuple[str, ...]:
-    """The noisy channels of a file with ``channels``: ``R, G, B`` or the mosaic's ``CFA``; else CamsimError."""
-    names = MOSAIC_CHANNELS if MOSAIC_CHANNELS[0] in channels and "R" not in channels else NOISY_CHANNELS
+    """The noisy channels of a file with ``channels``: the ``noisy`` layer's (``noisy.R, noisy.G, noisy.B`` or the
+    mosaic's ``noisy.CFA``) where it has one, else ``R, G, B`` or the mosaic's ``CFA``; else CamsimError."""
+    if any(c.startswith("noisy.") for c in channels):
+        names = MOSAIC_CHANNELS if MOSAIC_CHANNELS[0] in channels and NOISY_CHANNELS[0] not in channels \
+            else NOISY_CHANNELS
+    else:
+        names = PLAIN_MOSAIC_CHANNELS if PLAIN_MOSAIC_CHANNELS[0] in channels and "R" not in channels \
+            else PLAIN_NOISY_CHANNELS
     missing = [c for c in names if c not in channels]
     if missing:
         raise CamsimError(f"cannot read EXR {name}: lacks channel(s) {', '.join(missing)} "
@@ -355,8 +394,8 @@ def read_exr_header(path: str | os.PathLike[str]) -> tuple[dict[str, str], tuple
     header : dict of str to str
         The string-typed, non-standard header attributes (as :func:`read_exr` returns them).
     shape : tuple of int
-        ``(planes, H, W)`` of the noisy image :func:`read_exr` would return: 3 planes (``R, G, B``) or 1 (a
-        mosaic's ``CFA``). Unit: pixels.
+        ``(planes, H, W)`` of the noisy image :func:`read_exr` would return: 3 planes (R, G, B) or 1 (a mosaic).
+        Unit: pixels.
 
     Raises
     ------
@@ -385,7 +424,7 @@ def _header(name: str) -> tuple[dict[str, str], tuple[int, int, int]]:
 def read_exr_oiio(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray | None, dict[str, str]]:
     """Read an EXR written by :func:`write_exr` with OpenImageIO; same returns and errors as :func:`read_exr`.
 
-    Channels are mapped by name (OpenImageIO reorders them: ``R, G, B`` first, then the rest). OpenImageIO
+    Channels are mapped by name (OpenImageIO reorders them: ``R, G, B`` first, then the rest in name order). OpenImageIO
     synthesises string attributes of its own (``compression``, ``oiio:*``, ``openexr:*``, renamed standard
     attributes), which are left out of ``header``.
     """
