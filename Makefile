@@ -3,13 +3,17 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+# The versions the test suite was last run with (make constraints re-resolves them): a fresh clone gets these
+CONSTRAINTS := constraints.txt
+# pytest-xdist workers: both cores by default (make test JOBS=1 for one process)
+JOBS ?= 2
 
-.PHONY: setup run test test-fast bench bench-gpu clean
+.PHONY: setup run test test-fast bench bench-gpu constraints clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(CONSTRAINTS)
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -c $(CONSTRAINTS) -e '.[test]'
 	@# ExifTool (Debian's libimage-exiftool-perl) for the DNG NoiseProfile check; optional: its test skips without it
 	@command -v exiftool >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 && \
 		timeout 180 apt-get install -y -qq --no-install-recommends libimage-exiftool-perl >/dev/null 2>&1; } || \
@@ -24,11 +28,11 @@ run: $(STAMP)
 
 ## Set up, then run the test suite
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(JOBS)
 
 ## Set up, then run the test suite without the tests marked slow (about a quarter of the time)
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -n $(JOBS) -m "not slow"
 
 ## Set up, then run the W1 speed/memory benchmark (prints a JSON line last)
 bench: $(STAMP)
@@ -37,6 +41,17 @@ bench: $(STAMP)
 ## Set up, then run the GPU benchmark (prints a JSON line last; CPU figures only without a GPU)
 bench-gpu: $(STAMP)
 	$(BIN)/python tools/bench_gpu.py
+
+## Re-resolve constraints.txt: the newest versions pyproject.toml's bounds allow, in a scratch venv (then make test)
+constraints:
+	rm -rf .venv-resolve
+	$(PYTHON) -m venv .venv-resolve
+	.venv-resolve/bin/python -m pip install --quiet --upgrade pip
+	.venv-resolve/bin/python -m pip install --quiet '.[test]'
+	{ echo "# The versions camsim's test suite was run with, on $$($(PYTHON) --version); made by make constraints."; \
+	  echo "# make installs with pip -c constraints.txt; pyproject.toml's bounds say what camsim supports."; \
+	  .venv-resolve/bin/python -m pip freeze --all | grep -v -E '^(pip|camsim-lowlight)[= @]'; } > $(CONSTRAINTS)
+	rm -rf .venv-resolve build
 
 clean:
 	rm -rf $(VENV) outputs/macbeth_26
