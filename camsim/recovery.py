@@ -82,7 +82,7 @@ REFERENCE_ILLUMINANT = "D65"
 #: Jakob 2019: the optimiser's error (colour-science's ``max_error``, its default) beyond which a colour is
 #: flagged as outside the method's reach.
 JAKOB2019_MAX_ERROR = 0.023
-#: Mallett 2019: a colour counts as outside sRGB where a linear sRGB component is below −this × its largest component.
+#: Mallett 2019: a colour counts as outside sRGB where a linear sRGB component is below −this × its largest one.
 #: colour-science uses sRGB's standard matrices as given (4 decimals, IEC 61966-2-1; inverse to about 1e-4), which
 #: leaves colours on sRGB's border slightly negative: Display P3's blue, which is sRGB's blue, converts to
 #: (−4.8e-5, −2.6e-6, 1.098). Such a component is set to 0 all the same. Unitless.
