@@ -73,6 +73,7 @@ class FrameInfo:
     exposure: dict | None = None  # how T was chosen: camsim.pipeline.exposure_record (None: a fixed T)
     surround: bool = True  # whether the spectrum after the patches is a chart's surround
     target: dict | None = None  # a synthetic target's geometry (camsim.sources.target), the sidecar's "target"
+    recovery: dict | None = None  # an image's RGB → spectrum recovery, out of gamut (camsim.sources.image)
     # regions as patches (camsim.regions): per patch (spectrum indices, pixel counts); None: patch i is spectrum i
     patch_weights: tuple | None = None
     white_signal_e_per_s: np.ndarray | None = None  # the perfect white's e⁻/s per channel at F = 1 (LitScene)
@@ -152,6 +153,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict | None, exr_compression: 
         # a chart's last spectrum is its surround; a cube has no patches and no surround, nor has a target
         "surround": {"signal_e": ex.signal_e[len(patches)].tolist()} if patches and info.surround else None,
         **({"target": info.target} if info.target is not None else {}),
+        **({"recovery": info.recovery} if info.recovery is not None else {}),
         # the perfect white (reflectance 1) under the frame's light at this F, in this exposure: the colour white
         **({"white_signal_e": (info.white_signal_e_per_s * info.intensity_factor * sensor.exposure_s).tolist()}
            if info.white_signal_e_per_s is not None else {}),
@@ -170,6 +172,11 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict | None, exr_compression: 
                            "it is within auto_tolerance_ks)",
             "qe_e_m2_sr_per_photon": "e- m^2 sr / photon, rows R, G, B on wavelengths_nm",
             "rect_xywh": "pixels: x, y of the top-left corner, width, height",
+            **({"recovery": "an image scene's RGB -> spectrum recovery: out_of_gamut_fraction = share of the "
+                            "scene's pixels whose colour the method cannot reproduce (0 to 1); max_clip = largest "
+                            "linear sRGB component set to 0 (Mallett 2019; 1 = the perfect white's); "
+                            "max_delta_e00_outside = largest CIE 2000 dE of such a pixel's spectrum to its colour "
+                            "under D65"} if info.recovery is not None else {}),
             "noise_profile": "per channel R, G, B: [S, O] of the DNG's NoiseProfile tag (unitless): the temporal "
                              "noise variance of x = (DN - B) / (W - B) is S x + O, B the DNG's BlackLevel "
                              "(black_level_tag_dn where given, else black_level_dn) and W white_level_dn (shot, "

@@ -240,6 +240,7 @@ def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, intensity_fa
         exposure=exposure_record(scene),
         surround=radiance.surround,
         target=radiance.target,
+        recovery=radiance.recovery,
         patch_weights=radiance.patch_weights,
         white_signal_e_per_s=None if lit.white_photon_rate is None else lit.white_signal_e_per_s,
         preset=preset_record(scene),

@@ -46,6 +46,9 @@ class SceneRadiance:
     patch_weights : tuple or None
         For patches that are the scene file's regions (:mod:`camsim.regions`): per patch ``(indices, counts)``, the
         spectra inside its rectangle and their pixel counts. None: patch i is spectrum i (a chart's patches).
+    recovery : dict or None
+        An image's RGB → spectrum recovery and what fell outside its gamut (:class:`camsim.sources.SourceSpectra`),
+        for the sidecar.
     """
 
     labels: np.ndarray
@@ -57,6 +60,7 @@ class SceneRadiance:
     surround: bool = True
     target: dict | None = None
     patch_weights: tuple | None = None
+    recovery: dict | None = None
 
 
 def scene_radiance(scene: Scene, illuminant: str) -> SceneRadiance:
@@ -84,7 +88,7 @@ def scene_radiance(scene: Scene, illuminant: str) -> SceneRadiance:
             radiance[k] = scale_to_luminance(lit, ybar, grid.step_nm, scene.luminance_cd_m2)
     if not scene.regions:
         return SceneRadiance(source.labels, radiance, white, source.patch_names, source.patch_rects, source.name,
-                             source.surround, source.target)
+                             source.surround, source.target, recovery=source.recovery)
     if source.patch_names:
         raise CamsimError(f"[[region]] is for scenes without patches of their own (an image, a cube, dead leaves): "
                           f"this scene's source already has {len(source.patch_names)} patches, which analyze measures")
@@ -92,4 +96,5 @@ def scene_radiance(scene: Scene, illuminant: str) -> SceneRadiance:
     check_regions(scene.regions, width, height, "scene")
     weights = tuple(region_weights(source.labels, region.rect) for region in scene.regions)
     return SceneRadiance(source.labels, radiance, white, [r.name for r in scene.regions],
-                         [r.rect for r in scene.regions], source.name, False, source.target, weights)
+                         [r.rect for r in scene.regions], source.name, False, source.target, weights,
+                         recovery=source.recovery)

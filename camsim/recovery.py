@@ -46,7 +46,11 @@ Out of gamut (what each method does, recorded, never silent)
   (exact in XYZ, which is linear in the spectrum), so its reflectance may exceed 1 too.
 * Colours outside sRGB with Mallett (from another colourspace): negative linear sRGB components are clipped to
   0 (the nearest non-negative mixture of the basis; the spectrum would otherwise go negative, which a photon
-  rate cannot) and the colour is flagged ``outside``.
+  rate cannot) and the colour is flagged ``outside`` where a component is below −:data:`OUTSIDE_SRGB_TOLERANCE`
+  times the largest (the rounding of sRGB's standard matrices leaves −4.8e-5 on Display P3's blue, which is
+  sRGB's: no colour outside). An image
+  scene records what fell outside in its frames' sidecars (``recovery``) and ``camsim render`` warns once per
+  frame (:mod:`camsim.sources.image`).
 * Otsu: the reconstruction is clipped to [0, 1] (colour-science's ``clip=True``) and the colour is flagged
   ``outside`` when the clip changed it — this happens for saturated colours, for colours outside the spectral
   locus (Otsu's cluster tree picks the nearest dataset cluster anyway), and for the perfect white itself
@@ -78,6 +82,11 @@ REFERENCE_ILLUMINANT = "D65"
 #: Jakob 2019: the optimiser's error (colour-science's ``max_error``, its default) beyond which a colour is
 #: flagged as outside the method's reach.
 JAKOB2019_MAX_ERROR = 0.023
+#: Mallett 2019: a colour counts as outside sRGB where a linear sRGB component is below −this × its largest one.
+#: colour-science uses sRGB's standard matrices as given (4 decimals, IEC 61966-2-1; inverse to about 1e-4), which
+#: leaves colours on sRGB's border slightly negative: Display P3's blue, which is sRGB's blue, converts to
+#: (−4.8e-5, −2.6e-6, 1.098). Such a component is set to 0 all the same. Unitless.
+OUTSIDE_SRGB_TOLERANCE = 1e-4
 #: Distinct colours kept by the cache of the per-colour methods (about 13 MB at N = 101).
 CACHE_SIZE = 16384
 
@@ -174,7 +183,7 @@ def rgb_to_xyz(rgb, colourspace: str = DEFAULT_COLOURSPACE) -> np.ndarray:
                                         chromatic_adaptation_transform="CAT02"), dtype=np.float64)
 
 
-def linear_srgb(rgb, colourspace: str = DEFAULT_COLOURSPACE):
+def linear_srgb(rgb, colourspace: str = DEFAULT_COLOURSPACE, return_clip: bool = False):
     """Linear sRGB of linear RGB in ``colourspace``, negative components clipped to 0.
 
     Parameters
@@ -184,23 +193,32 @@ def linear_srgb(rgb, colourspace: str = DEFAULT_COLOURSPACE):
     colourspace : str
         A name of ``colour.RGB_COLOURSPACES``. ``"sRGB"`` is returned unchanged (no conversion, nothing
         clipped); any other goes through ``colour.RGB_to_RGB`` (CAT02 between different whites).
+    return_clip : bool
+        Also return how much each colour lost.
 
     Returns
     -------
     srgb : numpy.ndarray, shape (..., 3)
         Linear sRGB, every component ≥ 0: Mallett 2019's weights.
     outside : numpy.ndarray of bool, shape (...)
-        True where a component was negative (the colour lies outside sRGB's gamut) and was clipped to 0.
+        True where a component was below −:data:`OUTSIDE_SRGB_TOLERANCE` × the largest (the colour lies outside
+        sRGB's gamut) and was clipped to 0.
+    clip : numpy.ndarray, shape (...)
+        Only with ``return_clip``: the most negative component's magnitude, max(0, −min(r, g, b)), set to 0.
+        Unit: linear sRGB (1 = the perfect white's component).
     """
     space = _colourspace(colourspace)
     values = _check_rgb(rgb)
     if space.name == "sRGB":
-        return values, np.zeros(values.shape[:-1], dtype=bool)
-    colour = import_colour()
-    srgb = np.asarray(colour.RGB_to_RGB(values, space, colour.RGB_COLOURSPACES["sRGB"],
-                                        chromatic_adaptation_transform="CAT02"), dtype=np.float64)
-    outside = np.any(srgb < 0, axis=-1)
-    return np.maximum(srgb, 0.0), outside
+        srgb = values
+    else:
+        colour = import_colour()
+        srgb = np.asarray(colour.RGB_to_RGB(values, space, colour.RGB_COLOURSPACES["sRGB"],
+                                            chromatic_adaptation_transform="CAT02"), dtype=np.float64)
+    clip = np.maximum(-np.min(srgb, axis=-1), 0.0)
+    outside = clip > OUTSIDE_SRGB_TOLERANCE * np.max(np.abs(srgb), axis=-1)
+    clipped = srgb if space.name == "sRGB" else np.maximum(srgb, 0.0)
+    return (clipped, outside, clip) if return_clip else (clipped, outside)
 
 
 # ------------------------------------------------------------------------------------------------ Mallett
@@ -536,7 +554,7 @@ def rgb_to_spectra(rgb, method: str = DEFAULT_METHOD, colourspace: str = DEFAULT
     return rgb_to_distinct_spectra(rgb, method, colourspace, grid, bits, max_delta_e).expand()
 
 
-__all__ = ["CACHE_SIZE", "DEFAULT_COLOURSPACE", "DEFAULT_METHOD", "JAKOB2019_MAX_ERROR", "PER_COLOUR_METHODS",
-           "RECOVERY_METHODS", "REFERENCE_ILLUMINANT", "RecoveredSpectra", "basis_matrix", "clear_cache",
-           "distinct_colours", "linear_srgb", "mallett_basis", "recovery_delta_e", "rgb_to_distinct_spectra",
-           "rgb_to_spectra", "rgb_to_xyz"]
+__all__ = ["CACHE_SIZE", "DEFAULT_COLOURSPACE", "DEFAULT_METHOD", "JAKOB2019_MAX_ERROR", "OUTSIDE_SRGB_TOLERANCE",
+           "PER_COLOUR_METHODS", "RECOVERY_METHODS", "REFERENCE_ILLUMINANT", "RecoveredSpectra", "basis_matrix",
+           "clear_cache", "distinct_colours", "linear_srgb", "mallett_basis", "recovery_delta_e",
+           "rgb_to_distinct_spectra", "rgb_to_spectra", "rgb_to_xyz"]

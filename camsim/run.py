@@ -33,7 +33,8 @@ def check_scene(scene: Scene) -> None:
 
 
 def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = None, progress: bool = True,
-                 preview: bool = False, device: str = "cpu", exr_compression: str = DEFAULT_EXR_COMPRESSION) -> dict:
+                 preview: bool = False, device: str = "cpu", exr_compression: str = DEFAULT_EXR_COMPRESSION,
+                 warn=None) -> dict:
     """Render every frame of ``scene`` into ``out_dir``, keeping ``manifest.json`` there up to date.
 
     The folder is made ready and held before any work (:func:`camsim.io.output_folder.output_folder`: created,
@@ -43,7 +44,9 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
     each frame also gets an sRGB PNG (:mod:`camsim.preview`), listed in its ``files``. ``device`` draws the frames
     on the CPU (default) or a device (:func:`camsim.pipeline.make_frame`; checked before the folder is touched).
     ``exr_compression``: a lossless name of :data:`camsim.io.exr.EXR_COMPRESSIONS` (checked before anything is
-    written).
+    written). ``warn``, if given, is called with one line (no prefix) per frame of an image scene whose colours
+    fell partly outside the recovery method's gamut (:func:`camsim.sources.image.recovery_warning`: the share of
+    the pixels; the sidecar's ``recovery`` records it either way).
 
     Returns
     -------
@@ -75,5 +78,11 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
                 manifest.withdraw(stem)
                 files = write_frame(out_dir, stem, frame, info, preview=preview, exr_compression=exr_compression)
                 manifest.commit(info, files)
+                if warn is not None and info.recovery is not None:
+                    from camsim.sources.image import recovery_warning
+
+                    line = recovery_warning(info.recovery, info.reflectances)
+                    if line is not None:
+                        warn(f"{stem}: {line}")
                 bar.update()
     return manifest.as_dict()

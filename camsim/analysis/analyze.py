@@ -25,6 +25,8 @@ from camsim.io.output_folder import make_folder
 CSV_NAME = "analysis.csv"
 FRAME_CSV_NAME = "frame_statistics.csv"
 SUMMARY_NAME = "analysis.json"
+#: The companion text of the CSVs: every column, SNR, ΔE and the flags explained (:mod:`camsim.analysis.columns`).
+GUIDE_NAME = "README.txt"
 FRAME_COLUMNS = ("frame_file", "source", "scene", "illuminant", "intensity_factor", "photon_statistics", "method",
                  "seed")
 PATCH_COLUMNS = ("patch_index", "patch_name", "n_xy_valid", "n_xy_undefined", "ellipse_status", "center_x",
@@ -175,6 +177,7 @@ def measure_frame(frame: LoadedFrame, settings: AnalysisSettings, black: np.ndar
         "cfa_pattern": frame.cfa_pattern,
         "demosaicing": "bilinear (colour-demosaicing), for xy, ellipses and ΔE only" if frame.cfa_pattern else None,
         "black_subtraction": settings.black,
+        "border_px": settings.border_px,
         "black_dn": black.tolist(),
         "patches": patches,
         "frame_statistics": frame_statistics(frame, frame_black),
@@ -358,9 +361,15 @@ def summary(results, settings: AnalysisSettings, skipped=(), uncommitted=()) -> 
 
 
 def table(results) -> str:
-    """A short text table: one line per frame."""
+    """A short text table: one line per frame, each scene's frames by falling F (columns:
+    :data:`camsim.analysis.columns.TABLE_COLUMNS`)."""
     lines = [f"{'frame':44s} {'F':>8s} {'stats':5s} {'ellipse size':>12s} {'mean ΔE':>8s} {'SNR G dB':>8s} flags"]
+    first_seen: dict = {}
     for result in results:
+        first_seen.setdefault((result["scene"], result["illuminant"], result["photon_statistics"]), len(first_seen))
+    order = sorted(results, key=lambda r: (first_seen[(r["scene"], r["illuminant"], r["photon_statistics"])],
+                                           -float(r["intensity_factor"])))
+    for result in order:
         patches = result["patches"]
         size = mean_of_defined([p["size_xy"] for p in patches])
         de = mean_of_defined([p["delta_e_ab_mean"] for p in patches])
@@ -393,13 +402,30 @@ def frame_table(results) -> str:
     return "\n".join(lines)
 
 
-def write_outputs(results, settings, out_dir: Path, skipped=(), uncommitted=()) -> tuple[Path, Path]:
+def write_outputs(results, settings, out_dir: Path, skipped=(), uncommitted=(), figures: bool = False):
     """Write ``out_dir/analysis.csv`` (per frame × patch × channel), ``out_dir/frame_statistics.csv`` (per frame ×
-    channel, :func:`camsim.analysis.frame_stats.frame_statistics`) and ``out_dir/analysis.json`` (:func:`summary`);
-    returns the paths of the first and the last."""
+    channel, :func:`camsim.analysis.frame_stats.frame_statistics`), ``out_dir/analysis.json`` (:func:`summary`),
+    ``out_dir/README.txt`` (every column, SNR, ΔE and the flags explained: :func:`camsim.analysis.columns.guide_text`)
+    and, with ``figures``, the PNG figures (:func:`camsim.experiments.figures.analysis_figures`).
+
+    Returns
+    -------
+    csv_path, json_path : pathlib.Path
+        ``analysis.csv`` and ``analysis.json``.
+    figure_files : list of str
+        The figures' file names in ``out_dir`` (empty without ``figures`` or without patches).
+    """
+    from camsim.analysis.columns import guide_text
+
     make_folder(out_dir)
     csv_path, json_path = out_dir / CSV_NAME, out_dir / SUMMARY_NAME
     write_text_atomic(csv_path, csv_text(tidy_rows(results)))
     write_text_atomic(out_dir / FRAME_CSV_NAME, csv_text(frame_rows(results), FRAME_COLUMNS + FRAME_STAT_COLUMNS))
     write_json_atomic(json_path, summary(results, settings, skipped, uncommitted))
-    return csv_path, json_path
+    names = []
+    if figures:
+        from camsim.experiments.figures import analysis_figures
+
+        names = list(analysis_figures(results, out_dir).values())
+    write_text_atomic(out_dir / GUIDE_NAME, guide_text(names))
+    return csv_path, json_path, names

@@ -22,7 +22,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "pixels. For every frame, with or without patches: per channel the black-level-subtracted mean and σ, the "
             "fractions clipped at 0 and at the white level, and (with the EXR's clean layer) the residual noisy − "
             "clean, its bias and its variance against the model's. Writes OUT/analysis.csv (one row per frame × "
-            "patch × channel), OUT/frame_statistics.csv (one row per frame × channel) and OUT/analysis.json. "
+            "patch × channel), OUT/frame_statistics.csv (one row per frame × channel), OUT/analysis.json, "
+            "OUT/README.txt (every column explained; SNR is signal² / variance, a power ratio) and PNG figures. "
             "Folders give their committed frames only (the sidecar, written last, names the file); other frame "
             "files there are ignored with one warning per folder, hidden files silently. A bad file (unreadable, "
             "truncated, foreign, a missing or mismatched sidecar) is skipped with a warning and the rest analysed; "
@@ -52,6 +53,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--out", metavar="DIR", type=Path, help="output folder (default outputs/analysis)")
     parser.add_argument("--strict", action="store_true",
                         help="stop at the first bad file (exit status 2) instead of skipping it")
+    parser.add_argument("--no-figures", action="store_true",
+                        help="write no PNG figures (by default: per scene and light, the xy diagram with the noise "
+                             "ellipses, the ellipse centres, and ellipse size, ΔE and SNR against F)")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no table")
     return parser
 
@@ -65,7 +69,7 @@ def _warn(line: str) -> None:
 
 def run(args) -> int:
     """Carry out ``camsim analyze``; returns the exit status (0)."""
-    from camsim.analysis.analyze import FRAME_CSV_NAME, analyse, frame_table, table, write_outputs
+    from camsim.analysis.analyze import FRAME_CSV_NAME, GUIDE_NAME, analyse, frame_table, table, write_outputs
     from camsim.analysis.patches import AnalysisSettings
 
     black = "dark-frame" if args.dark is not None else ("sidecar" if args.subtract_black else "none")
@@ -75,11 +79,16 @@ def run(args) -> int:
         analysis = analyse(args.paths, settings, source=args.source, dark_frame=args.dark,
                            progress=not args.quiet, strict=args.strict, warn=_warn)
         results = analysis.results
-        csv_path, json_path = write_outputs(results, settings, out, analysis.skipped, analysis.uncommitted)
+        csv_path, json_path, figures = write_outputs(results, settings, out, analysis.skipped, analysis.uncommitted,
+                                                     figures=not args.no_figures)
     if not args.quiet:
+        from camsim.analysis.columns import legend_text
+
         print(table(results))
         print(frame_table(results))
+        print(legend_text())
     ignored = f", ignored {len(analysis.uncommitted)} uncommitted file(s)" if analysis.uncommitted else ""
     print(f"analysed {len(results)} frames, skipped {len(analysis.skipped)} bad file(s){ignored}: {csv_path} "
-          f"(one row per frame × patch × channel), {out / FRAME_CSV_NAME} (one row per frame × channel), {json_path}")
+          f"(one row per frame × patch × channel), {out / FRAME_CSV_NAME} (one row per frame × channel), {json_path}"
+          f", {len(figures)} figure(s); columns explained in {out / GUIDE_NAME}")
     return 0

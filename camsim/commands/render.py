@@ -139,6 +139,13 @@ def sensor_overrides(args) -> dict:
     return overrides
 
 
+def _warn_clear_of_the_bar(line: str) -> None:
+    """One warning line on stderr, clear of the progress bar (an image's colours outside the recovery's gamut)."""
+    from tqdm import tqdm
+
+    tqdm.write(f"camsim: warning: {line}", file=sys.stderr)
+
+
 def run(args) -> int:
     """Carry out ``camsim render``; returns the exit status (0).
 
@@ -164,7 +171,8 @@ def run(args) -> int:
         print(f"camsim: warning: {warning}", file=sys.stderr)
     out = args.out if args.out is not None else DEFAULT_OUT / scene.name
     manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet, preview=args.preview,
-                            device=device, exr_compression=args.exr_compression)
+                            device=device, exr_compression=args.exr_compression,
+                            warn=None if args.quiet else _warn_clear_of_the_bar)
     rendered = len(scene.illuminants) * len(scene.intensity_factors)
     earlier = len(manifest["frames"]) - rendered
     print(f"wrote {rendered} frames (DNG, EXR, JSON) to {out}/ — index: {out / 'manifest.json'}"

@@ -1,7 +1,9 @@
 """Figures of ``camsim experiment``: the paper's Figs. 4–6 (per scenario), 4(c) and 7–9 (SNR sensitivity).
 
-Every maker writes PNG files into ``out_dir`` and returns ``{figure_key: file name}``. Scenario figures have two
-panels side by side, ``paper`` and ``pixel`` photon statistics. Undefined values (None) are never plotted; each
+Every maker writes PNG files into ``out_dir`` and returns ``{figure_key: file name}``. The scenario figures' makers
+draw one panel per labelled series of frames (``{panel title: frames}``): the experiments give two side by side,
+``paper`` and ``pixel`` photon statistics; ``camsim analyze`` gives one per measurement of the user's own frames
+(:func:`analysis_figures`). Undefined values (None) are never plotted; each
 panel's legend says how many were left out. A data point keeps its colour (``tab20`` by point number) throughout.
 The figures are drawn without pyplot (:mod:`camsim.plotting`); matplotlib is imported when the first is drawn.
 """
@@ -9,12 +11,13 @@ The figures are drawn without pyplot (:mod:`camsim.plotting`); matplotlib is imp
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from camsim.frame_files import load_frame
-from camsim.analysis.patches import AnalysisSettings, frame_matrix, patch_samples
+from camsim.analysis.patches import AnalysisSettings, demosaiced_samples, frame_matrix, patch_samples
 from camsim.colorimetry import CHANNELS, chromaticity_xy, xyz_from_camera
 from camsim.errors import CamsimError
 from camsim.optional_numbers import finite_or_none as _num
@@ -107,7 +110,9 @@ def _centre(patch):
 def _samples(cache: dict, result, n_points: int):
     """Per data point its xy samples (≤ 300, subsampled), re-read from the frame file once per call of a maker.
 
-    None if the frame cannot be read (e.g. moved or deleted).
+    The border is the result's ``border_px`` (the analysis's; default 3 px) and its ``black_dn`` is subtracted; a
+    Bayer frame's patches are demosaiced as the analysis does. None if the frame cannot be read (e.g. moved or
+    deleted).
     """
     path = str(result.get("frame_file"))
     if path in cache:
@@ -119,9 +124,11 @@ def _samples(cache: dict, result, n_points: int):
     except (CamsimError, OSError, KeyError, TypeError, ValueError):
         return None
     black = np.asarray(result.get("black_dn") or np.zeros(3), dtype=np.float64)
-    border, rng, out = AnalysisSettings().border_px, np.random.default_rng(0), []
+    border = int(result.get("border_px", AnalysisSettings().border_px))
+    rng, out = np.random.default_rng(0), []
     for meta in frame.meta["patches"][:n_points]:
-        raw = patch_samples(frame.pixels_dn, meta["rect_xywh"], border)
+        raw = (demosaiced_samples(frame, meta["rect_xywh"], border) if frame.cfa_pattern
+               else patch_samples(frame.pixels_dn, meta["rect_xywh"], border))
         xy, _ = chromaticity_xy(xyz_from_camera(raw - black, matrix))
         out.append(xy[np.sort(rng.choice(len(xy), MAX_SAMPLES, replace=False))] if len(xy) > MAX_SAMPLES else xy)
     cache[path] = out
@@ -173,22 +180,24 @@ def _zoom(ax, xs, ys, min_span: float = 0.05, pad: float = 0.08):
     ax.set_aspect("equal", adjustable="box")
 
 
-def _black(ax, black_xy, stat, xs, ys) -> list:
-    """Mark the camera black point (a star) if there is one; returns its legend entries."""
-    point = (black_xy or {}).get(stat)
+def _black(ax, black_xy, label, xs, ys) -> list:
+    """Mark the camera black point of panel ``label`` (a star) if there is one; returns its legend entries."""
+    point = (black_xy or {}).get(label)
     if point is None or None in (_num(point[0]), _num(point[1])):
         return []
-    ax.plot(*point, marker="*", ms=15, color="k", mec="w", ls="none", zorder=6)
+    ax.plot(*point, marker="*", ms=15, color="k", mec="w", ls="none", zorder=8)  # above the labels
     xs.append(point[0]), ys.append(point[1])
     return [_entry("camera black point", marker="*", ms=12, color="k")]
 
 
-def _panels(title: str, layout=None):
-    fig = new_figure(figsize=(14, 6.5), layout=layout)
-    axes = fig.subplots(1, 2)
-    fig.suptitle(title, fontsize=13)
-    for ax, stat in zip(axes, STATISTICS):
-        ax.set_title(f"{stat} statistics", fontsize=12)
+def _panels(title: str, labels, layout=None):
+    """A figure of one panel per label (side by side, each titled with its label); returns (figure, axes)."""
+    labels = list(labels)
+    fig = new_figure(figsize=(7 * len(labels), 6.5) if len(labels) > 1 else (9, 7.5), layout=layout)
+    axes = np.atleast_1d(fig.subplots(1, len(labels)))
+    fig.suptitle(title, fontsize=13 if len(labels) > 1 else 11)
+    for ax, label in zip(axes, labels):
+        ax.set_title(label, fontsize=12 if len(labels) > 1 else 10)
     return fig, axes
 
 
@@ -226,12 +235,12 @@ def _readable(result, n_points: int) -> bool:
     return bool(sizes) and float(np.median(sizes)) <= READABLE_SIZE
 
 
-def _fig_samples(name, series, points, black_xy, cache):
+def _fig_samples(name, series, points, black_xy, cache, sizes_in="the size figure"):
     fig, axes = _panels(f"{name}: samples and 1 σ ellipses at representative F (CIE 1931 xy; F with median "
-                        f"ellipse size ≤ {READABLE_SIZE:g} — larger clouds fill the diagram, see the size figure)")
-    for ax, stat in zip(axes, STATISTICS):
+                        f"ellipse size ≤ {READABLE_SIZE:g} — larger clouds fill the diagram, see {sizes_in})",
+                        series)
+    for ax, (label, frames) in zip(axes, series.items()):
         _diagram(ax)
-        frames = series[stat]
         valid = [i for i, r in enumerate(frames) if _readable(r, len(points))]
         last = valid[-1] if valid else len(frames) - 1
         chosen = [frames[i] for i in sorted({0, last, round(last / 3), round(2 * last / 3)})] if frames else []
@@ -249,7 +258,7 @@ def _fig_samples(name, series, points, black_xy, cache):
                     undefined += 1
             handles.append(_entry(f"F = {float(result['intensity_factor']):g}", color="k", linestyle=_STYLES[k],
                                   marker=_MARKERS[k], ms=4))
-        handles += _black(ax, black_xy, stat, xs, ys) + _count(undefined, f"ellipses (point × F) {UNDEF}")
+        handles += _black(ax, black_xy, label, xs, ys) + _count(undefined, f"ellipses (point × F) {UNDEF}")
         handles += _count(excluded, "samples with X+Y+Z ≤ 0 excluded")
         handles += _count(unread, "frame file(s) unreadable: samples not shown")
         _zoom(ax, xs, ys, min_span=0.1)
@@ -259,13 +268,13 @@ def _fig_samples(name, series, points, black_xy, cache):
 
 
 def _fig_centres(name, series, points, black_xy):
-    fig, axes = _panels(f"{name}: ellipse centres as F falls (CIE 1931 xy)")
-    for ax, stat in zip(axes, STATISTICS):
+    fig, axes = _panels(f"{name}: ellipse centres as F falls (CIE 1931 xy)", series)
+    for ax, (label, frames) in zip(axes, series.items()):
         _diagram(ax)
         xs, ys, undefined = [], [], 0
-        top = series[stat][0]["intensity_factor"] if series[stat] else None
+        top = frames[0]["intensity_factor"] if frames else None
         for j, point in enumerate(points):
-            track = [(float(r["intensity_factor"]), _centre(_patch(r, j))) for r in series[stat]]
+            track = [(float(r["intensity_factor"]), _centre(_patch(r, j))) for r in frames]
             undefined += sum(xy is None for _, xy in track)
             track = [(f, xy) for f, xy in track if xy is not None]
             if not track:
@@ -278,7 +287,7 @@ def _fig_centres(name, series, points, black_xy):
             xs.extend(x), ys.extend(y)
         handles = [_entry("centre path, F decreasing", color="0.3", marker=".", linestyle="-")]
         handles += [_entry(f"F = {top:g}", marker="o", color="0.5", mec="k")] if top is not None else []
-        handles += _black(ax, black_xy, stat, xs, ys) + _count(undefined, f"centres (point × F) {UNDEF}")
+        handles += _black(ax, black_xy, label, xs, ys) + _count(undefined, f"centres (point × F) {UNDEF}")
         _zoom(ax, xs, ys, min_span=0.05, pad=0.12)
         ax.legend(handles=handles, fontsize=8, loc="best")
     _point_legend(fig, points)
@@ -289,16 +298,17 @@ def _fig_magnified(name, series, points, black_xy, cache, number):
     index = next((j for j, p in enumerate(points) if p.number == number), 0 if points else None)
     label = points[index].label if index is not None else "none"
     label += "" if any(p.number == number for p in points) else f" (point {number} is not among the data points)"
-    fig, axes = _panels(f"{name}: data point {label}, samples and 1 σ ellipses at every F", layout="constrained")
-    logs = [math.log10(float(r["intensity_factor"])) for s in STATISTICS for r in series[s]] or [0.0]
+    fig, axes = _panels(f"{name}: data point {label}, samples and 1 σ ellipses at every F", series,
+                        layout="constrained")
+    logs = [math.log10(float(r["intensity_factor"])) for frames in series.values() for r in frames] or [0.0]
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 
     norm, cmap = Normalize(min(logs) - 0.5 * (min(logs) == max(logs)), max(logs)), _colormap("viridis")
-    for ax, stat in zip(axes, STATISTICS):
+    for ax, (panel, frames) in zip(axes, series.items()):
         _diagram(ax, colours=False)
         xs, ys, undefined, unread = [], [], 0, 0
-        for result in series[stat] if index is not None else []:
+        for result in frames if index is not None else []:
             c = cmap(norm(math.log10(float(result["intensity_factor"]))))
             samples = _samples(cache, result, len(points))
             unread += samples is None
@@ -307,7 +317,7 @@ def _fig_magnified(name, series, points, black_xy, cache, number):
             if ellipse is not None:
                 xs.extend(ellipse[0]), ys.extend(ellipse[1])
         handles = [_entry("1 σ ellipse (colour: log₁₀ F)", color="0.3", lw=1.8, linestyle="-")]
-        handles += _black(ax, black_xy, stat, xs, ys) + _count(undefined, f"ellipses (F) {UNDEF}")
+        handles += _black(ax, black_xy, panel, xs, ys) + _count(undefined, f"ellipses (F) {UNDEF}")
         handles += _count(unread, "frame file(s) unreadable: samples not shown")
         _zoom(ax, xs, ys, min_span=0.01)
         ax.grid(alpha=0.3)
@@ -318,13 +328,16 @@ def _fig_magnified(name, series, points, black_xy, cache, number):
 
 
 def _fig_lines(name, series, points, key, title, ylabel, logy=False, mean=False):
-    """One line per data point of ``patch[key]`` against F; with ``mean``, faint lines and their mean in black.
+    """One line per data point of a patch value against F; with ``mean``, faint lines and their mean in black.
 
-    ``logy=None`` chooses a log y-axis when the positive values span more than a factor 100.
+    ``key`` names the patch record's value, or is a function ``(panel label, patch record) → value`` (e.g. one
+    channel's SNR per panel). ``logy=None`` chooses a log y-axis when the positive values span more than a factor
+    100.
     """
-    fig, axes = _panels(f"{name}: {title}")
-    for ax, stat in zip(axes, STATISTICS):
-        table = [[(float(r["intensity_factor"]), _num(_patch(r, j).get(key))) for r in series[stat]]
+    value = key if callable(key) else (lambda _, patch: patch.get(key))
+    fig, axes = _panels(f"{name}: {title}", series)
+    for ax, (label, frames) in zip(axes, series.items()):
+        table = [[(float(r["intensity_factor"]), _num(value(label, _patch(r, j)))) for r in frames]
                  for j in range(len(points))]
         positive = [v for row in table for _, v in row if v is not None and v > 0]
         log = (len(positive) > 1 and max(positive) > 100 * min(positive)) if logy is None else logy
@@ -379,7 +392,8 @@ def scenario_figures(name, results_by_stats, points, black_xy, out_dir, magnifie
         (files ``{name}_{key}.png``).
     """
     points = list(points)
-    series = {stat: _series((results_by_stats or {}).get(stat)) for stat in STATISTICS}
+    series = {f"{stat} statistics": _series((results_by_stats or {}).get(stat)) for stat in STATISTICS}
+    black_xy = {f"{stat} statistics": (black_xy or {}).get(stat) for stat in STATISTICS}
     cache: dict = {}
     figures = {
         "samples": _fig_samples(name, series, points, black_xy, cache),
@@ -529,3 +543,131 @@ def photon_figure(name, rows, label, out_dir) -> dict:
     ``rows`` come from :func:`camsim.experiments.datapoints.incident_photons`; ``label`` names the data point.
     """
     return {"photons": _save(_fig_photons(name, rows, label), out_dir, f"{name}_photons.png")}
+
+
+# ------------------------------------------------------------------------------------ camsim analyze's figures
+
+
+@dataclass(frozen=True)
+class PatchPoint:
+    """A patch of the user's frames as a data point of the figures: its number (1-based, the colour) and name."""
+
+    number: int
+    name: str
+
+    @property
+    def label(self) -> str:
+        return f"{self.number}: {self.name}"
+
+
+#: The figures :func:`analysis_figures` writes per measurement, each ``{prefix}_{key}.png``.
+ANALYSIS_FIGURES = ("xy", "delta_e", "snr")
+
+
+def _slug(text: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "-." else "_" for ch in text).strip("_") or "frames"
+
+
+def _channel_value(patch, channel: str, key: str):
+    """``key`` of one channel's record of a patch (None where the patch or the channel is missing)."""
+    return next((ch.get(key) for ch in patch.get("channels") or [] if ch.get("channel") == channel), None)
+
+
+def _analysis_black_xy(meta: dict, result: dict):
+    """xy of the camera black point of a frame (its expected black level through the frame's camera → XYZ
+    matrix), where the analysis subtracted no black level; None otherwise, or where it is undefined."""
+    from camsim.colorimetry import camera_to_xyz_matrix
+
+    method = result.get("camera_to_xyz") or "paper"
+    if result.get("black_subtraction") != "none" or method == "least-squares":
+        return None  # with the black level subtracted there is no black point to drift to
+    black = meta.get("black_level_dn") if result.get("source") == "dng" else meta.get("dark_level_dn",
+                                                                                       meta.get("black_level_dn"))
+    try:
+        matrix = camera_to_xyz_matrix(np.asarray(meta["qe_e_m2_sr_per_photon"]), np.asarray(meta["wavelengths_nm"]),
+                                      meta["dn_per_electron"], method=method)
+        xyz = matrix @ np.asarray(black, dtype=np.float64)
+    except (KeyError, TypeError, ValueError):
+        return None
+    total = float(xyz.sum())
+    return (float(xyz[0] / total), float(xyz[1] / total)) if np.isfinite(total) and total > 0 else None
+
+
+def _analysis_groups(results) -> list:
+    """The frames with patches, by measurement (:func:`camsim.analysis.analyze.group_key`): per group its file
+    prefix, panel title, frames (largest F first) and camera black point (of its lowest-F frame)."""
+    from camsim.analysis.analyze import group_key
+    from camsim.frame_files import read_frame_meta
+
+    groups: dict = {}
+    for result in results or []:
+        if not result.get("patches"):
+            continue
+        try:
+            meta = read_frame_meta(Path(result["frame_file"]))
+        except (CamsimError, OSError, KeyError):
+            continue
+        key = (group_key(meta), result.get("source"), result.get("black_subtraction"), result.get("camera_to_xyz"))
+        groups.setdefault(key, (meta, []))[1].append(result)
+    out, used = [], set()
+    for meta, frames in groups.values():
+        frames = _series(frames)
+        if not frames:
+            continue
+        first = frames[0]
+        prefix = base = _slug(f"{first.get('scene')}_{first.get('illuminant')}_{first.get('photon_statistics')}")
+        n = 1
+        while prefix in used:
+            n += 1
+            prefix = f"{base}_{n}"
+        used.add(prefix)
+        title = (f"{first.get('scene')} under {first.get('illuminant')}, {first.get('photon_statistics')} statistics, "
+                 f"camera {meta.get('camera')}, {meta.get('bits')}-bit, black level subtracted: "
+                 f"{first.get('black_subtraction')} ({first.get('source')} values)")
+        out.append((prefix, title, frames, _analysis_black_xy(meta, frames[-1])))
+    return out
+
+
+def analysis_figures(results, out_dir) -> dict:
+    """Write the figures of ``camsim analyze`` for the user's own frames: per measurement (frames of one scene,
+    light and camera at several F) the xy diagram with samples and 1 σ noise ellipses at representative F, and
+    ΔE and the measured SNR against F.
+
+    Parameters
+    ----------
+    results : list of dict
+        :func:`camsim.analysis.analyze.analyse` results (``frame_file``, ``source``, ``intensity_factor``,
+        ``black_subtraction``, ``camera_to_xyz``, ``border_px``, ``patches``). Frames without patches are left out;
+        frames are grouped as the analysis groups them for ΔE (their sidecars are re-read for it).
+    out_dir : path-like
+        Folder for the PNG files (created if missing).
+
+    Returns
+    -------
+    dict of {str: str}
+        ``{prefix}_{key}`` → file name ``{prefix}_{key}.png``, ``key`` one of :data:`ANALYSIS_FIGURES`, ``prefix``
+        ``{scene}_{illuminant}_{statistics}`` (``_2``, ``_3``, … for further measurements of the same). The SNR
+        figure has one panel per channel: SNR = (mean − black level)² / variance of the patch's pixels, a power
+        ratio, drawn in dB (10 log₁₀); the camera black point (a star; frames measured without black
+        subtraction) is where the chromaticities go as F falls.
+    """
+    figures = {}
+    for prefix, title, frames, black in _analysis_groups(results):
+        points = [PatchPoint(j + 1, str(p.get("name"))) for j, p in enumerate(frames[0]["patches"])]
+        series, black_xy = {title: frames}, {title: black}
+        cache: dict = {}
+        xy = _fig_samples(prefix, series, points, black_xy, cache, sizes_in="size_xy in analysis.csv")
+        _point_legend(xy, points)
+        made = {
+            "xy": xy,
+            "delta_e": _fig_lines(prefix, series, points, "delta_e_ab_mean",
+                                  "mean ΔE*ab of the samples to the patch's F = 1 colour (each sample scaled to "
+                                  "Y = 100: chromaticity only, unbounded where the signal nears 0)",
+                                  "ΔE*ab (CIELAB units)", logy=None, mean=True),
+            "snr": _fig_lines(prefix, {f"channel {c}": frames for c in CHANNELS}, points,
+                              lambda label, patch: _channel_value(patch, label[-1], "snr_empirical_db"),
+                              "measured SNR = (mean − black level)² / variance (power ratio) in dB",
+                              "SNR (dB) = 10 log₁₀(signal² / variance)", mean=True),
+        }
+        figures.update({f"{prefix}_{key}": _save(fig, out_dir, f"{prefix}_{key}.png") for key, fig in made.items()})
+    return figures

@@ -30,6 +30,9 @@ class SourceSpectra:
         Whether the spectrum after the patches is a surround (a chart's), which the sidecar reports.
     target : dict or None
         A synthetic target's geometry and parameters (:mod:`camsim.sources.target`), the sidecar's ``target``.
+    recovery : dict or None
+        An image's RGB → spectrum recovery and what fell outside its gamut
+        (:meth:`camsim.sources.image.ImageSource.spectra`), the sidecar's ``recovery``; None for spectral sources.
     """
 
     labels: np.ndarray
@@ -40,6 +43,7 @@ class SourceSpectra:
     name: str
     surround: bool = True
     target: dict | None = None
+    recovery: dict | None = None
 
 
 class SceneSource:

@@ -37,6 +37,12 @@ Reading: OpenImageIO, 8- and 16-bit files (PNG, TIFF, JPEG, …) have their colo
 (colour-science's ``cctf_decoding``); float files (EXR, HDR) are taken as linear. One channel is grey (R = G = B);
 a fourth (alpha) is ignored. Colours outside sRGB's gamut (from a wider ``colourspace``) have their negative linear
 sRGB components set to 0: Mallett's basis cannot make them, and the rest of the colour is kept.
+
+Out of gamut, recorded. Every frame's sidecar gets ``recovery`` (:func:`recovery_record`): the method, the
+colourspace, the share of the scene's pixels whose colour the method could not reproduce (Mallett: outside sRGB;
+Otsu and Jakob: flagged ``outside`` by :mod:`camsim.recovery`), the largest linear sRGB component clipped
+(Mallett) and the largest CIE 2000 ΔE of such a pixel's recovered spectrum to its colour (under D65);
+``camsim render`` warns once per frame where the share is above 0.
 """
 
 from __future__ import annotations
@@ -51,7 +57,8 @@ from camsim.errors import CamsimError
 from camsim.photons import scale_to_luminance
 from camsim.rates import FactoredSpectra
 from camsim.sources.base import SceneSource, SourceSpectra, typed
-from camsim.recovery import RECOVERY_METHODS, linear_srgb, mallett_basis, rgb_to_distinct_spectra
+from camsim.recovery import (RECOVERY_METHODS, linear_srgb, mallett_basis, recovery_delta_e,
+                              rgb_to_distinct_spectra)
 from camsim.spectra import WavelengthGrid, cmfs_on_grid, illuminant_spd, import_colour
 
 IMAGE_KINDS = ("reflectance", "radiance")
@@ -189,15 +196,74 @@ class ImageSource(SceneSource):
         """
         self.own_size()  # checks the crop against the file
         labels, rgb = distinct_linear_rgb(str(self.path), self.colourspace, self.crop, self.size)
+        counts = np.bincount(labels.ravel(), minlength=rgb.shape[0])  # pixels of each distinct colour
         if self.recovery == "Mallett 2019":  # linear: the colours stay factored on the basis
-            srgb, _ = linear_srgb(rgb, self.colourspace)
-            spectra = FactoredSpectra(srgb, np.asarray(mallett_basis(grid)))
+            srgb, outside, clip = linear_srgb(rgb, self.colourspace, return_clip=True)
+            basis = np.asarray(mallett_basis(grid))
+            spectra = FactoredSpectra(srgb, basis)
+            delta_e = np.zeros(rgb.shape[0])
+            if outside.any():  # only the colours outside: the others are sRGB colours, reproduced by the basis
+                delta_e[outside] = recovery_delta_e(rgb[outside], srgb[outside] @ basis, self.colourspace, grid)
         else:  # one spectrum per distinct colour
             recovered = rgb_to_distinct_spectra(rgb, self.recovery, self.colourspace, grid)
+            outside, delta_e = recovered.outside[recovered.labels], recovered.delta_e[recovered.labels]
+            clip = None
             spectra, labels = recovered.spectra, recovered.labels[labels].astype(np.uint32)
+        record = recovery_record(self.recovery, self.colourspace, counts, outside, delta_e, clip)
         if self.kind == "radiance":  # emissive: ρ_k(λ) W(λ), the illuminants play no part
             spectra = spectra * self.white_radiance(grid)
-        return SourceSpectra(labels, spectra, self.kind, [], [], self.path.name)
+        return SourceSpectra(labels, spectra, self.kind, [], [], self.path.name, recovery=record)
+
+
+def recovery_record(method: str, colourspace: str, counts, outside, delta_e, clip=None) -> dict:
+    """The sidecar's ``recovery``: how an image's colours became spectra and what fell outside the method's gamut.
+
+    Parameters
+    ----------
+    method, colourspace : str
+        The recovery method and the image's colourspace.
+    counts : numpy.ndarray of int, shape (K,)
+        Pixels of each distinct colour.
+    outside : numpy.ndarray of bool, shape (K,)
+        Colours the method could not reproduce (:mod:`camsim.recovery`, per method).
+    delta_e : numpy.ndarray, shape (K,)
+        CIE 2000 ΔE of each colour's recovered spectrum to the colour (D65); read where ``outside`` only.
+    clip : numpy.ndarray, shape (K,), optional
+        Mallett 2019: the linear sRGB component clipped to 0 (:func:`camsim.recovery.linear_srgb`).
+
+    Returns
+    -------
+    dict
+        ``method``; ``colour_space``; ``out_of_gamut_fraction``, the share of the pixels outside (0 to 1);
+        ``out_of_gamut_colours``, their distinct colours; ``max_clip``, the largest linear sRGB component set to 0
+        (Mallett; 1 = the perfect white's component; 0 when none, None for the other methods);
+        ``max_delta_e00_outside``, the largest ΔE00 among the pixels outside (0 when none).
+    """
+    counts = np.asarray(counts, dtype=np.int64)
+    outside = np.asarray(outside, dtype=bool) & (counts > 0)
+    return {
+        "method": method,
+        "colour_space": colourspace,
+        "out_of_gamut_fraction": float(counts[outside].sum() / counts.sum()) if counts.sum() else 0.0,
+        "out_of_gamut_colours": int(np.count_nonzero(outside)),
+        "max_clip": None if clip is None else float(np.max(np.asarray(clip)[outside], initial=0.0)),
+        "max_delta_e00_outside": float(np.max(np.asarray(delta_e)[outside], initial=0.0)),
+    }
+
+
+def recovery_warning(record: dict, image: str) -> str | None:
+    """The one line ``camsim render`` prints for a frame whose image had colours outside the method's gamut
+    (None when it had none): the share of pixels, the method, the colourspace and the loss."""
+    share = record.get("out_of_gamut_fraction") or 0.0
+    if share <= 0:
+        return None
+    where = "outside sRGB, the gamut of" if record["method"] == "Mallett 2019" else "outside the reach of"
+    clip = record.get("max_clip")
+    clipped = f"negative linear sRGB components up to {clip:.3g} set to 0, " if clip else ""
+    n = record["out_of_gamut_colours"]
+    return (f"{100 * share:.4g} % of the pixels of {image} ({record['colour_space']}; {n} colour{'s' * (n != 1)}) "
+            f"lie {where} {record['method']}: {clipped}"
+            f"up to ΔE00 {record['max_delta_e00_outside']:.2f} from their colour (sidecar: recovery)")
 
 
 def whitepoint_name(colourspace: str) -> str:
