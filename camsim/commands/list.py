@@ -9,17 +9,18 @@ from camsim.sensor import PRESETS
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add ``list`` to ``subparsers``; returns its parser."""
-    return subparsers.add_parser("list", help="list the built-in scenes, illuminants, cameras, reflectance sets, "
-                                 "sensor presets and sampling methods camsim knows")
+    return subparsers.add_parser("list", help="list the built-in scenes and dataset specs, illuminants, cameras, "
+                                 "reflectance sets, sensor presets and sampling methods camsim knows")
 
 
 def run(args) -> int:
     """Carry out ``camsim list``; returns the exit status (0). Imports neither scipy nor colour-science."""
-    from camsim.builtin_scenes import builtin_scene_names
+    from camsim.builtin_scenes import builtin_scene_names, builtin_spec_names
     from camsim.methods import METHOD_NAMES
     from camsim.colour_names import CAMERAS, ILLUMINANTS, REFLECTANCE_SETS  # colour-science's, without importing it
 
     print("built-in scenes:", ", ".join(builtin_scene_names()))
+    print("built-in dataset specs (camsim dataset NAME):", ", ".join(builtin_spec_names()))
     print("illuminants:", ", ".join(ILLUMINANTS))
     print("cameras:", ", ".join(CAMERAS))
     print("reflectance sets:", ", ".join(REFLECTANCE_SETS))
