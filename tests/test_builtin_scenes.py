@@ -23,7 +23,7 @@ from camsim.scene import load_scene
 from camsim.sources import ImageSource
 from tests.helpers import ROOT
 
-BUILTIN = "astronaut, chelsea, coffee, dead_leaves, macbeth_26, slanted_edge"
+BUILTIN = "astronaut, chelsea, coffee, dark, dead_leaves, flat, macbeth_26, slanted_edge"
 PHOTOGRAPHS = ("astronaut", "chelsea", "coffee")
 SCENE_ARGS = ["--illuminant", "D65", "--intensity", "1", "--size", "120x80", "-q"]
 
@@ -34,7 +34,8 @@ def _digests(folder):
 
 def test_names_and_paths():
     # denoise_small.toml beside them is a dataset spec
-    assert builtin_scene_names() == ("astronaut", "chelsea", "coffee", "dead_leaves", "macbeth_26", "slanted_edge")
+    assert builtin_scene_names() == ("astronaut", "chelsea", "coffee", "dark", "dead_leaves", "flat", "macbeth_26",
+                                     "slanted_edge")
     path = builtin_scene_path("macbeth_26")
     assert path == SCENES_DIR / "macbeth_26.toml" and path.is_file()
     assert SCENES_DIR.parent == ROOT / "camsim"
@@ -42,8 +43,8 @@ def test_names_and_paths():
     # the checkout's scenes/ is the package folder itself (a link), not a copy
     assert (ROOT / "scenes").resolve() == SCENES_DIR.resolve()
     assert sorted(p.name for p in (ROOT / "scenes").glob("*.toml")) == [
-        "astronaut.toml", "chelsea.toml", "coffee.toml", "dead_leaves.toml", "denoise_small.toml", "macbeth_26.toml",
-        "slanted_edge.toml"]
+        "astronaut.toml", "chelsea.toml", "coffee.toml", "dark.toml", "dead_leaves.toml", "denoise_small.toml",
+        "flat.toml", "macbeth_26.toml", "slanted_edge.toml"]
 
 
 def test_load_by_name_equals_load_by_path(tmp_path, monkeypatch):
@@ -195,7 +196,7 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
     with zipfile.ZipFile(wheel) as archive:
         names = set(archive.namelist())
         for scene in ("macbeth_26.toml", "denoise_small.toml", "dead_leaves.toml", "slanted_edge.toml",
-                      "astronaut.toml", "chelsea.toml", "coffee.toml"):
+                      "astronaut.toml", "chelsea.toml", "coffee.toml", "dark.toml", "flat.toml"):
             assert archive.read(f"camsim/scenes/{scene}") == (SCENES_DIR / scene).read_bytes()
         for image in ("astronaut.png", "chelsea.png", "coffee.png", "README.md"):  # denoise_small's [images]
             assert archive.read(f"camsim/scenes/images/{image}") == (SCENES_DIR / "images" / image).read_bytes()
