@@ -184,8 +184,9 @@ def _can_build_wheels_offline() -> bool:
 @pytest.mark.skipif(not _can_build_wheels_offline(),
                     reason="building a wheel offline needs setuptools >= 70.1, or wheel: pip install -e '.[test]'")
 def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
-    """Build the wheel from a copy of the sources (no stale build/ folder), check the scene files are in it with
-    the checkout's bytes, then import camsim from the unpacked wheel, away from any checkout, and resolve names."""
+    """Build the wheel from a copy of the sources (no stale build/ folder), check the scene files and the extras are
+    in it, then install it with pip into a folder of its own and, away from any checkout, import camsim from there,
+    resolve names and run its console script with a built-in dataset spec."""
     src = tmp_path / "src"
     shutil.copytree(ROOT / "camsim", src / "camsim", ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
     for name in ("pyproject.toml", "README.md"):
@@ -200,7 +201,12 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
             assert archive.read(f"camsim/scenes/{scene}") == (SCENES_DIR / scene).read_bytes()
         for image in ("astronaut.png", "chelsea.png", "coffee.png", "README.md"):  # denoise_small's [images]
             assert archive.read(f"camsim/scenes/images/{image}") == (SCENES_DIR / "images" / image).read_bytes()
+        metadata = next(archive.read(n).decode() for n in names if n.endswith(".dist-info/METADATA"))
     assert "camsim/builtin_scenes.py" in names and not any(n.startswith(("scenes/", "tests/")) for n in names)
+    for extra, requirement in (("xarray", "xarray>=2024.1"), ("gpu", "cupy-cuda12x"), ("torch", "torch")):
+        # pip install 'WHEEL[xarray]' (README, "Installing"): the extra is in the wheel
+        assert f"Provides-Extra: {extra}" in metadata
+        assert f'Requires-Dist: {requirement}; extra == "{extra}"' in metadata
     # installed as pip installs it (into a folder of its own: the console script too), away from any checkout
     subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "--no-index", "-q", "--target",
                     str(tmp_path / "site"), str(wheel)], check=True, capture_output=True, cwd=tmp_path)

@@ -52,7 +52,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--out", metavar="DIR", type=Path, help="output folder (default outputs/analysis)")
     parser.add_argument("--strict", action="store_true",
                         help="stop at the first bad file (exit status 2) instead of skipping it")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no table")
+    parser.add_argument("--quiet", "-q", action="store_true",
+                        help="no progress bar, no table, no colour-science warnings")
     return parser
 
 

@@ -53,7 +53,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "size only")
     parser.add_argument("--dry-run", action="store_true",
                         help="validate the spec and list its frames (id and parameters) without rendering")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no colour-science warnings")
     return parser
 
 
