@@ -902,6 +902,9 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> Fram
     if overrides:
         frame_scene = frame_scene.with_sensor(**overrides)
     sensor = frame_scene.sensor
+    if job.images is not None and sensor.quantisation and min(scene.width, scene.height) < MIN_SIZE:
+        raise CamsimError(f"[images] crop {scene.width}x{scene.height} is smaller than {MIN_SIZE}x{MIN_SIZE} "
+                          "pixels, which raw readers (LibRaw) refuse")
     key = ("scene", str(entry.path), frame_scene.illuminants, frame_scene.method, sensor.quantisation)
     if key not in checked:
         check_scene(frame_scene)
@@ -914,9 +917,6 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> Fram
     if sensor.cfa is not None and not own_size and (scene.width % 2 or scene.height % 2):
         raise CamsimError(f"a {sensor.cfa} colour filter array needs an even frame size, got "
                           f"{scene.width}x{scene.height}")
-    if job.images is not None and sensor.quantisation and min(scene.width, scene.height) < MIN_SIZE:
-        raise CamsimError(f"[images] crop {scene.width}x{scene.height} is smaller than {MIN_SIZE}x{MIN_SIZE} "
-                          "pixels, which raw readers (LibRaw) refuse")
     if sensor.prnu_percent > 0 and frame_scene.method == "spectral":
         raise CamsimError("PRNU needs a per-pixel mean: use method poisson, gaussian or auto, not spectral")
 
