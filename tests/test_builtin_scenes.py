@@ -168,6 +168,13 @@ def test_dataset_takes_a_builtin_spec_by_name(tmp_path, monkeypatch, capsys):
     assert capsys.readouterr().err == "camsim: error: dataset spec not found: denoise.toml\n"
 
 
+def test_list_names_the_builtin_scenes_and_specs(capsys):
+    assert main(["list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == f"built-in scenes: {BUILTIN}"
+    assert lines[1] == "built-in dataset specs (camsim dataset NAME): denoise_small"
+
+
 def _can_build_wheels_offline() -> bool:
     """setuptools ≥ 70.1 builds wheels by itself; an older one needs the ``wheel`` package (the test extra has both)."""
     def version(name):

@@ -184,7 +184,22 @@ def _frames(n: int) -> str:
 
 def written_summary(scene, manifest: dict, out: Path) -> str:
     """The line ``camsim render`` ends with: how many frames it wrote, which kinds of file (from the manifest:
-    no DNG when quantisation is off), where, and how many frames of earlier runs the folder's index also lists."""
+    no DNG when quantisation is off), where, and how many frames of earlier runs the folder's index also lists.
+
+    Parameters
+    ----------
+    scene : camsim.scene.Scene
+        The scene as rendered (its illuminants × intensity factors are this run's frames).
+    manifest : dict
+        :func:`camsim.run.render_scene`'s manifest of the folder (this run's frames and earlier ones).
+    out : pathlib.Path
+        The output folder.
+
+    Returns
+    -------
+    str
+        E.g. ``wrote 1 frame (EXR, JSON; no DNG: quantisation is off) to OUT/ — index: OUT/manifest.json``.
+    """
     from camsim.frame_files import frame_stem
 
     stems = {frame_stem(scene.name, ill, f) for ill in scene.illuminants for f in scene.intensity_factors}
