@@ -46,8 +46,8 @@ def run(args) -> int:
     from camsim.chart import parse_size
     from camsim.errors import CamsimError
     from camsim.experiments.runner import Setup
-    from camsim.io.dng import MIN_SIZE
     from camsim.experiments.scenarios import DEFAULT_SCENE, run_experiment
+    from camsim.io.dng import MIN_SIZE
 
     width, height = parse_size(args.size) if args.size else (None, None)
     if args.size and min(width, height) < MIN_SIZE:  # its frames are DNGs too: refused before any work
