@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+import warnings
 
 from camsim import __version__
 from camsim.commands import analyze, calibrate, dataset, denoise_eval, emva, experiment, optimise, render
@@ -31,6 +32,11 @@ COMMANDS = {
     "denoise-eval": denoise_eval,
     "list": list_command,
 }
+
+
+#: The modules whose warnings ``-q`` silences: colour-science's and colour-demosaicing's (e.g. "Interpolating ...
+#: cmfs to 1nm interval" from a spectral recovery); camsim's own warnings (``camsim: warning: ...``) stay.
+QUIET_MODULES = r"colour(_demosaicing)?(\.|$)"
 
 
 class _UsageError(Exception):
@@ -90,7 +96,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        with handlers_installed({signal.SIGTERM: _raise_terminated}):  # SIGTERM unwinds like Ctrl-C
+        with handlers_installed({signal.SIGTERM: _raise_terminated}), warnings.catch_warnings():
+            if getattr(args, "quiet", False):  # -q: no library chatter either
+                warnings.filterwarnings("ignore", module=QUIET_MODULES)
             return COMMANDS[args.command].run(args)
     except CamsimError as exc:
         print(f"camsim: error: {exc}", file=sys.stderr)

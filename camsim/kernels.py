@@ -13,10 +13,10 @@ These are the kernels every sampling method and stage draws with:
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
-from scipy import special, stats
 
 from camsim.xp import generator_namespace
 
@@ -56,6 +56,8 @@ HISTOGRAM_MAX_LAMBDA = 1e6
 @lru_cache(maxsize=4096)
 def _poisson_support(lam: float):
     """Values λ ± (13 √λ + 20), clipped at 0, as float32, and their Poisson probabilities (normalised)."""
+    from scipy import stats  # here, not at import: the command line starts without scipy
+
     half = 13.0 * np.sqrt(lam) + 20.0
     values = np.arange(max(0, int(np.floor(lam - half))), int(np.ceil(lam + half)) + 1)
     pmf = stats.poisson.pmf(values, lam)
@@ -157,7 +159,7 @@ def tukey_lambda_variance(lam: float) -> float:
     """Variance of the standard Tukey lambda law, x = (u^λ − (1 − u)^λ) / λ (λ = 0: the logistic law)."""
     if abs(lam) < 1e-9:
         return np.pi**2 / 3
-    return 2 / lam**2 * (1 / (1 + 2 * lam) - special.gamma(lam + 1) ** 2 / special.gamma(2 * lam + 2))
+    return 2 / lam**2 * (1 / (1 + 2 * lam) - math.gamma(lam + 1) ** 2 / math.gamma(2 * lam + 2))
 
 
 def tukey_lambda(rng: np.random.Generator, out: np.ndarray, lam: float, std: float) -> np.ndarray:

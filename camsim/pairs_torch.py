@@ -1,7 +1,8 @@
 """A thin torch wrapper of :mod:`camsim.pairs`: an ``IterableDataset`` of batches of torch tensors.
 
-torch is an optional extra (``pip install 'camsim-lowlight[torch]'``) and is imported only when
-:func:`pair_dataset` is called: importing this module imports nothing but camsim. On a GPU the tensors are the
+torch is an optional extra (``pip install '.[torch]'`` in camsim's folder; README, "Installing", for its size and a
+CPU build) and is imported only when :func:`pair_dataset` is called: importing this module imports nothing but
+camsim. On a GPU the tensors are the
 batch's CuPy arrays, handed over by DLPack (``torch.from_dlpack``: the same device memory, no copy through the host);
 on the CPU numpy's (``torch.from_numpy``). Give the dataset to a ``DataLoader`` with ``batch_size=None`` (the
 batches are formed already); with CPU workers each worker renders every n-th batch, so a run's batches do not depend

@@ -27,9 +27,13 @@ def check_scene(scene: Scene) -> None:
     reference = getattr(scene.scale, "reference_illuminant", None)  # the anchor's light (AnchorScale)
     if reference is not None:
         illuminant_spd(reference, scene.grid)
-    if not scene.source.has_own_size and scene.sensor.quantisation and min(scene.width, scene.height) < MIN_SIZE:
-        raise CamsimError(f"frame {scene.width}x{scene.height} is smaller than {MIN_SIZE}x{MIN_SIZE} pixels, "
-                          "which raw readers (LibRaw) refuse")
+    if scene.sensor.quantisation:  # a DNG will be written: an image's or a cube's size is its own (its header's)
+        own = scene.source.has_own_size
+        width, height = scene.source.own_size() if own else (scene.width, scene.height)
+        if min(width, height) < MIN_SIZE:
+            where = f"{scene.source.table} scene's frame" if own else "frame"
+            raise CamsimError(f"{where} {width}x{height} is smaller than {MIN_SIZE}x{MIN_SIZE} pixels, which raw "
+                              "readers (LibRaw) refuse")
 
 
 def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = None, progress: bool = True,

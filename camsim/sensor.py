@@ -11,7 +11,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.black_level import unlit_mean_dn
 from camsim.cfa import CFA_PATTERNS
 from camsim.errors import CamsimError
 from camsim.schema import param, params_of, record, validate
@@ -129,6 +128,8 @@ class SensorParams:
         return np.asarray(self.dark_current_e_per_s) * self.exposure_s
 
     def _unlit_mean_dn(self, quantisation: bool) -> np.ndarray:
+        from camsim.black_level import unlit_mean_dn  # imports scipy: here, so that the command line starts without
+
         return unlit_mean_dn(
             self.dark_mean_e, dn_per_electron=self.dn_per_electron, bits=self.bits, quantisation=quantisation,
             full_well_e=self.full_well_e if self.saturation else None, dsnu_e=self.dsnu_e,

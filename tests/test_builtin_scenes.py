@@ -2,6 +2,7 @@
 
 import hashlib
 import json
+import re
 import importlib.metadata
 import os
 import shutil
@@ -22,7 +23,7 @@ from camsim.scene import load_scene
 from camsim.sources import ImageSource
 from tests.helpers import ROOT
 
-BUILTIN = "astronaut, chelsea, coffee, dead_leaves, macbeth_26, slanted_edge"
+BUILTIN = "astronaut, chelsea, coffee, dark, dead_leaves, flat, macbeth_26, slanted_edge"
 PHOTOGRAPHS = ("astronaut", "chelsea", "coffee")
 SCENE_ARGS = ["--illuminant", "D65", "--intensity", "1", "--size", "120x80", "-q"]
 
@@ -33,7 +34,8 @@ def _digests(folder):
 
 def test_names_and_paths():
     # denoise_small.toml beside them is a dataset spec
-    assert builtin_scene_names() == ("astronaut", "chelsea", "coffee", "dead_leaves", "macbeth_26", "slanted_edge")
+    assert builtin_scene_names() == ("astronaut", "chelsea", "coffee", "dark", "dead_leaves", "flat", "macbeth_26",
+                                     "slanted_edge")
     path = builtin_scene_path("macbeth_26")
     assert path == SCENES_DIR / "macbeth_26.toml" and path.is_file()
     assert SCENES_DIR.parent == ROOT / "camsim"
@@ -41,8 +43,8 @@ def test_names_and_paths():
     # the checkout's scenes/ is the package folder itself (a link), not a copy
     assert (ROOT / "scenes").resolve() == SCENES_DIR.resolve()
     assert sorted(p.name for p in (ROOT / "scenes").glob("*.toml")) == [
-        "astronaut.toml", "chelsea.toml", "coffee.toml", "dead_leaves.toml", "denoise_small.toml", "macbeth_26.toml",
-        "slanted_edge.toml"]
+        "astronaut.toml", "chelsea.toml", "coffee.toml", "dark.toml", "dead_leaves.toml", "denoise_small.toml",
+        "flat.toml", "macbeth_26.toml", "slanted_edge.toml"]
 
 
 def test_load_by_name_equals_load_by_path(tmp_path, monkeypatch):
@@ -101,6 +103,78 @@ def test_dataset_spec_finds_its_scene_beside_it():
     assert load_spec(SCENES_DIR / "denoise_small.toml").frames == spec.frames
 
 
+SMALL_SPEC = """
+name = "named"
+scene = "SCENE"
+[frame]
+width = 32
+height = 24
+[fixed]
+illuminant = "D65"
+intensity_factor = 1.0
+"""
+
+
+def test_a_spec_names_a_builtin_scene(tmp_path, monkeypatch, capsys):
+    """scene = "macbeth_26" in a spec is the built-in scene (issue 23, point 7): the same frames as the spec that
+    gives the scene file's path; a file of that name beside the spec wins over the name."""
+    (tmp_path / "by_name.toml").write_text(SMALL_SPEC.replace("SCENE", "macbeth_26"))
+    (tmp_path / "by_path.toml").write_text(SMALL_SPEC.replace("SCENE", str(SCENES_DIR / "macbeth_26.toml")))
+    spec = load_spec(tmp_path / "by_name.toml")
+    assert [Path(f.scene_path) for f in spec.frames] == [(SCENES_DIR / "macbeth_26.toml").resolve()]
+    monkeypatch.chdir(tmp_path)
+    for name in ("by_name", "by_path"):
+        assert main(["dataset", f"{name}.toml", "--workers", "1", "-q", "--out", name]) == 0
+    # the same scene, light and sensor (the frame's id and seed hash the scene as the spec writes it, so the noise
+    # differs): every sidecar entry but those
+    (a,), (b,) = (sorted((tmp_path / n / "frames").glob("*.json")) for n in ("by_name", "by_path"))
+    a, b = (json.loads(p.read_text()) for p in (a, b))
+    assert a["patches"][18]["name"] == "white 9.5 (.05 D)" and a["patches"][18]["signal_e"][1] > 1000
+    assert a["scene"] == b["scene"] == "macbeth_26"
+    assert {k: v for k, v in a.items() if k not in ("seed", "files")} == \
+        {k: v for k, v in b.items() if k not in ("seed", "files")}
+    (tmp_path / "macbeth_26").write_text('name = "local"\n[chart]\n')  # a file beside the spec wins
+    assert load_spec(tmp_path / "by_name.toml").frames[0].scene_path == str((tmp_path / "macbeth_26").resolve())
+
+
+@pytest.mark.parametrize(("scene", "message"), [
+    ("macbeth", r"spec\.toml: scene: no scene file 'macbeth' in .* and no built-in scene of that name: the built-in "
+                rf"scenes are {BUILTIN}"),
+    ("denoise_small", r"spec\.toml: scene: 'denoise_small' is a built-in dataset spec"),
+    ("missing.toml", r"scene file not found: .*missing\.toml"),
+])
+def test_a_spec_with_an_unknown_scene_name_is_refused_on_one_line(tmp_path, capsys, scene, message):
+    (tmp_path / "spec.toml").write_text(SMALL_SPEC.replace("SCENE", scene))
+    assert main(["dataset", str(tmp_path / "spec.toml"), "--workers", "1", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert re.fullmatch(rf"camsim: error: .*{message}.*\n", err) and err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_dataset_takes_a_builtin_spec_by_name(tmp_path, monkeypatch, capsys):
+    """camsim dataset denoise_small from a folder without the spec: the shipped spec, its scene and images."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["dataset", "denoise_small", "--dry-run"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("dataset denoise_small: 96 frames of 256x192") and len(lines) == 97
+    assert load_spec("denoise_small").frames == load_spec(SCENES_DIR / "denoise_small.toml").frames
+    assert main(["dataset", "macbeth_26", "--dry-run"]) == 2
+    assert capsys.readouterr().err == ("camsim: error: 'macbeth_26' is a built-in scene (camsim render macbeth_26), "
+                                       "not a dataset spec: the built-in dataset specs are denoise_small\n")
+    assert main(["dataset", "denoise", "--dry-run"]) == 2
+    assert "no built-in dataset spec of that name: the built-in dataset specs are denoise_small" in \
+        capsys.readouterr().err
+    assert main(["dataset", "denoise.toml", "--dry-run"]) == 2  # a path stays a path
+    assert capsys.readouterr().err == "camsim: error: dataset spec not found: denoise.toml\n"
+
+
+def test_list_names_the_builtin_scenes_and_specs(capsys):
+    assert main(["list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == f"built-in scenes: {BUILTIN}"
+    assert lines[1] == "built-in dataset specs (camsim dataset NAME): denoise_small"
+
+
 def _can_build_wheels_offline() -> bool:
     """setuptools ≥ 70.1 builds wheels by itself; an older one needs the ``wheel`` package (the test extra has both)."""
     def version(name):
@@ -117,8 +191,9 @@ def _can_build_wheels_offline() -> bool:
 @pytest.mark.skipif(not _can_build_wheels_offline(),
                     reason="building a wheel offline needs setuptools >= 70.1, or wheel: pip install -e '.[test]'")
 def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
-    """Build the wheel from a copy of the sources (no stale build/ folder), check the scene files are in it with
-    the checkout's bytes, then import camsim from the unpacked wheel, away from any checkout, and resolve names."""
+    """Build the wheel from a copy of the sources (no stale build/ folder), check the scene files and the extras are
+    in it, then install it with pip into a folder of its own and, away from any checkout, import camsim from there,
+    resolve names and run its console script with a built-in dataset spec."""
     src = tmp_path / "src"
     shutil.copytree(ROOT / "camsim", src / "camsim", ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
     for name in ("pyproject.toml", "README.md"):
@@ -129,12 +204,19 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
     with zipfile.ZipFile(wheel) as archive:
         names = set(archive.namelist())
         for scene in ("macbeth_26.toml", "denoise_small.toml", "dead_leaves.toml", "slanted_edge.toml",
-                      "astronaut.toml", "chelsea.toml", "coffee.toml"):
+                      "astronaut.toml", "chelsea.toml", "coffee.toml", "dark.toml", "flat.toml"):
             assert archive.read(f"camsim/scenes/{scene}") == (SCENES_DIR / scene).read_bytes()
         for image in ("astronaut.png", "chelsea.png", "coffee.png", "README.md"):  # denoise_small's [images]
             assert archive.read(f"camsim/scenes/images/{image}") == (SCENES_DIR / "images" / image).read_bytes()
-        archive.extractall(tmp_path / "site")
+        metadata = next(archive.read(n).decode() for n in names if n.endswith(".dist-info/METADATA"))
     assert "camsim/builtin_scenes.py" in names and not any(n.startswith(("scenes/", "tests/")) for n in names)
+    for extra, requirement in (("xarray", "xarray>=2024.1"), ("gpu", "cupy-cuda12x"), ("torch", "torch")):
+        # pip install 'WHEEL[xarray]' (README, "Installing"): the extra is in the wheel
+        assert f"Provides-Extra: {extra}" in metadata
+        assert f'Requires-Dist: {requirement}; extra == "{extra}"' in metadata
+    # installed as pip installs it (into a folder of its own: the console script too), away from any checkout
+    subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "--no-index", "-q", "--target",
+                    str(tmp_path / "site"), str(wheel)], check=True, capture_output=True, cwd=tmp_path)
     code = ("import camsim, camsim.builtin_scenes as b, camsim.scene as s, camsim.experiments.scenarios as e\n"
             "print(camsim.__file__); print(b.builtin_scene_names()); print(s.load_scene('macbeth_26').name)\n"
             "print(e.DEFAULT_SCENE.is_file(), e.DEFAULT_SCENE.relative_to(b.SCENES_DIR.parent.parent))\n"
@@ -147,6 +229,14 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
     assert lines == [str(tmp_path / "site" / "camsim" / "__init__.py"),
                      f"{tuple(BUILTIN.split(', '))}", "macbeth_26",
                      "True camsim/scenes/macbeth_26.toml", "96"]
+    # the installed command takes the built-in spec by name (issue 23, point 7), and a spec naming a built-in scene
+    (tmp_path / "named.toml").write_text(SMALL_SPEC.replace("SCENE", "macbeth_26"))
+    for args, first in ((["dataset", "denoise_small", "--dry-run"], "dataset denoise_small: 96 frames of 256x192"),
+                        (["dataset", "named.toml", "--dry-run"], "dataset named: 1 frames of 32x24")):
+        run = subprocess.run([str(tmp_path / "site" / "bin" / "camsim"), *args], capture_output=True, text=True,
+                             cwd=tmp_path, env=env)
+        assert run.returncode == 0, run.stderr
+        assert run.stdout.startswith(first)
 
 
 def _skimage_photograph(name):

@@ -262,7 +262,7 @@ def test_the_example_images_ship_beside_the_scenes():
         assert max(width, height) == 432 and min(width, height) >= 192
     readme = (images / "README.md").read_text(encoding="utf-8")
     assert "public domain" in readme and readme.count("CC0") >= 2
-    assert builtin_scene_names() == ("astronaut", "chelsea", "coffee", "dead_leaves", "macbeth_26",
+    assert builtin_scene_names() == ("astronaut", "chelsea", "coffee", "dark", "dead_leaves", "flat", "macbeth_26",
                                      "slanted_edge")  # the images folder holds no scene
 
 

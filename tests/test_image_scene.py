@@ -253,12 +253,12 @@ def test_bad_images_are_one_line_errors(tmp_path, capsys, case, message):
     if case == "garbage":
         (tmp_path / "picture.png").write_bytes(b"not a png at all")
     elif case in ("nan", "negative"):
-        values = np.full((20, 20, 3), 0.5, dtype=np.float32)
+        values = np.full((24, 24, 3), 0.5, dtype=np.float32)  # 24: a DNG's least size is 22 (checked first)
         values[3, 4, 1] = np.nan if case == "nan" else -0.25
         import OpenImageIO as oiio
 
         out = oiio.ImageOutput.create(str(tmp_path / "picture.exr"))
-        out.open(str(tmp_path / "picture.exr"), oiio.ImageSpec(20, 20, 3, oiio.FLOAT))
+        out.open(str(tmp_path / "picture.exr"), oiio.ImageSpec(24, 24, 3, oiio.FLOAT))
         out.write_image(values)
         out.close()
         table["path"] = "picture.exr"

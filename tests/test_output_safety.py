@@ -63,7 +63,7 @@ def command_argv(name: str, out: Path, frames: Path, tmp: Path) -> list[str]:
     if name == "emva":
         return ["emva", "--size", "16", "-q", "--out", str(out)]
     if name == "experiment":
-        return ["experiment", "scenario1", "--size", "24x20", "-q", "--out", str(out)]
+        return ["experiment", "scenario1", "--size", "24x22", "-q", "--out", str(out)]  # 22: a DNG's least
     if name == "optimise":
         return ["optimise", "macbeth_26", "--preset", "sony-a7s2", "-F", "0.1", "--no-verify", "-q", "--out", str(out)]
     if name == "calibrate":  # the frames are no darks and flats: only the folder check is reached (its own file

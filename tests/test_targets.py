@@ -266,8 +266,8 @@ def _write(tmp_path, target: str) -> str:
     ('kind = "slanted-edge"\nhigh = 1.5', r"high must be a reflectance in \[0, 1\], got 1.5"),
     ('kind = "slanted-edge"\nangle_deg = "steep"', r"angle_deg must be of type float, got 'steep'"),
     ('kind = "slanted-edge"\nseed = 1', r"key\(s\) seed do not apply to kind = 'slanted-edge'"),
-    ('kind = "zone-plate"', r"\[target\] kind must be one of dead-leaves, slanted-edge, got 'zone-plate'"),
-    ('radius_min_px = 2', r"\[target\] kind must be one of dead-leaves, slanted-edge, got None"),
+    ('kind = "zone-plate"', r"\[target\] kind must be one of dead-leaves, slanted-edge, flat, got 'zone-plate'"),
+    ('radius_min_px = 2', r"\[target\] kind must be one of dead-leaves, slanted-edge, flat, got None"),
     ('kind = "dead-leaves"\nradius = 3', r"unknown key\(s\) in \[target\]: radius"),
 ])
 def test_bad_tables_are_one_clear_error(tmp_path, table, message):

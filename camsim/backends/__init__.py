@@ -5,7 +5,7 @@ device      what draws the frame
 ==========  ===============================================================================================
 ``cpu``     :func:`camsim.render.render_frame`: row blocks on a thread pool, every method, both statistics
 ``cuda``    :func:`camsim.backends.array_path.render_frame_xp` with CuPy on an NVIDIA GPU (optional extra
-            ``gpu``: ``pip install 'camsim-lowlight[gpu]'``, which installs ``cupy-cuda12x``)
+            ``gpu``: ``pip install '.[gpu]'`` in camsim's folder, which installs ``cupy-cuda12x``)
 ``numpy``   the same array path with numpy as its namespace, on the CPU: the GPU's code, run where there is no
             GPU (the tests prove it against the exact law; ``tools/bench_gpu.py`` times it). Python API only
 ==========  ===============================================================================================
@@ -30,7 +30,7 @@ DEVICES = ("cpu", "cuda")
 #: The devices of the array path (:func:`array_module`): ``numpy`` is its code on the CPU.
 ARRAY_DEVICES = ("numpy", "cuda")
 #: What ``pip`` needs for ``--device cuda``.
-GPU_INSTALL_HINT = "pip install 'camsim-lowlight[gpu]' (CuPy for CUDA 12: cupy-cuda12x)"
+GPU_INSTALL_HINT = "pip install '.[gpu]' in camsim's folder (CuPy for CUDA 12: cupy-cuda12x)"
 
 
 def cuda_module():

@@ -56,7 +56,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--no-figures", action="store_true",
                         help="write no PNG figures (by default: per scene and light, the xy diagram with the noise "
                              "ellipses, the ellipse centres, and ellipse size, ΔE and SNR against F)")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no table")
+    parser.add_argument("--quiet", "-q", action="store_true",
+                        help="no progress bar, no table, no colour-science warnings")
     return parser
 
 

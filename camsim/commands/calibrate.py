@@ -35,7 +35,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="the ISO the preset's values are for (default: the files' ISO, else 100)")
     parser.add_argument("--name", metavar="NAME",
                         help="the preset's name (default: the camera model in the files, else 'calibrated')")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bars, no summary")
+    parser.add_argument("--quiet", "-q", action="store_true",
+                        help="no progress bars, no summary, no colour-science warnings")
     return parser
 
 

@@ -29,7 +29,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "layer (noisy, clean, digital), the sidecars and the parameter table, for xarray and Dask."
         ),
     )
-    parser.add_argument("spec", metavar="SPEC.toml", type=Path, help="dataset spec file")
+    parser.add_argument("spec", metavar="SPEC.toml", type=Path, help="dataset spec file, or the name of a built-in "
+                        "spec (camsim list), e.g. denoise_small; a spec's scene can be a built-in scene's name")
     parser.add_argument("--out", metavar="DIR", type=Path, help="output folder (default outputs/SPEC_NAME)")
     parser.add_argument("--workers", metavar="N", type=positive_int,
                         help="local processes rendering frames in parallel (default: all cores; 1 = in this "
@@ -52,7 +53,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "size only")
     parser.add_argument("--dry-run", action="store_true",
                         help="validate the spec and list its frames (id and parameters) without rendering")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no colour-science warnings")
     return parser
 
 

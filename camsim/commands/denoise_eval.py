@@ -41,8 +41,8 @@ included, and the noise sigma per channel estimated blindly from the frame itsel
   nl-means                  scikit-image non-local means (fast mode, h = 0.8 sigma)
   wavelet                   wavelet shrinkage (BayesShrink, soft, Haar), scikit-image's algorithm
   tv                        scikit-image total variation (Chambolle, weight = 1 sigma)
-  bm3d                      BM3D (PyPI bm3d, bm3d_rgb), given the sensor model's sigma per channel from the
-                            sidecar (it has no blind mode); needs `pip install bm3d`
+  bm3d                      BM3D (PyPI bm3d, bm3d_rgb, installed with camsim; free for non-commercial use),
+                            given the sensor model's sigma per channel from the sidecar (it has no blind mode)
   MODULE:FUNCTION           your Python function, e.g. mypkg.filters:denoise or path/to/file.py:denoise
                             (the current directory is on sys.path); called as FUNCTION(image), or
                             FUNCTION(image, sigma_dn=...) if it has a parameter named sigma_dn; must return an
@@ -97,7 +97,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "which colour counts as preserved in a band of F (default 5)")
     parser.add_argument("--timeout", metavar="SECONDS", type=positive_float,
                         help="time limit per frame for a 'cmd:' denoiser (default none)")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no colour-science warnings")
     return parser
 
 

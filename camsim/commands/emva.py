@@ -44,7 +44,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--seed", metavar="N", type=non_negative_int, default=0,
                         help="seed of the temporal noise (integer ≥ 0, default 0); the fixed pattern is the "
                              "sensor's own (its sensor_seed)")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no table")
+    parser.add_argument("--quiet", "-q", action="store_true",
+                        help="no progress bar, no table, no colour-science warnings")
     return parser
 
 

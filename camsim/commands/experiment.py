@@ -37,17 +37,22 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="camera (default the scene's, Nikon 5100 (NPL)); e.g. the paper's Sony DXC-930 "
                              "CSV from the SFU data")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="random seed (default 0)")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no colour-science warnings")
     return parser
 
 
 def run(args) -> int:
     """Carry out ``camsim experiment``; returns the exit status (0)."""
     from camsim.chart import parse_size
+    from camsim.errors import CamsimError
     from camsim.experiments.runner import Setup
     from camsim.experiments.scenarios import DEFAULT_SCENE, run_experiment
+    from camsim.io.dng import MIN_SIZE
 
     width, height = parse_size(args.size) if args.size else (None, None)
+    if args.size and min(width, height) < MIN_SIZE:  # its frames are DNGs too: refused before any work
+        raise CamsimError(f"--size {args.size} is smaller than {MIN_SIZE}x{MIN_SIZE} pixels, which raw readers "
+                          "(LibRaw) refuse")
     setup = Setup(DEFAULT_SCENE, width, height, seed=args.seed, camera=camera_argument(args.camera))
     out = args.out if args.out is not None else DEFAULT_OUT / "experiments" / args.name
     with writing_to(out):

@@ -9,20 +9,21 @@ from camsim.sensor import PRESETS
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add ``list`` to ``subparsers``; returns its parser."""
-    return subparsers.add_parser("list", help="list the built-in scenes, illuminants, cameras, reflectance sets, "
-                                 "sensor presets and sampling methods camsim knows")
+    return subparsers.add_parser("list", help="list the built-in scenes and dataset specs, illuminants, cameras, "
+                                 "reflectance sets, sensor presets and sampling methods camsim knows")
 
 
 def run(args) -> int:
-    """Carry out ``camsim list``; returns the exit status (0)."""
-    from camsim.builtin_scenes import builtin_scene_names
+    """Carry out ``camsim list``; returns the exit status (0). Imports neither scipy nor colour-science."""
+    from camsim.builtin_scenes import builtin_scene_names, builtin_spec_names
     from camsim.methods import METHOD_NAMES
-    from camsim.spectra import camera_names, illuminant_names, reflectance_set_names
+    from camsim.colour_names import CAMERAS, ILLUMINANTS, REFLECTANCE_SETS  # colour-science's, without importing it
 
     print("built-in scenes:", ", ".join(builtin_scene_names()))
-    print("illuminants:", ", ".join(illuminant_names()))
-    print("cameras:", ", ".join(camera_names()))
-    print("reflectance sets:", ", ".join(reflectance_set_names()))
+    print("built-in dataset specs (camsim dataset NAME):", ", ".join(builtin_spec_names()))
+    print("illuminants:", ", ".join(ILLUMINANTS))
+    print("cameras:", ", ".join(CAMERAS))
+    print("reflectance sets:", ", ".join(REFLECTANCE_SETS))
     print("presets:", ", ".join(PRESETS))
     from camsim.camera_presets import CAMERA_PRESETS
 

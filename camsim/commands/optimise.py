@@ -46,7 +46,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="frame size of the rendered check (default 240x160)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the rendered check")
     parser.add_argument("--out", metavar="DIR", type=Path, help="output folder (default outputs/optimise)")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no table on the terminal")
+    parser.add_argument("--quiet", "-q", action="store_true",
+                        help="no table on the terminal, no colour-science warnings")
     return parser
 
 

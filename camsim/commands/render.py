@@ -25,8 +25,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help="render a scene file into DNG, EXR and JSON frames",
         description=(
             "Render SCENE.toml: one frame per illuminant and intensity factor. Each frame is written as NAME.dng "
-            "(8-bit raw digital numbers), NAME.exr (float32 DN before quantisation, plus the expected 'clean' "
-            "layer) and NAME.json (every parameter with its unit); OUT/manifest.json lists them all."
+            "(the raw digital numbers at the sensor's bit depth: 8-bit for paper-table1 and paper-photon-dark, 12 "
+            "for emva-12bit, 10 to 16 for the camera presets (camsim list), or --sensor bits=N; no DNG when "
+            "quantisation is off, e.g. --preset ideal), NAME.exr (float32 DN before "
+            "quantisation, plus the expected 'clean' layer) and NAME.json (every parameter with its unit); "
+            "OUT/manifest.json lists them all."
         ),
     )
     parser.add_argument("scene", metavar="SCENE.toml", help="scene file (see scenes/macbeth_26.toml) or the name of "
@@ -66,10 +69,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "electrons in the strongest channel (dark current scales with T; the camera's Qe "
                              "never changes)")
     parser.add_argument("--exposure-target", metavar="E", type=schema_value(_RENDER["exposure_target_e"]),
-                        help=f"auto exposure: {_RENDER['exposure_target_e'].doc} (e⁻; default "
+                        help=f"{_RENDER['exposure_target_e'].doc} (e⁻; default "
                              f"{_RENDER['exposure_target_e'].default:g})")
     parser.add_argument("--exposure-max", metavar="SECONDS", type=schema_value(_RENDER["exposure_max_s"]),
-                        help=f"auto exposure: {_RENDER['exposure_max_s'].doc}")
+                        help=f"{_RENDER['exposure_max_s'].doc} (s)")
     parser.add_argument("--camera", metavar="NAME_OR_CSV",
                         help="colour-science camera name (default 'Nikon 5100 (NPL)') or a CSV of wavelength_nm, R, G, B")
     parser.add_argument("--seed", type=schema_value(_RENDER["seed"]), help="random seed (integer ≥ 0); same seed ⇒ "
@@ -81,7 +84,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "the output does not depend on it)")
     parser.add_argument("--device", choices=DEVICES, default="cpu",
                         help="where frames are drawn: cpu (default; every method and statistics) or cuda (an NVIDIA "
-                             "GPU through CuPy, the optional extra 'gpu': pip install 'camsim-lowlight[gpu]'); on "
+                             "GPU through CuPy, the optional extra 'gpu': pip install '.[gpu]' in camsim's "
+                             "folder); on "
                              "cuda every pixel is drawn from its exact law (poisson; table, gaussian and auto map to "
                              "it), pixel statistics only, and the sidecar records the device. The same seed, device "
                              "and library give the same files; CPU and GPU agree in distribution, not in bits")
@@ -89,7 +93,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--preview", action="store_true",
                         help="also write an sRGB PNG of each frame (camera RGB → XYZ → sRGB, white-balanced from the "
                              "illuminant; the perfect white at F = 1 is sRGB white, so low light looks dark)")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no colour-science warnings")
     return parser
 
 
@@ -154,10 +158,11 @@ def run(args) -> int:
     each, ``camsim: warning: ...``.
     """
     from camsim.pipeline import check_frames
-    from camsim.run import render_scene
+    from camsim.run import check_scene, render_scene
     from camsim.scene import load_scene
 
     scene = apply_overrides(load_scene(args.scene), args)
+    check_scene(scene)  # names and sizes (a DNG's 22 x 22 minimum, an image's own size too): before any work
     device = getattr(args, "device", "cpu")
     if device != "cpu":  # one line and exit 2 before anything is written: no CuPy, no GPU, a method it cannot draw
         from camsim.backends import check_device, device_method
@@ -173,8 +178,46 @@ def run(args) -> int:
     manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet, preview=args.preview,
                             device=device, exr_compression=args.exr_compression,
                             warn=None if args.quiet else _warn_clear_of_the_bar)
-    rendered = len(scene.illuminants) * len(scene.intensity_factors)
-    earlier = len(manifest["frames"]) - rendered
-    print(f"wrote {rendered} frames (DNG, EXR, JSON) to {out}/ — index: {out / 'manifest.json'}"
-          + (f" (with {earlier} frames of earlier runs)" if earlier > 0 else ""))
+    print(written_summary(scene, manifest, out))
     return 0
+
+
+#: The kinds of file a frame can have, in the order the summary names them.
+FILE_KINDS = {"dng": "DNG", "exr": "EXR", "json": "JSON", "png": "PNG"}
+
+
+def _frames(n: int) -> str:
+    return f"{n} frame{'' if n == 1 else 's'}"
+
+
+def written_summary(scene, manifest: dict, out: Path) -> str:
+    """The line ``camsim render`` ends with: how many frames it wrote, which kinds of file (from the manifest:
+    no DNG when quantisation is off), where, and how many frames of earlier runs the folder's index also lists.
+
+    Parameters
+    ----------
+    scene : camsim.scene.Scene
+        The scene as rendered (its illuminants × intensity factors are this run's frames).
+    manifest : dict
+        :func:`camsim.run.render_scene`'s manifest of the folder (this run's frames and earlier ones).
+    out : pathlib.Path
+        The output folder.
+
+    Returns
+    -------
+    str
+        E.g. ``wrote 1 frame (EXR, JSON; no DNG: quantisation is off) to OUT/ — index: OUT/manifest.json``.
+    """
+    from camsim.frame_files import frame_stem
+
+    stems = {frame_stem(scene.name, ill, f) for ill in scene.illuminants for f in scene.intensity_factors}
+    kinds = set()
+    for frame in manifest["frames"]:
+        files = frame.get("files", {})
+        if files.get("json") and Path(files["json"]).stem in stems:
+            kinds.update(kind for kind, name in files.items() if name)
+    names = [label for kind, label in FILE_KINDS.items() if kind in kinds]
+    without_dng = "" if "dng" in kinds else "; no DNG: quantisation is off"
+    earlier = len(manifest["frames"]) - len(stems)
+    return (f"wrote {_frames(len(stems))} ({', '.join(names)}{without_dng}) to {out}/ — index: "
+            f"{out / 'manifest.json'}" + (f" (with {_frames(earlier)} of earlier runs)" if earlier > 0 else ""))

@@ -3,7 +3,7 @@
 A spec names one or more scene files and the parameters to vary over them::
 
     name = "denoise_small"
-    scene = "macbeth_26.toml"          # or a list; relative to the spec file
+    scene = "macbeth_26.toml"          # or a list; relative to the spec file, or a built-in scene's name
     seed = 0                           # the random draws and every frame's noise derive from it
     repeats = 1                        # noisy realisations of each parameter set (each its own seed)
     exr_compression = "none"           # optional: the EXR files' lossless compression (camsim.io.exr_compression)
@@ -78,6 +78,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 
+from camsim.builtin_scenes import resolve_scene_file, resolve_spec_file
 from camsim.camera import load_camera
 from camsim.errors import CamsimError
 from camsim.pipeline import exposure_record
@@ -578,7 +579,8 @@ def _image_draws(images: _ImageFolder, n: int, seed: int) -> list:
 
 
 def load_spec(path: str | Path) -> DatasetSpec:
-    """Read a dataset spec, build its frame list and validate every frame before anything is rendered.
+    """Read a dataset spec (a file, or a built-in spec's name: ``denoise_small``), build its frame list and validate
+    every frame before anything is rendered.
 
     Raises
     ------
@@ -590,8 +592,9 @@ def load_spec(path: str | Path) -> DatasetSpec:
 
 
 def plan_spec(path: str | Path) -> SpecPlan:
-    """Read and check a dataset spec, its scenes and its random draws; the frames are made by
-    :meth:`SpecPlan.frames`, one by one (each validated as it is made).
+    """Read and check a dataset spec (a file, or a built-in spec's name), its scenes (files relative to the spec,
+    or built-in scenes' names) and its random draws; the frames are made by :meth:`SpecPlan.frames`, one by one
+    (each validated as it is made).
 
     Raises
     ------
@@ -599,7 +602,7 @@ def plan_spec(path: str | Path) -> SpecPlan:
         A missing or malformed file, an unknown key, a value of the wrong type, a name that does not resolve
         (scene) or more than :data:`MAX_FRAMES` frames.
     """
-    path = Path(path)
+    path = resolve_spec_file(path)
     where = str(path)
     doc = read_toml(path, "dataset spec")
     unknown = set(doc) - _TOP_KEYS
@@ -687,7 +690,10 @@ def plan_spec(path: str | Path) -> SpecPlan:
 
     scenes = []
     for scene_file in scene_files:
-        scene_path = (base / scene_file).resolve()
+        try:  # a file beside the spec, else a built-in scene's name ("macbeth_26")
+            scene_path = resolve_scene_file(scene_file, base).resolve()
+        except CamsimError as exc:
+            raise CamsimError(f"{where}: scene: {exc}") from None
         scene = load_scene(scene_path)
         if images is not None:  # the first image's first crop stands for every crop in the checks
             first = images.folder / images.files[0][0]
@@ -896,6 +902,9 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> Fram
     if overrides:
         frame_scene = frame_scene.with_sensor(**overrides)
     sensor = frame_scene.sensor
+    if job.images is not None and sensor.quantisation and min(scene.width, scene.height) < MIN_SIZE:
+        raise CamsimError(f"[images] crop {scene.width}x{scene.height} is smaller than {MIN_SIZE}x{MIN_SIZE} "
+                          "pixels, which raw readers (LibRaw) refuse")
     key = ("scene", str(entry.path), frame_scene.illuminants, frame_scene.method, sensor.quantisation)
     if key not in checked:
         check_scene(frame_scene)
@@ -908,9 +917,6 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> Fram
     if sensor.cfa is not None and not own_size and (scene.width % 2 or scene.height % 2):
         raise CamsimError(f"a {sensor.cfa} colour filter array needs an even frame size, got "
                           f"{scene.width}x{scene.height}")
-    if job.images is not None and sensor.quantisation and min(scene.width, scene.height) < MIN_SIZE:
-        raise CamsimError(f"[images] crop {scene.width}x{scene.height} is smaller than {MIN_SIZE}x{MIN_SIZE} "
-                          "pixels, which raw readers (LibRaw) refuse")
     if sensor.prnu_percent > 0 and frame_scene.method == "spectral":
         raise CamsimError("PRNU needs a per-pixel mean: use method poisson, gaussian or auto, not spectral")
 

@@ -4,9 +4,8 @@
 ``[chart]`` (:class:`ChartSource`, a reflectance chart: a label map plus K spectra), ``[cube]``
 (:class:`CubeSource`, a hyperspectral cube: ``.npy``, ENVI or ``.mat``), ``[image]`` (:class:`ImageSource`, an
 RGB picture whose distinct colours are recovered as spectra, kept factored on a three-spectrum basis) and
-``[target]`` (:class:`TargetSource`, a synthetic dead-leaves chart or slanted edge: a label map plus K spectra). A new
-kind of scene is one module with one class,
-added to :data:`SOURCES`.
+``[target]`` (:class:`TargetSource`, a synthetic dead-leaves chart, slanted edge or flat field: a label map plus K
+spectra). A new kind of scene is one module with one class, added to :data:`SOURCES`.
 """
 
 from camsim.sources.base import SceneSource, SourceSpectra

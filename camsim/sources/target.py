@@ -12,6 +12,10 @@ Both are a label map plus K spectra, like a chart, never a per-pixel spectrum:
   along its normal), ``angle_deg`` from vertical, between a dark reflectance ``low`` and a bright one ``high``.
   Each pixel (a unit square) holds the exact area fraction a of itself on the bright side (:func:`edge_coverage`),
   rounded to one of ``levels`` values k / (levels − 1), so that K = ``levels`` spectra (1 − a)·low + a·high.
+* ``kind = "flat"``: a uniform field of one ``reflectance`` (a flat grey in [0, 1], or a patch name of
+  ``reflectances``) over the whole frame, one patch ``flat`` (K = 1): the flat field of a photon-transfer
+  calibration; with ``reflectance = 0`` no photon reaches the sensor, a dark frame (the built-in ``flat`` and
+  ``dark`` scenes).
 
 Coordinates are pixels: x to the right, y down, the origin at the top-left corner of the top-left pixel, so that
 pixel (row i, column j) is the square [j, j + 1] × [i, i + 1] and its centre is (j + ½, i + ½).
@@ -30,10 +34,12 @@ from camsim.seeding import target_generator
 from camsim.sources.base import SceneSource, SourceSpectra, typed
 from camsim.spectra import reflectance_set
 
-TARGET_KINDS = ("dead-leaves", "slanted-edge")
+TARGET_KINDS = ("dead-leaves", "slanted-edge", "flat")
 _COMMON_KEYS = frozenset({"kind", "reflectances"})
 _DEAD_LEAVES_KEYS = frozenset({"seed", "radius_min_px", "radius_max_px", "greys"})
 _EDGE_KEYS = frozenset({"angle_deg", "offset_px", "low", "high", "levels"})
+_FLAT_KEYS = frozenset({"reflectance"})
+_KIND_KEYS = {"dead-leaves": _DEAD_LEAVES_KEYS, "slanted-edge": _EDGE_KEYS, "flat": _FLAT_KEYS}
 
 #: The most disks a dead-leaves chart may need (its bound, see :func:`dead_leaves`); beyond it is an error.
 MAX_DISKS = 200_000_000
@@ -289,24 +295,26 @@ def _flat_rects(level: np.ndarray, levels: int) -> list:
 # ------------------------------------------------------------------------------------------------------ sources
 @dataclass(frozen=True)
 class TargetSource(SceneSource):
-    """A synthetic target (scene-file table ``[target]``); :meth:`from_table` gives a :class:`DeadLeavesTarget` or a
-    :class:`SlantedEdgeTarget` by the table's ``kind``."""
+    """A synthetic target (scene-file table ``[target]``); :meth:`from_table` gives a :class:`DeadLeavesTarget`, a
+    :class:`SlantedEdgeTarget` or a :class:`FlatTarget` by the table's ``kind``."""
 
     table = "target"
-    keys = _COMMON_KEYS | _DEAD_LEAVES_KEYS | _EDGE_KEYS
+    keys = _COMMON_KEYS | _DEAD_LEAVES_KEYS | _EDGE_KEYS | _FLAT_KEYS
 
     @classmethod
     def from_table(cls, table: dict, base_dir, where: str) -> TargetSource:
         kind = typed(table, "kind", str, None, where)
         if kind not in TARGET_KINDS:
             raise CamsimError(f"{where}: [target] kind must be one of {', '.join(TARGET_KINDS)}, got {kind!r}")
-        own, other = ((_DEAD_LEAVES_KEYS, _EDGE_KEYS) if kind == "dead-leaves" else (_EDGE_KEYS, _DEAD_LEAVES_KEYS))
-        stray = sorted(set(table) & other)
+        own = _KIND_KEYS[kind]
+        stray = sorted(set(table) - own - _COMMON_KEYS)
         if stray:
             raise CamsimError(f"{where}: [target] key(s) {', '.join(stray)} do not apply to kind = {kind!r} "
                               f"(its keys: {', '.join(sorted(own | {'reflectances'}))})")
         if kind == "dead-leaves":
             return DeadLeavesTarget._from_table(table, base_dir, where)
+        if kind == "flat":
+            return FlatTarget._from_table(table, base_dir, where)
         return SlantedEdgeTarget._from_table(table, base_dir, where)
 
 
@@ -467,3 +475,56 @@ class SlantedEdgeTarget(TargetSource):
         named = any(isinstance(v, str) for v in (self.low, self.high))
         name = self.reflectances if named else f"flat greys {self.low:g} / {self.high:g}"
         return SourceSpectra(labels, refl, "reflectance", names, rects, name, surround=False, target=record)
+
+
+@dataclass(frozen=True)
+class FlatTarget(TargetSource):
+    """A uniform field (``[target]`` with ``kind = "flat"``): one reflectance over the whole frame.
+
+    The flat field of a photon-transfer calibration (``camsim calibrate``'s flats; the built-in scene ``flat``) and,
+    with ``reflectance = 0``, a dark frame (the built-in scene ``dark``): the spectrum is zero at every wavelength,
+    so the expected photo-electrons are exactly 0 and the Poisson draws are 0 — the frame holds only the sensor's
+    own signal (dark current, its DSNU, read and row noise, the pedestal and the ADC), as with the lens capped.
+
+    Attributes
+    ----------
+    reflectance : float or str
+        A flat reflectance in [0, 1] (unitless, 1 = the perfect white) or a patch name of ``reflectances``.
+    reflectances : str
+        Where a named ``reflectance`` comes from (a colour-science ``SDS_COLOURCHECKERS`` name or a CSV).
+    base_dir : pathlib.Path or None
+        Where a reflectance CSV is looked for.
+    """
+
+    reflectance: float | str = 1.0
+    reflectances: str = "ColorChecker N Ohta"
+    base_dir: object = None
+
+    @classmethod
+    def _from_table(cls, table, base_dir, where) -> FlatTarget:
+        value = table.get("reflectance", 1.0)
+        if isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if isinstance(value, float):
+            if not 0 <= value <= 1:
+                raise CamsimError(f"{where}: [target] reflectance must be in [0, 1], got {value:g}")
+        elif not isinstance(value, str):
+            raise CamsimError(f"{where}: [target] reflectance must be a reflectance in [0, 1] or a patch name, "
+                              f"got {value!r}")
+        return cls(reflectance=value, reflectances=typed(table, "reflectances", str, "ColorChecker N Ohta", where),
+                   base_dir=base_dir)
+
+    def spectra(self, grid, width: int, height: int) -> SourceSpectra:
+        """One spectrum (K = 1) at every pixel, and one patch, ``flat``, the whole frame."""
+        if isinstance(self.reflectance, float):
+            refl, name = np.full((1, grid.size), self.reflectance), f"flat grey {self.reflectance:g}"
+        else:
+            names, spectra = reflectance_set(self.reflectances, grid, self.base_dir)
+            if self.reflectance not in names:
+                raise CamsimError(f"flat target: no patch {self.reflectance!r} in {self.reflectances!r} (its "
+                                  f"patches: {', '.join(names)})")
+            refl, name = spectra[[names.index(self.reflectance)]], self.reflectances
+        record = {"kind": "flat", "reflectance": self.reflectance}
+        labels = np.zeros((height, width), dtype=np.uint8)
+        return SourceSpectra(labels, refl, "reflectance", ["flat"], [(0, 0, width, height)], name, surround=False,
+                             target=record)
