@@ -7,7 +7,8 @@ read deflate-compressed DNGs.
 
 camsim writes the true black level (:attr:`camsim.sensor.SensorParams.black_level_dn`, the exact mean digital
 number of an unlit pixel, clipped below the WhiteLevel) as BlackLevel: RATIONAL, one value per sample (LinearRaw)
-or per CFA position (Bayer), exact to 1e-6 DN. Other readers, from their sources (README, "Raw readers and camsim's
+or per CFA position (Bayer), within 1 / (2 D) with the largest denominator D the value allows
+(:func:`rational_bound`: below 7.63e-6 DN for any level up to 65535 DN, 1e-9 DN for 8-bit levels). Other readers, from their sources (README, "Raw readers and camsim's
 DNGs"): rawspeed (darktable) ignores BlackLevel in any image of more than one sample per pixel
 (``DngDecoder::decodeBlackLevels``: ``getCpp() != 1``) and keeps integer levels for CFA files; dcraw 9.x (and
 RawTherapee's ``rtengine/dcraw.cc``) reads BlackLevelRepeatRows × Cols values, so only the first of a three-chip
@@ -71,7 +72,6 @@ from camsim.io.atomic import atomic_path
 __all__ = ["write_dng", "write_dng_cfa", "read_dng", "MIN_SIZE", "CFA_PATTERNS"]
 
 MIN_SIZE = 22  # LibRaw refuses raw images narrower or shorter than this (measured with LibRaw 0.22)
-_MAX_DEN = 1_000_000  # largest rational denominator: floats are stored with absolute error below 1e-6
 
 # DNG tag codes
 _DNG_VERSION, _DNG_BACKWARD_VERSION, _UNIQUE_CAMERA_MODEL = 50706, 50707, 50708
@@ -84,16 +84,47 @@ _NOISE_PROFILE = 51041  # DNG 1.3: DOUBLE, (S, O) per colour plane
 _CFA_CODE = {"R": 0, "G": 1, "B": 2}  # DNG CFAPattern colour codes, in the CFAPlaneColor order (0, 1, 2)
 
 
+#: Largest numerator (and denominator) of a TIFF RATIONAL (unsigned) and SRATIONAL (signed), by signedness.
+_RATIONAL_TOP = {False: 2**32 - 1, True: 2**31 - 1}
+
+
+def rational_bound(value: float, *, signed: bool = False) -> float:
+    """The largest error of :func:`_rationals` for ``value``: 1 / (2 D), D = floor(top / (|value| + 1)).
+
+    Parameters
+    ----------
+    value : float
+        The value to be stored (e.g. a black level) [any unit; the bound is in the same unit].
+    signed : bool
+        SRATIONAL (top 2^31 − 1) rather than RATIONAL (top 2^32 − 1).
+
+    Returns
+    -------
+    float
+        The bound on |stored − value|: below 7.63e-6 for any |value| <= 65535 in a RATIONAL (a 16-bit black
+        level), 1.2e-10 × (|value| + 1) in general.
+    """
+    top = _RATIONAL_TOP[signed]
+    return 1.0 / (2 * min(top, int(top // (abs(float(value)) + 1))))
+
+
 def _rationals(values: Any, name: str, *, signed: bool) -> tuple[int, ...]:
-    """Flatten floats into TIFF (S)RATIONAL pairs ``(num0, den0, num1, den1, ...)``, exactly reproducibly."""
+    """Flatten floats into TIFF (S)RATIONAL pairs ``(num0, den0, num1, den1, ...)``, exactly reproducibly.
+
+    Each value gets the denominator its size allows: the closest fraction whose denominator is at most
+    D = floor(top / (|v| + 1)) (top = 2^32 − 1, or 2^31 − 1 signed), so that its numerator, at most (|v| + 1) D,
+    fits 32 bits; the error is at most 1 / (2 D) (:func:`rational_bound`): 7.63e-6 for a value of 65535, 1e-9
+    for one of 5. A value that is a fraction with such a denominator (16.5, 804, 3/7) is stored exactly.
+    """
     out: list[int] = []
+    top = _RATIONAL_TOP[signed]
     for v in np.asarray(values, dtype=np.float64).ravel():
         if not math.isfinite(v) or (not signed and v < 0):
             raise CamsimError(f"{name} must be finite{'' if signed else ' and non-negative'}, got {v!r}")
-        f = Fraction(float(v)).limit_denominator(_MAX_DEN)
-        lo, hi = (-(2**31), 2**31 - 1) if signed else (0, 2**32 - 1)
-        if not lo <= f.numerator <= hi:
-            raise CamsimError(f"{name} value {v!r} does not fit a TIFF {'S' if signed else ''}RATIONAL")
+        if abs(v) > top - 1:
+            raise CamsimError(f"{name} value {v!r} does not fit a TIFF {'S' if signed else ''}RATIONAL "
+                              f"(|value| <= {top - 1})")
+        f = Fraction(float(v)).limit_denominator(min(top, int(top // (abs(float(v)) + 1))))
         out += [f.numerator, f.denominator]
     return tuple(out)
 
