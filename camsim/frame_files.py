@@ -232,13 +232,14 @@ def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo
             frame.digital_dn if sensor.cfa is None else frame.digital_dn[0],
             black_level_dn=sensor.black_level_tag_dn,  # below the white level, as readers need
             white_level=sensor.max_dn,
-            unique_camera_model=f"camsim {info.camera}",
             color_matrix1=info.color_matrix1,
             as_shot_neutral=info.as_shot_neutral,
             calibration_illuminant1=CALIBRATION_ILLUMINANT_D65,
-            model=info.camera,
             software=f"camsim {camsim.__version__}",
             noise_profile=meta["noise_profile"],  # the sidecar's pairs, exactly
+            iso=(info.preset or {}).get("iso"),  # a camera preset's ISO (None: no ISO, no tag)
+            exposure_s=float(sensor.exposure_s),
+            **camera_identity(info),
         )
     header = {
         "camsim:scene": info.scene,
@@ -259,6 +260,27 @@ def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo
         from camsim.preview import preview_srgb, write_preview_png
 
         write_preview_png(out_dir / files["png"], preview_srgb(frame, info))
+
+
+def camera_identity(info: FrameInfo) -> dict:
+    """The DNG's ``make``, ``model`` and ``unique_camera_model`` (ASCII) for a frame.
+
+    With a camera preset, the camera's: Make is the first word of the preset's title, Model the model code in
+    its parentheses where it has one without spaces (``"Sony A7S2 (ILCE-7SM2)"`` → Sony, ILCE-7SM2), else the
+    title up to a parenthesis or comma (``"Nikon D850"``), UniqueCameraModel Make and Model (``"Sony ILCE-7SM2"``;
+    once where Model starts with Make). Otherwise camsim's own: Make ``camsim``, Model the spectral curves'
+    name, UniqueCameraModel ``"camsim " + curves``. A calibration of the files names its preset after the
+    UniqueCameraModel (``camsim calibrate``).
+    """
+    title = (info.preset or {}).get("preset_title")
+    if not title:
+        return {"make": "camsim", "model": info.camera, "unique_camera_model": f"camsim {info.camera}"}
+    title = " ".join(title.encode("ascii", "replace").decode("ascii").split())
+    make = title.split(" ")[0]
+    code = re.search(r"\(([^()\s,]+)\)", title)
+    model = code.group(1) if code else re.split(r"[(,]", title)[0].strip()
+    unique = model if model.lower().startswith(make.lower()) else f"{make} {model}"
+    return {"make": make, "model": model, "unique_camera_model": unique}
 
 
 # --- reading ----------------------------------------------------------------------------------------------

@@ -69,7 +69,7 @@ from camsim.cfa import CFA_PATTERNS
 from camsim.errors import CamsimError
 from camsim.io.atomic import atomic_path
 
-__all__ = ["write_dng", "write_dng_cfa", "read_dng", "MIN_SIZE", "CFA_PATTERNS"]
+__all__ = ["write_dng", "write_dng_cfa", "read_dng", "shot_metadata", "rational_bound", "MIN_SIZE", "CFA_PATTERNS"]
 
 MIN_SIZE = 22  # LibRaw refuses raw images narrower or shorter than this (measured with LibRaw 0.22)
 
@@ -80,6 +80,9 @@ _COLOR_MATRIX1, _AS_SHOT_NEUTRAL, _CALIBRATION_ILLUMINANT1 = 50721, 50728, 50778
 _MAKE, _MODEL, _ORIENTATION = 271, 272, 274
 _CFA_REPEAT_PATTERN_DIM, _CFA_PATTERN, _CFA_PLANE_COLOR, _CFA_LAYOUT = 33421, 33422, 50710, 50711
 _NOISE_PROFILE = 51041  # DNG 1.3: DOUBLE, (S, O) per colour plane
+# TIFF/EP tags in IFD0 (as the DNG specification allows): ExposureTime RATIONAL [s], ISOSpeedRatings (EXIF 2.3:
+# PhotographicSensitivity) SHORT, and for an ISO above 65535 SensitivityType 3 (ISO speed) with ISOSpeed LONG
+_EXPOSURE_TIME, _ISO_SPEED_RATINGS, _SENSITIVITY_TYPE, _ISO_SPEED = 33434, 34855, 34864, 34867
 
 _CFA_CODE = {"R": 0, "G": 1, "B": 2}  # DNG CFAPattern colour codes, in the CFAPlaneColor order (0, 1, 2)
 
@@ -182,15 +185,34 @@ def _check_mosaic(mosaic: Any, pattern: Any) -> None:
         raise CamsimError(f"mosaic {h}x{w} must have an even height and width (whole 2x2 {pattern} cells)")
 
 
+def _shot_tags(iso: Any, exposure_s: Any) -> list[tuple]:
+    """ExposureTime and the ISO tags (see the codes above) for an exposure [s] and ISO, each None to omit."""
+    tags: list[tuple] = []
+    if exposure_s is not None:
+        if not (isinstance(exposure_s, (int, float, np.number)) and math.isfinite(exposure_s) and exposure_s > 0):
+            raise CamsimError(f"exposure_s must be a positive number of seconds, got {exposure_s!r}")
+        tags.append((_EXPOSURE_TIME, "2I", 1, _rationals([exposure_s], "exposure_s", signed=False), True))
+    if iso is not None:
+        if not (isinstance(iso, (int, float, np.number)) and math.isfinite(iso) and 0.5 <= iso < 2**32 - 0.5):
+            raise CamsimError(f"iso must be a positive number below 2^32, got {iso!r}")
+        speed = int(round(float(iso)))
+        tags.append((_ISO_SPEED_RATINGS, "H", 1, min(speed, 65535), True))
+        if speed > 65535:
+            tags += [(_SENSITIVITY_TYPE, "H", 1, 3, True), (_ISO_SPEED, "I", 1, speed, True)]
+    return tags
+
+
 def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_camera_model: str, color_matrix1: Any,
               as_shot_neutral: Any, calibration_illuminant1: int, make: str, model: str | None,
-              pattern: str | None = None, noise_profile: Any = None) -> list[tuple]:
+              pattern: str | None = None, noise_profile: Any = None, iso: Any = None,
+              exposure_s: Any = None) -> list[tuple]:
     """Validate the metadata shared by both writers and return tifffile ``extratags`` for the DNG tags.
 
     ``pattern`` None gives the tags of a 3-sample LinearRaw DNG (one BlackLevel and WhiteLevel per sample); a
     CFA pattern (one of :data:`CFA_PATTERNS`, already validated) gives those of a 1-sample CFA DNG: the CFA tags,
     one WhiteLevel, and the per-colour black levels mapped onto the 2x2 CFA positions. ``noise_profile`` (pairs
-    (S, O), see :func:`_noise_profile`) adds the NoiseProfile tag; None omits it.
+    (S, O), see :func:`_noise_profile`) adds the NoiseProfile tag; None omits it; so do ``iso`` and
+    ``exposure_s`` the ISO and ExposureTime tags (:func:`_shot_tags`).
     """
     black = _per_sample(black_level_dn, "black_level_dn")
     white = _per_sample(white_level, "white_level")
@@ -243,12 +265,14 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
         (_AS_SHOT_NEUTRAL, "2I", 3, _rationals(neutral, "as_shot_neutral", signed=False), True),
         (_CALIBRATION_ILLUMINANT1, "H", 1, int(calibration_illuminant1), True),
         *profile_tags,
+        *_shot_tags(iso, exposure_s),
     ]
 
 
 def _write(path: str | os.PathLike[str], frame: Any, cfa: bool, pattern: Any, black_level_dn: Any, white_level: Any,
            unique_camera_model: str, color_matrix1: Any, as_shot_neutral: Any, calibration_illuminant1: int,
-           make: str, model: str | None, software: str | None, noise_profile: Any = None) -> None:
+           make: str, model: str | None, software: str | None, noise_profile: Any = None, iso: Any = None,
+           exposure_s: Any = None) -> None:
     """Validate everything, then write a three-chip (``cfa`` False, ``pattern`` None) or CFA DNG atomically."""
     name = os.fspath(path)
     try:
@@ -257,7 +281,8 @@ def _write(path: str | os.PathLike[str], frame: Any, cfa: bool, pattern: Any, bl
         else:
             _check_three_chip(frame)
         extratags = _dng_tags(frame.dtype, black_level_dn, white_level, unique_camera_model, color_matrix1,
-                              as_shot_neutral, calibration_illuminant1, make, model, pattern, noise_profile)
+                              as_shot_neutral, calibration_illuminant1, make, model, pattern, noise_profile, iso,
+                              exposure_s)
         software_tag = _ascii(software, "software") if software is not None else False
     except (TypeError, ValueError) as exc:  # CamsimError is a ValueError; so are numpy's failed conversions
         raise CamsimError(f"cannot write DNG {name}: {exc}") from None
@@ -278,7 +303,7 @@ def _write(path: str | os.PathLike[str], frame: Any, cfa: bool, pattern: Any, bl
 def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: float | Any, white_level: int | Any,
               unique_camera_model: str, color_matrix1: Any, as_shot_neutral: Any, calibration_illuminant1: int = 21,
               make: str = "camsim", model: str | None = None, software: str | None = None,
-              noise_profile: Any = None) -> None:
+              noise_profile: Any = None, iso: float | None = None, exposure_s: float | None = None) -> None:
     """Write an uncompressed 8- or 16-bit three-chip LinearRaw DNG, atomically and byte-deterministically.
 
     Parameters
@@ -307,6 +332,11 @@ def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: f
         DNG NoiseProfile: per sample (R, G, B), or one for all, the pair (S, O) such that the temporal noise
         variance of a normalised value x = (DN − BlackLevel) / (WhiteLevel − BlackLevel) is S · x + O (unitless;
         :func:`camsim.noise_profile.dng_noise_profile`). S > 0, O >= 0, stored as DOUBLE. None (default): no tag.
+    iso : float, optional
+        The camera's ISO setting: ISOSpeedRatings (EXIF PhotographicSensitivity, tag 34855, SHORT, rounded; above
+        65535 it holds 65535 and SensitivityType 3 with ISOSpeed, tag 34867, the value). None (default): no tag.
+    exposure_s : float, optional
+        Exposure time [s], > 0: ExposureTime (tag 33434, RATIONAL). None (default): no tag.
 
     Raises
     ------
@@ -319,13 +349,14 @@ def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: f
     The file has no date/time or other varying content: the same inputs give byte-identical files.
     """
     _write(path, dn, False, None, black_level_dn, white_level, unique_camera_model, color_matrix1, as_shot_neutral,
-           calibration_illuminant1, make, model, software, noise_profile)
+           calibration_illuminant1, make, model, software, noise_profile, iso, exposure_s)
 
 
 def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: str, black_level_dn: float | Any,
                   white_level: int, unique_camera_model: str, color_matrix1: Any, as_shot_neutral: Any,
                   calibration_illuminant1: int = 21, make: str = "camsim", model: str | None = None,
-                  software: str | None = None, noise_profile: Any = None) -> None:
+                  software: str | None = None, noise_profile: Any = None, iso: float | None = None,
+                  exposure_s: float | None = None) -> None:
     """Write an uncompressed Bayer (CFA) DNG, atomically and byte-deterministically.
 
     Parameters
@@ -344,7 +375,7 @@ def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: 
     white_level : int
         Saturation level [DN] of all pixels, ``<= 255`` (``<= 65535`` for uint16) and above the black levels; 3
         equal values are accepted too.
-    unique_camera_model, color_matrix1, as_shot_neutral, calibration_illuminant1, make, model, software
+    unique_camera_model, color_matrix1, as_shot_neutral, calibration_illuminant1, make, model, software, iso, exposure_s
         As for :func:`write_dng`; ``color_matrix1`` maps XYZ to the camera's R, G, B (CFAPlaneColor order).
     noise_profile : array_like, shape (3, 2) or (1, 2), optional
         As for :func:`write_dng`, per colour plane in CFAPlaneColor order (R, G, B); None (default): no tag.
@@ -360,7 +391,7 @@ def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: 
     The file has no date/time or other varying content: the same inputs give byte-identical files.
     """
     _write(path, mosaic, True, pattern, black_level_dn, white_level, unique_camera_model, color_matrix1,
-           as_shot_neutral, calibration_illuminant1, make, model, software, noise_profile)
+           as_shot_neutral, calibration_illuminant1, make, model, software, noise_profile, iso, exposure_s)
 
 
 def _tag(page: Any, code: int) -> Any:
@@ -410,6 +441,31 @@ def _cfa_black_per_colour(page: Any, pattern: str, name: str) -> list[float] | N
     raise CamsimError(f"cannot read DNG {name}: unsupported BlackLevel layout (repeat {dim}, {len(values)} values)")
 
 
+def shot_metadata(page: Any) -> dict[str, Any]:
+    """``iso`` (float or None: ISOSpeed where SensitivityType is 3 and ISOSpeedRatings says 65535, else
+    ISOSpeedRatings) and ``exposure_s`` (float [s] or None: ExposureTime) of a TIFF page (a tifffile page, IFD0 or
+    its EXIF IFD), as :func:`write_dng` writes them and cameras do."""
+    tags = dict(page.tags.items())
+    exif = _tag(page, 34665)  # the EXIF IFD, which tifffile reads into a dict by tag name
+    named = exif if isinstance(exif, dict) else {}
+
+    def first(code: int, name: str) -> Any:
+        tag = tags.get(code)
+        return tag.value if tag is not None else named.get(name)
+
+    ratings = first(_ISO_SPEED_RATINGS, "ISOSpeedRatings")
+    if isinstance(ratings, (tuple, list)):
+        ratings = ratings[0] if ratings else None
+    speed = first(_ISO_SPEED, "ISOSpeed")
+    iso = float(speed) if (ratings in (None, 65535) and speed and first(_SENSITIVITY_TYPE, "SensitivityType") in
+                           (2, 3, 6, 7)) else (float(ratings) if ratings else None)
+    exposure = first(_EXPOSURE_TIME, "ExposureTime")
+    if isinstance(exposure, (tuple, list)) and len(exposure) == 2 and exposure[1]:
+        exposure = exposure[0] / exposure[1]
+    exposure_s = float(exposure) if isinstance(exposure, (int, float)) and exposure > 0 else None
+    return {"iso": iso, "exposure_s": exposure_s}
+
+
 def _check_complete(page: Any, size: int, name: str) -> None:
     """Refuse a file that ends before its pixel data does (a truncated copy), before LibRaw reads it: LibRaw
     would print its own complaint on stderr besides failing."""
@@ -438,8 +494,9 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
         files), ``black_level_exact`` (list of 3 float, the BlackLevel tag; for a CFA file per colour R, G, B),
         ``white_level`` (int [DN], LibRaw), ``unique_camera_model``, ``make``, ``model`` (str or None),
         ``as_shot_neutral`` (list of 3 float), ``color_matrix1`` (3x3 nested list, XYZ -> camera) and
-        ``calibration_illuminant1`` (int or None) and ``noise_profile`` (list of [S, O] pairs, per sample or CFA
-        plane colour, or None), from the DNG tags.
+        ``calibration_illuminant1`` (int or None), ``noise_profile`` (list of [S, O] pairs, per sample or CFA
+        plane colour, or None), ``iso`` (float or None) and ``exposure_s`` (float [s] or None), from the DNG tags
+        (:func:`shot_metadata`).
 
     Raises
     ------
@@ -481,6 +538,7 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
                 "color_matrix1": None if cm is None else np.reshape(cm, (3, 3)).tolist(),
                 "calibration_illuminant1": _tag(page, _CALIBRATION_ILLUMINANT1),
                 "noise_profile": _pairs(_tag(page, _NOISE_PROFILE)),
+                **shot_metadata(page),
             }
         with rawpy.imread(name) as raw:
             image = raw.raw_image
