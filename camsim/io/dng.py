@@ -6,13 +6,21 @@ developers and Adobe tools read the exact numbers. Deflate compression is delibe
 read deflate-compressed DNGs.
 
 camsim writes the true black level (:attr:`camsim.sensor.SensorParams.black_level_dn`, the exact mean digital
-number of an unlit pixel, clipped below the WhiteLevel) as BlackLevel: RATIONAL, one value per sample (LinearRaw)
-or per CFA position (Bayer), within 1 / (2 D) with the largest denominator D the value allows
-(:func:`rational_bound`: below 7.63e-6 DN for any level up to 65535 DN, 1e-9 DN for 8-bit levels). Other readers, from their sources (README, "Raw readers and camsim's
-DNGs"): rawspeed (darktable) ignores BlackLevel in any image of more than one sample per pixel
-(``DngDecoder::decodeBlackLevels``: ``getCpp() != 1``) and keeps integer levels for CFA files; dcraw 9.x (and
-RawTherapee's ``rtengine/dcraw.cc``) reads BlackLevelRepeatRows × Cols values, so only the first of a three-chip
-file's three. No tag type or layout changes either without bending the value, so none is used.
+number of an unlit pixel, clipped below the WhiteLevel) as BlackLevel: RATIONAL, one value per sample (LinearRaw,
+without BlackLevelRepeatDim: its default 1 x 1) or per CFA position (Bayer, BlackLevelRepeatDim 2 x 2), within
+1 / (2 D) of the value with the largest denominator D it allows (:func:`rational_bound`: below 7.63e-6 DN for any
+level up to 65535 DN, 1e-9 DN for 8-bit levels). What the raw readers make of the files, measured
+(``tools/raw_readers.py``, ``tests/test_raw_readers.py``; README, "Raw readers and camsim's DNGs"): LibRaw takes a
+LinearRaw file's three levels, rounded; RawTherapee 5.9 takes the three too (its pictures match LibRaw's), but only
+without BlackLevelRepeatDim: with the tag it sets red's level from the per-position value, which a file of three
+per-sample values does not have, to 0; dcraw 9.28 reads
+BlackLevelRepeatRows × Cols values, so the first (red's) for all three samples; darktable 4.2 (rawspeed) reads no
+BlackLevel of an image of more than one sample per pixel. All four truncate a CFA file's per-position levels.
+
+The camera's identity (Make, Model, UniqueCameraModel), its ISO (ISOSpeedRatings, EXIF 2.3 PhotographicSensitivity)
+and the exposure time (ExposureTime) are TIFF/EP tags of IFD0, where the DNG specification allows them; ExifTool
+reads them there, LibRaw the ExposureTime only (``rawpy``'s ``other.shutter_speed``; it looks for an ISO in an EXIF
+IFD only), and :func:`shot_metadata` both.
 
 What LibRaw 0.22 (rawpy 0.28) makes of these files, measured and pinned by ``tests/test_io_dng.py``:
 
@@ -233,7 +241,10 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
     profile_tags = [] if profile is None else [(_NOISE_PROFILE, "d", len(profile), profile, True)]
     if pattern is None:
         layout_tags: list[tuple] = []
-        black_dim, black_values = (1, 1), black
+        # no BlackLevelRepeatDim: its default, 1 x 1, is the layout (one value per sample). RawTherapee 5.9 reads
+        # the three values only without the tag: with it, it takes red's black from the (absent) per-position
+        # value, 0 (README, "Raw readers and camsim's DNGs")
+        black_dim, black_values = None, black
         white_values = tuple(int(w) for w in white)
     else:
         if np.any(white != white[0]):
@@ -258,7 +269,7 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
         (_DNG_VERSION, "B", 4, (1, 4, 0, 0), True),
         (_DNG_BACKWARD_VERSION, "B", 4, (1, 1, 0, 0), True),
         (_UNIQUE_CAMERA_MODEL, "s", 0, ucm, True),
-        (_BLACK_LEVEL_REPEAT_DIM, "H", 2, black_dim, True),
+        *([] if black_dim is None else [(_BLACK_LEVEL_REPEAT_DIM, "H", 2, black_dim, True)]),
         (_BLACK_LEVEL, "2I", len(black_values), _rationals(black_values, "black_level_dn", signed=False), True),
         (_WHITE_LEVEL, "I", len(white_values), white_values, True),
         (_COLOR_MATRIX1, "2i", 9, _rationals(cm, "color_matrix1", signed=True), True),

@@ -1,0 +1,72 @@
+"""The default frame (three-chip LinearRaw, 8 bits) and its Bayer twin develop right in every raw reader installed.
+
+Each reader (rawpy/LibRaw, dcraw, darktable-cli, rawtherapee-cli; a missing one is skipped) develops a rendered
+ColorChecker frame and a dark frame with its own defaults (``tools/raw_readers.py``, which prints the same as a
+table). Developed right means, on the 0–255 scale of the reader's sRGB picture:
+
+* black honoured: the dark frame's mean is below 20 in every channel (a reader that subtracts no black shows the
+  8-bit Table I sensor's 5–6 DN as 50–75);
+* no cast: on the black patch R/G and B/G within 1 ± 0.25, on the neutral 3.5 and 5 patches within 1 ± 0.08 (the
+  Bayer files' own spread: every reader truncates a CFA black level, so B's 5.68 DN is taken as 5, which tints the
+  black patch by B/G 1.12–1.18).
+
+darktable 4.2 reads no BlackLevel of an image of more than one sample per pixel (rawspeed
+``DngDecoder::decodeBlackLevels``: ``getCpp() != 1``), so no DNG layout of a three-chip frame gets it a black level:
+that case is an expected failure (strict, so that a darktable that reads it shows up).
+"""
+
+import importlib.util
+import json
+
+import pytest
+
+from tests.helpers import ROOT
+
+_spec = importlib.util.spec_from_file_location("raw_readers", ROOT / "tools" / "raw_readers.py")
+raw_readers = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(raw_readers)
+
+DARK_MAX = 20.0
+BLACK_PATCH_TOLERANCE = 0.25
+GREY_TOLERANCE = 0.08
+DARKTABLE_THREE_CHIP = pytest.mark.xfail(
+    strict=True, reason="darktable (rawspeed) ignores BlackLevel in images of more than one sample per pixel")
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory):
+    """Chart (F = 1) and dark (F = 1e-6) frames of the default scene, three-chip and Bayer RGGB."""
+    folder = tmp_path_factory.mktemp("readers")
+    out = {}
+    for layout, extra in raw_readers.LAYOUTS.items():
+        slug = layout.split()[0].lower()
+        chart = raw_readers.render(folder / f"{slug}-chart", 1.0, extra, None)
+        out[layout] = {"chart": chart, "dark": raw_readers.render(folder / f"{slug}-dark", 1e-6, extra, None),
+                       "meta": json.loads(chart.with_suffix(".json").read_text())}
+    return out
+
+
+@pytest.mark.parametrize("layout", [
+    "Bayer RGGB",
+    "three-chip",
+])
+@pytest.mark.parametrize("reader", [
+    "rawpy",
+    "dcraw",
+    "RawTherapee",
+    "darktable",
+])
+def test_the_default_frame_develops_with_black_subtracted_and_no_cast(frames, request, reader, layout):
+    if not raw_readers.available(reader):
+        pytest.skip(f"{reader} is not installed")
+    if (reader, layout) == ("darktable", "three-chip"):
+        request.applymarker(DARKTABLE_THREE_CHIP)
+    frame = frames[layout]
+    dark = raw_readers.develop(reader, frame["dark"], dark=True).reshape(-1, 3).mean(0)
+    assert dark.max() < DARK_MAX, f"{reader} {layout}: dark frame {dark.round(1).tolist()}: black not subtracted"
+    picture = raw_readers.develop(reader, frame["chart"])
+    for name, tolerance in (("black", BLACK_PATCH_TOLERANCE), ("neutral 3.5", GREY_TOLERANCE),
+                            ("neutral 5", GREY_TOLERANCE)):
+        r, g, b = raw_readers.patch_rgb(picture, frame["meta"], raw_readers.PATCHES[name])
+        assert abs(r / g - 1) <= tolerance and abs(b / g - 1) <= tolerance, (
+            f"{reader} {layout}: {name} patch R, G, B {r:.1f}, {g:.1f}, {b:.1f}: a cast")
