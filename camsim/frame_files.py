@@ -29,9 +29,9 @@ from pathlib import Path
 import numpy as np
 
 import camsim
-from camsim.io.atomic import undo_on_failure, write_json_atomic
+from camsim.io.atomic import undo_on_failure, write_json_atomic, write_text_atomic
 from camsim.errors import CamsimError, output_error
-from camsim.io.dng import read_dng, write_dng, write_dng_cfa
+from camsim.io.dng import DARKTABLE_XMP_SUFFIX, darktable_xmp, read_dng, write_dng, write_dng_cfa
 from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression, read_exr, read_exr_header, write_exr
 from camsim.io.output_folder import make_folder
 from camsim.rawcolour import CALIBRATION_ILLUMINANT_D65
@@ -186,7 +186,9 @@ def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo, preview
                 exr_compression: str = DEFAULT_EXR_COMPRESSION) -> dict:
     """Write ``stem.dng`` (if quantised), ``stem.exr`` and ``stem.json`` into ``out_dir``.
 
-    With ``preview``, also ``stem.png``: an 8-bit sRGB picture of the frame (:func:`camsim.preview.preview_srgb`,
+    A three-chip DNG gets ``stem.dng.xmp`` beside it, ``files``' ``xmp``: darktable's sidecar with its black level
+    (:func:`camsim.io.dng.darktable_xmp`), which darktable cannot read from such a DNG. With ``preview``, also
+    ``stem.png``: an 8-bit sRGB picture of the frame (:func:`camsim.preview.preview_srgb`,
     default exposure), listed in the sidecar's ``files`` as ``png``. ``exr_compression``: a lossless name of
     :data:`camsim.io.exr.EXR_COMPRESSIONS`, recorded in the sidecar.
 
@@ -199,6 +201,8 @@ def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo, preview
     check_exr_compression(exr_compression)  # before any file is touched
     files = {"dng": f"{stem}.dng" if frame.digital_dn is not None else None, "exr": f"{stem}.exr",
              "json": f"{stem}{SIDECAR_SUFFIX}"}
+    if frame.digital_dn is not None and frame.sensor.cfa is None:  # darktable reads no three-chip black level
+        files["xmp"] = f"{stem}{DARKTABLE_XMP_SUFFIX}"
     if preview:
         files["png"] = f"{stem}.png"
     meta = sidecar(frame, info, files, exr_compression)
@@ -214,7 +218,8 @@ def uncommit_frame(out_dir: Path, stem: str) -> None:
     """Remove frame ``stem``'s sidecar (if any), so that its files are no longer a committed frame, and then its
     pixel files (which also frees their space for the frame about to replace them)."""
     out_dir = Path(out_dir)
-    for name in (f"{stem}{SIDECAR_SUFFIX}", *(f"{stem}.{kind}" for kind in (*PIXEL_FILE_KINDS, "png"))):
+    for name in (f"{stem}{SIDECAR_SUFFIX}", *(f"{stem}.{kind}" for kind in (*PIXEL_FILE_KINDS, "png")),
+                 f"{stem}{DARKTABLE_XMP_SUFFIX}"):
         try:
             (out_dir / name).unlink(missing_ok=True)
         except OSError as exc:
@@ -241,6 +246,8 @@ def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo
             exposure_s=float(sensor.exposure_s),
             **camera_identity(info),
         )
+        if "xmp" in files:  # darktable reads no BlackLevel of a three-chip DNG: its own sidecar holds it
+            write_text_atomic(out_dir / files["xmp"], darktable_xmp(sensor.black_level_tag_dn, sensor.max_dn))
     header = {
         "camsim:scene": info.scene,
         "camsim:illuminant": info.illuminant,

@@ -8,11 +8,12 @@ table). Developed right means, on the 0–255 scale of the reader's sRGB picture
   8-bit Table I sensor's 5–6 DN as 50–75);
 * no cast: on the black patch R/G and B/G within 1 ± 0.25, on the neutral 3.5 and 5 patches within 1 ± 0.08 (the
   Bayer files' own spread: every reader truncates a CFA black level, so B's 5.68 DN is taken as 5, which tints the
-  black patch by B/G 1.12–1.18).
+  black patch by B/G 1.12–1.18; dcraw, and darktable through its sidecar, subtract one level from all three
+  channels of a three-chip file, which leaves G 0.5–1 DN above black: R/G 0.80 on the black patch).
 
 darktable 4.2 reads no BlackLevel of an image of more than one sample per pixel (rawspeed
-``DngDecoder::decodeBlackLevels``: ``getCpp() != 1``), so no DNG layout of a three-chip frame gets it a black level:
-that case is an expected failure (strict, so that a darktable that reads it shows up).
+``DngDecoder::decodeBlackLevels``: ``getCpp() != 1``): it takes the three-chip frame's black level from the
+``NAME.dng.xmp`` sidecar camsim writes beside the DNG, and without it subtracts nothing.
 """
 
 import importlib.util
@@ -29,8 +30,6 @@ _spec.loader.exec_module(raw_readers)
 DARK_MAX = 20.0
 BLACK_PATCH_TOLERANCE = 0.25
 GREY_TOLERANCE = 0.08
-DARKTABLE_THREE_CHIP = pytest.mark.xfail(
-    strict=True, reason="darktable (rawspeed) ignores BlackLevel in images of more than one sample per pixel")
 
 
 @pytest.fixture(scope="module")
@@ -56,11 +55,9 @@ def frames(tmp_path_factory):
     "RawTherapee",
     "darktable",
 ])
-def test_the_default_frame_develops_with_black_subtracted_and_no_cast(frames, request, reader, layout):
+def test_the_default_frame_develops_with_black_subtracted_and_no_cast(frames, reader, layout):
     if not raw_readers.available(reader):
         pytest.skip(f"{reader} is not installed")
-    if (reader, layout) == ("darktable", "three-chip"):
-        request.applymarker(DARKTABLE_THREE_CHIP)
     frame = frames[layout]
     dark = raw_readers.develop(reader, frame["dark"], dark=True).reshape(-1, 3).mean(0)
     assert dark.max() < DARK_MAX, f"{reader} {layout}: dark frame {dark.round(1).tolist()}: black not subtracted"
@@ -70,3 +67,16 @@ def test_the_default_frame_develops_with_black_subtracted_and_no_cast(frames, re
         r, g, b = raw_readers.patch_rgb(picture, frame["meta"], raw_readers.PATCHES[name])
         assert abs(r / g - 1) <= tolerance and abs(b / g - 1) <= tolerance, (
             f"{reader} {layout}: {name} patch R, G, B {r:.1f}, {g:.1f}, {b:.1f}: a cast")
+
+
+def test_darktable_takes_a_three_chip_black_level_only_from_its_sidecar(frames, tmp_path):
+    """Without ``NAME.dng.xmp`` darktable develops the three-chip frame from black 0 (its dark frame shows the 5–6 DN
+    black level); the DNG is the same either way. A Bayer frame gets no sidecar: darktable reads its BlackLevel."""
+    if not raw_readers.available("darktable"):
+        pytest.skip("darktable is not installed")
+    dark = frames["three-chip"]["dark"]
+    assert dark.with_name(dark.name + ".xmp").is_file()
+    assert not list(frames["Bayer RGGB"]["dark"].parent.glob("*.xmp"))
+    bare = tmp_path / dark.name
+    bare.write_bytes(dark.read_bytes())
+    assert raw_readers.develop("darktable", bare, dark=True).reshape(-1, 3).mean(0).min() > 2 * DARK_MAX

@@ -7,7 +7,7 @@ each with every reader installed, each with its own default pipeline to an 8-bit
 * rawpy (LibRaw): ``postprocess(use_camera_wb=True)`` (chart; dark frame with ``no_auto_bright=True``);
 * dcraw: ``dcraw -c -w -T`` (chart; dark frame with ``-W``, no auto-brightening);
 * darktable: ``darktable-cli IN OUT.tif --core --configdir TMP --library :memory:`` (its default scene-referred
-  pipeline);
+  pipeline; it reads a three-chip frame's black level from camsim's ``NAME.dng.xmp`` sidecar by itself);
 * RawTherapee: ``rawtherapee-cli -o OUT.tif -t -Y -c IN`` (its default profile; it crops 4 pixels at each edge).
 
 Printed per reader and layout: the developed dark frame's mean R, G, B (black honoured: near 0; a reader that

@@ -67,6 +67,7 @@ from __future__ import annotations
 
 import math
 import os
+import struct
 from fractions import Fraction
 from typing import Any
 
@@ -77,7 +78,8 @@ from camsim.cfa import CFA_PATTERNS
 from camsim.errors import CamsimError
 from camsim.io.atomic import atomic_path
 
-__all__ = ["write_dng", "write_dng_cfa", "read_dng", "shot_metadata", "rational_bound", "MIN_SIZE", "CFA_PATTERNS"]
+__all__ = ["write_dng", "write_dng_cfa", "read_dng", "shot_metadata", "rational_bound", "darktable_xmp",
+           "DARKTABLE_XMP_SUFFIX", "MIN_SIZE", "CFA_PATTERNS"]
 
 MIN_SIZE = 22  # LibRaw refuses raw images narrower or shorter than this (measured with LibRaw 0.22)
 
@@ -403,6 +405,70 @@ def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: 
     """
     _write(path, mosaic, True, pattern, black_level_dn, white_level, unique_camera_model, color_matrix1,
            as_shot_neutral, calibration_illuminant1, make, model, software, noise_profile, iso, exposure_s)
+
+
+#: darktable's sidecar of ``NAME.dng``: ``NAME.dng.xmp`` (its default naming, read on import and by darktable-cli).
+DARKTABLE_XMP_SUFFIX = ".dng.xmp"
+
+_DARKTABLE_XMP = """<?xml version="1.0" encoding="UTF-8"?>
+<x:xmpmeta xmlns:x="adobe:ns:meta/">
+ <rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">
+  <rdf:Description rdf:about=""
+    xmlns:darktable="http://darktable.sf.net/"
+   darktable:xmp_version="5"
+   darktable:history_end="1"
+   darktable:auto_presets_applied="0">
+   <darktable:history>
+    <rdf:Seq>
+     <rdf:li
+      darktable:num="0"
+      darktable:operation="rawprepare"
+      darktable:enabled="1"
+      darktable:modversion="2"
+      darktable:params="{params}"
+      darktable:multi_name=""
+      darktable:multi_priority="0"/>
+    </rdf:Seq>
+   </darktable:history>
+  </rdf:Description>
+ </rdf:RDF>
+</x:xmpmeta>
+"""
+
+
+def darktable_xmp(black_level_dn: Any, white_level: Any) -> str:
+    """darktable's sidecar (``NAME.dng.xmp``) for a three-chip DNG: its black levels in the "raw black/white point"
+    module, which darktable cannot take from the DNG.
+
+    darktable's raw decoder (rawspeed, ``DngDecoder::decodeBlackLevels``) reads no BlackLevel of an image of more
+    than one sample per pixel, so it develops a three-chip DNG from black 0. The sidecar holds one history item,
+    the ``rawprepare`` module (parameters version 2, darktable 4.2 and later: crop 0, 0, 0, 0; four 16-bit black
+    levels; the white point); darktable applies its default modules as well (``auto_presets_applied`` 0). For an
+    image without a colour filter array ``rawprepare`` subtracts one level from all channels, the mean of its four
+    (``commit_params``), so the four are integers whose mean is the mean of the three samples' levels to 1/8 DN:
+    each channel is then off by its level's distance from that mean (Table I, 8 bits: −0.47, +0.52, +0.18 DN),
+    where darktable without the sidecar is off by the whole level. Other readers ignore the file; the DNG is
+    unchanged.
+
+    Parameters
+    ----------
+    black_level_dn : float or array_like, shape (3,)
+        The DNG's BlackLevel per sample R, G, B [DN], ``< 65535.5``.
+    white_level : int or array_like of int, shape (3,)
+        The DNG's WhiteLevel [DN], ``<= 65535`` (the largest of three is taken: darktable keeps one).
+
+    Returns
+    -------
+    str
+        The XMP text (UTF-8).
+    """
+    quarters = math.floor(4 * float(np.mean(_per_sample(black_level_dn, "black_level_dn"))) + 0.5)
+    black = [quarters // 4 + (i < quarters % 4) for i in range(4)]  # four integers, mean quarters / 4
+    white = int(np.max(_per_sample(white_level, "white_level")))
+    if not (all(0 <= b <= 65535 for b in black) and 0 < white <= 65535):
+        raise CamsimError(f"darktable keeps 16-bit levels: black {black}, white {white}")
+    params = struct.pack("<4i4HHxxi", 0, 0, 0, 0, *black, white, 0)  # flat field off
+    return _DARKTABLE_XMP.format(params=params.hex())
 
 
 def _tag(page: Any, code: int) -> Any:
