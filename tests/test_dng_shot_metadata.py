@@ -60,6 +60,7 @@ def sony_3200(tmp_path_factory):
             "flat": sorted((folder / "flats1").glob("*.dng")) + sorted((folder / "flats2").glob("*.dng"))}
 
 
+@pytest.mark.slow  # the rendered darks and flats (about 10 s, once)
 def test_the_files_carry_the_camera_iso_and_exposure(sony_3200):
     path = sony_3200["dark"][0]
     meta = json.loads(path.with_suffix(".json").read_text())
@@ -72,6 +73,7 @@ def test_the_files_carry_the_camera_iso_and_exposure(sony_3200):
 
 
 @pytest.mark.skipif(shutil.which("exiftool") is None, reason="exiftool is not installed")
+@pytest.mark.slow  # the rendered darks and flats (about 10 s, once)
 def test_exiftool_reads_the_camera_iso_and_exposure(sony_3200):
     path = sony_3200["flat"][0]
     meta = json.loads(path.with_suffix(".json").read_text())
@@ -83,6 +85,7 @@ def test_exiftool_reads_the_camera_iso_and_exposure(sony_3200):
     assert tags["ExposureTime"] == pytest.approx(meta["exposure_s"], rel=1e-6)
 
 
+@pytest.mark.slow  # the rendered darks and flats (about 10 s, once)
 def test_calibrate_takes_the_files_iso_and_its_preset_renders_at_that_iso(sony_3200, tmp_path):
     out = tmp_path / "cal"
     _camsim("calibrate", "--dark", *sony_3200["dark"], "--flat", *sony_3200["flat"], "--out", out, "-q")
@@ -96,6 +99,7 @@ def test_calibrate_takes_the_files_iso_and_its_preset_renders_at_that_iso(sony_3
     assert info["iso"] == 3200 and info["make"] == "Sony"
 
 
+@pytest.mark.slow  # the rendered darks and flats (about 10 s, once)
 def test_a_sidecar_that_disagrees_with_its_file_is_refused(sony_3200, tmp_path, capsys):
     darks = []
     for i, path in enumerate(sony_3200["dark"]):  # copies with their sidecars; the last sidecar says ISO 100
@@ -113,6 +117,7 @@ def test_a_sidecar_that_disagrees_with_its_file_is_refused(sony_3200, tmp_path, 
     assert not out.exists()
 
 
+@pytest.mark.slow  # the rendered darks and flats (about 10 s, once)
 def test_a_flat_pair_of_two_exposures_is_refused(sony_3200, tmp_path, capsys):
     flats = list(sony_3200["flat"])
     partner = flats[4]  # seed 2's F = 0.1: the pair of flats[0]; rewritten, tagged 2 s, without a sidecar
@@ -164,3 +169,24 @@ def test_iso_tags_hold_any_speed(tmp_path, iso):
                               capture_output=True, text=True, timeout=60, check=True)
         tags = json.loads(done.stdout)[0]
         assert tags.get("ISOSpeed", tags["ISO"]) == iso and tags["ExposureTime"] == pytest.approx(1 / 8000)
+
+
+@pytest.mark.slow  # the rendered darks and flats (about 10 s, once), calibrated
+def test_files_without_the_tags_take_iso_and_exposure_from_their_sidecars(sony_3200, tmp_path):
+    """DNGs of an older camsim (no ISO, no ExposureTime) with their sidecars calibrate at the sidecars' ISO."""
+    def untagged(path, folder):
+        dn, info = read_dng(path)
+        folder.mkdir(exist_ok=True)
+        out = folder / path.name
+        write_dng_cfa(out, dn[0], pattern=info["cfa_pattern"], black_level_dn=info["black_level_exact"],
+                      white_level=info["white_level"], unique_camera_model=info["unique_camera_model"],
+                      color_matrix1=info["color_matrix1"], as_shot_neutral=info["as_shot_neutral"])
+        shutil.copy(path.with_suffix(".json"), out.with_suffix(".json"))
+        assert read_dng(out)[1]["iso"] is None and read_dng(out)[1]["exposure_s"] is None
+        return str(out)
+
+    darks = [untagged(p, tmp_path / "d") for p in sony_3200["dark"]]
+    flats = [untagged(p, tmp_path / f"f{i // 4}") for i, p in enumerate(sony_3200["flat"])]
+    out = tmp_path / "cal"
+    _camsim("calibrate", "--dark", *darks, "--flat", *flats, "--out", out, "-q")
+    assert tomllib.loads((out / "preset.toml").read_text())["iso"][0]["iso"] == 3200

@@ -27,6 +27,8 @@ _spec = importlib.util.spec_from_file_location("raw_readers", ROOT / "tools" / "
 raw_readers = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(raw_readers)
 
+pytestmark = pytest.mark.slow  # renders four frames and runs the raw developers (about 20 s)
+
 DARK_MAX = 20.0
 BLACK_PATCH_TOLERANCE = 0.25
 GREY_TOLERANCE = 0.08

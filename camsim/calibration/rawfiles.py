@@ -159,8 +159,10 @@ def _tiff_metadata(name: str) -> dict:
         return {"model": None, "iso": None, "exposure_s": None}
 
 
-def _check_sidecar(name: str, iso: float | None, exposure_s: float | None) -> None:
-    """Refuse a camsim frame whose sidecar (``STEM.json`` beside it) disagrees with the file on ISO or exposure."""
+def _with_sidecar(name: str, iso: float | None, exposure_s: float | None) -> tuple:
+    """The ISO and exposure [s] of a raw file, checked against a camsim sidecar (``STEM.json`` beside it): a value
+    both give must agree (else CamsimError); one only the sidecar gives (a DNG of an older camsim, without the
+    tags) is taken from it. Files without a camsim sidecar keep their own values."""
     import json
     from pathlib import Path
 
@@ -168,16 +170,21 @@ def _check_sidecar(name: str, iso: float | None, exposure_s: float | None) -> No
     try:
         meta = json.loads(sidecar.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError):
-        return  # no sidecar (a camera's raw), or not one camsim can read: the file's tags stand alone
+        return iso, exposure_s  # no sidecar (a camera's raw), or not one camsim can read: the file's tags stand alone
     if not isinstance(meta, dict) or "camsim_version" not in meta:
-        return
+        return iso, exposure_s
     said_iso, said_t = meta.get("iso"), meta.get("exposure_s")
-    if said_iso is not None and (iso is None or round(float(said_iso)) != round(iso)):
-        raise CamsimError(f"{name} says ISO {'none' if iso is None else f'{iso:g}'} but its sidecar {sidecar} "
-                          f"says ISO {float(said_iso):g}: wrong sidecar, or a file edited since?")
-    if said_t is not None and (exposure_s is None or abs(exposure_s / float(said_t) - 1) > 1e-6):
-        raise CamsimError(f"{name} says exposure {'none' if exposure_s is None else f'{exposure_s:g} s'} but its "
-                          f"sidecar {sidecar} says {float(said_t):g} s: wrong sidecar, or a file edited since?")
+    if isinstance(said_iso, (int, float)) and said_iso > 0:
+        if iso is not None and round(float(said_iso)) != round(iso):
+            raise CamsimError(f"{name} says ISO {iso:g} but its sidecar {sidecar} says ISO {float(said_iso):g}: "
+                              "wrong sidecar, or a file edited since?")
+        iso = iso if iso is not None else float(said_iso)
+    if isinstance(said_t, (int, float)) and said_t > 0:
+        if exposure_s is not None and abs(exposure_s / float(said_t) - 1) > 1e-6:
+            raise CamsimError(f"{name} says exposure {exposure_s:g} s but its sidecar {sidecar} says "
+                              f"{float(said_t):g} s: wrong sidecar, or a file edited since?")
+        exposure_s = exposure_s if exposure_s is not None else float(said_t)
+    return iso, exposure_s
 
 
 def read_raw(path, *, metadata: bool = False) -> RawFrame:
@@ -189,7 +196,7 @@ def read_raw(path, *, metadata: bool = False) -> RawFrame:
     metadata : bool
         Kept for callers; the tags (camera model, ISO, exposure) are read for every file (a second open, with
         tifffile, of the header only). A camsim frame's sidecar beside the file must agree with its ISO and
-        exposure.
+        exposure, and gives them where the file has no tag (:func:`_with_sidecar`).
 
     Returns
     -------
@@ -234,7 +241,7 @@ def read_raw(path, *, metadata: bool = False) -> RawFrame:
     tags = _tiff_metadata(name)
     iso = iso if iso is not None else tags["iso"]  # LibRaw reads ISO from the EXIF IFD only, not from IFD0
     exposure_s = shutter if shutter is not None else tags["exposure_s"]
-    _check_sidecar(name, iso, exposure_s)
+    iso, exposure_s = _with_sidecar(name, iso, exposure_s)
     return RawFrame(name, image, layout, iso, tags["model"], exposure_s)
 
 
