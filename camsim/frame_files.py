@@ -272,7 +272,8 @@ def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo
 def camera_identity(info: FrameInfo) -> dict:
     """The DNG's ``make``, ``model`` and ``unique_camera_model`` (ASCII) for a frame.
 
-    With a camera preset, the camera's: Make is the first word of the preset's title, Model the model code in
+    With a camera preset at one of its ISO settings (the sidecar's ``iso``; a gain set on top of the preset, as
+    a virtual camera's, is no setting of that camera), the camera's: Make is the first word of the preset's title, Model the model code in
     its parentheses where it has one without spaces (``"Sony A7S2 (ILCE-7SM2)"`` → Sony, ILCE-7SM2), else the
     title up to a parenthesis or comma (``"Nikon D850"``), UniqueCameraModel Make and Model (``"Sony ILCE-7SM2"``;
     once where Model starts with Make). Otherwise camsim's own: Make ``camsim``, Model the spectral curves'
@@ -280,7 +281,7 @@ def camera_identity(info: FrameInfo) -> dict:
     UniqueCameraModel (``camsim calibrate``).
     """
     title = (info.preset or {}).get("preset_title")
-    if not title:
+    if not title or (info.preset or {}).get("iso") is None:
         return {"make": "camsim", "model": info.camera, "unique_camera_model": f"camsim {info.camera}"}
     title = " ".join(title.encode("ascii", "replace").decode("ascii").split())
     make = title.split(" ")[0]

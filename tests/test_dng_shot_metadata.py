@@ -143,12 +143,16 @@ def test_every_built_in_preset_has_an_ascii_camera_identity(name):
 
     title = camera_preset(name).title
     info = FrameInfo.__new__(FrameInfo)
-    object.__setattr__(info, "preset", {"preset": name, "preset_title": title})
+    object.__setattr__(info, "preset", {"preset": name, "preset_title": title, "iso": 100.0})
     object.__setattr__(info, "camera", "Nikon 5100 (NPL)")
     ident = camera_identity(info)
     assert all(v and v.isascii() and v == v.strip() for v in ident.values())
     assert title.startswith(ident["make"]) and ident["model"] in title
     assert ident["unique_camera_model"].startswith(ident["make"])
+    # a gain set on top of the preset (a virtual camera): no ISO of the camera, so camsim's own identity
+    object.__setattr__(info, "preset", {"preset": name, "preset_title": title, "iso": None})
+    assert camera_identity(info) == {"make": "camsim", "model": "Nikon 5100 (NPL)",
+                                     "unique_camera_model": "camsim Nikon 5100 (NPL)"}
 
 
 @pytest.mark.parametrize("iso", [100, 3200, 65535, 409600])
