@@ -273,12 +273,12 @@ def camera_identity(info: FrameInfo) -> dict:
     """The DNG's ``make``, ``model`` and ``unique_camera_model`` (ASCII) for a frame.
 
     With a camera preset at one of its ISO settings (the sidecar's ``iso``; a gain set on top of the preset, as
-    a virtual camera's, is no setting of that camera), the camera's: Make is the first word of the preset's title, Model the model code in
-    its parentheses where it has one without spaces (``"Sony A7S2 (ILCE-7SM2)"`` → Sony, ILCE-7SM2), else the
-    title up to a parenthesis or comma (``"Nikon D850"``), UniqueCameraModel Make and Model (``"Sony ILCE-7SM2"``;
-    once where Model starts with Make). Otherwise camsim's own: Make ``camsim``, Model the spectral curves'
-    name, UniqueCameraModel ``"camsim " + curves``. A calibration of the files names its preset after the
-    UniqueCameraModel (``camsim calibrate``).
+    a virtual camera's, is no setting of that camera), the camera's: Make is the first word of the preset's
+    title, Model the model code in its parentheses where it has one without spaces (``"Sony A7S2 (ILCE-7SM2)"`` →
+    Sony, ILCE-7SM2), else the title up to a parenthesis or comma (``"Nikon D850"``), UniqueCameraModel Make and
+    Model (``"Sony ILCE-7SM2"``; once where Model starts with Make). Otherwise camsim's own: Make ``camsim``,
+    Model the spectral curves' name, UniqueCameraModel ``"camsim " + curves``. A calibration of the files names
+    its preset after the UniqueCameraModel (``camsim calibrate``).
     """
     title = (info.preset or {}).get("preset_title")
     if not title or (info.preset or {}).get("iso") is None:
