@@ -326,7 +326,8 @@ def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: f
     dn : numpy.ndarray, shape (3, H, W), dtype uint8 (uint16 for a 16-bit DNG)
         Planar R, G, B digital numbers [DN]. ``H, W >= 22`` (LibRaw's minimum size).
     black_level_dn : float or array_like, shape (3,)
-        Black level per sample [DN]; fractional values are stored exactly as RATIONAL (LibRaw rounds them, see
+        Black level per sample [DN], ``0 <= b < white_level``; stored as RATIONAL within :func:`rational_bound`
+        (< 7.63e-6 DN up to 65535 DN), one value per sample without BlackLevelRepeatDim (LibRaw rounds them, see
         the module docstring).
     white_level : int or array_like of int, shape (3,)
         Saturation level per sample [DN], ``<= 255`` (``<= 65535`` for uint16: 2^nb − 1 for an nb-bit ADC) and
@@ -383,8 +384,9 @@ def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: 
         Colours of the 2x2 cell's top-left, top-right, bottom-left and bottom-right pixels; the cell at the
         mosaic's top-left corner.
     black_level_dn : float or array_like, shape (3,)
-        Black level per colour (R, G, B) [DN], stored exactly as RATIONAL per CFA position (BlackLevelRepeatDim
-        (2, 2)), or as one value when all three are equal. LibRaw truncates fractional values (module docstring).
+        Black level per colour (R, G, B) [DN], stored as RATIONAL (within :func:`rational_bound`) per CFA position
+        (BlackLevelRepeatDim (2, 2)), or as one value when all three are equal. LibRaw truncates fractional
+        values (module docstring).
     white_level : int
         Saturation level [DN] of all pixels, ``<= 255`` (``<= 65535`` for uint16) and above the black levels; 3
         equal values are accepted too.
