@@ -11,6 +11,9 @@ table). Developed right means, on the 0–255 scale of the reader's sRGB picture
   black patch by B/G 1.12–1.18; dcraw, and darktable through its sidecar, subtract one level from all three
   channels of a three-chip file, which leaves G 0.5–1 DN above black: R/G 0.80 on the black patch).
 
+The frames are the scene's 600 × 400: RawTherapee 5.9 refused (``Error loading file``) smaller ones we tried
+(256 × 128, 180 × 160, 160 × 108) and took 240 × 160 and up.
+
 darktable 4.2 reads no BlackLevel of an image of more than one sample per pixel (rawspeed
 ``DngDecoder::decodeBlackLevels``: ``getCpp() != 1``): it takes the three-chip frame's black level from the
 ``NAME.dng.xmp`` sidecar camsim writes beside the DNG, and without it subtracts nothing.

@@ -448,7 +448,7 @@ def darktable_xmp(black_level_dn: Any, white_level: Any) -> str:
     levels; the white point); darktable applies its default modules as well (``auto_presets_applied`` 0). For an
     image without a colour filter array ``rawprepare`` subtracts one level from all channels, the mean of its four
     (``commit_params``), so the four are integers whose mean is the mean of the three samples' levels to 1/8 DN:
-    each channel is then off by its level's distance from that mean (Table I, 8 bits: −0.47, +0.52, +0.18 DN),
+    each channel is then off by its level's distance from that mean (README, "Raw readers and camsim's DNGs"),
     where darktable without the sidecar is off by the whole level. Other readers ignore the file; the DNG is
     unchanged.
 
