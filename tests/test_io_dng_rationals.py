@@ -12,7 +12,6 @@ import sys
 from fractions import Fraction
 
 import numpy as np
-import pytest
 import rawpy
 import tifffile
 from hypothesis import HealthCheck, given, settings
