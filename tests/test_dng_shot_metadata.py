@@ -2,8 +2,8 @@
 
 Darks and flat pairs of the ``sony-a7s2`` preset at ISO 3200 are rendered by ``camsim render`` (black and grey
 pictures as scenes), calibrated by ``camsim calibrate``, and the preset it writes is used again at ISO 3200. The
-tags are checked with ExifTool (skipped where it is not installed) and LibRaw (``rawpy``: its ExposureTime; LibRaw
-reads an ISO only from an EXIF IFD, so ``rawpy`` has none for these files).
+tags (the ISO and exposure in an EXIF IFD) are checked with ExifTool (skipped where it is not installed: its tag
+values and its validation) and LibRaw (``rawpy``'s ``other.iso_speed`` and ``other.shutter_speed``).
 """
 
 import json
@@ -69,6 +69,7 @@ def test_the_files_carry_the_camera_iso_and_exposure(sony_3200):
     assert info["iso"] == 3200 == meta["iso"]
     assert info["exposure_s"] == pytest.approx(meta["exposure_s"], rel=1e-9)
     with rawpy.imread(str(path)) as raw:
+        assert raw.other.iso_speed == 3200
         assert raw.other.shutter_speed == pytest.approx(meta["exposure_s"], rel=1e-6)
 
 
@@ -83,6 +84,9 @@ def test_exiftool_reads_the_camera_iso_and_exposure(sony_3200):
     assert tags["Make"] == "Sony" and tags["Model"] == "ILCE-7SM2" and tags["UniqueCameraModel"] == "Sony ILCE-7SM2"
     assert tags["ISO"] == 3200
     assert tags["ExposureTime"] == pytest.approx(meta["exposure_s"], rel=1e-6)
+    done = subprocess.run(["exiftool", "-validate", "-warning", "-a", "-s3", str(path)], capture_output=True,
+                          text=True, timeout=60, check=True)
+    assert done.stdout.strip() == "OK", done.stdout
 
 
 @pytest.mark.slow  # the rendered darks and flats (about 10 s, once)
@@ -157,22 +161,30 @@ def test_every_built_in_preset_has_an_ascii_camera_identity(name):
 
 @pytest.mark.parametrize("iso", [100, 3200, 65535, 409600])
 def test_iso_tags_hold_any_speed(tmp_path, iso):
-    """ISOSpeedRatings is a SHORT: above 65535 it says 65535, SensitivityType 3 and ISOSpeed (LONG) the speed."""
+    """ISOSpeedRatings is a SHORT: above 65535 it says 65535, SensitivityType 3 and ISOSpeed (LONG) the speed; all
+    in the EXIF IFD, where LibRaw reads the ISO (not ISOSpeed: 65535 above it) and the exposure."""
     path = tmp_path / "f.dng"
     write_dng(path, np.zeros((3, 22, 22), np.uint8), black_level_dn=0, white_level=255, unique_camera_model="t",
               color_matrix1=np.eye(3), as_shot_neutral=(1, 1, 1), iso=iso, exposure_s=1 / 8000)
     with tifffile.TiffFile(path) as tif:
-        tags = tif.pages.first.tags
-        assert tags[34855].value == min(iso, 65535)
-        assert (34867 in tags) == (iso > 65535) and (iso <= 65535 or tags[34867].value == iso)
-        n, d = tags[33434].value
-        assert n / d == pytest.approx(1 / 8000, rel=1e-12)
+        ifd0 = tif.pages.first.tags
+        exif = ifd0[34665].value  # tifffile reads the EXIF IFD into a dict
+        assert not {33434, 34855, 34864, 34867} & set(ifd0.keys())
+    assert exif["ISOSpeedRatings"] == min(iso, 65535) and exif["ExifVersion"] == "0230"
+    assert ("ISOSpeed" in exif) == (iso > 65535) and exif.get("SensitivityType", 3) == 3
+    assert iso <= 65535 or exif["ISOSpeed"] == iso
+    n, d = exif["ExposureTime"]
+    assert n / d == pytest.approx(1 / 8000, rel=1e-12)
+    with rawpy.imread(str(path)) as raw:
+        assert raw.other.iso_speed == min(iso, 65535)
+        assert raw.other.shutter_speed == pytest.approx(1 / 8000, rel=1e-6)
     assert read_dng(path)[1]["iso"] == iso
     if shutil.which("exiftool"):
-        done = subprocess.run(["exiftool", "-j", "-n", "-ISO", "-ISOSpeed", "-ExposureTime", str(path)],
+        done = subprocess.run(["exiftool", "-j", "-n", "-ISO", "-ISOSpeed", "-ExposureTime", "-Validate", str(path)],
                               capture_output=True, text=True, timeout=60, check=True)
         tags = json.loads(done.stdout)[0]
         assert tags.get("ISOSpeed", tags["ISO"]) == iso and tags["ExposureTime"] == pytest.approx(1 / 8000)
+        assert tags["Validate"] == "0 0 0"  # -n: errors, warnings, minor warnings
 
 
 @pytest.mark.slow  # the rendered darks and flats (about 10 s, once), calibrated

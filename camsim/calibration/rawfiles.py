@@ -103,12 +103,12 @@ class RawFrame:
         (H, W) mosaic or (H, W, 3) stack, uint16. Unit: DN.
     layout : Layout
     iso : float or None
-        The ISO speed: LibRaw's, else the TIFF/EXIF tags' (ISOSpeedRatings, or ISOSpeed above 65535), as camsim's
-        DNGs carry it; None where the file has none.
+        The ISO speed: the TIFF/EXIF tags' (ISOSpeedRatings, or ISOSpeed above 65535, which LibRaw does not read),
+        else LibRaw's; None where the file has none.
     model : str or None
         The camera: the DNG UniqueCameraModel, or Make and Model of a TIFF-based raw (None where unknown).
     exposure_s : float or None
-        The exposure time: LibRaw's, else the ExposureTime tag's; None where the file has none. Unit: s.
+        The exposure time: the ExposureTime tag's (exact), else LibRaw's; None where the file has none. Unit: s.
     """
 
     path: str
@@ -239,8 +239,8 @@ def read_raw(path, *, metadata: bool = False) -> RawFrame:
         image = image[: h - h % 2, : w - w % 2]  # whole 2x2 cells only
     layout = Layout(layout_kind, cfa, tuple(image.shape[:2]), white)
     tags = _tiff_metadata(name)
-    iso = iso if iso is not None else tags["iso"]  # LibRaw reads ISO from the EXIF IFD only, not from IFD0
-    exposure_s = shutter if shutter is not None else tags["exposure_s"]
+    iso = tags["iso"] if tags["iso"] is not None else iso  # LibRaw says 65535 for an ISO above it
+    exposure_s = tags["exposure_s"] if tags["exposure_s"] is not None else shutter
     iso, exposure_s = _with_sidecar(name, iso, exposure_s)
     return RawFrame(name, image, layout, iso, tags["model"], exposure_s)
 

@@ -17,10 +17,11 @@ per-sample values does not have, to 0; dcraw 9.28 reads
 BlackLevelRepeatRows × Cols values, so the first (red's) for all three samples; darktable 4.2 (rawspeed) reads no
 BlackLevel of an image of more than one sample per pixel. All four truncate a CFA file's per-position levels.
 
-The camera's identity (Make, Model, UniqueCameraModel), its ISO (ISOSpeedRatings, EXIF 2.3 PhotographicSensitivity)
-and the exposure time (ExposureTime) are TIFF/EP tags of IFD0, where the DNG specification allows them; ExifTool
-reads them there, LibRaw the ExposureTime only (``rawpy``'s ``other.shutter_speed``; it looks for an ISO in an EXIF
-IFD only), and :func:`shot_metadata` both.
+The camera's identity (Make, Model, UniqueCameraModel) is in IFD0; its ISO (ISOSpeedRatings, EXIF 2.3
+PhotographicSensitivity; above 65535 also SensitivityType 3 and ISOSpeed) and the exposure time (ExposureTime) are
+in an EXIF IFD (with ExifVersion 0230), where EXIF puts them and LibRaw looks for them: ``rawpy``'s
+``other.iso_speed`` (65535 for a higher ISO) and ``other.shutter_speed``; ExifTool validates the files without a
+warning; :func:`shot_metadata` reads both.
 
 What LibRaw 0.22 (rawpy 0.28) makes of these files, measured and pinned by ``tests/test_io_dng.py``:
 
@@ -90,9 +91,13 @@ _COLOR_MATRIX1, _AS_SHOT_NEUTRAL, _CALIBRATION_ILLUMINANT1 = 50721, 50728, 50778
 _MAKE, _MODEL, _ORIENTATION = 271, 272, 274
 _CFA_REPEAT_PATTERN_DIM, _CFA_PATTERN, _CFA_PLANE_COLOR, _CFA_LAYOUT = 33421, 33422, 50710, 50711
 _NOISE_PROFILE = 51041  # DNG 1.3: DOUBLE, (S, O) per colour plane
-# TIFF/EP tags in IFD0 (as the DNG specification allows): ExposureTime RATIONAL [s], ISOSpeedRatings (EXIF 2.3:
-# PhotographicSensitivity) SHORT, and for an ISO above 65535 SensitivityType 3 (ISO speed) with ISOSpeed LONG
+# the EXIF IFD (pointer tag ExifIFD in IFD0): ExposureTime RATIONAL [s], ISOSpeedRatings (EXIF 2.3:
+# PhotographicSensitivity) SHORT, for an ISO above 65535 SensitivityType 3 (ISO speed) with ISOSpeed LONG, ExifVersion
 _EXPOSURE_TIME, _ISO_SPEED_RATINGS, _SENSITIVITY_TYPE, _ISO_SPEED = 33434, 34855, 34864, 34867
+_EXIF_IFD, _EXIF_VERSION = 34665, 36864
+# tifffile does not write an ExifIFD tag: the writer has it write a LONG 0 under this neighbouring (unused) code, at
+# ExifIFD's place in the sorted IFD, and then gives the entry its code and the appended EXIF IFD's offset
+_EXIF_IFD_STAND_IN = 34664
 
 _CFA_CODE = {"R": 0, "G": 1, "B": 2}  # DNG CFAPattern colour codes, in the CFAPlaneColor order (0, 1, 2)
 
@@ -195,21 +200,57 @@ def _check_mosaic(mosaic: Any, pattern: Any) -> None:
         raise CamsimError(f"mosaic {h}x{w} must have an even height and width (whole 2x2 {pattern} cells)")
 
 
-def _shot_tags(iso: Any, exposure_s: Any) -> list[tuple]:
-    """ExposureTime and the ISO tags (see the codes above) for an exposure [s] and ISO, each None to omit."""
-    tags: list[tuple] = []
+def _exif_entries(iso: Any, exposure_s: Any) -> list[tuple[int, int, int, bytes]]:
+    """The EXIF IFD's entries ``(tag, TIFF type, count, little-endian value bytes)``, sorted by tag, for an exposure
+    [s] and an ISO (each None to omit); none when both are None."""
+    entries: list[tuple[int, int, int, bytes]] = []
     if exposure_s is not None:
         if not (isinstance(exposure_s, (int, float, np.number)) and math.isfinite(exposure_s) and exposure_s > 0):
             raise CamsimError(f"exposure_s must be a positive number of seconds, got {exposure_s!r}")
-        tags.append((_EXPOSURE_TIME, "2I", 1, _rationals([exposure_s], "exposure_s", signed=False), True))
+        entries.append((_EXPOSURE_TIME, 5, 1, struct.pack("<2I", *_rationals([exposure_s], "exposure_s",
+                                                                                signed=False))))
     if iso is not None:
         if not (isinstance(iso, (int, float, np.number)) and math.isfinite(iso) and 0.5 <= iso < 2**32 - 0.5):
             raise CamsimError(f"iso must be a positive number below 2^32, got {iso!r}")
         speed = int(round(float(iso)))
-        tags.append((_ISO_SPEED_RATINGS, "H", 1, min(speed, 65535), True))
+        entries.append((_ISO_SPEED_RATINGS, 3, 1, struct.pack("<H", min(speed, 65535))))
         if speed > 65535:
-            tags += [(_SENSITIVITY_TYPE, "H", 1, 3, True), (_ISO_SPEED, "I", 1, speed, True)]
-    return tags
+            entries += [(_SENSITIVITY_TYPE, 3, 1, struct.pack("<H", 3)), (_ISO_SPEED, 4, 1, struct.pack("<I", speed))]
+    if entries:
+        entries.append((_EXIF_VERSION, 7, 4, b"0230"))
+    return sorted(entries)
+
+
+def _append_exif_ifd(path: str | os.PathLike[str], entries: list[tuple[int, int, int, bytes]]) -> None:
+    """Append the EXIF IFD holding ``entries`` to the classic little-endian TIFF at ``path`` (as tifffile wrote
+    it) and turn IFD0's stand-in entry (code ``_EXIF_IFD_STAND_IN``, LONG 0) into the ExifIFD tag pointing at it."""
+    with open(path, "r+b") as fh:
+        header = fh.read(8)
+        if header[:4] != b"II*\x00":
+            raise CamsimError(f"cannot add the EXIF IFD to {os.fspath(path)}: not a little-endian classic TIFF")
+        ifd0 = struct.unpack("<I", header[4:])[0]
+        fh.seek(ifd0)
+        count = struct.unpack("<H", fh.read(2))[0]
+        table = fh.read(12 * count)
+        entry = next((ifd0 + 2 + 12 * i for i in range(count)
+                      if struct.unpack("<H", table[12 * i: 12 * i + 2])[0] == _EXIF_IFD_STAND_IN), None)
+        if entry is None:
+            raise CamsimError(f"cannot add the EXIF IFD to {os.fspath(path)}: IFD0 has no ExifIFD stand-in")
+        end = fh.seek(0, os.SEEK_END)
+        start = end + end % 2  # IFDs begin on a word boundary
+        data_at = start + 2 + 12 * len(entries) + 4
+        ifd, data = struct.pack("<H", len(entries)), b""
+        for tag, kind, n, value in entries:
+            if len(value) <= 4:
+                field = value.ljust(4, b"\x00")
+            else:
+                field = struct.pack("<I", data_at + len(data))
+                data += value + b"\x00" * (len(value) % 2)
+            ifd += struct.pack("<HHI", tag, kind, n) + field
+        ifd += struct.pack("<I", 0)  # no next IFD
+        fh.write(b"\x00" * (start - end) + ifd + data)
+        fh.seek(entry)
+        fh.write(struct.pack("<HHII", _EXIF_IFD, 4, 1, start))  # ExifIFD, LONG, 1: the IFD's offset
 
 
 def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_camera_model: str, color_matrix1: Any,
@@ -221,8 +262,8 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
     ``pattern`` None gives the tags of a 3-sample LinearRaw DNG (one BlackLevel and WhiteLevel per sample); a
     CFA pattern (one of :data:`CFA_PATTERNS`, already validated) gives those of a 1-sample CFA DNG: the CFA tags,
     one WhiteLevel, and the per-colour black levels mapped onto the 2x2 CFA positions. ``noise_profile`` (pairs
-    (S, O), see :func:`_noise_profile`) adds the NoiseProfile tag; None omits it; so do ``iso`` and
-    ``exposure_s`` the ISO and ExposureTime tags (:func:`_shot_tags`).
+    (S, O), see :func:`_noise_profile`) adds the NoiseProfile tag; None omits it; ``iso`` or ``exposure_s``
+    add the ExifIFD pointer's stand-in (:func:`_append_exif_ifd` makes it the pointer after the write).
     """
     black = _per_sample(black_level_dn, "black_level_dn")
     white = _per_sample(white_level, "white_level")
@@ -278,7 +319,7 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
         (_AS_SHOT_NEUTRAL, "2I", 3, _rationals(neutral, "as_shot_neutral", signed=False), True),
         (_CALIBRATION_ILLUMINANT1, "H", 1, int(calibration_illuminant1), True),
         *profile_tags,
-        *_shot_tags(iso, exposure_s),
+        *([(_EXIF_IFD_STAND_IN, "I", 1, 0, True)] if iso is not None or exposure_s is not None else []),
     ]
 
 
@@ -293,6 +334,7 @@ def _write(path: str | os.PathLike[str], frame: Any, cfa: bool, pattern: Any, bl
             _check_mosaic(frame, pattern)
         else:
             _check_three_chip(frame)
+        exif = _exif_entries(iso, exposure_s)
         extratags = _dng_tags(frame.dtype, black_level_dn, white_level, unique_camera_model, color_matrix1,
                               as_shot_neutral, calibration_illuminant1, make, model, pattern, noise_profile, iso,
                               exposure_s)
@@ -309,8 +351,10 @@ def _write(path: str | os.PathLike[str], frame: Any, cfa: bool, pattern: Any, bl
         tifffile.imwrite(
             tmp, pixels, subfiletype=0, compression=None, rowsperstrip=pixels.shape[0], extratags=extratags,
             software=software_tag, datetime=False, metadata=None,  # no DateTime tag, no tifffile JSON description
-            **layout,
+            byteorder="<", **layout,
         )
+        if exif:
+            _append_exif_ifd(tmp, exif)
 
 
 def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: float | Any, white_level: int | Any,
@@ -348,9 +392,10 @@ def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: f
         :func:`camsim.noise_profile.dng_noise_profile`). S > 0, O >= 0, stored as DOUBLE. None (default): no tag.
     iso : float, optional
         The camera's ISO setting: ISOSpeedRatings (EXIF PhotographicSensitivity, tag 34855, SHORT, rounded; above
-        65535 it holds 65535 and SensitivityType 3 with ISOSpeed, tag 34867, the value). None (default): no tag.
+        65535 it holds 65535 and SensitivityType 3 with ISOSpeed, tag 34867, the value), in the EXIF IFD. None
+        (default): no tag.
     exposure_s : float, optional
-        Exposure time [s], > 0: ExposureTime (tag 33434, RATIONAL). None (default): no tag.
+        Exposure time [s], > 0: ExposureTime (tag 33434, RATIONAL), in the EXIF IFD. None (default): no tag.
 
     Raises
     ------
