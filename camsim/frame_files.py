@@ -30,9 +30,9 @@ from pathlib import Path
 import numpy as np
 
 import camsim
-from camsim.io.atomic import undo_on_failure, write_json_atomic
+from camsim.io.atomic import undo_on_failure, write_json_atomic, write_text_atomic
 from camsim.errors import CamsimError, output_error
-from camsim.io.dng import read_dng, write_dng, write_dng_cfa
+from camsim.io.dng import DARKTABLE_XMP_SUFFIX, darktable_xmp, read_dng, write_dng, write_dng_cfa
 from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression, read_exr, read_exr_header, write_exr
 from camsim.io.output_folder import make_folder
 from camsim.rawcolour import CALIBRATION_ILLUMINANT_D65
@@ -195,7 +195,9 @@ def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo, preview
                 exr_compression: str = DEFAULT_EXR_COMPRESSION) -> dict:
     """Write ``stem.dng`` (if quantised), ``stem.exr`` and ``stem.json`` into ``out_dir``.
 
-    With ``preview``, also ``stem.png``: an 8-bit sRGB picture of the frame (:func:`camsim.preview.preview_srgb`,
+    A three-chip DNG gets ``stem.dng.xmp`` beside it, ``files``' ``xmp``: darktable's sidecar with its black level
+    (:func:`camsim.io.dng.darktable_xmp`), which darktable cannot read from such a DNG. With ``preview``, also
+    ``stem.png``: an 8-bit sRGB picture of the frame (:func:`camsim.preview.preview_srgb`,
     default exposure), listed in the sidecar's ``files`` as ``png``. ``exr_compression``: a lossless name of
     :data:`camsim.io.exr.EXR_COMPRESSIONS`, recorded in the sidecar.
 
@@ -208,6 +210,8 @@ def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo, preview
     check_exr_compression(exr_compression)  # before any file is touched
     files = {"dng": f"{stem}.dng" if frame.digital_dn is not None else None, "exr": f"{stem}.exr",
              "json": f"{stem}{SIDECAR_SUFFIX}"}
+    if frame.digital_dn is not None and frame.sensor.cfa is None:  # darktable reads no three-chip black level
+        files["xmp"] = f"{stem}{DARKTABLE_XMP_SUFFIX}"
     if preview:
         files["png"] = f"{stem}.png"
     meta = sidecar(frame, info, files, exr_compression)
@@ -223,7 +227,8 @@ def uncommit_frame(out_dir: Path, stem: str) -> None:
     """Remove frame ``stem``'s sidecar (if any), so that its files are no longer a committed frame, and then its
     pixel files (which also frees their space for the frame about to replace them)."""
     out_dir = Path(out_dir)
-    for name in (f"{stem}{SIDECAR_SUFFIX}", *(f"{stem}.{kind}" for kind in (*PIXEL_FILE_KINDS, "png"))):
+    for name in (f"{stem}{SIDECAR_SUFFIX}", *(f"{stem}.{kind}" for kind in (*PIXEL_FILE_KINDS, "png")),
+                 f"{stem}{DARKTABLE_XMP_SUFFIX}"):
         try:
             (out_dir / name).unlink(missing_ok=True)
         except OSError as exc:
@@ -241,14 +246,17 @@ def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo
             frame.digital_dn if sensor.cfa is None else frame.digital_dn[0],
             black_level_dn=sensor.black_level_tag_dn,  # below the white level, as readers need
             white_level=sensor.max_dn,
-            unique_camera_model=f"camsim {info.camera}",
             color_matrix1=info.color_matrix1,
             as_shot_neutral=info.as_shot_neutral,
             calibration_illuminant1=CALIBRATION_ILLUMINANT_D65,
-            model=info.camera,
             software=f"camsim {camsim.__version__}",
             noise_profile=meta["noise_profile"],  # the sidecar's pairs, exactly
+            iso=(info.preset or {}).get("iso"),  # a camera preset's ISO (None: no ISO, no tag)
+            exposure_s=float(sensor.exposure_s),
+            **camera_identity(info),
         )
+        if "xmp" in files:  # darktable reads no BlackLevel of a three-chip DNG: its own sidecar holds it
+            write_text_atomic(out_dir / files["xmp"], darktable_xmp(sensor.black_level_tag_dn, sensor.max_dn))
     header = {
         "camsim:scene": info.scene,
         "camsim:illuminant": info.illuminant,
@@ -331,6 +339,28 @@ def exr_view(frame: Frame, info: FrameInfo) -> tuple[np.ndarray, dict[str, str]]
                                      / (sensor.max_dn - black[c]))
         view[1:] = view[0]
     return view, {"camsim:view": VIEW_DESCRIPTIONS["camera"], "camsim:view_black_dn": json.dumps(black.tolist())}
+
+
+def camera_identity(info: FrameInfo) -> dict:
+    """The DNG's ``make``, ``model`` and ``unique_camera_model`` (ASCII) for a frame.
+
+    With a camera preset at one of its ISO settings (the sidecar's ``iso``; a gain set on top of the preset, as
+    a virtual camera's, is no setting of that camera), the camera's: Make is the first word of the preset's
+    title, Model the model code in its parentheses where it has one without spaces (``"Sony A7S2 (ILCE-7SM2)"`` →
+    Sony, ILCE-7SM2), else the title up to a parenthesis or comma (``"Nikon D850"``), UniqueCameraModel Make and
+    Model (``"Sony ILCE-7SM2"``; once where Model starts with Make). Otherwise camsim's own: Make ``camsim``,
+    Model the spectral curves' name, UniqueCameraModel ``"camsim " + curves``. A calibration of the files names
+    its preset after the UniqueCameraModel (``camsim calibrate``).
+    """
+    title = (info.preset or {}).get("preset_title")
+    if not title or (info.preset or {}).get("iso") is None:
+        return {"make": "camsim", "model": info.camera, "unique_camera_model": f"camsim {info.camera}"}
+    title = " ".join(title.encode("ascii", "replace").decode("ascii").split())
+    make = title.split(" ")[0]
+    code = re.search(r"\(([^()\s,]+)\)", title)
+    model = code.group(1) if code else re.split(r"[(,]", title)[0].strip()
+    unique = model if model.lower().startswith(make.lower()) else f"{make} {model}"
+    return {"make": make, "model": model, "unique_camera_model": unique}
 
 
 # --- reading ----------------------------------------------------------------------------------------------

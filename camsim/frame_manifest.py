@@ -10,7 +10,7 @@ Format::
 
     {"scene": NAME,                 # the scene of the last run into the folder
      "frames": [{"scene", "illuminant", "intensity_factor", "seed", "photon_statistics", "method",
-                 "files": {"dng", "exr", "json"[, "png"]}}, ...]}      # file names relative to the folder
+                 "files": {"dng", "exr", "json"[, "xmp"][, "png"]}}, ...]}      # file names relative to the folder
 """
 
 from __future__ import annotations

@@ -259,7 +259,7 @@ def preset_record(scene: Scene) -> dict | None:
     point = camera.point_at(scene.iso)
     # a gain set on top of the preset (a virtual camera's K, --sensor analog_gain_dn_per_v) is no ISO of the camera
     iso = point.iso if abs(scene.sensor.dn_per_electron / point.k_dn_per_e - 1) < 1e-9 else None
-    return {"preset": scene.preset_name, "preset_source": camera.source, "iso": iso}
+    return {"preset": scene.preset_name, "preset_title": camera.title, "preset_source": camera.source, "iso": iso}
 
 
 def exposure_record(scene: Scene) -> dict:

@@ -44,7 +44,7 @@ def test_readme_python_example_runs(tmp_path, monkeypatch):
     lines = out.getvalue().splitlines()
     assert lines[0] == "(3, 160, 240) uint8"
     assert lines[1] == "float32 (3, 160, 240)"
-    assert lines[2] == "['dng', 'exr', 'json']"
+    assert lines[2] == "['dng', 'exr', 'json', 'xmp']"  # xmp: darktable's sidecar of the three-chip DNG
     assert lines[3].startswith("white 9.5")
     # the white patch reflects ~88 %: at F = 0.1 the strongest channel (G) holds ~0.088 of the 8000 e⁻ anchor
     green_e = eval(lines[3][lines[3].index("["):])[1]

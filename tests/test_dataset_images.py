@@ -190,7 +190,7 @@ def test_same_seed_gives_bit_identical_files(rendered):
     _, (a, b) = rendered
     files_a = {p.relative_to(a).as_posix(): p.read_bytes() for p in sorted(a.rglob("*")) if p.is_file()}
     files_b = {p.relative_to(b).as_posix(): p.read_bytes() for p in sorted(b.rglob("*")) if p.is_file()}
-    assert len(files_a) == 1 + 16 * 4 and files_a == files_b  # manifest; dng, exr, json, done per frame
+    assert len(files_a) == 1 + 16 * 5 and files_a == files_b  # manifest; dng, dng.xmp, exr, json, done per frame
 
 
 def test_the_clean_layer_is_the_picture_at_the_recorded_crop_and_flips(rendered):

@@ -96,7 +96,9 @@ def test_dng_tags(tmp_path):
     assert bytes(tags[50706]) == bytes([1, 4, 0, 0]) and bytes(tags[50707]) == bytes([1, 1, 0, 0])
     assert tags[50708] == "camsim test camera" and tags[271] == "camsim" and tags[272] == "sim-1"
     assert tags[305] == "camsim 0.1.0" and tags[50778] == 17
-    assert tuple(tags[50713]) == (1, 1) and tuple(tags[50717]) == (255, 255, 255)
+    # BlackLevelRepeatDim absent, i.e. its default 1 x 1, with one BlackLevel per sample (RawTherapee 5.9 drops red's
+    # level when the tag is written: README, "Raw readers and camsim's DNGs")
+    assert 50713 not in tags and len(tags[50714]) == 2 * 3 and tuple(tags[50717]) == (255, 255, 255)
     assert 306 not in tags and 270 not in tags  # no DateTime, no ImageDescription
     _, info = read_dng(path)
     np.testing.assert_allclose(info["color_matrix1"], cm, rtol=0, atol=1e-6)
@@ -216,3 +218,27 @@ def test_exception_mid_write_leaves_no_file(tmp_path, monkeypatch):
     with pytest.raises(OutputError, match="No space left on device"):
         write(tmp_path / "new.dng", random_dn(9))
     assert [p.name for p in tmp_path.iterdir()] == ["f.dng"]
+
+
+@pytest.mark.parametrize("black, white", [((5.0254, 6.0175, 5.6830), 255), ((0.0, 0.0, 0.0), 255),
+                                          ((511.5, 511.5, 511.5), 16383), ((65533.9, 65534.2, 65534.4), 65535),
+                                          (7.125, 4095)])
+def test_the_darktable_sidecar_holds_the_mean_black_level_and_the_white_point(black, white):
+    """darktable's ``rawprepare`` subtracts the mean of its four levels from every channel of an image without a
+    CFA: the four integers' mean is the samples' mean level to 1/8 DN (a quarter step, rounded)."""
+    import struct
+    import xml.etree.ElementTree as ET
+
+    from camsim.io.dng import darktable_xmp
+
+    ns = {"rdf": "http://www.w3.org/1999/02/22-rdf-syntax-ns#", "darktable": "http://darktable.sf.net/"}
+    root = ET.fromstring(darktable_xmp(black, white))
+    items = root.findall(".//darktable:history/rdf:Seq/rdf:li", ns)
+    assert len(items) == 1
+    item = items[0].attrib
+    d = "{http://darktable.sf.net/}"
+    assert item[d + "operation"] == "rawprepare" and item[d + "modversion"] == "2" and item[d + "enabled"] == "1"
+    crop, levels, white_point, flat_field = (lambda v: (v[:4], v[4:8], v[8], v[9]))(
+        struct.unpack("<4i4HHxxi", bytes.fromhex(item[d + "params"])))
+    assert crop == (0, 0, 0, 0) and flat_field == 0 and white_point == white
+    assert abs(sum(levels) / 4 - float(np.mean(black))) <= 1 / 8 and max(levels) - min(levels) <= 1

@@ -269,7 +269,7 @@ def test_manifest_is_rebuilt_from_the_committed_frames(tmp_path):
     entry = json.loads((out / MANIFEST_NAME).read_text())["frames"][0]
     assert entry["scene"] == "macbeth_26" and entry["intensity_factor"] == 1.0
     assert entry["files"] == {"dng": "macbeth_26_D65_F1.dng", "exr": "macbeth_26_D65_F1.exr",
-                              "json": "macbeth_26_D65_F1.json"}
+                              "json": "macbeth_26_D65_F1.json", "xmp": "macbeth_26_D65_F1.dng.xmp"}
 
 
 def test_interrupt_mid_frame_leaves_only_committed_frames(tmp_path, capsys, monkeypatch):
@@ -290,8 +290,8 @@ def test_interrupt_mid_frame_leaves_only_committed_frames(tmp_path, capsys, monk
     out = tmp_path / "out"
     assert main(["render", "macbeth_26", *SMALL, "--intensity", "1", "0.5", "--out", str(out)]) == 130
     assert "interrupted" in capsys.readouterr().err
-    assert files_in(out) == ["macbeth_26_D65_F1.dng", "macbeth_26_D65_F1.exr", "macbeth_26_D65_F1.json",
-                             MANIFEST_NAME]
+    assert files_in(out) == ["macbeth_26_D65_F1.dng", "macbeth_26_D65_F1.dng.xmp", "macbeth_26_D65_F1.exr",
+                             "macbeth_26_D65_F1.json", MANIFEST_NAME]  # .dng.xmp: darktable's black level
     assert manifest_sidecars(out) == ["macbeth_26_D65_F1.json"]
 
 

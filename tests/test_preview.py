@@ -122,7 +122,7 @@ def test_png_only_with_preview_and_other_files_unchanged(rendered, scene, tmp_pa
     assert not list(tmp_path.glob("*.png"))
     for frame, with_png in zip(plain["frames"], manifest["frames"]):
         files = frame["files"]
-        assert list(files) == ["dng", "exr", "json"]
+        assert list(files) == ["dng", "exr", "json", "xmp"]  # xmp: darktable's sidecar of the three-chip DNG
         assert with_png["files"] == files | {"png": files["json"][:-4] + "png"}
         assert (tmp_path / files["dng"]).read_bytes() == (out / files["dng"]).read_bytes()
         # the EXR holds the same pixels; its header carries the sidecar, whose files now list the PNG

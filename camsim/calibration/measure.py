@@ -18,7 +18,7 @@ import numpy as np
 
 from camsim.calibration import dark, flats, ptc, tukey
 from camsim.calibration.estimate import Estimate, ratio, sqrt_estimate
-from camsim.calibration.rawfiles import Layout, check_same_layout, read_raw
+from camsim.calibration.rawfiles import Layout, check_same_exposure, check_same_layout, read_raw
 from camsim.errors import CamsimError
 from camsim.kernels import tukey_lambda_variance
 
@@ -226,6 +226,7 @@ def _dark_pass(dark_files, progress):
             squares = np.zeros(frame.image.shape, np.int64)
         else:
             check_same_layout(first, frame)
+            check_same_exposure(first, frame, "dark frames")
         x = frame.image.astype(np.int64)
         total += x
         squares += x * x
@@ -282,8 +283,9 @@ def _flat_pairs(flat_files, levels, layout, blacks, dark_mean_planes, dark_var, 
     pairs = []
     todo = [(level, pair) for level, level_pairs in enumerate(levels) for pair in level_pairs]
     for level, (i, j) in _bar(todo, "flat pairs (2/2)", progress):
-        a = layout.planes(read_raw(flat_files[i]).image)
-        b = layout.planes(read_raw(flat_files[j]).image)
+        frame_a, frame_b = read_raw(flat_files[i]), read_raw(flat_files[j])
+        check_same_exposure(frame_a, frame_b, "the two flats of a pair")
+        a, b = layout.planes(frame_a.image), layout.planes(frame_b.image)
         stats = [ptc.pair_statistics(pa, pb, black) for pa, pb, black in zip(a, b, blacks)]
         prnu = tuple(ptc.prnu(0.5 * (pa.astype(np.float64) + pb), dm, var, dv, dark_frames, row_var)
                      for pa, pb, dm, (_, var), dv in zip(a, b, dark_mean_planes, stats, dark_var))

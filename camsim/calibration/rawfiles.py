@@ -103,9 +103,12 @@ class RawFrame:
         (H, W) mosaic or (H, W, 3) stack, uint16. Unit: DN.
     layout : Layout
     iso : float or None
-        LibRaw's ISO speed (None where the file has none).
+        The ISO speed: the TIFF/EXIF tags' (ISOSpeedRatings, or ISOSpeed above 65535, which LibRaw does not read),
+        else LibRaw's; None where the file has none.
     model : str or None
         The camera: the DNG UniqueCameraModel, or Make and Model of a TIFF-based raw (None where unknown).
+    exposure_s : float or None
+        The exposure time: the ExposureTime tag's (exact), else LibRaw's; None where the file has none. Unit: s.
     """
 
     path: str
@@ -113,6 +116,7 @@ class RawFrame:
     layout: Layout
     iso: float | None
     model: str | None
+    exposure_s: float | None = None
 
 
 def _cfa_pattern(raw, name: str) -> str:
@@ -130,23 +134,57 @@ def _cfa_pattern(raw, name: str) -> str:
     return letters
 
 
-def _camera_model(name: str) -> str | None:
-    """UniqueCameraModel, else Make + Model, of a TIFF-based raw (DNG, NEF, CR2, ARW, ...); None otherwise."""
+def _tiff_metadata(name: str) -> dict:
+    """``model`` (UniqueCameraModel, else Make + Model), ``iso`` and ``exposure_s`` (s) of a TIFF-based raw (DNG,
+    NEF, CR2, ARW, ...) from its first IFD and EXIF IFD; None for what it lacks, all None for other containers."""
     import tifffile
+
+    from camsim.io.dng import shot_metadata
 
     try:
         with tifffile.TiffFile(name) as tif:
-            tags = tif.pages.first.tags
+            page = tif.pages.first
+            tags = page.tags
             unique = tags.get(50708)
             if unique is not None and str(unique.value).strip():
-                return str(unique.value).strip()
-            make, model = tags.get(271), tags.get(272)
-            parts = [str(t.value).strip() for t in (make, model) if t is not None and str(t.value).strip()]
-            if len(parts) == 2 and parts[1].startswith(parts[0]):
-                parts = parts[1:]
-            return " ".join(parts) or None
+                model = str(unique.value).strip()
+            else:
+                make, model_tag = tags.get(271), tags.get(272)
+                parts = [str(t.value).strip() for t in (make, model_tag) if t is not None and str(t.value).strip()]
+                if len(parts) == 2 and parts[1].startswith(parts[0]):
+                    parts = parts[1:]
+                model = " ".join(parts) or None
+            return {"model": model, **shot_metadata(page)}
     except Exception:  # not a TIFF container (CR3, RAF, ...): the model is then unknown
-        return None
+        return {"model": None, "iso": None, "exposure_s": None}
+
+
+def _with_sidecar(name: str, iso: float | None, exposure_s: float | None) -> tuple:
+    """The ISO and exposure [s] of a raw file, checked against a camsim sidecar (``STEM.json`` beside it): a value
+    both give must agree (else CamsimError); one only the sidecar gives (a DNG of an older camsim, without the
+    tags) is taken from it. Files without a camsim sidecar keep their own values."""
+    import json
+    from pathlib import Path
+
+    sidecar = Path(name).with_suffix(".json")
+    try:
+        meta = json.loads(sidecar.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return iso, exposure_s  # no sidecar (a camera's raw), or not one camsim can read: the file's tags stand alone
+    if not isinstance(meta, dict) or "camsim_version" not in meta:
+        return iso, exposure_s
+    said_iso, said_t = meta.get("iso"), meta.get("exposure_s")
+    if isinstance(said_iso, (int, float)) and said_iso > 0:
+        if iso is not None and round(float(said_iso)) != round(iso):
+            raise CamsimError(f"{name} says ISO {iso:g} but its sidecar {sidecar} says ISO {float(said_iso):g}: "
+                              "wrong sidecar, or a file edited since?")
+        iso = iso if iso is not None else float(said_iso)
+    if isinstance(said_t, (int, float)) and said_t > 0:
+        if exposure_s is not None and abs(exposure_s / float(said_t) - 1) > 1e-6:
+            raise CamsimError(f"{name} says exposure {exposure_s:g} s but its sidecar {sidecar} says "
+                              f"{float(said_t):g} s: wrong sidecar, or a file edited since?")
+        exposure_s = exposure_s if exposure_s is not None else float(said_t)
+    return iso, exposure_s
 
 
 def read_raw(path, *, metadata: bool = False) -> RawFrame:
@@ -156,7 +194,9 @@ def read_raw(path, *, metadata: bool = False) -> RawFrame:
     ----------
     path : str or os.PathLike
     metadata : bool
-        Also read the camera model (a second open of the file, with tifffile).
+        Kept for callers; the tags (camera model, ISO, exposure) are read for every file (a second open, with
+        tifffile, of the header only). A camsim frame's sidecar beside the file must agree with its ISO and
+        exposure, and gives them where the file has no tag (:func:`_with_sidecar`).
 
     Returns
     -------
@@ -188,6 +228,7 @@ def read_raw(path, *, metadata: bool = False) -> RawFrame:
                 image = np.array(image, dtype=np.uint16, copy=True)
             white = int(raw.white_level)
             iso = float(raw.other.iso_speed) if raw.other.iso_speed and raw.other.iso_speed > 0 else None
+            shutter = float(raw.other.shutter_speed) if raw.other.shutter_speed > 0 else None
     except CamsimError:
         raise
     except Exception as exc:  # rawpy.LibRawError (unsupported, truncated, I/O), OSError
@@ -197,7 +238,11 @@ def read_raw(path, *, metadata: bool = False) -> RawFrame:
     if layout_kind == "bayer" and (h % 2 or w % 2):
         image = image[: h - h % 2, : w - w % 2]  # whole 2x2 cells only
     layout = Layout(layout_kind, cfa, tuple(image.shape[:2]), white)
-    return RawFrame(name, image, layout, iso, _camera_model(name) if metadata else None)
+    tags = _tiff_metadata(name)
+    iso = tags["iso"] if tags["iso"] is not None else iso  # LibRaw says 65535 for an ISO above it
+    exposure_s = tags["exposure_s"] if tags["exposure_s"] is not None else shutter
+    iso, exposure_s = _with_sidecar(name, iso, exposure_s)
+    return RawFrame(name, image, layout, iso, tags["model"], exposure_s)
 
 
 def check_same_layout(first: RawFrame, frame: RawFrame) -> None:
@@ -210,3 +255,13 @@ def check_same_layout(first: RawFrame, frame: RawFrame) -> None:
     if frame.iso is not None and first.iso is not None and frame.iso != first.iso:
         raise CamsimError(f"mixed ISO: {frame.path} is ISO {frame.iso:g} but {first.path} is ISO {first.iso:g}; "
                           "noise parameters belong to one ISO: calibrate each ISO on its own")
+
+
+def check_same_exposure(first: RawFrame, frame: RawFrame, what: str) -> None:
+    """Refuse ``frame`` whose exposure differs from ``first``'s where both files say (``what``: "dark frames",
+    "the two flats of a pair"): dark current grows with the exposure, and a pair's difference holds the noise of
+    one exposure only if both had it."""
+    a, b = first.exposure_s, frame.exposure_s
+    if a is not None and b is not None and abs(a / b - 1) > 1e-6:
+        raise CamsimError(f"mixed exposures: {frame.path} was exposed {b:g} s but {first.path} {a:g} s; {what} "
+                          "must share one exposure")

@@ -6,12 +6,22 @@ developers and Adobe tools read the exact numbers. Deflate compression is delibe
 read deflate-compressed DNGs.
 
 camsim writes the true black level (:attr:`camsim.sensor.SensorParams.black_level_dn`, the exact mean digital
-number of an unlit pixel, clipped below the WhiteLevel) as BlackLevel: RATIONAL, one value per sample (LinearRaw)
-or per CFA position (Bayer), exact to 1e-6 DN. Other readers, from their sources (README, "Raw readers and camsim's
-DNGs"): rawspeed (darktable) ignores BlackLevel in any image of more than one sample per pixel
-(``DngDecoder::decodeBlackLevels``: ``getCpp() != 1``) and keeps integer levels for CFA files; dcraw 9.x (and
-RawTherapee's ``rtengine/dcraw.cc``) reads BlackLevelRepeatRows × Cols values, so only the first of a three-chip
-file's three. No tag type or layout changes either without bending the value, so none is used.
+number of an unlit pixel, clipped below the WhiteLevel) as BlackLevel: RATIONAL, one value per sample (LinearRaw,
+without BlackLevelRepeatDim: its default 1 x 1) or per CFA position (Bayer, BlackLevelRepeatDim 2 x 2), within
+1 / (2 D) of the value with the largest denominator D it allows (:func:`rational_bound`: below 7.63e-6 DN for any
+level up to 65535 DN, 1e-9 DN for 8-bit levels). What the raw readers make of the files, measured
+(``tools/raw_readers.py``, ``tests/test_raw_readers.py``; README, "Raw readers and camsim's DNGs"): LibRaw takes a
+LinearRaw file's three levels, rounded; RawTherapee 5.9 takes the three too (its pictures match LibRaw's), but only
+without BlackLevelRepeatDim: with the tag it sets red's level from the per-position value, which a file of three
+per-sample values does not have, to 0; dcraw 9.28 reads
+BlackLevelRepeatRows × Cols values, so the first (red's) for all three samples; darktable 4.2 (rawspeed) reads no
+BlackLevel of an image of more than one sample per pixel. All four truncate a CFA file's per-position levels.
+
+The camera's identity (Make, Model, UniqueCameraModel) is in IFD0; its ISO (ISOSpeedRatings, EXIF 2.3
+PhotographicSensitivity; above 65535 also SensitivityType 3 and ISOSpeed) and the exposure time (ExposureTime) are
+in an EXIF IFD (with ExifVersion 0230), where EXIF puts them and LibRaw looks for them: ``rawpy``'s
+``other.iso_speed`` (65535 for a higher ISO) and ``other.shutter_speed``; ExifTool validates the files without a
+warning; :func:`shot_metadata` reads both.
 
 What LibRaw 0.22 (rawpy 0.28) makes of these files, measured and pinned by ``tests/test_io_dng.py``:
 
@@ -58,6 +68,7 @@ from __future__ import annotations
 
 import math
 import os
+import struct
 from fractions import Fraction
 from typing import Any
 
@@ -68,10 +79,10 @@ from camsim.cfa import CFA_PATTERNS
 from camsim.errors import CamsimError
 from camsim.io.atomic import atomic_path
 
-__all__ = ["write_dng", "write_dng_cfa", "read_dng", "MIN_SIZE", "CFA_PATTERNS"]
+__all__ = ["write_dng", "write_dng_cfa", "read_dng", "shot_metadata", "rational_bound", "darktable_xmp",
+           "DARKTABLE_XMP_SUFFIX", "MIN_SIZE", "CFA_PATTERNS"]
 
 MIN_SIZE = 22  # LibRaw refuses raw images narrower or shorter than this (measured with LibRaw 0.22)
-_MAX_DEN = 1_000_000  # largest rational denominator: floats are stored with absolute error below 1e-6
 
 # DNG tag codes
 _DNG_VERSION, _DNG_BACKWARD_VERSION, _UNIQUE_CAMERA_MODEL = 50706, 50707, 50708
@@ -80,20 +91,58 @@ _COLOR_MATRIX1, _AS_SHOT_NEUTRAL, _CALIBRATION_ILLUMINANT1 = 50721, 50728, 50778
 _MAKE, _MODEL, _ORIENTATION = 271, 272, 274
 _CFA_REPEAT_PATTERN_DIM, _CFA_PATTERN, _CFA_PLANE_COLOR, _CFA_LAYOUT = 33421, 33422, 50710, 50711
 _NOISE_PROFILE = 51041  # DNG 1.3: DOUBLE, (S, O) per colour plane
+# the EXIF IFD (pointer tag ExifIFD in IFD0): ExposureTime RATIONAL [s], ISOSpeedRatings (EXIF 2.3:
+# PhotographicSensitivity) SHORT, for an ISO above 65535 SensitivityType 3 (ISO speed) with ISOSpeed LONG, ExifVersion
+_EXPOSURE_TIME, _ISO_SPEED_RATINGS, _SENSITIVITY_TYPE, _ISO_SPEED = 33434, 34855, 34864, 34867
+_EXIF_IFD, _EXIF_VERSION = 34665, 36864
+# tifffile does not write an ExifIFD tag: the writer has it write a LONG 0 under this neighbouring (unused) code, at
+# ExifIFD's place in the sorted IFD, and then gives the entry its code and the appended EXIF IFD's offset
+_EXIF_IFD_STAND_IN = 34664
 
 _CFA_CODE = {"R": 0, "G": 1, "B": 2}  # DNG CFAPattern colour codes, in the CFAPlaneColor order (0, 1, 2)
 
 
+#: Largest numerator (and denominator) of a TIFF RATIONAL (unsigned) and SRATIONAL (signed), by signedness.
+_RATIONAL_TOP = {False: 2**32 - 1, True: 2**31 - 1}
+
+
+def rational_bound(value: float, *, signed: bool = False) -> float:
+    """The largest error of :func:`_rationals` for ``value``: 1 / (2 D), D = floor(top / (|value| + 1)).
+
+    Parameters
+    ----------
+    value : float
+        The value to be stored (e.g. a black level) [any unit; the bound is in the same unit].
+    signed : bool
+        SRATIONAL (top 2^31 − 1) rather than RATIONAL (top 2^32 − 1).
+
+    Returns
+    -------
+    float
+        The bound on |stored − value|: below 7.63e-6 for any |value| <= 65535 in a RATIONAL (a 16-bit black
+        level), 1.2e-10 × (|value| + 1) in general.
+    """
+    top = _RATIONAL_TOP[signed]
+    return 1.0 / (2 * min(top, int(top // (abs(float(value)) + 1))))
+
+
 def _rationals(values: Any, name: str, *, signed: bool) -> tuple[int, ...]:
-    """Flatten floats into TIFF (S)RATIONAL pairs ``(num0, den0, num1, den1, ...)``, exactly reproducibly."""
+    """Flatten floats into TIFF (S)RATIONAL pairs ``(num0, den0, num1, den1, ...)``, exactly reproducibly.
+
+    Each value gets the denominator its size allows: the closest fraction whose denominator is at most
+    D = floor(top / (|v| + 1)) (top = 2^32 − 1, or 2^31 − 1 signed), so that its numerator, at most (|v| + 1) D,
+    fits 32 bits; the error is at most 1 / (2 D) (:func:`rational_bound`): 7.63e-6 for a value of 65535, 1e-9
+    for one of 5. A value that is a fraction with such a denominator (16.5, 804, 3/7) is stored exactly.
+    """
     out: list[int] = []
+    top = _RATIONAL_TOP[signed]
     for v in np.asarray(values, dtype=np.float64).ravel():
         if not math.isfinite(v) or (not signed and v < 0):
             raise CamsimError(f"{name} must be finite{'' if signed else ' and non-negative'}, got {v!r}")
-        f = Fraction(float(v)).limit_denominator(_MAX_DEN)
-        lo, hi = (-(2**31), 2**31 - 1) if signed else (0, 2**32 - 1)
-        if not lo <= f.numerator <= hi:
-            raise CamsimError(f"{name} value {v!r} does not fit a TIFF {'S' if signed else ''}RATIONAL")
+        if abs(v) > top - 1:
+            raise CamsimError(f"{name} value {v!r} does not fit a TIFF {'S' if signed else ''}RATIONAL "
+                              f"(|value| <= {top - 1})")
+        f = Fraction(float(v)).limit_denominator(min(top, int(top // (abs(float(v)) + 1))))
         out += [f.numerator, f.denominator]
     return tuple(out)
 
@@ -151,15 +200,70 @@ def _check_mosaic(mosaic: Any, pattern: Any) -> None:
         raise CamsimError(f"mosaic {h}x{w} must have an even height and width (whole 2x2 {pattern} cells)")
 
 
+def _exif_entries(iso: Any, exposure_s: Any) -> list[tuple[int, int, int, bytes]]:
+    """The EXIF IFD's entries ``(tag, TIFF type, count, little-endian value bytes)``, sorted by tag, for an exposure
+    [s] and an ISO (each None to omit); none when both are None."""
+    entries: list[tuple[int, int, int, bytes]] = []
+    if exposure_s is not None:
+        if not (isinstance(exposure_s, (int, float, np.number)) and math.isfinite(exposure_s) and exposure_s > 0):
+            raise CamsimError(f"exposure_s must be a positive number of seconds, got {exposure_s!r}")
+        entries.append((_EXPOSURE_TIME, 5, 1, struct.pack("<2I", *_rationals([exposure_s], "exposure_s",
+                                                                                signed=False))))
+    if iso is not None:
+        if not (isinstance(iso, (int, float, np.number)) and math.isfinite(iso) and 0.5 <= iso < 2**32 - 0.5):
+            raise CamsimError(f"iso must be a positive number below 2^32, got {iso!r}")
+        speed = int(round(float(iso)))
+        entries.append((_ISO_SPEED_RATINGS, 3, 1, struct.pack("<H", min(speed, 65535))))
+        if speed > 65535:
+            entries += [(_SENSITIVITY_TYPE, 3, 1, struct.pack("<H", 3)), (_ISO_SPEED, 4, 1, struct.pack("<I", speed))]
+    if entries:
+        entries.append((_EXIF_VERSION, 7, 4, b"0230"))
+    return sorted(entries)
+
+
+def _append_exif_ifd(path: str | os.PathLike[str], entries: list[tuple[int, int, int, bytes]]) -> None:
+    """Append the EXIF IFD holding ``entries`` to the classic little-endian TIFF at ``path`` (as tifffile wrote
+    it) and turn IFD0's stand-in entry (code ``_EXIF_IFD_STAND_IN``, LONG 0) into the ExifIFD tag pointing at it."""
+    with open(path, "r+b") as fh:
+        header = fh.read(8)
+        if header[:4] != b"II*\x00":
+            raise CamsimError(f"cannot add the EXIF IFD to {os.fspath(path)}: not a little-endian classic TIFF")
+        ifd0 = struct.unpack("<I", header[4:])[0]
+        fh.seek(ifd0)
+        count = struct.unpack("<H", fh.read(2))[0]
+        table = fh.read(12 * count)
+        entry = next((ifd0 + 2 + 12 * i for i in range(count)
+                      if struct.unpack("<H", table[12 * i: 12 * i + 2])[0] == _EXIF_IFD_STAND_IN), None)
+        if entry is None:
+            raise CamsimError(f"cannot add the EXIF IFD to {os.fspath(path)}: IFD0 has no ExifIFD stand-in")
+        end = fh.seek(0, os.SEEK_END)
+        start = end + end % 2  # IFDs begin on a word boundary
+        data_at = start + 2 + 12 * len(entries) + 4
+        ifd, data = struct.pack("<H", len(entries)), b""
+        for tag, kind, n, value in entries:
+            if len(value) <= 4:
+                field = value.ljust(4, b"\x00")
+            else:
+                field = struct.pack("<I", data_at + len(data))
+                data += value + b"\x00" * (len(value) % 2)
+            ifd += struct.pack("<HHI", tag, kind, n) + field
+        ifd += struct.pack("<I", 0)  # no next IFD
+        fh.write(b"\x00" * (start - end) + ifd + data)
+        fh.seek(entry)
+        fh.write(struct.pack("<HHII", _EXIF_IFD, 4, 1, start))  # ExifIFD, LONG, 1: the IFD's offset
+
+
 def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_camera_model: str, color_matrix1: Any,
               as_shot_neutral: Any, calibration_illuminant1: int, make: str, model: str | None,
-              pattern: str | None = None, noise_profile: Any = None) -> list[tuple]:
+              pattern: str | None = None, noise_profile: Any = None, iso: Any = None,
+              exposure_s: Any = None) -> list[tuple]:
     """Validate the metadata shared by both writers and return tifffile ``extratags`` for the DNG tags.
 
     ``pattern`` None gives the tags of a 3-sample LinearRaw DNG (one BlackLevel and WhiteLevel per sample); a
     CFA pattern (one of :data:`CFA_PATTERNS`, already validated) gives those of a 1-sample CFA DNG: the CFA tags,
     one WhiteLevel, and the per-colour black levels mapped onto the 2x2 CFA positions. ``noise_profile`` (pairs
-    (S, O), see :func:`_noise_profile`) adds the NoiseProfile tag; None omits it.
+    (S, O), see :func:`_noise_profile`) adds the NoiseProfile tag; None omits it; ``iso`` or ``exposure_s``
+    add the ExifIFD pointer's stand-in (:func:`_append_exif_ifd` makes it the pointer after the write).
     """
     black = _per_sample(black_level_dn, "black_level_dn")
     white = _per_sample(white_level, "white_level")
@@ -180,7 +284,10 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
     profile_tags = [] if profile is None else [(_NOISE_PROFILE, "d", len(profile), profile, True)]
     if pattern is None:
         layout_tags: list[tuple] = []
-        black_dim, black_values = (1, 1), black
+        # no BlackLevelRepeatDim: its default, 1 x 1, is the layout (one value per sample). RawTherapee 5.9 reads
+        # the three values only without the tag: with it, it takes red's black from the (absent) per-position
+        # value, 0 (README, "Raw readers and camsim's DNGs")
+        black_dim, black_values = None, black
         white_values = tuple(int(w) for w in white)
     else:
         if np.any(white != white[0]):
@@ -205,19 +312,21 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
         (_DNG_VERSION, "B", 4, (1, 4, 0, 0), True),
         (_DNG_BACKWARD_VERSION, "B", 4, (1, 1, 0, 0), True),
         (_UNIQUE_CAMERA_MODEL, "s", 0, ucm, True),
-        (_BLACK_LEVEL_REPEAT_DIM, "H", 2, black_dim, True),
+        *([] if black_dim is None else [(_BLACK_LEVEL_REPEAT_DIM, "H", 2, black_dim, True)]),
         (_BLACK_LEVEL, "2I", len(black_values), _rationals(black_values, "black_level_dn", signed=False), True),
         (_WHITE_LEVEL, "I", len(white_values), white_values, True),
         (_COLOR_MATRIX1, "2i", 9, _rationals(cm, "color_matrix1", signed=True), True),
         (_AS_SHOT_NEUTRAL, "2I", 3, _rationals(neutral, "as_shot_neutral", signed=False), True),
         (_CALIBRATION_ILLUMINANT1, "H", 1, int(calibration_illuminant1), True),
         *profile_tags,
+        *([(_EXIF_IFD_STAND_IN, "I", 1, 0, True)] if iso is not None or exposure_s is not None else []),
     ]
 
 
 def _write(path: str | os.PathLike[str], frame: Any, cfa: bool, pattern: Any, black_level_dn: Any, white_level: Any,
            unique_camera_model: str, color_matrix1: Any, as_shot_neutral: Any, calibration_illuminant1: int,
-           make: str, model: str | None, software: str | None, noise_profile: Any = None) -> None:
+           make: str, model: str | None, software: str | None, noise_profile: Any = None, iso: Any = None,
+           exposure_s: Any = None) -> None:
     """Validate everything, then write a three-chip (``cfa`` False, ``pattern`` None) or CFA DNG atomically."""
     name = os.fspath(path)
     try:
@@ -225,8 +334,10 @@ def _write(path: str | os.PathLike[str], frame: Any, cfa: bool, pattern: Any, bl
             _check_mosaic(frame, pattern)
         else:
             _check_three_chip(frame)
+        exif = _exif_entries(iso, exposure_s)
         extratags = _dng_tags(frame.dtype, black_level_dn, white_level, unique_camera_model, color_matrix1,
-                              as_shot_neutral, calibration_illuminant1, make, model, pattern, noise_profile)
+                              as_shot_neutral, calibration_illuminant1, make, model, pattern, noise_profile, iso,
+                              exposure_s)
         software_tag = _ascii(software, "software") if software is not None else False
     except (TypeError, ValueError) as exc:  # CamsimError is a ValueError; so are numpy's failed conversions
         raise CamsimError(f"cannot write DNG {name}: {exc}") from None
@@ -240,14 +351,16 @@ def _write(path: str | os.PathLike[str], frame: Any, cfa: bool, pattern: Any, bl
         tifffile.imwrite(
             tmp, pixels, subfiletype=0, compression=None, rowsperstrip=pixels.shape[0], extratags=extratags,
             software=software_tag, datetime=False, metadata=None,  # no DateTime tag, no tifffile JSON description
-            **layout,
+            byteorder="<", **layout,
         )
+        if exif:
+            _append_exif_ifd(tmp, exif)
 
 
 def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: float | Any, white_level: int | Any,
               unique_camera_model: str, color_matrix1: Any, as_shot_neutral: Any, calibration_illuminant1: int = 21,
               make: str = "camsim", model: str | None = None, software: str | None = None,
-              noise_profile: Any = None) -> None:
+              noise_profile: Any = None, iso: float | None = None, exposure_s: float | None = None) -> None:
     """Write an uncompressed 8- or 16-bit three-chip LinearRaw DNG, atomically and byte-deterministically.
 
     Parameters
@@ -257,7 +370,8 @@ def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: f
     dn : numpy.ndarray, shape (3, H, W), dtype uint8 (uint16 for a 16-bit DNG)
         Planar R, G, B digital numbers [DN]. ``H, W >= 22`` (LibRaw's minimum size).
     black_level_dn : float or array_like, shape (3,)
-        Black level per sample [DN]; fractional values are stored exactly as RATIONAL (LibRaw rounds them, see
+        Black level per sample [DN], ``0 <= b < white_level``; stored as RATIONAL within :func:`rational_bound`
+        (< 7.63e-6 DN up to 65535 DN), one value per sample without BlackLevelRepeatDim (LibRaw rounds them, see
         the module docstring).
     white_level : int or array_like of int, shape (3,)
         Saturation level per sample [DN], ``<= 255`` (``<= 65535`` for uint16: 2^nb − 1 for an nb-bit ADC) and
@@ -276,6 +390,12 @@ def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: f
         DNG NoiseProfile: per sample (R, G, B), or one for all, the pair (S, O) such that the temporal noise
         variance of a normalised value x = (DN − BlackLevel) / (WhiteLevel − BlackLevel) is S · x + O (unitless;
         :func:`camsim.noise_profile.dng_noise_profile`). S > 0, O >= 0, stored as DOUBLE. None (default): no tag.
+    iso : float, optional
+        The camera's ISO setting: ISOSpeedRatings (EXIF PhotographicSensitivity, tag 34855, SHORT, rounded; above
+        65535 it holds 65535 and SensitivityType 3 with ISOSpeed, tag 34867, the value), in the EXIF IFD. None
+        (default): no tag.
+    exposure_s : float, optional
+        Exposure time [s], > 0: ExposureTime (tag 33434, RATIONAL), in the EXIF IFD. None (default): no tag.
 
     Raises
     ------
@@ -288,13 +408,14 @@ def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: f
     The file has no date/time or other varying content: the same inputs give byte-identical files.
     """
     _write(path, dn, False, None, black_level_dn, white_level, unique_camera_model, color_matrix1, as_shot_neutral,
-           calibration_illuminant1, make, model, software, noise_profile)
+           calibration_illuminant1, make, model, software, noise_profile, iso, exposure_s)
 
 
 def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: str, black_level_dn: float | Any,
                   white_level: int, unique_camera_model: str, color_matrix1: Any, as_shot_neutral: Any,
                   calibration_illuminant1: int = 21, make: str = "camsim", model: str | None = None,
-                  software: str | None = None, noise_profile: Any = None) -> None:
+                  software: str | None = None, noise_profile: Any = None, iso: float | None = None,
+                  exposure_s: float | None = None) -> None:
     """Write an uncompressed Bayer (CFA) DNG, atomically and byte-deterministically.
 
     Parameters
@@ -308,12 +429,13 @@ def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: 
         Colours of the 2x2 cell's top-left, top-right, bottom-left and bottom-right pixels; the cell at the
         mosaic's top-left corner.
     black_level_dn : float or array_like, shape (3,)
-        Black level per colour (R, G, B) [DN], stored exactly as RATIONAL per CFA position (BlackLevelRepeatDim
-        (2, 2)), or as one value when all three are equal. LibRaw truncates fractional values (module docstring).
+        Black level per colour (R, G, B) [DN], stored as RATIONAL (within :func:`rational_bound`) per CFA position
+        (BlackLevelRepeatDim (2, 2)), or as one value when all three are equal. LibRaw truncates fractional
+        values (module docstring).
     white_level : int
         Saturation level [DN] of all pixels, ``<= 255`` (``<= 65535`` for uint16) and above the black levels; 3
         equal values are accepted too.
-    unique_camera_model, color_matrix1, as_shot_neutral, calibration_illuminant1, make, model, software
+    unique_camera_model, color_matrix1, as_shot_neutral, calibration_illuminant1, make, model, software, iso, exposure_s
         As for :func:`write_dng`; ``color_matrix1`` maps XYZ to the camera's R, G, B (CFAPlaneColor order).
     noise_profile : array_like, shape (3, 2) or (1, 2), optional
         As for :func:`write_dng`, per colour plane in CFAPlaneColor order (R, G, B); None (default): no tag.
@@ -329,7 +451,71 @@ def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: 
     The file has no date/time or other varying content: the same inputs give byte-identical files.
     """
     _write(path, mosaic, True, pattern, black_level_dn, white_level, unique_camera_model, color_matrix1,
-           as_shot_neutral, calibration_illuminant1, make, model, software, noise_profile)
+           as_shot_neutral, calibration_illuminant1, make, model, software, noise_profile, iso, exposure_s)
+
+
+#: darktable's sidecar of ``NAME.dng``: ``NAME.dng.xmp`` (its default naming, read on import and by darktable-cli).
+DARKTABLE_XMP_SUFFIX = ".dng.xmp"
+
+_DARKTABLE_XMP = """<?xml version="1.0" encoding="UTF-8"?>
+<x:xmpmeta xmlns:x="adobe:ns:meta/">
+ <rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">
+  <rdf:Description rdf:about=""
+    xmlns:darktable="http://darktable.sf.net/"
+   darktable:xmp_version="5"
+   darktable:history_end="1"
+   darktable:auto_presets_applied="0">
+   <darktable:history>
+    <rdf:Seq>
+     <rdf:li
+      darktable:num="0"
+      darktable:operation="rawprepare"
+      darktable:enabled="1"
+      darktable:modversion="2"
+      darktable:params="{params}"
+      darktable:multi_name=""
+      darktable:multi_priority="0"/>
+    </rdf:Seq>
+   </darktable:history>
+  </rdf:Description>
+ </rdf:RDF>
+</x:xmpmeta>
+"""
+
+
+def darktable_xmp(black_level_dn: Any, white_level: Any) -> str:
+    """darktable's sidecar (``NAME.dng.xmp``) for a three-chip DNG: its black levels in the "raw black/white point"
+    module, which darktable cannot take from the DNG.
+
+    darktable's raw decoder (rawspeed, ``DngDecoder::decodeBlackLevels``) reads no BlackLevel of an image of more
+    than one sample per pixel, so it develops a three-chip DNG from black 0. The sidecar holds one history item,
+    the ``rawprepare`` module (parameters version 2, darktable 4.2 and later: crop 0, 0, 0, 0; four 16-bit black
+    levels; the white point); darktable applies its default modules as well (``auto_presets_applied`` 0). For an
+    image without a colour filter array ``rawprepare`` subtracts one level from all channels, the mean of its four
+    (``commit_params``), so the four are integers whose mean is the mean of the three samples' levels to 1/8 DN:
+    each channel is then off by its level's distance from that mean (README, "Raw readers and camsim's DNGs"),
+    where darktable without the sidecar is off by the whole level. Other readers ignore the file; the DNG is
+    unchanged.
+
+    Parameters
+    ----------
+    black_level_dn : float or array_like, shape (3,)
+        The DNG's BlackLevel per sample R, G, B [DN], ``< 65535.5``.
+    white_level : int or array_like of int, shape (3,)
+        The DNG's WhiteLevel [DN], ``<= 65535`` (the largest of three is taken: darktable keeps one).
+
+    Returns
+    -------
+    str
+        The XMP text (UTF-8).
+    """
+    quarters = math.floor(4 * float(np.mean(_per_sample(black_level_dn, "black_level_dn"))) + 0.5)
+    black = [quarters // 4 + (i < quarters % 4) for i in range(4)]  # four integers, mean quarters / 4
+    white = int(np.max(_per_sample(white_level, "white_level")))
+    if not (all(0 <= b <= 65535 for b in black) and 0 < white <= 65535):
+        raise CamsimError(f"darktable keeps 16-bit levels: black {black}, white {white}")
+    params = struct.pack("<4i4HHxxi", 0, 0, 0, 0, *black, white, 0)  # flat field off
+    return _DARKTABLE_XMP.format(params=params.hex())
 
 
 def _tag(page: Any, code: int) -> Any:
@@ -379,6 +565,31 @@ def _cfa_black_per_colour(page: Any, pattern: str, name: str) -> list[float] | N
     raise CamsimError(f"cannot read DNG {name}: unsupported BlackLevel layout (repeat {dim}, {len(values)} values)")
 
 
+def shot_metadata(page: Any) -> dict[str, Any]:
+    """``iso`` (float or None: ISOSpeed where SensitivityType is 3 and ISOSpeedRatings says 65535, else
+    ISOSpeedRatings) and ``exposure_s`` (float [s] or None: ExposureTime) of a TIFF page (a tifffile page, IFD0 or
+    its EXIF IFD), as :func:`write_dng` writes them and cameras do."""
+    tags = dict(page.tags.items())
+    exif = _tag(page, 34665)  # the EXIF IFD, which tifffile reads into a dict by tag name
+    named = exif if isinstance(exif, dict) else {}
+
+    def first(code: int, name: str) -> Any:
+        tag = tags.get(code)
+        return tag.value if tag is not None else named.get(name)
+
+    ratings = first(_ISO_SPEED_RATINGS, "ISOSpeedRatings")
+    if isinstance(ratings, (tuple, list)):
+        ratings = ratings[0] if ratings else None
+    speed = first(_ISO_SPEED, "ISOSpeed")
+    iso = float(speed) if (ratings in (None, 65535) and speed and first(_SENSITIVITY_TYPE, "SensitivityType") in
+                           (2, 3, 6, 7)) else (float(ratings) if ratings else None)
+    exposure = first(_EXPOSURE_TIME, "ExposureTime")
+    if isinstance(exposure, (tuple, list)) and len(exposure) == 2 and exposure[1]:
+        exposure = exposure[0] / exposure[1]
+    exposure_s = float(exposure) if isinstance(exposure, (int, float)) and exposure > 0 else None
+    return {"iso": iso, "exposure_s": exposure_s}
+
+
 def _check_complete(page: Any, size: int, name: str) -> None:
     """Refuse a file that ends before its pixel data does (a truncated copy), before LibRaw reads it: LibRaw
     would print its own complaint on stderr besides failing."""
@@ -407,8 +618,9 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
         files), ``black_level_exact`` (list of 3 float, the BlackLevel tag; for a CFA file per colour R, G, B),
         ``white_level`` (int [DN], LibRaw), ``unique_camera_model``, ``make``, ``model`` (str or None),
         ``as_shot_neutral`` (list of 3 float), ``color_matrix1`` (3x3 nested list, XYZ -> camera) and
-        ``calibration_illuminant1`` (int or None) and ``noise_profile`` (list of [S, O] pairs, per sample or CFA
-        plane colour, or None), from the DNG tags.
+        ``calibration_illuminant1`` (int or None), ``noise_profile`` (list of [S, O] pairs, per sample or CFA
+        plane colour, or None), ``iso`` (float or None) and ``exposure_s`` (float [s] or None), from the DNG tags
+        (:func:`shot_metadata`).
 
     Raises
     ------
@@ -450,6 +662,7 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
                 "color_matrix1": None if cm is None else np.reshape(cm, (3, 3)).tolist(),
                 "calibration_illuminant1": _tag(page, _CALIBRATION_ILLUMINANT1),
                 "noise_profile": _pairs(_tag(page, _NOISE_PROFILE)),
+                **shot_metadata(page),
             }
         with rawpy.imread(name) as raw:
             image = raw.raw_image
