@@ -206,6 +206,21 @@ def test_size_only_verification_misses_same_size_damage(serial, spec_path, tmp_p
     assert_same_frames(out, reference)
 
 
+def test_a_darktable_sidecar_rewritten_by_darktable_is_no_damage(serial, spec_path, tmp_path):
+    """darktable rewrites a three-chip DNG's .dng.xmp when it opens it: the frame is not rendered again, while
+    damage to the frame's own files still is found."""
+    reference, _ = serial
+    out = tmp_path / "out"
+    shutil.copytree(reference, out)
+    records = read_manifest(out)
+    three_chip = [r for r in records if r["cfa"] is None]
+    assert three_chip and all(r["files"]["xmp"] for r in three_chip)
+    (out / three_chip[0]["files"]["xmp"]["name"]).write_text("<x:xmpmeta>edited in darktable</x:xmpmeta>\n")
+    assert run_dataset(spec_path, out, workers=1, verify="sha256", progress=False, echo=None)["rendered"] == 0
+    flip_byte(out / three_chip[0]["files"]["dng"]["name"])
+    assert run_dataset(spec_path, out, workers=1, verify="sha256", progress=False, echo=None)["rendered"] == 1
+
+
 def test_an_interrupted_run_keeps_its_completed_frames(serial, spec_path, tmp_path, monkeypatch):
     reference, _ = serial
     out = tmp_path / "out"

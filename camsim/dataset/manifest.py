@@ -31,6 +31,9 @@ FRAMES_DIR = "frames"
 MANIFEST_NAME = "manifest.jsonl"
 DONE_SUFFIX = ".done"
 VERIFY_MODES = ("sha256", "size")
+#: Files a frame lists that a reader owns once written, so that a changed one is no damage: darktable rewrites a
+#: three-chip DNG's ``.dng.xmp`` sidecar (``files``' ``xmp``) when it opens the DNG. Listed, not verified.
+READER_OWNED = ("xmp",)
 #: Keys of a record that say how the frame was written, not which frame it is.
 _OUTPUT_KEYS = ("files", "exr_compression")
 
@@ -63,7 +66,8 @@ def verified_record(out_dir: Path, frame: FrameSpec, verify: str = "sha256") -> 
     """The frame's record if the frame is complete and verified, else None.
 
     Complete and verified: the ``.done`` record describes this very frame (every parameter and the seed), and
-    every file it lists exists with the recorded size and (``verify="sha256"``) SHA-256.
+    every file it lists exists with the recorded size and (``verify="sha256"``) SHA-256, but for the files a
+    reader owns (:data:`READER_OWNED`).
     """
     record = frame_record(done_path(out_dir, frame.id), frame, _OUTPUT_KEYS)
     if record is None:
@@ -71,8 +75,8 @@ def verified_record(out_dir: Path, frame: FrameSpec, verify: str = "sha256") -> 
     files = record.get("files")
     if not isinstance(files, dict) or not files.get("exr") or not files.get("json"):
         return None
-    for entry in files.values():
-        if entry is None:
+    for kind, entry in files.items():
+        if entry is None or kind in READER_OWNED:
             continue
         try:
             path = Path(out_dir) / entry["name"]
