@@ -76,7 +76,7 @@ def test_a_dark_frame_has_no_signal_electrons(tmp_path, capsys):
 
 
 @pytest.mark.parametrize(("text", "message"), [
-    ("reflectance = 1.5", r"\[target\] reflectance must be in \[0, 1\], got 1\.5"),
+    ("reflectance = 1.5", r"\[target\] reflectance must be a reflectance in \[0, 1\], got 1\.5"),
     ("reflectance = true", r"\[target\] reflectance must be a reflectance in \[0, 1\] or a patch name"),
     ("levels = 4", r"\[target\] key\(s\) levels do not apply to kind = 'flat' \(its keys: reflectance, reflectances\)"),
 ])

@@ -193,22 +193,22 @@ def write_exr(path: str | os.PathLike[str], noisy: np.ndarray, clean: np.ndarray
         raise CamsimError(f"cannot write EXR {name}: {exc}") from None
     noisy = _check_frame(noisy, "noisy", name, planes=(3, 1))
     channels = {}
-    if view is not None:
-        view = _check_frame(view, "view", name)
-        if view.shape[1:] != noisy.shape[1:]:
-            raise CamsimError(f"cannot write EXR {name}: view shape {view.shape} differs from noisy shape "
+
+    def add_layer(values, what, layer_names):  # a (3, H, W) layer beside ``noisy``, of its height and width
+        values = _check_frame(values, what, name)
+        if values.shape[1:] != noisy.shape[1:]:
+            raise CamsimError(f"cannot write EXR {name}: {what} shape {values.shape} differs from noisy shape "
                               f"{noisy.shape}")
-        channels.update({c: np.ascontiguousarray(view[i]) for i, c in enumerate(VIEW_CHANNELS)})
+        channels.update({c: np.ascontiguousarray(values[i]) for i, c in enumerate(layer_names)})
+
+    if view is not None:
+        add_layer(view, "view", VIEW_CHANNELS)
         names = NOISY_CHANNELS if noisy.shape[0] == 3 else MOSAIC_CHANNELS
     else:
         names = PLAIN_NOISY_CHANNELS if noisy.shape[0] == 3 else PLAIN_MOSAIC_CHANNELS
     channels.update({c: np.ascontiguousarray(noisy[i]) for i, c in enumerate(names)})
     if clean is not None:
-        clean = _check_frame(clean, "clean", name)
-        if clean.shape[1:] != noisy.shape[1:]:
-            raise CamsimError(f"cannot write EXR {name}: clean shape {clean.shape} differs from noisy shape "
-                              f"{noisy.shape}")
-        channels.update({c: np.ascontiguousarray(clean[i]) for i, c in enumerate(CLEAN_CHANNELS)})
+        add_layer(clean, "clean", CLEAN_CHANNELS)
     exr_header: dict[str, Any] = {"compression": constant, "type": OpenEXR.scanlineimage,
                                   "lineOrder": OpenEXR.INCREASING_Y}
     exr_header.update(_check_header(header, name))

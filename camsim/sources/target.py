@@ -78,6 +78,19 @@ def disk_bound(width: int, height: int, radius_min_px: float, radius_max_px: flo
     return math.ceil((math.log(width * height) + 20) / q)
 
 
+def _reflectance_or_patch(table: dict, key: str, default: float, where: str) -> float | str:
+    """A ``[target]`` key that is a flat reflectance in [0, 1] (an integer is taken as a number) or a patch name."""
+    value = table.get(key, default)
+    if isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if isinstance(value, float):
+        if not 0 <= value <= 1:
+            raise CamsimError(f"{where}: [target] {key} must be a reflectance in [0, 1], got {value:g}")
+    elif not isinstance(value, str):
+        raise CamsimError(f"{where}: [target] {key} must be a reflectance in [0, 1] or a patch name, got {value!r}")
+    return value
+
+
 @dataclass(frozen=True)
 class DeadLeaves:
     """A dead-leaves label map and what drew it.
@@ -422,17 +435,7 @@ class SlantedEdgeTarget(TargetSource):
         levels = typed(table, "levels", int, 64, where)
         if not 2 <= levels <= MAX_LEVELS:
             raise CamsimError(f"{where}: [target] levels must be an integer in [2, {MAX_LEVELS}], got {levels}")
-        sides = []
-        for key, default in (("low", 0.1), ("high", 0.8)):
-            value = table.get(key, default)
-            if isinstance(value, int) and not isinstance(value, bool):
-                value = float(value)
-            if isinstance(value, float):
-                if not 0 <= value <= 1:
-                    raise CamsimError(f"{where}: [target] {key} must be a reflectance in [0, 1], got {value:g}")
-            elif not isinstance(value, str):
-                raise CamsimError(f"{where}: [target] {key} must be a reflectance or a patch name, got {value!r}")
-            sides.append(value)
+        sides = [_reflectance_or_patch(table, key, default, where) for key, default in (("low", 0.1), ("high", 0.8))]
         if all(isinstance(v, float) for v in sides) and not sides[0] < sides[1]:
             raise CamsimError(f"{where}: [target] low ({sides[0]:g}) must be below high ({sides[1]:g})")
         return cls(angle_deg=angle, offset_px=offset, low=sides[0], high=sides[1], levels=levels,
@@ -502,15 +505,7 @@ class FlatTarget(TargetSource):
 
     @classmethod
     def _from_table(cls, table, base_dir, where) -> FlatTarget:
-        value = table.get("reflectance", 1.0)
-        if isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if isinstance(value, float):
-            if not 0 <= value <= 1:
-                raise CamsimError(f"{where}: [target] reflectance must be in [0, 1], got {value:g}")
-        elif not isinstance(value, str):
-            raise CamsimError(f"{where}: [target] reflectance must be a reflectance in [0, 1] or a patch name, "
-                              f"got {value!r}")
+        value = _reflectance_or_patch(table, "reflectance", 1.0, where)
         return cls(reflectance=value, reflectances=typed(table, "reflectances", str, "ColorChecker N Ohta", where),
                    base_dir=base_dir)
 
