@@ -51,9 +51,11 @@ def test_denoise_eval_help_does_not_ask_to_install_a_dependency(capsys):
 
 
 @pytest.mark.parametrize(("extra", "line", "kinds"), [
-    ([], "wrote 1 frame (DNG, EXR, JSON) to", {".dng", ".exr", ".json"}),
+    ([], "wrote 1 frame (DNG, darktable XMP, EXR, JSON) to", {".dng", ".xmp", ".exr", ".json"}),
+    (["--cfa", "RGGB"], "wrote 1 frame (DNG, EXR, JSON) to", {".dng", ".exr", ".json"}),  # darktable reads a CFA's
     (["--preset", "ideal"], "wrote 1 frame (EXR, JSON; no DNG: quantisation is off) to", {".exr", ".json"}),
-    (["--preview", "--illuminant", "A"], "wrote 2 frames (DNG, EXR, JSON, PNG) to", {".dng", ".exr", ".json", ".png"}),
+    (["--preview", "--illuminant", "A"], "wrote 2 frames (DNG, darktable XMP, EXR, JSON, PNG) to",
+     {".dng", ".xmp", ".exr", ".json", ".png"}),
 ])
 def test_render_says_which_files_it_wrote(tmp_path, capsys, extra, line, kinds):
     out = tmp_path / "out"
