@@ -177,7 +177,7 @@ def run(args) -> int:
     out = args.out if args.out is not None else DEFAULT_OUT / scene.name
     manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet, preview=args.preview,
                             device=device, exr_compression=args.exr_compression,
-                            warn=None if args.quiet else _warn_clear_of_the_bar)
+                            warn=_warn_clear_of_the_bar)  # camsim's own warnings stay with -q
     print(written_summary(scene, manifest, out))
     return 0
 
