@@ -72,7 +72,7 @@ def test_render_counts_the_frames_of_earlier_runs(tmp_path, capsys):
     assert main(["render", "macbeth_26", *SMALL, "--illuminant", "A", "--out", str(out)]) == 0
     assert main(["render", "macbeth_26", *SMALL, "--out", str(out)]) == 0
     said = capsys.readouterr().out.strip().splitlines()[-1]
-    assert said.startswith("wrote 1 frame (DNG, EXR, JSON) to") and said.endswith("(with 1 frame of earlier runs)")
+    assert said.startswith("wrote 1 frame (DNG, darktable XMP, EXR, JSON) to") and said.endswith("(with 1 frame of earlier runs)")
 
 
 def _render(args, tmp_path):
@@ -97,7 +97,7 @@ def test_quiet_silences_colour_science_warnings(tmp_path):
     quiet = _render(["otsu.toml", "-F", "1", "--out", "quiet", "-q"], tmp_path)
     assert quiet.returncode == 0, quiet.stderr
     assert quiet.stderr == ""
-    assert quiet.stdout.startswith("wrote 1 frame (DNG, EXR, JSON)")
+    assert quiet.stdout.startswith("wrote 1 frame (DNG, darktable XMP, EXR, JSON)")
 
 
 def test_a_frame_too_small_for_a_dng_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
