@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.dataset.manifest import DONE_SUFFIX, frame_record
+from camsim.dataset.manifest import DONE_SUFFIX, append_manifest, frame_record, manifest_line
 from camsim.errors import CamsimError
 from camsim.io import atomic  # atomic.fsync_path: one flush, which tests can fail as a full disk does
 
@@ -369,4 +369,5 @@ def store_result(out_dir: Path, group, layout: StoreLayout, frame, result: dict,
     record = {**frame.record, "arrays": entries}
     atomic.write_json_atomic(record_path(out_dir, frame.id), record)
     group["done"][frame.index] = True
+    append_manifest(out_dir, manifest_line(record))  # the frame is committed: listed at once
     return record
