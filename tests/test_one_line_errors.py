@@ -9,6 +9,8 @@ import textwrap
 import time
 from pathlib import Path
 
+import numpy as np
+
 import pytest
 
 from tests.helpers import ROOT
@@ -75,3 +77,52 @@ def test_a_truncated_png_is_one_line_without_libpngs_own(tmp_path):
     assert len(err.splitlines()) == 1 and "libpng" not in err, err
     assert err.startswith(f"camsim: error: cannot read the pixels of image {tmp_path / 'cut.png'}: "), err
     assert "end of file" in err  # libpng's reason, in camsim's line
+
+
+# --- numeric warnings: extreme values are refused with a reason, or computed without overflow -----------------
+
+_CHART = 'name = "x"\n[chart]\n[light]\nilluminants = ["D65"]\nintensity_factors = [1.0]\n'
+
+
+@pytest.mark.parametrize("extra, status, phrase", [
+    ("[light]\nluminance_cd_m2 = 1e300\n", 2, "photon rates or the camera's Qe are not finite"),  # photons.py
+    ("[camera.scale]\nreference_exposure_s = 1e-308\n", 2, "overflows float64 at any F"),  # expected.py
+    ("[sensor]\nconversion_gain_v_per_e = 1e-300\n", 2, "too small for the EXR's linear sRGB view"),
+    ("[light]\nluminance_cd_m2 = 1e-308\n", 2, "too small for the EXR's linear sRGB view"),
+    ("[sensor]\nread_noise_e = 1e30\n", 0, None),  # σ² beyond float32 in the normal draws (kernels.py)
+    ("[sensor]\ndsnu_e = 1e30\n", 0, None),  # a correlation of 1 in the black level's bivariate normal
+])
+def test_extreme_values_give_no_runtime_warning(tmp_path, capsys, extra, status, phrase):
+    import warnings
+
+    from camsim.cli import main
+    from camsim.io.exr import read_exr
+
+    text = _CHART.replace("[light]\n", "[light]\n" + extra.split("\n", 1)[1]) if extra.startswith("[light]") \
+        else _CHART + extra
+    scene = tmp_path / "x.toml"
+    scene.write_text(text)
+    out = tmp_path / "out"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["render", str(scene), "--size", "48x32", "--out", str(out), "-q"]) == status
+    assert [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)] == []
+    err = capsys.readouterr().err
+    if status == 2:
+        assert len(err.splitlines()) == 1 and phrase in err, err
+    else:
+        pixels, _, _ = read_exr(out / "x_D65_F1.exr")
+        assert np.all(np.isfinite(pixels))
+
+
+def test_normal_draws_with_a_sigma_whose_square_is_beyond_float32():
+    from camsim.kernels import standard_normal_f32
+
+    out, work = np.empty(100_000, np.float32), np.empty(50_000, np.float32)
+    standard_normal_f32(np.random.default_rng(1), out, work, scale=1e30)
+    assert np.all(np.isfinite(out)) and 0.98e30 < float(np.std(out.astype(np.float64))) < 1.02e30
+    small = np.empty(10, np.float32)
+    standard_normal_f32(np.random.default_rng(1), small, work, scale=2.0)
+    reference = np.empty(10, np.float32)  # the folded path, unchanged: σ = 2 is the same draws times 2
+    standard_normal_f32(np.random.default_rng(1), reference, work, scale=1.0)
+    np.testing.assert_allclose(small, 2 * reference, rtol=1e-6)
