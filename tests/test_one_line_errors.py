@@ -91,6 +91,8 @@ _CHART = 'name = "x"\n[chart]\n[light]\nilluminants = ["D65"]\nintensity_factors
     ("[light]\nluminance_cd_m2 = 1e-308\n", 2, "too small for the EXR's linear sRGB view"),
     ("[sensor]\nread_noise_e = 1e30\n", 0, None),  # σ² beyond float32 in the normal draws (kernels.py)
     ("[sensor]\ndsnu_e = 1e30\n", 0, None),  # a correlation of 1 in the black level's bivariate normal
+    ("[camera.scale]\nreference_electrons = 1e308\n", 0, None),  # the DNG colour matrix's responses (rawcolour.py)
+    ('[camera.scale]\nkind = "physical"\npixel_pitch_um = 1e150\n', 0, None),
 ])
 def test_extreme_values_give_no_runtime_warning(tmp_path, capsys, extra, status, phrase):
     import warnings
