@@ -72,6 +72,25 @@ def test_the_reader_refuses_before_decoding(bomb):
     assert time.monotonic() - start < 1.0
 
 
+def test_the_refusal_does_not_grow_memory(bomb):
+    """In a fresh process: the peak resident memory stays far below the 675 MB the bomb's pixels take."""
+    import os
+    import subprocess
+    import sys
+
+    from tests.helpers import ROOT
+
+    code = ("import resource, sys\nfrom camsim.errors import CamsimError\n"
+            "from camsim.sources.image import read_image_codes\n"
+            "try:\n    read_image_codes(sys.argv[1])\nexcept CamsimError:\n    pass\nelse:\n    sys.exit(1)\n"
+            "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run([sys.executable, "-c", code, str(bomb)], env=env, capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert int(done.stdout) * 1024 < 400e6  # Linux: KiB
+
+
 def test_an_allowed_image_is_read_in_blocks_and_crops_read_their_rows(tmp_path):
     path = tmp_path / "small.png"
     write_constant_png(path, 300, 2500)  # more rows than one block
