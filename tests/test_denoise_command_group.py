@@ -50,6 +50,17 @@ def _child_pid(pid_file) -> int:
     return pid
 
 
+def _gone(pid: int, within_s: float = 2.0) -> bool:
+    """Whether ``pid`` is gone within ``within_s`` seconds (a SIGKILL is delivered asynchronously: the kill call
+    returns before the process is dead). An orphan would run for the sleep's 60 s."""
+    deadline = time.monotonic() + within_s
+    while _running(pid):
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.01)
+    return True
+
+
 def test_timeout_kills_the_commands_children(tmp_path):
     script, pid_file = _script(tmp_path, "wait")
     denoiser = resolve_denoiser(f"cmd:{script} {{input}} {{output}}", timeout_s=1.0)
@@ -57,7 +68,7 @@ def test_timeout_kills_the_commands_children(tmp_path):
     with pytest.raises(CamsimError, match="did not finish within 1 s"):
         denoiser(np.ones((8, 8, 3), np.float32))
     assert time.monotonic() - start < 10
-    assert not _running(_child_pid(pid_file))
+    assert _gone(_child_pid(pid_file))
 
 
 @pytest.mark.parametrize("tail, message", [("echo broken >&2; exit 3", "exit status 3.*broken"),
@@ -69,4 +80,24 @@ def test_failure_and_exit_kill_the_commands_children(tmp_path, tail, message):
     with pytest.raises(CamsimError, match=message):
         denoiser(np.ones((8, 8, 3), np.float32))
     assert time.monotonic() - start < 10  # not waiting for the sleep to close its end of the pipes
-    assert not _running(_child_pid(pid_file))
+    assert _gone(_child_pid(pid_file))
+
+
+def test_an_interrupt_kills_the_commands_children(tmp_path):
+    """Ctrl-C (here KeyboardInterrupt from a timer's signal handler) while the command runs: the group goes too."""
+    import signal
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    script, pid_file = _script(tmp_path, "wait")
+    denoiser = resolve_denoiser(f"cmd:{script} {{input}} {{output}}", timeout_s=30.0)
+    previous = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 1.0)
+        with pytest.raises(KeyboardInterrupt):
+            denoiser(np.ones((8, 8, 3), np.float32))
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+    assert _gone(_child_pid(pid_file))
