@@ -290,6 +290,10 @@ def _atoms_mean(atoms, weights, k, top, gauss_var, tukey, pedestal=0):
 
 def _bivariate_normal_cdf(h, kk, rho):
     """P(U ≤ h, V ≤ kk) for standard normals of correlation ``rho`` (Owen's T function), elementwise."""
+    if abs(rho) >= 1:  # U = ±V (a DSNU that dwarfs the noise: σ_n/σ_o below 1e-8): the formula's limit, without 1/0
+        if rho > 0:
+            return special.ndtr(np.minimum(h, kk))
+        return np.maximum(special.ndtr(h) + special.ndtr(kk) - 1.0, 0.0)
     h = np.where(h == 0, 1e-300, h)
     kk = np.where(kk == 0, 1e-300, kk)
     c = np.sqrt(1 - rho * rho)

@@ -93,6 +93,6 @@ def parse_size(text: str) -> tuple[int, int]:
         raise CamsimError(f"size must look like WIDTHxHEIGHT (e.g. 600x400), got {text!r}") from None
     if width <= 0 or height <= 0:
         raise CamsimError(f"size must be positive, got {text!r}")
-    if width * height > 200_000_000:
-        raise CamsimError(f"size {text} is over 200 megapixels")
-    return width, height
+    from camsim.pixel_limit import check_pixel_count
+
+    return check_pixel_count(width, height, f"size {text}")

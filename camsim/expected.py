@@ -163,7 +163,7 @@ def _overflow_reason(photon_radiance, qe, sensor: SensorParams, intensity_factor
         return (f"the exposure T = {T:g} s overflows the mean dark charge σ²_dark·T (float64 ends at "
                 f"{_FLOAT64_MAX:.2g} e⁻)")
     # (what, unit, log10 of its value at F = 1): each grows as F
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", over="ignore"):  # an overflow here is the reason being found: log10(inf)
         terms = [("the photon rate F·g(λ)", "photons / (s m² sr) per bin", np.log10(g.max(initial=0.0))),
                  ("the mean signal T·F·Σ g Qe", "e⁻", np.log10(np.max(g @ qe.T, initial=0.0)) + np.log10(T))]
         if sensor.photon_noise and statistics == "paper":
@@ -171,6 +171,9 @@ def _overflow_reason(photon_radiance, qe, sensor: SensorParams, intensity_factor
                           np.log10(np.max(g @ (qe * qe).T, initial=0.0)) + 2 * np.log10(T)))
     log_f, log_max = np.log10(F), np.log10(_FLOAT64_MAX)
     worst = max(terms, key=lambda term: term[2])
+    if not np.isfinite(worst[2]):  # a product overflows already at F = 1 (the camera's Qe is vast)
+        return (f"{worst[0]} overflows float64 at any F: the camera's Qe times the scene's photon rates is beyond "
+                f"{_FLOAT64_MAX:.2g} (a reference charge, exposure or pixel size far beyond any camera's)")
     allowed = log_max - worst[2]
     return (f"intensity factor F = {F:g} at exposure T = {T:g} s overflows float64: {worst[0]} would reach "
             f"{_sci(log_f + worst[2])} {worst[1]}, beyond {_FLOAT64_MAX:.2g}; this scene and camera allow F up to "

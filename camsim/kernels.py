@@ -111,8 +111,13 @@ def standard_normal_f32(rng: np.random.Generator, out: np.ndarray, work: np.ndar
     u1, u2, radius = flat[:half], flat[half : 2 * half], work[:half]
     np.subtract(np.float32(1.0), u1, out=radius)  # in (0, 1]: the logarithm stays finite
     np.log(radius, out=radius)
-    radius *= np.float32(-2.0 * scale * scale)
-    np.sqrt(radius, out=radius)
+    if 2.0 * scale * scale < FLOAT32_MAX:  # σ folded into the radius: no extra pass
+        radius *= np.float32(-2.0 * scale * scale)
+        np.sqrt(radius, out=radius)
+    else:  # σ² beyond float32 (σ ≳ 1.3e19, which the frame's values still hold): σ after the root
+        radius *= np.float32(-2.0)
+        np.sqrt(radius, out=radius)
+        radius *= np.float32(scale)
     u2 *= np.float32(2.0 * np.pi)
     np.sin(u2, out=u1)
     u1 *= radius
@@ -122,6 +127,9 @@ def standard_normal_f32(rng: np.random.Generator, out: np.ndarray, work: np.ndar
         flat[-1] = scale * rng.standard_normal(dtype=np.float32)
     return out
 
+
+#: The largest float32, as a Python float.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 #: Below this mean number of pixels per run of equal labels, the label map is drawn pixel by pixel (a gather
 #: of per-pixel means); at or above it, run by run with one scalar mean per run.

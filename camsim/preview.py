@@ -192,6 +192,24 @@ def preview_srgb(frame, info, *, exposure: str | float = "scene", matrix: str = 
     return out
 
 
+#: The largest factor from DN to the linear sRGB view that keeps the view's float32 values finite (1 = the white).
+VIEW_FACTOR_MAX = 1e30
+
+
+def _check_view_transform(t: np.ndarray) -> None:
+    """Refuse a DN → linear sRGB matrix that float32 cannot hold: the perfect white at F = 1 is then a vanishing
+    number of DN (a conversion gain, analog gain, luminance or reference charge tens of orders of magnitude below
+    any camera's), and every pixel of the view would be infinite or NaN."""
+    size = float(np.max(np.abs(t), initial=0.0)) if np.all(np.isfinite(t)) else np.inf
+    if size > VIEW_FACTOR_MAX:
+        from camsim.errors import CamsimError
+
+        white = 1.0 / size if size > 0 else 0.0
+        raise CamsimError(f"the perfect white at F = 1 is about {white:.3g} DN, too small for the EXR's linear "
+                          f"sRGB view (float32): a gain, luminance or reference charge far below any camera's; "
+                          "raise it")
+
+
 def linear_srgb(frame, info, *, matrix: str = "least-squares", transform: np.ndarray | None = None) -> np.ndarray:
     """The frame's values before quantisation as linear sRGB: the picture of :func:`preview_srgb` before its clip
     and transfer function, from ``noisy_dn`` (never the quantised numbers) less ``dark_level_dn``.
@@ -219,6 +237,7 @@ def linear_srgb(frame, info, *, matrix: str = "least-squares", transform: np.nda
         the perfect white at F = 1.
     """
     t = preview_transform(frame, info, exposure="scene", matrix=matrix) if transform is None else transform
+    _check_view_transform(t)
     height, width = frame.labels.shape
     out = np.empty((3, height, width), dtype=np.float32)
     if frame.sensor.cfa is None:

@@ -32,7 +32,10 @@ def color_matrix_xyz_to_camera(qe: np.ndarray, grid: WavelengthGrid) -> np.ndarr
     _, refl = reflectance_set(_CALIBRATION_CHART, grid)
     radiance = refl * d65
     xyz = radiance @ cmfs.T
-    rgb = camera_response(radiance, qe, grid)
+    with np.errstate(over="ignore", invalid="ignore"):  # handled below
+        rgb = camera_response(radiance, qe, grid)
+    if not np.all(np.isfinite(rgb)):  # a Qe so vast that the responses overflow: the matrix is that of Qe / max Qe
+        rgb = camera_response(radiance, qe / np.max(qe), grid)
     solution, *_ = np.linalg.lstsq(xyz, rgb, rcond=None)  # rgb ≈ xyz @ solution
     matrix = solution.T
     white_xyz = d65 @ cmfs.T

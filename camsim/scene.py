@@ -22,6 +22,7 @@ from camsim.builtin_scenes import resolve_scene_file
 from camsim.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
 from camsim.errors import CamsimError
 from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
+from camsim.pixel_limit import check_pixel_count
 from camsim.regions import Region, check_regions, parse_regions
 from camsim.schema import Param, param, params_of, validate
 from camsim.camera_presets import sensor_preset
@@ -106,6 +107,7 @@ class Scene:
         if self.normalisation not in NORMALISATIONS:
             raise CamsimError(f"normalisation must be one of {NORMALISATIONS}, got {self.normalisation!r}")
         validate(self, "scene")
+        check_pixel_count(self.width, self.height, "[frame]")
         if not all(isinstance(r, Region) for r in self.regions):
             raise CamsimError(f"a scene's regions must be camsim.regions.Region, got {self.regions!r}")
         if self.regions and not self.source.has_own_size:  # else checked when the source gives its size
@@ -235,6 +237,8 @@ def load_scene(path: str | Path) -> Scene:
     sensor_table = {p.name: p.coerce(sensor_table[p.name], f"{where} [sensor]")
                     for p in SENSOR_PARAMS if p.name in sensor_table}
 
+    check_pixel_count(typed(frame, "width", int, 600, where), typed(frame, "height", int, 400, where),
+                      f"{where}: [frame]")
     regions = parse_regions(doc["region"], where) if "region" in doc else ()
     if regions and not source.has_own_size:  # an image's or a cube's size is checked when it is read
         check_regions(regions, typed(frame, "width", int, 600, where), typed(frame, "height", int, 400, where),

@@ -154,6 +154,24 @@ def test_an_interrupted_run_stops_promptly_and_keeps_its_frames(signalled, spec_
     assert not list((out / FRAMES_DIR).glob(".*.partial"))
 
 
+def test_at_most_one_line_on_stderr(signalled):
+    """The command's one line (none after SIGKILL), and nothing from multiprocessing: the resource tracker, which
+    unlinks the semaphores of a killed run's pool, reports that on the null device."""
+    lines = signalled["stderr"].splitlines()
+    assert "resource_tracker" not in signalled["stderr"], signalled["stderr"]
+    assert len(lines) == (0 if signalled["signal"] == signal.SIGKILL else 1), signalled["stderr"]
+
+
+def test_the_manifest_lists_exactly_the_committed_frames(signalled):
+    """Whatever stopped the run — SIGKILL included, which runs no ``finally`` — ``manifest.jsonl`` lists each
+    committed frame (a ``.done`` record) once, and no other: each is appended as it is committed."""
+    out = signalled["out"]
+    committed = {p.name[: -len(".done")] for p in (out / FRAMES_DIR).glob("*.done")}
+    listed = [m["id"] for m in read_manifest(out)]
+    assert len(committed) >= signalled["done_before"] >= 1
+    assert sorted(listed) == sorted(committed), signalled["stderr"]
+
+
 def test_a_rerun_completes_the_dataset_identically(signalled, spec_path, reference):
     out = signalled["out"]
     summary = run_dataset(spec_path, out, workers=1, progress=False, echo=None)

@@ -59,7 +59,38 @@ def start_fork_server(zarr: bool = False) -> None:
     if context.get_start_method() == "forkserver":
         from multiprocessing import forkserver
 
+        start_quiet_resource_tracker()
         forkserver.ensure_running()
+
+
+def start_quiet_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker (if it is not running) with its standard error on the null device.
+
+    The tracker unlinks the named semaphores of the pool's queues that a process killed outright (SIGKILL) could
+    not release; it then prints a ``resource_tracker: There appear to be N leaked semaphore objects`` warning, two
+    lines on camsim's standard error after the run is over, about a cleanup that it did. Every exit path that runs
+    code releases them (the main process's at exit, a worker's when it exits on its own: :func:`_stop` in
+    :mod:`camsim.dataset.backends`); this silences the report of the tracker's cleanup after a kill, not the
+    cleanup. The tracker inherits descriptor 2 when it is spawned, so it is redirected for that moment only.
+    """
+    from multiprocessing import resource_tracker  # ensure_running: a no-op while the tracker runs
+
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):
+        resource_tracker.ensure_running()
+        return
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(null, 2)
+        finally:
+            os.close(null)
+        resource_tracker.ensure_running()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
 
 
 def bind_to_parent() -> bool:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 
@@ -26,6 +27,10 @@ __all__ = ["run_serial", "run_pool", "run_dask"]
 #: On an interruption or an error, how long the frames being rendered get to finish (and be recorded) before their
 #: workers are terminated. Unit: s.
 GRACE_S = 2.0
+#: After an interruption or an error, how long an idle worker gets to exit on its own (so that its finalizers run:
+#: numcodecs' Blosc makes a multiprocessing lock, a named semaphore, in each worker that writes Zarr chunks, and a
+#: terminated worker leaves it to the resource tracker, which prints a "leaked semaphore" warning). Unit: s.
+EXIT_S = 1.0
 #: Frames submitted to the pool ahead of the results, per worker: enough to keep every worker busy, few enough
 #: that a spec of 10⁵ frames does not become 10⁵ queued tasks (and that an interruption has little to cancel).
 AHEAD_PER_WORKER = 2
@@ -90,13 +95,19 @@ def _keep_finished(pending: dict, on_done) -> None:
 
 
 def _stop(pool: ProcessPoolExecutor) -> list[int]:
-    """Shut the pool down now: terminate its workers (still rendering, or idle) and wait for them briefly;
-    returns their process ids."""
+    """Shut the pool down now: idle workers get :data:`EXIT_S` seconds to exit on their own (cleanly: their
+    semaphores are released), those still rendering are terminated; waits for them briefly and returns their
+    process ids."""
     processes = list((getattr(pool, "_processes", None) or {}).values())  # the executor has no public handle
-    pool.shutdown(wait=False, cancel_futures=True)
+    pool.shutdown(wait=False, cancel_futures=True)  # sends each worker its exit sentinel
+    deadline = time.monotonic() + EXIT_S
     for process in processes:
         with contextlib.suppress(Exception):
-            process.terminate()
+            process.join(timeout=max(0.0, deadline - time.monotonic()))
+    for process in processes:
+        with contextlib.suppress(Exception):
+            if process.is_alive():
+                process.terminate()
     for process in processes:
         with contextlib.suppress(Exception):
             process.join(timeout=GRACE_S)

@@ -88,12 +88,12 @@ from camsim.io.exr_compression import check_exr_compression
 from camsim.scene import FRAME_PARAMS, RENDER_PARAMS, Scene, load_scene, read_toml
 from camsim.seeding import dataset_frame_seeds, dataset_parameter_generator
 from camsim.sensor import SENSOR_PARAMS
+from camsim.pixel_limit import check_pixel_count
 from camsim.sources.image import ImageSource
 from camsim.camera_presets.virtual import VIRTUAL_KEYS
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT = 256, 192
 MAX_FRAMES = 1_000_000
-MAX_PIXELS = 200_000_000
 
 #: Every parameter a spec may set, by name: the frame's choices, the render settings and the sensor's (the schema).
 PARAMETERS = {p.name: p for p in (*FRAME_PARAMS, *RENDER_PARAMS, *SENSOR_PARAMS) if p.name != "seed"}
@@ -533,8 +533,7 @@ def _images(table, base: Path, where: str) -> _ImageFolder:
         raise CamsimError(f"{where}: [images] needs crop = [width, height] (the frame size, positive integers "
                           f"in pixels), got {crop!r}")
     width, height = crop
-    if width * height > MAX_PIXELS:
-        raise CamsimError(f"{where}: [images] crop {width}x{height} is over {MAX_PIXELS // 1_000_000} megapixels")
+    check_pixel_count(width, height, f"{where}: [images] crop")
     flips = table.get("flips", False)
     if not isinstance(flips, bool):
         raise CamsimError(f"{where}: [images] flips must be true or false, got {flips!r}")
@@ -645,8 +644,7 @@ def plan_spec(path: str | Path) -> SpecPlan:
     for key, value in (("width", width), ("height", height)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise CamsimError(f"{where}: [frame] {key} must be a positive integer (pixels), got {value!r}")
-    if width * height > MAX_PIXELS:
-        raise CamsimError(f"{where}: [frame] {width}x{height} is over {MAX_PIXELS // 1_000_000} megapixels")
+    check_pixel_count(width, height, f"{where}: [frame]")
 
     images = None
     if "images" in doc:

@@ -44,8 +44,8 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.dataset.manifest import DONE_SUFFIX, frame_record
-from camsim.errors import CamsimError
+from camsim.dataset.manifest import DONE_SUFFIX, append_manifest, frame_record, manifest_line
+from camsim.errors import CamsimError, output_error
 from camsim.io import atomic  # atomic.fsync_path: one flush, which tests can fail as a full disk does
 
 __all__ = ["STORE_NAME", "RECORDS_DIR", "LAYERS", "COMPRESSORS", "StoreLayout", "store_layout", "open_store",
@@ -253,7 +253,22 @@ def write_done(group, records: dict) -> None:
     """Rewrite ``done`` from the records of the complete frames (``{index: record}``)."""
     done = np.zeros(group["done"].shape, dtype=bool)
     done[[i for i in records if i < len(done)]] = True
-    group["done"][...] = done
+    with _writing(_member_path(group, "done")):
+        group["done"][...] = done
+
+
+def _member_path(group, name: str) -> str:
+    """The path of the store's array ``name`` (for a message)."""
+    return str(Path(str(group.store.root)) / name) if hasattr(group.store, "root") else name
+
+
+@contextlib.contextmanager
+def _writing(path):
+    """Zarr's errors on writing (a full disk: ``OSError`` without a file name) as one line naming ``path``."""
+    try:
+        yield
+    except OSError as exc:
+        raise output_error(path, exc) from None
 
 
 def _remove_partials(root: Path) -> None:
@@ -305,17 +320,16 @@ def write_frame_arrays(layout: StoreLayout, index: int, data: dict, sidecar_text
             entries[name] = None
             continue
         array = arrays[name]
+        key = array.metadata.encode_chunk_key((index,) if name == "sidecar" else (index, 0, 0, 0))
+        chunk = root / name / key
         if name == "sidecar":
-            array[index] = value
             digest = hashlib.sha256(value.encode("utf-8")).hexdigest()
-            key = array.metadata.encode_chunk_key((index,))
         else:
             value = np.ascontiguousarray(value, dtype=array.dtype)
-            array[index] = value
             digest = hashlib.sha256(memoryview(value).cast("B")).hexdigest()
-            key = array.metadata.encode_chunk_key((index, 0, 0, 0))
-        chunk = root / name / key
-        atomic.fsync_path(chunk)
+        with _writing(chunk):
+            array[index] = value
+            atomic.fsync_path(chunk)
         entries[name] = {"chunk": f"{name}/{key}", "bytes": chunk.stat().st_size, "sha256": digest}
     for name in entries:
         atomic.fsync_path(root / name, directory=True)
@@ -368,5 +382,7 @@ def store_result(out_dir: Path, group, layout: StoreLayout, frame, result: dict,
         entries = write_frame_arrays(layout, frame.index, result["data"], result["sidecar"], threads)
     record = {**frame.record, "arrays": entries}
     atomic.write_json_atomic(record_path(out_dir, frame.id), record)
-    group["done"][frame.index] = True
+    with _writing(_member_path(group, "done")):
+        group["done"][frame.index] = True
+    append_manifest(out_dir, manifest_line(record))  # the frame is committed: listed at once
     return record

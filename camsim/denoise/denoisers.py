@@ -34,6 +34,7 @@ import os
 import re
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -409,6 +410,52 @@ def _tail(text: str) -> str:
     return text or "(no output on stderr)"
 
 
+def _kill_group(process: subprocess.Popen) -> None:
+    """SIGKILL the process group that ``process`` leads (it and every child it started), then reap it."""
+    try:
+        os.killpg(process.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):  # the group is gone already
+        pass
+    process.wait()
+
+
+def _run_in_own_group(args: list[str], timeout_s: float | None, folder: Path) -> subprocess.CompletedProcess:
+    """Run ``args`` in a new session (its own process group), like :func:`subprocess.run`, with its standard output
+    and error captured in files of ``folder`` (not pipes: a child left running in the background would hold a pipe
+    open, and reading it to its end would wait for that child).
+
+    Whatever happens — a normal exit, a non-zero status, ``timeout_s`` (seconds) running out, Ctrl-C, SIGTERM — the
+    whole group is killed as soon as the command itself ends or is given up, so that no child it started (e.g. a
+    shell script's ``sleep``) outlives it as an orphan.
+
+    Raises
+    ------
+    subprocess.TimeoutExpired
+        The command ran longer than ``timeout_s``; its ``stderr`` holds what the command had written there.
+    OSError
+        The command could not be started.
+    """
+    out_path, err_path = folder / "command.stdout", folder / "command.stderr"
+
+    def captured(path):  # the end of what the command wrote (a chatty command may write megabytes)
+        with open(path, "rb") as file:
+            file.seek(max(0, file.seek(0, os.SEEK_END) - 4 * STDERR_TAIL_CHARS))
+            return file.read().decode("utf-8", errors="replace")
+
+    with open(out_path, "wb") as out, open(err_path, "wb") as err:
+        process = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=out, stderr=err, start_new_session=True)
+    try:
+        process.wait(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        _kill_group(process)
+        raise subprocess.TimeoutExpired(args, timeout_s, captured(out_path), captured(err_path)) from None
+    except BaseException:  # Ctrl-C, SIGTERM, anything: no orphan
+        _kill_group(process)
+        raise
+    _kill_group(process)  # the command exited; children it left behind go with it
+    return subprocess.CompletedProcess(args, process.returncode, captured(out_path), captured(err_path))
+
+
 def _command_denoiser(target: str, timeout_s: float | None) -> Denoiser:
     template = target[len(COMMAND_PREFIX):].strip()
     try:
@@ -436,8 +483,7 @@ def _command_denoiser(target: str, timeout_s: float | None) -> Denoiser:
             write_exr(source, np.ascontiguousarray(np.moveaxis(image, -1, 0), dtype=np.float32), None, header)
             args = [a.replace(INPUT_PLACEHOLDER, str(source)).replace(OUTPUT_PLACEHOLDER, str(result)) for a in argv]
             try:
-                done = subprocess.run(args, capture_output=True, text=True, errors="replace", timeout=timeout_s,
-                                      stdin=subprocess.DEVNULL)
+                done = _run_in_own_group(args, timeout_s, Path(tmp))
             except subprocess.TimeoutExpired as exc:
                 raise CamsimError(f"denoiser command {template!r} did not finish within {timeout_s:g} s; stderr: "
                                   f"{_tail(exc.stderr if isinstance(exc.stderr, str) else '')}") from None

@@ -15,7 +15,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextvars import ContextVar
 from pathlib import Path
 from typing import Any
@@ -58,13 +58,16 @@ def fsync_path(path: str | os.PathLike[str], *, directory: bool = False) -> None
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+def atomic_path(path: str | os.PathLike[str], *, renamed: Callable[[], None] | None = None) -> Iterator[Path]:
     """Yield a temporary path to write to; move it onto ``path`` when the ``with`` block succeeds.
 
     Parameters
     ----------
     path : str or os.PathLike
         Final destination. Its directory must exist.
+    renamed : callable, optional
+        Called with no argument right after the rename, before the directory is synced: what must follow the
+        file's appearance at once (a manifest line; a kill in between is then microseconds' chance).
 
     Yields
     ------
@@ -100,6 +103,8 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         if isinstance(exc, OSError):
             raise output_error(final, exc) from None
         raise
+    if renamed is not None:
+        renamed()
     record_created(final)
     fsync_path(final.parent, directory=True)
 
@@ -148,7 +153,7 @@ def undo_on_failure() -> Iterator[list[Path]]:
         outer.extend(completed)
 
 
-def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
+def write_text_atomic(path: str | os.PathLike[str], text: str, *, renamed: Callable[[], None] | None = None) -> None:
     """Write ``text`` to ``path`` as UTF-8, atomically (see :func:`atomic_path`).
 
     Parameters
@@ -157,13 +162,15 @@ def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
         Destination file.
     text : str
         Content, written verbatim (no newline translation, on any platform).
+    renamed : callable, optional
+        Called right after the rename (:func:`atomic_path`).
     """
     data = text.encode("utf-8")  # encode first: an unencodable string (lone surrogate) creates no file at all
-    with atomic_path(path) as tmp:
+    with atomic_path(path, renamed=renamed) as tmp:
         tmp.write_bytes(data)
 
 
-def write_json_atomic(path: str | os.PathLike[str], obj: Any) -> None:
+def write_json_atomic(path: str | os.PathLike[str], obj: Any, *, renamed: Callable[[], None] | None = None) -> None:
     """Write ``obj`` as pretty-printed JSON (UTF-8, trailing newline) to ``path``, atomically.
 
     Parameters
@@ -172,6 +179,8 @@ def write_json_atomic(path: str | os.PathLike[str], obj: Any) -> None:
         Destination file.
     obj : Any
         JSON-serialisable object. Serialised with ``indent=2, allow_nan=False, ensure_ascii=False``.
+    renamed : callable, optional
+        Called right after the rename (:func:`atomic_path`).
 
     Raises
     ------
@@ -181,4 +190,4 @@ def write_json_atomic(path: str | os.PathLike[str], obj: Any) -> None:
         If ``obj`` contains a value :mod:`json` cannot serialise. Raised before any file is created.
     """
     text = json.dumps(obj, indent=2, allow_nan=False, ensure_ascii=False) + "\n"
-    write_text_atomic(path, text)
+    write_text_atomic(path, text, renamed=renamed)

@@ -241,11 +241,36 @@ class _Stored:
 def read_npy(path: Path, *, variable: str | None = None) -> _Stored:
     """A ``.npy`` cube, H × W × B, memory-mapped (``np.load(mmap_mode="r")``); it carries no wavelengths."""
     _no_variable(path, variable)
+    _check_npy_header(path)
     try:
         array = np.load(path, mmap_mode="r", allow_pickle=False)
     except (OSError, ValueError, EOFError) as exc:
         raise CamsimError(f"cannot read cube file {path}: {exc}") from None
     return _Stored(_check_array(array, path), mapping=getattr(array, "_mmap", None))
+
+
+def _check_npy_header(path: Path) -> None:
+    """Check the (H, W) of a ``.npy`` file's header against :data:`camsim.pixel_limit.MAX_PIXELS` before the file is
+    mapped (a header may claim any shape); other problems are left to ``np.load``, which reports them."""
+    from numpy.lib import format as npy_format
+
+    try:
+        with open(path, "rb") as file:
+            version = npy_format.read_magic(file)
+            read = {(1, 0): npy_format.read_array_header_1_0, (2, 0): npy_format.read_array_header_2_0}.get(version)
+            if read is None:
+                return
+            shape = read(file)[0]
+    except (OSError, ValueError, EOFError):
+        return  # np.load says what is wrong
+    if len(shape) == 3:
+        _check_size(shape[1], shape[0], path)
+
+
+def _check_size(width, height, path: Path) -> None:
+    from camsim.pixel_limit import check_pixel_count
+
+    check_pixel_count(int(width), int(height), f"cube {path}")
 
 
 # --- ENVI -----------------------------------------------------------------------------------------------------------
@@ -271,6 +296,7 @@ def read_envi(path: Path, *, variable: str | None = None) -> _Stored:
         return value
 
     samples, lines, bands = integer("samples", minimum=1), integer("lines", minimum=1), integer("bands", minimum=1)
+    _check_size(samples, lines, path)
     code = integer("data type")
     if code not in ENVI_DATA_TYPES:
         raise CamsimError(f"{where}: data type {code} is not supported (camsim reads "
@@ -460,6 +486,7 @@ def _mat_variables(path: Path, variable: str | None):
     else:
         raise CamsimError(f"cube file {path} has several 3-D variables ({', '.join(cubes)}): name one with "
                           "variable = \"…\" in [cube]")
+    _check_size(shapes[cube][1], shapes[cube][0], path)
     bands = shapes[cube][2]
     wavelength = None
     wanted = {name.lower() for name in MAT_WAVELENGTH_NAMES}
@@ -586,6 +613,7 @@ def _check_array(array: np.ndarray, path: Path, what: str = "") -> np.ndarray:
         raise CamsimError(f"cube {path}{what} has {array.dtype} values; camsim reads integers and real floats")
     if 0 in array.shape:
         raise CamsimError(f"cube {path}{what} is empty: shape {array.shape}")
+    _check_size(array.shape[1], array.shape[0], path)
     return array
 
 

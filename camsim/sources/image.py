@@ -129,6 +129,10 @@ class ImageSource(SceneSource):
                 and all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in self.size)):
             raise CamsimError(f"[image] size must be [width, height], two positive integers (pixels), "
                               f"got {list(self.size) if isinstance(self.size, tuple) else self.size!r}")
+        if self.size is not None:
+            from camsim.pixel_limit import check_pixel_count
+
+            check_pixel_count(*self.size, "[image] size")
 
     @classmethod
     def from_table(cls, table: dict, base_dir, where: str) -> ImageSource:
@@ -339,12 +343,9 @@ def _image_header(path: str) -> tuple[int, int, int]:
 
 @lru_cache(maxsize=8)
 def _cached_header(path: str, _mtime_ns: int, _size: int) -> tuple[int, int, int]:
-    oiio = _oiio()
     if not Path(path).is_file():
         raise CamsimError(f"image file not found: {path}")
-    image = oiio.ImageInput.open(path)
-    if image is None:
-        raise CamsimError(f"cannot read image {path}: {oiio.geterror() or 'not an image OpenImageIO reads'}")
+    image = _open_image(path)
     try:
         spec = image.spec()
         return int(spec.width), int(spec.height), int(spec.nchannels)
@@ -352,33 +353,89 @@ def _cached_header(path: str, _mtime_ns: int, _size: int) -> tuple[int, int, int
         image.close()
 
 
-def read_image_codes(path: str) -> tuple[np.ndarray, bool, int]:
+#: Rows of an image decoded per call (:func:`read_image_codes`): about 16 MB of 8-bit RGB at 5 000 pixels a row,
+#: so that Ctrl-C and SIGTERM are handled between blocks, not after the whole image.
+ROWS_PER_READ = 1024
+
+
+def _open_image(path: str):
+    """OpenImageIO's ``ImageInput`` for ``path``, its header read and its size checked against
+    :data:`camsim.pixel_limit.MAX_PIXELS`, before any pixel is decoded; the library's own messages on standard
+    error (``libpng error: ...``) become the reason of the one-line error."""
+    from camsim.io.library_stderr import library_stderr
+    from camsim.pixel_limit import check_pixel_count
+
+    oiio = _oiio()
+    with library_stderr() as chatter:
+        image = oiio.ImageInput.open(path)
+        error = oiio.geterror() if image is None else ""
+    if image is None:
+        raise CamsimError(f"cannot read image {path}: "
+                          f"{error or chatter.reason() or 'not an image OpenImageIO reads'}")
+    spec = image.spec()
+    try:
+        check_pixel_count(int(spec.width), int(spec.height), f"image {path}")
+    except CamsimError:
+        image.close()
+        raise
+    return image
+
+
+def read_image_codes(path: str, rows: tuple[int, int] | None = None) -> tuple[np.ndarray, bool, int]:
     """The pixels of an image file as stored, shape (H, W, 3), and whether they are integer codes (and their bits).
 
     Integer files keep their codes (uint8 / uint16); float files (half, float) come as float32. One channel is
-    replicated to three; channels beyond three (alpha) are dropped.
+    replicated to three; channels beyond three (alpha) are dropped. The size in the file's header is checked
+    (:func:`camsim.pixel_limit.check_pixel_count`) before any pixel is decoded; the pixels are decoded
+    :data:`ROWS_PER_READ` rows at a time (scanline files), so that a signal stops the read between blocks.
+
+    Parameters
+    ----------
+    path : str
+        The image file.
+    rows : tuple of int, optional
+        (first, stop): decode only these rows (a crop's); default all.
     """
+    from camsim.io.library_stderr import library_stderr
+
     oiio = _oiio()
-    image = oiio.ImageInput.open(path)
-    if image is None:
-        raise CamsimError(f"cannot read image {path}: {oiio.geterror() or 'not an image OpenImageIO reads'}")
+    image = _open_image(path)
+    reason = ""
     try:
         spec = image.spec()
+        channels = int(spec.nchannels)
+        if channels == 2 or channels < 1:
+            raise CamsimError(f"image {path} has {channels} channels: camsim reads grey, RGB and RGBA images")
+        read_channels = min(channels, 3)  # grey is repeated to three; alpha and beyond are not read
         base = spec.format.basetype
         integer = {oiio.UINT8: (oiio.UINT8, 8), oiio.UINT16: (oiio.UINT16, 16)}.get(base)
-        pixels = image.read_image(integer[0] if integer else oiio.FLOAT)
+        kind = integer[0] if integer else oiio.FLOAT
+        first, stop = (0, spec.height) if rows is None else rows
+        dtype = {8: np.uint8, 16: np.uint16}[integer[1]] if integer else np.float32
+        pixels = np.empty((stop - first, spec.width, 3), dtype)  # filled block by block: no second copy
+        if spec.tile_width:  # a tiled file: OpenImageIO reads it whole
+            steps = [(None, None)]
+        else:
+            steps = [(y, min(y + ROWS_PER_READ, stop)) for y in range(first, stop, ROWS_PER_READ)]
+        for start, end in steps:
+            with library_stderr() as chatter:
+                if start is None:
+                    block = image.read_image(0, 0, 0, read_channels, kind)
+                else:
+                    block = image.read_scanlines(0, 0, spec.y + start, spec.y + end, 0, 0, read_channels, kind)
+                error = oiio.geterror() if block is None else ""
+            if block is None:
+                reason = error or chatter.reason() or "the decoder gave no reason"
+                break
+            block = np.asarray(block).reshape(-1, spec.width, read_channels)
+            if start is None:
+                block, start, end = block[first:stop], first, stop
+            pixels[start - first:end - first] = block  # one channel broadcasts to three
     finally:
         image.close()
-    if pixels is None:
-        raise CamsimError(f"cannot read the pixels of image {path}: {oiio.geterror()}")
-    pixels = np.asarray(pixels)
-    if pixels.ndim == 2:
-        pixels = pixels[:, :, None]
-    if pixels.shape[2] == 1:
-        pixels = np.repeat(pixels, 3, axis=2)
-    elif pixels.shape[2] == 2 or pixels.shape[2] < 1:
-        raise CamsimError(f"image {path} has {pixels.shape[2]} channels: camsim reads grey, RGB and RGBA images")
-    return np.ascontiguousarray(pixels[:, :, :3]), integer is not None, integer[1] if integer else 0
+    if reason:
+        raise CamsimError(f"cannot read the pixels of image {path}: {reason}")
+    return pixels, integer is not None, integer[1] if integer else 0
 
 
 def distinct_linear_rgb(path: str, colourspace: str = "sRGB", crop: tuple | None = None, size: tuple | None = None):
@@ -427,10 +484,10 @@ def _resized_linear(codes: np.ndarray, integer: bool, bits: int, colourspace: st
 @lru_cache(maxsize=4)
 def _cached_distinct(path: str, _mtime_ns: int, _size: int, colourspace: str, crop: tuple | None,
                      size: tuple | None = None):
-    codes, integer, bits = read_image_codes(path)
+    codes, integer, bits = read_image_codes(path, None if crop is None else (crop[1], crop[1] + crop[3]))
     if crop is not None:
-        x, y, w, h = crop
-        codes = codes[y : y + h, x : x + w]
+        x, _, w, _ = crop
+        codes = codes[:, x : x + w]
     height, width = codes.shape[:2]
     if not integer:
         _check_float_pixels(codes, path)
