@@ -20,7 +20,7 @@ Runner
     own process group, with ``RLIMIT_AS`` (address space), a wall-clock limit (then ``SIGKILL`` of the group), and
     its file descriptors 1 and 2 sent to files, so that what C libraries print (``libpng error: ...``) is seen too.
     It classifies the run (:data:`OUTCOMES`): every file under the case's scratch folder outside ``{OUT}`` is
-    compared before and after, and no ``*.partial`` may remain anywhere in it.
+    compared before and after (and in its parent folder), and no ``*.partial`` may remain anywhere in it.
 
 Outside the scratch folder nothing is generated: the absolute paths the mutators write are ``{ROOT}/...`` and the
 relative ones climb at most 4 folders from ``{OUT}`` (which is ``{ROOT}/a/b/c/out``), so an escape lands inside
@@ -562,10 +562,16 @@ class Case:
     files: dict
     argv: list
     label: str = ""
+    ops: list = dataclasses.field(default_factory=list)
 
     def __repr__(self):
         sizes = {name: len(body) for name, body in self.files.items()}
-        return f"Case({self.kind}, {self.label}, argv={self.argv}, files={sizes})"
+        ops = repr(self.ops)
+        ops = ops if len(ops) < 400 else ops[:400] + "..."
+        return f"Case({self.kind}, {self.label}, ops={ops}, argv={self.argv}, files={sizes})"
+
+    def _repr_pretty_(self, printer, cycle):  # Hypothesis prints a failing case with this
+        printer.text(repr(self))
 
 
 def _frame_files(seeds: Seeds, **replace) -> dict:
@@ -686,7 +692,9 @@ def case_strategy(draw, seeds: Seeds, kind: str, family: str | None = None) -> C
     if family == "sizes" and not [p for p in tree_paths(doc) if p[-1] in SIZE_KEYS]:
         family = "values"
     ops = draw(_ops_for(seeds, kind, family, doc))
-    return make_case(seeds, kind, ops, choice, label=family)
+    case = make_case(seeds, kind, ops, choice, label=family)
+    case.ops = ops
+    return case
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -704,7 +712,7 @@ class Result:
     peak_mb: float  # the case's resident memory above the forking process's (MB)
     stderr: list
     traceback: str | None
-    outside: list  # files made, changed or removed outside {OUT}
+    outside: list  # files made, changed or removed outside {OUT}, relative to the scratch folder's parent
     partial: list  # temporary files left
 
     def summary(self) -> str:
@@ -733,23 +741,21 @@ def prepare(case: Case, root: Path) -> tuple[Path, Path]:
     return inp, out
 
 
-def snapshot(root: Path, skip: Path) -> dict:
-    """(size, mtime) of every file and folder under ``root``, except under ``skip``, by path."""
+def snapshot(top: Path, skip: tuple[Path, ...]) -> dict:
+    """(size, mtime) of every file and folder under ``top``, except ``skip`` and what is under them, by path."""
     state = {}
-    for folder, dirs, files in os.walk(root):
+    for folder, dirs, files in os.walk(top):
         here = Path(folder)
-        if here == skip or skip in here.parents:
-            dirs[:] = []
-            continue
+        dirs[:] = [name for name in dirs if here / name not in skip]
         for name in dirs + files:
             path = here / name
-            if path == skip:
+            if path in skip:
                 continue
             try:
-                st_ = path.lstat()
+                info = path.lstat()
             except OSError:
                 continue
-            state[str(path.relative_to(root))] = (st_.st_size, st_.st_mtime_ns if not path.is_dir() else 0)
+            state[str(path.relative_to(top))] = (info.st_size, 0 if path.is_dir() else info.st_mtime_ns)
     return state
 
 
@@ -770,7 +776,9 @@ def run_case(case: Case, root: Path, *, time_limit: float = 10.0, memory_limit_m
     case : Case
         The files and the command line.
     root : Path
-        The case's scratch folder (must not exist): input ``root/in``, output ``root/a/b/c/out``.
+        The case's scratch folder (must not exist): input ``root/in``, output ``root/a/b/c/out``. Its parent
+        must hold nothing that changes while the case runs: it is compared before and after too (a scene named
+        ``{ROOT}`` writes ``{ROOT}_D65_F1.dng`` beside ``root``).
     time_limit : float
         Seconds of wall-clock time before the case's process group is killed (the outcome is then ``hang``).
     memory_limit_mb : float
@@ -781,9 +789,9 @@ def run_case(case: Case, root: Path, *, time_limit: float = 10.0, memory_limit_m
     root.mkdir(parents=True)
     inp, out = prepare(case, root)
     argv = [a.replace("{IN}", str(inp)).replace("{OUT}", str(out)).replace("{ROOT}", str(root)) for a in case.argv]
-    before = snapshot(root, out)
     side = root.parent / f".{root.name}"
     side.mkdir()
+    before = snapshot(root.parent, (out, side))
     err_path, result_path = side / "stderr", side / "result.json"
     limit = _vm_bytes("VmSize") + int(memory_limit_mb * 2**20)
     base_rss = _vm_bytes("VmRSS")
@@ -813,9 +821,9 @@ def run_case(case: Case, root: Path, *, time_limit: float = 10.0, memory_limit_m
         reported = json.loads(result_path.read_text())
     except (OSError, ValueError):
         reported = None
-    after = snapshot(root, out)
+    after = snapshot(root.parent, (out, side))
     outside = sorted(k for k in set(before) | set(after) if before.get(k) != after.get(k))
-    partial = sorted(str(p.relative_to(root)) for p in root.rglob("*.partial"))
+    partial = sorted(str(p.relative_to(root.parent)) for p in root.parent.rglob("*.partial") if side not in p.parents)
     result = Result(outcome="", rc=reported["rc"] if reported else None, seconds=seconds,
                     peak_mb=max(usage.ru_maxrss * 1024 - base_rss, 0) / 2**20, stderr=stderr,
                     traceback=reported["traceback"] if reported else None, outside=outside, partial=partial)

@@ -46,9 +46,11 @@ def run_kind(seeds, kind: str, cases: int, seed: int, work: Path, args, totals, 
     @given(case=fuzz.case_strategy(seeds, kind))
     def one(case):
         count[0] += 1
-        root = work / f"{kind}-{count[0]}"
-        result = fuzz.run_case(case, root, time_limit=args.time_limit, memory_limit_mb=args.memory_limit)
-        shutil.rmtree(root, ignore_errors=True)
+        container = work / f"{kind}-{count[0]}"  # the case's folder and whatever escapes beside it
+        container.mkdir()
+        result = fuzz.run_case(case, container / "case", time_limit=args.time_limit,
+                               memory_limit_mb=args.memory_limit)
+        shutil.rmtree(container, ignore_errors=True)
         totals[kind][result.outcome] += 1
         totals[kind]["cases"] += 1
         for flag, on in (("traceback", bool(result.traceback)), ("outside", bool(result.outside)),
