@@ -795,6 +795,7 @@ def run_case(case: Case, root: Path, *, time_limit: float = 10.0, memory_limit_m
     err_path, result_path = side / "stderr", side / "result.json"
     limit = _vm_bytes("VmSize") + int(memory_limit_mb * 2**20)
     base_rss = _vm_bytes("VmRSS")
+    quiesce()  # another test in this process may have started OpenEXR's pool since
     sys.stdout.flush()
     sys.stderr.flush()
     start = time.monotonic()

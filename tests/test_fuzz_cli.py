@@ -110,7 +110,7 @@ def test_the_runner_sees_a_write_outside_the_output_folder(tmp_path):
                      ["render", "{IN}/scene.toml", "--out", "{ROOT}/in", "-q", "--workers", "1"])
     result = fuzz.run_case(case, tmp_path / "case")
     assert result.rc == 0
-    assert result.outcome == "outside" and any(name.startswith("in/") for name in result.outside)
+    assert result.outcome == "outside" and any(name.startswith("case/in/") for name in result.outside)
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -127,7 +127,8 @@ def test_fuzz_scene_names(case):
 
 
 @pytest.mark.slow
-@xfail(5, "a frame width of 2**63 gives a traceback (ValueError: Maximum allowed dimension exceeded); also point 3: [frame] width/height skip the pixel guard")
+@xfail(5, "a frame width of 2**63 gives a traceback (ValueError: Maximum allowed dimension exceeded); "
+          "also point 3: [frame] width/height skip the pixel guard")
 @fuzz_settings(known_failing=True)
 @given(case=cases("scene", "sizes"))
 def test_fuzz_scene_sizes(case):
@@ -211,7 +212,8 @@ def test_fuzz_png_bytes(case):
 
 
 @pytest.mark.slow
-@xfail(3, "a .npy header with a negative dimension gives a traceback (OverflowError from mmap): the cube's shape is not checked before reading")
+@xfail(3, "a .npy header with a negative dimension gives a traceback (OverflowError from mmap): "
+          "the cube's shape is not checked before reading")
 @fuzz_settings(known_failing=True)
 @given(case=cases("cube", "bytes"))
 def test_fuzz_cube_bytes(case):

@@ -96,7 +96,8 @@ def main(argv=None) -> int:
     print("| kind | " + " | ".join(columns) + " | noisy success |")
     print("|---" * (len(columns) + 2) + "|")
     for kind in kinds:
-        print(f"| {kind} | " + " | ".join(str(totals[kind][c]) for c in columns) + f" | {flags[kind]['noisy_success']} |")
+        cells = " | ".join(str(totals[kind][c]) for c in columns)
+        print(f"| {kind} | {cells} | {flags[kind]['noisy_success']} |")
     all_totals = sum(totals.values(), Counter())
     all_flags = sum(flags.values(), Counter())
     print("| all | " + " | ".join(str(all_totals[c]) for c in columns) + f" | {all_flags['noisy_success']} |")
