@@ -295,6 +295,7 @@ def dng_ops(entries):
 
 
 def apply_dng_ops(data: bytes, ops) -> bytes:
+    """``data`` with the ops of :func:`dng_ops` applied in turn."""
     buf = bytearray(data)
     for op in ops:
         if op[0] != "tag":
@@ -348,6 +349,7 @@ def png_ops():
 
 
 def apply_png_ops(data: bytes, ops, bomb: bytes) -> bytes:
+    """``data`` with the ops of :func:`png_ops` applied in turn (``bomb``: the bytes a ``("bomb",)`` op puts)."""
     for op in ops:
         if op[0] == "bomb":
             data = bomb
@@ -382,6 +384,7 @@ def exr_ops(attributes):
 
 
 def apply_exr_ops(data: bytes, ops, attributes) -> bytes:
+    """``data`` with the ops of :func:`exr_ops` applied in turn (``attributes``: :func:`exr_attributes` of it)."""
     buf = bytearray(data)
     for op in ops:
         if op[0] != "attr":
@@ -415,8 +418,9 @@ def npy_ops():
 
 
 def apply_npy_ops(body: bytes, ops) -> bytes:
+    """The seed cube's ``.npy`` file with the ``.npy`` ops of :func:`npy_ops` applied (header edits, then bytes)."""
     header = {"descr": "<f8", "fortran_order": False, "shape": (TINY[1], TINY[0], 101)}
-    data, edits = None, []
+    edits = []
     for op in ops:
         if op[0] == "header":
             header = {"descr": op[2], "fortran_order": op[3], "shape": op[1]}
@@ -656,7 +660,7 @@ FAMILIES = {
 
 
 def _ops_for(seeds: Seeds, kind: str, family: str, doc=None):
-    if kind in ("dng",):
+    if kind == "dng":
         return dng_ops(seeds.dng_entries)
     if kind == "exr":
         return exr_ops(seeds.exr_attributes)
@@ -856,6 +860,7 @@ def _child(argv, root, err_path, result_path, limit):  # pragma: no cover - runs
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, signal.SIG_DFL if sig == signal.SIGTERM else signal.default_int_handler)
         os.chdir(root)
+        fresh_reporting()
         from camsim.cli import main
 
         rc, tb = None, None
@@ -873,6 +878,35 @@ def _child(argv, root, err_path, result_path, limit):  # pragma: no cover - runs
         code = 70
     finally:
         os._exit(code)
+
+
+def fresh_reporting() -> None:
+    """Warnings and log records reach stderr as in a fresh ``camsim`` process, whatever the forking process set up.
+
+    Under pytest the forking process records warnings (``catch_warnings(record=True)``) and captures log records
+    (handlers on the root logger): a case would hide the lines a user sees (numpy's ``RuntimeWarning``, tifffile's
+    log messages). This restores Python's default warning filters and printing, and the root logger's defaults
+    (no handler: records of WARNING and above go to stderr through ``logging.lastResort``). The filters libraries
+    add on import are dropped with pytest's (numpy's: ignore "numpy.ndarray size changed", always RankWarning);
+    none concerns what camsim prints.
+    """
+    import logging
+    import warnings
+
+    warnings.resetwarnings()  # also forgets which warnings were shown already
+    for category in (ResourceWarning, ImportWarning, PendingDeprecationWarning, DeprecationWarning):
+        warnings.filterwarnings("ignore", category=category)
+    warnings.filterwarnings("default", category=DeprecationWarning, module="__main__")
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        (file or sys.stderr).write(warnings.formatwarning(message, category, filename, lineno, line))
+
+    warnings.showwarning = show
+    root = logging.getLogger()
+    for handler in list(root.handlers):
+        root.removeHandler(handler)
+    root.setLevel(logging.WARNING)
+    logging.disable(logging.NOTSET)
 
 
 def classify(result: Result, *, killed: bool, signalled: bool, memory_limit_mb: float) -> str:

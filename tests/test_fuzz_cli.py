@@ -119,7 +119,7 @@ def test_the_runner_sees_a_write_outside_the_output_folder(tmp_path):
 
 
 @pytest.mark.slow
-@xfail(1, "a scene's name with '..' or an absolute path writes outside --out")
+@xfail(1, "a scene's name '../x' writes outside --out; 'nul\\x00byte' gives a traceback")
 @fuzz_settings(known_failing=True)
 @given(case=cases("scene", "names"))
 def test_fuzz_scene_names(case):
@@ -128,7 +128,7 @@ def test_fuzz_scene_names(case):
 
 @pytest.mark.slow
 @xfail(5, "a frame width of 2**63 gives a traceback (ValueError: Maximum allowed dimension exceeded); "
-          "also point 3: [frame] width/height skip the pixel guard")
+          "also point 3: [frame] width = 2**40 skips the pixel guard (out of memory)")
 @fuzz_settings(known_failing=True)
 @given(case=cases("scene", "sizes"))
 def test_fuzz_scene_sizes(case):
@@ -143,7 +143,7 @@ def test_fuzz_scene_values(case):
 
 
 @pytest.mark.slow
-@xfail(5, "nesting 3 000 deep: RecursionError in the TOML parser")
+@xfail(5, "nesting 3 000 deep: RecursionError in the TOML parser; empty intensity_factors: a traceback")
 @fuzz_settings(known_failing=True)
 @given(case=cases("scene", "nesting"))
 def test_fuzz_scene_nesting(case):
@@ -165,7 +165,7 @@ def test_fuzz_spec_values(case):
 
 
 @pytest.mark.slow
-@xfail(2, "a sidecar value of 5 000 digits gives a traceback")
+@xfail(2, "a sidecar value of 5 000 digits, or a string in signal_e, gives a traceback")
 @fuzz_settings(known_failing=True)
 @given(case=cases("sidecar", "values"))
 def test_fuzz_sidecar_values(case):
@@ -173,7 +173,7 @@ def test_fuzz_sidecar_values(case):
 
 
 @pytest.mark.slow
-@xfail(2, "a sidecar nested 3 000 deep gives a RecursionError traceback")
+@xfail(2, "a sidecar nested 3 000 deep gives a RecursionError traceback; a dark_e of 2 values, a ValueError")
 @fuzz_settings(known_failing=True)
 @given(case=cases("sidecar", "nesting"))
 def test_fuzz_sidecar_nesting(case):
@@ -189,7 +189,8 @@ def test_fuzz_preset_values(case):
 
 
 @pytest.mark.slow
-@fuzz_settings()
+@xfail(7, "a corrupt DNG adds tifffile's log lines before camsim's error")
+@fuzz_settings(known_failing=True)
 @given(case=cases("dng", "bytes"))
 def test_fuzz_dng_bytes(case):
     check(case)
@@ -213,7 +214,7 @@ def test_fuzz_png_bytes(case):
 
 @pytest.mark.slow
 @xfail(3, "a .npy header with a negative dimension gives a traceback (OverflowError from mmap): "
-          "the cube's shape is not checked before reading")
+          "the cube's shape is not checked before reading; also point 7: numpy's overflow RuntimeWarning lines")
 @fuzz_settings(known_failing=True)
 @given(case=cases("cube", "bytes"))
 def test_fuzz_cube_bytes(case):
