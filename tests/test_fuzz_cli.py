@@ -6,11 +6,11 @@ file written, changed or removed outside the output folder; no ``*.partial`` fil
 :data:`TIME_LIMIT` seconds and :data:`MEMORY_LIMIT_MB` MB of address space more than this process.
 
 The cases are derandomized (the same on every machine). ``CAMSIM_FUZZ_EXAMPLES=N`` sets the cases per test
-(default :data:`EXAMPLES`); ``CAMSIM_FUZZ_SHRINK=1`` shrinks a failure of an xfail test to its smallest edit too
-(the others always shrink). The long run is ``tools/fuzz_cli.py``.
+(default :data:`EXAMPLES`); ``CAMSIM_FUZZ_SHRINK=1`` shrinks a failing case to its smallest edit (by default it is
+printed as drawn). The long run is ``tools/fuzz_cli.py``.
 
-Tests that fail until a numbered point of issue 24 is fixed are marked xfail (not strict) with that point; remove
-the mark once the fix is merged.
+Tests that fail until a numbered point of issue 24 is fixed are marked ``@xfail(N, ...)`` (not strict) with that
+point; remove the line once the fix is merged.
 """
 
 from __future__ import annotations
@@ -48,8 +48,10 @@ def cases(kind: str, family: str):
     return st.deferred(lambda: fuzz.case_strategy(seeds(), kind, family))
 
 
-def fuzz_settings(known_failing: bool = False):
-    phases = [Phase.explicit, Phase.generate] + ([Phase.shrink] if SHRINK or not known_failing else [])
+def fuzz_settings():
+    """Derandomized settings; no shrinking unless ``CAMSIM_FUZZ_SHRINK=1`` (a failing case is printed as drawn: its
+    1 to 3 edits; shrinking it costs tens of runs, too many for an xfail test in every ``make test``)."""
+    phases = [Phase.explicit, Phase.generate] + ([Phase.shrink] if SHRINK else [])
     return settings(max_examples=EXAMPLES, derandomize=True, database=None, deadline=None, phases=phases,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                            HealthCheck.filter_too_much, HealthCheck.large_base_example])
@@ -120,7 +122,7 @@ def test_the_runner_sees_a_write_outside_the_output_folder(tmp_path):
 
 @pytest.mark.slow
 @xfail(1, "a scene's name '../x' writes outside --out; 'nul\\x00byte' gives a traceback")
-@fuzz_settings(known_failing=True)
+@fuzz_settings()
 @given(case=cases("scene", "names"))
 def test_fuzz_scene_names(case):
     check(case)
@@ -129,7 +131,7 @@ def test_fuzz_scene_names(case):
 @pytest.mark.slow
 @xfail(5, "a frame width of 2**63 gives a traceback (ValueError: Maximum allowed dimension exceeded); "
           "also point 3: [frame] width = 2**40 skips the pixel guard (out of memory)")
-@fuzz_settings(known_failing=True)
+@fuzz_settings()
 @given(case=cases("scene", "sizes"))
 def test_fuzz_scene_sizes(case):
     check(case)
@@ -144,7 +146,7 @@ def test_fuzz_scene_values(case):
 
 @pytest.mark.slow
 @xfail(5, "nesting 3 000 deep: RecursionError in the TOML parser; empty intensity_factors: a traceback")
-@fuzz_settings(known_failing=True)
+@fuzz_settings()
 @given(case=cases("scene", "nesting"))
 def test_fuzz_scene_nesting(case):
     check(case)
@@ -166,7 +168,7 @@ def test_fuzz_spec_values(case):
 
 @pytest.mark.slow
 @xfail(2, "a sidecar value of 5 000 digits, or a string in signal_e, gives a traceback")
-@fuzz_settings(known_failing=True)
+@fuzz_settings()
 @given(case=cases("sidecar", "values"))
 def test_fuzz_sidecar_values(case):
     check(case)
@@ -174,7 +176,7 @@ def test_fuzz_sidecar_values(case):
 
 @pytest.mark.slow
 @xfail(2, "a sidecar nested 3 000 deep gives a RecursionError traceback; a dark_e of 2 values, a ValueError")
-@fuzz_settings(known_failing=True)
+@fuzz_settings()
 @given(case=cases("sidecar", "nesting"))
 def test_fuzz_sidecar_nesting(case):
     check(case)
@@ -182,7 +184,7 @@ def test_fuzz_sidecar_nesting(case):
 
 @pytest.mark.slow
 @xfail(5, "a preset file nested 3 000 deep: RecursionError in the TOML parser")
-@fuzz_settings(known_failing=True)
+@fuzz_settings()
 @given(case=cases("preset", "values"))
 def test_fuzz_preset_values(case):
     check(case)
@@ -190,7 +192,7 @@ def test_fuzz_preset_values(case):
 
 @pytest.mark.slow
 @xfail(7, "a corrupt DNG adds tifffile's log lines before camsim's error")
-@fuzz_settings(known_failing=True)
+@fuzz_settings()
 @given(case=cases("dng", "bytes"))
 def test_fuzz_dng_bytes(case):
     check(case)
@@ -198,7 +200,7 @@ def test_fuzz_dng_bytes(case):
 
 @pytest.mark.slow
 @xfail(7, "a corrupt EXR adds OpenEXR's own stderr line before camsim's")
-@fuzz_settings(known_failing=True)
+@fuzz_settings()
 @given(case=cases("exr", "bytes"))
 def test_fuzz_exr_bytes(case):
     check(case)
@@ -206,7 +208,7 @@ def test_fuzz_exr_bytes(case):
 
 @pytest.mark.slow
 @xfail(3, "a 225-megapixel PNG bomb is decoded whole (out of memory); also point 7: libpng error lines")
-@fuzz_settings(known_failing=True)
+@fuzz_settings()
 @given(case=cases("png", "bytes"))
 def test_fuzz_png_bytes(case):
     check(case)
@@ -215,7 +217,7 @@ def test_fuzz_png_bytes(case):
 @pytest.mark.slow
 @xfail(3, "a .npy header with a negative dimension gives a traceback (OverflowError from mmap): "
           "the cube's shape is not checked before reading; also point 7: numpy's overflow RuntimeWarning lines")
-@fuzz_settings(known_failing=True)
+@fuzz_settings()
 @given(case=cases("cube", "bytes"))
 def test_fuzz_cube_bytes(case):
     check(case)
