@@ -18,6 +18,7 @@ from __future__ import annotations
 import atexit
 import os
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
@@ -26,6 +27,9 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 from tests import fuzz
+
+# the runner forks, limits RLIMIT_AS and reads /proc/self/status
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the fuzz runner needs Linux")
 
 EXAMPLES = int(os.environ.get("CAMSIM_FUZZ_EXAMPLES", "20"))
 SHRINK = os.environ.get("CAMSIM_FUZZ_SHRINK") == "1"
