@@ -133,8 +133,6 @@ def test_fuzz_scene_names(case):
 
 
 @pytest.mark.slow
-@xfail(5, "a frame width of 2**63 gives a traceback (ValueError: Maximum allowed dimension exceeded); "
-          "also point 3: [frame] width = 2**40 skips the pixel guard (out of memory)")
 @fuzz_settings()
 @given(case=cases("scene", "sizes"))
 def test_fuzz_scene_sizes(case):
@@ -211,7 +209,6 @@ def test_fuzz_exr_bytes(case):
 
 
 @pytest.mark.slow
-@xfail(3, "a 225-megapixel PNG bomb is decoded whole (out of memory); also point 7: libpng error lines")
 @fuzz_settings()
 @given(case=cases("png", "bytes"))
 def test_fuzz_png_bytes(case):
@@ -219,8 +216,6 @@ def test_fuzz_png_bytes(case):
 
 
 @pytest.mark.slow
-@xfail(3, "a .npy header with a negative dimension gives a traceback (OverflowError from mmap): "
-          "the cube's shape is not checked before reading; also point 7: numpy's overflow RuntimeWarning lines")
 @fuzz_settings()
 @given(case=cases("cube", "bytes"))
 def test_fuzz_cube_bytes(case):
