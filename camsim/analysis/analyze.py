@@ -184,6 +184,24 @@ def measure_frame(frame: LoadedFrame, settings: AnalysisSettings, black: np.ndar
     }
 
 
+def non_finite(value, where: str = "") -> str | None:
+    """The place of the first NaN or infinity in ``value`` (nested dicts and lists of numbers), e.g.
+    ``patches[0].channels[1].snr_model``; None when every number is finite (as ``analysis.json`` needs)."""
+    if isinstance(value, dict):
+        items = ((f"{where}.{key}" if where else str(key), v) for key, v in value.items())
+    elif isinstance(value, (list, tuple)):
+        items = ((f"{where}[{i}]", v) for i, v in enumerate(value))
+    elif isinstance(value, (float, np.floating)):
+        return None if np.isfinite(value) else where
+    else:
+        return None
+    for place, item in items:
+        found = non_finite(item, place)
+        if found is not None:
+            return found
+    return None
+
+
 def _black(frame: LoadedFrame, settings: AnalysisSettings, dark: DarkFrame | None) -> np.ndarray:
     if settings.black == "none":
         return np.zeros(3)
@@ -255,7 +273,17 @@ def analyse(paths, settings: AnalysisSettings | None = None, source="dng", dark_
     for path in tqdm(order, desc="analysing", unit="frame", disable=not (progress and order)):
         try:
             frame = load_frame(path)
-            results.append(measure_frame(frame, settings, _black(frame, settings, dark), references))
+            with np.errstate(all="ignore"):  # a value out of range is told below, once, not as numpy warnings
+                try:
+                    result = measure_frame(frame, settings, _black(frame, settings, dark), references)
+                except (OverflowError, ZeroDivisionError) as exc:  # Python floats' k**2, 1 / k**2 of extreme values
+                    raise CamsimError(f"{path}: its sidecar's values give a measurement that is not finite "
+                                      f"({type(exc).__name__}); values out of range?") from None
+            where = non_finite(result)
+            if where is not None:
+                raise CamsimError(f"{path}: its sidecar's values give a measurement that is not finite ({where}); "
+                                  "values out of range?")
+            results.append(result)
         except CamsimError as exc:
             report.skip(path, str(exc))
             continue

@@ -66,7 +66,7 @@ def load_clean_dn(frame: LoadedFrame) -> tuple[np.ndarray | None, str]:
     if frame.source == "dng":
         try:
             same = json.loads(header.get(EXR_METADATA_KEY, "null")) == frame.meta
-        except json.JSONDecodeError:
+        except (ValueError, RecursionError):  # not JSON, a too long integer, too deep: not this frame's copy
             same = False
         if not same:
             return None, "exr-of-another-frame"
