@@ -220,3 +220,20 @@ def test_values_that_overflow_the_measurement_skip_the_frame(rendered, tmp_path,
     status, err, _ = run_case(tmp_path / "frames", tmp_path / "out", capsys)
     assert status == 0 and len(err) == 1 and "not finite" in err[0], err
     assert math.isfinite(json.loads((tmp_path / "out" / "analysis.json").read_text())["totals"]["frames"])
+
+
+@pytest.mark.parametrize("edit", ["iso=Infinity", "iso=huge", "exposure_s=NaN", "exposure_s=string", "deep"])
+def test_calibrate_reads_a_raw_file_beside_a_hostile_sidecar_by_its_own_tags(rendered, tmp_path, edit):
+    """``camsim calibrate``'s raw reader takes ISO and exposure from a camsim sidecar beside the file where the
+    file has none: a sidecar value that is no finite number says nothing, and unparsable JSON is no sidecar."""
+    from camsim.calibration.rawfiles import read_raw
+
+    meta = _frame_folder(rendered, tmp_path / "frames", kinds=(".dng", ".json"))
+    key, _, value = edit.partition("=")
+    text = {"Infinity": "Infinity", "huge": "9" * 400, "NaN": "NaN", "string": '"1"'}.get(value)
+    sidecar = tmp_path / "frames" / "b_bad.json"
+    sidecar.write_text(DEEP if edit == "deep" else edited_text(meta, (key,), text) if key in meta
+                       else edited_text({**meta, key: None}, (key,), text))
+    own = read_raw(tmp_path / "frames" / "a_good.dng")
+    raw = read_raw(tmp_path / "frames" / "b_bad.dng")
+    assert (raw.iso, raw.exposure_s) == (own.iso, own.exposure_s)
