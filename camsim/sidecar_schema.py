@@ -24,6 +24,9 @@ REQUIRED = ("illuminant", "intensity_factor", "photon_statistics", "dn_per_elect
 #: Most wavelength samples a sidecar may hold (camsim's finest grid is 1 nm over 360–830 nm: 471).
 MAX_WAVELENGTHS = 100_000
 _SHOWN = 60  # characters of a bad value shown in a message
+#: Largest magnitude of a sidecar's number, and smallest of one that must be positive: products and quotients of a
+#: few of them stay finite in float64 (far outside any physical value a frame records).
+MAX_MAGNITUDE, MIN_POSITIVE = 1e60, 1e-60
 
 
 class _Bad(Exception):
@@ -44,6 +47,10 @@ def _number(value, low=None, above=None, below=None) -> float:
         raise _Bad("a finite number") from None
     if not math.isfinite(v):
         raise _Bad("a finite number")
+    if abs(v) > MAX_MAGNITUDE:
+        raise _Bad(f"a number within ±{MAX_MAGNITUDE:g}")
+    if above == 0 and v < MIN_POSITIVE:
+        raise _Bad(f"a positive number of at least {MIN_POSITIVE:g}")
     if low is not None and not v >= low:
         raise _Bad(f"≥ {low:g}")
     if above is not None and not v > above:
@@ -263,10 +270,16 @@ def check_sidecar(meta, where) -> dict:
                 continue
             if p.name in meta:
                 try:
-                    p.coerce(meta[p.name])
+                    value = p.coerce(meta[p.name])
                 except CamsimError as exc:
                     text = str(exc).removeprefix(f"{p.name} must be ")
                     raise _Bad(text.rsplit(", got ", 1)[0], p.name, meta[p.name]) from None
+                for v in value if isinstance(value, list) else [value]:  # the sidecar's bounds on top
+                    if isinstance(v, (int, float)) and not isinstance(v, bool):
+                        try:
+                            _number(v, above=0 if p.above == 0 else None)
+                        except _Bad as exc:
+                            raise _Bad(str(exc), p.name, meta[p.name]) from None
         if meta.get("cfa_pattern") is not None:
             from camsim.cfa import CFA_PATTERNS
 
