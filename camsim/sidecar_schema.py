@@ -195,9 +195,7 @@ def _check_patch(patch, index: int, width: int, height: int) -> None:
             check(patch[name])
         except _Bad as exc:
             raise _Bad(str(exc), f"{key}.{name}", patch[name]) from None
-    for name, check in (("xyz_cd_m2", _optional(_rgb())),
-                        ("gaussian_ks", lambda v: [None if x is None else _number(x, low=0) for x in
-                                                   (v if isinstance(v, list) and len(v) == 3 else _fail(v))])):
+    for name, check in (("xyz_cd_m2", _optional(_rgb())), ("gaussian_ks", _ks_distances)):
         if name in patch:
             try:
                 check(patch[name])
@@ -212,8 +210,11 @@ def _check_patch(patch, index: int, width: int, height: int) -> None:
         raise _Bad(f"a rectangle inside the {width}x{height} frame", f"{key}.rect_xywh", rect)
 
 
-def _fail(value):
-    raise _Bad("a list of 3 numbers or nulls")
+def _ks_distances(value) -> list:
+    """A patch's ``gaussian_ks``: per channel a KS distance (≥ 0) or null."""
+    if not isinstance(value, list) or len(value) != 3:
+        raise _Bad("a list of 3 numbers or nulls")
+    return [None if v is None else _number(v, low=0) for v in value]
 
 
 #: Deepest nesting of lists and objects a sidecar may have (its own deepest is 4: ``patches[i].signal_e``).
