@@ -40,6 +40,7 @@ from camsim.regions import weighted_rows
 from camsim.methods import get_method
 from camsim.noise_profile import frame_noise_profile
 from camsim.render import Frame
+from camsim.sidecar_schema import check_sidecar, parse_sidecar
 
 
 #: The sidecar file's suffix, beside the DNG and EXR of the same stem.
@@ -367,8 +368,6 @@ def camera_identity(info: FrameInfo) -> dict:
 
 #: The pixel files a frame may be read from (not to be confused with scene sources, camsim.sources).
 PIXEL_FILE_KINDS = ("dng", "exr")
-_REQUIRED = ("illuminant", "intensity_factor", "photon_statistics", "dn_per_electron", "black_level_dn",
-             "wavelengths_nm", "qe_e_m2_sr_per_photon", "patches", "stages", "bits", "white_level_dn")
 
 
 @dataclass(frozen=True)
@@ -416,24 +415,22 @@ class LoadedFrame:
 
 def _read_sidecar(path: Path) -> dict:
     try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise CamsimError(f"sidecar not found: {path} (a DNG is analysed with its .json sidecar)") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (OSError, UnicodeDecodeError) as exc:
         raise CamsimError(f"cannot read sidecar {path}: {exc}") from None
-    return meta
+    return parse_sidecar(text, path)
 
 
 def _check_meta(meta, path: Path, shape=None) -> dict:
-    """``meta`` if it is a camsim frame's metadata that fits pixels of ``shape`` (planes, H, W); else CamsimError.
+    """``meta`` if it is a camsim frame's metadata (:func:`camsim.sidecar_schema.check_sidecar`: every key the
+    readers use of the right type, shape and range, and finite) that fits pixels of ``shape`` (planes, H, W);
+    else CamsimError.
 
-    ``shape`` None checks the keys only (the pixels are not read yet).
+    ``shape`` None checks the metadata only (the pixels are not read yet).
     """
-    if not isinstance(meta, dict):
-        raise CamsimError(f"{path}: metadata is not a JSON object")
-    missing = [key for key in _REQUIRED if key not in meta]
-    if missing:
-        raise CamsimError(f"{path}: metadata lacks {', '.join(missing)} (not a camsim frame?)")
+    check_sidecar(meta, path)
     if shape is None:
         return meta
     planes, height, width = shape
@@ -451,10 +448,7 @@ def _exr_meta(path: Path, header: dict) -> dict:
     """The metadata of an EXR: its header's copy of the sidecar, or else the sidecar beside it."""
     if EXR_METADATA_KEY not in header:
         return _read_sidecar(path.with_suffix(SIDECAR_SUFFIX))
-    try:
-        return json.loads(header[EXR_METADATA_KEY])
-    except json.JSONDecodeError as exc:
-        raise CamsimError(f"{path}: header {EXR_METADATA_KEY} is not valid JSON ({exc})") from None
+    return parse_sidecar(header[EXR_METADATA_KEY], f"{path} (header {EXR_METADATA_KEY})")
 
 
 def _frame_kind(path: Path) -> str:
@@ -530,8 +524,10 @@ def _claims(sidecar: Path) -> dict | str | None:
         return None
     try:
         meta = json.loads(sidecar.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        return f"unreadable sidecar ({type(exc).__name__}: {exc})"
+    except RecursionError:
+        return "unreadable sidecar (JSON nested too deeply)"
+    except (OSError, UnicodeDecodeError, ValueError) as exc:  # ValueError: JSONDecodeError, int()'s digit limit
+        return f"unreadable sidecar ({type(exc).__name__}: {str(exc).splitlines()[0][:200]})"
     files = meta.get("files") if isinstance(meta, dict) else None
     return files if isinstance(files, dict) else "not a camsim sidecar (no 'files' record)"
 

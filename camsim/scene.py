@@ -191,6 +191,7 @@ def load_scene(path: str | Path) -> Scene:
     unknown = set(doc) - _TOP_KEYS
     if unknown:
         raise CamsimError(f"{where}: unknown top-level key(s): {', '.join(sorted(unknown))}")
+    typed(doc, "description", str, "", where)  # free text for the reader, but text: a list or number is a mistake
     base_dir = path.resolve().parent
 
     spectral = _table(doc, "spectral", {"start_nm", "end_nm", "step_nm"}, where)

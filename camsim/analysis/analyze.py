@@ -119,6 +119,10 @@ class _Report:
         self.skipped.append({"file": str(path), "reason": reason})
         self._tell(f"skipped {path}: {reason}")
 
+    def note(self, line: str) -> None:
+        """Something a frame measured lacks (an unreadable EXR beside it): told on one line."""
+        self._tell(line)
+
     def ignore(self, files) -> None:
         """Uncommitted frame files: recorded and told, one line per folder."""
         self.uncommitted += [str(p) for p in files]
@@ -169,6 +173,8 @@ def measure_frame(frame: LoadedFrame, settings: AnalysisSettings, black: np.ndar
             references[key] = labs
     # the whole frame, black-level subtracted (the sidecar's level when the patches are measured without)
     frame_black = frame.expected_black_dn() if settings.black == "none" else black
+    problems: list[str] = []
+    statistics = frame_statistics(frame, frame_black, problems)
     return {
         "frame_file": str(frame.path),
         "source": frame.source,
@@ -180,8 +186,27 @@ def measure_frame(frame: LoadedFrame, settings: AnalysisSettings, black: np.ndar
         "border_px": settings.border_px,
         "black_dn": black.tolist(),
         "patches": patches,
-        "frame_statistics": frame_statistics(frame, frame_black),
+        "frame_statistics": statistics,
+        "unreadable_exr": problems[0] if problems else None,  # its EXR, there but unreadable: no residual
     }
+
+
+def non_finite(value, where: str = "") -> str | None:
+    """The place of the first NaN or infinity in ``value`` (nested dicts and lists of numbers), e.g.
+    ``patches[0].channels[1].snr_model``; None when every number is finite (as ``analysis.json`` needs)."""
+    if isinstance(value, dict):
+        items = ((f"{where}.{key}" if where else str(key), v) for key, v in value.items())
+    elif isinstance(value, (list, tuple)):
+        items = ((f"{where}[{i}]", v) for i, v in enumerate(value))
+    elif isinstance(value, (float, np.floating)):
+        return None if np.isfinite(value) else where
+    else:
+        return None
+    for place, item in items:
+        found = non_finite(item, place)
+        if found is not None:
+            return found
+    return None
 
 
 def _black(frame: LoadedFrame, settings: AnalysisSettings, dark: DarkFrame | None) -> np.ndarray:
@@ -255,7 +280,19 @@ def analyse(paths, settings: AnalysisSettings | None = None, source="dng", dark_
     for path in tqdm(order, desc="analysing", unit="frame", disable=not (progress and order)):
         try:
             frame = load_frame(path)
-            results.append(measure_frame(frame, settings, _black(frame, settings, dark), references))
+            with np.errstate(all="ignore"):  # a value out of range is told below, once, not as numpy warnings
+                try:
+                    result = measure_frame(frame, settings, _black(frame, settings, dark), references)
+                except (OverflowError, ZeroDivisionError) as exc:  # Python floats' k**2, 1 / k**2 of extreme values
+                    raise CamsimError(f"{path}: its sidecar's values give a measurement that is not finite "
+                                      f"({type(exc).__name__}); values out of range?") from None
+            where = non_finite(result)
+            if where is not None:
+                raise CamsimError(f"{path}: its sidecar's values give a measurement that is not finite ({where}); "
+                                  "values out of range?")
+            results.append(result)
+            if result["unreadable_exr"]:
+                report.note(f"measured {path} without its residual noisy − clean: {result['unreadable_exr']}")
         except CamsimError as exc:
             report.skip(path, str(exc))
             continue
@@ -336,7 +373,7 @@ def summary(results, settings: AnalysisSettings, skipped=(), uncommitted=()) -> 
     files with their reasons, ``uncommitted``: frame files no sidecar claims) and every frame's patch records."""
     totals = dict.fromkeys(("frames", "patches", "xy_undefined_samples", "y_nonpositive_samples",
                             "degenerate_ellipses", "saturated_patches", "constant_channels", "snr_undefined",
-                            "frames_without_patches", "frames_without_residual"), 0)
+                            "frames_without_patches", "frames_without_residual", "unreadable_exr"), 0)
     frames = []
     for result in results:
         counts = dict.fromkeys(totals, 0)
@@ -344,6 +381,7 @@ def summary(results, settings: AnalysisSettings, skipped=(), uncommitted=()) -> 
         counts["frames_without_patches"] = int(not result["patches"])
         counts["frames_without_residual"] = int(any(ch["residual_status"] != "ok"
                                                     for ch in result["frame_statistics"]))
+        counts["unreadable_exr"] = int(bool(result.get("unreadable_exr")))
         for patch in result["patches"]:
             counts["patches"] += 1
             counts["xy_undefined_samples"] += patch["n_xy_undefined"]

@@ -108,7 +108,7 @@ FRAME_STATISTICS_COLUMNS = _FRAME | {
     "clip_low_fraction": "share of values at or below 0 DN",
     "clip_high_fraction": "share of values at or above the white level (an EXR: what the ADC would clip)",
     "residual_status": "ok, or why there is no residual: no-clean-layer (no EXR beside the frame), "
-                       "exr-of-another-frame, paper-statistics (no prediction), no-pixel-clear-of-clipping",
+                       "exr-unreadable (there, but truncated or corrupt: a warning names it), exr-of-another-frame, paper-statistics (no prediction), no-pixel-clear-of-clipping",
     "n_residual": "pixels in the residual noisy − clean (those clear of clipping)",
     "n_near_clip": "pixels left out of the residual: clean value within 5 σ of 0, the white level or the full well",
     "residual_mean_dn": "mean of noisy − clean (a DNG: I + ½ − clean), the bias, DN (~0 expected)",

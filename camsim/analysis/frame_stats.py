@@ -48,25 +48,28 @@ FRAME_STAT_COLUMNS = ("channel", "n_pixels", "black_dn", "mean_dn", "std_dn", "c
                       "residual_var_ratio")
 
 
-def load_clean_dn(frame: LoadedFrame) -> tuple[np.ndarray | None, str]:
+def load_clean_dn(frame: LoadedFrame, problems: list | None = None) -> tuple[np.ndarray | None, str]:
     """The clean layer (each pixel's expected DN, shape (3, H, W)) of a frame, and why there is none.
 
     From the frame's own EXR, or for a DNG the EXR of the same stem beside it — taken only when its header holds
-    the same metadata as the DNG's sidecar (the same frame). Returns ``(clean, "ok")`` or ``(None, reason)``.
+    the same metadata as the DNG's sidecar (the same frame). Returns ``(clean, "ok")`` or ``(None, reason)``;
+    an EXR that is there but cannot be read gives ``"exr-unreadable"`` and appends why to ``problems`` (a list).
     """
     path = Path(frame.path) if frame.source == "exr" else Path(frame.path).with_suffix(".exr")
     if not path.is_file():
         return None, "no-clean-layer"
     try:
         clean, header = read_exr_clean(path)
-    except CamsimError:
-        return None, "no-clean-layer"
+    except CamsimError as exc:  # there, but unreadable (truncated, corrupt): told, not dropped without a word
+        if problems is not None:
+            problems.append(str(exc))
+        return None, "exr-unreadable"
     if clean is None:
         return None, "no-clean-layer"
     if frame.source == "dng":
         try:
             same = json.loads(header.get(EXR_METADATA_KEY, "null")) == frame.meta
-        except json.JSONDecodeError:
+        except (ValueError, RecursionError):  # not JSON, a too long integer, too deep: not this frame's copy
             same = False
         if not same:
             return None, "exr-of-another-frame"
@@ -199,7 +202,7 @@ def _channel_stats(frame: LoadedFrame, channel: int, black: float, clean, clean_
     }
 
 
-def frame_statistics(frame: LoadedFrame, black_dn) -> list[dict]:
+def frame_statistics(frame: LoadedFrame, black_dn, problems: list | None = None) -> list[dict]:
     """Per channel (a Bayer frame: that colour's sites) statistics of the whole frame.
 
     Parameters
@@ -207,6 +210,8 @@ def frame_statistics(frame: LoadedFrame, black_dn) -> list[dict]:
     frame : LoadedFrame
     black_dn : numpy.ndarray, shape (3,)
         Subtracted from the mean. Unit: DN.
+    problems : list, optional
+        Gets one line per EXR that is there but unreadable (its residual is then ``exr-unreadable``).
 
     Returns
     -------
@@ -214,12 +219,12 @@ def frame_statistics(frame: LoadedFrame, black_dn) -> list[dict]:
         One record per channel with the keys :data:`FRAME_STAT_COLUMNS`: ``n_pixels``; ``mean_dn`` (black-level
         subtracted) and ``std_dn``; ``clip_low_fraction`` (values ≤ 0) and ``clip_high_fraction`` (values ≥ the
         white level; for an EXR, what the ADC would clip); ``residual_status`` (``ok``, ``no-clean-layer``,
-        ``exr-of-another-frame``, ``paper-statistics``, ``no-pixel-clear-of-clipping``) and, when ``ok``, the
+        ``exr-unreadable``, ``exr-of-another-frame``, ``paper-statistics``, ``no-pixel-clear-of-clipping``) and, when ``ok``, the
         residual noisy − clean over the ``n_residual`` pixels clear of clipping: its mean (the bias, ~0 within
         ``residual_mean_se_dn``), its variance with standard error, the model's ``predicted_var_dn2`` (the
         mean of each pixel's predicted variance) and their ratio. Unit: DN, DN².
     """
-    clean, status = load_clean_dn(frame)
+    clean, status = load_clean_dn(frame, problems)
     try:
         return [_channel_stats(frame, c, float(black_dn[c]), clean, status) for c in range(3)]
     finally:

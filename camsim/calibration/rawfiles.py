@@ -159,6 +159,17 @@ def _tiff_metadata(name: str) -> dict:
         return {"model": None, "iso": None, "exposure_s": None}
 
 
+def _finite_number(value) -> float | None:
+    """``value`` as a finite float, or None for anything else (a string, a bool, NaN, ±inf, an int beyond floats)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if number == number and abs(number) != float("inf") else None
+
+
 def _with_sidecar(name: str, iso: float | None, exposure_s: float | None) -> tuple:
     """The ISO and exposure [s] of a raw file, checked against a camsim sidecar (``STEM.json`` beside it): a value
     both give must agree (else CamsimError); one only the sidecar gives (a DNG of an older camsim, without the
@@ -169,17 +180,18 @@ def _with_sidecar(name: str, iso: float | None, exposure_s: float | None) -> tup
     sidecar = Path(name).with_suffix(".json")
     try:
         meta = json.loads(sidecar.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError):
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):  # ValueError: also int()'s digit limit
         return iso, exposure_s  # no sidecar (a camera's raw), or not one camsim can read: the file's tags stand alone
     if not isinstance(meta, dict) or "camsim_version" not in meta:
         return iso, exposure_s
     said_iso, said_t = meta.get("iso"), meta.get("exposure_s")
-    if isinstance(said_iso, (int, float)) and said_iso > 0:
+    said_iso, said_t = map(_finite_number, (said_iso, said_t))  # a NaN, infinity or string in a sidecar says nothing
+    if said_iso is not None and said_iso > 0:
         if iso is not None and round(float(said_iso)) != round(iso):
             raise CamsimError(f"{name} says ISO {iso:g} but its sidecar {sidecar} says ISO {float(said_iso):g}: "
                               "wrong sidecar, or a file edited since?")
         iso = iso if iso is not None else float(said_iso)
-    if isinstance(said_t, (int, float)) and said_t > 0:
+    if said_t is not None and said_t > 0:
         if exposure_s is not None and abs(exposure_s / float(said_t) - 1) > 1e-6:
             raise CamsimError(f"{name} says exposure {exposure_s:g} s but its sidecar {sidecar} says "
                               f"{float(said_t):g} s: wrong sidecar, or a file edited since?")

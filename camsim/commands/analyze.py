@@ -26,7 +26,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "OUT/README.txt (every column explained; SNR is signal² / variance, a power ratio) and PNG figures. "
             "Folders give their committed frames only (the sidecar, written last, names the file); other frame "
             "files there are ignored with one warning per folder, hidden files silently. A bad file (unreadable, "
-            "truncated, foreign, a missing or mismatched sidecar) is skipped with a warning and the rest analysed; "
+            "truncated, foreign, a compressed DNG, a missing or mismatched sidecar, a sidecar value of the wrong "
+            "type or range or not finite) is skipped with a warning and the rest analysed; "
             "the exit status is 2 only when no frame could be (or, with --strict, at the first bad file). Frames "
             "are read one at a time: memory does not grow with their number."
         ),

@@ -324,6 +324,9 @@ class Denoiser:
             raise
         except Exception as exc:  # the user's code failing is reported as one line, like any bad input
             raise CamsimError(f"denoiser {self.target!r} failed: {type(exc).__name__}: {exc}") from exc
+        except SystemExit as exc:  # sys.exit() in the user's code is no result (Ctrl-C, KeyboardInterrupt, stays)
+            raise CamsimError(f"denoiser {self.target!r} failed: it called sys.exit({exc.code!r}) instead of "
+                              "returning an array") from None
         try:
             out = np.asarray(out)
         except Exception as exc:
@@ -359,6 +362,8 @@ def _load_module(spec_text: str, target: str):
             spec.loader.exec_module(module)
         except Exception as exc:
             raise CamsimError(f"denoiser {target!r}: importing {path} failed: {type(exc).__name__}: {exc}") from exc
+        except SystemExit as exc:
+            raise CamsimError(f"denoiser {target!r}: importing {path} called sys.exit({exc.code!r})") from None
         return module
     cwd = os.getcwd()
     added = cwd not in sys.path and "" not in sys.path
@@ -371,6 +376,8 @@ def _load_module(spec_text: str, target: str):
                           "directory and on sys.path)") from exc
     except Exception as exc:
         raise CamsimError(f"denoiser {target!r}: importing {spec_text!r} failed: {type(exc).__name__}: {exc}") from exc
+    except SystemExit as exc:
+        raise CamsimError(f"denoiser {target!r}: importing {spec_text!r} called sys.exit({exc.code!r})") from None
     finally:
         if added:
             sys.path.remove(cwd)

@@ -66,6 +66,8 @@ by ``tests/test_io_dng_cfa.py``:
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import math
 import os
 import struct
@@ -599,6 +601,57 @@ def _check_complete(page: Any, size: int, name: str) -> None:
                           f"byte {end}")
 
 
+@contextlib.contextmanager
+def _tifffile_quiet():
+    """tifffile's logger silenced: its complaints about a damaged header ("incorrect StripByteCounts count") would
+    reach stderr as extra lines; the reader reports what is wrong on one line itself."""
+    logger = logging.getLogger("tifffile")
+    disabled, logger.disabled = logger.disabled, True
+    try:
+        yield
+    finally:
+        logger.disabled = disabled
+
+
+def _check_storage(page: Any, name: str) -> None:
+    """Refuse, from the header alone, a pixel layout this reader does not decode as written: any Compression but
+    1 (uncompressed; LibRaw would decode uncompressed bytes under a JPEG tag as zeros), BitsPerSample values that
+    differ between samples, planar (not interleaved) samples, and strips or tiles whose byte counts do not add up
+    to the image's size."""
+    compression = int(page.compression)
+    if compression != 1:
+        try:
+            what = tifffile.COMPRESSION(compression).name
+        except ValueError:
+            what = "unknown"
+        raise CamsimError(f"cannot read DNG {name}: Compression tag {compression} ({what}); camsim reads "
+                          "uncompressed DNGs (Compression 1) only")
+    bits_tag = _tag(page, 258)
+    bits_each = tuple(bits_tag) if isinstance(bits_tag, (tuple, list)) else (bits_tag,)
+    if len(set(bits_each)) != 1 or (len(bits_each) != 1 and len(bits_each) != page.samplesperpixel):
+        raise CamsimError(f"cannot read DNG {name}: BitsPerSample {list(bits_each)} for {page.samplesperpixel} "
+                          "sample(s); expected one depth for every sample")
+    if page.samplesperpixel > 1 and int(page.planarconfig) != 1:
+        raise CamsimError(f"cannot read DNG {name}: planar samples (PlanarConfiguration {int(page.planarconfig)}); "
+                          "expected interleaved (1)")
+    sample_bytes = page.samplesperpixel * page.bitspersample // 8
+    if page.is_tiled:
+        tiles = -(-page.imagelength // page.tilelength) * -(-page.imagewidth // page.tilewidth)
+        expected = [page.tilelength * page.tilewidth * sample_bytes] * tiles
+        what = "tile(s)"
+    else:
+        rows = page.rowsperstrip if 0 < page.rowsperstrip < page.imagelength else page.imagelength
+        expected = [min(rows, page.imagelength - start) * page.imagewidth * sample_bytes
+                    for start in range(0, page.imagelength, rows)]
+        what = "strip(s)"
+    counts = [int(c) for c in page.databytecounts]
+    if counts != expected:
+        raise CamsimError(f"cannot read DNG {name}: its {len(counts)} {what} hold {sum(counts)} bytes, but a "
+                          f"{page.imagewidth}x{page.imagelength} image of {page.samplesperpixel} sample(s) of "
+                          f"{page.bitspersample} bits in {len(expected)} {what} takes {sum(expected)} "
+                          f"({', '.join(map(str, expected[:4]))}{' …' if len(expected) > 4 else ''})")
+
+
 def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
     """Read a DNG written by :func:`write_dng` or :func:`write_dng_cfa`; pixels and levels through LibRaw.
 
@@ -626,13 +679,15 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
     ------
     CamsimError
         Naming ``path``, if the file is missing, unreadable, truncated, not a DNG, or neither 3-sample LinearRaw
-        nor 1-sample 2x2 Bayer CFA of 8 or 16 bits.
+        nor 1-sample 2x2 Bayer CFA of 8 or 16 bits, or its header declares a storage this reader does not decode
+        (compressed, planar, byte counts that do not fit the dimensions: :func:`_check_storage`), before any
+        pixel is decoded.
     """
     import rawpy  # imported lazily: only readers of DNGs need LibRaw
 
     name = os.fspath(path)
     try:
-        with tifffile.TiffFile(name) as tif:
+        with _tifffile_quiet(), tifffile.TiffFile(name) as tif:
             page = tif.pages.first
             if _tag(page, _DNG_VERSION) is None:
                 raise CamsimError(f"cannot read DNG {name}: not a DNG (no DNGVersion tag)")
@@ -650,6 +705,7 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
                                   f"{page.bitspersample} bits)")
             bits = page.bitspersample
             shape = (page.imagelength, page.imagewidth)
+            _check_storage(page, name)
             _check_complete(page, tif.filehandle.size, name)
             cm = _floats(_tag(page, _COLOR_MATRIX1))
             info: dict[str, Any] = {
