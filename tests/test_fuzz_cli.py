@@ -169,7 +169,6 @@ def test_fuzz_spec_values(case):
 
 
 @pytest.mark.slow
-@xfail(2, "a sidecar value of 5 000 digits, or a string in signal_e, gives a traceback")
 @fuzz_settings()
 @given(case=cases("sidecar", "values"))
 def test_fuzz_sidecar_values(case):
@@ -177,7 +176,6 @@ def test_fuzz_sidecar_values(case):
 
 
 @pytest.mark.slow
-@xfail(2, "a sidecar nested 3 000 deep gives a RecursionError traceback; a dark_e of 2 values, a ValueError")
 @fuzz_settings()
 @given(case=cases("sidecar", "nesting"))
 def test_fuzz_sidecar_nesting(case):
@@ -193,7 +191,6 @@ def test_fuzz_preset_values(case):
 
 
 @pytest.mark.slow
-@xfail(7, "a corrupt DNG adds tifffile's log lines before camsim's error")
 @fuzz_settings()
 @given(case=cases("dng", "bytes"))
 def test_fuzz_dng_bytes(case):
