@@ -198,7 +198,6 @@ def test_fuzz_dng_bytes(case):
 
 
 @pytest.mark.slow
-@xfail(7, "a corrupt EXR adds OpenEXR's own stderr line before camsim's")
 @fuzz_settings()
 @given(case=cases("exr", "bytes"))
 def test_fuzz_exr_bytes(case):

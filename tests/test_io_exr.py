@@ -171,6 +171,25 @@ def test_truncated_file_is_a_user_error(tmp_path, reader, keep):
         reader(bad)
 
 
+@pytest.mark.parametrize("reader", ERROR_READERS)
+def test_a_corrupt_chunk_is_one_error_and_no_library_line(tmp_path, capfd, reader):
+    """OpenEXR prints its own "(EXR_ERR_…)" lines on descriptor 2 before it raises: they go into camsim's one
+    error instead of the terminal."""
+    noisy, clean = frames(7)
+    write_exr(tmp_path / "good.exr", noisy, clean, HEADER, compression="zip")
+    data = bytearray((tmp_path / "good.exr").read_bytes())
+    at = data.index(b"compression\x00compression\x00\x01\x00\x00\x00") + 28  # the attribute's one byte
+    assert data[at] == 3  # ZIP_COMPRESSION: the chunks are declared PIZ (4) instead, which they are not
+    data[at] = 4
+    bad = tmp_path / "corrupt.exr"
+    bad.write_bytes(bytes(data))
+    capfd.readouterr()
+    with pytest.raises(CamsimError, match=re.escape(str(bad))):
+        reader(bad)
+    _, err = capfd.readouterr()
+    assert "EXR_ERR" not in err and err == ""
+
+
 @pytest.mark.parametrize("reader", [*ERROR_READERS, read_header])
 def test_text_and_missing_files_are_user_errors(tmp_path, reader):
     text = tmp_path / "notes.exr"

@@ -32,6 +32,7 @@ bytes on repeated writes and for any thread count).
 from __future__ import annotations
 
 import errno
+import functools
 import os
 from collections.abc import Mapping
 from typing import Any
@@ -41,6 +42,7 @@ import OpenEXR
 
 from camsim.errors import CamsimError, output_error
 from camsim.io.atomic import atomic_path
+from camsim.io.library_stderr import library_stderr
 from camsim.io.exr_compression import (
     DEFAULT_EXR_COMPRESSION,
     EXR_COMPRESSIONS,
@@ -247,6 +249,32 @@ def _string_attributes(header: Mapping[str, Any]) -> dict[str, str]:
     return {k: v for k, v in header.items() if isinstance(v, str) and k not in _RESERVED}
 
 
+#: The most characters of OpenEXR's own messages added to a read error.
+_LIBRARY_REASON_CHARS = 300
+
+
+def _library_lines_into_the_error(read):
+    """Run an EXR reader with what the OpenEXR library prints (``(EXR_ERR_CORRUPT_CHUNK) …`` lines on descriptor 2,
+    the bindings' "Warning: Exception raised reading pixel data …" on descriptor 1, before their exception) captured
+    (:func:`camsim.io.library_stderr.library_stderr`): a successful read drops them, a failed one adds their text to
+    its one :class:`CamsimError` line."""
+
+    @functools.wraps(read)
+    def wrapper(path, *args, **kwargs):
+        with library_stderr(stdout=True) as chatter:
+            try:
+                return read(path, *args, **kwargs)
+            except CamsimError as exc:
+                failure = exc
+        reason = chatter.reason()[:_LIBRARY_REASON_CHARS]
+        if reason and reason not in str(failure):
+            raise type(failure)(f"{failure} (OpenEXR: {reason})") from failure
+        raise failure
+
+    return wrapper
+
+
+@_library_lines_into_the_error
 def read_exr(path: str | os.PathLike[str], *, clean: bool = True) \
         -> tuple[np.ndarray, np.ndarray | None, dict[str, str]]:
     """Read an EXR written by :func:`write_exr` with the OpenEXR bindings.
@@ -321,6 +349,7 @@ def _read_noisy(name: str) -> tuple[np.ndarray, None, dict[str, str]]:
         exr.close()
 
 
+@_library_lines_into_the_error
 def read_exr_clean(path: str | os.PathLike[str]) -> tuple[np.ndarray | None, dict[str, str]]:
     """The clean layer and the string attributes of an EXR written by :func:`write_exr`, without its noisy image.
 
@@ -381,6 +410,7 @@ def _present_channels(name: str, channels: list[str]) -> tuple[str, ...]:
     return names
 
 
+@_library_lines_into_the_error
 def read_exr_header(path: str | os.PathLike[str]) -> tuple[dict[str, str], tuple[int, int, int]]:
     """The string attributes and the noisy image's shape of an EXR, without reading its pixels.
 

@@ -39,26 +39,37 @@ class CapturedStderr:
 
 
 @contextmanager
-def library_stderr():
-    """Redirect file descriptor 2 to a temporary file while the block runs; yields a :class:`CapturedStderr`.
+def library_stderr(*, stdout: bool = False):
+    """Redirect file descriptor 2 (and 1 with ``stdout``) to a temporary file while the block runs; yields a
+    :class:`CapturedStderr` holding what was written on either.
 
-    Use it around a C library's call only (Python's own messages would be captured too). Where descriptor 2 cannot
-    be duplicated (closed), the block runs without capture.
+    Use it around a C library's call only (Python's own messages would be captured too). ``stdout`` is for a
+    library that prints on descriptor 1 (the OpenEXR bindings' "Warning: Exception raised reading pixel data …").
+    Where a descriptor cannot be duplicated (closed), the block runs without capture.
     """
     captured = CapturedStderr()
+    fds = (1, 2) if stdout else (2,)
     try:
+        sys.stdout.flush()
         sys.stderr.flush()
-        saved = os.dup(2)
+        saved = [os.dup(fd) for fd in fds]
     except (OSError, ValueError, AttributeError):
         yield captured
         return
     with tempfile.TemporaryFile() as sink:
-        os.dup2(sink.fileno(), 2)
+        for fd in fds:
+            os.dup2(sink.fileno(), fd)
         try:
             yield captured
         finally:
-            os.dup2(saved, 2)
-            os.close(saved)
+            for stream in (sys.stdout, sys.stderr):  # what a library printed through Python's streams, too
+                try:
+                    stream.flush()
+                except (OSError, ValueError, AttributeError):
+                    pass
+            for fd, old in zip(fds, saved):
+                os.dup2(old, fd)
+                os.close(old)
             size = sink.seek(0, os.SEEK_END)
             sink.seek(max(0, size - KEEP_BYTES))
             captured.text = sink.read().decode("utf-8", errors="replace")
