@@ -23,6 +23,7 @@ from camsim.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
 from camsim.errors import CamsimError
 from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
 from camsim.regions import Region, check_regions, parse_regions
+from camsim.names import safe_component
 from camsim.schema import Param, param, params_of, validate
 from camsim.camera_presets import sensor_preset
 from camsim.sensor import SENSOR_PARAMS, SensorParams
@@ -96,6 +97,7 @@ class Scene:
     def __post_init__(self):
         if not isinstance(self.source, SceneSource):
             raise CamsimError(f"a scene's source must be a scene source, got {self.source!r}")
+        safe_component(self.name, "scene name")  # it names the frames' files: camsim.names
         if not self.illuminants:
             raise CamsimError("scene lists no illuminants")
         for f in self.intensity_factors:
@@ -190,6 +192,7 @@ def load_scene(path: str | Path) -> Scene:
     if unknown:
         raise CamsimError(f"{where}: unknown top-level key(s): {', '.join(sorted(unknown))}")
     base_dir = path.resolve().parent
+    name = safe_component(typed(doc, "name", str, path.stem, where), f"{where}: name")  # before any work
 
     spectral = _table(doc, "spectral", {"start_nm", "end_nm", "step_nm"}, where)
     grid = WavelengthGrid(
@@ -243,7 +246,7 @@ def load_scene(path: str | Path) -> Scene:
     render = _table(doc, "render", {p.name for p in RENDER_PARAMS}, where)
     render = {p.name: p.coerce(render[p.name], f"{where} [render]") for p in RENDER_PARAMS if p.name in render}
     return Scene(
-        name=typed(doc, "name", str, path.stem, where),
+        name=name,
         grid=grid,
         illuminants=tuple(illuminants),
         intensity_factors=tuple(float(f) if isinstance(f, int) else f for f in factors),

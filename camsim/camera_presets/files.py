@@ -31,6 +31,7 @@ from pathlib import Path
 from camsim.camera_presets.model import CameraPreset, IsoPoint
 from camsim.cfa import CFA_PATTERNS
 from camsim.errors import CamsimError
+from camsim.names import safe_component
 
 _PRESET_KEYS = {"name": str, "title": str, "source": str, "bits": int, "pedestal_dn": int, "cfa": str,
                 "read_noise_model": str, "full_well_e": float, "conversion_gain_v_per_e": float,
@@ -78,6 +79,7 @@ def read_preset_file(path: str | Path) -> CameraPreset:
     if missing:
         raise CamsimError(f"{where}: [preset] lacks {', '.join(missing)}")
     fields = {k: _value(head, k, kind, where) for k, kind in _PRESET_KEYS.items() if k in head}
+    safe_component(fields["name"], f"{where}: name")  # the rule of every name (camsim calibrate --name's too)
     if "cfa" in fields and fields["cfa"] not in CFA_PATTERNS:
         raise CamsimError(f"{where}: cfa must be one of {', '.join(CFA_PATTERNS)}, got {fields['cfa']!r}")
     fields.setdefault("cfa", None)

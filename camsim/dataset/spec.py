@@ -85,6 +85,7 @@ from camsim.pipeline import exposure_record
 from camsim.run import check_scene
 from camsim.io.dng import MIN_SIZE
 from camsim.io.exr_compression import check_exr_compression
+from camsim.names import safe_component
 from camsim.scene import FRAME_PARAMS, RENDER_PARAMS, Scene, load_scene, read_toml
 from camsim.seeding import dataset_frame_seeds, dataset_parameter_generator
 from camsim.sensor import SENSOR_PARAMS
@@ -611,9 +612,7 @@ def plan_spec(path: str | Path) -> SpecPlan:
                           f"known: {', '.join(sorted(_TOP_KEYS))}")
     base = path.resolve().parent
 
-    name = doc.get("name", path.stem)
-    if not isinstance(name, str) or not name:
-        raise CamsimError(f"{where}: name must be a non-empty string")
+    name = safe_component(doc.get("name", path.stem), f"{where}: name")  # it names the default output folder
     if not isinstance(doc.get("description", ""), str):
         raise CamsimError(f"{where}: description must be a string")
     seed = doc.get("seed", 0)
