@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.errors import CamsimError
+from camsim.schema import MAX_PIXELS
 
 
 @dataclass(frozen=True)
@@ -93,6 +94,6 @@ def parse_size(text: str) -> tuple[int, int]:
         raise CamsimError(f"size must look like WIDTHxHEIGHT (e.g. 600x400), got {text!r}") from None
     if width <= 0 or height <= 0:
         raise CamsimError(f"size must be positive, got {text!r}")
-    if width * height > 200_000_000:
-        raise CamsimError(f"size {text} is over 200 megapixels")
+    if width * height > MAX_PIXELS:
+        raise CamsimError(f"size {text} is over {MAX_PIXELS // 1_000_000} megapixels")
     return width, height

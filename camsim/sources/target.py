@@ -47,6 +47,10 @@ MAX_DISKS = 200_000_000
 _STAMP_BUDGET = 1 << 21
 #: Side of the tiles by which :func:`dead_leaves` finds the uncovered pixels a disk may cover.
 _TILE = 8
+#: The smallest and the largest disk radius of a dead-leaves chart, pixels: a frame of 200 megapixels needs no
+#: larger disk, and a smaller one only asks for more disks than :data:`MAX_DISKS` (beyond the range the disk count
+#: and the radius law overflow float64).
+RADIUS_RANGE_PX = (0.01, 1e6)
 #: The largest number of coverage levels of a slanted edge.
 MAX_LEVELS = 4096
 
@@ -146,9 +150,9 @@ def dead_leaves(width: int, height: int, radius_min_px: float, radius_max_px: fl
         If the frame would need more than :data:`MAX_DISKS` disks (r_min too small for the frame).
     """
     rng = np.random.default_rng(rng)
-    if not (0 < radius_min_px <= radius_max_px and math.isfinite(radius_max_px)):
-        raise CamsimError(f"dead leaves: need 0 < radius_min_px <= radius_max_px, got {radius_min_px}, "
-                          f"{radius_max_px}")
+    if not (RADIUS_RANGE_PX[0] <= radius_min_px <= radius_max_px <= RADIUS_RANGE_PX[1]):
+        raise CamsimError(f"dead leaves: need {RADIUS_RANGE_PX[0]:g} <= radius_min_px <= radius_max_px <= "
+                          f"{RADIUS_RANGE_PX[1]:g}, got {radius_min_px}, {radius_max_px}")
     if not 1 <= n_spectra <= 65536:
         raise CamsimError(f"dead leaves: need 1 to 65536 spectra, got {n_spectra}")
     cap = disk_bound(width, height, radius_min_px, radius_max_px)
@@ -331,10 +335,11 @@ class TargetSource(SceneSource):
         return SlantedEdgeTarget._from_table(table, base_dir, where)
 
 
-def _positive(table, key, default, where) -> float:
+def _radius(table, key, default, where) -> float:
     value = typed(table, key, float, default, where)
-    if not (math.isfinite(value) and value > 0):
-        raise CamsimError(f"{where}: [target] {key} must be a positive number of pixels, got {value}")
+    if not RADIUS_RANGE_PX[0] <= value <= RADIUS_RANGE_PX[1]:
+        raise CamsimError(f"{where}: [target] {key} must be {RADIUS_RANGE_PX[0]:g} to {RADIUS_RANGE_PX[1]:g} "
+                          f"pixels, got {value:g}")
     return value
 
 
@@ -365,8 +370,8 @@ class DeadLeavesTarget(TargetSource):
 
     @classmethod
     def _from_table(cls, table, base_dir, where) -> DeadLeavesTarget:
-        r_min = _positive(table, "radius_min_px", 2.0, where)
-        r_max = _positive(table, "radius_max_px", 100.0, where)
+        r_min = _radius(table, "radius_min_px", 2.0, where)
+        r_max = _radius(table, "radius_max_px", 100.0, where)
         if r_min > r_max:
             raise CamsimError(f"{where}: [target] radius_min_px ({r_min:g}) must not exceed radius_max_px ({r_max:g})")
         seed = typed(table, "seed", int, 0, where)
