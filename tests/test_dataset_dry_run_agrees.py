@@ -9,26 +9,9 @@ import pytest
 
 from camsim.cli import main
 
-from tests.helpers import write_text_file
+from tests.helpers import flat_scene_toml, write_text_file
 
-SCENE = """
-name = "agree"
-[spectral]
-start_nm = 400
-end_nm = 700
-step_nm = 10
-[target]
-kind = "flat"
-reflectance = 0.5
-[light]
-illuminants = ["D65"]
-intensity_factors = [0.5]
-[frame]
-width = 32
-height = 24
-[sensor]
-preset = "emva-12bit"
-"""
+SCENE = flat_scene_toml('"agree"')
 
 SPEC = """
 scene = "scene.toml"

@@ -18,7 +18,7 @@ from camsim.io.atomic import write_text_atomic
 from camsim.io.output_folder import make_folder, output_folder
 from camsim.names import FORBIDDEN_CHARACTERS, MAX_NAME_BYTES, name_problem, safe_component
 
-from tests.helpers import write_text_file
+from tests.helpers import flat_scene_toml, write_text_file
 
 #: The issue's names (as TOML string literals), and a few more of the kinds the rule refuses.
 BAD_NAMES = {
@@ -35,24 +35,6 @@ BAD_NAMES = {
     "too long": '"' + "x" * (MAX_NAME_BYTES + 1) + '"',
 }
 
-SCENE = """
-name = {name}
-[spectral]
-start_nm = 400
-end_nm = 700
-step_nm = 10
-[target]
-kind = "flat"
-reflectance = 0.5
-[light]
-illuminants = ["D65"]
-intensity_factors = [0.5]
-[frame]
-width = 32
-height = 24
-[sensor]
-preset = {preset}
-"""
 
 SPEC = """
 name = {name}
@@ -106,7 +88,7 @@ def deep(tmp_path, monkeypatch) -> Path:
 
 @pytest.mark.parametrize("name", BAD_NAMES.values(), ids=BAD_NAMES.keys())
 def test_render_refuses_an_unsafe_scene_name(deep, tmp_path, capsys, name):
-    write_text_file(deep, "scene.toml", SCENE.format(name=name, preset='"emva-12bit"'))
+    write_text_file(deep, "scene.toml", flat_scene_toml(name, '"emva-12bit"'))
     before = tree(tmp_path)
     for out in (["--out", str(deep / "out")], []):  # also the default output folder, outputs/NAME
         line = refused(capsys, ["render", "scene.toml", "-q", *out], tmp_path, before)
@@ -115,7 +97,7 @@ def test_render_refuses_an_unsafe_scene_name(deep, tmp_path, capsys, name):
 
 @pytest.mark.parametrize("name", BAD_NAMES.values(), ids=BAD_NAMES.keys())
 def test_dataset_refuses_an_unsafe_spec_name(deep, tmp_path, capsys, name):
-    write_text_file(deep, "scene.toml", SCENE.format(name='"ok"', preset='"emva-12bit"'))
+    write_text_file(deep, "scene.toml", flat_scene_toml('"ok"', '"emva-12bit"'))
     write_text_file(deep, "spec.toml", SPEC.format(name=name))
     before = tree(tmp_path)
     for argv in (["--dry-run"], ["--workers", "1", "-q", "--out", str(deep / "out")], ["--workers", "1", "-q"]):
@@ -125,7 +107,7 @@ def test_dataset_refuses_an_unsafe_spec_name(deep, tmp_path, capsys, name):
 
 @pytest.mark.parametrize("name", ['"../../escaped"', '"/abs/path/victim"', '"a\\nb"', '".."'])
 def test_dataset_refuses_a_scene_with_an_unsafe_name(deep, tmp_path, capsys, name):
-    write_text_file(deep, "scene.toml", SCENE.format(name=name, preset='"emva-12bit"'))
+    write_text_file(deep, "scene.toml", flat_scene_toml(name, '"emva-12bit"'))
     write_text_file(deep, "spec.toml", SPEC.format(name='"fine"'))
     before = tree(tmp_path)
     for argv in (["--dry-run"], ["--workers", "1", "-q", "--out", str(deep / "out")]):
@@ -143,7 +125,7 @@ def test_calibrate_refuses_an_unsafe_name_before_reading_anything(deep, tmp_path
 @pytest.mark.parametrize("name", ['"../../escaped"', '"/abs/path/victim"', '"a\\nb"', '".."'])
 def test_a_camera_preset_file_with_an_unsafe_name_is_refused(deep, tmp_path, capsys, name):
     write_text_file(deep, "preset.toml", PRESET.format(name=name))
-    write_text_file(deep, "scene.toml", SCENE.format(name='"ok"', preset='"preset.toml"'))
+    write_text_file(deep, "scene.toml", flat_scene_toml('"ok"', '"preset.toml"'))
     before = tree(tmp_path)
     line = refused(capsys, ["render", "scene.toml", "-q", "--out", str(deep / "out")], tmp_path, before)
     assert "preset.toml: name" in line
@@ -151,7 +133,7 @@ def test_a_camera_preset_file_with_an_unsafe_name_is_refused(deep, tmp_path, cap
 
 @pytest.mark.parametrize("illuminant", ["../../escaped", "/abs/path/victim", "a\nb", ".."])
 def test_an_unsafe_illuminant_name_is_refused(deep, tmp_path, capsys, illuminant):
-    write_text_file(deep, "scene.toml", SCENE.format(name='"ok"', preset='"emva-12bit"'))
+    write_text_file(deep, "scene.toml", flat_scene_toml('"ok"', '"emva-12bit"'))
     before = tree(tmp_path)
     argv = ["render", "scene.toml", "-q", "--illuminant", illuminant, "--out", str(deep / "out")]
     assert "illuminant" in refused(capsys, argv, tmp_path, before)
@@ -159,7 +141,7 @@ def test_an_unsafe_illuminant_name_is_refused(deep, tmp_path, capsys, illuminant
 
 def test_safe_names_are_written_as_they_are(deep, capsys):
     """Inner spaces and letters of any script are safe: the frames carry the name unchanged."""
-    write_text_file(deep, "scene.toml", SCENE.format(name='"Błękit 青 chart"', preset='"emva-12bit"'))
+    write_text_file(deep, "scene.toml", flat_scene_toml('"Błękit 青 chart"', '"emva-12bit"'))
     assert main(["render", "scene.toml", "-q", "--out", "out"]) == 0
     assert (deep / "out" / "Błękit 青 chart_D65_F0.5.json").is_file()
 
