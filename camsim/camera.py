@@ -172,6 +172,7 @@ def absolute_qe(camera: Camera, scale, grid: WavelengthGrid) -> np.ndarray:
             per_channel = scale.reference_exposure_s * (camera.relative_qe @ white)
             qe = camera.relative_qe * (scale.reference_electrons / per_channel.max())
     if not (np.all(np.isfinite(qe)) and qe.max() >= np.finfo(np.float64).tiny):
-        raise CamsimError(f"the camera's absolute Qe is {'not finite' if np.all(qe > 0) else 'zero'} under the "
-                          f"[camera.scale] {scale.kind} scale: its values are beyond float64's range")
+        what = "zero" if np.all(np.isfinite(qe)) else "not finite"
+        raise CamsimError(f"the camera's absolute Qe is {what} under the [camera.scale] {scale.kind} scale: its "
+                          "values are beyond float64's range")
     return qe
