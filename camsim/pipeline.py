@@ -309,8 +309,9 @@ def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed:
 def check_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, statistics: str) -> None:
     """Refuse a frame that cannot be drawn or written, before it is: its expected signal must be finite
     (:func:`camsim.expected.expected_signal`), its values must fit the frame's float32 pixels
-    (:func:`camsim.render.check_frame_values`) — what drawing it checks first — and a quantised frame's exposure
-    must fit its DNG (:data:`camsim.io.dng.MAX_EXPOSURE_S`), which is written after the drawing.
+    (:func:`camsim.render.check_frame_values`) — what drawing it checks first — and what is written after the
+    drawing must be finite and fit: the perfect white's signal (the sidecar's ``white_signal_e``) and a quantised
+    frame's exposure (its DNG's, :data:`camsim.io.dng.MAX_EXPOSURE_S`).
 
     ``camsim render`` checks its frames so before any work (:func:`check_frames`), and a dataset's planning every
     frame (:mod:`camsim.dataset.spec`), so that ``camsim dataset --dry-run`` refuses what the run would.
@@ -321,6 +322,12 @@ def check_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, st
         The reason (an overflow names the largest F allowed).
     """
     check_frame_values(lit.expected(sensor, intensity_factor, statistics), sensor)
+    if lit.white_photon_rate is not None:  # the perfect white's signal, which the sidecar records
+        with np.errstate(over="ignore", invalid="ignore"):
+            white = lit.white_signal_e_per_s * intensity_factor * sensor.exposure_s
+        if not np.all(np.isfinite(white)):
+            raise CamsimError(f"the perfect white's signal at F = {intensity_factor:g}, T = {sensor.exposure_s:g} s "
+                              "overflows float64: the [camera.scale] and the luminance are beyond its range")
     if sensor.quantisation and sensor.exposure_s > MAX_EXPOSURE_S:
         raise CamsimError(f"exposure T = {sensor.exposure_s:g} s is longer than a DNG records ({MAX_EXPOSURE_S} s, "
                           "136 years): shorten it (or set exposure_max_s)")

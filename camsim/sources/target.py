@@ -31,6 +31,7 @@ import numpy as np
 
 from camsim.errors import CamsimError
 from camsim.seeding import target_generator
+from camsim.schema import finite_float
 from camsim.sources.base import SceneSource, SourceSpectra, typed
 from camsim.spectra import reflectance_set
 
@@ -86,7 +87,9 @@ def _reflectance_or_patch(table: dict, key: str, default: float, where: str) -> 
     """A ``[target]`` key that is a flat reflectance in [0, 1] (an integer is taken as a number) or a patch name."""
     value = table.get(key, default)
     if isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
+        value = finite_float(value)
+        if value is None:  # an integer beyond float64
+            value = math.inf
     if isinstance(value, float):
         if not 0 <= value <= 1:
             raise CamsimError(f"{where}: [target] {key} must be a reflectance in [0, 1], got {value:g}")
