@@ -93,6 +93,13 @@ class PhysicalScale:
                 raise CamsimError(f"scale parameter {name} must be a positive number, got {value!r}")
         if self.transmittance > 1 or self.peak_qe > 1:
             raise CamsimError("transmittance and peak_qe must not exceed 1")
+        try:
+            etendue = self.etendue_m2_sr
+        except OverflowError:  # p² or N² beyond float64
+            etendue = math.inf
+        if not (math.isfinite(etendue) and etendue > 0):
+            raise CamsimError(f"scale: pixel_pitch_um = {self.pixel_pitch_um:g} and f_number = {self.f_number:g} "
+                              "give a pixel étendue π τ p² / (4 N²) outside float64's range")
 
     kind = "physical"
 
@@ -157,8 +164,15 @@ def absolute_qe(camera: Camera, scale, grid: WavelengthGrid) -> np.ndarray:
     numpy.ndarray, shape (3, N)
         Unit: e⁻ · m² · sr / photon.
     """
-    if isinstance(scale, PhysicalScale):
-        return camera.relative_qe * (scale.etendue_m2_sr * scale.peak_qe)
-    white = reference_white_photon_radiance(scale, grid)
-    per_channel = scale.reference_exposure_s * (camera.relative_qe @ white)
-    return camera.relative_qe * (scale.reference_electrons / per_channel.max())
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # refused below, with the reason
+        if isinstance(scale, PhysicalScale):
+            qe = camera.relative_qe * (scale.etendue_m2_sr * scale.peak_qe)
+        else:
+            white = reference_white_photon_radiance(scale, grid)
+            per_channel = scale.reference_exposure_s * (camera.relative_qe @ white)
+            qe = camera.relative_qe * (scale.reference_electrons / per_channel.max())
+    if not (np.all(np.isfinite(qe)) and qe.max() >= np.finfo(np.float64).tiny):
+        what = "zero" if np.all(np.isfinite(qe)) else "not finite"
+        raise CamsimError(f"the camera's absolute Qe is {what} under the [camera.scale] {scale.kind} scale: its "
+                          "values are beyond float64's range")
+    return qe

@@ -66,6 +66,26 @@ def integer_between(low: int, high: int, what: str):
     return parse
 
 
+def file_name(what: str):
+    """An argparse type for a name that becomes part of a file name (:func:`camsim.names.safe_component`).
+
+    Parameters
+    ----------
+    what : str
+        The name's label in the message, e.g. ``"the preset's name"``.
+    """
+    from camsim.errors import CamsimError
+    from camsim.names import safe_component
+
+    def parse(text: str) -> str:
+        try:
+            return safe_component(text, what)
+        except CamsimError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    return parse
+
+
 def schema_value(param):
     """The argparse type of a :class:`camsim.schema.Param`: its text parsed, typed and range-checked by the schema."""
     from camsim.errors import CamsimError

@@ -38,6 +38,7 @@ from camsim.io.output_folder import make_folder
 from camsim.rawcolour import CALIBRATION_ILLUMINANT_D65
 from camsim.regions import weighted_rows
 from camsim.methods import get_method
+from camsim.names import MAX_STEM_BYTES, safe_component
 from camsim.noise_profile import frame_noise_profile
 from camsim.render import Frame
 from camsim.sidecar_schema import check_sidecar, parse_sidecar
@@ -85,9 +86,10 @@ class FrameInfo:
 
 
 def frame_stem(scene: str, illuminant: str, intensity_factor: float) -> str:
-    """File stem of a frame, e.g. ``macbeth_26_D65_F0.1``; safe on every file system."""
+    """File stem of a frame, e.g. ``macbeth_26_D65_F0.1``; safe on every file system (checked:
+    :func:`camsim.names.safe_component`, a :class:`CamsimError` otherwise)."""
     slug = re.sub(r"[^A-Za-z0-9.+-]+", "-", illuminant).strip("-")
-    return f"{scene}_{slug}_F{intensity_factor:g}"
+    return safe_component(f"{scene}_{slug}_F{intensity_factor:g}", "frame name", MAX_STEM_BYTES)
 
 
 def sidecar(frame: Frame, info: FrameInfo, files: dict | None, exr_compression: str | None = None) -> dict:

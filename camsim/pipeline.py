@@ -26,9 +26,10 @@ from camsim.errors import CamsimError
 from camsim.expected import ExpectedSignal, expected_signal
 from camsim.fixed_pattern import dark_gain_at
 from camsim.frame_files import FrameInfo
+from camsim.io.dng import MAX_EXPOSURE_S
 from camsim.photons import KM_LM_PER_W, photon_radiance
 from camsim.radiance import SceneRadiance, scene_radiance
-from camsim.rates import FactoredSpectra
+from camsim.rates import FactoredSpectra, all_finite
 from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
 from camsim.regions import weighted_rows
 from camsim.render import Frame, check_frame_values, render_frame
@@ -104,9 +105,13 @@ def lit_scene(radiance: SceneRadiance, camera: Camera, scale, grid: WavelengthGr
     """A :class:`LitScene` from spectral radiance, seen by ``camera`` with its one absolute Qe (which does not depend
     on the light: :func:`camsim.camera.absolute_qe`)."""
     to_photons = lambda spectra: photon_radiance(spectra, grid.wavelengths_nm, grid.step_nm)  # noqa: E731
-    g = radiance.radiance.map_basis(to_photons) if isinstance(radiance.radiance, FactoredSpectra) \
-        else to_photons(radiance.radiance)
-    g_white = photon_radiance(radiance.white_radiance, grid.wavelengths_nm, grid.step_nm)
+    with np.errstate(over="ignore", invalid="ignore"):  # refused below, with the reason
+        g = radiance.radiance.map_basis(to_photons) if isinstance(radiance.radiance, FactoredSpectra) \
+            else to_photons(radiance.radiance)
+        g_white = photon_radiance(radiance.white_radiance, grid.wavelengths_nm, grid.step_nm)
+    if not (all_finite(g) and np.all(np.isfinite(g_white))):
+        raise CamsimError("the scene's photon rates are not finite under this light: the luminance is beyond "
+                          "float64's range")
     return LitScene(radiance.labels, g, absolute_qe(camera, scale, grid), grid, radiance, illuminant, g_white)
 
 
@@ -136,10 +141,12 @@ def auto_exposure_s(lit: LitScene, intensity_factor: float, target_e: float,
     return exposure
 
 
-def frame_sensor(scene: Scene, lit: LitScene, intensity_factor: float) -> SensorParams:
-    """The sensor of one frame of ``scene``: its own, or with ``exposure = "auto"`` the same sensor at the frame's
-    exposure time (:func:`auto_exposure_s`), so that dark current scales with T. Qe is never changed."""
-    sensor = scene.sensor
+def frame_sensor(scene: Scene, lit: LitScene, intensity_factor: float,
+                 sensor: SensorParams | None = None) -> SensorParams:
+    """The sensor of one frame of ``scene``: its own (or ``sensor``, where given), or with ``exposure = "auto"``
+    the same sensor at the frame's exposure time (:func:`auto_exposure_s`), so that dark current scales with T.
+    Qe is never changed."""
+    sensor = scene.sensor if sensor is None else sensor
     if scene.exposure == "fixed":
         return sensor
     exposure = auto_exposure_s(lit, intensity_factor, scene.exposure_target_e, scene.exposure_max_s)
@@ -299,6 +306,33 @@ def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed:
     return frame, scene_frame_info(scene, lit, camera.name, intensity_factor, seed, device)
 
 
+def check_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, statistics: str) -> None:
+    """Refuse a frame that cannot be drawn or written, before it is: its expected signal must be finite
+    (:func:`camsim.expected.expected_signal`), its values must fit the frame's float32 pixels
+    (:func:`camsim.render.check_frame_values`) — what drawing it checks first — and what is written after the
+    drawing must be finite and fit: the perfect white's signal (the sidecar's ``white_signal_e``) and a quantised
+    frame's exposure (its DNG's, :data:`camsim.io.dng.MAX_EXPOSURE_S`).
+
+    ``camsim render`` checks its frames so before any work (:func:`check_frames`), and a dataset's planning every
+    frame (:mod:`camsim.dataset.spec`), so that ``camsim dataset --dry-run`` refuses what the run would.
+
+    Raises
+    ------
+    CamsimError
+        The reason (an overflow names the largest F allowed).
+    """
+    check_frame_values(lit.expected(sensor, intensity_factor, statistics), sensor)
+    if lit.white_photon_rate is not None:  # the perfect white's signal, which the sidecar records
+        with np.errstate(over="ignore", invalid="ignore"):
+            white = lit.white_signal_e_per_s * intensity_factor * sensor.exposure_s
+        if not np.all(np.isfinite(white)):
+            raise CamsimError(f"the perfect white's signal at F = {intensity_factor:g}, T = {sensor.exposure_s:g} s "
+                              "overflows float64: the [camera.scale] and the luminance are beyond its range")
+    if sensor.quantisation and sensor.exposure_s > MAX_EXPOSURE_S:
+        raise CamsimError(f"exposure T = {sensor.exposure_s:g} s is longer than a DNG records ({MAX_EXPOSURE_S} s, "
+                          "136 years): shorten it (or set exposure_max_s)")
+
+
 def check_frames(scene: Scene, camera: Camera | None = None) -> list[str]:
     """Refuse a scene with a frame that cannot be drawn, before anything is drawn or written; return its warnings.
 
@@ -335,7 +369,7 @@ def check_frames(scene: Scene, camera: Camera | None = None) -> list[str]:
         for factor in factors:
             try:
                 sensor = frame_sensor(scene, lit, factor)
-                check_frame_values(lit.expected(sensor, factor, scene.statistics), sensor)
+                check_frame(lit, sensor, factor, scene.statistics)
             except CamsimError as exc:
                 raise CamsimError(f"frame under {illuminant} at F = {factor:g}: {exc}") from None
             warned += [(illuminant, factor, sensor.exposure_s, line) for line in frame_warnings(sensor)]

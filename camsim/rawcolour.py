@@ -32,10 +32,7 @@ def color_matrix_xyz_to_camera(qe: np.ndarray, grid: WavelengthGrid) -> np.ndarr
     _, refl = reflectance_set(_CALIBRATION_CHART, grid)
     radiance = refl * d65
     xyz = radiance @ cmfs.T
-    with np.errstate(over="ignore", invalid="ignore"):  # handled below
-        rgb = camera_response(radiance, qe, grid)
-    if not np.all(np.isfinite(rgb)):  # a Qe so vast that the responses overflow: the matrix is that of Qe / max Qe
-        rgb = camera_response(radiance, qe / np.max(qe), grid)
+    rgb = camera_response(radiance, qe / qe.max(), grid)  # normalised (as the matrix is): no overflow for any Qe
     solution, *_ = np.linalg.lstsq(xyz, rgb, rcond=None)  # rgb ≈ xyz @ solution
     matrix = solution.T
     white_xyz = d65 @ cmfs.T
@@ -47,5 +44,5 @@ def as_shot_neutral(illuminant: str, qe: np.ndarray, grid: WavelengthGrid) -> np
     """Camera response to the perfect white under ``illuminant``, largest component 1, shape (3,)."""
     ybar = cmfs_on_grid(grid)[1]
     white = scale_to_luminance(illuminant_spd(illuminant, grid), ybar, grid.step_nm, 100.0)
-    response = camera_response(white, qe, grid)
+    response = camera_response(white, qe / qe.max(), grid)  # normalised (as the result is): no overflow for any Qe
     return response / response.max()

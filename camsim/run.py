@@ -20,10 +20,13 @@ from camsim.spectra import illuminant_spd
 
 
 def check_scene(scene: Scene) -> None:
-    """Fail early, before any frame is written, on names that do not resolve and sizes that cannot be written."""
+    """Fail early, before any frame is written, on names that do not resolve (or make unsafe file names:
+    :mod:`camsim.names`) and sizes that cannot be written."""
     get_method(scene.method)
     for name in scene.illuminants:
         illuminant_spd(name, scene.grid)
+        for factor in scene.intensity_factors:  # every file name the frames will have
+            frame_stem(scene.name, name, factor)
     reference = getattr(scene.scale, "reference_illuminant", None)  # the anchor's light (AnchorScale)
     if reference is not None:
         illuminant_spd(reference, scene.grid)

@@ -11,7 +11,6 @@ unknown keys are errors, so a typo never goes unnoticed.
 from __future__ import annotations
 
 import dataclasses
-import tomllib
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -22,13 +21,12 @@ from camsim.builtin_scenes import resolve_scene_file
 from camsim.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
 from camsim.errors import CamsimError
 from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
-from camsim.pixel_limit import check_pixel_count
 from camsim.regions import Region, check_regions, parse_regions
-from camsim.schema import Param, param, params_of, validate
+from camsim.names import safe_component
+from camsim.schema import Param, check_frame_size, finite_float, param, params_of, read_toml, typed, validate
 from camsim.camera_presets import sensor_preset
 from camsim.sensor import SENSOR_PARAMS, SensorParams
 from camsim.sources import SOURCES, ChartSource, SceneSource
-from camsim.sources.base import typed
 from camsim.spectra import WavelengthGrid
 
 STATISTICS = ("pixel", "paper")
@@ -97,17 +95,19 @@ class Scene:
     def __post_init__(self):
         if not isinstance(self.source, SceneSource):
             raise CamsimError(f"a scene's source must be a scene source, got {self.source!r}")
+        safe_component(self.name, "scene name")  # it names the frames' files: camsim.names
         if not self.illuminants:
             raise CamsimError("scene lists no illuminants")
+        if not self.intensity_factors:
+            raise CamsimError("scene lists no intensity factors")
         for f in self.intensity_factors:
-            if not (isinstance(f, (int, float)) and np.isfinite(f) and f > 0):
-                raise CamsimError(f"intensity factor must be a positive number, got {f!r}")
+            check_intensity_factor(f)
+        check_frame_size(self.width, self.height, "scene's frame")
         if not (np.isfinite(self.luminance_cd_m2) and self.luminance_cd_m2 > 0):
             raise CamsimError(f"luminance_cd_m2 must be positive, got {self.luminance_cd_m2!r}")
         if self.normalisation not in NORMALISATIONS:
             raise CamsimError(f"normalisation must be one of {NORMALISATIONS}, got {self.normalisation!r}")
         validate(self, "scene")
-        check_pixel_count(self.width, self.height, "[frame]")
         if not all(isinstance(r, Region) for r in self.regions):
             raise CamsimError(f"a scene's regions must be camsim.regions.Region, got {self.regions!r}")
         if self.regions and not self.source.has_own_size:  # else checked when the source gives its size
@@ -127,6 +127,14 @@ class Scene:
 
     def replace(self, **changes) -> Scene:
         return dataclasses.replace(self, **changes)
+
+
+def check_intensity_factor(value) -> float:
+    """``value`` if it is an intensity factor F: a positive finite number (a scene's, a dataset frame's)."""
+    number = finite_float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+    if number is None or not number > 0:
+        raise CamsimError(f"intensity factor must be a positive number, got {value!r}")
+    return value
 
 
 def _frozen(overrides: dict) -> tuple:
@@ -149,17 +157,7 @@ FRAME_PARAMS = (
 )
 
 
-def read_toml(path: Path, what: str) -> dict:
-    """Parse a TOML file; a missing or malformed one is a :class:`CamsimError` naming ``what`` and the path."""
-    try:
-        with open(path, "rb") as handle:
-            return tomllib.load(handle)
-    except FileNotFoundError:
-        raise CamsimError(f"{what} not found: {path}") from None
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise CamsimError(f"cannot read {what} {path}: {exc}") from None
-
-
+_FRAME_PARAMS = {p.name: p for p in FRAME_PARAMS}
 _TOP_KEYS = {"name", "description", "spectral", "light", "frame", "camera", "sensor", "render", "region", *SOURCES}
 
 
@@ -193,6 +191,7 @@ def load_scene(path: str | Path) -> Scene:
         raise CamsimError(f"{where}: unknown top-level key(s): {', '.join(sorted(unknown))}")
     typed(doc, "description", str, "", where)  # free text for the reader, but text: a list or number is a mistake
     base_dir = path.resolve().parent
+    name = safe_component(typed(doc, "name", str, path.stem, where), f"{where}: name")  # before any work
 
     spectral = _table(doc, "spectral", {"start_nm", "end_nm", "step_nm"}, where)
     grid = WavelengthGrid(
@@ -206,6 +205,8 @@ def load_scene(path: str | Path) -> Scene:
         raise CamsimError(f"{where}: illuminants must be a list of names")
     factors = typed(light, "intensity_factors", list, [1.0], where)
     frame = _table(doc, "frame", {"width", "height"}, where)
+    width, height = typed(frame, "width", int, 600, where), typed(frame, "height", int, 400, where)
+    check_frame_size(width, height, f"{where}: [frame]")
     tables = [name for name in SOURCES if name in doc]
     if len(tables) != 1:
         raise CamsimError(f"{where}: a scene needs exactly one of " + " or ".join(f"[{n}]" for n in SOURCES))
@@ -232,36 +233,31 @@ def load_scene(path: str | Path) -> Scene:
     preset_name = sensor_table.pop("preset", "paper-table1")
     if not isinstance(preset_name, str):
         raise CamsimError(f"{where}: [sensor] preset must be a name")
-    iso = sensor_table.pop("iso", None)
-    if iso is not None and (isinstance(iso, bool) or not isinstance(iso, (int, float))):
-        raise CamsimError(f"{where}: [sensor] iso must be a number, got {iso!r}")
+    iso = _FRAME_PARAMS["iso"].coerce(sensor_table.pop("iso", None), f"{where} [sensor]")
     sensor_table = {p.name: p.coerce(sensor_table[p.name], f"{where} [sensor]")
                     for p in SENSOR_PARAMS if p.name in sensor_table}
 
-    check_pixel_count(typed(frame, "width", int, 600, where), typed(frame, "height", int, 400, where),
-                      f"{where}: [frame]")
     regions = parse_regions(doc["region"], where) if "region" in doc else ()
     if regions and not source.has_own_size:  # an image's or a cube's size is checked when it is read
-        check_regions(regions, typed(frame, "width", int, 600, where), typed(frame, "height", int, 400, where),
-                      where)
+        check_regions(regions, width, height, where)
 
     render = _table(doc, "render", {p.name for p in RENDER_PARAMS}, where)
     render = {p.name: p.coerce(render[p.name], f"{where} [render]") for p in RENDER_PARAMS if p.name in render}
     return Scene(
-        name=typed(doc, "name", str, path.stem, where),
+        name=name,
         grid=grid,
         illuminants=tuple(illuminants),
-        intensity_factors=tuple(float(f) if isinstance(f, int) else f for f in factors),
+        intensity_factors=tuple(float(check_intensity_factor(f)) for f in factors),
         luminance_cd_m2=typed(light, "luminance_cd_m2", float, 100.0, where),
         normalisation=typed(light, "normalisation", str, "chart", where),
         source=source,
-        width=typed(frame, "width", int, 600, where),
-        height=typed(frame, "height", int, 400, where),
+        width=width,
+        height=height,
         camera=typed(camera, "name", str, DEFAULT_CAMERA, where),
         sensitivity_basis=typed(camera, "sensitivity_basis", str, "energy", where),
         scale=scale,
         preset_name=preset_name,
-        iso=None if iso is None else float(iso),
+        iso=iso,
         sensor_overrides=_frozen(sensor_table),
         base_dir=base_dir,
         regions=regions,

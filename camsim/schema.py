@@ -16,10 +16,16 @@ import math
 import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 from camsim.errors import CamsimError
+from camsim.pixel_limit import check_pixel_count
 
 KINDS = ("float", "int", "bool", "str", "rgb")
+#: The integers camsim takes anywhere in its input: numpy's int64. A larger one (TOML has no bound) is refused where
+#: it is read, as a float beyond float64's range is (a float made from it would be infinite).
+INT64_MIN, INT64_MAX = -(2**63), 2**63 - 1
+#: The most pixels a frame may have (``[frame]`` of a scene file or a dataset spec, ``--size``, an ``[images]`` crop).
 _KIND_TEXT = {"float": "a number", "int": "an integer", "bool": "true or false", "str": "a string",
               "rgb": "a number or a list of three numbers (R, G, B)"}
 
@@ -85,7 +91,7 @@ class Param:
             ``"<where>: <name> must be …, got …"`` for a value of the wrong type or out of range.
         """
         def bad(what):
-            return CamsimError(f"{where + ': ' if where else ''}{self.name} must be {what}, got {value!r}")
+            return CamsimError(f"{where + ': ' if where else ''}{self.name} must be {what}, got {shown(value)}")
 
         if value is None or (self.optional and value == "none"):
             if self.optional:
@@ -96,9 +102,9 @@ class Param:
             if (self.kind == "rgb" and len(items) not in (1, 3)) or any(
                     isinstance(v, bool) or not isinstance(v, (int, float)) for v in items):
                 raise bad(_KIND_TEXT[self.kind])
-            items = [float(v) for v in items]
+            items = [finite_float(v) for v in items]
             for v in items:
-                if not math.isfinite(v):
+                if v is None:
                     raise bad("a finite number")
                 if check_range:
                     self._check_range(v, bad)
@@ -106,6 +112,8 @@ class Param:
         if self.kind == "int":
             if isinstance(value, bool) or not isinstance(value, int):
                 raise bad("an integer")
+            if not INT64_MIN <= value <= INT64_MAX:
+                raise bad("an integer within int64 (±9.2e18)")
             if check_range:
                 self._check_range(value, bad)
             return value
@@ -133,8 +141,10 @@ class Param:
         """A command-line value (a TOML literal such as ``2.5``, ``[1, 2, 3]``, ``true``, or a bare name)."""
         try:
             value = tomllib.loads(f"v = {text}")["v"]
-        except tomllib.TOMLDecodeError:
+        except ValueError:  # TOMLDecodeError, or an integer of more than 4300 digits
             value = text  # a bare name: RGGB, tukey-lambda, none
+        except RecursionError:
+            raise CamsimError(f"{where + ': ' if where else ''}{self.name}: the value is nested too deeply") from None
         return self.coerce(value, where)
 
     def help_text(self) -> str:
@@ -151,6 +161,79 @@ class Param:
         if self.omit_default and value == self.default:
             return {}
         return {self.name: list(value) if isinstance(value, tuple) else value}
+
+
+def shown(value) -> str:
+    """``repr(value)`` for a message, but an integer of more than 24 digits as its size (``an integer of 401
+    digits``): a message stays one short line."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 80:
+        return f"an integer of about {math.ceil(value.bit_length() * math.log10(2))} digits"
+    return repr(value)
+
+
+def finite_float(value) -> float | None:
+    """``value`` (an int or a float) as a float, or None where that is not finite: NaN, ±infinity, or an integer
+    beyond float64's range (``float()`` would raise ``OverflowError``)."""
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) else None
+
+
+def typed(table: dict, key: str, kind, default, where: str):
+    """``table[key]`` if it is of type ``kind`` (ints accepted for floats), else ``default`` when absent.
+
+    A number must be finite and an integer within int64 (:data:`INT64_MIN` to :data:`INT64_MAX`): what TOML
+    allows beyond that (``inf``, ``nan``, 10⁴⁰⁰) is refused where the table is read, not deep in the work.
+    """
+    if key not in table:
+        return default
+    value = table[key]
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = finite_float(value)
+        if value is None:
+            raise CamsimError(f"{where}: {key} must be a finite number, got {shown(table[key])}")
+    if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+        name = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
+        raise CamsimError(f"{where}: {key} must be of type {name}, got {value!r}")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise CamsimError(f"{where}: {key} must be a finite number, got {value!r}")
+    if isinstance(value, int) and not isinstance(value, bool) and not INT64_MIN <= value <= INT64_MAX:
+        raise CamsimError(f"{where}: {key} must be an integer within int64 (±9.2e18), got {shown(value)}")
+    return value
+
+
+def check_frame_size(width, height, where: str) -> None:
+    """Refuse a frame size that is not two positive integers (pixels) of at most :data:`camsim.pixel_limit.MAX_PIXELS` in all.
+
+    Raises
+    ------
+    CamsimError
+        ``"<where> width must be a positive integer (pixels), got …"`` or ``"<where> WxH is over 200 megapixels"``.
+    """
+    for key, value in (("width", width), ("height", height)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise CamsimError(f"{where} {key} must be a positive integer (pixels), got {value!r}")
+    check_pixel_count(width, height, where)  # the one limit (camsim.pixel_limit), for files' headers too
+
+
+def read_toml(path: str | Path, what: str) -> dict:
+    """Parse a TOML file (a scene file, a dataset spec, a camera preset file); a missing, unreadable or malformed one
+    is a :class:`CamsimError` naming ``what`` and the path.
+
+    Malformed includes what the parser itself cannot take: values nested so deeply that it runs out of stack
+    (``RecursionError``), an integer of more than 4300 digits (Python's limit for a decimal string).
+    """
+    try:
+        with open(path, "rb") as handle:
+            return tomllib.load(handle)
+    except FileNotFoundError:
+        raise CamsimError(f"{what} not found: {path}") from None
+    except (OSError, ValueError) as exc:  # TOMLDecodeError and UnicodeDecodeError are ValueErrors
+        raise CamsimError(f"cannot read {what} {path}: {exc}") from None
+    except RecursionError:
+        raise CamsimError(f"cannot read {what} {path}: its values are nested too deeply") from None
 
 
 def param(default, kind: str, doc: str, unit: str = "", **checks):

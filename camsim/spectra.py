@@ -56,6 +56,10 @@ def _signals_held():
             signal.raise_signal(received[0])
 
 
+#: The most bins a wavelength grid may have (380–780 nm at 4 nm is 101; at 0.01 nm, 40 001).
+MAX_BINS = 100_000
+
+
 @dataclass(frozen=True)
 class WavelengthGrid:
     """A uniform wavelength grid.
@@ -80,6 +84,9 @@ class WavelengthGrid:
                 "(need 0 < start < end and step > 0)"
             )
         n = (self.end_nm - self.start_nm) / self.step_nm
+        if not n < MAX_BINS:  # also a step so small, or a range so wide, that the count is infinite
+            raise CamsimError(f"wavelength grid {self.start_nm:g}–{self.end_nm:g} nm step {self.step_nm:g} nm has "
+                              f"{n + 1:.3g} bins, more than {MAX_BINS}")
         if abs(n - round(n)) > 1e-6:
             raise CamsimError(
                 f"wavelength grid {self.start_nm}–{self.end_nm} nm is not a whole number of {self.step_nm} nm steps"

@@ -23,6 +23,30 @@ def write_text_file(folder: Path, name: str, text: str) -> Path:
     return path
 
 
+def flat_scene_toml(name: str = '"flat"', preset: str = '"emva-12bit"') -> str:
+    """The text of a small scene file (a 32 × 24 flat field on a 400–700 nm grid, one frame under D65 at F = 0.5);
+    ``name`` and ``preset`` are TOML literals, written as they are (the hostile-input tests)."""
+    return f"""
+name = {name}
+[spectral]
+start_nm = 400
+end_nm = 700
+step_nm = 10
+[target]
+kind = "flat"
+reflectance = 0.5
+[light]
+illuminants = ["D65"]
+intensity_factors = [0.5]
+luminance_cd_m2 = 100
+[frame]
+width = 32
+height = 24
+[sensor]
+preset = {preset}
+"""
+
+
 def libraw_black_levels(path: Path) -> list[int]:
     """What LibRaw reports as black level for each BlackLevel value stored in the DNG at ``path``, in file order.
 

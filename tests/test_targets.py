@@ -254,10 +254,11 @@ def _write(tmp_path, target: str) -> str:
 
 
 @pytest.mark.parametrize(("table", "message"), [
-    ('kind = "dead-leaves"\nradius_min_px = -1', r"radius_min_px must be a positive number of pixels, got -1"),
+    ('kind = "dead-leaves"\nradius_min_px = -1', r"radius_min_px must be 0.01 to 1e\+06 pixels, got -1"),
+    ('kind = "dead-leaves"\nradius_max_px = 1e308', r"radius_max_px must be 0.01 to 1e\+06 pixels, got 1e\+308"),
     ('kind = "dead-leaves"\nradius_min_px = 10\nradius_max_px = 5',
      r"radius_min_px \(10\) must not exceed radius_max_px \(5\)"),
-    ('kind = "dead-leaves"\nradius_max_px = inf', r"radius_max_px must be a positive number of pixels, got inf"),
+    ('kind = "dead-leaves"\nradius_max_px = inf', r"radius_max_px must be a finite number, got inf"),
     ('kind = "dead-leaves"\nseed = -3', r"seed must be a non-negative integer, got -3"),
     ('kind = "dead-leaves"\ngreys = [0.5, 2]', r"greys must be reflectances in \[0, 1\], got 2"),
     ('kind = "slanted-edge"\nangle_deg = 60', r"angle_deg must be in \[-45, 45\] degrees from vertical, got 60"),

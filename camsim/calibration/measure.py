@@ -21,6 +21,7 @@ from camsim.calibration.estimate import Estimate, ratio, sqrt_estimate
 from camsim.calibration.rawfiles import Layout, check_same_exposure, check_same_layout, read_raw
 from camsim.errors import CamsimError
 from camsim.kernels import tukey_lambda_variance
+from camsim.names import name_problem, safe_component
 
 #: Fewest dark frames: the per-pixel mean needs two to leave a residual.
 MIN_DARKS = 2
@@ -308,7 +309,8 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
     iso : float, optional
         The ISO the values belong to (default: the files', else :data:`DEFAULT_ISO`).
     name : str, optional
-        The preset's name (default: the camera model in the files, else :data:`DEFAULT_NAME`).
+        The preset's name, a safe file name (:mod:`camsim.names`; default: the camera model in the files where it
+        is one, else :data:`DEFAULT_NAME`).
     progress : bool
         Progress bars on stderr.
 
@@ -322,6 +324,8 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
         Too few files, a file that cannot be read, frames of different sizes or mosaics, saturated flats, a level
         without its pair, fewer than 3 levels, or a curve with no usable part.
     """
+    if name:
+        safe_component(name, "the preset's name")
     dark_files = tuple(str(os.fspath(f)) for f in dark_files)
     flat_files = tuple(str(os.fspath(f)) for f in flat_files)
     _check_inputs(dark_files, flat_files)
@@ -374,7 +378,7 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
     meta_iso = first.iso
     return Calibration(
         dark_files=dark_files, flat_files=flat_files, layout=layout,
-        name=name if name else (first.model or DEFAULT_NAME),
+        name=name if name else (first.model if name_problem(first.model) is None else DEFAULT_NAME),
         iso=_iso(iso if iso is not None else (meta_iso if meta_iso else DEFAULT_ISO)),
         date=datetime.date.today().isoformat(), planes=planes, pairs=tuple(pairs), k_dn_per_e=k,
         black_dn=black_all, read_dn=read_all, row_dn=row_all,

@@ -25,27 +25,19 @@
 from __future__ import annotations
 
 import dataclasses
-import tomllib
 from pathlib import Path
 
 from camsim.camera_presets.model import CameraPreset, IsoPoint
 from camsim.cfa import CFA_PATTERNS
 from camsim.errors import CamsimError
+from camsim.names import safe_component
+from camsim.schema import read_toml, typed
 
 _PRESET_KEYS = {"name": str, "title": str, "source": str, "bits": int, "pedestal_dn": int, "cfa": str,
                 "read_noise_model": str, "full_well_e": float, "conversion_gain_v_per_e": float,
                 "dark_current_e_per_s": float, "dual_gain_iso": float}
 _REQUIRED = ("name", "source", "bits")
 _ISO_KEYS = {f.name: f for f in dataclasses.fields(IsoPoint)}
-
-
-def _value(table: dict, key: str, kind, where: str):
-    value = table[key]
-    if kind is float and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
-    if not isinstance(value, kind) or isinstance(value, bool):
-        raise CamsimError(f"{where}: {key} must be {kind.__name__}, got {value!r}")
-    return value
 
 
 def read_preset_file(path: str | Path) -> CameraPreset:
@@ -58,13 +50,7 @@ def read_preset_file(path: str | Path) -> CameraPreset:
     """
     path = Path(path)
     where = f"camera preset {path}"
-    try:
-        with open(path, "rb") as handle:
-            doc = tomllib.load(handle)
-    except FileNotFoundError:
-        raise CamsimError(f"{where}: not found") from None
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise CamsimError(f"{where}: cannot read: {exc}") from None
+    doc = read_toml(path, "camera preset file")
     unknown = set(doc) - {"preset", "iso"}
     if unknown:
         raise CamsimError(f"{where}: unknown table(s) {', '.join(sorted(unknown))}; a preset has [preset] and [[iso]]")
@@ -77,7 +63,8 @@ def read_preset_file(path: str | Path) -> CameraPreset:
     missing = [k for k in _REQUIRED if k not in head]
     if missing:
         raise CamsimError(f"{where}: [preset] lacks {', '.join(missing)}")
-    fields = {k: _value(head, k, kind, where) for k, kind in _PRESET_KEYS.items() if k in head}
+    fields = {k: typed(head, k, kind, None, where) for k, kind in _PRESET_KEYS.items() if k in head}
+    safe_component(fields["name"], f"{where}: name")  # the rule of every name (camsim calibrate --name's too)
     if "cfa" in fields and fields["cfa"] not in CFA_PATTERNS:
         raise CamsimError(f"{where}: cfa must be one of {', '.join(CFA_PATTERNS)}, got {fields['cfa']!r}")
     fields.setdefault("cfa", None)
@@ -95,7 +82,7 @@ def read_preset_file(path: str | Path) -> CameraPreset:
         if missing:
             raise CamsimError(f"{at}: lacks {', '.join(missing)}")
         try:
-            points.append(IsoPoint(**{k: _value(row, k, float, at) for k in row}))
+            points.append(IsoPoint(**{k: typed(row, k, float, None, at) for k in row}))
         except CamsimError as exc:
             raise CamsimError(f"{at}: {exc}") from None
     points.sort(key=lambda p: p.iso)

@@ -36,7 +36,7 @@ import numpy as np
 
 from camsim.errors import CamsimError
 from camsim.kernels import tukey_lambda_variance
-from camsim.sensor import READ_NOISE_MODELS, SensorParams
+from camsim.sensor import READ_NOISE_MODELS, SENSOR_PARAMS, SensorParams
 
 #: The published noise quantities of an ISO point, in DN of the raw (ELD's and PMN's names).
 NOISE_QUANTITIES = ("tukey_scale_dn", "gaussian_sigma_dn", "row_sigma_dn")
@@ -109,6 +109,11 @@ class NoiseFit:
         return np.exp(self.slope * np.log(k_dn_per_e) + self.bias)
 
 
+#: The fields of a camera preset that are sensor parameters of the same name, checked by the sensor's schema.
+_SENSOR_FIELDS = ("bits", "pedestal_dn", "full_well_e", "conversion_gain_v_per_e", "dark_current_e_per_s")
+_SENSOR = {p.name: p for p in SENSOR_PARAMS}
+
+
 @dataclass(frozen=True)
 class CameraPreset:
     """A real camera: published noise figures per ISO, the raw's levels, and where the figures come from.
@@ -176,6 +181,11 @@ class CameraPreset:
             raise CamsimError(f"camera preset {self.name!r}: ISO points must increase, got {isos}")
         if self.read_noise_model not in READ_NOISE_MODELS:
             raise CamsimError(f"camera preset {self.name!r}: read_noise_model must be one of {READ_NOISE_MODELS}")
+        for name in _SENSOR_FIELDS:  # the sensor's own ranges (the schema): a zero conversion gain, a 99-bit ADC …
+            if getattr(self, name) is not None:
+                _SENSOR[name].coerce(getattr(self, name), f"camera preset {self.name!r}")
+        if self.dual_gain_iso is not None and not (math.isfinite(self.dual_gain_iso) and self.dual_gain_iso > 0):
+            raise CamsimError(f"camera preset {self.name!r}: dual_gain_iso must be positive, got {self.dual_gain_iso!r}")
         if self.full_well_e is None:  # the charge that fills the raw at the default ISO: K · FW = white − black
             well = (2**self.bits - 1 - self.pedestal_dn) / self.point_at(self.default_iso).k_dn_per_e
             object.__setattr__(self, "full_well_e", float(well))

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from camsim.cli_types import positive_float
+from camsim.cli_types import file_name, positive_float
 from camsim.commands import DEFAULT_OUT, writing_to
 
 
@@ -33,8 +33,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--out", metavar="DIR", type=Path, help="output folder (default outputs/calibration)")
     parser.add_argument("--iso", metavar="N", type=positive_float,
                         help="the ISO the preset's values are for (default: the files' ISO, else 100)")
-    parser.add_argument("--name", metavar="NAME",
-                        help="the preset's name (default: the camera model in the files, else 'calibrated')")
+    parser.add_argument("--name", metavar="NAME", type=file_name("NAME"),
+                        help="the preset's name (default: the camera model in the files, else 'calibrated'): a "
+                             "safe file name, as every name camsim reads (no / or \\, no leading '.', printable, at "
+                             "most 128 bytes)")
     parser.add_argument("--quiet", "-q", action="store_true",
                         help="no progress bars, no summary, no colour-science warnings")
     return parser

@@ -64,10 +64,12 @@ def run(args) -> int:
     if args.scheduler is None and args.workers != 1 and not args.dry_run:
         start_fork_server(zarr=args.format == "zarr")  # the pool's fork server imports camsim meanwhile
 
-    from camsim.dataset.runner import run_dataset
+    from camsim.dataset.runner import check_settings, run_dataset
     from camsim.dataset.spec import load_spec, plan_spec
 
-    if args.dry_run:
+    if args.dry_run:  # what the run checks before its first frame: the settings, then the spec and every frame
+        check_settings(workers=args.workers, threads=args.threads, scheduler=args.scheduler, verify=args.verify,
+                       exr_compression=args.exr_compression, output=args.format)
         print_plan(plan_spec(args.spec))
         return 0
     spec = load_spec(args.spec)

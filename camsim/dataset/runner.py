@@ -40,7 +40,7 @@ from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION, check_exr_compres
 from camsim.io.output_folder import output_folder
 from camsim.render import default_workers
 
-__all__ = ["run_dataset", "FORMATS"]
+__all__ = ["run_dataset", "check_settings", "FORMATS"]
 
 #: Output formats: ``files`` (a DNG, an EXR and a JSON sidecar per frame) or ``zarr`` (one Zarr store).
 FORMATS = ("files", "zarr")
@@ -95,20 +95,8 @@ def run_dataset(
         a store), ``store`` (the store's path, or None).
     """
     say = echo or (lambda *a, **k: None)
-    if verify not in VERIFY_MODES:
-        raise CamsimError(f"verify must be one of {VERIFY_MODES}, got {verify!r}")
-    if output not in FORMATS:
-        raise CamsimError(f"format must be one of {', '.join(FORMATS)}, got {output!r}")
-    if output == "zarr" and exr_compression is not None:
-        raise CamsimError("--exr-compression is for the file layout: a Zarr store holds arrays (--format zarr)")
-    if scheduler is not None and workers is not None:
-        raise CamsimError("give either --workers (local processes) or --scheduler (a Dask cluster), not both")
-    if workers is not None and not (isinstance(workers, int) and workers >= 1):
-        raise CamsimError(f"workers must be an integer ≥ 1, got {workers!r}")
-    if not (isinstance(threads, int) and threads >= 1):
-        raise CamsimError(f"threads must be an integer ≥ 1, got {threads!r}")
-    if exr_compression is not None:
-        check_exr_compression(exr_compression)
+    check_settings(workers=workers, threads=threads, scheduler=scheduler, verify=verify,
+                   exr_compression=exr_compression, output=output)
     if scheduler is None and workers != 1:
         start_fork_server(zarr=output == "zarr")  # it imports camsim while the spec is read and frames checked
     spec = spec if isinstance(spec, DatasetSpec) else load_spec(spec)
@@ -204,6 +192,31 @@ def run_dataset(
     say(f"rendered {rendered} frames{rate} ({backend}); skipped {summary['skipped']} complete; "
         f"manifest: {manifest}")
     return summary
+
+
+def check_settings(*, workers: int | None = None, threads: int = 1, scheduler: str | None = None,
+                   verify: str = "sha256", exr_compression: str | None = None, output: str = "files") -> None:
+    """Refuse settings of :func:`run_dataset` (its parameters of these names) that cannot run, before the spec is
+    read: what the run checks first, and ``camsim dataset --dry-run`` too, so that it refuses what the run would.
+
+    Raises
+    ------
+    CamsimError
+    """
+    if verify not in VERIFY_MODES:
+        raise CamsimError(f"verify must be one of {VERIFY_MODES}, got {verify!r}")
+    if output not in FORMATS:
+        raise CamsimError(f"format must be one of {', '.join(FORMATS)}, got {output!r}")
+    if output == "zarr" and exr_compression is not None:
+        raise CamsimError("--exr-compression is for the file layout: a Zarr store holds arrays (--format zarr)")
+    if scheduler is not None and workers is not None:
+        raise CamsimError("give either --workers (local processes) or --scheduler (a Dask cluster), not both")
+    if workers is not None and not (isinstance(workers, int) and workers >= 1):
+        raise CamsimError(f"workers must be an integer ≥ 1, got {workers!r}")
+    if not (isinstance(threads, int) and threads >= 1):
+        raise CamsimError(f"threads must be an integer ≥ 1, got {threads!r}")
+    if exr_compression is not None:
+        check_exr_compression(exr_compression)
 
 
 def _check_format(out_dir: Path, output: str) -> None:

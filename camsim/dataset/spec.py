@@ -42,7 +42,8 @@ chart, cube or image replaced by the crop, a reflectance image: :class:`camsim.s
 
     [images]
     folder = "images"                  # relative to the spec file
-    pattern = "*.png"                  # glob in the folder (default: *.png, *.jpg, *.jpeg, *.tif, *.tiff, *.exr)
+    pattern = "*.png"                  # glob in the folder (default: *.png, *.jpg, *.jpeg, *.tif, *.tiff, *.exr);
+                                       # relative to it and without "..": it never leaves the folder
     crop = [256, 192]                  # the frame size: width, height in pixels (no [frame] table then)
     flips = true                       # random horizontal and vertical flips (default false)
 
@@ -76,19 +77,20 @@ import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from functools import partial
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 from camsim.builtin_scenes import resolve_scene_file, resolve_spec_file
 from camsim.camera import load_camera
 from camsim.errors import CamsimError
-from camsim.pipeline import exposure_record
+from camsim.pipeline import check_frame, exposure_record, frame_sensor, light_scene
 from camsim.run import check_scene
 from camsim.io.dng import MIN_SIZE
 from camsim.io.exr_compression import check_exr_compression
-from camsim.scene import FRAME_PARAMS, RENDER_PARAMS, Scene, load_scene, read_toml
+from camsim.names import safe_component
+from camsim.schema import INT64_MAX, check_frame_size
+from camsim.scene import FRAME_PARAMS, RENDER_PARAMS, Scene, check_intensity_factor, load_scene, read_toml
 from camsim.seeding import dataset_frame_seeds, dataset_parameter_generator
-from camsim.sensor import SENSOR_PARAMS
-from camsim.pixel_limit import check_pixel_count
+from camsim.sensor import SENSOR_PARAMS, with_checked_values
 from camsim.sources.image import ImageSource
 from camsim.camera_presets.virtual import VIRTUAL_KEYS
 
@@ -527,13 +529,16 @@ def _images(table, base: Path, where: str) -> _ImageFolder:
     pattern = table.get("pattern")
     if pattern is not None and (not isinstance(pattern, str) or not pattern):
         raise CamsimError(f"{where}: [images] pattern must be a glob pattern such as \"*.png\", got {pattern!r}")
+    if pattern is not None and (PurePosixPath(pattern).is_absolute() or ".." in PurePosixPath(pattern).parts):
+        raise CamsimError(f"{where}: [images] pattern {pattern!r} must stay inside the folder: a glob relative to it "
+                          "(\"*.png\", \"**/*.png\"), without '..'; another folder is folder = \"...\"")
     crop = table.get("crop")
     if (not isinstance(crop, list) or len(crop) != 2
             or any(isinstance(v, bool) or not isinstance(v, int) or v < 1 for v in crop)):
         raise CamsimError(f"{where}: [images] needs crop = [width, height] (the frame size, positive integers "
                           f"in pixels), got {crop!r}")
     width, height = crop
-    check_pixel_count(width, height, f"{where}: [images] crop")
+    check_frame_size(width, height, f"{where}: [images] crop")
     flips = table.get("flips", False)
     if not isinstance(flips, bool):
         raise CamsimError(f"{where}: [images] flips must be true or false, got {flips!r}")
@@ -543,7 +548,10 @@ def _images(table, base: Path, where: str) -> _ImageFolder:
     if pattern is None:
         paths = [p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")]
     else:
-        paths = list(folder.glob(pattern))
+        try:
+            paths = list(folder.glob(pattern))
+        except (ValueError, NotImplementedError) as exc:  # e.g. "**" inside a component
+            raise CamsimError(f"{where}: [images] pattern {pattern!r} is not a glob pattern: {exc}") from None
     paths = sorted((p for p in paths if p.is_file()), key=lambda p: p.relative_to(folder).as_posix())
     if not paths:
         wanted = f"matching {pattern!r}" if pattern is not None else f"({', '.join(IMAGE_SUFFIXES)})"
@@ -610,14 +618,12 @@ def plan_spec(path: str | Path) -> SpecPlan:
                           f"known: {', '.join(sorted(_TOP_KEYS))}")
     base = path.resolve().parent
 
-    name = doc.get("name", path.stem)
-    if not isinstance(name, str) or not name:
-        raise CamsimError(f"{where}: name must be a non-empty string")
+    name = safe_component(doc.get("name", path.stem), f"{where}: name")  # it names the default output folder
     if not isinstance(doc.get("description", ""), str):
         raise CamsimError(f"{where}: description must be a string")
     seed = doc.get("seed", 0)
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise CamsimError(f"{where}: seed must be an integer ≥ 0, got {seed!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= INT64_MAX:
+        raise CamsimError(f"{where}: seed must be an integer from 0 to 2⁶³ − 1, got {seed!r}")
     repeats = doc.get("repeats", 1)
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise CamsimError(f"{where}: repeats must be an integer ≥ 1, got {repeats!r}")
@@ -641,10 +647,7 @@ def plan_spec(path: str | Path) -> SpecPlan:
     if unknown:
         raise CamsimError(f"{where}: unknown key(s) in [frame]: {', '.join(sorted(unknown))}; known: width, height")
     width, height = frame.get("width", DEFAULT_WIDTH), frame.get("height", DEFAULT_HEIGHT)
-    for key, value in (("width", width), ("height", height)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise CamsimError(f"{where}: [frame] {key} must be a positive integer (pixels), got {value!r}")
-    check_pixel_count(width, height, f"{where}: [frame]")
+    check_frame_size(width, height, f"{where}: [frame]")
 
     images = None
     if "images" in doc:
@@ -819,6 +822,11 @@ class _Job:
     images: _ImageFolder | None = None
     image_values: list | None = None  # IMAGE_KEYS' values of each grid point and draw
 
+    @property
+    def sensor_keys(self) -> tuple:
+        """The own values that are sensor parameters (:attr:`FrameGroup.sensor_keys`)."""
+        return self.value_keys[_FACTOR + 1:len(self.value_keys) - (len(IMAGE_KEYS) if self.images else 0)]
+
 
 def _frames(job: _Job) -> Iterator[FrameSpec]:
     """Make the frames of a spec, in order, a batch at a time (their seeds are computed together)."""
@@ -843,8 +851,9 @@ def _frame_values(job: _Job) -> Iterator[tuple]:
     """Resolve and validate the frames of a spec, in order: (index, own values, group) of each; the frames that
     differ only in their own values share a FrameGroup."""
     groups: dict = {}
-    checked: dict = {}  # memo of the costly checks (illuminants, cameras), across groups
-    own_sensor = job.value_keys[_FACTOR + 1:len(job.value_keys) - (len(IMAGE_KEYS) if job.images else 0)]
+    checks: dict = {}  # the _FrameCheck of each group
+    checked: dict = {}  # memo of the costly checks (illuminants, cameras, lit scenes), across groups
+    own_sensor = job.sensor_keys
     point = index = 0
     for s, entry in enumerate(job.scenes):
         names = tuple(entry.axes)
@@ -860,11 +869,13 @@ def _frame_values(job: _Job) -> Iterator[tuple]:
                 image = job.image_values[point] if job.image_values is not None else ()
                 point += 1
                 try:
-                    factor = _intensity_factor(params["intensity_factor"])
+                    factor = check_intensity_factor(params["intensity_factor"])
                     own = tuple(PARAMETERS[p].coerce(params[p], "sensor parameter") for p in own_sensor)
                     group = groups.get(key)
                     if group is None:
-                        group = groups[key] = _resolve(params, entry, job, checked)
+                        group, checks[key] = _resolve(params, entry, job, checked)
+                        groups[key] = group
+                    checks[key](factor, own)
                 except CamsimError as exc:
                     label = f"{job.where}: frame {index} ({', '.join(f'{k}={v!r}' for k, v in params.items())})"
                     raise CamsimError(f"{label}: {exc}") from None
@@ -873,15 +884,35 @@ def _frame_values(job: _Job) -> Iterator[tuple]:
                     index += 1
 
 
-def _intensity_factor(value) -> float:
-    """A frame's intensity factor, checked as a scene checks it."""
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise CamsimError(f"intensity factor must be a positive number, got {value!r}")
-    return value
+@dataclass
+class _FrameCheck:
+    """Checks the frames of one group as drawing each checks it first (:func:`camsim.pipeline.check_frame`: its
+    expected signal finite, its values within float32, its exposure within a DNG's), so that a frame the run would
+    refuse is refused when the spec is planned, by the dry run too. The group's lit scene stands for its frames' (an ``[images]`` spec's first
+    crop for every crop, as in the other checks).
+
+    With a fixed exposure every mean grows with F, so a frame with the same own sensor values as the last one
+    checked, at no larger F, passes as that one did: a spec that varies only the light checks a handful of frames.
+    """
+
+    scene: Scene
+    lit: object  # camsim.pipeline.LitScene
+    sensor_keys: tuple
+    last: tuple | None = None  # (own sensor values, the largest F checked with them)
+
+    def __call__(self, factor: float, own: tuple) -> None:
+        if (self.scene.exposure == "fixed" and self.last is not None and self.last[0] == own
+                and factor <= self.last[1]):
+            return
+        sensor = with_checked_values(self.scene.sensor, **dict(zip(self.sensor_keys, own))) if own else None
+        check_frame(self.lit, frame_sensor(self.scene, self.lit, factor, sensor), factor, self.scene.statistics)
+        if self.last is None or self.last[0] != own or factor > self.last[1]:
+            self.last = (own, factor)
 
 
-def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> FrameGroup:
-    """Resolve and validate the scene and sensor of a frame with ``params``: its group's."""
+def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> tuple[FrameGroup, _FrameCheck]:
+    """Resolve and validate the scene and sensor of a frame with ``params``: its group's, and the check of the
+    group's frames."""
     changes = {"illuminants": (params["illuminant"],)}
     for key in RENDER_KEYS:  # the scene's render settings a spec may set
         if key in params:
@@ -910,7 +941,12 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> Fram
     key = ("camera", str(entry.path), frame_scene.camera)
     if key not in checked:
         checked[key] = load_camera(frame_scene.camera, frame_scene.grid, frame_scene.sensitivity_basis,
-                                   frame_scene.base_dir).name
+                                   frame_scene.base_dir)
+    camera = checked[key]
+    key = ("lit", str(entry.path), scene.width, scene.height, params["illuminant"], frame_scene.camera)
+    if key not in checked:
+        checked[key] = light_scene(frame_scene, params["illuminant"], camera)
+    check = _FrameCheck(frame_scene, checked[key], job.sensor_keys)
     own_size = frame_scene.source.has_own_size and job.images is None  # a cube's: its own, checked when read
     if sensor.cfa is not None and not own_size and (scene.width % 2 or scene.height % 2):
         raise CamsimError(f"a {sensor.cfa} colour filter array needs an even frame size, got "
@@ -930,7 +966,7 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> Fram
         "photon_statistics": frame_scene.statistics,
         "method": frame_scene.method,
         "tolerance": frame_scene.tolerance,
-        "camera": checked[("camera", str(entry.path), frame_scene.camera)],
+        "camera": camera.name,
         "preset": frame_scene.preset_name,
         **({"iso": frame_scene.iso} if frame_scene.iso is not None else {}),
         **sensor.to_dict(),
@@ -944,7 +980,7 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> Fram
     # as JSON gives it back (lists, not tuples), so that a record read from disk compares equal
     record = json.loads(json.dumps(record, allow_nan=False))
     keys = sorted(record)
-    return FrameGroup(
+    group = FrameGroup(
         scene_path=str(entry.path), width=scene.width, height=scene.height, illuminant=params["illuminant"],
         scene_changes={k: v for k, v in changes.items() if k != "illuminants"},
         sensor_overrides=overrides,
@@ -953,6 +989,7 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> Fram
         canonical_slots=tuple((keys.index(k), f"{_canonical(k)}:") for k in job.value_keys),
         image_folder=None if job.images is None else str(job.images.folder),
     )
+    return group, check
 
 
 __all__ = ["DatasetSpec", "FrameSpec", "FrameGroup", "ImageCrop", "SpecPlan", "PARAMETERS", "DISTRIBUTIONS",

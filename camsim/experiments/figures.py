@@ -565,7 +565,11 @@ ANALYSIS_FIGURES = ("xy", "delta_e", "snr")
 
 
 def _slug(text: str) -> str:
-    return "".join(ch if ch.isalnum() or ch in "-." else "_" for ch in text).strip("_") or "frames"
+    """``text`` (from a sidecar: input) as a file-name prefix: letters, digits, ``-`` and ``.`` kept, the rest ``_``;
+    no leading ``.`` (a hidden file) and at most 100 characters, so that the figure's name is a safe file name
+    (:mod:`camsim.names`)."""
+    slug = "".join(ch if ch.isalnum() or ch in "-." else "_" for ch in text).strip("_").lstrip(".")
+    return slug[:100] or "frames"
 
 
 def _channel_value(patch, channel: str, key: str):

@@ -5,6 +5,11 @@ with :func:`os.replace` only after the write has finished. A crash, an exception
 therefore never leaves a truncated file under the final name (an older complete file, if any, stays in place).
 A write the environment refuses (no space, no permission) raises :class:`camsim.errors.OutputError`, one line.
 
+Inside :func:`confined_to` (every sub-command's output folder holds its writes so:
+:func:`camsim.io.output_folder.output_folder`), a write whose target lies outside the folder is refused before
+anything is created: the last line of defence behind the checks of every name that becomes part of a path
+(:mod:`camsim.names`).
+
 :func:`undo_on_failure` groups writes into one unit: if the block fails, the files it completed are removed too,
 so that a set of files that belong together (a frame's DNG and EXR, a report and its tables) appears whole or
 not at all.
@@ -20,16 +25,59 @@ from contextvars import ContextVar
 from pathlib import Path
 from typing import Any
 
-from camsim.errors import CamsimError, output_error
+from camsim.errors import CamsimError, OutputError, output_error
 
 __all__ = ["atomic_path", "write_json_atomic", "write_text_atomic", "undo_on_failure", "record_created",
-           "fsync_path", "PARTIAL_SUFFIX"]
+           "fsync_path", "confined_to", "check_confined", "PARTIAL_SUFFIX"]
 
 #: The suffix of a temporary file (``.NAME.PID.partial``) while it is being written.
 PARTIAL_SUFFIX = ".partial"
 
 # The files completed inside the innermost undo_on_failure block of this thread/task (None: no block).
 _completed: ContextVar[list[Path] | None] = ContextVar("camsim_completed_writes", default=None)
+
+
+# The folder the writes of this thread/task must stay inside, resolved (None: no confinement).
+_confinement: ContextVar[Path | None] = ContextVar("camsim_write_confinement", default=None)
+
+
+@contextlib.contextmanager
+def confined_to(folder: str | os.PathLike[str]) -> Iterator[Path]:
+    """Refuse, in the block, every write (:func:`atomic_path`, and the folders
+    :func:`camsim.io.output_folder.make_folder` creates) whose target lies outside ``folder``.
+
+    Yields
+    ------
+    pathlib.Path
+        ``folder``, resolved (symbolic links followed).
+    """
+    root = Path(folder).resolve()
+    token = _confinement.set(root)
+    try:
+        yield root
+    finally:
+        _confinement.reset(token)
+
+
+def check_confined(path: str | os.PathLike[str]) -> None:
+    """Refuse ``path`` as a write's target if it lies outside the folder of the innermost :func:`confined_to`
+    block (nothing to check outside one).
+
+    The target's folder is resolved (symbolic links and ``..`` followed); its last component is taken as it is,
+    since a write replaces that entry and never follows it.
+
+    Raises
+    ------
+    OutputError
+        ``path`` lies outside the folder.
+    """
+    root = _confinement.get()
+    if root is None:
+        return
+    target = Path(path)
+    resolved = Path(os.path.normpath(target.parent.resolve() / target.name))
+    if resolved != root and root not in resolved.parents:
+        raise OutputError(f"refusing to write {target}: it lies outside the output folder {root}")
 
 
 def _temp_name(path: Path) -> Path:
@@ -79,6 +127,8 @@ def atomic_path(path: str | os.PathLike[str], *, renamed: Callable[[], None] | N
     ------
     CamsimError
         If the directory of ``path`` does not exist.
+    OutputError
+        If ``path`` lies outside the folder of a :func:`confined_to` block.
 
     Notes
     -----
@@ -89,6 +139,7 @@ def atomic_path(path: str | os.PathLike[str], *, renamed: Callable[[], None] | N
     :class:`camsim.errors.OutputError` naming ``path``.
     """
     final = Path(path)
+    check_confined(final)
     if not final.parent.is_dir():
         raise CamsimError(f"cannot write {final}: directory {final.parent} does not exist")
     tmp = _temp_name(final)

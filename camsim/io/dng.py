@@ -106,6 +106,8 @@ _CFA_CODE = {"R": 0, "G": 1, "B": 2}  # DNG CFAPattern colour codes, in the CFAP
 
 #: Largest numerator (and denominator) of a TIFF RATIONAL (unsigned) and SRATIONAL (signed), by signedness.
 _RATIONAL_TOP = {False: 2**32 - 1, True: 2**31 - 1}
+#: The longest exposure a DNG records (its ExposureTime is a RATIONAL): 2³² − 2 s, 136 years. Unit: s.
+MAX_EXPOSURE_S = _RATIONAL_TOP[False] - 1
 
 
 def rational_bound(value: float, *, signed: bool = False) -> float:

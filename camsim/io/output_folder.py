@@ -6,6 +6,10 @@ never write into one folder at the same time: the folder itself is held with an 
 (``flock`` on the folder; POSIX, local file systems), the same lock for every sub-command. The lock goes with the
 process, however it ends, and leaves no file behind.
 
+While a run holds its folder, it writes nowhere else (:func:`camsim.io.atomic.confined_to`): a file or folder
+whose path leads outside (``..``, an absolute path, a symbolic link out) is refused before it is created, whatever
+name it was built from.
+
 Holding the lock, the run removes the temporary files (``.NAME.PID.partial``, :mod:`camsim.io.atomic`) that a
 process killed outright (SIGKILL, power loss) left in the folder: no live camsim process can own them.
 """
@@ -19,7 +23,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from camsim.errors import CamsimError, OutputError, describe_os_error
-from camsim.io.atomic import PARTIAL_SUFFIX, record_created
+from camsim.io.atomic import PARTIAL_SUFFIX, check_confined, confined_to, record_created
 
 __all__ = ["output_folder", "make_folder", "check_writable", "remove_stale_partials", "FolderBusyError"]
 
@@ -37,7 +41,8 @@ def make_folder(path: str | os.PathLike[str]) -> list[Path]:
     Raises
     ------
     OutputError
-        A file is in the way, or the file system refuses (permission, read-only, no space).
+        A file is in the way, or the file system refuses (permission, read-only, no space), or ``path`` lies
+        outside the output folder the run holds (:func:`camsim.io.atomic.confined_to`).
     """
     path = Path(path)
     missing = []
@@ -45,6 +50,8 @@ def make_folder(path: str | os.PathLike[str]) -> list[Path]:
         if folder.is_dir():
             break
         missing.append(folder)
+    if missing:
+        check_confined(path)
     created = []
     for folder in reversed(missing):
         try:
@@ -140,7 +147,8 @@ def output_folder(path: str | os.PathLike[str], *, subfolders: tuple[str, ...] =
     """Make ``path`` ready for a run's outputs and hold it for the ``with`` block.
 
     Creates the folder (and ``subfolders`` in it), checks that a file can be written there, takes the folder's
-    lock and removes stale temporaries in the folder and the subfolders. If the block fails
+    lock and removes stale temporaries in the folder and the subfolders. In the block, camsim's writes outside the
+    folder are refused (:func:`camsim.io.atomic.confined_to`). If the block fails
     (any exception, Ctrl-C included) and the folders it created hold nothing, they are removed again.
 
     Parameters
@@ -168,7 +176,7 @@ def output_folder(path: str | os.PathLike[str], *, subfolders: tuple[str, ...] =
         check_writable(path)
         for name in subfolders:
             created += make_folder(path / name)
-        with _locked(path):
+        with _locked(path), confined_to(path):
             for folder in (path, *(path / name for name in subfolders)):
                 remove_stale_partials(folder)
             yield path

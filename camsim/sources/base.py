@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.schema import typed  # noqa: F401  (the sources' table reader, kept importable from here)
 
 
 @dataclass(frozen=True)
@@ -74,16 +74,3 @@ class SceneSource:
         """The source's label map (for a frame of ``width`` × ``height`` where it has no size of its own) and
         spectra on ``grid``."""
         raise NotImplementedError
-
-
-def typed(table: dict, key: str, kind, default, where: str):
-    """``table[key]`` if it is of type ``kind`` (ints accepted for floats), else ``default`` when absent."""
-    if key not in table:
-        return default
-    value = table[key]
-    if kind is float and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
-    if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
-        name = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
-        raise CamsimError(f"{where}: {key} must be of type {name}, got {value!r}")
-    return value

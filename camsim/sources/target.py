@@ -31,6 +31,7 @@ import numpy as np
 
 from camsim.errors import CamsimError
 from camsim.seeding import target_generator
+from camsim.schema import finite_float
 from camsim.sources.base import SceneSource, SourceSpectra, typed
 from camsim.spectra import reflectance_set
 
@@ -47,6 +48,10 @@ MAX_DISKS = 200_000_000
 _STAMP_BUDGET = 1 << 21
 #: Side of the tiles by which :func:`dead_leaves` finds the uncovered pixels a disk may cover.
 _TILE = 8
+#: The smallest and the largest disk radius of a dead-leaves chart, pixels: a frame of 200 megapixels needs no
+#: larger disk, and a smaller one only asks for more disks than :data:`MAX_DISKS` (beyond the range the disk count
+#: and the radius law overflow float64).
+RADIUS_RANGE_PX = (0.01, 1e6)
 #: The largest number of coverage levels of a slanted edge.
 MAX_LEVELS = 4096
 
@@ -82,7 +87,9 @@ def _reflectance_or_patch(table: dict, key: str, default: float, where: str) -> 
     """A ``[target]`` key that is a flat reflectance in [0, 1] (an integer is taken as a number) or a patch name."""
     value = table.get(key, default)
     if isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
+        value = finite_float(value)
+        if value is None:  # an integer beyond float64
+            value = math.inf
     if isinstance(value, float):
         if not 0 <= value <= 1:
             raise CamsimError(f"{where}: [target] {key} must be a reflectance in [0, 1], got {value:g}")
@@ -146,9 +153,9 @@ def dead_leaves(width: int, height: int, radius_min_px: float, radius_max_px: fl
         If the frame would need more than :data:`MAX_DISKS` disks (r_min too small for the frame).
     """
     rng = np.random.default_rng(rng)
-    if not (0 < radius_min_px <= radius_max_px and math.isfinite(radius_max_px)):
-        raise CamsimError(f"dead leaves: need 0 < radius_min_px <= radius_max_px, got {radius_min_px}, "
-                          f"{radius_max_px}")
+    if not (RADIUS_RANGE_PX[0] <= radius_min_px <= radius_max_px <= RADIUS_RANGE_PX[1]):
+        raise CamsimError(f"dead leaves: need {RADIUS_RANGE_PX[0]:g} <= radius_min_px <= radius_max_px <= "
+                          f"{RADIUS_RANGE_PX[1]:g}, got {radius_min_px}, {radius_max_px}")
     if not 1 <= n_spectra <= 65536:
         raise CamsimError(f"dead leaves: need 1 to 65536 spectra, got {n_spectra}")
     cap = disk_bound(width, height, radius_min_px, radius_max_px)
@@ -331,10 +338,11 @@ class TargetSource(SceneSource):
         return SlantedEdgeTarget._from_table(table, base_dir, where)
 
 
-def _positive(table, key, default, where) -> float:
+def _radius(table, key, default, where) -> float:
     value = typed(table, key, float, default, where)
-    if not (math.isfinite(value) and value > 0):
-        raise CamsimError(f"{where}: [target] {key} must be a positive number of pixels, got {value}")
+    if not RADIUS_RANGE_PX[0] <= value <= RADIUS_RANGE_PX[1]:
+        raise CamsimError(f"{where}: [target] {key} must be {RADIUS_RANGE_PX[0]:g} to {RADIUS_RANGE_PX[1]:g} "
+                          f"pixels, got {value:g}")
     return value
 
 
@@ -365,8 +373,8 @@ class DeadLeavesTarget(TargetSource):
 
     @classmethod
     def _from_table(cls, table, base_dir, where) -> DeadLeavesTarget:
-        r_min = _positive(table, "radius_min_px", 2.0, where)
-        r_max = _positive(table, "radius_max_px", 100.0, where)
+        r_min = _radius(table, "radius_min_px", 2.0, where)
+        r_max = _radius(table, "radius_max_px", 100.0, where)
         if r_min > r_max:
             raise CamsimError(f"{where}: [target] radius_min_px ({r_min:g}) must not exceed radius_max_px ({r_max:g})")
         seed = typed(table, "seed", int, 0, where)
