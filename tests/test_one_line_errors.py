@@ -85,7 +85,7 @@ _CHART = 'name = "x"\n[chart]\n[light]\nilluminants = ["D65"]\nintensity_factors
 
 
 @pytest.mark.parametrize("extra, status, phrase", [
-    ("[light]\nluminance_cd_m2 = 1e300\n", 2, "photon rates or the camera's Qe are not finite"),  # photons.py
+    ("[light]\nluminance_cd_m2 = 1e300\n", 2, "photon rates are not finite under this light"),  # photons.py
     ("[camera.scale]\nreference_exposure_s = 1e-308\n", 2, "overflows float64 at any F"),  # expected.py
     ("[sensor]\nconversion_gain_v_per_e = 1e-300\n", 2, "too small for the EXR's linear sRGB view"),
     ("[light]\nluminance_cd_m2 = 1e-308\n", 2, "too small for the EXR's linear sRGB view"),
