@@ -23,6 +23,25 @@ def write_text_file(folder: Path, name: str, text: str) -> Path:
     return path
 
 
+def preset_toml(name: str = '"p"', extra: str = "") -> str:
+    """The text of a small camera preset file (12 bits, pedestal 64, one ISO point at 100); ``name`` is a TOML
+    literal, written as it is, and ``extra`` lines go into its ``[preset]`` table (the hostile-input tests)."""
+    return f"""
+[preset]
+name = {name}
+source = "test"
+bits = 12
+pedestal_dn = 64
+{extra}
+[[iso]]
+iso = 100
+k_dn_per_e = 1.0
+tukey_lambda = 0.14
+tukey_scale_dn = 1.0
+gaussian_sigma_dn = 2.0
+"""
+
+
 def flat_scene_toml(name: str = '"flat"', preset: str = '"emva-12bit"') -> str:
     """The text of a small scene file (a 32 × 24 flat field on a 400–700 nm grid, one frame under D65 at F = 0.5);
     ``name`` and ``preset`` are TOML literals, written as they are (the hostile-input tests)."""

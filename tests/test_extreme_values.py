@@ -13,24 +13,11 @@ import pytest
 from camsim.cli import main
 from camsim.schema import INT64_MAX, INT64_MIN
 
-from tests.helpers import flat_scene_toml, write_text_file
+from tests.helpers import flat_scene_toml, preset_toml, write_text_file
 
 SCENE = flat_scene_toml('"extreme"')
 
-PRESET = """
-[preset]
-name = "p"
-source = "test"
-bits = 12
-pedestal_dn = 64
-conversion_gain_v_per_e = 0.0001
-[[iso]]
-iso = 100
-k_dn_per_e = 1.0
-tukey_lambda = 0.14
-tukey_scale_dn = 1.0
-gaussian_sigma_dn = 2.0
-"""
+PRESET = preset_toml(extra="conversion_gain_v_per_e = 0.0001")
 
 SPEC = """
 scene = "scene.toml"

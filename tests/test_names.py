@@ -18,7 +18,7 @@ from camsim.io.atomic import write_text_atomic
 from camsim.io.output_folder import make_folder, output_folder
 from camsim.names import FORBIDDEN_CHARACTERS, MAX_NAME_BYTES, name_problem, safe_component
 
-from tests.helpers import flat_scene_toml, write_text_file
+from tests.helpers import flat_scene_toml, preset_toml, write_text_file
 
 #: The issue's names (as TOML string literals), and a few more of the kinds the rule refuses.
 BAD_NAMES = {
@@ -44,19 +44,6 @@ width = 32
 height = 24
 """
 
-PRESET = """
-[preset]
-name = {name}
-source = "test"
-bits = 12
-pedestal_dn = 64
-[[iso]]
-iso = 100
-k_dn_per_e = 1.0
-tukey_lambda = 0.14
-tukey_scale_dn = 1.0
-gaussian_sigma_dn = 2.0
-"""
 
 
 def tree(root: Path) -> set:
@@ -124,7 +111,7 @@ def test_calibrate_refuses_an_unsafe_name_before_reading_anything(deep, tmp_path
 
 @pytest.mark.parametrize("name", ['"../../escaped"', '"/abs/path/victim"', '"a\\nb"', '".."'])
 def test_a_camera_preset_file_with_an_unsafe_name_is_refused(deep, tmp_path, capsys, name):
-    write_text_file(deep, "preset.toml", PRESET.format(name=name))
+    write_text_file(deep, "preset.toml", preset_toml(name))
     write_text_file(deep, "scene.toml", flat_scene_toml('"ok"', '"preset.toml"'))
     before = tree(tmp_path)
     line = refused(capsys, ["render", "scene.toml", "-q", "--out", str(deep / "out")], tmp_path, before)
