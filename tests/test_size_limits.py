@@ -137,3 +137,38 @@ def test_a_cube_whose_header_is_over_the_limit_is_refused(tmp_path, capsys):
     from camsim.io.cube_files import cube_size
 
     assert cube_size(tmp_path / "ok.npy") == (5, 4)
+
+
+@pytest.mark.parametrize("shape", [(22, 24, -1), (0, 24, 31), (-5, 24, 31)])
+def test_a_cube_header_with_a_dimension_below_one_is_refused(tmp_path, capsys, shape):
+    """A negative length reached numpy's memory map (OverflowError: a traceback, found by tools/fuzz_cli.py)."""
+    from numpy.lib import format as npy_format
+
+    cube = tmp_path / "cube.npy"
+    with open(cube, "wb") as file:
+        npy_format.write_array_header_1_0(file, {"descr": "<f8", "fortran_order": False, "shape": shape})
+        file.write(bytes(4096))
+    scene = tmp_path / "cube.toml"
+    scene.write_text(f'name = "cube"\n[cube]\npath = "{cube.as_posix()}"\n')
+    _refused(capsys, ["render", str(scene), "--out", str(tmp_path / "out")], "dimension below 1")
+
+
+def test_a_dng_whose_header_is_over_the_limit_is_refused(tmp_path, capsys):
+    """ImageLength 2^31 in a small CFA DNG: refused from the header (before: decoded for 10 s and 1.5 GB)."""
+    import tifffile
+
+    from camsim.frame_files import load_frame
+
+    out = tmp_path / "frames"
+    assert main(["render", "macbeth_26", "--illuminant", "D65", "-F", "1", "--size", "48x32", "--cfa", "RGGB",
+                 "--out", str(out), "-q"]) == 0
+    capsys.readouterr()
+    dng = out / "macbeth_26_D65_F1.dng"
+    with tifffile.TiffFile(dng, mode="r+b") as tif:
+        tif.pages.first.tags["ImageLength"].overwrite(2**31)
+    from camsim.errors import CamsimError
+
+    start = time.monotonic()
+    with pytest.raises(CamsimError, match="over camsim's limit of 200 megapixels"):
+        load_frame(dng)
+    assert time.monotonic() - start < REFUSAL_S

@@ -154,3 +154,26 @@ def test_a_scene_description_must_be_text(tmp_path, capsys, value):
     assert not out.exists() or not any(out.iterdir())
     scene.write_text('name = "d"\ndescription = "a chart, for the record"\n' + CHART)
     assert main(["render", str(scene), "--out", str(out), "-q", "-F", "1"]) == 0
+
+
+@pytest.mark.parametrize("layer", [0, 1])
+def test_non_finite_values_in_an_exr_are_not_scored(rendered, tmp_path, capsys, layer):
+    """A NaN in a frame's clean values (a damaged file) gave a traceback in denoise-eval's tables (found by
+    tools/fuzz_cli.py); one in its noisy values reached the denoiser: the frame is skipped with its reason."""
+    import numpy as np
+
+    from camsim.io.exr import read_exr, write_exr
+
+    folder = tmp_path / "frames"
+    shutil.copytree(rendered / "three_chip", folder)
+    noisy, clean, header = read_exr(folder / f"{STEM}.exr")
+    (noisy, clean)[layer][1, 10, 10] = np.nan
+    (folder / f"{STEM}.exr").unlink()
+    write_exr(folder / f"{STEM}.exr", noisy, clean, header)  # R, G, B hold the values (a file without a view)
+    out = tmp_path / "eval"
+    status = main(["denoise-eval", str(folder), "-d", "identity", "--out", str(out), "-q"])
+    captured = capsys.readouterr()
+    err = [line for line in captured.err.splitlines() if line]
+    assert "Traceback" not in captured.err + captured.out
+    assert status == 2 and len(err) == 1, err
+    assert "non-finite values (NaN or infinity) in its noisy or clean" in err[0], err

@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from camsim.frame_files import load_frame, search_frames
 from camsim.errors import CamsimError
 
@@ -84,6 +86,10 @@ def find_dataset(paths) -> Dataset:
             _, clean, _ = read_exr(path)
             if clean is None:
                 skipped.append({"file": name, "reason": "no clean layer (clean.R/G/B) to score against"})
+                continue
+            if not (np.isfinite(frame.pixels_dn).all() and np.isfinite(clean).all()):  # a damaged file's values
+                skipped.append({"file": name, "reason": "non-finite values (NaN or infinity) in its noisy or clean "
+                                                        "layer"})
                 continue
             frames.append(DatasetFrame(path, name, frame.meta))
     if not frames:

@@ -263,6 +263,8 @@ def _check_npy_header(path: Path) -> None:
             shape = read(file)[0]
     except (OSError, ValueError, EOFError):
         return  # np.load says what is wrong
+    if any(not isinstance(n, int) or n < 1 for n in shape):  # a negative length would reach mmap
+        raise CamsimError(f"cannot read cube file {path}: its header's shape {tuple(shape)} has a dimension below 1")
     if len(shape) == 3:
         _check_size(shape[1], shape[0], path)
 

@@ -80,6 +80,7 @@ import tifffile
 from camsim.cfa import CFA_PATTERNS
 from camsim.errors import CamsimError
 from camsim.io.atomic import atomic_path
+from camsim.pixel_limit import check_pixel_count
 
 __all__ = ["write_dng", "write_dng_cfa", "read_dng", "shot_metadata", "rational_bound", "darktable_xmp",
            "DARKTABLE_XMP_SUFFIX", "MIN_SIZE", "CFA_PATTERNS"]
@@ -707,6 +708,7 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
                                   f"{page.bitspersample} bits)")
             bits = page.bitspersample
             shape = (page.imagelength, page.imagewidth)
+            check_pixel_count(page.imagewidth, page.imagelength, f"DNG {name}")  # from the header, before decoding
             _check_storage(page, name)
             _check_complete(page, tif.filehandle.size, name)
             cm = _floats(_tag(page, _COLOR_MATRIX1))
