@@ -172,3 +172,25 @@ def test_a_dng_whose_header_is_over_the_limit_is_refused(tmp_path, capsys):
     with pytest.raises(CamsimError, match="over camsim's limit of 200 megapixels"):
         load_frame(dng)
     assert time.monotonic() - start < REFUSAL_S
+
+
+@pytest.mark.parametrize("header, phrase", [
+    ({"descr": "|u1", "fortran_order": False, "shape": (24, 22, 2**40)}, "needs 580542139465728 bytes"),
+    ({"descr": "<f8", "fortran_order": False, "shape": (24, 22, 31)}, "the file holds 64"),
+])
+def test_a_cube_header_claiming_more_data_than_the_file_holds_is_refused(tmp_path, capsys, header, phrase):
+    """Bands × pixels × item size beyond the file (an int64 overflow in numpy's memory map: a traceback, found by
+    tools/fuzz_cli.py); a malformed header is one line too."""
+    from numpy.lib import format as npy_format
+
+    cube = tmp_path / "cube.npy"
+    with open(cube, "wb") as file:
+        npy_format.write_array_header_1_0(file, header)
+        file.write(bytes(64))
+    scene = tmp_path / "cube.toml"
+    scene.write_text(f'name = "cube"\n[cube]\npath = "{cube.as_posix()}"\n')
+    _refused(capsys, ["render", str(scene), "--out", str(tmp_path / "out")], phrase)
+    data = bytearray(cube.read_bytes())
+    data[10:40] = bytes(30)  # zeros in the header's text
+    cube.write_bytes(bytes(data))
+    _refused(capsys, ["render", str(scene), "--out", str(tmp_path / "out")], "header is malformed")
