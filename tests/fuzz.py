@@ -301,7 +301,7 @@ def apply_dng_ops(data: bytes, ops) -> bytes:
         if op[0] != "tag":
             buf = bytearray(apply_byte_ops(bytes(buf), [op]))
             continue
-        (at, tag), field, value = op[1], op[2], op[3]
+        (at, _), field, value = op[1], op[2], op[3]  # (offset of the entry, its tag code)
         if at + 12 > len(buf):
             continue
         kind = struct.unpack_from("<H", buf, at + 2)[0]
