@@ -170,7 +170,7 @@ def test_no_dark_current_no_effect(scene):
 
 def test_the_parameter_is_recorded_only_when_on(tmp_path):
     """Records (sidecar, dataset frame records) of sensors without it stay as they were: absent means 0."""
-    from camsim.analysis.analyze import GROUP_KEYS
+    from camsim.analysis.grouping import GROUP_KEYS
     from camsim.cli import main
 
     param = next(p for p in SENSOR_PARAMS if p.name == "dsnu_dark_current_percent")

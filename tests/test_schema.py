@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from camsim.analysis.analyze import GROUP_KEYS
+from camsim.analysis.grouping import GROUP_KEYS
 from camsim.dataset.spec import PARAMETERS
 from camsim.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS, get_method

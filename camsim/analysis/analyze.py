@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,11 +14,11 @@ from camsim.frame_files import (LoadedFrame, load_frame, no_frames_message, read
                                 uncommitted_lines)
 from camsim.analysis.dark import DarkFrame, load_dark
 from camsim.analysis.frame_stats import FRAME_STAT_COLUMNS, frame_statistics
+from camsim.analysis.grouping import group_key
 from camsim.analysis.patches import AnalysisSettings, analyse_frame, frame_matrix
 from camsim.errors import CamsimError
 from camsim.io.atomic import write_json_atomic, write_text_atomic
 from camsim.optional_numbers import mean_of_defined
-from camsim.sensor import EXPOSURE_KEYS, SENSOR_PARAMS, SensorParams
 from camsim.io.output_folder import make_folder
 
 CSV_NAME = "analysis.csv"
@@ -36,23 +35,6 @@ CHANNEL_COLUMNS = ("channel", "n_pixels", "black_dn", "mean_dn", "var_dn2", "std
                    "saturated_pixels", "constant", "snr_model", "snr_model_db", "snr_model_eq13", "snr_model_eq13_db",
                    "snr_empirical", "snr_empirical_db",
                    "snr_status")
-#: Sidecar values that must agree for two frames to be the same measurement at different F (ΔE reference): the
-#: scene, light, camera and render settings, and every sensor key the schema writes (so a new sensor parameter
-#: joins the grouping by itself), also those it writes only when set (absent: the default, read as None).
-GROUP_KEYS = ("scene", "illuminant", "photon_statistics", "method", "auto_tolerance_ks", "camera",
-              "sensitivity_basis", "reflectances", "luminance_cd_m2", "normalisation", "scale", "width_px",
-              "height_px", "wavelengths_nm", "exposure", "exposure_target_e", "exposure_max_s",
-              *SensorParams().sidecar_record(), *(p.name for p in SENSOR_PARAMS if p.omit_default))
-
-
-def group_key(meta: dict) -> str:
-    """The grouping key of a frame's sidecar: frames of an auto-exposed series share it whatever their T (each
-    frame's exposure time, and the dark levels that follow from it, are not part of the key)."""
-    auto = meta.get("exposure") == "auto"
-    return json.dumps([None if auto and key in EXPOSURE_KEYS else meta.get(key) for key in GROUP_KEYS],
-                      sort_keys=True)
-
-
 @dataclass
 class Analysis:
     """The outcome of :func:`analyse`.

@@ -9,7 +9,7 @@ denoiser sees each noisy frame as a (H, W, 3) float32 DN array; it is scored
   of the patch mean and of every pixel through the paper's camera → XYZ matrix M (Eq. 15, from the sidecar's Qe),
   the chromaticity bias |xy(mean of the patch) − xy(mean of the clean patch)|, the PCA noise ellipse of the
   pixels' xy before (noisy) and after (denoised), and ΔE_ab by the paper's 5-step procedure against the same
-  patch in the clean layer of the F = 1 frame of the same measurement (:func:`camsim.analysis.analyze.group_key`);
+  patch in the clean layer of the F = 1 frame of the same measurement (:func:`camsim.analysis.grouping.group_key`);
 * per frame, with no chart and no reference frame needed: the mean CIEDE2000 of every pixel to the clean layer,
   both through M against the perfect white at the frame's F (:mod:`camsim.denoise.colour_fidelity`), of the
   denoised and of the noisy frame;
@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from camsim.analysis.analyze import group_key
+from camsim.analysis.grouping import group_key
 from camsim.frame_files import load_frame
 from camsim.analysis.patches import frame_matrix, patch_samples
 from camsim.colorimetry import CHANNELS

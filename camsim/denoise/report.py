@@ -574,7 +574,7 @@ def report_text(ev: Evaluation) -> str:
               "shift of its own, and the bias limit then marks where the light itself no longer suffices.",
               "* **ΔE reference**: the mean Lab (5-step) of the same patch in the *clean* layer of the F = 1 frame "
               "of the same measurement (same scene, illuminant, camera, sensor settings and size — "
-              "`camsim.analysis.analyze.group_key`), so that it is noise-free and the same for every denoiser.",
+              "`camsim.analysis.grouping.group_key`), so that it is noise-free and the same for every denoiser.",
               "* **Denoisers**: " + "; ".join(f"`{d.target}` — {d.description}" for d in ev.denoisers) + ".",
               ]
     if any(d.target == "wavelet" for d in ev.denoisers):

@@ -598,9 +598,9 @@ def _analysis_black_xy(meta: dict, result: dict):
 
 
 def _analysis_groups(results) -> list:
-    """The frames with patches, by measurement (:func:`camsim.analysis.analyze.group_key`): per group its file
+    """The frames with patches, by measurement (:func:`camsim.analysis.grouping.group_key`): per group its file
     prefix, panel title, frames (largest F first) and camera black point (of its lowest-F frame)."""
-    from camsim.analysis.analyze import group_key
+    from camsim.analysis.grouping import group_key
     from camsim.frame_files import read_frame_meta
 
     groups: dict = {}
