@@ -23,10 +23,10 @@ below). At ISO 3200 the ADC's top, not the full well (166 000 e⁻), is where th
 # %%
 # Simulate and analyse the measurement
 # ------------------------------------
-# ``camsim.sensor_preset`` gives the camera's sensor at an ISO. ``camsim.emva.EmvaSetup`` sets the size of
-# the measurement: a 192 × 192 region (its 96 × 96 first-G sites are analysed), 30 exposure steps from dark to
-# 1.2 × the predicted saturation plus 40 in its lowest 5 % (down to 1/800 of saturation), two frames each, and 8-frame stacks for the spatial
-# non-uniformities (the command's defaults are 256 × 256, 50 + 10 steps and 100-frame stacks).
+# ``camsim.sensor_preset`` gives the camera's sensor at an ISO. ``camsim.emva.EmvaSetup`` sets the size of the
+# measurement: a 192 × 192 region (its 96 × 96 first-G sites are analysed), 30 exposure steps from dark to 1.2 × the
+# predicted saturation plus 40 in its lowest 5 % (down to 1/800 of saturation), two frames each, and 8-frame stacks
+# for the spatial non-uniformities (the command's defaults are 256 × 256, 50 + 10 steps and 100-frame stacks).
 import matplotlib.pyplot as plt
 import numpy as np
 
