@@ -9,8 +9,8 @@ quantiser adds). This example renders the ColorChecker under D65 at eight intens
 four neutral patches with :func:`camsim.analyse_paths` (points), and draws the model's SNR as a continuous line
 in F.
 
-What to notice: the points lie on the lines over three decades of light. At high F the SNR of a bright patch grows
-in proportion to F (shot noise: SNR = S for S electrons); as the light falls, Table I's dark current (195–230
+What to notice: the points lie on the lines from F = 1 down to F = 0.003. At high F the SNR of a bright patch grows
+nearly in proportion to F (shot noise: SNR = S for S electrons); as the light falls, Table I's dark current (195–230
 electrons a pixel in one second, the same at every F) dominates the variance and the SNR falls as F², twice as
 steeply on the log axes. Where the SNR falls below about 0.01 (the black patch at the lowest F), the measurement
 scatters about the line: with n pixels a patch, the measured SNR's own spread is about 2 √(SNR / n) + 1 / n.
