@@ -35,7 +35,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import camsim
-from camsim.dn_law import dn_pmf, expected_tv, sample_distances  # the only module below camsim. this example needs
+from camsim.dn_law import dn_pmf, expected_tv, sample_distances  # the one import from below camsim's top level
 
 FACTORS = (1.0, 0.1, 0.01, 1e-3, 1e-4, 1e-5)
 METHODS = ("poisson", "table", "gaussian", "auto", "spectral")

@@ -23,11 +23,12 @@ towards it; ``camsim analyze --subtract-black`` removes that drift, not the nois
 import tempfile
 from pathlib import Path
 
+import colour  # colour-science, a camsim dependency: the spectral locus of the xy diagram
 import matplotlib.pyplot as plt
 import numpy as np
 
 import camsim
-from camsim.colorimetry import camera_to_xyz_matrix  # the only module below camsim. this example needs
+from camsim.colorimetry import camera_to_xyz_matrix  # the one import from below camsim's top level
 
 scene = camsim.load_scene("macbeth_26").replace(width=360, height=240)
 factors = [1.0, 0.3, 0.1]
@@ -51,7 +52,8 @@ for factor, result in results.items():
 # ------------------------
 # Where the analysis subtracts no black level (the paper's protocol, and ``camsim analyze``'s default), the dark
 # level is part of every pixel: its own chromaticity, the frame's expected black level through the same camera →
-# XYZ matrix, is where the colours drift to as the light falls.
+# XYZ matrix (Eq. 15's, from the camera's absolute Qe, the same in every frame), is where the colours drift to as
+# the light falls.
 sensor = scene.sensor
 matrix = camera_to_xyz_matrix(frame.expected.qe, scene.grid.wavelengths_nm, sensor.dn_per_electron, method="paper")
 black_xyz = matrix @ sensor.black_level_dn
@@ -69,8 +71,6 @@ def outline(patch, n=121):
 # %%
 # Draw them
 # ---------
-import colour  # noqa: E402  (colour-science, a camsim dependency: the spectral locus)
-
 cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].values
 locus = cmfs[:, :2] / cmfs.sum(axis=1, keepdims=True)
 fig, ax = plt.subplots(figsize=(7, 7), layout="constrained")

@@ -31,7 +31,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import camsim
-from camsim.emva import EmvaSetup, run  # the only module below camsim. this example needs
+from camsim.emva import EmvaSetup, run  # the one import from below camsim's top level
 
 sensor = camsim.sensor_preset("sony-a7s2", 3200)
 setup = EmvaSetup(size=192, steps=30, low_steps=40, stack_frames=8, seed=0)

@@ -27,7 +27,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import camsim
-from camsim.analysis.snr import snr_model  # the only module below camsim. this example needs
+from camsim.analysis.snr import snr_model  # the one import from below camsim's top level
 
 scene = camsim.load_scene("macbeth_26").replace(width=480, height=320)
 factors = np.geomspace(1.0, 0.003, 8)
