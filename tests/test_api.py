@@ -1,4 +1,4 @@
-"""The public API: ``import camsim`` is light, its objects are the modules' own, and the README's example runs."""
+"""The public API: ``import camsim`` is light, its objects are the modules' own, and the docs' example runs."""
 
 import contextlib
 import io
@@ -34,13 +34,14 @@ def test_exports_are_the_implementations():
 
 
 def test_readme_python_example_runs(tmp_path, monkeypatch):
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    section = text[text.index("## Python API"):]
+    """The Python API example of the docs' getting-started page (the first python block of "The Python API")."""
+    text = (ROOT / "docs" / "getting-started.md").read_text(encoding="utf-8")
+    section = text[text.index("## The Python API"):]
     code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
     monkeypatch.chdir(tmp_path)
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
-        exec(compile(code, "README.md", "exec"), {})
+        exec(compile(code, "docs/getting-started.md", "exec"), {})
     lines = out.getvalue().splitlines()
     assert lines[0] == "(3, 160, 240) uint8"
     assert lines[1] == "float32 (3, 160, 240)"

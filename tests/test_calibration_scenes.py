@@ -33,10 +33,13 @@ PRESET, ISO = "sony-a7s2", 3200
 
 
 def readme_recipe() -> list[str]:
-    """The command lines of the README's calibration recipe."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    block = re.search(r"<!-- calibration recipe:[^\n]*-->\n```sh\n(.*?)```", text, re.S)
-    assert block, "the README's calibration recipe is missing"
+    """The command lines of the calibration recipe, wherever the README or the docs' Markdown pages hold it (the
+    ``sh`` block after the ``<!-- calibration recipe: … -->`` marker)."""
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    texts = [p.read_text(encoding="utf-8") for p in pages if "_build" not in p.parts]
+    pattern = re.compile(r"<!-- calibration recipe:[^\n]*-->\n```sh\n(.*?)```", re.S)
+    block = next((found for found in map(pattern.search, texts) if found), None)
+    assert block, "the calibration recipe (README.md or docs/**/*.md) is missing"
     return [line.split("  #")[0].strip() for line in block.group(1).splitlines() if line.strip()]
 
 

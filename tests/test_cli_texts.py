@@ -148,7 +148,8 @@ def test_install_commands_name_what_exists():
                  and p.name != "test_cli_texts.py"]
     assert offenders == []
     extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    # the README and the docs' install page, which has the extras' table
+    readme = "\n".join((ROOT / name).read_text(encoding="utf-8") for name in ("README.md", "docs/getting-started.md"))
     named = {extra for group in re.findall(r"pip install '[^']*\[([a-z,]+)\]'", readme)
              for extra in group.split(",")}
     assert named and named <= set(extras), named - set(extras)

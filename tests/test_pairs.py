@@ -133,13 +133,14 @@ def test_noisy_minus_clean_has_mean_zero_and_the_model_variance(device, intensit
 
 
 def test_readme_pairs_example_runs(monkeypatch, capsys):
-    """The README's numpy example of "Training pairs on the fly" (the first python block of that section) runs."""
+    """The docs' numpy example of "Training pairs on the fly" (docs/guides/denoiser-datasets.md, the first python
+    block of that section) runs."""
     import re
 
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    section = text[text.index("### Training pairs on the fly"):]
+    text = (ROOT / "docs" / "guides" / "denoiser-datasets.md").read_text(encoding="utf-8")
+    section = text[text.index("## Training pairs on the fly"):]
     code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
     monkeypatch.chdir(ROOT)
-    exec(compile(code, "README.md", "exec"), {})
+    exec(compile(code, "docs/guides/denoiser-datasets.md", "exec"), {})
     lines = capsys.readouterr().out.splitlines()
     assert lines == ["(4, 1, 48, 64) float32 True"] * 2
