@@ -76,6 +76,9 @@ sphinx_gallery_conf = {
     "show_memory": False,
 }
 
+# Text as written: no "smart" quotes or dashes (an option's --name must stay two hyphens)
+smartquotes = False
+
 # --- HTML ----------------------------------------------------------------------------------------------------------
 html_theme = "pydata_sphinx_theme"
 html_title = f"camsim {release}"

@@ -391,27 +391,30 @@ def bounds_text(p) -> str:
 
 
 def _description(p) -> list:
-    cells: list = [p.doc[:1].upper() + p.doc[1:] if p.doc else ""]
+    cells: list = [p.doc]  # as the help texts give it (not capitalised: it may start with a symbol, σ_read)
     if p.choices:
-        cells.append(". One of " if p.doc else "One of ")
+        cells.append("; one of " if p.doc else "One of ")
         choices = list(p.choices) + (["none"] if p.optional and "none" not in p.choices else [])
         for i, choice in enumerate(choices):
             cells.append(", " if i else "")
             cells.append(literal(str(choice)))
         cells.append(".")
     if p.stage:
-        cells.append(" A stage switch (off with --disable NAME).")
+        cells.append("; a stage switch (off with --disable NAME)" if p.doc else "A stage switch")
     return cells
 
 
-def param_table(params, extra_rows: list | None = None) -> nodes.table:
-    """One row per declared parameter: key, type, unit, default, bounds, description."""
+def param_table(params, extra_rows: list | None = None, defaults: bool = True) -> nodes.table:
+    """One row per declared parameter: key, type, unit, default (unless not ``defaults``), bounds, description."""
     rows = [list(r) for r in (extra_rows or [])]
     for p in params:
         rows.append([[literal(p.name)], type_text(p), p.unit, [literal(toml_value(p.default))], bounds_text(p),
                      _description(p)])
-    return table(["Key", "Type", "Unit", "Default", "Bounds", "Description"], rows, [3, 2, 1, 2, 1, 8],
-                 classes=["camsim-keys"])
+    headers, widths = ["Key", "Type", "Unit", "Default", "Bounds", "Description"], [3, 2, 1, 2, 1, 8]
+    if not defaults:
+        for row in (headers, widths, *rows):
+            del row[3]
+    return table(headers, rows, widths, classes=["camsim-keys"])
 
 
 def _key_list(keys) -> nodes.paragraph:
@@ -570,6 +573,10 @@ def sidecar_requirements(check) -> tuple[list[str], bool]:
     return messages, nullable
 
 
+def text_allows_null(messages: list[str]) -> bool:
+    return any(m.startswith("null") for m in messages)
+
+
 def sidecar_key_nodes() -> list[nodes.Node]:
     """The sidecar's keys: the frame's own (:data:`FRAME_KEYS`) and the sensor's (its declared parameters)."""
     schema = sidecar_module()
@@ -588,7 +595,7 @@ def sidecar_key_nodes() -> list[nodes.Node]:
     rows = []
     for key, check in schema.FRAME_KEYS.items():
         messages, nullable = sidecar_requirements(check)
-        text = "; ".join(messages) + ("; or null" if nullable else "")
+        text = "; ".join(messages) + ("; or null" if nullable and not text_allows_null(messages) else "")
         rows.append([[literal(key)], "yes" if key in required else "", text])
     sec += table(["Key", "Required", "Must be"], rows, [3, 1, 8])
     out.append(sec)
@@ -598,7 +605,7 @@ def sidecar_key_nodes() -> list[nodes.Node]:
                 literal("[sensor]"), " table); a stage switch is under ", literal("stages"), ".")
     skipped = {p.name for p in sensor.SENSOR_PARAMS if p.stage or (p.sidecar is not None and p.name != "bits")}
     params = [p for p in sensor.SENSOR_PARAMS if p.name not in skipped]
-    sec += param_table(params)
+    sec += param_table(params, defaults=False)
     stages = [p.name for p in sensor.SENSOR_PARAMS if p.stage]
     sec += para(literal("stages"), " holds the stage switches ", *_joined(stages, "{}", " and "),
                 ", each true or false.")
