@@ -528,11 +528,15 @@ def dataset_key_nodes() -> list[nodes.Node]:
     sec += _key_list(spec._TOP_KEYS)
     rows = [[[literal("[images]")], [_key_list(spec.IMAGES_TABLE_KEYS)]],
             [[literal("[virtual_camera]")], [_key_list(spec.VIRTUAL_CAMERA_TABLE_KEYS)]],
-            [[literal("[random]")], [para(literal("count"), nodes.Text(", and per parameter one distribution: "),
-                                          *_joined(spec.DISTRIBUTIONS, "{} = [...]", " or "))]]]
+            [[literal("[random]")], [para(literal("count"), nodes.Text(" (draws per grid point), and per parameter "
+                                                                       "one distribution, "),
+                                          literal("{ NAME = [...] }"), nodes.Text(" with NAME one of "),
+                                          *_joined(spec.DISTRIBUTIONS, "{}", " or "))]]]
     sec += table(["Table", "Keys"], rows, [1, 4])
-    aliases = [f"{plural} (= {single})" for plural, single in spec.GRID_ALIASES.items()]
-    sec += para("Plural spellings accepted in ", literal("[grid]"), ": ", *_joined(aliases, "{}", " and "), ".")
+    aliases = []
+    for plural, single in spec.GRID_ALIASES.items():
+        aliases += [", " if aliases else "", literal(plural), f" (for {single})"]
+    sec += para("Plural spellings accepted in ", literal("[grid]"), ": ", *aliases, ".")
     out.append(sec)
 
     sec = section("Parameters", "spec-parameters")
@@ -611,6 +615,19 @@ def sidecar_key_nodes() -> list[nodes.Node]:
                 ", each true or false.")
     out.append(sec)
 
+    # keys a sensor parameter writes under names of its own (cfa → sensor_layout, cfa_pattern), not in FRAME_KEYS
+    default = sensor.SensorParams()
+    shown = set(schema.FRAME_KEYS) | {p.name for p in params}
+    rows = []
+    for p in sensor.SENSOR_PARAMS:
+        if p.stage or p.sidecar is None:
+            continue
+        for key in p.record(default):
+            if key not in shown:
+                rows.append([[literal(key)], [literal(p.name)], type_text(p), bounds_text(p), _description(p)])
+    if rows:
+        sec += para("Keys that a sensor parameter writes under a name of its own (null where it does not apply):")
+        sec += table(["Key", "Parameter", "Type", "Bounds", "Description"], rows, [3, 3, 2, 1, 8])
     others = [k for k in schema.REQUIRED if k not in schema.FRAME_KEYS
               and k not in {p.name for p in sensor.SENSOR_PARAMS}]
     if others:
