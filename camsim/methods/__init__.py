@@ -1,4 +1,4 @@
-"""The sampling methods (MODEL.md §5): one registry, one dispatcher.
+"""The sampling methods (the docs' model page, Sampling methods): one registry, one dispatcher.
 
 :data:`METHODS` maps each name to a :class:`SamplingMethod`; :func:`get_method` is the one place a name is
 checked. The command line, the scene-file reader and the dataset spec take their choices from
