@@ -51,7 +51,7 @@ myst_dmath_double_inline = True
 # --- API reference: autosummary + autodoc + numpydoc ---------------------------------------------------------------
 autosummary_generate = True  # stub pages of reference/api.md's names into reference/generated/ (not committed)
 autosummary_imported_members = False
-autodoc_default_options = {"members": False}
+autodoc_default_options = {"members": False, "no-value": True}  # a preset table's repr is pages long
 autodoc_typehints = "none"  # numpydoc's "Parameters" sections say the types; signatures stay short
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False

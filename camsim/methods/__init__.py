@@ -77,6 +77,7 @@ class SamplingMethod:
                             DEFAULT_TOLERANCE if tolerance is None else tolerance)
 
 
+#: The sampling methods by name (:class:`SamplingMethod`): ``poisson``, ``table``, ``spectral``, ``gaussian``, ``auto``.
 METHODS = {
     "poisson": SamplingMethod(
         "poisson", "one exact draw per pixel and channel (default)", "camsim.methods.fused"),

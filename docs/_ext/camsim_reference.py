@@ -672,6 +672,28 @@ class SidecarKeysDirective(_Generated):
     make = staticmethod(sidecar_key_nodes)
 
 
+def _exported_data_doc(app, what, name, obj, options, lines):
+    """The doc-comment (``#:``) of a public data name (``camsim.PRESETS``), from the module that defines it.
+
+    autodoc looks for it in ``camsim/__init__.py``, which only re-exports the name, finds none and falls back on
+    the docstring of the value's type (``dict``'s)."""
+    package, _, attr = name.rpartition(".")
+    if what != "data" or package != "camsim":
+        return
+    import camsim
+    from sphinx.pycode import ModuleAnalyzer
+
+    module = getattr(camsim, "_EXPORTS", {}).get(attr)
+    if module is None:
+        return
+    try:
+        docs = ModuleAnalyzer.for_module(module).find_attr_docs()
+    except Exception:  # noqa: BLE001 - no source to read: the name keeps autodoc's description
+        return
+    if ("", attr) in docs:
+        lines[:] = list(docs[("", attr)])
+
+
 #: The pages that use the directives: re-read on every build (their content is the code's, which Sphinx does not
 #: watch), so that an incremental build never shows a stale reference.
 GENERATED_PAGES = ("reference/cli", "reference/scene-keys", "reference/dataset-keys", "reference/sidecar-keys")
@@ -687,4 +709,5 @@ def setup(app):
     app.add_directive("camsim-dataset-keys", DatasetKeysDirective)
     app.add_directive("camsim-sidecar-keys", SidecarKeysDirective)
     app.connect("env-get-outdated", _always_outdated)
+    app.connect("autodoc-process-docstring", _exported_data_doc)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
