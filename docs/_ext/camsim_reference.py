@@ -27,6 +27,7 @@ import importlib
 import math
 import re
 import sys
+import warnings
 
 from docutils import nodes
 from docutils.parsers.rst import Directive
@@ -703,7 +704,29 @@ def _always_outdated(app, env, added, changed, removed):
     return [doc for doc in GENERATED_PAGES if doc in env.found_docs and doc not in added | changed]
 
 
+def _numpydoc_warnings_are_sphinx_warnings() -> None:
+    """numpydoc reports a malformed docstring (an unknown section, a bad parameter list) with Python's
+    ``warnings.warn``, which Sphinx's ``-W`` does not see: route those to Sphinx's log as warnings, so that they
+    fail the build like any other."""
+    from sphinx.util import logging
+
+    logger = logging.getLogger("camsim_reference")
+    shown = warnings.showwarning
+    if getattr(shown, "camsim_numpydoc", False):
+        return
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if "numpydoc" in str(filename).replace("\\", "/").split("/"):
+            logger.warning("numpydoc: %s", message, type="numpydoc")
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    show.camsim_numpydoc = True
+    warnings.showwarning = show
+
+
 def setup(app):
+    _numpydoc_warnings_are_sphinx_warnings()
     app.add_directive("camsim-cli", CliDirective)
     app.add_directive("camsim-scene-keys", SceneKeysDirective)
     app.add_directive("camsim-dataset-keys", DatasetKeysDirective)
