@@ -8,6 +8,7 @@ that a new option or key cannot go undocumented. The API page is checked against
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib.util
 import re
 import sys
@@ -121,13 +122,18 @@ def test_cli_reference_expands_help_and_shows_defaults(reference):
     assert render.usage.startswith("usage: camsim render")
 
 
+def _declared(cls) -> set[str]:
+    """The fields of a dataclass declared as schema parameters (``camsim.schema.param`` stores a Param in the
+    field's metadata)."""
+    return {f.name for f in dataclasses.fields(cls) if "param" in f.metadata}
+
+
 def test_scene_key_reference_has_every_schema_key(reference):
     import camsim
-    from camsim.schema import params_of
-    from camsim.sources import SOURCES
 
+    SOURCES = sys.modules[camsim.load_scene.__module__].SOURCES  # the scene reader's (module paths move)
     shown = _literals(reference.scene_key_nodes())
-    keys = {p.name for p in params_of(camsim.SensorParams)} | {p.name for p in params_of(camsim.Scene)}
+    keys = _declared(camsim.SensorParams) | _declared(camsim.Scene)
     keys |= {"preset", "iso"} | {key for cls in SOURCES.values() for key in cls.keys}
     keys |= {f"[{name}]" for name in SOURCES}
     missing = sorted(k for k in keys if k not in shown)
@@ -147,13 +153,12 @@ def test_dataset_key_reference_has_every_parameter(reference):
 
 def test_sidecar_key_reference_has_every_checked_key(reference):
     import camsim
-    from camsim.schema import record
 
     schema = reference.sidecar_module()
     shown = _literals(reference.sidecar_key_nodes())
     # the checker's keys, and every key the sensor writes to a frame's sidecar (the stage switches under "stages")
-    sensor = camsim.SensorParams()
-    keys = set(schema.REQUIRED) | set(schema.FRAME_KEYS) | set(record(sensor)) | set(record(sensor)["stages"])
+    record = camsim.SensorParams().sidecar_record()
+    keys = set(schema.REQUIRED) | set(schema.FRAME_KEYS) | set(record) | set(record["stages"])
     missing = sorted(k for k in keys if k not in shown)
     assert not missing, f"sidecar keys missing from the reference: {missing}"
 

@@ -451,7 +451,7 @@ def scene_key_nodes() -> list[nodes.Node]:
     [[region]]."""
     scene = scene_module()
     sensor = sensor_module()
-    from camsim.sources import SOURCES  # the registry of scene sources (its public path)
+    SOURCES = scene.SOURCES  # the registry of scene sources, as the scene reader has it (wherever it is defined)
 
     frame_params = {p.name: p for p in scene.FRAME_PARAMS}
     out: list[nodes.Node] = []
