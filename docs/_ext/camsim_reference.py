@@ -294,9 +294,9 @@ def _option_item(option: Option) -> nodes.definition_list_item:
     if option.help:
         definition += nodes.paragraph(option.help, option.help)
     facts = []
-    if option.positional:
-        facts.append("positional")
-    elif option.required:
+    if option.positional and not option.required:
+        facts.append("optional")
+    elif option.required and not option.positional:
         facts.append("required")
     if option.repeatable:
         facts.append("repeatable")
