@@ -111,6 +111,11 @@ def section(title: str, ident: str | None = None) -> nodes.section:
     return sec
 
 
+def text_block(text: str) -> nodes.literal_block:
+    """A block of text laid out by hand (a usage, an epilog), shown as it is: no syntax highlighting."""
+    return nodes.literal_block(text, text, language="text")
+
+
 def para(*parts) -> nodes.paragraph:
     """A paragraph of text and nodes (a str is text)."""
     node = nodes.paragraph()
@@ -276,7 +281,7 @@ def _text_nodes(text: str, raw: bool) -> list[nodes.Node]:
     if not text.strip():
         return []
     if raw and "\n  " in text:
-        return [nodes.literal_block(text.rstrip(), text.rstrip())]
+        return [text_block(text.rstrip())]
     return [nodes.paragraph(" ".join(p.split()), " ".join(p.split())) for p in re.split(r"\n\s*\n", text)
             if p.strip()]
 
@@ -323,7 +328,7 @@ def _command_section(command: Command) -> nodes.section:
     sec = section(command.name)
     if command.summary:
         sec += para(nodes.emphasis(command.summary, command.summary))
-    sec += nodes.literal_block(command.usage, command.usage)
+    sec += text_block(command.usage)
     sec.extend(_text_nodes(command.description, command.raw_text))
     positionals = [o for o in command.options if o.positional]
     optionals = [o for o in command.options if not o.positional]
@@ -341,7 +346,7 @@ def _command_section(command: Command) -> nodes.section:
 def cli_nodes(parser: argparse.ArgumentParser | None = None) -> list[nodes.Node]:
     """The command reference: ``camsim``'s own options, a table of its commands, then one section per command."""
     root = commands_of(parser or build_parser())
-    out: list[nodes.Node] = [nodes.literal_block(root.usage, root.usage)]
+    out: list[nodes.Node] = [text_block(root.usage)]
     out.extend(_text_nodes(root.description, root.raw_text))
     rows = [[[nodes.reference("", "", literal(c.name), refid=_slug(c.name))], c.summary] for c in root.subcommands]
     out.append(table(["Command", "What it does"], rows, [2, 7]))
