@@ -480,7 +480,7 @@ def scene_key_nodes() -> list[nodes.Node]:
     out.append(sec)
 
     sec = section("[render]", "render-table")
-    sec += para("How the frames are drawn (the command line's options of the same names override them).")
+    sec += para("How the frames are drawn; each has a ", literal("camsim render"), " option that overrides it.")
     sec += param_table(scene.RENDER_PARAMS)
     out.append(sec)
 
