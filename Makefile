@@ -3,12 +3,13 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+DOCS_STAMP := $(VENV)/.installed-docs
 # The versions the test suite was last run with (make constraints re-resolves them): a fresh clone gets these
 CONSTRAINTS := constraints.txt
 # pytest-xdist workers: both cores by default (make test JOBS=1 for one process)
 JOBS ?= 2
 
-.PHONY: setup run test test-fast bench bench-gpu constraints clean
+.PHONY: setup run test test-fast bench bench-gpu docs constraints clean
 
 $(STAMP): pyproject.toml $(CONSTRAINTS)
 	$(PYTHON) -m venv $(VENV)
@@ -34,6 +35,17 @@ test: $(STAMP)
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest -q -n $(JOBS) -m "not slow"
 
+# The docs extra (Sphinx and its extensions), on top of the set-up
+$(DOCS_STAMP): $(STAMP)
+	$(BIN)/python -m pip install --quiet -c $(CONSTRAINTS) -e '.[docs]'
+	touch $(DOCS_STAMP)
+
+## Set up, then build the documentation into docs/_build/html/ (warnings are errors; the gallery's scripts run)
+## and check that every internal link of the built pages resolves
+docs: $(DOCS_STAMP)
+	$(BIN)/python -m sphinx -W --keep-going -j $(JOBS) -b html docs docs/_build/html
+	$(BIN)/python tools/check_docs_links.py docs/_build/html
+
 ## Set up, then run the W1 speed/memory benchmark (prints a JSON line last)
 bench: $(STAMP)
 	$(BIN)/python tools/bench_w1.py
@@ -47,11 +59,11 @@ constraints:
 	rm -rf .venv-resolve
 	$(PYTHON) -m venv .venv-resolve
 	.venv-resolve/bin/python -m pip install --quiet --upgrade pip
-	.venv-resolve/bin/python -m pip install --quiet '.[test]'
+	.venv-resolve/bin/python -m pip install --quiet '.[test,docs]'
 	{ echo "# The versions camsim's test suite was run with, on $$($(PYTHON) --version); made by make constraints."; \
 	  echo "# make installs with pip -c constraints.txt; pyproject.toml's bounds say what camsim supports."; \
 	  .venv-resolve/bin/python -m pip freeze --all | grep -v -E '^(pip|camsim-lowlight)[= @]'; } > $(CONSTRAINTS)
 	rm -rf .venv-resolve build
 
 clean:
-	rm -rf $(VENV) outputs/macbeth_26
+	rm -rf $(VENV) outputs/macbeth_26 docs/_build docs/auto_examples docs/reference/generated docs/sg_execution_times.rst

@@ -2,7 +2,7 @@
 
 Spectral scenes (a label map plus K spectra for charts, or a hyperspectral cube) pass through the image-sensor
 model of the 2014 low-light colour-measurement paper (photons, dark current, saturation, read noise, gain,
-quantisation) into 8-bit raw DNG and float EXR frames. See ``MODEL.md`` in the shared docs for the contract.
+quantisation) into 8-bit raw DNG and float EXR frames. The docs' model page states the model.
 
 The few objects a Python user needs are here (imported on first use, so ``import camsim`` is instant):
 

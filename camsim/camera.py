@@ -1,4 +1,4 @@
-"""The camera's spectral quantum efficiency Qe_κ(λ) and its absolute scale (MODEL.md §3).
+"""The camera's spectral quantum efficiency Qe_κ(λ) and its absolute scale (the docs' model page).
 
 A camera's published sensitivities are relative. camsim turns them into the paper's Qe, in
 e⁻ · m² · sr / photon (electrons per pixel per unit photon radiance), in one of two ways:
@@ -9,7 +9,7 @@ e⁻ · m² · sr / photon (electrons per pixel per unit photon radiance), in on
 * ``PhysicalScale``: the pixel's étendue times its peak QE: Qe = (π τ p² / 4N²) · QE_peak · QE_rel(λ), for pixel
   pitch p, f-number N and lens transmittance τ (Lambertian scene, on axis, object far away).
 
-Either way Qe is a property of the camera: the same for every illuminant, F and frame of a run (MODEL.md §3). Under
+Either way Qe is a property of the camera: the same for every illuminant, F and frame of a run. Under
 another light at the same luminance the electrons differ, and may saturate; a run that wants every light exposed
 to the same level changes the exposure time per frame (``exposure = "auto"``, :func:`camsim.pipeline.frame_sensor`),
 never Qe.

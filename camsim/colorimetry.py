@@ -1,4 +1,4 @@
-"""Camera RGB → CIE XYZ → xy chromaticity (MODEL.md §6, the paper's Eqs. 15–16).
+"""Camera RGB → CIE XYZ → xy chromaticity (the paper's Eqs. 15–16).
 
 A core module (it imports only :mod:`camsim.photons` and :mod:`camsim.spectra`): the preview, the analysis and
 its consumers (experiments, denoise-eval) all take their colorimetry from here.

@@ -1,4 +1,4 @@
-"""The exact law of one pixel's digital number under ``pixel`` statistics (MODEL.md §3), computed: its pmf.
+"""The exact law of one pixel's digital number under ``pixel`` statistics (the docs' model page), computed: its pmf.
 
     I = clip(floor(k · (min(N, c) + R)), 0, 2^nb − 1),   N ~ Poisson(λ),   R ~ N(0, σ²),
 

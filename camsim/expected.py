@@ -1,6 +1,6 @@
 """Expected values and variances per distinct spectrum (K of them), known before anything is drawn.
 
-These are the model's closed forms (MODEL.md §3–4) used both by the renderer (what to draw) and by the tests
+These are the model's closed forms (the docs' model page) used both by the renderer (what to draw) and by the tests
 and sidecars (what the frame should show):
 
 * signal electrons S = T · F · Σ g(λi) Qe_κ(λi);

@@ -5,7 +5,7 @@ An sRGB image recovered with a linear method (Mallett 2019) has, per distinct co
 — radiance under a light, photon rate (Eq. 3), signal electrons T F Σ g Qe (Eqs. 5–6) and, under ``paper``
 statistics, their variance T² F Σ g Qe² — so it is computed on the J basis spectra once and applied to the
 coefficients: the expected electrons of every colour are its coefficients times one J × 3 matrix per camera and
-light (MODEL.md §1, "model no more than a scene needs"). :class:`FactoredSpectra` stands where a (K, N) array of
+light ("model no more than a scene needs"). :class:`FactoredSpectra` stands where a (K, N) array of
 spectra stands (``@``, scaling by a number or per bin, row indexing), and gives dense rows only when indexed.
 """
 

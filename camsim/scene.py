@@ -74,9 +74,9 @@ class Scene:
     iso: float | None = None
     sensor_overrides: tuple = ()
     statistics: str = param("pixel", "str", "photon statistics: 'pixel' = photons per pixel thinned by QE (exact "
-                            "Poisson electrons, MODEL.md §4); 'paper' = Eq. 4 literally, per m²·sr",
+                            "Poisson electrons; the docs' model page); 'paper' = Eq. 4 literally, per m²·sr",
                             choices=STATISTICS)
-    method: str = param("poisson", "str", "sampling method (MODEL.md §5)", choices=METHOD_NAMES)
+    method: str = param("poisson", "str", "sampling method (see the docs' model page)", choices=METHOD_NAMES)
     tolerance: float = param(DEFAULT_TOLERANCE, "float", "auto's tolerance: the largest Kolmogorov–Smirnov distance "
                              "between a pixel value's exact law and its Gaussian replacement", above=0, below=1)
     seed: int = param(0, "int", "random seed; the same seed gives byte-identical files", low=0)

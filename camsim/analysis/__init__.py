@@ -1,1 +1,1 @@
-"""Colour analysis of rendered frames (MODEL.md §6)."""
+"""Colour analysis of rendered frames (``camsim analyze``; the docs' guide to colour at low light)."""

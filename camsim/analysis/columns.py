@@ -7,7 +7,7 @@ here (a test derives the columns from the CSVs it writes), so a new column needs
 
 from __future__ import annotations
 
-#: SNR as camsim reports it (MODEL.md §6, the paper's Eq. 14).
+#: SNR as camsim reports it (the paper's Eq. 14).
 SNR_DEFINITION = (
     "SNR is a power ratio: signal² / variance, both in DN (signal = the patch's mean less the black level, "
     "variance = the pixels' variance), so unitless; snr_*_db = 10 log10(SNR). It is not the amplitude ratio "

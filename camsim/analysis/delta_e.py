@@ -1,4 +1,4 @@
-"""The paper's 5-step ΔE_ab procedure (MODEL.md §6).
+"""The paper's 5-step ΔE_ab procedure.
 
 1. White: CIE 1931 2° D65 at Y = 100.
 2. Each sample's XYZ is scaled to Y = 100 (samples with Y ≤ 0 or non-finite cannot be: counted and excluded).

@@ -1,4 +1,4 @@
-"""Chromaticity ellipses by PCA of a patch's xy samples (MODEL.md §6; the paper's Ref. 29)."""
+"""Chromaticity ellipses by PCA of a patch's xy samples (the paper's Ref. 29)."""
 
 from __future__ import annotations
 

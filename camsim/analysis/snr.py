@@ -1,4 +1,4 @@
-"""Signal-to-noise ratio: the model (the paper's Eqs. 13–14), empirical, and ΔSNR (Eq. 17). MODEL.md §6.
+"""Signal-to-noise ratio: the model (the paper's Eqs. 13–14), empirical, and ΔSNR (Eq. 17).
 
 SNR is a power ratio, signal² / variance, in DN; ``snr_db = 10 log10(snr)``.
 """

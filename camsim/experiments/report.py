@@ -76,7 +76,7 @@ def write_report(path: Path, title, setup, prep, sensor, factors, findings, figu
     lines = [f"# {title}", "", "Reproduced by camsim from rendered frames (DNG/EXR + sidecars under `frames/`), "
              "analysed from those files. Both photon statistics are run on the same scene and F values: `paper` "
              "(Eq. 4 literally, per-bin Poisson photons per m²·sr, sampled per bin) and `pixel` (exact Poisson "
-             "electrons per pixel, MODEL.md §4).", "",
+             "electrons per pixel; the docs' model page, Photon statistics).", "",
              "## Set-up", "",
              f"- Sensor preset `{preset}`: {', '.join(f'{k}={v}' for k, v in sensor.to_dict().items())}",
              f"- Camera: {prep.camera.name} ({prep.camera.sensitivity_basis} basis), anchored so that the perfect "
@@ -89,7 +89,7 @@ def write_report(path: Path, title, setup, prep, sensor, factors, findings, figu
              "the paper) unless a finding says otherwise",
              f"- Ellipses below {RESOLVED_SIZE:g} in xy are below the float32 resolution of the EXR frames and are "
              f"not used to judge a finding; {VISIBLE_XY:g} in xy counts as visible on the diagram", "",
-             "Data points (MODEL.md §7: 13 on the convex hull of the Macbeth × illuminant chromaticities, 7 inside; "
+             "Data points (13 on the convex hull of the Macbeth × illuminant chromaticities, 7 inside; "
              "rule in `camsim/experiments/datapoints.py`):", "",
              "| # | patch | illuminant | x | y | hull |", "|---|---|---|---|---|---|"]
     lines += [f"| {p.number} | {p.patch} | {p.illuminant} | {p.x:.4f} | {p.y:.4f} | {'yes' if p.on_hull else ''} |"

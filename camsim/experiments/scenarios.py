@@ -1,4 +1,4 @@
-"""The paper's experiments (MODEL.md §7): scenarios I–III and the SNR sensitivity analysis, under both statistics.
+"""The paper's experiments: scenarios I–III and the SNR sensitivity analysis, under both statistics.
 
 Each experiment renders its frames to files, analyses them from those files, checks the paper's findings,
 and writes its numbers (CSV), its figures (PNG) and ``report.md`` into its output folder.
@@ -66,12 +66,12 @@ def _scenario_findings(scenario: Scenario, results, black, black_subtracted) -> 
                     note="In `pixel` statistics the photon count per pixel, not per m²·sr, sets the noise: at "
                          "100 cd/m² and F = 1 a pixel collects ~8000 e⁻, so its relative shot noise is ~1 %, "
                          "and the ellipses are visible at every F. The paper's threshold is an artefact of Eq. 4's "
-                         "units (MODEL.md §4)."),
+                         "units (the docs' model page, Photon statistics)."),
             Finding("I.5", "Mean ΔE grows as F falls; in the dark even an ideal sensor cannot measure colour",
                     {s: fd.delta_e_grows_until_failure(results[s]) for s in STATISTICS}, "delta_e",
                     note="In `paper` statistics a bin holds F · g ≈ 1e16 · F photons per m²·sr: at F = 1e-14 that "
                          "is still ~100 per bin and ~1 % relative noise per channel, so ΔE stays small within "
-                         "MODEL.md's F range; the F^(-1/2) growth would take it past 10 only about two decades "
+                         "scenario I's F range; the F^(-1/2) growth would take it past 10 only about two decades "
                          "lower. In `pixel` statistics a pixel collects no electron at all long before that."),
         ]
     number = "II" if scenario.name == "scenario2" else "III"

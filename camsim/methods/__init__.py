@@ -1,4 +1,4 @@
-"""The sampling methods (MODEL.md §5): one registry, one dispatcher.
+"""The sampling methods (the docs' model page, Sampling methods): one registry, one dispatcher.
 
 :data:`METHODS` maps each name to a :class:`SamplingMethod`; :func:`get_method` is the one place a name is
 checked. The command line, the scene-file reader and the dataset spec take their choices from
@@ -77,6 +77,7 @@ class SamplingMethod:
                             DEFAULT_TOLERANCE if tolerance is None else tolerance)
 
 
+#: The sampling methods by name (:class:`SamplingMethod`): ``poisson``, ``table``, ``spectral``, ``gaussian``, ``auto``.
 METHODS = {
     "poisson": SamplingMethod(
         "poisson", "one exact draw per pixel and channel (default)", "camsim.methods.fused"),

@@ -1,4 +1,4 @@
-"""How each spectrum and channel of a frame is drawn: the plans of ``poisson``, ``gaussian`` and ``auto`` (MODEL.md §5).
+"""How each spectrum and channel of a frame is drawn: the plans of ``poisson``, ``gaussian`` and ``auto``.
 
 ``gaussian`` replaces the collected charge and the read noise of a pixel by one normal draw with the same mean
 and variance: value = k · (λ + √(Var(S + D) + σ_read²) · z). It is fast (one float32 normal per pixel and

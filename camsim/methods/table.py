@@ -1,5 +1,5 @@
 """The ``table`` method's sampler: the collected charge of a spectrum and channel drawn from its exact law by an
-alias table (MODEL.md §5; issue 14).
+alias table (the docs' model page, Sampling methods; issue 14).
 
 Under ``pixel`` statistics a pixel of a spectrum collects min(N, c) electrons, N ~ Poisson(S̄ + D̄), c the full well
 (where saturation can act): one law per spectrum and channel, :func:`camsim.dn_law.charge_pmf` (its support

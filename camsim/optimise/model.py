@@ -82,7 +82,7 @@ def saturation_free(signal_e, dark_e, sensor: SensorAtIso) -> np.ndarray:
 
 
 def lab_of(rgb_e: np.ndarray, to_xyz: np.ndarray, white_xy: np.ndarray) -> np.ndarray:
-    """CIELAB of camera values scaled to Y = 100 (the paper's ΔE procedure, MODEL.md §6), NaN where Y ≤ 0.
+    """CIELAB of camera values scaled to Y = 100 (the paper's ΔE procedure), NaN where Y ≤ 0.
 
     ``rgb_e`` (..., 3) black-subtracted camera values (any common scale), ``to_xyz`` the 3 × 3 camera → XYZ matrix.
     Written out (no colour-science call per point: the search evaluates millions): L* is 100 by construction.
