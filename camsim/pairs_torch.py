@@ -1,6 +1,6 @@
 """A thin torch wrapper of :mod:`camsim.pairs`: an ``IterableDataset`` of batches of torch tensors.
 
-torch is an optional extra (``pip install '.[torch]'`` in camsim's folder; README, "Installing", for its size and a
+torch is an optional extra (``pip install '.[torch]'`` in camsim's folder; docs, 'Getting started', for its size and a
 CPU build) and is imported only when :func:`pair_dataset` is called: importing this module imports nothing but
 camsim. On a GPU the tensors are the
 batch's CuPy arrays, handed over by DLPack (``torch.from_dlpack``: the same device memory, no copy through the host);

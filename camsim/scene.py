@@ -4,7 +4,7 @@ What is in front of the camera is a scene *source* read from its own table (:dat
 ``[chart]``, a reflectance set laid out as a grid of patches on a surround, a label map plus K spectra;
 ``[cube]``, a hyperspectral cube file of reflectance or radiance (``.npy``, ENVI or ``.mat``); ``[image]``, an RGB
 picture whose colours are recovered as spectra; or ``[target]``, a synthetic dead-leaves chart or slanted edge, also a
-label map plus K spectra). The full schema is documented in the README;
+label map plus K spectra). Every key is listed in the docs' reference (scene-file keys);
 unknown keys are errors, so a typo never goes unnoticed.
 """
 

@@ -125,7 +125,7 @@ class CameraPreset:
     title : str
         The camera, in words.
     source : str
-        Where every figure comes from (cited in ``camsim list`` and the README).
+        Where every figure comes from (cited in ``camsim list`` and the docs).
     iso_points : tuple of IsoPoint
         The published ISO points, lowest first.
     bits : int

@@ -46,7 +46,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="files (default): OUT/frames/ID.dng, .exr, .json per frame; zarr: one Zarr store, "
                              "OUT/dataset.zarr, with arrays noisy, clean (float32) and digital (uint8/uint16) of "
                              "shape (frame, channel, y, x), one chunk per frame, plus the sidecars, done flags and "
-                             "the parameters (README, 'Zarr output'); every frame must have the same size")
+                             "the parameters (docs, guide 'Datasets for denoisers'); every frame must have the same size")
     exr_compression_argument(parser, spec_key=True)
     parser.add_argument("--verify", choices=("sha256", "size"), default="sha256",
                         help="how a re-run checks the files of complete frames: size and SHA-256 (default) or "

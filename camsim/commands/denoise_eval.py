@@ -20,7 +20,7 @@ from camsim.errors import CamsimError
 MAX_DIR_NAME = 80
 
 DESCRIPTION = (
-    "Run one or more denoisers on every noisy frame of a dataset — camsim EXR frames (channels R, G, B = the noisy "
+    "Run one or more denoisers on every noisy frame of a dataset — camsim EXR frames (layer noisy.R/G/B = the noisy "
     "DN, layer clean.R/G/B = their expected value, header camsim:metadata = the sidecar) found recursively in "
     "DATASET_DIR — and score each against the clean layer: PSNR and SSIM (scikit-image), and per patch the "
     "chromaticity bias of the patch mean, the chromaticity-noise ellipse before and after, and ΔE_ab (the paper's "

@@ -53,7 +53,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "by camsim calibrate")
     parser.add_argument("--iso", metavar="ISO", type=positive_float,
                         help="ISO of a camera preset (default: ISO 100 where published); between published ISO "
-                             "points the figures are interpolated (README, 'Real cameras')")
+                             "points the figures are interpolated (docs, guide 'Characterising and calibrating a camera')")
     parser.add_argument("--sensor", metavar="NAME=VALUE", type=sensor_setting, action="append", default=[],
                         help="set any sensor parameter, after the preset and the scene file (repeatable; VALUE as "
                              "in a scene file: 2.5, [1, 2, 3], true, RGGB, none): "

@@ -188,7 +188,7 @@ def open_store(layout: StoreLayout, spec, echo=None):
         _table_array(group, name, values, dims, {"description": f"the records' {name}, frame by frame"})
     group.attrs["camsim"] = {"layout": layout.describe(), "spec": spec.name, "spec_seed": spec.seed,
                              "compressors": COMPRESSORS, "records_dir": RECORDS_DIR}
-    with warnings.catch_warnings():  # consolidated metadata is zarr-python's extension of format 3: said in README
+    with warnings.catch_warnings():  # consolidated metadata is zarr-python's extension of format 3: said in the docs
         warnings.filterwarnings("ignore", message="Consolidated metadata", category=UserWarning)
         zarr.consolidate_metadata(root)
     return zarr.open_group(root, mode="r+", zarr_format=3, use_consolidated=False)

@@ -1,5 +1,5 @@
 """The frames ``camsim denoise-eval`` scores: camsim EXR frames found under folders (searched recursively, committed
-frames only: :func:`camsim.frame_files.search_frames`) and files — channels R, G, B = the noisy DN before
+frames only: :func:`camsim.frame_files.search_frames`) and files — layer ``noisy.R/G/B`` = the noisy DN before
 quantisation, layer ``clean.R/G/B`` = their expected value, header ``camsim:metadata`` = the sidecar. Bayer (CFA)
 frames, EXRs without a clean layer, uncommitted EXRs and other files are skipped, each with its reason.
 """

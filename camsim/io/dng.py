@@ -10,7 +10,7 @@ number of an unlit pixel, clipped below the WhiteLevel) as BlackLevel: RATIONAL,
 without BlackLevelRepeatDim: its default 1 x 1) or per CFA position (Bayer, BlackLevelRepeatDim 2 x 2), within
 1 / (2 D) of the value with the largest denominator D it allows (:func:`rational_bound`: below 7.63e-6 DN for any
 level up to 65535 DN, 1e-9 DN for 8-bit levels). What the raw readers make of the files, measured
-(``tools/raw_readers.py``, ``tests/test_raw_readers.py``; README, "Raw readers and camsim's DNGs"): LibRaw takes a
+(``tools/raw_readers.py``, ``tests/test_raw_readers.py``; docs, reference 'File formats'): LibRaw takes a
 LinearRaw file's three levels, rounded; RawTherapee 5.9 takes the three too (its pictures match LibRaw's), but only
 without BlackLevelRepeatDim: with the tag it sets red's level from the per-position value, which a file of three
 per-sample values does not have, to 0; dcraw 9.28 reads
@@ -291,7 +291,7 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
         layout_tags: list[tuple] = []
         # no BlackLevelRepeatDim: its default, 1 x 1, is the layout (one value per sample). RawTherapee 5.9 reads
         # the three values only without the tag: with it, it takes red's black from the (absent) per-position
-        # value, 0 (README, "Raw readers and camsim's DNGs")
+        # value, 0 (docs, reference 'File formats')
         black_dim, black_values = None, black
         white_values = tuple(int(w) for w in white)
     else:
@@ -498,7 +498,7 @@ def darktable_xmp(black_level_dn: Any, white_level: Any) -> str:
     levels; the white point); darktable applies its default modules as well (``auto_presets_applied`` 0). For an
     image without a colour filter array ``rawprepare`` subtracts one level from all channels, the mean of its four
     (``commit_params``), so the four are integers whose mean is the mean of the three samples' levels to 1/8 DN:
-    each channel is then off by its level's distance from that mean (README, "Raw readers and camsim's DNGs"),
+    each channel is then off by its level's distance from that mean (docs, reference 'File formats'),
     where darktable without the sidecar is off by the whole level. Other readers ignore the file; the DNG is
     unchanged.
 

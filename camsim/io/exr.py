@@ -15,7 +15,7 @@ extra string header attributes and a lossless compression (:data:`EXR_COMPRESSIO
 OpenImageIO, an independent reader used by the tests to cross-check pixels and metadata.
 
 Compression choice, measured on a 1152 x 864 frame (``python tools/bench_exr_compression.py``, whose table is in
-the README; one OpenEXR thread, as a dataset worker writes; OpenEXR 3.5.3): the noisy layer is noise down to the
+the docs' benchmarks page; one OpenEXR thread, as a dataset worker writes; OpenEXR 3.5.3): the noisy layer is noise down to the
 last bits of the mantissa, and no lossless method takes much off it (ZIP 4 %, ZSTD 19 %, HTJ2K 27 %), while ZIP
 spends 4 to 6 times the time of an uncompressed write on a frame (0.27 to 0.44 s against 0.07 to 0.08 s) and reads
 2 to 3 times slower; a dataset on two processes makes about half the frames per second with it. The clean layer compresses only without PRNU and DSNU (piecewise constant: ZIP makes it 1 % of its size);
