@@ -47,7 +47,7 @@ _EXPORTS = {
     "CAMERA_PRESETS": "camsim.camera_presets",
     "sensor_preset": "camsim.camera_presets",
     "METHODS": "camsim.methods",
-    "CamsimError": "camsim.errors",
+    "CamsimError": "camsim.core.errors",
 }
 
 __all__ = ["__version__", *_EXPORTS]

@@ -7,7 +7,7 @@ way (``camsim dataset denoise_small``: :func:`resolve_spec_file`). In a checkout
 ``scenes/`` at the repository root is a symbolic link to this folder, so ``scenes/macbeth_26.toml`` keeps
 working.
 
-This module imports nothing from camsim except :mod:`camsim.errors`, so that :mod:`camsim.scene` can use it.
+This module imports nothing from camsim except :mod:`camsim.core.errors`, so that :mod:`camsim.scene` can use it.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import os
 import tomllib
 from pathlib import Path
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 __all__ = ["SCENES_DIR", "builtin_scene_names", "builtin_scene_path", "builtin_spec_names", "is_scene_name",
            "resolve_scene_file", "resolve_spec_file"]

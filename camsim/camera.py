@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.photons import photon_radiance, scale_to_luminance
 from camsim.spectra import WavelengthGrid, camera_sensitivities, cmfs_on_grid, illuminant_spd
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 
 @dataclass(frozen=True)
@@ -93,6 +93,6 @@ def parse_size(text: str) -> tuple[int, int]:
         raise CamsimError(f"size must look like WIDTHxHEIGHT (e.g. 600x400), got {text!r}") from None
     if width <= 0 or height <= 0:
         raise CamsimError(f"size must be positive, got {text!r}")
-    from camsim.pixel_limit import check_pixel_count
+    from camsim.core.pixel_limit import check_pixel_count
 
     return check_pixel_count(width, height, f"size {text}")

@@ -17,8 +17,8 @@ import warnings
 from camsim import __version__
 from camsim.commands import analyze, calibrate, dataset, denoise_eval, emva, experiment, optimise, render
 from camsim.commands import list as list_command
-from camsim.errors import CamsimError, describe_os_error
-from camsim.signals import handlers_installed
+from camsim.core.errors import CamsimError, describe_os_error
+from camsim.core.signals import handlers_installed
 
 #: The sub-commands, by name, in the order ``camsim --help`` lists them.
 COMMANDS = {

@@ -67,15 +67,15 @@ def integer_between(low: int, high: int, what: str):
 
 
 def file_name(what: str):
-    """An argparse type for a name that becomes part of a file name (:func:`camsim.names.safe_component`).
+    """An argparse type for a name that becomes part of a file name (:func:`camsim.core.names.safe_component`).
 
     Parameters
     ----------
     what : str
         The name's label in the message, e.g. ``"the preset's name"``.
     """
-    from camsim.errors import CamsimError
-    from camsim.names import safe_component
+    from camsim.core.errors import CamsimError
+    from camsim.core.names import safe_component
 
     def parse(text: str) -> str:
         try:
@@ -87,8 +87,8 @@ def file_name(what: str):
 
 
 def schema_value(param):
-    """The argparse type of a :class:`camsim.schema.Param`: its text parsed, typed and range-checked by the schema."""
-    from camsim.errors import CamsimError
+    """The argparse type of a :class:`camsim.core.schema.Param`: its text parsed, typed and range-checked by the schema."""
+    from camsim.core.errors import CamsimError
 
     def parse(text: str):
         try:
@@ -118,7 +118,7 @@ def exposure_setting(param):
 
 def sensor_setting(text: str) -> tuple:
     """``NAME=VALUE`` for a sensor parameter (:data:`camsim.sensor.SENSOR_PARAMS`), typed by the schema."""
-    from camsim.errors import CamsimError
+    from camsim.core.errors import CamsimError
     from camsim.sensor import SENSOR_PARAMS
 
     name, sep, value = text.partition("=")

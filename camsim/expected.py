@@ -17,10 +17,10 @@ from functools import cached_property
 import numpy as np
 from scipy import stats
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.rates import FactoredSpectra, all_finite
 from camsim.sensor import SensorParams
-from camsim.xp import namespace_of, special_namespace
+from camsim.core.xp import namespace_of, special_namespace
 
 
 @dataclass(frozen=True)
@@ -214,7 +214,7 @@ def poisson_min_e(lam, c):
     """E[min(X, c)] for X ~ Poisson(lam), elementwise; ``c`` ≥ 0 may be fractional. Unit: e⁻.
 
     λ P(X ≤ m − 1) + c P(X > m), m = ⌊c⌋, with the Poisson CDF and survival function as regularised incomplete
-    gamma functions (``pdtr``, ``pdtrc``: scipy's, or CuPy's for arrays on a GPU, :mod:`camsim.xp`). The clean
+    gamma functions (``pdtr``, ``pdtrc``: scipy's, or CuPy's for arrays on a GPU, :mod:`camsim.core.xp`). The clean
     value of a pixel of mean λ under a full well c: per spectrum here, per pixel on the device
     (:mod:`camsim.pairs`).
     """

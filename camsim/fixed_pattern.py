@@ -22,7 +22,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from camsim.seeding import fixed_pattern_generators
+from camsim.core.seeding import fixed_pattern_generators
 from camsim.sensor import SensorParams
 
 

@@ -31,14 +31,14 @@ import numpy as np
 
 import camsim
 from camsim.io.atomic import undo_on_failure, write_json_atomic, write_text_atomic
-from camsim.errors import CamsimError, output_error
+from camsim.core.errors import CamsimError, output_error
 from camsim.io.dng import DARKTABLE_XMP_SUFFIX, darktable_xmp, read_dng, write_dng, write_dng_cfa
 from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression, read_exr, read_exr_header, write_exr
 from camsim.io.output_folder import make_folder
 from camsim.rawcolour import CALIBRATION_ILLUMINANT_D65
 from camsim.regions import weighted_rows
 from camsim.methods import get_method
-from camsim.names import MAX_STEM_BYTES, safe_component
+from camsim.core.names import MAX_STEM_BYTES, safe_component
 from camsim.noise_profile import frame_noise_profile
 from camsim.render import Frame
 from camsim.sidecar_schema import check_sidecar, parse_sidecar
@@ -87,7 +87,7 @@ class FrameInfo:
 
 def frame_stem(scene: str, illuminant: str, intensity_factor: float) -> str:
     """File stem of a frame, e.g. ``macbeth_26_D65_F0.1``; safe on every file system (checked:
-    :func:`camsim.names.safe_component`, a :class:`CamsimError` otherwise)."""
+    :func:`camsim.core.names.safe_component`, a :class:`CamsimError` otherwise)."""
     slug = re.sub(r"[^A-Za-z0-9.+-]+", "-", illuminant).strip("-")
     return safe_component(f"{scene}_{slug}_F{intensity_factor:g}", "frame name", MAX_STEM_BYTES)
 

@@ -20,7 +20,7 @@ import json
 from collections.abc import Iterator
 from pathlib import Path
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.frame_files import SIDECAR_SUFFIX, FrameInfo
 from camsim.io.atomic import write_json_atomic
 

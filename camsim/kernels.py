@@ -1,4 +1,4 @@
-"""Fast exact samplers and block helpers: pure numpy, importing no camsim module but :mod:`camsim.xp`.
+"""Fast exact samplers and block helpers: pure numpy, importing no camsim module but :mod:`camsim.core.xp`.
 
 These are the kernels every sampling method and stage draws with:
 
@@ -18,7 +18,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from camsim.xp import generator_namespace
+from camsim.core.xp import generator_namespace
 
 #: numpy's Poisson sampler refuses means above about 9.2e18; beyond this the Poisson law is a Gaussian to
 #: within a relative skew of 1e-9, and a rounded normal draw is used.

@@ -5,7 +5,7 @@ camera curves and sensor overrides (as a dataset spec's ``scene``), photographs 
 as an ``[images]`` spec's), a crop size, a range of intensity factors F, camera presets with an ISO range or
 virtual cameras drawn from their noise fits — and a seed. ``source.batch(b)`` renders batch *b*: for each of its
 pairs an image, a crop (and flips), an illuminant, F and a camera are drawn on the host from
-:func:`camsim.seeding.pair_batch_seed_sequence` (seed, b), and the noise on the device from a child of the same
+:func:`camsim.core.seeding.pair_batch_seed_sequence` (seed, b), and the noise on the device from a child of the same
 sequence, so a batch depends on the seed and its index only: whichever process draws it, whatever was drawn before.
 :class:`PairBatches` iterates over batch indices (a worker of a data loader takes every n-th).
 
@@ -31,8 +31,8 @@ import numpy as np
 
 from camsim.backends import array_module, device_generator
 from camsim.backends.array_path import device_maps, draw_planes, mosaic
-from camsim.errors import CamsimError
-from camsim.seeding import pair_batch_seed_sequence
+from camsim.core.errors import CamsimError
+from camsim.core.seeding import pair_batch_seed_sequence
 
 #: What ``cameras_mode`` may be: camera presets at an ISO drawn log-uniformly, or virtual cameras (LED's).
 CAMERA_MODES = ("preset", "virtual")
@@ -50,7 +50,7 @@ class PairBatch:
     Attributes
     ----------
     index : int
-        The batch's index (its seed: :func:`camsim.seeding.pair_batch_seed_sequence`).
+        The batch's index (its seed: :func:`camsim.core.seeding.pair_batch_seed_sequence`).
     noisy : array, shape (B, planes, H, W), float32
         DN before quantisation (the EXR's values): k · (charge + read noise) + row noise. Unit: DN.
     clean : array, shape (B, planes, H, W), float32

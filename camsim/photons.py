@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 #: Planck constant as in the paper. Unit: J s.
 PLANCK_J_S = 6.626176e-34

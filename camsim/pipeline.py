@@ -10,7 +10,7 @@
 :func:`make_frame` draws every frame camsim makes: ``camsim render`` and ``camsim dataset`` (through
 :func:`scene_frame`), the paper's experiments (their data points as a :class:`LitScene`), ``camsim emva`` (a
 uniform monochromatic field), the benchmarks, the contact sheet and the tests. Seeds come from
-:mod:`camsim.seeding`.
+:mod:`camsim.core.seeding`.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from functools import cached_property
 import numpy as np
 
 from camsim.camera import Camera, absolute_qe, load_camera
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.expected import ExpectedSignal, expected_signal
 from camsim.fixed_pattern import dark_gain_at
 from camsim.frame_files import FrameInfo
@@ -34,7 +34,7 @@ from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
 from camsim.regions import weighted_rows
 from camsim.render import Frame, check_frame_values, render_frame
 from camsim.scene import Scene
-from camsim.seeding import frame_seed_sequence
+from camsim.core.seeding import frame_seed_sequence
 from camsim.sensor import SensorParams
 from camsim.spectra import WavelengthGrid, cmfs_on_grid
 
@@ -168,7 +168,7 @@ def make_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, *, 
     method : str
         A name of :data:`camsim.methods.METHODS`.
     rng : numpy.random.Generator, numpy.random.SeedSequence or int
-        The frame's seed (see :mod:`camsim.seeding`); the output does not depend on ``workers``.
+        The frame's seed (see :mod:`camsim.core.seeding`); the output does not depend on ``workers``.
     tolerance : float, optional
         ``auto``'s KS tolerance.
     workers : int, optional
@@ -286,7 +286,7 @@ def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed:
     ----------
     seed : int, optional
         The run seed (default the scene's); the frame draws from
-        ``camsim.seeding.frame_seed_sequence(seed, illuminant, intensity_factor)``, so a frame is the same
+        ``camsim.core.seeding.frame_seed_sequence(seed, illuminant, intensity_factor)``, so a frame is the same
         whether it is rendered alone or in a longer run.
     lit, camera : optional
         ``light_scene(scene, illuminant)`` and the scene's camera, when the caller keeps them between frames.

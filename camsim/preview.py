@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from camsim.colorimetry import camera_to_xyz_matrix
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io.atomic import atomic_path
 from camsim.photons import KM_LM_PER_W
 from camsim.render import BLOCK_PIXELS  # the preview works in the renderer's row blocks: memory does not grow
@@ -202,7 +202,7 @@ def _check_view_transform(t: np.ndarray) -> None:
     any camera's), and every pixel of the view would be infinite or NaN."""
     size = float(np.max(np.abs(t), initial=0.0)) if np.all(np.isfinite(t)) else np.inf
     if size > VIEW_FACTOR_MAX:
-        from camsim.errors import CamsimError
+        from camsim.core.errors import CamsimError
 
         white = 1.0 / size if size > 0 else 0.0
         raise CamsimError(f"the perfect white at F = 1 is about {white:.3g} DN, too small for the EXR's linear "

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.photons import scale_to_luminance
 from camsim.rates import FactoredSpectra
 from camsim.regions import check_regions, region_weights

@@ -72,7 +72,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.spectra import CMFS_NAME, WavelengthGrid, align_to_grid, cmfs_on_grid, illuminant_spd, import_colour
 
 DEFAULT_METHOD = "Mallett 2019"

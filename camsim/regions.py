@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.rates import FactoredSpectra
 
 #: The keys a ``[[region]]`` table may hold.

@@ -15,14 +15,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.expected import ExpectedSignal
 from camsim.fixed_pattern import FixedPattern, dark_gain_at, fixed_pattern
 from camsim.methods import get_method
-from camsim.seeding import block_generators
+from camsim.core.seeding import block_generators
 from camsim.sensor import SensorParams
 from camsim.stages import dn_dtype, saturating_mean_e, saturation_level_e
-from camsim.xp import namespace_of
+from camsim.core.xp import namespace_of
 
 if TYPE_CHECKING:  # the plan's module imports scipy: only its type is needed here
     from camsim.methods.plan import DrawPlan
@@ -66,7 +66,7 @@ class Frame:
 
 def clean_dn(labels, expected: ExpectedSignal, sensor: SensorParams, maps: FixedPattern | None = None):
     """The clean layer: the expected DN before quantisation per pixel, G · G_Ve⁻ · E[f_sat(S + D)], shape (3, H, W),
-    float32, on the device of ``labels`` (numpy, or CuPy with ``maps`` there too: :mod:`camsim.xp`).
+    float32, on the device of ``labels`` (numpy, or CuPy with ``maps`` there too: :mod:`camsim.core.xp`).
 
     With fixed-pattern maps, each pixel's shift of the mean — (g − 1) S̄ (PRNU), (d − 1) D̄ (dark-current DSNU)
     and its offset o — is added to its spectrum's value and the sum clipped at the full well: exact below
@@ -246,7 +246,7 @@ def render_frame(
     """Render one frame: per-pixel noise on top of the per-spectrum expected signal.
 
     A block scheduler: the frame is cut into row blocks (:func:`block_rows`), block *b* draws from generator
-    *b* (:func:`camsim.seeding.block_generators`) with the method's ``draw_block``
+    *b* (:func:`camsim.core.seeding.block_generators`) with the method's ``draw_block``
     (:mod:`camsim.methods`), on a pool of threads.
 
     Parameters

@@ -7,7 +7,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from camsim.camera import load_camera
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.frame_files import frame_stem, write_frame
 from camsim.frame_manifest import MANIFEST_NAME, FrameManifest
 from camsim.io.dng import MIN_SIZE
@@ -21,7 +21,7 @@ from camsim.spectra import illuminant_spd
 
 def check_scene(scene: Scene) -> None:
     """Fail early, before any frame is written, on names that do not resolve (or make unsafe file names:
-    :mod:`camsim.names`) and sizes that cannot be written."""
+    :mod:`camsim.core.names`) and sizes that cannot be written."""
     get_method(scene.method)
     for name in scene.illuminants:
         illuminant_spd(name, scene.grid)

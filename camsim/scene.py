@@ -19,11 +19,11 @@ import numpy as np
 
 from camsim.builtin_scenes import resolve_scene_file
 from camsim.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
 from camsim.regions import Region, check_regions, parse_regions
-from camsim.names import safe_component
-from camsim.schema import Param, check_frame_size, finite_float, param, params_of, read_toml, typed, validate
+from camsim.core.names import safe_component
+from camsim.core.schema import Param, check_frame_size, finite_float, param, params_of, read_toml, typed, validate
 from camsim.camera_presets import sensor_preset
 from camsim.sensor import SENSOR_PARAMS, SensorParams
 from camsim.sources import SOURCES, ChartSource, SceneSource
@@ -95,7 +95,7 @@ class Scene:
     def __post_init__(self):
         if not isinstance(self.source, SceneSource):
             raise CamsimError(f"a scene's source must be a scene source, got {self.source!r}")
-        safe_component(self.name, "scene name")  # it names the frames' files: camsim.names
+        safe_component(self.name, "scene name")  # it names the frames' files: camsim.core.names
         if not self.illuminants:
             raise CamsimError("scene lists no illuminants")
         if not self.intensity_factors:

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.cfa import CFA_PATTERNS
-from camsim.errors import CamsimError
-from camsim.schema import param, params_of, record, validate
+from camsim.core.errors import CamsimError
+from camsim.core.schema import param, params_of, record, validate
 
 READ_NOISE_MODELS = ("gaussian", "tukey-lambda")
 
@@ -41,7 +41,7 @@ def _tukey_record(sensor) -> dict:
 class SensorParams:
     """Sensor model parameters (the paper's Table I by default), with each stage's on/off switch.
 
-    Every field is declared with :func:`camsim.schema.param` (type, unit, range, help): that declaration is the
+    Every field is declared with :func:`camsim.core.schema.param` (type, unit, range, help): that declaration is the
     only one, and the scene-file reader, the dataset spec, the command line (``--sensor NAME=VALUE``), the
     sidecar and the analysis's grouping keys all derive from it. Values are checked (and ints made floats where
     a float is meant) on construction; a bad one is a :class:`CamsimError`.
@@ -189,7 +189,7 @@ class SensorParams:
     def to_dict(self) -> dict:
         """Parameters with units in their names, JSON-ready (those declared ``omit_default`` only when set)."""
         out = dataclasses.asdict(self)
-        for p in SENSOR_PARAMS:  # parameters recorded only when set (camsim.schema.Param.omit_default)
+        for p in SENSOR_PARAMS:  # parameters recorded only when set (camsim.core.schema.Param.omit_default)
             if p.omit_default and out[p.name] == p.default:
                 del out[p.name]
         out["dark_current_e_per_s"] = list(self.dark_current_e_per_s)
@@ -197,7 +197,7 @@ class SensorParams:
         return out
 
     def sidecar_record(self) -> dict:
-        """The sidecar's sensor keys (:func:`camsim.schema.record`): parameters, derived levels and ``stages``."""
+        """The sidecar's sensor keys (:func:`camsim.core.schema.record`): parameters, derived levels and ``stages``."""
         return record(self)
 
 
@@ -205,7 +205,7 @@ class SensorParams:
 #: (``exposure = "auto"``) differ in them and are still one measurement.
 EXPOSURE_KEYS = ("exposure_s", "black_level_dn", "dark_level_dn", "black_level_tag_dn")
 
-#: The sensor's parameters (:class:`camsim.schema.Param`), in declaration order.
+#: The sensor's parameters (:class:`camsim.core.schema.Param`), in declaration order.
 SENSOR_PARAMS = params_of(SensorParams)
 #: Names of the stage switches.
 STAGES = tuple(p.name for p in SENSOR_PARAMS if p.stage)
@@ -250,7 +250,7 @@ def preset(name: str, **overrides) -> SensorParams:
 
 def with_checked_values(sensor: SensorParams, **values) -> SensorParams:
     """``sensor`` with scalar fields set to ``values`` that are already checked and typed one by one, each by its
-    schema entry (:meth:`camsim.schema.Param.coerce`, as a dataset's own values are): only the checks across fields
+    schema entry (:meth:`camsim.core.schema.Param.coerce`, as a dataset's own values are): only the checks across fields
     run again — a tenth of :func:`with_overrides`'s work, for a dataset's planning, which makes one per frame."""
     sensor = copy.copy(sensor)
     for name, value in values.items():

@@ -5,7 +5,7 @@ and ``--dark``, and a file on disk may say anything. :func:`parse_sidecar` turns
 the JSON parser's own limits (nesting deeper than Python's recursion limit, an integer of more than 4300 digits)
 reported as bad input; :func:`check_sidecar` checks every key the readers use for its type, its shape, its range
 and finiteness. The sensor's keys are checked by their declaration in :class:`camsim.sensor.SensorParams`
-(:meth:`camsim.schema.Param.coerce`); the frame's own keys (the scene, the patches, the camera's curves, the
+(:meth:`camsim.core.schema.Param.coerce`); the frame's own keys (the scene, the patches, the camera's curves, the
 derived levels) are declared here, in :data:`FRAME_KEYS`. A sidecar that passes gives finite numbers of the
 expected shapes to every computation of the analysis.
 """
@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 import math
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 #: Keys every frame's sidecar has (a sidecar without one is not a camsim frame's).
 REQUIRED = ("illuminant", "intensity_factor", "photon_statistics", "dn_per_electron", "black_level_dn",
@@ -235,7 +235,7 @@ def _too_deep(value, limit: int = MAX_DEPTH) -> bool:
 
 def check_sidecar(meta, where) -> dict:
     """``meta`` if it is a camsim frame's sidecar whose every key the readers use is of the right type, shape and
-    range, and finite; else :class:`~camsim.errors.CamsimError`.
+    range, and finite; else :class:`~camsim.core.errors.CamsimError`.
 
     Parameters
     ----------

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.errors import CamsimError
-from camsim.signals import handlers_installed
+from camsim.core.errors import CamsimError
+from camsim.core.signals import handlers_installed
 
 CMFS_NAME = "CIE 1931 2 Degree Standard Observer"
 

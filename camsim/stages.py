@@ -4,7 +4,7 @@ Every sampling method composes these (:mod:`camsim.methods`): the exact and the 
 fused per channel, straight to digital numbers; ``spectral`` runs them in sequence on electrons. Work stays in
 electrons until :func:`electrons_to_dn`.
 
-The functions take numpy or CuPy arrays (:mod:`camsim.xp`: the namespace follows the arrays, the random draws the
+The functions take numpy or CuPy arrays (:mod:`camsim.core.xp`: the namespace follows the arrays, the random draws the
 generator): the device path (:mod:`camsim.backends.array_path`) composes the same functions on a GPU. Two CPU
 kernels are used only where the CPU's block renderer asks for them — the histogram sampler of one mean over a
 rectangle (``size`` with a scalar mean) and float32 Box–Muller (``work`` scratch) — and two numpy calls that CuPy
@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from camsim.kernels import poisson, poisson_run, standard_normal_f32, tukey_lambda
-from camsim.xp import namespace_of
+from camsim.core.xp import namespace_of
 
 #: ε of the saturation cap: a pixel whose mean charge is at or above :func:`saturating_mean_e` stays below its
 #: full well with probability at most ε, and drawing it at that mean changes the law of its value by at most ε in

@@ -10,7 +10,7 @@ import pytest
 from camsim.analysis.analyze import analyse_paths
 from camsim.analysis.patches import AnalysisSettings, analyse_frame
 from camsim.cli import main
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.frame_files import load_frame
 from camsim.run import render_scene
 from tests.helpers import ROOT, small_scene

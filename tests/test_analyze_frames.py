@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from camsim.cli import main
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.pipeline import light_scene
 from camsim.camera import load_camera
 from camsim.regions import Region

@@ -14,12 +14,12 @@ from scipy import stats
 from camsim.backends import device_generator
 from camsim.backends.array_path import render_frame_xp
 from camsim.dn_law import dn_pmf
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.expected import expected_signal
 from camsim.kernels import poisson, tukey_lambda_variance
 from camsim.render import clean_dn
 from camsim.sensor import PRESETS, SensorParams
-from camsim.xp import to_host
+from camsim.core.xp import to_host
 from tests.helpers import patch_pixels, small_scene
 
 TABLE1 = PRESETS["paper-table1"]

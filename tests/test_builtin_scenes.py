@@ -17,7 +17,7 @@ import pytest
 from camsim.builtin_scenes import SCENES_DIR, builtin_scene_names, builtin_scene_path, resolve_scene_file
 from camsim.cli import main
 from camsim.dataset import load_spec
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.experiments.scenarios import DEFAULT_SCENE
 from camsim.scene import load_scene
 from camsim.sources import ImageSource

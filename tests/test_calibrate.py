@@ -27,7 +27,7 @@ from camsim.camera_presets import sensor_preset
 from camsim.calibration import dark, flats, ptc, tukey
 from camsim.calibration.estimate import Estimate
 from camsim.cli import main
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io.dng import write_dng, write_dng_cfa
 from camsim.kernels import tukey_lambda, tukey_lambda_variance
 from camsim.pipeline import LitScene, make_frame

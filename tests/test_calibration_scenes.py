@@ -23,7 +23,7 @@ import pytest
 
 from camsim.camera_presets import sensor_preset
 from camsim.cli import main
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.frame_files import load_frame
 from camsim.scene import load_scene
 from tests.helpers import ROOT

@@ -13,7 +13,7 @@ import pytest
 from scipy import stats
 
 from camsim.camera_presets import CAMERA_PRESETS, camera_preset, read_preset_file, sensor_preset
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from tests.helpers import render, small_scene
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "cameras"

@@ -9,7 +9,7 @@ import rawpy
 from camsim.analysis.analyze import analyse_paths
 from camsim.analysis.patches import AnalysisSettings
 from camsim.io.exr import read_exr, read_exr_oiio
-from camsim.seeding import frame_seed_sequence
+from camsim.core.seeding import frame_seed_sequence
 from camsim.run import render_scene
 from camsim.cfa import CFA_PATTERNS, cfa_sites
 from camsim.sensor import preset
@@ -37,7 +37,7 @@ def test_each_site_draws_its_own_channel(pattern, method):
 
 
 def test_odd_frame_sizes_are_refused():
-    from camsim.errors import CamsimError
+    from camsim.core.errors import CamsimError
 
     with pytest.raises(CamsimError, match="even frame size"):
         render(small_scene(width=121, height=80), preset("paper-table1", cfa="RGGB"))

@@ -7,7 +7,7 @@ import pytest
 import scipy.io
 
 from camsim.cli import main
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io import cube_files
 from camsim.io.cube_files import cube_size, read_cube
 from camsim.spectra import WavelengthGrid, import_colour

@@ -13,7 +13,7 @@ import camsim.dataset.runner as runner
 from camsim.commands.dataset import add_parser, run
 from camsim.dataset import _pool
 from camsim.dataset import load_spec, read_manifest, run_dataset
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from tests.helpers import ROOT, file_tree, write_text_file
 
 SCENE = (ROOT / "scenes" / "macbeth_26.toml").as_posix()

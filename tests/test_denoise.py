@@ -16,7 +16,7 @@ from camsim.denoise.denoisers import (DENOISERS, bm3d_available, estimate_noise_
                                      resolve_denoiser)
 from camsim.denoise.evaluate import EvalSettings, evaluate
 from camsim.denoise.summary import Criterion, verdict
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.run import render_scene
 from camsim.scene import load_scene
 from tests.helpers import ROOT

@@ -11,7 +11,7 @@ import pytest
 
 from camsim.backends import check_device, device_method
 from camsim.cli import main
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 RENDER = ["render", "macbeth_26", "--size", "120x80", "--illuminant", "D65", "--intensity", "1", "-q"]
 

@@ -14,7 +14,7 @@ import tifffile
 
 from camsim.camera import load_camera
 from camsim.dn_law import dn_pmf
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.frame_files import write_frame
 from camsim.io.dng import read_dng, write_dng, write_dng_cfa
 from camsim.noise_profile import dng_noise_profile, frame_noise_profile, shot_step_e

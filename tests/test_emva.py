@@ -238,7 +238,7 @@ def test_no_second_stack_unless_asked_or_needed():
     (40.0, "paper-table1", "saturates this sensor at the DSNU's second exposure time"),
 ])
 def test_a_bad_second_exposure_is_refused(factor, preset_name, message):
-    from camsim.errors import CamsimError
+    from camsim.core.errors import CamsimError
 
     with pytest.raises(CamsimError, match=message):
         run(preset_name, EmvaSetup(size=16, steps=10, low_steps=0, stack_frames=2, dsnu_exposure_factor=factor))

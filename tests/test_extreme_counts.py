@@ -18,7 +18,7 @@ from scipy import special, stats
 
 from camsim.camera import load_camera
 from camsim.cli import main
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.pipeline import check_frames, frame_warnings, light_scene, make_frame
 from camsim.sensor import PRESETS, SensorParams
 from camsim.stages import SATURATION_CAP_TAIL, cap_mean_e, collect_charge_e, saturating_mean_e

@@ -10,7 +10,7 @@ import camsim.render as render_module
 from camsim.io.dng import read_dng
 from camsim.io.exr import read_exr, read_exr_oiio
 from camsim.noise_profile import frame_noise_profile
-from camsim.seeding import frame_seed_sequence
+from camsim.core.seeding import frame_seed_sequence
 from camsim.run import render_scene
 from tests.helpers import libraw_black_levels, render, small_scene
 

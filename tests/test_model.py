@@ -8,7 +8,7 @@ import pytest
 
 from camsim.camera import AnchorScale, PhysicalScale, absolute_qe, load_camera
 from camsim.chart import ChartGeometry
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.expected import expected_signal
 from camsim.photons import LIGHT_SPEED_M_S, PLANCK_J_S, photon_radiance
 from camsim.radiance import scene_radiance

@@ -17,7 +17,7 @@ import pytest
 
 import camsim.io.atomic as atomic
 from camsim.cli import main
-from camsim.errors import OutputError
+from camsim.core.errors import OutputError
 from camsim.frame_manifest import MANIFEST_NAME
 from camsim.io.atomic import atomic_path, undo_on_failure, write_text_atomic
 from camsim.io.output_folder import FolderBusyError, output_folder

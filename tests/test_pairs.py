@@ -6,9 +6,9 @@ where a GPU is."""
 import numpy as np
 import pytest
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.pairs import PairBatches, PairSource
-from camsim.xp import to_host
+from camsim.core.xp import to_host
 from tests.helpers import ROOT
 
 IMAGES = ROOT / "scenes" / "images"

@@ -7,10 +7,10 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io.exr import read_exr
 from camsim.preview import preview_srgb, write_preview_png
-from camsim.seeding import frame_seed_sequence
+from camsim.core.seeding import frame_seed_sequence
 from camsim.run import render_scene
 from camsim.scene import load_scene
 from tests.helpers import ROOT, render

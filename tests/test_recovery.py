@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from camsim import recovery
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.recovery import (RECOVERY_METHODS, basis_matrix, clear_cache, mallett_basis, rgb_to_distinct_spectra,
                              rgb_to_spectra)
 from camsim.spectra import CMFS_NAME, WavelengthGrid, camera_sensitivities, illuminant_spd, import_colour

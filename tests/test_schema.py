@@ -12,10 +12,10 @@ import pytest
 
 from camsim.analysis.grouping import GROUP_KEYS
 from camsim.dataset.spec import PARAMETERS
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS, get_method
 from camsim.scene import RENDER_PARAMS, load_scene
-from camsim.schema import Param
+from camsim.core.schema import Param
 from camsim.sensor import SENSOR_PARAMS, STAGES, SensorParams
 
 #: A valid value different from the default, for each kind of parameter.

@@ -11,7 +11,7 @@ from scipy import stats
 
 from camsim.builtin_scenes import builtin_scene_names
 from camsim.cli import main
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.radiance import scene_radiance
 from camsim.scene import load_scene
 from camsim.sources import SOURCES, TargetSource

@@ -12,7 +12,7 @@ from scipy import stats
 from camsim.camera_presets import CAMERA_PRESETS, sensor_preset
 from camsim.camera_presets.virtual import draw_virtual_cameras
 from camsim.dataset.spec import load_spec
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 N = 4000
 QUANTITIES = ("tukey_scale_dn", "gaussian_sigma_dn", "row_sigma_dn")

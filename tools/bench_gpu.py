@@ -54,7 +54,7 @@ def progress(message: str) -> None:
 
 def timed(fn, xp, repeats: int) -> float:
     """Median wall time of ``fn()`` over ``repeats`` runs after one warm-up, the device synchronised."""
-    from camsim.xp import synchronize
+    from camsim.core.xp import synchronize
 
     fn()
     synchronize(xp)
@@ -80,7 +80,7 @@ def w1_setup(width: int, height: int) -> dict:
 def w1_device(xp, w: dict, repeats: int) -> tuple[float, float]:
     """(render, transfer) seconds of W1 on ``xp``'s device."""
     from camsim.backends.array_path import render_frame_xp
-    from camsim.xp import to_host
+    from camsim.core.xp import to_host
 
     labels = xp.asarray(w["lit"].labels)
     sensor = w["scene"].sensor
@@ -118,7 +118,7 @@ def pairs_per_s(device: str, image: Path, crop: int, batch: int, batches: int) -
     from camsim.camera_presets.virtual import cameras_with_fits
     from camsim.pairs import PairSource
     from camsim.scene import load_scene
-    from camsim.xp import synchronize
+    from camsim.core.xp import synchronize
 
     scene = load_scene(SCENE).replace(illuminants=(ILLUMINANT,))
     source = PairSource(scene, (str(image),), crop=(crop, crop), batch_size=batch, intensity=(1e-3, 1.0),
@@ -139,7 +139,7 @@ def poisson_chi2(xp, draws: int) -> dict:
 
     from camsim.backends import device_generator
     from camsim.kernels import poisson
-    from camsim.xp import to_host
+    from camsim.core.xp import to_host
 
     rng = device_generator(xp, np.random.SeedSequence(SEED, spawn_key=(0xC412,)))
     out = {}
@@ -179,7 +179,7 @@ def main() -> None:
     draws = args.draws or (100_000 if args.quick else 1_000_000)
 
     from camsim.backends import cuda_module, device_name
-    from camsim.errors import CamsimError
+    from camsim.core.errors import CamsimError
 
     result = {"device": device_name(), "w1_size": [width, height], "pair_size": crop, "batch": args.batch}
     try:

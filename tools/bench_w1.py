@@ -134,7 +134,7 @@ def image_setup(path: Path) -> dict:
 def render(w: dict, method: str, workers: int = 2, rng=None):
     """W1 by ``method`` through camsim's frame pipeline (the frame's own seed unless ``rng`` is given)."""
     from camsim.pipeline import make_frame
-    from camsim.seeding import frame_seed_sequence
+    from camsim.core.seeding import frame_seed_sequence
 
     rng = frame_seed_sequence(SEED, ILLUMINANT, FACTOR) if rng is None else rng
     return make_frame(w["lit"], w["scene"].sensor, FACTOR, statistics="pixel", method=method, rng=rng,

@@ -16,9 +16,9 @@ from camsim.analysis.dark import DarkFrame, load_dark
 from camsim.analysis.frame_stats import FRAME_STAT_COLUMNS, frame_statistics
 from camsim.analysis.grouping import group_key
 from camsim.analysis.patches import AnalysisSettings, analyse_frame, frame_matrix
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io.atomic import write_json_atomic, write_text_atomic
-from camsim.optional_numbers import mean_of_defined
+from camsim.core.optional_numbers import mean_of_defined
 from camsim.io.output_folder import make_folder
 
 CSV_NAME = "analysis.csv"

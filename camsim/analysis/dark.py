@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from camsim.colorimetry import CHANNELS
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.frame_files import LoadedFrame, load_frame
 
 #: A dark frame whose sidecar expects more signal than this in any patch (or the surround) is lit. Unit: e⁻.

@@ -11,8 +11,8 @@ from camsim.analysis.ellipse import fit_ellipse
 from camsim.frame_files import LoadedFrame
 from camsim.analysis.snr import snr_from_moments, snr_model
 from camsim.colorimetry import CHANNELS, camera_to_xyz_matrix, chromaticity_xy, xyz_from_camera
-from camsim.errors import CamsimError
-from camsim.optional_numbers import finite_or_none
+from camsim.core.errors import CamsimError
+from camsim.core.optional_numbers import finite_or_none
 
 BLACK_MODES = ("none", "sidecar", "dark-frame")
 

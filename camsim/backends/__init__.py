@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.methods import get_method
 
 #: The devices of ``camsim render --device``.

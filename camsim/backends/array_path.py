@@ -1,6 +1,6 @@
 """The array path: a whole frame drawn at once, by the stage functions of :mod:`camsim.stages`, on numpy or CuPy.
 
-One implementation for both namespaces (:mod:`camsim.xp`): the arrays' type picks the device, and the random
+One implementation for both namespaces (:mod:`camsim.core.xp`): the arrays' type picks the device, and the random
 generator (numpy's ``PCG64`` or CuPy's cuRAND Philox, :func:`camsim.backends.device_generator`) draws there. It
 draws the exact law of ``pixel`` statistics per pixel and plane:
 
@@ -46,7 +46,7 @@ from camsim.stages import (
     saturate_e,
     saturation_level_e,
 )
-from camsim.xp import generator_namespace, namespace_of, to_host
+from camsim.core.xp import generator_namespace, namespace_of, to_host
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ from camsim.calibration.measure import GAUSSIAN_LAMBDA_TOLERANCE, Calibration
 from camsim.calibration.ptc import FIT_FRACTION
 from camsim.calibration.tukey import GAUSSIAN_LAMBDA
 from camsim.io.atomic import write_json_atomic, write_text_atomic
-from camsim.optional_numbers import finite_or_none
+from camsim.core.optional_numbers import finite_or_none
 
 FILES = {
     "preset": "preset.toml",

@@ -13,7 +13,7 @@ from pathlib import Path
 from camsim.camera_presets.data import build_presets
 from camsim.camera_presets.files import read_preset_file
 from camsim.camera_presets.model import CameraPreset, IsoPoint, NoiseFit
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.sensor import PRESETS, SensorParams, preset, with_overrides
 
 #: The built-in camera presets, by name.

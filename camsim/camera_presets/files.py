@@ -29,9 +29,9 @@ from pathlib import Path
 
 from camsim.camera_presets.model import CameraPreset, IsoPoint
 from camsim.cfa import CFA_PATTERNS
-from camsim.errors import CamsimError
-from camsim.names import safe_component
-from camsim.schema import read_toml, typed
+from camsim.core.errors import CamsimError
+from camsim.core.names import safe_component
+from camsim.core.schema import read_toml, typed
 
 _PRESET_KEYS = {"name": str, "title": str, "source": str, "bits": int, "pedestal_dn": int, "cfa": str,
                 "read_noise_model": str, "full_well_e": float, "conversion_gain_v_per_e": float,

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.kernels import tukey_lambda_variance
 from camsim.sensor import READ_NOISE_MODELS, SENSOR_PARAMS, SensorParams
 

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from camsim.camera_presets.model import CameraPreset, IsoPoint
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 #: What ``k_range`` may be: each camera's own range, or the union of the listed cameras' ranges.
 K_RANGES = ("camera", "union")

@@ -4,7 +4,7 @@
 * ``add_parser(subparsers)`` adds the sub-command and its options to an ``ArgumentParser.add_subparsers()``
   object and returns its parser;
 * ``run(args) -> int`` carries it out and returns the exit status; user errors raise
-  :class:`camsim.errors.CamsimError`, which :func:`camsim.cli.main` prints on one line (exit 2).
+  :class:`camsim.core.errors.CamsimError`, which :func:`camsim.cli.main` prints on one line (exit 2).
 
 Importing a command module does no work: the modules that do the work are imported inside ``run``.
 """

@@ -1,6 +1,6 @@
 """``camsim dataset``: render a dataset of frames (grid or random draws of parameters) with a manifest, resumably.
 
-``run`` raises :class:`camsim.errors.CamsimError` for user errors, which ``camsim.cli.main`` reports on one line.
+``run`` raises :class:`camsim.core.errors.CamsimError` for user errors, which ``camsim.cli.main`` reports on one line.
 """
 
 from __future__ import annotations

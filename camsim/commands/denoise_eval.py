@@ -1,7 +1,7 @@
 """``camsim denoise-eval``: score denoisers on rendered frames against the clean layer (PSNR, SSIM, colour bias,
 noise ellipses, ΔE), per light level.
 
-User errors raise :class:`camsim.errors.CamsimError` (printed on one line by ``camsim.cli.main``, exit 2).
+User errors raise :class:`camsim.core.errors.CamsimError` (printed on one line by ``camsim.cli.main``, exit 2).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from pathlib import Path
 
 from camsim.cli_types import non_negative_int, positive_float
 from camsim.commands import DEFAULT_OUT, writing_to
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 #: Longest default output folder name (the denoisers' names joined by '+'); beyond it, "comparison".
 MAX_DIR_NAME = 80

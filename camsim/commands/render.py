@@ -9,7 +9,7 @@ from pathlib import Path
 from camsim.backends import DEVICES
 from camsim.cli_types import exposure_setting, positive_float, positive_int, schema_value, sensor_setting
 from camsim.commands import DEFAULT_OUT, camera_argument, exr_compression_argument, preset_argument
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS
 from camsim.scene import RENDER_PARAMS
 from camsim.sensor import SENSOR_PARAMS, STAGES

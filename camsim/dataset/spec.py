@@ -33,7 +33,7 @@ keeps the scene file's value; the scene's ``illuminants`` and ``intensity_factor
 
 Distributions of ``[random]``: ``uniform = [a, b]``, ``log_uniform = [a, b]`` (a > 0), ``integers = [a, b]``
 (inclusive) and ``choice = [v, ...]``. Each parameter draws from its own stream,
-:func:`camsim.seeding.dataset_parameter_generator`, one value per frame in frame order, so
+:func:`camsim.core.seeding.dataset_parameter_generator`, one value per frame in frame order, so
 the frame list is the same on every run and adding a parameter leaves the others' draws unchanged.
 
 Scenes may come from a folder of images (an ``[images]`` table): each frame is a random crop of a randomly chosen
@@ -50,7 +50,7 @@ chart, cube or image replaced by the crop, a reflectance image: :class:`camsim.s
 Each grid point's draw (its repeats share it: noise2noise pairs of one crop) picks an image (uniformly among the
 files, in name order), the crop's offset (x, y uniform over every position inside the image) and, with
 ``flips``, whether it is flipped left-right and upside-down (each with probability 1/2), each from its own stream
-(:func:`camsim.seeding.dataset_parameter_generator` of ``images.file``, ``images.x``, ``images.y``,
+(:func:`camsim.core.seeding.dataset_parameter_generator` of ``images.file``, ``images.x``, ``images.y``,
 ``images.flip_horizontal``, ``images.flip_vertical``). The frame's record holds them (:data:`IMAGE_KEYS`: the file
 name relative to the folder, its SHA-256, ``crop_x``, ``crop_y``, ``flip_horizontal``, ``flip_vertical``), so that
 the id changes with the image's bytes. A crop is of the file as stored; a flip mirrors the cropped frame.
@@ -81,15 +81,15 @@ from pathlib import Path, PurePosixPath
 
 from camsim.builtin_scenes import resolve_scene_file, resolve_spec_file
 from camsim.camera import load_camera
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.pipeline import check_frame, exposure_record, frame_sensor, light_scene
 from camsim.run import check_scene
 from camsim.io.dng import MIN_SIZE
 from camsim.io.exr_compression import check_exr_compression
-from camsim.names import safe_component
-from camsim.schema import INT64_MAX, check_frame_size
+from camsim.core.names import safe_component
+from camsim.core.schema import INT64_MAX, check_frame_size
 from camsim.scene import FRAME_PARAMS, RENDER_PARAMS, Scene, check_intensity_factor, load_scene, read_toml
-from camsim.seeding import dataset_frame_seeds, dataset_parameter_generator
+from camsim.core.seeding import dataset_frame_seeds, dataset_parameter_generator
 from camsim.sensor import SENSOR_PARAMS, with_checked_values
 from camsim.sources.image import ImageSource
 from camsim.camera_presets.virtual import VIRTUAL_KEYS
@@ -245,7 +245,7 @@ class FrameSpec:
         every frame of the spec, at least five digits).
     seed : int
         The frame's seed (< 2**53): its generator is
-        ``camsim.seeding.frame_seed_sequence(seed, illuminant, intensity_factor)``, as for ``camsim render``.
+        ``camsim.core.seeding.frame_seed_sequence(seed, illuminant, intensity_factor)``, as for ``camsim render``.
     group : FrameGroup
     values : tuple
         The frame's own values, named by ``group.value_keys``: repeat, intensity factor, sensor parameters.

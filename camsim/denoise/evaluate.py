@@ -38,7 +38,7 @@ from camsim.denoise.image_scores import image_scores
 from camsim.denoise.patch_colour import patch_colour, patch_row, reference_labs
 from camsim.denoise.summary import (NOISY, Criterion, band_verdicts, f_band, summarise, summarise_bands,
                                     undefined_counts, verdict)
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 __all__ = ["EvalSettings", "FrameResult", "Evaluation", "evaluate", "evaluate_frame"]
 

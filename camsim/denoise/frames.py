@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from camsim.frame_files import load_frame, search_frames
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 #: Why an EXR in a folder that no sidecar claims is not scored.
 UNCOMMITTED = "uncommitted: no sidecar claims it (a frame being written, or left by an interrupted writer)"

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.fixed_pattern import lognormal_log_sigma
 from camsim.sensor import PRESETS, SensorParams
 from camsim.stages import adc_offset_dn

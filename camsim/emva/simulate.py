@@ -37,11 +37,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from camsim.camera import DEFAULT_CAMERA, PhysicalScale, absolute_qe, load_camera
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.fixed_pattern import fixed_pattern
-from camsim.optional_numbers import finite_or_none
+from camsim.core.optional_numbers import finite_or_none
 from camsim.pipeline import LitScene, make_frame
-from camsim.seeding import emva_frame_seed_sequence
+from camsim.core.seeding import emva_frame_seed_sequence
 from camsim.cfa import cfa_sites
 from camsim.sensor import SensorParams
 from camsim.spectra import WavelengthGrid

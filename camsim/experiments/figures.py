@@ -19,8 +19,8 @@ import numpy as np
 from camsim.frame_files import load_frame
 from camsim.analysis.patches import AnalysisSettings, demosaiced_samples, frame_matrix, patch_samples
 from camsim.colorimetry import CHANNELS, chromaticity_xy, xyz_from_camera
-from camsim.errors import CamsimError
-from camsim.optional_numbers import finite_or_none as _num
+from camsim.core.errors import CamsimError
+from camsim.core.optional_numbers import finite_or_none as _num
 from camsim.plotting import new_figure, save_png
 from camsim.io.output_folder import make_folder
 
@@ -567,7 +567,7 @@ ANALYSIS_FIGURES = ("xy", "delta_e", "snr")
 def _slug(text: str) -> str:
     """``text`` (from a sidecar: input) as a file-name prefix: letters, digits, ``-`` and ``.`` kept, the rest ``_``;
     no leading ``.`` (a hidden file) and at most 100 characters, so that the figure's name is a safe file name
-    (:mod:`camsim.names`)."""
+    (:mod:`camsim.core.names`)."""
     slug = "".join(ch if ch.isalnum() or ch in "-." else "_" for ch in text).strip("_").lstrip(".")
     return slug[:100] or "frames"
 

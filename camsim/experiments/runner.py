@@ -18,7 +18,7 @@ from camsim.frame_manifest import FrameManifest
 from camsim.io.output_folder import make_folder
 from camsim.photons import photon_radiance
 from camsim.pipeline import LitScene, make_frame
-from camsim.seeding import frame_seed_sequence
+from camsim.core.seeding import frame_seed_sequence
 from camsim.scene import load_scene
 from camsim.sensor import SensorParams
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from camsim.builtin_scenes import builtin_scene_path
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.experiments import findings as fd
 from camsim.experiments.datapoints import incident_photons
 from camsim.experiments.report import Finding, write_csv, write_numbers, write_report

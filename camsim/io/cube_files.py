@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.spectra import WavelengthGrid, align_to_grid
 
 #: Bytes of float64 values in one block (its B source bands or N grid bins, whichever is more): 32 MiB.
@@ -252,7 +252,7 @@ def read_npy(path: Path, *, variable: str | None = None) -> _Stored:
 
 
 def _check_npy_header(path: Path) -> None:
-    """Check the (H, W) of a ``.npy`` file's header against :data:`camsim.pixel_limit.MAX_PIXELS` before the file is
+    """Check the (H, W) of a ``.npy`` file's header against :data:`camsim.core.pixel_limit.MAX_PIXELS` before the file is
     mapped (a header may claim any shape); other problems are left to ``np.load``, which reports them."""
     from numpy.lib import format as npy_format
 
@@ -279,7 +279,7 @@ def _check_npy_header(path: Path) -> None:
 
 
 def _check_size(width, height, path: Path) -> None:
-    from camsim.pixel_limit import check_pixel_count
+    from camsim.core.pixel_limit import check_pixel_count
 
     check_pixel_count(int(width), int(height), f"cube {path}")
 

@@ -78,9 +78,9 @@ import numpy as np
 import tifffile
 
 from camsim.cfa import CFA_PATTERNS
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io.atomic import atomic_path
-from camsim.pixel_limit import check_pixel_count
+from camsim.core.pixel_limit import check_pixel_count
 
 __all__ = ["write_dng", "write_dng_cfa", "read_dng", "shot_metadata", "rational_bound", "darktable_xmp",
            "DARKTABLE_XMP_SUFFIX", "MIN_SIZE", "CFA_PATTERNS"]

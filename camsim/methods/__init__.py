@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from importlib import import_module
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 #: Default ``auto`` tolerance: the largest KS distance accepted between a pixel value's exact law (before
 #: quantisation) and the law ``auto`` draws it from, per spectrum and channel. With Table I's 4 e⁻ read noise the

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.schema import typed  # noqa: F401  (the sources' table reader, kept importable from here)
+from camsim.core.schema import typed  # noqa: F401  (the sources' table reader, kept importable from here)
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from camsim.chart import ChartGeometry
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.sources.base import SceneSource, SourceSpectra, typed
 from camsim.spectra import reflectance_set
 

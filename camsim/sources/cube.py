@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io.cube_files import CUBE_READERS, CubeRows, cube_size, read_cube
 from camsim.rates import FactoredSpectra
 from camsim.sources.base import SceneSource, SourceSpectra, typed

@@ -53,7 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.photons import scale_to_luminance
 from camsim.rates import FactoredSpectra
 from camsim.sources.base import SceneSource, SourceSpectra, typed
@@ -130,7 +130,7 @@ class ImageSource(SceneSource):
             raise CamsimError(f"[image] size must be [width, height], two positive integers (pixels), "
                               f"got {list(self.size) if isinstance(self.size, tuple) else self.size!r}")
         if self.size is not None:
-            from camsim.pixel_limit import check_pixel_count
+            from camsim.core.pixel_limit import check_pixel_count
 
             check_pixel_count(*self.size, "[image] size")
 
@@ -360,10 +360,10 @@ ROWS_PER_READ = 1024
 
 def _open_image(path: str):
     """OpenImageIO's ``ImageInput`` for ``path``, its header read and its size checked against
-    :data:`camsim.pixel_limit.MAX_PIXELS`, before any pixel is decoded; the library's own messages on standard
+    :data:`camsim.core.pixel_limit.MAX_PIXELS`, before any pixel is decoded; the library's own messages on standard
     error (``libpng error: ...``) become the reason of the one-line error."""
     from camsim.io.library_stderr import library_stderr
-    from camsim.pixel_limit import check_pixel_count
+    from camsim.core.pixel_limit import check_pixel_count
 
     oiio = _oiio()
     with library_stderr() as chatter:
@@ -386,7 +386,7 @@ def read_image_codes(path: str, rows: tuple[int, int] | None = None) -> tuple[np
 
     Integer files keep their codes (uint8 / uint16); float files (half, float) come as float32. One channel is
     replicated to three; channels beyond three (alpha) are dropped. The size in the file's header is checked
-    (:func:`camsim.pixel_limit.check_pixel_count`) before any pixel is decoded; the pixels are decoded
+    (:func:`camsim.core.pixel_limit.check_pixel_count`) before any pixel is decoded; the pixels are decoded
     :data:`ROWS_PER_READ` rows at a time (scanline files), so that a signal stops the read between blocks.
 
     Parameters

@@ -29,9 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.errors import CamsimError
-from camsim.seeding import target_generator
-from camsim.schema import finite_float
+from camsim.core.errors import CamsimError
+from camsim.core.seeding import target_generator
+from camsim.core.schema import finite_float
 from camsim.sources.base import SceneSource, SourceSpectra, typed
 from camsim.spectra import reflectance_set
 
@@ -139,7 +139,7 @@ def dead_leaves(width: int, height: int, radius_min_px: float, radius_max_px: fl
     n_spectra : int
         Number of spectra K; labels are in [0, K).
     rng : numpy.random.Generator, numpy.random.SeedSequence or int
-        The pattern's random stream (a scene draws it from :func:`camsim.seeding.target_generator`).
+        The pattern's random stream (a scene draws it from :func:`camsim.core.seeding.target_generator`).
     keep_disks : bool, optional
         Also return every drawn disk (for tests and figures).
 
@@ -359,7 +359,7 @@ class DeadLeavesTarget(TargetSource):
     radius_min_px, radius_max_px : float
         The radius range, pixels (density ∝ r⁻³ on it).
     seed : int
-        The pattern's seed (:func:`camsim.seeding.target_generator`), apart from the frames' noise seed.
+        The pattern's seed (:func:`camsim.core.seeding.target_generator`), apart from the frames' noise seed.
     base_dir : pathlib.Path or None
         Where a reflectance CSV is looked for.
     """

@@ -18,8 +18,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from camsim.errors import CamsimError
-from camsim.pixel_limit import check_pixel_count
+from camsim.core.errors import CamsimError
+from camsim.core.pixel_limit import check_pixel_count
 
 KINDS = ("float", "int", "bool", "str", "rgb")
 #: The integers camsim takes anywhere in its input: numpy's int64. A larger one (TOML has no bound) is refused where
@@ -205,7 +205,7 @@ def typed(table: dict, key: str, kind, default, where: str):
 
 
 def check_frame_size(width, height, where: str) -> None:
-    """Refuse a frame size that is not two positive integers (pixels) of at most :data:`camsim.pixel_limit.MAX_PIXELS` in all.
+    """Refuse a frame size that is not two positive integers (pixels) of at most :data:`camsim.core.pixel_limit.MAX_PIXELS` in all.
 
     Raises
     ------
@@ -215,7 +215,7 @@ def check_frame_size(width, height, where: str) -> None:
     for key, value in (("width", width), ("height", height)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise CamsimError(f"{where} {key} must be a positive integer (pixels), got {value!r}")
-    check_pixel_count(width, height, where)  # the one limit (camsim.pixel_limit), for files' headers too
+    check_pixel_count(width, height, where)  # the one limit (camsim.core.pixel_limit), for files' headers too
 
 
 def read_toml(path: str | Path, what: str) -> dict:

@@ -9,7 +9,7 @@ kilobytes of PNG that decode to 30 000 × 30 000 pixels) is refused from the hea
 
 from __future__ import annotations
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 #: The most pixels (width × height) camsim renders, or decodes from an image or cube file.
 MAX_PIXELS = 200_000_000

@@ -29,7 +29,7 @@ camsim writes UTF-8; macOS may store a decomposed form, which reads back as the 
 
 from __future__ import annotations
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 __all__ = ["MAX_NAME_BYTES", "MAX_STEM_BYTES", "FORBIDDEN_CHARACTERS", "safe_component", "name_problem"]
 
