@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.photons import photon_radiance, scale_to_luminance
-from camsim.spectra import WavelengthGrid, camera_sensitivities, cmfs_on_grid, illuminant_spd
+from camsim.light.photons import photon_radiance, scale_to_luminance
+from camsim.light.spectra import WavelengthGrid, camera_sensitivities, cmfs_on_grid, illuminant_spd
 
 DEFAULT_CAMERA = "Nikon 5100 (NPL)"
 SENSITIVITY_BASES = ("energy", "photon")

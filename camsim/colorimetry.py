@@ -1,6 +1,6 @@
 """Camera RGB → CIE XYZ → xy chromaticity (MODEL.md §6, the paper's Eqs. 15–16).
 
-A core module (it imports only :mod:`camsim.photons` and :mod:`camsim.spectra`): the preview, the analysis and
+A core module (it imports only :mod:`camsim.light.photons` and :mod:`camsim.light.spectra`): the preview, the analysis and
 its consumers (experiments, denoise-eval) all take their colorimetry from here.
 
 Conventions
@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from camsim.photons import LIGHT_SPEED_M_S, PLANCK_J_S
-from camsim.spectra import cmfs_at
+from camsim.light.photons import LIGHT_SPEED_M_S, PLANCK_J_S
+from camsim.light.spectra import cmfs_at
 
 CHANNELS = ("R", "G", "B")
 """The camera's channels, in the order of the last axis of DN samples (and of a frame's first axis)."""

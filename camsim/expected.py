@@ -18,7 +18,7 @@ import numpy as np
 from scipy import stats
 
 from camsim.core.errors import CamsimError
-from camsim.rates import FactoredSpectra, all_finite
+from camsim.light.rates import FactoredSpectra, all_finite
 from camsim.sensor import SensorParams
 from camsim.core.xp import namespace_of, special_namespace
 
@@ -29,7 +29,7 @@ class ExpectedSignal:
 
     Attributes
     ----------
-    photon_rate : numpy.ndarray or camsim.rates.FactoredSpectra, shape (K, N)
+    photon_rate : numpy.ndarray or camsim.light.rates.FactoredSpectra, shape (K, N)
         F · g(λi), photons / (s m² sr) per bin at the frame's intensity factor (factored for an image scene's
         colours: rows are dense only when indexed).
     qe : numpy.ndarray, shape (3, N)
@@ -68,7 +68,7 @@ def expected_signal(photon_radiance, qe, sensor: SensorParams, intensity_factor:
 
     Parameters
     ----------
-    photon_radiance : numpy.ndarray or camsim.rates.FactoredSpectra, shape (K, N)
+    photon_radiance : numpy.ndarray or camsim.light.rates.FactoredSpectra, shape (K, N)
         g(λi) at F = 1. Unit: photons / (s m² sr). Factored spectra give S = T F c (B Qeᵀ): one J × 3 matrix.
     qe : numpy.ndarray, shape (3, N)
         Unit: e⁻ · m² · sr / photon.

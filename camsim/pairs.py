@@ -202,7 +202,7 @@ class PairSource:
     def _lit(self, path: str, illuminant: str):
         """The photograph ``path`` lit by ``illuminant`` through the scene's camera (cached)."""
         from camsim.pipeline import light_scene
-        from camsim.rates import FactoredSpectra
+        from camsim.light.rates import FactoredSpectra
         from camsim.sources.image import ImageSource
 
         key = ("lit", path, illuminant)

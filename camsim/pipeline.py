@@ -27,16 +27,16 @@ from camsim.expected import ExpectedSignal, expected_signal
 from camsim.fixed_pattern import dark_gain_at
 from camsim.frame_files import FrameInfo
 from camsim.io.dng import MAX_EXPOSURE_S
-from camsim.photons import KM_LM_PER_W, photon_radiance
+from camsim.light.photons import KM_LM_PER_W, photon_radiance
 from camsim.radiance import SceneRadiance, scene_radiance
-from camsim.rates import FactoredSpectra, all_finite
+from camsim.light.rates import FactoredSpectra, all_finite
 from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
 from camsim.regions import weighted_rows
 from camsim.render import Frame, check_frame_values, render_frame
 from camsim.scene import Scene
 from camsim.core.seeding import frame_seed_sequence
 from camsim.sensor import SensorParams
-from camsim.spectra import WavelengthGrid, cmfs_on_grid
+from camsim.light.spectra import WavelengthGrid, cmfs_on_grid
 
 
 @dataclass(frozen=True)
@@ -47,9 +47,9 @@ class LitScene:
     ----------
     labels : numpy.ndarray, shape (H, W), unsigned integer
         Spectrum index of each pixel.
-    photon_rate : numpy.ndarray or camsim.rates.FactoredSpectra, shape (K, N)
+    photon_rate : numpy.ndarray or camsim.light.rates.FactoredSpectra, shape (K, N)
         g(λi) of each distinct spectrum at F = 1. Unit: photons / (s m² sr) per bin. Factored for an image's
-        colours (:mod:`camsim.rates`).
+        colours (:mod:`camsim.light.rates`).
     qe : numpy.ndarray, shape (3, N)
         The camera's absolute Qe_κ(λi). Unit: e⁻ · m² · sr / photon.
     grid : WavelengthGrid

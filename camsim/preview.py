@@ -35,7 +35,7 @@ import numpy as np
 from camsim.colorimetry import camera_to_xyz_matrix
 from camsim.core.errors import CamsimError
 from camsim.io.atomic import atomic_path
-from camsim.photons import KM_LM_PER_W
+from camsim.light.photons import KM_LM_PER_W
 from camsim.render import BLOCK_PIXELS  # the preview works in the renderer's row blocks: memory does not grow
 
 __all__ = ["EXPOSURES", "MATRICES", "linear_srgb", "preview_srgb", "preview_transform", "write_preview_png"]

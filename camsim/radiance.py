@@ -13,11 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.photons import scale_to_luminance
-from camsim.rates import FactoredSpectra
+from camsim.light.photons import scale_to_luminance
+from camsim.light.rates import FactoredSpectra
 from camsim.regions import check_regions, region_weights
 from camsim.scene import Scene
-from camsim.spectra import cmfs_on_grid, illuminant_spd
+from camsim.light.spectra import cmfs_on_grid, illuminant_spd
 
 
 @dataclass(frozen=True)
@@ -28,7 +28,7 @@ class SceneRadiance:
     ----------
     labels : numpy.ndarray, shape (H, W), unsigned integer
         Index into ``radiance`` for every pixel.
-    radiance : numpy.ndarray or camsim.rates.FactoredSpectra, shape (K, N)
+    radiance : numpy.ndarray or camsim.light.rates.FactoredSpectra, shape (K, N)
         Spectral radiance of each distinct spectrum (factored for an image's colours). Unit: W / (m² sr nm).
     white_radiance : numpy.ndarray, shape (N,)
         Radiance of the perfect white (reflectance 1) under the illuminant at the scene's luminance, the absolute

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from camsim.photons import photon_radiance, scale_to_luminance
-from camsim.spectra import WavelengthGrid, cmfs_on_grid, illuminant_spd, reflectance_set
+from camsim.light.photons import photon_radiance, scale_to_luminance
+from camsim.light.spectra import WavelengthGrid, cmfs_on_grid, illuminant_spd, reflectance_set
 
 #: EXIF LightSource code of D65, the calibration illuminant of ColorMatrix1.
 CALIBRATION_ILLUMINANT_D65 = 21

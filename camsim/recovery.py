@@ -1,7 +1,7 @@
 """RGB → reflectance spectrum recovery, by method name from one registry (issue 12, for image scenes).
 
 An image scene gives a colour per pixel, not a spectrum; the camera model needs spectra. This module turns
-linear RGB into reflectance spectra on a :class:`camsim.spectra.WavelengthGrid` with colour-science's recovery
+linear RGB into reflectance spectra on a :class:`camsim.light.spectra.WavelengthGrid` with colour-science's recovery
 methods. :data:`RECOVERY_METHODS` maps each name to one function; :func:`rgb_to_distinct_spectra` (the full
 record) and :func:`rgb_to_spectra` (the spectra alone) are the entry points that dispatch.
 
@@ -73,7 +73,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.spectra import CMFS_NAME, WavelengthGrid, align_to_grid, cmfs_on_grid, illuminant_spd, import_colour
+from camsim.light.spectra import CMFS_NAME, WavelengthGrid, align_to_grid, cmfs_on_grid, illuminant_spd, import_colour
 
 DEFAULT_METHOD = "Mallett 2019"
 DEFAULT_COLOURSPACE = "sRGB"

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.rates import FactoredSpectra
+from camsim.light.rates import FactoredSpectra
 
 #: The keys a ``[[region]]`` table may hold.
 REGION_KEYS = frozenset({"name", "rect"})
@@ -107,7 +107,7 @@ def weighted_rows(rows, indices: np.ndarray, counts: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    rows : numpy.ndarray or camsim.rates.FactoredSpectra, shape (K, ...)
+    rows : numpy.ndarray or camsim.light.rates.FactoredSpectra, shape (K, ...)
         Per-spectrum values (spectra (K, N), expected electrons (K, 3), …). Factored spectra are averaged on
         their coefficients, then taken through the basis once: (Σ w c_k) B, exact (the map is linear).
     indices, counts : numpy.ndarray, shape (m,)

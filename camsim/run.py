@@ -16,7 +16,7 @@ from camsim.io.output_folder import output_folder
 from camsim.methods import get_method
 from camsim.pipeline import light_scene, scene_frame
 from camsim.scene import Scene
-from camsim.spectra import illuminant_spd
+from camsim.light.spectra import illuminant_spd
 
 
 def check_scene(scene: Scene) -> None:

@@ -27,7 +27,7 @@ from camsim.core.schema import Param, check_frame_size, finite_float, param, par
 from camsim.camera_presets import sensor_preset
 from camsim.sensor import SENSOR_PARAMS, SensorParams
 from camsim.sources import SOURCES, ChartSource, SceneSource
-from camsim.spectra import WavelengthGrid
+from camsim.light.spectra import WavelengthGrid
 
 STATISTICS = ("pixel", "paper")
 EXPOSURE_MODES = ("fixed", "auto")

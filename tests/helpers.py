@@ -9,7 +9,7 @@ from camsim.chart import ChartGeometry
 from camsim.pipeline import light_scene, make_frame
 from camsim.scene import Scene
 from camsim.sources import ChartSource
-from camsim.spectra import WavelengthGrid
+from camsim.light.spectra import WavelengthGrid
 
 ROOT = Path(__file__).resolve().parents[1]
 WHITE = 18  # "white 9.5 (.05 D)" in ColorChecker order

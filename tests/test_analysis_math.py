@@ -22,8 +22,8 @@ from camsim.colorimetry import (
     matrix_condition,
     xyz_from_camera,
 )
-from camsim.photons import LIGHT_SPEED_M_S, PLANCK_J_S
-from camsim.spectra import cmfs_at
+from camsim.light.photons import LIGHT_SPEED_M_S, PLANCK_J_S
+from camsim.light.spectra import cmfs_at
 
 WL = np.arange(380.0, 780.0 + 1e-9, 4.0)
 

@@ -32,7 +32,7 @@ from camsim.io.dng import write_dng, write_dng_cfa
 from camsim.kernels import tukey_lambda, tukey_lambda_variance
 from camsim.pipeline import LitScene, make_frame
 from camsim.sensor import SensorParams
-from camsim.spectra import WavelengthGrid
+from camsim.light.spectra import WavelengthGrid
 
 #: Round trip: frame height and width (pixels), dark frames, flat levels (fractions of the ADC's range above the
 #: pedestal; two frames each).

@@ -10,7 +10,7 @@ from camsim.cli import main
 from camsim.core.errors import CamsimError
 from camsim.io import cube_files
 from camsim.io.cube_files import cube_size, read_cube
-from camsim.spectra import WavelengthGrid, import_colour
+from camsim.light.spectra import WavelengthGrid, import_colour
 
 GRID = WavelengthGrid()  # 380–780 nm every 4 nm, N = 101
 H, W = 30, 40

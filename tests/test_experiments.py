@@ -17,7 +17,7 @@ from camsim.experiments.runner import Setup, prepare
 from camsim.experiments.scenarios import SCENARIOS, _photon_figure, run_experiment
 from camsim.scene import load_scene
 from camsim.sensor import PRESETS
-from camsim.spectra import cmfs_on_grid
+from camsim.light.spectra import cmfs_on_grid
 from tests.helpers import ROOT
 
 SCENE = ROOT / "scenes" / "macbeth_26.toml"

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from camsim.camera import load_camera
-from camsim.rates import FactoredSpectra
+from camsim.light.rates import FactoredSpectra
 from camsim.chart import ChartGeometry
 from camsim.cli import main
 from camsim.pipeline import light_scene, make_frame

@@ -139,9 +139,9 @@ def test_spectral_method_with_bins_of_zero_radiance(scene):
     cube[:, :30, grid.wavelengths_nm >= 500] = 0.5  # left half: half-grey above 500 nm only; right: black
     from camsim.camera import load_camera
     from camsim.radiance import SceneRadiance
-    from camsim.photons import photon_radiance, scale_to_luminance
+    from camsim.light.photons import photon_radiance, scale_to_luminance
     from camsim.pipeline import lit_scene, make_frame
-    from camsim.spectra import cmfs_on_grid, illuminant_spd
+    from camsim.light.spectra import cmfs_on_grid, illuminant_spd
 
     white = scale_to_luminance(illuminant_spd("D65", grid), cmfs_on_grid(grid)[1], grid.step_nm, 100.0)
     labels = np.zeros((40, 60), np.uint8)

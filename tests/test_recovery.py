@@ -7,7 +7,7 @@ from camsim import recovery
 from camsim.core.errors import CamsimError
 from camsim.recovery import (RECOVERY_METHODS, basis_matrix, clear_cache, mallett_basis, rgb_to_distinct_spectra,
                              rgb_to_spectra)
-from camsim.spectra import CMFS_NAME, WavelengthGrid, camera_sensitivities, illuminant_spd, import_colour
+from camsim.light.spectra import CMFS_NAME, WavelengthGrid, camera_sensitivities, illuminant_spd, import_colour
 
 GRID = WavelengthGrid()  # 380–780 nm every 4 nm
 #: Round-trip tolerance (CIE 2000 ΔE under D65) for colours inside sRGB that the method does not clip.

@@ -22,7 +22,7 @@ from camsim.sources.target import (
     dead_leaves,
     edge_coverage,
 )
-from camsim.spectra import WavelengthGrid
+from camsim.light.spectra import WavelengthGrid
 
 GRID = WavelengthGrid()
 

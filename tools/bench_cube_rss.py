@@ -63,7 +63,7 @@ def vm_hwm_mib() -> float:
 def measure(header: str, release: bool) -> None:
     """Run in a child process: read the cube, pass over its blocks, print the peak RSS."""
     from camsim.io import cube_files
-    from camsim.spectra import WavelengthGrid, import_colour
+    from camsim.light.spectra import WavelengthGrid, import_colour
 
     import_colour()
     if not release:

@@ -24,7 +24,7 @@ import numpy as np
 from camsim.cfa import cfa_sites
 from camsim.pipeline import LitScene, make_frame
 from camsim.sensor import PRESETS
-from camsim.spectra import WavelengthGrid
+from camsim.light.spectra import WavelengthGrid
 
 def dark_means(sensor, size: int, seed: int = 1):
     """Per channel (mean DN, standard error) of a dark frame of ``sensor``."""

@@ -29,7 +29,7 @@ import warnings
 import numpy as np
 
 from camsim.recovery import (RECOVERY_METHODS, basis_matrix, clear_cache, mallett_basis, rgb_to_distinct_spectra)
-from camsim.spectra import CMFS_NAME, WavelengthGrid, camera_sensitivities, illuminant_spd, import_colour
+from camsim.light.spectra import CMFS_NAME, WavelengthGrid, camera_sensitivities, illuminant_spd, import_colour
 
 CHART = "ColorChecker N Ohta"
 LIGHTS = ("D65", "A", "FL2")
@@ -72,7 +72,7 @@ def main(argv=None):
     for name, row in zip(names, rgb_raw):
         if row.min() < 0:
             print(f"note: patch {name!r} is outside sRGB (linear sRGB {np.round(row, 4).tolist()}); clipped at 0")
-    from camsim.spectra import reflectance_set
+    from camsim.light.spectra import reflectance_set
     _, measured = reflectance_set(CHART, grid)
     _, qe = camera_sensitivities(CAMERA, grid)
 

@@ -34,7 +34,7 @@ import numpy as np
 
 from camsim.colorimetry import xyz_from_camera
 from camsim.core.optional_numbers import finite_or_none
-from camsim.spectra import import_colour
+from camsim.light.spectra import import_colour
 
 __all__ = ["WHITE_SIDECAR", "WHITE_CLEAN_MAX", "frame_white_xyz", "lab_against_white", "mean_delta_e00"]
 

@@ -44,7 +44,7 @@ from camsim.pipeline import LitScene, make_frame
 from camsim.core.seeding import emva_frame_seed_sequence
 from camsim.cfa import cfa_sites
 from camsim.sensor import SensorParams
-from camsim.spectra import WavelengthGrid
+from camsim.light.spectra import WavelengthGrid
 from camsim.emva.configured import (  # noqa: F401 (re-exported)
     CHANNEL,
     DEFAULT_PRESET,

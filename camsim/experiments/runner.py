@@ -16,7 +16,7 @@ from camsim.experiments.datapoints import data_points, points_radiance
 from camsim.frame_files import FrameInfo, write_frame
 from camsim.frame_manifest import FrameManifest
 from camsim.io.output_folder import make_folder
-from camsim.photons import photon_radiance
+from camsim.light.photons import photon_radiance
 from camsim.pipeline import LitScene, make_frame
 from camsim.core.seeding import frame_seed_sequence
 from camsim.scene import load_scene

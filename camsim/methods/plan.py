@@ -36,7 +36,7 @@ import numpy as np
 from scipy import special, stats
 
 from camsim.expected import ExpectedSignal
-from camsim.rates import FactoredSpectra
+from camsim.light.rates import FactoredSpectra
 from camsim.fixed_pattern import dark_gain_at
 from camsim.methods import DEFAULT_TOLERANCE
 from camsim.sensor import SensorParams

@@ -9,7 +9,7 @@ import numpy as np
 from camsim.chart import ChartGeometry
 from camsim.core.errors import CamsimError
 from camsim.sources.base import SceneSource, SourceSpectra, typed
-from camsim.spectra import reflectance_set
+from camsim.light.spectra import reflectance_set
 
 
 @dataclass(frozen=True)

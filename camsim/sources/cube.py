@@ -10,7 +10,7 @@ import numpy as np
 
 from camsim.core.errors import CamsimError
 from camsim.io.cube_files import CUBE_READERS, CubeRows, cube_size, read_cube
-from camsim.rates import FactoredSpectra
+from camsim.light.rates import FactoredSpectra
 from camsim.sources.base import SceneSource, SourceSpectra, typed
 
 CUBE_KINDS = ("reflectance", "radiance")
@@ -66,7 +66,7 @@ class CubeSource(SceneSource):
     def spectra(self, grid, width: int, height: int) -> SourceSpectra:
         """Every pixel its own spectrum (the frame has the cube's size), kept factored on the file.
 
-        The spectra are :class:`camsim.rates.FactoredSpectra` whose coefficients are the cube's stored values,
+        The spectra are :class:`camsim.light.rates.FactoredSpectra` whose coefficients are the cube's stored values,
         read block by block from the file (:class:`camsim.io.cube_files.CubeRows`), and whose basis is the
         B → N resampling divided by the file's scale factor (the identity on the grid). Everything linear in the
         spectra — radiance under a light, photon rate, expected electrons (Eqs. 3–6), Eq. 4's variance — is one pass

@@ -4,7 +4,7 @@ A photograph of surfaces (``kind = "reflectance"``, the default): pixel value 1 
 scene's illuminants at the scene's luminance. Its distinct colours become the scene's spectra (a label map plus K
 colours, as a chart is a label map plus its patches); with the ``Mallett 2019`` recovery each colour's reflectance
 is a non-negative combination of three basis spectra, ρ(λ) = r B_r(λ) + g B_g(λ) + b B_b(λ) for its linear sRGB
-(r, g, b), so the spectra stay factored (:class:`camsim.rates.FactoredSpectra`): the expected electrons of every
+(r, g, b), so the spectra stay factored (:class:`camsim.light.rates.FactoredSpectra`): the expected electrons of every
 colour are one 3 × 3 matrix per camera and light applied to its linear RGB — never an H × W × N cube. The other
 methods of :data:`camsim.recovery.RECOVERY_METHODS` give one spectrum per distinct colour.
 
@@ -54,12 +54,12 @@ from pathlib import Path
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.photons import scale_to_luminance
-from camsim.rates import FactoredSpectra
+from camsim.light.photons import scale_to_luminance
+from camsim.light.rates import FactoredSpectra
 from camsim.sources.base import SceneSource, SourceSpectra, typed
 from camsim.recovery import (RECOVERY_METHODS, linear_srgb, mallett_basis, recovery_delta_e,
                               rgb_to_distinct_spectra)
-from camsim.spectra import WavelengthGrid, cmfs_on_grid, illuminant_spd, import_colour
+from camsim.light.spectra import WavelengthGrid, cmfs_on_grid, illuminant_spd, import_colour
 
 IMAGE_KINDS = ("reflectance", "radiance")
 #: The prefix of a ``path`` that names a photograph shipped with scikit-image (``"skimage:astronaut"``).

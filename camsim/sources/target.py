@@ -33,7 +33,7 @@ from camsim.core.errors import CamsimError
 from camsim.core.seeding import target_generator
 from camsim.core.schema import finite_float
 from camsim.sources.base import SceneSource, SourceSpectra, typed
-from camsim.spectra import reflectance_set
+from camsim.light.spectra import reflectance_set
 
 TARGET_KINDS = ("dead-leaves", "slanted-edge", "flat")
 _COMMON_KEYS = frozenset({"kind", "reflectances"})
