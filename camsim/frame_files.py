@@ -35,7 +35,7 @@ from camsim.core.errors import CamsimError, output_error
 from camsim.io.dng import DARKTABLE_XMP_SUFFIX, darktable_xmp, read_dng, write_dng, write_dng_cfa
 from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression, read_exr, read_exr_header, write_exr
 from camsim.io.output_folder import make_folder
-from camsim.rawcolour import CALIBRATION_ILLUMINANT_D65
+from camsim.colour.rawcolour import CALIBRATION_ILLUMINANT_D65
 from camsim.regions import weighted_rows
 from camsim.methods import get_method
 from camsim.core.names import MAX_STEM_BYTES, safe_component

@@ -30,7 +30,7 @@ from camsim.io.dng import MAX_EXPOSURE_S
 from camsim.light.photons import KM_LM_PER_W, photon_radiance
 from camsim.radiance import SceneRadiance, scene_radiance
 from camsim.light.rates import FactoredSpectra, all_finite
-from camsim.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
+from camsim.colour.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
 from camsim.regions import weighted_rows
 from camsim.render import Frame, check_frame_values, render_frame
 from camsim.scene import Scene

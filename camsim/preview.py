@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.colorimetry import camera_to_xyz_matrix
+from camsim.colour.colorimetry import camera_to_xyz_matrix
 from camsim.core.errors import CamsimError
 from camsim.io.atomic import atomic_path
 from camsim.light.photons import KM_LM_PER_W

@@ -16,7 +16,7 @@ from camsim.analysis.delta_e import (
 )
 from camsim.analysis.ellipse import fit_ellipse
 from camsim.analysis.snr import delta_snr_percent, snr_empirical, snr_model
-from camsim.colorimetry import (
+from camsim.colour.colorimetry import (
     camera_to_xyz_matrix,
     chromaticity_xy,
     matrix_condition,

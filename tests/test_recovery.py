@@ -1,11 +1,11 @@
-"""RGB → spectrum recovery (camsim.recovery) against colour-science's own data and functions."""
+"""RGB → spectrum recovery (camsim.colour.recovery) against colour-science's own data and functions."""
 
 import numpy as np
 import pytest
 
-from camsim import recovery
+from camsim.colour import recovery
 from camsim.core.errors import CamsimError
-from camsim.recovery import (RECOVERY_METHODS, basis_matrix, clear_cache, mallett_basis, rgb_to_distinct_spectra,
+from camsim.colour.recovery import (RECOVERY_METHODS, basis_matrix, clear_cache, mallett_basis, rgb_to_distinct_spectra,
                              rgb_to_spectra)
 from camsim.light.spectra import CMFS_NAME, WavelengthGrid, camera_sensitivities, illuminant_spd, import_colour
 

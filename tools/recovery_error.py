@@ -1,4 +1,4 @@
-"""Error and cost of each RGB → spectrum recovery method (camsim.recovery) on the ColorChecker.
+"""Error and cost of each RGB → spectrum recovery method (camsim.colour.recovery) on the ColorChecker.
 
 For each of the 24 patches of colour-science's ``SDS_COLOURCHECKERS["ColorChecker N Ohta"]``:
 
@@ -28,7 +28,7 @@ import warnings
 
 import numpy as np
 
-from camsim.recovery import (RECOVERY_METHODS, basis_matrix, clear_cache, mallett_basis, rgb_to_distinct_spectra)
+from camsim.colour.recovery import (RECOVERY_METHODS, basis_matrix, clear_cache, mallett_basis, rgb_to_distinct_spectra)
 from camsim.light.spectra import CMFS_NAME, WavelengthGrid, camera_sensitivities, illuminant_spd, import_colour
 
 CHART = "ColorChecker N Ohta"

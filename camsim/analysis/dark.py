@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.colorimetry import CHANNELS
+from camsim.colour.colorimetry import CHANNELS
 from camsim.core.errors import CamsimError
 from camsim.frame_files import LoadedFrame, load_frame
 

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.colorimetry import CHANNELS
+from camsim.colour.colorimetry import CHANNELS
 from camsim.core.errors import CamsimError
 from camsim.io.exr import read_exr_clean
 from camsim.frame_files import EXR_METADATA_KEY, LoadedFrame

@@ -32,7 +32,7 @@ import warnings
 
 import numpy as np
 
-from camsim.colorimetry import xyz_from_camera
+from camsim.colour.colorimetry import xyz_from_camera
 from camsim.core.optional_numbers import finite_or_none
 from camsim.light.spectra import import_colour
 

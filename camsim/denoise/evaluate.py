@@ -30,7 +30,7 @@ import numpy as np
 from camsim.analysis.grouping import group_key
 from camsim.frame_files import load_frame
 from camsim.analysis.patches import frame_matrix, patch_samples
-from camsim.colorimetry import CHANNELS
+from camsim.colour.colorimetry import CHANNELS
 from camsim.denoise.colour_fidelity import frame_white_xyz, mean_delta_e00
 from camsim.denoise.denoisers import SIGMA_MODEL, Denoiser, estimate_noise_sigma, model_noise_sigma
 from camsim.denoise.frames import Dataset, DatasetFrame, find_dataset

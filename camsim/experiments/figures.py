@@ -18,7 +18,7 @@ import numpy as np
 
 from camsim.frame_files import load_frame
 from camsim.analysis.patches import AnalysisSettings, demosaiced_samples, frame_matrix, patch_samples
-from camsim.colorimetry import CHANNELS, chromaticity_xy, xyz_from_camera
+from camsim.colour.colorimetry import CHANNELS, chromaticity_xy, xyz_from_camera
 from camsim.core.errors import CamsimError
 from camsim.core.optional_numbers import finite_or_none as _num
 from camsim.plotting import new_figure, save_png
@@ -580,7 +580,7 @@ def _channel_value(patch, channel: str, key: str):
 def _analysis_black_xy(meta: dict, result: dict):
     """xy of the camera black point of a frame (its expected black level through the frame's camera → XYZ
     matrix), where the analysis subtracted no black level; None otherwise, or where it is undefined."""
-    from camsim.colorimetry import camera_to_xyz_matrix
+    from camsim.colour.colorimetry import camera_to_xyz_matrix
 
     method = result.get("camera_to_xyz") or "paper"
     if result.get("black_subtraction") != "none" or method == "least-squares":

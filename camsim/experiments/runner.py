@@ -110,7 +110,7 @@ def black_point_xy(prep: Prepared, sensor: SensorParams) -> tuple[float, float] 
     floor where the sensor quantises, as in the DNGs the series is analysed from) through the paper's M: where the
     ellipse centres go as F falls.
     """
-    from camsim.colorimetry import camera_to_xyz_matrix
+    from camsim.colour.colorimetry import camera_to_xyz_matrix
 
     if not sensor.dark_current:
         return None
@@ -121,7 +121,7 @@ def black_point_xy(prep: Prepared, sensor: SensorParams) -> tuple[float, float] 
 
 def noise_free_xy(prep: Prepared, sensor: SensorParams, factor: float) -> np.ndarray:
     """Chromaticity of each point's expected camera signal (signal + dark, saturated) through M, shape (P, 2)."""
-    from camsim.colorimetry import camera_to_xyz_matrix
+    from camsim.colour.colorimetry import camera_to_xyz_matrix
 
     expected = prep.lit.expected(sensor, factor, "pixel")
     dn = expected.clean_e[: len(prep.points)] * sensor.dn_per_electron

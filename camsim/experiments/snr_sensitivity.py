@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from camsim.analysis.snr import delta_snr_percent, quantised_signal_dn, snr_model
-from camsim.colorimetry import CHANNELS
+from camsim.colour.colorimetry import CHANNELS
 from camsim.experiments import findings as fd
 from camsim.experiments.report import Finding, write_csv, write_report
 from camsim.experiments.runner import STATISTICS_METHODS, Setup, analyse_series, prepare, run_conditions

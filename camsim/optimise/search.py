@@ -113,7 +113,7 @@ def patch_rates(scene, illuminant: str, sensor) -> PatchRates:
     import dataclasses
 
     from camsim.analysis.delta_e import d65_white_xy
-    from camsim.colorimetry import camera_to_xyz_matrix
+    from camsim.colour.colorimetry import camera_to_xyz_matrix
     from camsim.pipeline import light_scene
 
     lit = light_scene(scene, illuminant)

@@ -6,7 +6,7 @@ colours, as a chart is a label map plus its patches); with the ``Mallett 2019`` 
 is a non-negative combination of three basis spectra, ρ(λ) = r B_r(λ) + g B_g(λ) + b B_b(λ) for its linear sRGB
 (r, g, b), so the spectra stay factored (:class:`camsim.light.rates.FactoredSpectra`): the expected electrons of every
 colour are one 3 × 3 matrix per camera and light applied to its linear RGB — never an H × W × N cube. The other
-methods of :data:`camsim.recovery.RECOVERY_METHODS` give one spectrum per distinct colour.
+methods of :data:`camsim.colour.recovery.RECOVERY_METHODS` give one spectrum per distinct colour.
 
 An emissive picture (``kind = "radiance"``), e.g. a display or a light box, has its own absolute scale and is not
 lit by the scene's illuminants (as a ``[cube]`` of radiance: every illuminant of the scene gives the same frame).
@@ -17,7 +17,7 @@ required for this kind: the scene's ``[light] luminance_cd_m2`` scales reflectan
 colour's spectral radiance is its recovered reflectance-like spectrum times that white's spectral radiance
 W(λ) (W / (m² sr nm), Y = 683 Σ W ȳ δ = ``luminance_cd_m2``): L_k(λ) = ρ_k(λ) W(λ). With Mallett the basis sums to
 1, so (1, 1, 1) is exactly W and (0.5, 0.5, 0.5) exactly half of it; the radiance stays factored (the basis times
-W). Otsu and Jakob do not make (1, 1, 1) exactly flat (see :mod:`camsim.recovery`), so the white is then their
+W). Otsu and Jakob do not make (1, 1, 1) exactly flat (see :mod:`camsim.colour.recovery`), so the white is then their
 recovered white times W.
 
 Paths. ``path`` is a file, relative to the scene file; or ``"skimage:NAME"``, one of the photographs shipped inside
@@ -40,7 +40,7 @@ sRGB components set to 0: Mallett's basis cannot make them, and the rest of the 
 
 Out of gamut, recorded. Every frame's sidecar gets ``recovery`` (:func:`recovery_record`): the method, the
 colourspace, the share of the scene's pixels whose colour the method could not reproduce (Mallett: outside sRGB;
-Otsu and Jakob: flagged ``outside`` by :mod:`camsim.recovery`), the largest linear sRGB component clipped
+Otsu and Jakob: flagged ``outside`` by :mod:`camsim.colour.recovery`), the largest linear sRGB component clipped
 (Mallett) and the largest CIE 2000 ΔE of such a pixel's recovered spectrum to its colour (under D65);
 ``camsim render`` warns once per frame where the share is above 0.
 """
@@ -57,7 +57,7 @@ from camsim.core.errors import CamsimError
 from camsim.light.photons import scale_to_luminance
 from camsim.light.rates import FactoredSpectra
 from camsim.sources.base import SceneSource, SourceSpectra, typed
-from camsim.recovery import (RECOVERY_METHODS, linear_srgb, mallett_basis, recovery_delta_e,
+from camsim.colour.recovery import (RECOVERY_METHODS, linear_srgb, mallett_basis, recovery_delta_e,
                               rgb_to_distinct_spectra)
 from camsim.light.spectra import WavelengthGrid, cmfs_on_grid, illuminant_spd, import_colour
 
@@ -84,7 +84,7 @@ class ImageSource(SceneSource):
     colourspace : str
         colour-science RGB colourspace name of the file's values (default ``"sRGB"``).
     recovery : str
-        RGB → spectrum method, a name of :data:`camsim.recovery.RECOVERY_METHODS`: ``"Mallett 2019"`` (default;
+        RGB → spectrum method, a name of :data:`camsim.colour.recovery.RECOVERY_METHODS`: ``"Mallett 2019"`` (default;
         factored, one 3 × 3 matrix per camera and light), ``"Otsu 2018"`` or ``"Jakob 2019"`` (one spectrum per
         distinct colour, cached: a photograph's tens of thousands of colours cost seconds with Otsu, hours with
         Jakob — for synthetic images with few colours).
@@ -229,11 +229,11 @@ def recovery_record(method: str, colourspace: str, counts, outside, delta_e, cli
     counts : numpy.ndarray of int, shape (K,)
         Pixels of each distinct colour.
     outside : numpy.ndarray of bool, shape (K,)
-        Colours the method could not reproduce (:mod:`camsim.recovery`, per method).
+        Colours the method could not reproduce (:mod:`camsim.colour.recovery`, per method).
     delta_e : numpy.ndarray, shape (K,)
         CIE 2000 ΔE of each colour's recovered spectrum to the colour (D65); read where ``outside`` only.
     clip : numpy.ndarray, shape (K,), optional
-        Mallett 2019: the linear sRGB component clipped to 0 (:func:`camsim.recovery.linear_srgb`).
+        Mallett 2019: the linear sRGB component clipped to 0 (:func:`camsim.colour.recovery.linear_srgb`).
 
     Returns
     -------
