@@ -117,9 +117,9 @@ def exposure_setting(param):
 
 
 def sensor_setting(text: str) -> tuple:
-    """``NAME=VALUE`` for a sensor parameter (:data:`camsim.sensor.SENSOR_PARAMS`), typed by the schema."""
+    """``NAME=VALUE`` for a sensor parameter (:data:`camsim.sensor.params.SENSOR_PARAMS`), typed by the schema."""
     from camsim.core.errors import CamsimError
-    from camsim.sensor import SENSOR_PARAMS
+    from camsim.sensor.params import SENSOR_PARAMS
 
     name, sep, value = text.partition("=")
     params = {p.name: p for p in SENSOR_PARAMS}

@@ -39,7 +39,7 @@ from camsim.colour.rawcolour import CALIBRATION_ILLUMINANT_D65
 from camsim.regions import weighted_rows
 from camsim.methods import get_method
 from camsim.core.names import MAX_STEM_BYTES, safe_component
-from camsim.noise_profile import frame_noise_profile
+from camsim.sensor.noise_profile import frame_noise_profile
 from camsim.render import Frame
 from camsim.sidecar_schema import check_sidecar, parse_sidecar
 
@@ -335,7 +335,7 @@ def exr_view(frame: Frame, info: FrameInfo) -> tuple[np.ndarray, dict[str, str]]
         for c in range(3):
             view[c] = (frame.noisy_dn[c].astype(np.float64) - black[c]) / (sensor.max_dn - black[c])
     else:
-        from camsim.cfa import cfa_sites
+        from camsim.sensor.cfa import cfa_sites
 
         for dy, dx, c in cfa_sites(sensor.cfa):
             view[0, dy::2, dx::2] = ((frame.noisy_dn[0, dy::2, dx::2].astype(np.float64) - black[c])

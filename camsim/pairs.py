@@ -13,7 +13,7 @@ Per pair, each pixel's mean signal is its photograph's linear sRGB (Mallett 2019
 3 × 3 matrix of the illuminant and camera — the scene's lit photograph (:func:`camsim.pipeline.light_scene` of an
 :class:`~camsim.sources.image.ImageSource`, computed once per image and illuminant) — times T · F. The noise is the
 array path's exact per-pixel law (:func:`camsim.backends.array_path.draw_planes`); the clean target is each pixel's
-exact expectation before quantisation, k · E[min(X + o, full well)] (:func:`camsim.expected.clean_charge_e`), so that
+exact expectation before quantisation, k · E[min(X + o, full well)] (:func:`camsim.sensor.expected.clean_charge_e`), so that
 ``noisy − clean`` has mean zero at every pixel. Everything per pixel stays on the device: with ``device="cuda"`` the
 arrays are CuPy's (a torch training loop takes them without a copy through the host: :mod:`camsim.pairs_torch`),
 with ``device="cpu"`` numpy's.
@@ -99,14 +99,14 @@ class PairSource:
         F drawn log-uniformly between these (F = 1: the perfect white at the scene's luminance, 8000 e⁻ in the
         strongest channel at T = 1 s).
     cameras : tuple of str
-        Camera presets (:data:`camsim.camera_presets.CAMERA_PRESETS`), drawn uniformly; all of one layout (Bayer or
+        Camera presets (:data:`camsim.sensor.presets.CAMERA_PRESETS`), drawn uniformly; all of one layout (Bayer or
         three planes).
     iso : (float, float) or None
         ``preset`` mode: ISO drawn log-uniformly in this range, clipped to each camera's; None: each camera's
         default ISO.
     cameras_mode : {'preset', 'virtual'}
         ``virtual``: each pair's camera drawn around the presets' noise fits
-        (:func:`camsim.camera_presets.virtual.draw_virtual_cameras`, ``k_range``).
+        (:func:`camsim.sensor.presets.virtual.draw_virtual_cameras`, ``k_range``).
     k_range : {'camera', 'union'}
     flips : bool
         Random left-right and upside-down flips of each crop, probability ½ each.
@@ -129,7 +129,7 @@ class PairSource:
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
-        from camsim.camera_presets import CAMERA_PRESETS
+        from camsim.sensor.presets import CAMERA_PRESETS
         from camsim.scene import Scene
 
         if not isinstance(self.scene, Scene):
@@ -194,7 +194,7 @@ class PairSource:
 
     @cached_property
     def _camera(self):
-        from camsim.camera import load_camera
+        from camsim.sensor.camera import load_camera
 
         scene = self.scene
         return load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
@@ -243,15 +243,15 @@ class PairSource:
         return self._cache[key]
 
     def _sensor(self, preset: str, iso, overrides: dict):
-        from camsim.camera_presets import sensor_preset
+        from camsim.sensor.presets import sensor_preset
 
         return sensor_preset(preset, iso, self.scene.base_dir, **(dict(self.scene.sensor_overrides) | overrides))
 
     # ------------------------------------------------------------------------------------------------ draws
     def _draw_params(self, children: list) -> list:
         """The parameters of a batch's pairs, drawn on the host from the children of its seed sequence."""
-        from camsim.camera_presets import CAMERA_PRESETS
-        from camsim.camera_presets.virtual import draw_virtual_cameras
+        from camsim.sensor.presets import CAMERA_PRESETS
+        from camsim.sensor.presets.virtual import draw_virtual_cameras
 
         n, (width, height) = self.batch_size, self.crop
         images = np.random.default_rng(children[_IMAGES])
@@ -366,7 +366,7 @@ class PairSource:
         else:
             noisy, digital = draw_planes(rng, signal, sensor, dark_e=dark_planes, gain=gain, dark_gain=dark_gain,
                                          offset_e=offset)
-        from camsim.expected import clean_charge_e
+        from camsim.sensor.expected import clean_charge_e
 
         clean = clean_charge_e(poisson_mean, sensor, base) * sensor.dn_per_electron
         return noisy, clean.astype(xp.float32), digital

@@ -21,10 +21,10 @@ from functools import cached_property
 
 import numpy as np
 
-from camsim.camera import Camera, absolute_qe, load_camera
+from camsim.sensor.camera import Camera, absolute_qe, load_camera
 from camsim.core.errors import CamsimError
-from camsim.expected import ExpectedSignal, expected_signal
-from camsim.fixed_pattern import dark_gain_at
+from camsim.sensor.expected import ExpectedSignal, expected_signal
+from camsim.sensor.fixed_pattern import dark_gain_at
 from camsim.frame_files import FrameInfo
 from camsim.io.dng import MAX_EXPOSURE_S
 from camsim.light.photons import KM_LM_PER_W, photon_radiance
@@ -35,7 +35,7 @@ from camsim.regions import weighted_rows
 from camsim.render import Frame, check_frame_values, render_frame
 from camsim.scene import Scene
 from camsim.core.seeding import frame_seed_sequence
-from camsim.sensor import SensorParams
+from camsim.sensor.params import SensorParams
 from camsim.light.spectra import WavelengthGrid, cmfs_on_grid
 
 
@@ -103,7 +103,7 @@ class LitScene:
 def lit_scene(radiance: SceneRadiance, camera: Camera, scale, grid: WavelengthGrid,
               illuminant: str | None = None) -> LitScene:
     """A :class:`LitScene` from spectral radiance, seen by ``camera`` with its one absolute Qe (which does not depend
-    on the light: :func:`camsim.camera.absolute_qe`)."""
+    on the light: :func:`camsim.sensor.camera.absolute_qe`)."""
     to_photons = lambda spectra: photon_radiance(spectra, grid.wavelengths_nm, grid.step_nm)  # noqa: E731
     with np.errstate(over="ignore", invalid="ignore"):  # refused below, with the reason
         g = radiance.radiance.map_basis(to_photons) if isinstance(radiance.radiance, FactoredSpectra) \
@@ -258,7 +258,7 @@ def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, intensity_fa
 def preset_record(scene: Scene) -> dict | None:
     """A camera preset's name (or file) and ISO, for the sidecar: ``{"preset": …, "iso": …}``; None for the
     model's sensor presets (their parameters are the sensor's keys)."""
-    from camsim.camera_presets import camera_preset
+    from camsim.sensor.presets import camera_preset
 
     camera = camera_preset(scene.preset_name, scene.base_dir)
     if camera is None:
@@ -308,7 +308,7 @@ def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed:
 
 def check_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, statistics: str) -> None:
     """Refuse a frame that cannot be drawn or written, before it is: its expected signal must be finite
-    (:func:`camsim.expected.expected_signal`), its values must fit the frame's float32 pixels
+    (:func:`camsim.sensor.expected.expected_signal`), its values must fit the frame's float32 pixels
     (:func:`camsim.render.check_frame_values`) — what drawing it checks first — and what is written after the
     drawing must be finite and fit: the perfect white's signal (the sidecar's ``white_signal_e``) and a quantised
     frame's exposure (its DNG's, :data:`camsim.io.dng.MAX_EXPOSURE_S`).
@@ -337,9 +337,9 @@ def check_frames(scene: Scene, camera: Camera | None = None) -> list[str]:
     """Refuse a scene with a frame that cannot be drawn, before anything is drawn or written; return its warnings.
 
     Every illuminant is lit once and its brightest frame checked (every mean grows with F): its expected signal
-    must be finite (:func:`camsim.expected.expected_signal`) and its values must fit the frame's float32 pixels
+    must be finite (:func:`camsim.sensor.expected.expected_signal`) and its values must fit the frame's float32 pixels
     (:func:`camsim.render.check_frame_values`). Means far above the full well are no reason to refuse: they are
-    drawn at the saturation cap (:func:`camsim.stages.cap_mean_e`).
+    drawn at the saturation cap (:func:`camsim.sensor.stages.cap_mean_e`).
 
     Parameters
     ----------
@@ -399,8 +399,8 @@ def frame_warnings(sensor: SensorParams) -> list[str]:
       σ² = D̄_cold + DSNU² + σ_read² + σ_row²) — a high gain does this before the well fills.
 
     Both may put the black level (the mean digital number of an unlit pixel,
-    :attr:`camsim.sensor.SensorParams.black_level_dn`) above the white level − 1; the DNG's BlackLevel is then
-    written as the white level − 1 (:attr:`camsim.sensor.SensorParams.black_level_tag_dn`), which the warning says
+    :attr:`camsim.sensor.params.SensorParams.black_level_dn`) above the white level − 1; the DNG's BlackLevel is then
+    written as the white level − 1 (:attr:`camsim.sensor.params.SensorParams.black_level_tag_dn`), which the warning says
     too, as it does when only that clip applies (the black level within 1 DN of the white level).
 
     Returns

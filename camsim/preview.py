@@ -5,7 +5,7 @@ The preview develops the frame's digital numbers the way a simple camera pipelin
 1. **Numbers**: the quantised digital numbers I (``frame.digital_dn``), or the float ``frame.noisy_dn`` when
    quantisation is off. A Bayer mosaic is demosaiced first (bilinear, colour-demosaicing).
 2. **Black level**: the mean of an unlit pixel's numbers is subtracted — the true black level
-   (:attr:`camsim.sensor.SensorParams.black_level_dn`, after Eq. 11's floor) from quantised numbers, the level
+   (:attr:`camsim.sensor.params.SensorParams.black_level_dn`, after Eq. 11's floor) from quantised numbers, the level
    before the ADC (``dark_level_dn``) from unquantised ones, as ``camsim analyze --subtract-black`` does.
 3. **Camera RGB → XYZ**: by default (``matrix="least-squares"``) the 3 × 3 matrix that best maps the chart
    patches' expected camera DN (k · S, noise-free, under the frame's own illuminant) to their CIE 1931 XYZ in
@@ -134,7 +134,7 @@ def _camera_dn(frame, r0: int, r1: int, unquantised: bool = False) -> np.ndarray
         return np.moveaxis(numbers[:, r0:r1], 0, -1).astype(np.float64) - black
     from colour_demosaicing import demosaicing_CFA_Bayer_bilinear
 
-    from camsim.cfa import cfa_sites
+    from camsim.sensor.cfa import cfa_sites
 
     # two rows of context each side (r0 is even, so the block starts on the pattern's first row): the 3 × 3
     # bilinear kernels then see what they would see in the whole frame, and the block's result is the same

@@ -16,12 +16,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.expected import ExpectedSignal
-from camsim.fixed_pattern import FixedPattern, dark_gain_at, fixed_pattern
+from camsim.sensor.expected import ExpectedSignal
+from camsim.sensor.fixed_pattern import FixedPattern, dark_gain_at, fixed_pattern
 from camsim.methods import get_method
 from camsim.core.seeding import block_generators
-from camsim.sensor import SensorParams
-from camsim.stages import dn_dtype, saturating_mean_e, saturation_level_e
+from camsim.sensor.params import SensorParams
+from camsim.sensor.stages import dn_dtype, saturating_mean_e, saturation_level_e
 from camsim.core.xp import namespace_of
 
 if TYPE_CHECKING:  # the plan's module imports scipy: only its type is needed here
@@ -72,7 +72,7 @@ def clean_dn(labels, expected: ExpectedSignal, sensor: SensorParams, maps: Fixed
     and its offset o — is added to its spectrum's value and the sum clipped at the full well: exact below
     saturation, and for spectra whose every pixel is saturated (their mean, with the smallest PRNU gain, the
     smallest dark-current factor and the most negative DSNU offset, at or above the saturation cap of
-    :func:`camsim.stages.saturating_mean_e`) the full well itself; an approximation in between.
+    :func:`camsim.sensor.stages.saturating_mean_e`) the full well itself; an approximation in between.
     """
     xp = namespace_of(labels)
     k = sensor.dn_per_electron
@@ -107,7 +107,7 @@ def saturated_spectra(expected: ExpectedSignal, sensor: SensorParams, maps: Fixe
     PRNU gains, d the dark-current DSNU factors: a pixel with a larger mean only saturates more).
 
     The total charge is a sum of scaled Poisson counts whose variance is at most max(1, s) times its mean, so
-    :func:`camsim.stages.saturating_mean_e`'s bound holds with that step. The maps may be on a device.
+    :func:`camsim.sensor.stages.saturating_mean_e`'s bound holds with that step. The maps may be on a device.
     """
     ex = expected
     g_min = float(namespace_of(maps.gain).min(maps.gain)) if maps.gain is not None else 1.0
@@ -132,7 +132,7 @@ def check_frame_values(expected: ExpectedSignal, sensor: SensorParams) -> None:
     In DN it is G · G_Ve⁻ times that. Both must stay below :data:`FRAME_VALUE_MAX`: only a light or an exposure
     astronomically beyond any camera's with saturation off (nothing then bounds the charge), or a full well or noise
     of that size, reach it. Means that overflow float64 are refused before, by
-    :func:`camsim.expected.expected_signal`.
+    :func:`camsim.sensor.expected.expected_signal`.
 
     Raises
     ------
@@ -254,7 +254,7 @@ def render_frame(
     labels : numpy.ndarray, shape (H, W), unsigned integer
         Spectrum index per pixel.
     expected : ExpectedSignal
-        From :meth:`camsim.pipeline.LitScene.expected` or :func:`camsim.expected.expected_signal`.
+        From :meth:`camsim.pipeline.LitScene.expected` or :func:`camsim.sensor.expected.expected_signal`.
     sensor : SensorParams
     statistics : {'pixel', 'paper'}
     method : str

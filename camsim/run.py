@@ -6,7 +6,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from camsim.camera import load_camera
+from camsim.sensor.camera import load_camera
 from camsim.core.errors import CamsimError
 from camsim.frame_files import frame_stem, write_frame
 from camsim.frame_manifest import MANIFEST_NAME, FrameManifest

@@ -18,14 +18,14 @@ from pathlib import Path
 import numpy as np
 
 from camsim.builtin_scenes import resolve_scene_file
-from camsim.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
+from camsim.sensor.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
 from camsim.core.errors import CamsimError
 from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
 from camsim.regions import Region, check_regions, parse_regions
 from camsim.core.names import safe_component
 from camsim.core.schema import Param, check_frame_size, finite_float, param, params_of, read_toml, typed, validate
-from camsim.camera_presets import sensor_preset
-from camsim.sensor import SENSOR_PARAMS, SensorParams
+from camsim.sensor.presets import sensor_preset
+from camsim.sensor.params import SENSOR_PARAMS, SensorParams
 from camsim.sources import SOURCES, ChartSource, SceneSource
 from camsim.light.spectra import WavelengthGrid
 
@@ -49,7 +49,7 @@ class Scene:
     width, height : int
         Frame size in pixels (unless the source has a size of its own, as a cube has).
     preset_name : str
-        The sensor preset (:func:`camsim.camera_presets.sensor_preset`): a model preset, a camera preset or a
+        The sensor preset (:func:`camsim.sensor.presets.sensor_preset`): a model preset, a camera preset or a
         camera preset file (``.toml``, relative to the scene file).
     iso : float or None
         The camera preset's ISO (None: its default, ISO 100 where published).

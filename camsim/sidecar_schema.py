@@ -4,7 +4,7 @@ A sidecar (``STEM.json``, or an EXR header's ``camsim:metadata``) is read back b
 and ``--dark``, and a file on disk may say anything. :func:`parse_sidecar` turns JSON text into a dict, with
 the JSON parser's own limits (nesting deeper than Python's recursion limit, an integer of more than 4300 digits)
 reported as bad input; :func:`check_sidecar` checks every key the readers use for its type, its shape, its range
-and finiteness. The sensor's keys are checked by their declaration in :class:`camsim.sensor.SensorParams`
+and finiteness. The sensor's keys are checked by their declaration in :class:`camsim.sensor.params.SensorParams`
 (:meth:`camsim.core.schema.Param.coerce`); the frame's own keys (the scene, the patches, the camera's curves, the
 derived levels) are declared here, in :data:`FRAME_KEYS`. A sidecar that passes gives finite numbers of the
 expected shapes to every computation of the analysis.
@@ -103,7 +103,7 @@ def _matrix(rows: int, columns: int, low=None):
 
 
 def _stages(value) -> dict:
-    from camsim.sensor import STAGES
+    from camsim.sensor.params import STAGES
 
     if not isinstance(value, dict):
         raise _Bad("an object of the sensor's stage switches (" + ", ".join(STAGES) + ")")
@@ -250,7 +250,7 @@ def check_sidecar(meta, where) -> dict:
         ``"<where>: sidecar key <key> must be …, got …"`` (one line, the value shortened), or the keys a camsim
         frame's sidecar has that it lacks.
     """
-    from camsim.sensor import SENSOR_PARAMS
+    from camsim.sensor.params import SENSOR_PARAMS
 
     if not isinstance(meta, dict):
         raise CamsimError(f"{where}: metadata is not a JSON object")
@@ -282,7 +282,7 @@ def check_sidecar(meta, where) -> dict:
                         except _Bad as exc:
                             raise _Bad(str(exc), p.name, meta[p.name]) from None
         if meta.get("cfa_pattern") is not None:
-            from camsim.cfa import CFA_PATTERNS
+            from camsim.sensor.cfa import CFA_PATTERNS
 
             if meta["cfa_pattern"] not in CFA_PATTERNS:
                 raise _Bad("null or one of " + ", ".join(CFA_PATTERNS), "cfa_pattern", meta["cfa_pattern"])

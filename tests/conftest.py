@@ -2,7 +2,7 @@
 
 import pytest
 
-from camsim.camera import AnchorScale, load_camera
+from camsim.sensor.camera import AnchorScale, load_camera
 from camsim.radiance import scene_radiance
 from tests.helpers import small_scene
 

@@ -4,7 +4,7 @@ closed forms in ``tests.theory``."""
 
 from pathlib import Path
 
-from camsim.camera import load_camera
+from camsim.sensor.camera import load_camera
 from camsim.chart import ChartGeometry
 from camsim.pipeline import light_scene, make_frame
 from camsim.scene import Scene

@@ -19,7 +19,7 @@ import pytest
 from camsim.cli import main
 from camsim.core.errors import CamsimError
 from camsim.pipeline import light_scene
-from camsim.camera import load_camera
+from camsim.sensor.camera import load_camera
 from camsim.regions import Region
 from camsim.run import render_scene
 from camsim.sources import CubeSource, ImageSource

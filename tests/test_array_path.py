@@ -2,7 +2,7 @@
 
 Each test runs with numpy as the namespace (always: the GPU's code, run on the CPU in CI) and with CuPy on an
 NVIDIA GPU (skipped cleanly where CuPy or a GPU is missing). The samplers are checked against the exact laws —
-Poisson's pmf, the digital number's pmf (camsim.dn_law.dn_pmf), scipy's Tukey λ — by χ² or KS tests and by their
+Poisson's pmf, the digital number's pmf (camsim.sensor.dn_law.dn_pmf), scipy's Tukey λ — by χ² or KS tests and by their
 moments; the frames against the CPU's block renderer in distribution; and the same seed on the same device
 gives the same bits.
 """
@@ -13,12 +13,12 @@ from scipy import stats
 
 from camsim.backends import device_generator
 from camsim.backends.array_path import render_frame_xp
-from camsim.dn_law import dn_pmf
+from camsim.sensor.dn_law import dn_pmf
 from camsim.core.errors import CamsimError
-from camsim.expected import expected_signal
-from camsim.kernels import poisson, tukey_lambda_variance
+from camsim.sensor.expected import expected_signal
+from camsim.sensor.kernels import poisson, tukey_lambda_variance
 from camsim.render import clean_dn
-from camsim.sensor import PRESETS, SensorParams
+from camsim.sensor.params import PRESETS, SensorParams
 from camsim.core.xp import to_host
 from tests.helpers import patch_pixels, small_scene
 
@@ -75,7 +75,7 @@ def poisson_pmf_window(lam: float):
 
 @pytest.mark.parametrize("lam", [0.5, 3.0, 30.0, 500.0, 3000.0, 10000.0])
 def test_poisson_draws_follow_the_exact_pmf(xp, lam):
-    """The stage's Poisson sampler (camsim.kernels.poisson, the device's generator) against Poisson's pmf: χ², the
+    """The stage's Poisson sampler (camsim.sensor.kernels.poisson, the device's generator) against Poisson's pmf: χ², the
     mean and the variance (the issue's check, which torch.poisson fails on CUDA at λ = 3000)."""
     n = 400_000
     draws = to_host(poisson(device_generator(xp, 11), xp.full(n, lam)))
@@ -101,7 +101,7 @@ def _uniform_expected(sensor, means_e):
                   full_well_e=5000.0, dark_current=False), (0.7, 40.0, 4990.0)),  # no read noise: the lattice
 ])
 def test_digital_numbers_follow_the_exact_law(xp, sensor, means):
-    """A uniform frame's digital numbers per channel against camsim.dn_law.dn_pmf (Poisson charge with the dark
+    """A uniform frame's digital numbers per channel against camsim.sensor.dn_law.dn_pmf (Poisson charge with the dark
     current, full well, read noise, gain, floor, ADC clip): χ² and the mean."""
     expected = _uniform_expected(sensor, means)
     labels = np.zeros((300, 400), np.uint8)
@@ -198,7 +198,7 @@ def test_same_seed_same_frame_other_seed_other_frame(xp, lit):
 def test_clean_layer_on_the_device_is_the_cpu_one(xp, lit):
     """camsim.render.clean_dn with the labels and maps on the device gives the host's clean layer."""
     from camsim.backends.array_path import device_maps
-    from camsim.fixed_pattern import fixed_pattern
+    from camsim.sensor.fixed_pattern import fixed_pattern
 
     sensor = SensorParams(dsnu_e=3.0, prnu_percent=2.0, dsnu_dark_current_percent=20.0)
     expected = lit.expected(sensor, 1.2, "pixel")

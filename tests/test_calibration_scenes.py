@@ -21,7 +21,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from camsim.camera_presets import sensor_preset
+from camsim.sensor.presets import sensor_preset
 from camsim.cli import main
 from camsim.core.errors import CamsimError
 from camsim.frame_files import load_frame

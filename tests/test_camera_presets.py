@@ -1,4 +1,4 @@
-"""Camera presets (camsim.camera_presets): the published figures, their conversion to the model's units, the ISO
+"""Camera presets (camsim.sensor.presets): the published figures, their conversion to the model's units, the ISO
 axis and its interpolation, rendered dark frames against the published σ's, preset files, and bad input.
 
 The published tables are read from ``../shared/data/cameras`` where present (skipped cleanly where not): the
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.camera_presets import CAMERA_PRESETS, camera_preset, read_preset_file, sensor_preset
+from camsim.sensor.presets import CAMERA_PRESETS, camera_preset, read_preset_file, sensor_preset
 from camsim.core.errors import CamsimError
 from tests.helpers import render, small_scene
 
@@ -162,7 +162,7 @@ def test_an_unlit_pixel_reads_the_published_black_level(name):
 def test_quantisation_with_a_pedestal_rounds_exactly():
     """floor(dn + ½) + P in float32, checked against float64 (where dn + ½ is exact for float32 dn) at the
     values next to each half-integer, where a float32 dn + ½ would round."""
-    from camsim.stages import quantise_dn
+    from camsim.sensor.stages import quantise_dn
 
     halves = np.arange(-3, 4100, dtype=np.float64) + 0.5
     dn = np.concatenate([np.nextafter(halves.astype(np.float32), np.float32(-np.inf)), halves.astype(np.float32),

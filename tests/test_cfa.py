@@ -11,8 +11,8 @@ from camsim.analysis.patches import AnalysisSettings
 from camsim.io.exr import read_exr, read_exr_oiio
 from camsim.core.seeding import frame_seed_sequence
 from camsim.run import render_scene
-from camsim.cfa import CFA_PATTERNS, cfa_sites
-from camsim.sensor import preset
+from camsim.sensor.cfa import CFA_PATTERNS, cfa_sites
+from camsim.sensor.params import preset
 from tests.helpers import WHITE, render, small_scene
 from tests.theory import assert_mean_var, digital_pmf, pmf_moments
 

@@ -12,10 +12,10 @@ import pytest
 
 import camsim.pipeline
 from camsim.builtin_scenes import SCENES_DIR
-from camsim.camera_presets import CAMERA_PRESETS
+from camsim.sensor.presets import CAMERA_PRESETS
 from camsim.cli import main
 from camsim.io.dng import MIN_SIZE
-from camsim.sensor import PRESETS, preset
+from camsim.sensor.params import PRESETS, preset
 from tests.helpers import ROOT
 
 SMALL = ["--illuminant", "D65", "-F", "1", "--size", "32x24", "-q"]

@@ -17,8 +17,8 @@ import pytest
 import rawpy
 import tifffile
 
-from camsim.camera_presets import camera_preset
-from camsim.camera_presets.data import build_presets
+from camsim.sensor.presets import camera_preset
+from camsim.sensor.presets.data import build_presets
 from camsim.cli import main
 from camsim.frame_files import camera_identity
 from camsim.io.dng import read_dng, write_dng, write_dng_cfa

@@ -10,8 +10,8 @@ import pytest
 from scipy import stats
 
 from camsim.core.errors import CamsimError
-from camsim.fixed_pattern import fixed_pattern
-from camsim.sensor import SENSOR_PARAMS, preset
+from camsim.sensor.fixed_pattern import fixed_pattern
+from camsim.sensor.params import SENSOR_PARAMS, preset
 from tests.helpers import ROOT, render, small_scene
 from tests.theory import assert_mean_var
 

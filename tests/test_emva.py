@@ -20,7 +20,7 @@ import pytest
 from camsim.cli import main
 from camsim.emva import EmvaSetup, run
 from camsim.emva.simulate import model_dark_temporal_dn, predicted_saturation_e
-from camsim.sensor import PRESETS, preset
+from camsim.sensor.params import PRESETS, preset
 
 KEYS = ["K_dn_per_e", "dark_noise_e", "qe", "saturation_e", "dsnu_e", "prnu_percent"]
 SMALL = EmvaSetup(size=64, steps=30, low_steps=5, stack_frames=16, seed=1)

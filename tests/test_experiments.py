@@ -16,7 +16,7 @@ from camsim.experiments.datapoints import colour_signals, data_points, select_po
 from camsim.experiments.runner import Setup, prepare
 from camsim.experiments.scenarios import SCENARIOS, _photon_figure, run_experiment
 from camsim.scene import load_scene
-from camsim.sensor import PRESETS
+from camsim.sensor.params import PRESETS
 from camsim.light.spectra import cmfs_on_grid
 from tests.helpers import ROOT
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.sensor import preset
+from camsim.sensor.params import preset
 from tests.helpers import WHITE, patch_pixels, render, small_scene
 from tests.theory import assert_mean_var
 

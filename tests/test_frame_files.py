@@ -9,7 +9,7 @@ import rawpy
 import camsim.render as render_module
 from camsim.io.dng import read_dng
 from camsim.io.exr import read_exr, read_exr_oiio
-from camsim.noise_profile import frame_noise_profile
+from camsim.sensor.noise_profile import frame_noise_profile
 from camsim.core.seeding import frame_seed_sequence
 from camsim.run import render_scene
 from tests.helpers import libraw_black_levels, render, small_scene
@@ -128,7 +128,7 @@ def test_no_dng_without_quantisation(scene, tmp_path):
 
 
 def test_render_frame_accepts_a_generator_seed_or_seed_sequence(scene):
-    from camsim.camera import load_camera
+    from camsim.sensor.camera import load_camera
     from camsim.radiance import scene_radiance
     from camsim.pipeline import lit_scene
     from camsim.render import render_frame

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.expected import expected_signal
+from camsim.sensor.expected import expected_signal
 from camsim.methods.plan import (
     DEFAULT_TOLERANCE,
     EXACT,
@@ -15,7 +15,7 @@ from camsim.methods.plan import (
     plan_methods,
     predicted_ks,
 )
-from camsim.sensor import PRESETS, preset
+from camsim.sensor.params import PRESETS, preset
 from tests.helpers import ROOT, WHITE, patch_pixels, render, small_scene
 from tests.theory import assert_mean_var, digital_pmf, pmf_moments
 
@@ -137,7 +137,7 @@ def test_spectral_method_with_bins_of_zero_radiance(scene):
     grid = scene.grid
     cube = np.zeros((40, 60, grid.size))
     cube[:, :30, grid.wavelengths_nm >= 500] = 0.5  # left half: half-grey above 500 nm only; right: black
-    from camsim.camera import load_camera
+    from camsim.sensor.camera import load_camera
     from camsim.radiance import SceneRadiance
     from camsim.light.photons import photon_radiance, scale_to_luminance
     from camsim.pipeline import lit_scene, make_frame
@@ -235,8 +235,8 @@ def test_output_does_not_depend_on_the_thread_count(scene, method, monkeypatch):
 def test_the_tolerance_carries_to_the_digital_numbers_but_not_to_their_total_variation():
     """What auto's tolerance promises: the KS distance ε of a pixel value's law before quantisation bounds that of
     its digital number (floor and clip are monotone) — checked against closed forms: the Gaussian path's DN law
-    from Φ at the level edges, the exact one from camsim.dn_law — but not the total variation of the DN pmf."""
-    from camsim.dn_law import dn_pmf
+    from Φ at the level edges, the exact one from camsim.sensor.dn_law — but not the total variation of the DN pmf."""
+    from camsim.sensor.dn_law import dn_pmf
 
     def dn_distances(lam, k, read, full_well, bits):
         exact = np.cumsum(dn_pmf(lam, k, read, full_well, bits).dense(2**bits))

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from camsim.camera_presets import camera_preset, sensor_preset
+from camsim.sensor.presets import camera_preset, sensor_preset
 from camsim.cli import main
 from camsim.optimise.model import CLIP_SIGMAS, SensorAtIso, snr_db
 from camsim.optimise.search import exposure_axis, iso_axis, optimise, patch_rates

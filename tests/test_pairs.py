@@ -83,7 +83,7 @@ def test_bad_settings_are_refused():
 def test_the_clean_target_is_the_scene_frames_clean_layer(device):
     """A pair's clean planes equal the clean layer of the same crop rendered as a scene (an [images] dataset frame's
     scene: the photograph cropped, lit, seen by the camera), site by site for a Bayer camera."""
-    from camsim.camera_presets import sensor_preset
+    from camsim.sensor.presets import sensor_preset
     from camsim.pipeline import light_scene
     from camsim.render import clean_dn
     from camsim.sources.image import ImageSource

@@ -16,7 +16,7 @@ from camsim.core.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS, get_method
 from camsim.scene import RENDER_PARAMS, load_scene
 from camsim.core.schema import Param
-from camsim.sensor import SENSOR_PARAMS, STAGES, SensorParams
+from camsim.sensor.params import SENSOR_PARAMS, STAGES, SensorParams
 
 #: A valid value different from the default, for each kind of parameter.
 OTHER = {"float": lambda p: (p.low if p.low is not None else 0) + 0.25 if p.default == 0 else p.default * 0.5,

@@ -1,4 +1,4 @@
-"""Virtual cameras (camsim.camera_presets.virtual) and camera presets in dataset specs: K log-uniform over the
+"""Virtual cameras (camsim.sensor.presets.virtual) and camera presets in dataset specs: K log-uniform over the
 camera's range, each noise scale on its fit with the fit's residual scatter (tested by Kolmogorov–Smirnov against
 the laws the draws should follow), the conversion to the model's units, and the spec's ``[virtual_camera]`` table
 and ``iso`` parameter."""
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.camera_presets import CAMERA_PRESETS, sensor_preset
-from camsim.camera_presets.virtual import draw_virtual_cameras
+from camsim.sensor.presets import CAMERA_PRESETS, sensor_preset
+from camsim.sensor.presets.virtual import draw_virtual_cameras
 from camsim.dataset.spec import load_spec
 from camsim.core.errors import CamsimError
 

@@ -114,8 +114,8 @@ def make_image(folder: Path, size: int) -> Path:
 
 
 def pairs_per_s(device: str, image: Path, crop: int, batch: int, batches: int) -> float:
-    from camsim.camera_presets import CAMERA_PRESETS
-    from camsim.camera_presets.virtual import cameras_with_fits
+    from camsim.sensor.presets import CAMERA_PRESETS
+    from camsim.sensor.presets.virtual import cameras_with_fits
     from camsim.pairs import PairSource
     from camsim.scene import load_scene
     from camsim.core.xp import synchronize
@@ -138,7 +138,7 @@ def poisson_chi2(xp, draws: int) -> dict:
     from scipy import stats
 
     from camsim.backends import device_generator
-    from camsim.kernels import poisson
+    from camsim.sensor.kernels import poisson
     from camsim.core.xp import to_host
 
     rng = device_generator(xp, np.random.SeedSequence(SEED, spawn_key=(0xC412,)))

@@ -33,7 +33,7 @@ What it measures (seconds are wall-clock; MB = 2^20 bytes):
 7. Method ``table`` (issue 14: exact, each spectrum's charge from its alias table), measured like ``poisson`` on
    2 workers (``table_2t_s``, ``ratio_table_2t``; ``table_first_s``, the first call in a process, which builds the
    frame's 72 tables; ``peak_rss_mb_table``), and its accuracy: a χ² test of the digital numbers of a whole frame
-   against their exact pmf (camsim.dn_law), per patch and channel (``table_chi2_p_min``) and pooled over the 72
+   against their exact pmf (camsim.sensor.dn_law), per patch and channel (``table_chi2_p_min``) and pooled over the 72
    (``table_chi2_p_pooled``: the statistics and degrees of freedom summed).
 
 Targets: the render (no file writing) within 1.5× of the bare draws, and peak memory under 600 MB; the image scene
@@ -84,7 +84,7 @@ def peak_rss_mb() -> float:
 
 def setup(width: int, height: int) -> dict:
     """W1's scene lit by D65 through its camera, and its expected signal (imports camsim and colour-science)."""
-    from camsim.camera import load_camera
+    from camsim.sensor.camera import load_camera
     from camsim.pipeline import light_scene
     from camsim.scene import load_scene
 
@@ -115,7 +115,7 @@ def child_make_image(args) -> dict:
 def image_setup(path: Path) -> dict:
     """W1's camera, light and sensor looking at the photograph ``path`` (:func:`child_make_image`): the keys of
     :func:`setup`, plus ``recovery_s`` (reading, distinct colours and Mallett's recovery) and ``colours``."""
-    from camsim.camera import load_camera
+    from camsim.sensor.camera import load_camera
     from camsim.pipeline import light_scene
     from camsim.scene import load_scene
     from camsim.sources import ImageSource
@@ -266,13 +266,13 @@ def child_timing(args) -> dict:
 
 
 def table_accuracy(w: dict) -> tuple:
-    """χ² of the ``table`` frame's digital numbers against their exact pmf (camsim.dn_law), per patch and channel
+    """χ² of the ``table`` frame's digital numbers against their exact pmf (camsim.sensor.dn_law), per patch and channel
     (every pixel of the patch; levels of expected count < 5 pooled into one cell): the smallest p-value, and the
     p-value of the pooled χ² (the statistics and degrees of freedom summed over the 72 patch-channels)."""
     import numpy as np
     from scipy import stats
 
-    from camsim.dn_law import dn_pmf
+    from camsim.sensor.dn_law import dn_pmf
 
     frame = render(w, "table", 2, rng=SEED + 2)
     sensor, ex = frame.sensor, frame.expected

@@ -21,9 +21,9 @@ import time
 
 import numpy as np
 
-from camsim.cfa import cfa_sites
+from camsim.sensor.cfa import cfa_sites
 from camsim.pipeline import LitScene, make_frame
-from camsim.sensor import PRESETS
+from camsim.sensor.params import PRESETS
 from camsim.light.spectra import WavelengthGrid
 
 def dark_means(sensor, size: int, seed: int = 1):

@@ -49,7 +49,7 @@ class DarkFrame:
 
 def channel_values(frame: LoadedFrame, channel: int) -> np.ndarray:
     """All values of one channel of a frame, shape (n,): a plane, or a Bayer frame's sites of that colour."""
-    from camsim.cfa import cfa_sites
+    from camsim.sensor.cfa import cfa_sites
 
     if not frame.cfa_pattern:
         return frame.pixels_dn[channel].ravel()

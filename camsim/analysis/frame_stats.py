@@ -83,7 +83,7 @@ def _planes(frame: LoadedFrame, channel: int):
     frame's sites of that colour (one plane per site of the 2 × 2 cell, a strided view: no copy)."""
     if not frame.cfa_pattern:
         return [(frame.pixels_dn[channel], (slice(None), slice(None)))]
-    from camsim.cfa import cfa_sites
+    from camsim.sensor.cfa import cfa_sites
 
     return [(frame.pixels_dn[0][dy::2, dx::2], (slice(dy, None, 2), slice(dx, None, 2)))
             for dy, dx, c in cfa_sites(frame.cfa_pattern) if c == channel]

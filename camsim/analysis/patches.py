@@ -100,7 +100,7 @@ def site_values(mosaic: np.ndarray, rect, border: int, pattern: str, channel: in
 
     ``mosaic`` is (1, H, W); a pixel's channel follows from its absolute row and column parity.
     """
-    from camsim.cfa import cfa_sites
+    from camsim.sensor.cfa import cfa_sites
 
     x, y, w, h = rect
     if 2 * border >= min(w, h):

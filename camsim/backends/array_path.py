@@ -1,4 +1,4 @@
-"""The array path: a whole frame drawn at once, by the stage functions of :mod:`camsim.stages`, on numpy or CuPy.
+"""The array path: a whole frame drawn at once, by the stage functions of :mod:`camsim.sensor.stages`, on numpy or CuPy.
 
 One implementation for both namespaces (:mod:`camsim.core.xp`): the arrays' type picks the device, and the random
 generator (numpy's ``PCG64`` or CuPy's cuRAND Philox, :func:`camsim.backends.device_generator`) draws there. It
@@ -19,7 +19,7 @@ channel. The law is the CPU's (:func:`camsim.render.render_frame`): the two agre
 CPU draws in row blocks, each from its own generator, with its own fast kernels).
 
 :func:`draw_planes` draws from per-pixel means (an image's crops, :mod:`camsim.pairs`); :func:`render_frame_xp`
-gathers them from a label map and a frame's :class:`~camsim.expected.ExpectedSignal`.
+gathers them from a label map and a frame's :class:`~camsim.sensor.expected.ExpectedSignal`.
 """
 
 from __future__ import annotations
@@ -30,12 +30,12 @@ from functools import lru_cache
 import numpy as np
 
 from camsim.backends import device_generator, device_method
-from camsim.cfa import cfa_sites
-from camsim.expected import ExpectedSignal
-from camsim.fixed_pattern import FixedPattern, _dark_gain_map, _unit_maps, fixed_pattern
+from camsim.sensor.cfa import cfa_sites
+from camsim.sensor.expected import ExpectedSignal
+from camsim.sensor.fixed_pattern import FixedPattern, _dark_gain_map, _unit_maps, fixed_pattern
 from camsim.render import Frame, block_rows, check_frame_values
-from camsim.sensor import SensorParams
-from camsim.stages import (
+from camsim.sensor.params import SensorParams
+from camsim.sensor.stages import (
     add_offset_e,
     add_read_noise_e,
     add_row_noise,
@@ -172,7 +172,7 @@ def _device_dark_gain(xp, sensor_seed: int, shape: tuple, relative_sigma: float)
 
 
 def device_maps(xp, sensor: SensorParams, shape) -> FixedPattern | None:
-    """The sensor's fixed-pattern maps on ``xp``'s device: :func:`camsim.fixed_pattern.fixed_pattern`'s values (the
+    """The sensor's fixed-pattern maps on ``xp``'s device: :func:`camsim.sensor.fixed_pattern.fixed_pattern`'s values (the
     same float32 arithmetic on the same unit maps, which are copied to the device once per sensor seed and size:
     the maps belong to the sensor, not the frame)."""
     if not sensor.fixed_pattern:

@@ -20,7 +20,7 @@ from camsim.calibration import dark, flats, ptc, tukey
 from camsim.calibration.estimate import Estimate, ratio, sqrt_estimate
 from camsim.calibration.rawfiles import Layout, check_same_exposure, check_same_layout, read_raw
 from camsim.core.errors import CamsimError
-from camsim.kernels import tukey_lambda_variance
+from camsim.sensor.kernels import tukey_lambda_variance
 from camsim.core.names import name_problem, safe_component
 
 #: Fewest dark frames: the per-pixel mean needs two to leave a residual.

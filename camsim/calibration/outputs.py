@@ -1,6 +1,6 @@
 """The outputs of ``camsim calibrate``: ``preset.toml``, ``calibration.json``, ``report.md`` and three plots.
 
-``preset.toml`` is an interface (read by ``camsim.camera_presets`` for ``--preset PATH.toml``); its keys are:
+``preset.toml`` is an interface (read by ``camsim.sensor.presets`` for ``--preset PATH.toml``); its keys are:
 
 * ``[preset]``: ``name``, ``source``, ``bits``, ``pedestal_dn``, ``cfa`` (absent for a 3-colour stack or a
   monochrome sensor), ``read_noise_model`` (``"gaussian"`` or ``"tukey-lambda"``);

@@ -53,7 +53,7 @@ def run(args) -> int:
     """Carry out ``camsim emva``; returns the exit status (0)."""
     from camsim.emva import DEFAULT_PRESET, EmvaSetup, write_outputs
     from camsim.emva import run as measure
-    from camsim.camera_presets import camera_preset, sensor_preset
+    from camsim.sensor.presets import camera_preset, sensor_preset
 
     setup = EmvaSetup(size=args.size, seed=args.seed, dsnu_exposure_factor=args.dsnu_exposure_factor)
     name, sensor = args.preset, None

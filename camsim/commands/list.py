@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from camsim.sensor import PRESETS
+from camsim.sensor.params import PRESETS
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -25,7 +25,7 @@ def run(args) -> int:
     print("cameras:", ", ".join(CAMERAS))
     print("reflectance sets:", ", ".join(REFLECTANCE_SETS))
     print("presets:", ", ".join(PRESETS))
-    from camsim.camera_presets import CAMERA_PRESETS
+    from camsim.sensor.presets import CAMERA_PRESETS
 
     print("camera presets (--preset NAME --iso N; figures in DN of the raw, converted to electrons):")
     for camera in CAMERA_PRESETS.values():

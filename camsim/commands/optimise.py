@@ -55,7 +55,7 @@ def run(args) -> int:
     """Carry out ``camsim optimise``; returns the exit status (0)."""
     import dataclasses
 
-    from camsim.camera_presets import camera_preset, sensor_preset
+    from camsim.sensor.presets import camera_preset, sensor_preset
     from camsim.chart import parse_size
     from camsim.optimise.model import SensorAtIso
     from camsim.optimise.report import write_report

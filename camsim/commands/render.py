@@ -12,7 +12,7 @@ from camsim.commands import DEFAULT_OUT, camera_argument, exr_compression_argume
 from camsim.core.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS
 from camsim.scene import RENDER_PARAMS
-from camsim.sensor import SENSOR_PARAMS, STAGES
+from camsim.sensor.params import SENSOR_PARAMS, STAGES
 
 _RENDER = {p.name: p for p in RENDER_PARAMS}
 _SENSOR = {p.name: p for p in SENSOR_PARAMS}

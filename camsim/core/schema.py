@@ -1,11 +1,11 @@
 """The one parameter schema: each parameter's name, type, unit, default, range and help, declared once.
 
-A parameter is declared where its dataclass is (``SensorParams`` in :mod:`camsim.sensor`, the render settings of
+A parameter is declared where its dataclass is (``SensorParams`` in :mod:`camsim.sensor.params`, the render settings of
 :class:`camsim.scene.Scene`) with :func:`param`, which stores a :class:`Param` in the field's metadata. Everything
 else is derived from it: the dataclass's own validation (:func:`validate`), the scene-file reader's ``[sensor]``
 and ``[render]`` tables, the dataset spec's parameter types and choices, the command line's choices and its
 ``--sensor NAME=VALUE`` option, the sidecar's keys and the analysis's grouping keys. So a new sensor parameter is
-one field in :class:`camsim.sensor.SensorParams` (plus the physics that uses it).
+one field in :class:`camsim.sensor.params.SensorParams` (plus the physics that uses it).
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ class Param:
     sidecar : callable, optional
         ``sidecar(obj) -> dict``: the sidecar keys this parameter writes (default ``{name: value}``).
     omit_default : bool
-        Written to records (the sidecar, :meth:`camsim.sensor.SensorParams.to_dict`) only when its value differs
+        Written to records (the sidecar, :meth:`camsim.sensor.params.SensorParams.to_dict`) only when its value differs
         from the default: for a parameter added later whose default is off, so that the records of everything
         made without it — and the dataset frame ids that hash them — stay byte for byte as they were. An absent
         key then means the default.

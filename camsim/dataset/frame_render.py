@@ -11,7 +11,7 @@ import dataclasses
 from functools import lru_cache
 from pathlib import Path
 
-from camsim.camera import load_camera
+from camsim.sensor.camera import load_camera
 from camsim.dataset.spec import FrameSpec
 from camsim.frame_files import write_frame
 from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION

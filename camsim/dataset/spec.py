@@ -80,7 +80,7 @@ from functools import partial
 from pathlib import Path, PurePosixPath
 
 from camsim.builtin_scenes import resolve_scene_file, resolve_spec_file
-from camsim.camera import load_camera
+from camsim.sensor.camera import load_camera
 from camsim.core.errors import CamsimError
 from camsim.pipeline import check_frame, exposure_record, frame_sensor, light_scene
 from camsim.run import check_scene
@@ -90,9 +90,9 @@ from camsim.core.names import safe_component
 from camsim.core.schema import INT64_MAX, check_frame_size
 from camsim.scene import FRAME_PARAMS, RENDER_PARAMS, Scene, check_intensity_factor, load_scene, read_toml
 from camsim.core.seeding import dataset_frame_seeds, dataset_parameter_generator
-from camsim.sensor import SENSOR_PARAMS, with_checked_values
+from camsim.sensor.params import SENSOR_PARAMS, with_checked_values
 from camsim.sources.image import ImageSource
-from camsim.camera_presets.virtual import VIRTUAL_KEYS
+from camsim.sensor.presets.virtual import VIRTUAL_KEYS
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT = 256, 192
 MAX_FRAMES = 1_000_000
@@ -741,11 +741,11 @@ def plan_spec(path: str | Path) -> SpecPlan:
 
 
 def _virtual_cameras(table, points: int, seed: int, axes: dict, where: str) -> list:
-    """The ``[virtual_camera]`` draws (:func:`camsim.camera_presets.virtual.draw_virtual_cameras`), one per grid
+    """The ``[virtual_camera]`` draws (:func:`camsim.sensor.presets.virtual.draw_virtual_cameras`), one per grid
     point and draw, each parameter from its own stream (``virtual_camera.camera``, ``.k``, ``.shape`` and one per
     noise quantity)."""
-    from camsim.camera_presets import CAMERA_PRESETS
-    from camsim.camera_presets.virtual import K_RANGES, cameras_with_fits, draw_virtual_cameras
+    from camsim.sensor.presets import CAMERA_PRESETS
+    from camsim.sensor.presets.virtual import K_RANGES, cameras_with_fits, draw_virtual_cameras
 
     at = f"{where} [virtual_camera]"
     if not isinstance(table, dict):

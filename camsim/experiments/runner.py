@@ -11,7 +11,7 @@ from tqdm import tqdm
 
 from camsim.analysis.analyze import analyse_paths
 from camsim.analysis.patches import AnalysisSettings
-from camsim.camera import AnchorScale, absolute_qe, load_camera
+from camsim.sensor.camera import AnchorScale, absolute_qe, load_camera
 from camsim.experiments.datapoints import data_points, points_radiance
 from camsim.frame_files import FrameInfo, write_frame
 from camsim.frame_manifest import FrameManifest
@@ -20,7 +20,7 @@ from camsim.light.photons import photon_radiance
 from camsim.pipeline import LitScene, make_frame
 from camsim.core.seeding import frame_seed_sequence
 from camsim.scene import load_scene
-from camsim.sensor import SensorParams
+from camsim.sensor.params import SensorParams
 
 #: The photon statistics every experiment runs under, and the sampling method used for each: ``paper`` draws
 #: per bin (Eq. 4 literally, with the channels' shared photon counts); ``pixel`` draws once per pixel (exact).
@@ -106,7 +106,7 @@ def analyse_series(folder: Path, black: str = "none", source: str = "dng") -> li
 def black_point_xy(prep: Prepared, sensor: SensorParams) -> tuple[float, float] | None:
     """Chromaticity of the camera black point, or None without dark current.
 
-    The mean digital number of an unlit pixel (:attr:`camsim.sensor.SensorParams.black_level_dn`: after the ADC's
+    The mean digital number of an unlit pixel (:attr:`camsim.sensor.params.SensorParams.black_level_dn`: after the ADC's
     floor where the sensor quantises, as in the DNGs the series is analysed from) through the paper's M: where the
     ellipse centres go as F falls.
     """

@@ -44,7 +44,7 @@ from camsim.experiments.report import Finding, write_csv, write_report
 from camsim.experiments.runner import STATISTICS_METHODS, Setup, analyse_series, prepare, run_conditions
 from camsim.frame_files import read_frame_meta
 from camsim.core.optional_numbers import finite_or_none
-from camsim.sensor import PRESETS, SensorParams
+from camsim.sensor.params import PRESETS, SensorParams
 
 SNR_FACTORS = (0.1, 0.05, 0.01, 0.005, 0.001)
 #: The paper's SNR analysis uses the boundary data points 1–13.

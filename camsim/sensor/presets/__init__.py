@@ -1,7 +1,7 @@
 """Real cameras: published noise calibrations with an ISO axis (:data:`CAMERA_PRESETS`), preset files written by
 ``camsim calibrate``, and the one entry point every command resolves a ``preset`` name with (:func:`sensor_preset`).
 
-A ``preset`` is either one of the model's sensor presets (:data:`camsim.sensor.PRESETS`: ``paper-table1`` …, no
+A ``preset`` is either one of the model's sensor presets (:data:`camsim.sensor.params.PRESETS`: ``paper-table1`` …, no
 ISO axis), a camera preset by name (``sony-a7s2``), or a camera preset file (a path ending in ``.toml``).
 """
 
@@ -10,11 +10,11 @@ from __future__ import annotations
 from functools import lru_cache
 from pathlib import Path
 
-from camsim.camera_presets.data import build_presets
-from camsim.camera_presets.files import read_preset_file
-from camsim.camera_presets.model import CameraPreset, IsoPoint, NoiseFit
+from camsim.sensor.presets.data import build_presets
+from camsim.sensor.presets.files import read_preset_file
+from camsim.sensor.presets.model import CameraPreset, IsoPoint, NoiseFit
 from camsim.core.errors import CamsimError
-from camsim.sensor import PRESETS, SensorParams, preset, with_overrides
+from camsim.sensor.params import PRESETS, SensorParams, preset, with_overrides
 
 #: The built-in camera presets, by name.
 CAMERA_PRESETS = build_presets()

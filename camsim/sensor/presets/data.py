@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from camsim.camera_presets.model import CameraPreset, IsoPoint, NoiseFit
+from camsim.sensor.presets.model import CameraPreset, IsoPoint, NoiseFit
 
 ELD = ("Wei et al., \"A Physics-based Noise Formation Model for Extreme Low-light Raw Denoising\", CVPR 2020; "
        "github.com/Vandermode/ELD camera_params/release/{file}_params.npy (Profile-1)")
@@ -161,7 +161,7 @@ def _datasheet_point(k: float, read_e: float, iso: float = 100.0, prnu_percent: 
 
 
 def _tukey_var(lam: float) -> float:
-    from camsim.kernels import tukey_lambda_variance
+    from camsim.sensor.kernels import tukey_lambda_variance
 
     return tukey_lambda_variance(lam)
 

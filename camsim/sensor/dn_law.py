@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from camsim.stages import adc_offset_dn
+from camsim.sensor.stages import adc_offset_dn
 
 #: Charges further than this many √λ (plus 20) from the mean carry less than 1e-36 of the Poisson law.
 _POISSON_HALF_WIDTH = 13.0
@@ -102,7 +102,7 @@ def charge_pmf(mean_e: float, full_well_e: float | None = None):
 def dn_pmf(mean_e: float, dn_per_electron: float, read_noise_e: float = 0.0, full_well_e: float | None = None,
            bits: int | None = None, pedestal_dn: int = 0) -> DnPmf:
     """The pmf of I = clip(floor(k (min(N, c) + R) + h) + P, 0, 2^nb − 1), N ~ Poisson(λ), R ~ N(0, σ²), P the
-    pedestal and h = ½ with a pedestal, 0 without (:func:`camsim.stages.quantise_dn`, :func:`camsim.stages.adc_offset_dn`).
+    pedestal and h = ½ with a pedestal, 0 without (:func:`camsim.sensor.stages.quantise_dn`, :func:`camsim.sensor.stages.adc_offset_dn`).
 
     Parameters
     ----------

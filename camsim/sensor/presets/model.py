@@ -2,7 +2,7 @@
 
 Published calibrations (ELD, PMN, LED) give every noise figure in digital numbers (DN) of the camera's raw, per ISO
 step or as log-linear fits against the system gain K (DN/e⁻). camsim's sensor model
-(:class:`camsim.sensor.SensorParams`) holds charges in electrons, the conversion gain in V/e⁻ and the analog gain
+(:class:`camsim.sensor.params.SensorParams`) holds charges in electrons, the conversion gain in V/e⁻ and the analog gain
 in DN/V. :meth:`CameraPreset.sensor` converts, explicitly:
 
 ==============================  ===============================================================================
@@ -35,8 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.kernels import tukey_lambda_variance
-from camsim.sensor import READ_NOISE_MODELS, SENSOR_PARAMS, SensorParams
+from camsim.sensor.kernels import tukey_lambda_variance
+from camsim.sensor.params import READ_NOISE_MODELS, SENSOR_PARAMS, SensorParams
 
 #: The published noise quantities of an ISO point, in DN of the raw (ELD's and PMN's names).
 NOISE_QUANTITIES = ("tukey_scale_dn", "gaussian_sigma_dn", "row_sigma_dn")

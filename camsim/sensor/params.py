@@ -1,6 +1,6 @@
 """The image sensor's parameters (the paper's Table I and beyond) and named presets.
 
-The stages themselves are pure array functions in :mod:`camsim.stages`. Every stage can be switched off on its
+The stages themselves are pure array functions in :mod:`camsim.sensor.stages`. Every stage can be switched off on its
 own, and a switched-off stage costs nothing.
 """
 
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.cfa import CFA_PATTERNS
+from camsim.sensor.cfa import CFA_PATTERNS
 from camsim.core.errors import CamsimError
 from camsim.core.schema import param, params_of, record, validate
 
@@ -138,7 +138,7 @@ class SensorParams:
         return np.asarray(self.dark_current_e_per_s) * self.exposure_s
 
     def _unlit_mean_dn(self, quantisation: bool) -> np.ndarray:
-        from camsim.black_level import unlit_mean_dn  # imports scipy: here, so that the command line starts without
+        from camsim.sensor.black_level import unlit_mean_dn  # imports scipy: here, so that the command line starts without
 
         return unlit_mean_dn(
             self.dark_mean_e, dn_per_electron=self.dn_per_electron, bits=self.bits, quantisation=quantisation,
@@ -153,7 +153,7 @@ class SensorParams:
         """The true black level: the exact mean digital number of an unlit pixel, per channel, shape (3,). Unit: DN.
 
         E[clip(floor(k (min(D + o, FW) + read + row)), 0, 2^nb − 1)] over the dark charge, the noise and the
-        fixed-pattern maps' law (:func:`camsim.black_level.unlit_mean_dn`): what a dark frame's mean converges to,
+        fixed-pattern maps' law (:func:`camsim.sensor.black_level.unlit_mean_dn`): what a dark frame's mean converges to,
         and so what a raw reader must subtract. Eq. 11's floor puts it about ½ DN below :attr:`dark_level_dn`
         (Table I: 5.025, 6.018, 5.683 DN against 5.525, 6.517, 6.177). Without quantisation it is :attr:`dark_level_dn`.
         """

@@ -30,8 +30,8 @@ from functools import lru_cache
 import numpy as np
 from scipy import special, stats
 
-from camsim.kernels import tukey_lambda_variance
-from camsim.stages import adc_offset_dn
+from camsim.sensor.kernels import tukey_lambda_variance
+from camsim.sensor.stages import adc_offset_dn
 
 #: Half-width of the Gaussian windows, in standard deviations: Φ(−9.5) = 1e-21.
 _GAUSS_HALF = 9.5
@@ -82,7 +82,7 @@ def unlit_mean_dn(dark_mean_e, *, dn_per_electron: float, bits: int, quantisatio
         σ_row. Unit: e⁻.
     pedestal_dn : int
         The ADC's black-level pedestal P: with P > 0 the ADC adds an offset O = P + ½ before its floor
-        (:func:`camsim.stages.adc_offset_dn`), I = clip(floor(k X + O), 0, 2^nb − 1), whose mean is
+        (:func:`camsim.sensor.stages.adc_offset_dn`), I = clip(floor(k X + O), 0, 2^nb − 1), whose mean is
         Σ_{j=1}^{2^nb−1} P(k X + O ≥ j) — the sum without a pedestal, with X moved up by O / k electrons after the
         full well (computed so; the noiseless lattice is floor(k X + ½) + P). With no dark charge and symmetric
         noise that nothing clips, the mean is P exactly. Quantised values only. Unit: DN.
@@ -255,7 +255,7 @@ def _pair_sum(atoms, weights, first, count, k, term):
 def _atoms_mean(atoms, weights, k, top, gauss_var, tukey, pedestal=0):
     """Σ_i w_i E[clip(floor(k (c_i + Z) + O), 0, top)] for atoms c_i and the continuous noise Z (none: a lattice).
 
-    ``pedestal`` P (DN): the ADC's offset O = P + ½ for P > 0, else 0 (:func:`camsim.stages.adc_offset_dn`); the
+    ``pedestal`` P (DN): the ADC's offset O = P + ½ for P > 0, else 0 (:func:`camsim.sensor.stages.adc_offset_dn`); the
     atoms move up by O / k (the noiseless lattice is floor(k c + ½) + P).
 
     Z = N(0, gauss_var) plus, if ``tukey`` = (λ, scale), a Tukey λ variable. The sum of the two is averaged over

@@ -19,7 +19,7 @@ from scipy import stats
 
 from camsim.core.errors import CamsimError
 from camsim.light.rates import FactoredSpectra, all_finite
-from camsim.sensor import SensorParams
+from camsim.sensor.params import SensorParams
 from camsim.core.xp import namespace_of, special_namespace
 
 
@@ -198,7 +198,7 @@ def clean_charge_e(poisson_mean_e, sensor: SensorParams, base_e=0.0):
     -----
     Exact: min(base + X, c) = base + min(X, c − base) where c ≥ base, else c (X ≥ 0), so the value is
     base + :func:`poisson_min_e` (λ, c − base) or c; the saturation cap of the draws changes it by at most
-    :data:`camsim.stages.SATURATION_CAP_TAIL`.
+    :data:`camsim.sensor.stages.SATURATION_CAP_TAIL`.
     """
     xp = namespace_of(poisson_mean_e, base_e)
     if not sensor.saturation:

@@ -10,7 +10,7 @@ has the noise variance S · x + O. The noise meant is the random, temporal noise
 read noise; fixed-pattern effects are left out (the specification's model, and what a raw developer's denoiser uses
 the profile for: a fixed pattern is not removed by averaging over frames or over neighbours).
 
-camsim's ADC gives DN = clip(floor(k · (min(S + D + o, FW) + R + W) + h) + P, 0, 2^nb − 1) (:mod:`camsim.stages`; h = ½
+camsim's ADC gives DN = clip(floor(k · (min(S + D + o, FW) + R + W) + h) + P, 0, 2^nb − 1) (:mod:`camsim.sensor.stages`; h = ½
 with a pedestal, 0 without), with
 k = G · G_Ve⁻ the gain in DN / e⁻, S the signal charge, D ~ Poisson(D̄ · d) the dark charge, o the DSNU offset, R
 the read noise (σ_read), W the row noise (σ_row) and P the pedestal. Below saturation and above the ADC's zero, a
@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from camsim.sensor import SensorParams
+from camsim.sensor.params import SensorParams
 
 #: The quantiser's variance for a noise wider than about ¾ DN (Sheppard's correction). Unit: DN².
 QUANTISER_VAR_DN2 = 1.0 / 12.0
@@ -61,7 +61,7 @@ def shot_step_e(statistics: str, signal_e=None, signal_var_e2=None, labels=None)
     ----------
     statistics : {'pixel', 'paper'}
     signal_e, signal_var_e2 : numpy.ndarray, shape (K, 3), optional
-        Per spectrum S̄ and Var S (:class:`camsim.expected.ExpectedSignal`); needed for ``paper`` statistics.
+        Per spectrum S̄ and Var S (:class:`camsim.sensor.expected.ExpectedSignal`); needed for ``paper`` statistics.
         Unit: e⁻ and e⁻².
     labels : numpy.ndarray of int, shape (H, W), optional
         Spectrum index of each pixel (the weights); None: the spectra weigh alike.

@@ -27,8 +27,8 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from camsim.camera_presets.model import CameraPreset, IsoPoint
-from camsim.cfa import CFA_PATTERNS
+from camsim.sensor.presets.model import CameraPreset, IsoPoint
+from camsim.sensor.cfa import CFA_PATTERNS
 from camsim.core.errors import CamsimError
 from camsim.core.names import safe_component
 from camsim.core.schema import read_toml, typed

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from camsim.camera_presets.model import CameraPreset, IsoPoint
+from camsim.sensor.presets.model import CameraPreset, IsoPoint
 from camsim.core.errors import CamsimError
 
 #: What ``k_range`` may be: each camera's own range, or the union of the listed cameras' ranges.

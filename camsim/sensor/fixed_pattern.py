@@ -23,7 +23,7 @@ from functools import lru_cache
 import numpy as np
 
 from camsim.core.seeding import fixed_pattern_generators
-from camsim.sensor import SensorParams
+from camsim.sensor.params import SensorParams
 
 
 @dataclass(frozen=True)

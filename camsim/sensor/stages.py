@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from camsim.kernels import poisson, poisson_run, standard_normal_f32, tukey_lambda
+from camsim.sensor.kernels import poisson, poisson_run, standard_normal_f32, tukey_lambda
 from camsim.core.xp import namespace_of
 
 #: ε of the saturation cap: a pixel whose mean charge is at or above :func:`saturating_mean_e` stays below its
@@ -122,7 +122,7 @@ def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_v
     photon_noise : bool
         Off: S = S̄ exactly, plus D ~ Poisson(D̄).
     size : tuple, optional
-        Shape of the draws when ``signal_e`` is one value (drawn as a histogram, :func:`camsim.kernels.poisson_run`).
+        Shape of the draws when ``signal_e`` is one value (drawn as a histogram, :func:`camsim.sensor.kernels.poisson_run`).
     gain : numpy.ndarray, optional
         PRNU: a per-pixel factor on S̄ (and Var S), shape ``size``; the draws then have one mean per pixel.
     dark_gain : numpy.ndarray, optional
@@ -187,7 +187,7 @@ def draw_read_noise_e(rng: np.random.Generator, out: np.ndarray, read_noise_e: f
 
     The paper adds N(0, σ_read · G_Ve⁻) to the voltage; dividing by G_Ve⁻ gives this. ``gaussian``: with ``work``
     (float32 of at least half the size: the CPU block renderer's scratch) float32 arrays draw with
-    :func:`camsim.kernels.standard_normal_f32` (Box–Muller); otherwise the generator's own normals
+    :func:`camsim.sensor.kernels.standard_normal_f32` (Box–Muller); otherwise the generator's own normals
     (``standard_normal(size, dtype)``: numpy's ziggurat, CuPy's cuRAND normals). ``tukey-lambda``: the Tukey λ law
     of shape ``tukey_shape``, scaled to the same σ (heavier tails), by inverse CDF. Unit: e⁻.
     """
