@@ -9,7 +9,7 @@
   ``prnu_percent``.
 
 Every file is written atomically (:mod:`camsim.io.atomic`); the plots need matplotlib, imported when they are drawn
-(:mod:`camsim.plotting`: no pyplot, no backend change).
+(:mod:`camsim.io.figures`: no pyplot, no backend change).
 """
 
 from __future__ import annotations
@@ -222,7 +222,7 @@ def report_markdown(cal: Calibration) -> str:
 
 
 def _plot_ptc(cal: Calibration, path: Path) -> None:
-    from camsim.plotting import new_figure, save_png
+    from camsim.io.figures import new_figure, save_png
 
     fig = new_figure(figsize=(7.5, 5.0), layout="constrained")
     ax = fig.add_subplot()
@@ -248,7 +248,7 @@ def _plot_ptc(cal: Calibration, path: Path) -> None:
 
 
 def _plot_probability(cal: Calibration, path: Path) -> None:
-    from camsim.plotting import new_figure, save_png
+    from camsim.io.figures import new_figure, save_png
 
     fig = new_figure(figsize=(11, 4.4), layout="constrained")
     left, right = fig.subplots(1, 2)
@@ -278,7 +278,7 @@ def _plot_probability(cal: Calibration, path: Path) -> None:
 
 
 def _plot_rows(cal: Calibration, path: Path) -> None:
-    from camsim.plotting import new_figure, save_png
+    from camsim.io.figures import new_figure, save_png
 
     freq, power = cal.row_spectrum
     fig = new_figure(figsize=(7.5, 4.4), layout="constrained")

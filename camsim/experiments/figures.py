@@ -5,7 +5,7 @@ draw one panel per labelled series of frames (``{panel title: frames}``): the ex
 ``paper`` and ``pixel`` photon statistics; ``camsim analyze`` gives one per measurement of the user's own frames
 (:func:`analysis_figures`). Undefined values (None) are never plotted; each
 panel's legend says how many were left out. A data point keeps its colour (``tab20`` by point number) throughout.
-The figures are drawn without pyplot (:mod:`camsim.plotting`); matplotlib is imported when the first is drawn.
+The figures are drawn without pyplot (:mod:`camsim.io.figures`); matplotlib is imported when the first is drawn.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from camsim.analysis.patches import AnalysisSettings, demosaiced_samples, frame_
 from camsim.colour.colorimetry import CHANNELS, chromaticity_xy, xyz_from_camera
 from camsim.core.errors import CamsimError
 from camsim.core.optional_numbers import finite_or_none as _num
-from camsim.plotting import new_figure, save_png
+from camsim.io.figures import new_figure, save_png
 from camsim.io.output_folder import make_folder
 
 MAX_SAMPLES = 300
