@@ -29,8 +29,8 @@ __version__ = "0.1.0"
 
 #: Public name -> the module that defines it.
 _EXPORTS = {
-    "load_scene": "camsim.scene",
-    "Scene": "camsim.scene",
+    "load_scene": "camsim.scene.scene_file",
+    "Scene": "camsim.scene.scene_file",
     "scene_frame": "camsim.pipeline",
     "make_frame": "camsim.pipeline",
     "light_scene": "camsim.pipeline",

@@ -36,7 +36,7 @@ from camsim.io.dng import DARKTABLE_XMP_SUFFIX, darktable_xmp, read_dng, write_d
 from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression, read_exr, read_exr_header, write_exr
 from camsim.io.output_folder import make_folder
 from camsim.colour.rawcolour import CALIBRATION_ILLUMINANT_D65
-from camsim.regions import weighted_rows
+from camsim.scene.regions import weighted_rows
 from camsim.methods import get_method
 from camsim.core.names import MAX_STEM_BYTES, safe_component
 from camsim.sensor.noise_profile import frame_noise_profile
@@ -74,9 +74,9 @@ class FrameInfo:
     patch_xyz: np.ndarray | None = None
     exposure: dict | None = None  # how T was chosen: camsim.pipeline.exposure_record (None: a fixed T)
     surround: bool = True  # whether the spectrum after the patches is a chart's surround
-    target: dict | None = None  # a synthetic target's geometry (camsim.sources.target), the sidecar's "target"
-    recovery: dict | None = None  # an image's RGB → spectrum recovery, out of gamut (camsim.sources.image)
-    # regions as patches (camsim.regions): per patch (spectrum indices, pixel counts); None: patch i is spectrum i
+    target: dict | None = None  # a synthetic target's geometry (camsim.scene.sources.target), the sidecar's "target"
+    recovery: dict | None = None  # an image's RGB → spectrum recovery, out of gamut (camsim.scene.sources.image)
+    # regions as patches (camsim.scene.regions): per patch (spectrum indices, pixel counts); None: patch i is spectrum i
     patch_weights: tuple | None = None
     white_signal_e_per_s: np.ndarray | None = None  # the perfect white's e⁻/s per channel at F = 1 (LitScene)
     preset: dict | None = None  # a camera preset's name (or file) and ISO: the sidecar's "preset" and "iso"
@@ -368,7 +368,7 @@ def camera_identity(info: FrameInfo) -> dict:
 
 # --- reading ----------------------------------------------------------------------------------------------
 
-#: The pixel files a frame may be read from (not to be confused with scene sources, camsim.sources).
+#: The pixel files a frame may be read from (not to be confused with scene sources, camsim.scene.sources).
 PIXEL_FILE_KINDS = ("dng", "exr")
 
 

@@ -11,7 +11,7 @@ sequence, so a batch depends on the seed and its index only: whichever process d
 
 Per pair, each pixel's mean signal is its photograph's linear sRGB (Mallett 2019's three basis spectra) times one
 3 × 3 matrix of the illuminant and camera — the scene's lit photograph (:func:`camsim.pipeline.light_scene` of an
-:class:`~camsim.sources.image.ImageSource`, computed once per image and illuminant) — times T · F. The noise is the
+:class:`~camsim.scene.sources.image.ImageSource`, computed once per image and illuminant) — times T · F. The noise is the
 array path's exact per-pixel law (:func:`camsim.backends.array_path.draw_planes`); the clean target is each pixel's
 exact expectation before quantisation, k · E[min(X + o, full well)] (:func:`camsim.sensor.expected.clean_charge_e`), so that
 ``noisy − clean`` has mean zero at every pixel. Everything per pixel stays on the device: with ``device="cuda"`` the
@@ -86,7 +86,7 @@ class PairSource:
 
     Attributes
     ----------
-    scene : camsim.scene.Scene
+    scene : camsim.scene.scene_file.Scene
         The light (its ``illuminants``, drawn uniformly), luminance, wavelength grid, camera curves, exposure and
         sensor overrides (applied to every camera before a virtual camera's own parameters).
     images : tuple of str
@@ -130,7 +130,7 @@ class PairSource:
 
     def __post_init__(self):
         from camsim.sensor.presets import CAMERA_PRESETS
-        from camsim.scene import Scene
+        from camsim.scene.scene_file import Scene
 
         if not isinstance(self.scene, Scene):
             raise CamsimError(f"a pair source needs a camsim Scene (camsim.load_scene), got {self.scene!r}")
@@ -169,10 +169,10 @@ class PairSource:
 
     @classmethod
     def from_scene(cls, scene, images, **settings) -> PairSource:
-        """A source from a scene file or built-in name (:func:`camsim.scene.load_scene`) and ``images``: a folder
+        """A source from a scene file or built-in name (:func:`camsim.scene.scene_file.load_scene`) and ``images``: a folder
         (every .png, .jpg, .jpeg, .tif, .tiff, .exr file in it, in name order) or a list of files."""
         from camsim.dataset.spec import IMAGE_SUFFIXES
-        from camsim.scene import Scene, load_scene
+        from camsim.scene.scene_file import Scene, load_scene
 
         scene = scene if isinstance(scene, Scene) else load_scene(scene)
         if isinstance(images, (str, Path)) and Path(images).is_dir():
@@ -203,7 +203,7 @@ class PairSource:
         """The photograph ``path`` lit by ``illuminant`` through the scene's camera (cached)."""
         from camsim.pipeline import light_scene
         from camsim.light.rates import FactoredSpectra
-        from camsim.sources.image import ImageSource
+        from camsim.scene.sources.image import ImageSource
 
         key = ("lit", path, illuminant)
         if key not in self._cache:
@@ -216,7 +216,7 @@ class PairSource:
 
     @cached_property
     def _photos(self) -> tuple:
-        from camsim.sources.image import ImageSource
+        from camsim.scene.sources.image import ImageSource
 
         photos = []
         for path in self.images:

@@ -28,12 +28,12 @@ from camsim.sensor.fixed_pattern import dark_gain_at
 from camsim.frame_files import FrameInfo
 from camsim.io.dng import MAX_EXPOSURE_S
 from camsim.light.photons import KM_LM_PER_W, photon_radiance
-from camsim.radiance import SceneRadiance, scene_radiance
+from camsim.scene.radiance import SceneRadiance, scene_radiance
 from camsim.light.rates import FactoredSpectra, all_finite
 from camsim.colour.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
-from camsim.regions import weighted_rows
+from camsim.scene.regions import weighted_rows
 from camsim.render import Frame, check_frame_values, render_frame
-from camsim.scene import Scene
+from camsim.scene.scene_file import Scene
 from camsim.core.seeding import frame_seed_sequence
 from camsim.sensor.params import SensorParams
 from camsim.light.spectra import WavelengthGrid, cmfs_on_grid
@@ -199,7 +199,7 @@ def make_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, *, 
 def patch_xyz(radiance: SceneRadiance, grid: WavelengthGrid) -> np.ndarray:
     """CIE 1931 XYZ of each patch's light at F = 1, shape (patches, 3); Y is the luminance in cd/m².
 
-    A chart's patch is one spectrum; a region (:mod:`camsim.regions`) the mean of its pixels' spectra, weighted by
+    A chart's patch is one spectrum; a region (:mod:`camsim.scene.regions`) the mean of its pixels' spectra, weighted by
     pixel count (on a factored image's coefficients: no per-pixel spectra are made).
     """
     n = len(radiance.patch_names)

@@ -15,7 +15,7 @@ from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression
 from camsim.io.output_folder import output_folder
 from camsim.methods import get_method
 from camsim.pipeline import light_scene, scene_frame
-from camsim.scene import Scene
+from camsim.scene.scene_file import Scene
 from camsim.light.spectra import illuminant_spd
 
 
@@ -52,7 +52,7 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
     on the CPU (default) or a device (:func:`camsim.pipeline.make_frame`; checked before the folder is touched).
     ``exr_compression``: a lossless name of :data:`camsim.io.exr.EXR_COMPRESSIONS` (checked before anything is
     written). ``warn``, if given, is called with one line (no prefix) per frame of an image scene whose colours
-    fell partly outside the recovery method's gamut (:func:`camsim.sources.image.recovery_warning`: the share of
+    fell partly outside the recovery method's gamut (:func:`camsim.scene.sources.image.recovery_warning`: the share of
     the pixels; the sidecar's ``recovery`` records it either way).
 
     Returns
@@ -86,7 +86,7 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
                 files = write_frame(out_dir, stem, frame, info, preview=preview, exr_compression=exr_compression)
                 manifest.commit(info, files)
                 if warn is not None and info.recovery is not None:
-                    from camsim.sources.image import recovery_warning
+                    from camsim.scene.sources.image import recovery_warning
 
                     line = recovery_warning(info.recovery, info.reflectances)
                     if line is not None:

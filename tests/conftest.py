@@ -3,7 +3,7 @@
 import pytest
 
 from camsim.sensor.camera import AnchorScale, load_camera
-from camsim.radiance import scene_radiance
+from camsim.scene.radiance import scene_radiance
 from tests.helpers import small_scene
 
 

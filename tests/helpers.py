@@ -5,10 +5,10 @@ closed forms in ``tests.theory``."""
 from pathlib import Path
 
 from camsim.sensor.camera import load_camera
-from camsim.chart import ChartGeometry
+from camsim.scene.chart import ChartGeometry
 from camsim.pipeline import light_scene, make_frame
-from camsim.scene import Scene
-from camsim.sources import ChartSource
+from camsim.scene.scene_file import Scene
+from camsim.scene.sources import ChartSource
 from camsim.light.spectra import WavelengthGrid
 
 ROOT = Path(__file__).resolve().parents[1]

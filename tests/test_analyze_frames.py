@@ -20,9 +20,9 @@ from camsim.cli import main
 from camsim.core.errors import CamsimError
 from camsim.pipeline import light_scene
 from camsim.sensor.camera import load_camera
-from camsim.regions import Region
+from camsim.scene.regions import Region
 from camsim.run import render_scene
-from camsim.sources import CubeSource, ImageSource
+from camsim.scene.sources import CubeSource, ImageSource
 from tests.helpers import small_scene
 
 with warnings.catch_warnings():

@@ -25,7 +25,7 @@ from camsim.sensor.presets import sensor_preset
 from camsim.cli import main
 from camsim.core.errors import CamsimError
 from camsim.frame_files import load_frame
-from camsim.scene import load_scene
+from camsim.scene.scene_file import load_scene
 from tests.helpers import ROOT
 
 SIZE = "384x256"

@@ -239,7 +239,7 @@ def test_a_preset_file_is_read_and_converted(tmp_path):
 
 
 def test_a_scene_file_names_a_camera_preset_and_iso(tmp_path):
-    from camsim.scene import load_scene
+    from camsim.scene.scene_file import load_scene
 
     scene = tmp_path / "s.toml"
     scene.write_text('[chart]\nreflectances = "macbeth"\n[sensor]\npreset = "sony-a7s2"\niso = 3200\n'

@@ -11,7 +11,7 @@ import tomllib
 import pytest
 
 import camsim.pipeline
-from camsim.builtin_scenes import SCENES_DIR
+from camsim.scene.builtin_scenes import SCENES_DIR
 from camsim.sensor.presets import CAMERA_PRESETS
 from camsim.cli import main
 from camsim.io.dng import MIN_SIZE

@@ -10,7 +10,7 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from camsim.builtin_scenes import SCENES_DIR, builtin_scene_names
+from camsim.scene.builtin_scenes import SCENES_DIR, builtin_scene_names
 from camsim.cli import main
 from camsim.dataset import load_spec, read_manifest, run_dataset
 from camsim.core.errors import CamsimError

@@ -18,7 +18,7 @@ from camsim.denoise.evaluate import EvalSettings, evaluate
 from camsim.denoise.summary import Criterion, verdict
 from camsim.core.errors import CamsimError
 from camsim.run import render_scene
-from camsim.scene import load_scene
+from camsim.scene.scene_file import load_scene
 from tests.helpers import ROOT
 
 FACTORS = (1.0, 0.1, 0.01)

@@ -17,7 +17,7 @@ from camsim.frame_files import exr_view, load_frame
 from camsim.io.exr import read_exr, read_exr_oiio
 from camsim.pipeline import scene_frame
 from camsim.run import render_scene
-from camsim.scene import load_scene
+from camsim.scene.scene_file import load_scene
 from tests.helpers import small_scene
 
 ROOT = Path(__file__).resolve().parents[1]

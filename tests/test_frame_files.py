@@ -129,7 +129,7 @@ def test_no_dng_without_quantisation(scene, tmp_path):
 
 def test_render_frame_accepts_a_generator_seed_or_seed_sequence(scene):
     from camsim.sensor.camera import load_camera
-    from camsim.radiance import scene_radiance
+    from camsim.scene.radiance import scene_radiance
     from camsim.pipeline import lit_scene
     from camsim.render import render_frame
 

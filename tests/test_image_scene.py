@@ -16,11 +16,11 @@ import pytest
 
 from camsim.sensor.camera import load_camera
 from camsim.light.rates import FactoredSpectra
-from camsim.chart import ChartGeometry
+from camsim.scene.chart import ChartGeometry
 from camsim.cli import main
 from camsim.pipeline import light_scene, make_frame
 from camsim.sensor.params import PRESETS, SensorParams
-from camsim.sources import ChartSource, ImageSource
+from camsim.scene.sources import ChartSource, ImageSource
 from tests.helpers import small_scene
 from tests.theory import digital_pmf, pmf_moments
 

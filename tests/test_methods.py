@@ -138,7 +138,7 @@ def test_spectral_method_with_bins_of_zero_radiance(scene):
     cube = np.zeros((40, 60, grid.size))
     cube[:, :30, grid.wavelengths_nm >= 500] = 0.5  # left half: half-grey above 500 nm only; right: black
     from camsim.sensor.camera import load_camera
-    from camsim.radiance import SceneRadiance
+    from camsim.scene.radiance import SceneRadiance
     from camsim.light.photons import photon_radiance, scale_to_luminance
     from camsim.pipeline import lit_scene, make_frame
     from camsim.light.spectra import cmfs_on_grid, illuminant_spd

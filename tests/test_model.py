@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from camsim.sensor.camera import AnchorScale, PhysicalScale, absolute_qe, load_camera
-from camsim.chart import ChartGeometry
+from camsim.scene.chart import ChartGeometry
 from camsim.core.errors import CamsimError
 from camsim.sensor.expected import expected_signal
 from camsim.light.photons import LIGHT_SPEED_M_S, PLANCK_J_S, photon_radiance
-from camsim.radiance import scene_radiance
+from camsim.scene.radiance import scene_radiance
 from camsim.pipeline import frame_sensor, light_scene, lit_scene
 from camsim.sensor.params import PRESETS
 from camsim.light.spectra import WavelengthGrid, illuminant_spd

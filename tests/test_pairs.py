@@ -86,7 +86,7 @@ def test_the_clean_target_is_the_scene_frames_clean_layer(device):
     from camsim.sensor.presets import sensor_preset
     from camsim.pipeline import light_scene
     from camsim.render import clean_dn
-    from camsim.sources.image import ImageSource
+    from camsim.scene.sources.image import ImageSource
 
     src = source(device, flips=False, cameras=("canon-eos-70d",), iso=(100.0, 6400.0), intensity=(0.05, 2.0))
     batch = src.batch(2)

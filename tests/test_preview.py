@@ -12,7 +12,7 @@ from camsim.io.exr import read_exr
 from camsim.preview import preview_srgb, write_preview_png
 from camsim.core.seeding import frame_seed_sequence
 from camsim.run import render_scene
-from camsim.scene import load_scene
+from camsim.scene.scene_file import load_scene
 from tests.helpers import ROOT, render
 
 SEED = 11

@@ -14,7 +14,7 @@ from camsim.analysis.grouping import GROUP_KEYS
 from camsim.dataset.spec import PARAMETERS
 from camsim.core.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS, get_method
-from camsim.scene import RENDER_PARAMS, load_scene
+from camsim.scene.scene_file import RENDER_PARAMS, load_scene
 from camsim.core.schema import Param
 from camsim.sensor.params import SENSOR_PARAMS, STAGES, SensorParams
 

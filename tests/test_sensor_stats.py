@@ -220,7 +220,7 @@ def test_bits_set_the_full_scale(scene):
 
 
 def test_label_runs_tile_the_block_exactly(scene):
-    from camsim.radiance import scene_radiance
+    from camsim.scene.radiance import scene_radiance
     from camsim.sensor.kernels import label_runs
 
     labels = scene_radiance(scene, "D65").labels

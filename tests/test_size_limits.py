@@ -11,7 +11,7 @@ import pytest
 
 from camsim.cli import main
 from camsim.core.pixel_limit import MAX_PIXELS
-from camsim.sources.image import read_image_codes
+from camsim.scene.sources.image import read_image_codes
 
 #: A 27 KB PNG that decodes to 15 000 × 15 000 pixels (225 megapixels): before the check, camsim decoded it whole
 #: (11.4 GB resident, 495 s, SIGTERM ignored until the decoding ended). The refusal takes milliseconds.
@@ -83,7 +83,7 @@ def test_the_refusal_does_not_grow_memory(bomb):
     # VmHWM, the peak of this process's own memory map: ru_maxrss would also count the test process's resident
     # memory, which Linux carries into a child through fork and exec (406 MB after the image tests had run)
     code = ("import re, sys\nfrom camsim.core.errors import CamsimError\n"
-            "from camsim.sources.image import read_image_codes\n"
+            "from camsim.scene.sources.image import read_image_codes\n"
             "try:\n    read_image_codes(sys.argv[1])\nexcept CamsimError:\n    pass\nelse:\n    sys.exit(1)\n"
             "print(re.search(r'VmHWM:\\s*(\\d+) kB', open('/proc/self/status').read()).group(1))")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}

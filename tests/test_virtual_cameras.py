@@ -78,7 +78,7 @@ def test_the_union_of_ranges_and_a_uniform_choice_of_camera():
 
 
 def _spec(tmp_path, body):
-    from camsim.builtin_scenes import resolve_scene_file
+    from camsim.scene.builtin_scenes import resolve_scene_file
 
     path = tmp_path / "spec.toml"
     path.write_text(f'name = "v"\nscene = "{resolve_scene_file("macbeth_26")}"\nseed = 4\n[frame]\nwidth = 64\n'

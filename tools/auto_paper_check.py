@@ -27,10 +27,10 @@ def main() -> int:
     from scipy import stats
 
     from camsim.sensor.camera import load_camera
-    from camsim.chart import parse_size
+    from camsim.scene.chart import parse_size
     from camsim.methods.plan import KIND_NAMES
     from camsim.pipeline import light_scene, make_frame
-    from camsim.scene import load_scene
+    from camsim.scene.scene_file import load_scene
     from camsim.sensor.params import PRESETS
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

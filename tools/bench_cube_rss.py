@@ -90,8 +90,8 @@ def measure_render(header: str) -> None:
     2 workers), print the peak RSS and the times."""
 
     from camsim.pipeline import light_scene, make_frame
-    from camsim.scene import load_scene
-    from camsim.sources import CubeSource
+    from camsim.scene.scene_file import load_scene
+    from camsim.scene.sources import CubeSource
 
     scene = load_scene(Path(__file__).resolve().parents[1] / "scenes" / "macbeth_26.toml")
     scene = scene.replace(source=CubeSource(path=Path(header)), illuminants=("D65",), intensity_factors=(1.0,),

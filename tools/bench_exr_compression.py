@@ -50,7 +50,7 @@ def frame_layers(preset: str) -> dict:
     store's layers)."""
     from camsim.io.exr import CLEAN_CHANNELS, NOISY_CHANNELS
     from camsim.pipeline import scene_frame
-    from camsim.scene import load_scene
+    from camsim.scene.scene_file import load_scene
 
     scene = load_scene(ROOT / "scenes" / "macbeth_26.toml").replace(width=WIDTH, height=HEIGHT, preset_name=preset,
                                                                    method="poisson")

@@ -69,7 +69,7 @@ def timed(fn, xp, repeats: int) -> float:
 
 def w1_setup(width: int, height: int) -> dict:
     from camsim.pipeline import light_scene
-    from camsim.scene import load_scene
+    from camsim.scene.scene_file import load_scene
 
     scene = load_scene(SCENE).replace(width=width, height=height, illuminants=(ILLUMINANT,),
                                       intensity_factors=(FACTOR,), preset_name="paper-table1", statistics="pixel")
@@ -117,7 +117,7 @@ def pairs_per_s(device: str, image: Path, crop: int, batch: int, batches: int) -
     from camsim.sensor.presets import CAMERA_PRESETS
     from camsim.sensor.presets.virtual import cameras_with_fits
     from camsim.pairs import PairSource
-    from camsim.scene import load_scene
+    from camsim.scene.scene_file import load_scene
     from camsim.core.xp import synchronize
 
     scene = load_scene(SCENE).replace(illuminants=(ILLUMINANT,))

@@ -267,9 +267,9 @@ def chart(rows, path: Path) -> None:
 def main() -> int:
     sys.path.insert(0, str(ROOT))
     from camsim.sensor.camera import load_camera
-    from camsim.chart import parse_size
+    from camsim.scene.chart import parse_size
     from camsim.pipeline import light_scene, make_frame
-    from camsim.scene import load_scene
+    from camsim.scene.scene_file import load_scene
     from camsim.sensor.params import PRESETS as SENSORS
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

@@ -86,7 +86,7 @@ def setup(width: int, height: int) -> dict:
     """W1's scene lit by D65 through its camera, and its expected signal (imports camsim and colour-science)."""
     from camsim.sensor.camera import load_camera
     from camsim.pipeline import light_scene
-    from camsim.scene import load_scene
+    from camsim.scene.scene_file import load_scene
 
     scene = load_scene(SCENE).replace(width=width, height=height, illuminants=(ILLUMINANT,),
                                       intensity_factors=(FACTOR,), preset_name="paper-table1", statistics="pixel")
@@ -117,8 +117,8 @@ def image_setup(path: Path) -> dict:
     :func:`setup`, plus ``recovery_s`` (reading, distinct colours and Mallett's recovery) and ``colours``."""
     from camsim.sensor.camera import load_camera
     from camsim.pipeline import light_scene
-    from camsim.scene import load_scene
-    from camsim.sources import ImageSource
+    from camsim.scene.scene_file import load_scene
+    from camsim.scene.sources import ImageSource
 
     scene = load_scene(SCENE).replace(source=ImageSource(path=path), illuminants=(ILLUMINANT,),
                                       intensity_factors=(FACTOR,), preset_name="paper-table1", statistics="pixel")

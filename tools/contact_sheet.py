@@ -93,7 +93,7 @@ def main(argv=None) -> int:
     parser.add_argument("--size", default="150x100", help="frame size WxH (pixels), default 150x100")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "contact_sheet.png")
     args = parser.parse_args(argv)
-    from camsim.scene import load_scene
+    from camsim.scene.scene_file import load_scene
 
     width, height = (int(v) for v in args.size.lower().split("x"))
     scene = load_scene(ROOT / "scenes" / "macbeth_26.toml").replace(width=width, height=height)

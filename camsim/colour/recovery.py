@@ -50,7 +50,7 @@ Out of gamut (what each method does, recorded, never silent)
   times the largest (the rounding of sRGB's standard matrices leaves −4.8e-5 on Display P3's blue, which is
   sRGB's: no colour outside). An image
   scene records what fell outside in its frames' sidecars (``recovery``) and ``camsim render`` warns once per
-  frame (:mod:`camsim.sources.image`).
+  frame (:mod:`camsim.scene.sources.image`).
 * Otsu: the reconstruction is clipped to [0, 1] (colour-science's ``clip=True``) and the colour is flagged
   ``outside`` when the clip changed it — this happens for saturated colours, for colours outside the spectral
   locus (Otsu's cluster tree picks the nearest dataset cluster anyway), and for the perfect white itself

@@ -43,7 +43,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     """Carry out ``camsim experiment``; returns the exit status (0)."""
-    from camsim.chart import parse_size
+    from camsim.scene.chart import parse_size
     from camsim.core.errors import CamsimError
     from camsim.experiments.runner import Setup
     from camsim.experiments.scenarios import DEFAULT_SCENE, run_experiment

@@ -15,7 +15,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     """Carry out ``camsim list``; returns the exit status (0). Imports neither scipy nor colour-science."""
-    from camsim.builtin_scenes import builtin_scene_names, builtin_spec_names
+    from camsim.scene.builtin_scenes import builtin_scene_names, builtin_spec_names
     from camsim.methods import METHOD_NAMES
     from camsim.colour.colour_names import CAMERAS, ILLUMINANTS, REFLECTANCE_SETS  # colour-science's, without importing it
 

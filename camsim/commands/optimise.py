@@ -56,13 +56,13 @@ def run(args) -> int:
     import dataclasses
 
     from camsim.sensor.presets import camera_preset, sensor_preset
-    from camsim.chart import parse_size
+    from camsim.scene.chart import parse_size
     from camsim.optimise.model import SensorAtIso
     from camsim.optimise.report import write_report
     from camsim.optimise.search import exposure_axis, iso_axis, optimise, patch_rates
     from camsim.optimise.verify import three_chip, verify_choice
     from camsim.pipeline import light_scene
-    from camsim.scene import load_scene
+    from camsim.scene.scene_file import load_scene
 
     if not args.max_exposure > 0:
         raise CamsimError(f"--max-exposure must be a positive number of seconds, got {args.max_exposure:g}")

@@ -11,7 +11,7 @@ from camsim.cli_types import exposure_setting, positive_float, positive_int, sch
 from camsim.commands import DEFAULT_OUT, camera_argument, exr_compression_argument, preset_argument
 from camsim.core.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS
-from camsim.scene import RENDER_PARAMS
+from camsim.scene.scene_file import RENDER_PARAMS
 from camsim.sensor.params import SENSOR_PARAMS, STAGES
 
 _RENDER = {p.name: p for p in RENDER_PARAMS}
@@ -99,7 +99,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def apply_overrides(scene, args):
     """``scene`` with the command line's options applied (each given option replaces the scene file's value)."""
-    from camsim.chart import parse_size
+    from camsim.scene.chart import parse_size
 
     changes = {}
     if args.intensity:
@@ -159,7 +159,7 @@ def run(args) -> int:
     """
     from camsim.pipeline import check_frames
     from camsim.run import check_scene, render_scene
-    from camsim.scene import load_scene
+    from camsim.scene.scene_file import load_scene
 
     scene = apply_overrides(load_scene(args.scene), args)
     check_scene(scene)  # names and sizes (a DNG's 22 x 22 minimum, an image's own size too): before any work
@@ -196,7 +196,7 @@ def written_summary(scene, manifest: dict, out: Path) -> str:
 
     Parameters
     ----------
-    scene : camsim.scene.Scene
+    scene : camsim.scene.scene_file.Scene
         The scene as rendered (its illuminants × intensity factors are this run's frames).
     manifest : dict
         :func:`camsim.run.render_scene`'s manifest of the folder (this run's frames and earlier ones).

@@ -1,7 +1,7 @@
 """The one parameter schema: each parameter's name, type, unit, default, range and help, declared once.
 
 A parameter is declared where its dataclass is (``SensorParams`` in :mod:`camsim.sensor.params`, the render settings of
-:class:`camsim.scene.Scene`) with :func:`param`, which stores a :class:`Param` in the field's metadata. Everything
+:class:`camsim.scene.scene_file.Scene`) with :func:`param`, which stores a :class:`Param` in the field's metadata. Everything
 else is derived from it: the dataclass's own validation (:func:`validate`), the scene-file reader's ``[sensor]``
 and ``[render]`` tables, the dataset spec's parameter types and choices, the command line's choices and its
 ``--sensor NAME=VALUE`` option, the sidecar's keys and the analysis's grouping keys. So a new sensor parameter is

@@ -191,7 +191,7 @@ def emva_frame_seed_sequence(seed: int, kind: int, step: int, frame: int) -> np.
 
 
 def target_generator(seed: int) -> np.random.Generator:
-    """The stream of a synthetic target's pattern (:mod:`camsim.sources.target`): a function of its ``seed`` alone."""
+    """The stream of a synthetic target's pattern (:mod:`camsim.scene.sources.target`): a function of its ``seed`` alone."""
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(TARGET_KEY,)))
 
 

@@ -16,7 +16,7 @@ from camsim.dataset.spec import FrameSpec
 from camsim.frame_files import write_frame
 from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION
 from camsim.pipeline import light_scene, scene_frame
-from camsim.scene import load_scene
+from camsim.scene.scene_file import load_scene
 
 __all__ = ["render_frame", "render_files"]
 

@@ -38,7 +38,7 @@ the frame list is the same on every run and adding a parameter leaves the others
 
 Scenes may come from a folder of images (an ``[images]`` table): each frame is a random crop of a randomly chosen
 image, lit, seen and sensed as the ``scene`` file says (its light, camera, sensor, spectral grid and luminance; its
-chart, cube or image replaced by the crop, a reflectance image: :class:`camsim.sources.image.ImageSource`)::
+chart, cube or image replaced by the crop, a reflectance image: :class:`camsim.scene.sources.image.ImageSource`)::
 
     [images]
     folder = "images"                  # relative to the spec file
@@ -79,7 +79,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path, PurePosixPath
 
-from camsim.builtin_scenes import resolve_scene_file, resolve_spec_file
+from camsim.scene.builtin_scenes import resolve_scene_file, resolve_spec_file
 from camsim.sensor.camera import load_camera
 from camsim.core.errors import CamsimError
 from camsim.pipeline import check_frame, exposure_record, frame_sensor, light_scene
@@ -88,10 +88,10 @@ from camsim.io.dng import MIN_SIZE
 from camsim.io.exr_compression import check_exr_compression
 from camsim.core.names import safe_component
 from camsim.core.schema import INT64_MAX, check_frame_size
-from camsim.scene import FRAME_PARAMS, RENDER_PARAMS, Scene, check_intensity_factor, load_scene, read_toml
+from camsim.scene.scene_file import FRAME_PARAMS, RENDER_PARAMS, Scene, check_intensity_factor, load_scene, read_toml
 from camsim.core.seeding import dataset_frame_seeds, dataset_parameter_generator
 from camsim.sensor.params import SENSOR_PARAMS, with_checked_values
-from camsim.sources.image import ImageSource
+from camsim.scene.sources.image import ImageSource
 from camsim.sensor.presets.virtual import VIRTUAL_KEYS
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT = 256, 192
@@ -99,7 +99,7 @@ MAX_FRAMES = 1_000_000
 
 #: Every parameter a spec may set, by name: the frame's choices, the render settings and the sensor's (the schema).
 PARAMETERS = {p.name: p for p in (*FRAME_PARAMS, *RENDER_PARAMS, *SENSOR_PARAMS) if p.name != "seed"}
-#: The render settings of :class:`camsim.scene.Scene` a frame takes from its spec (all but the seed: a frame has
+#: The render settings of :class:`camsim.scene.scene_file.Scene` a frame takes from its spec (all but the seed: a frame has
 #: its own).
 RENDER_KEYS = tuple(p.name for p in RENDER_PARAMS if p.name != "seed")
 #: Plural spellings accepted in [grid] (the scene file's [light] names).

@@ -19,7 +19,7 @@ from camsim.io.output_folder import make_folder
 from camsim.light.photons import photon_radiance
 from camsim.pipeline import LitScene, make_frame
 from camsim.core.seeding import frame_seed_sequence
-from camsim.scene import load_scene
+from camsim.scene.scene_file import load_scene
 from camsim.sensor.params import SensorParams
 
 #: The photon statistics every experiment runs under, and the sampling method used for each: ``paper`` draws

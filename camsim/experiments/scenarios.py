@@ -10,7 +10,7 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-from camsim.builtin_scenes import builtin_scene_path
+from camsim.scene.builtin_scenes import builtin_scene_path
 from camsim.core.errors import CamsimError
 from camsim.experiments import findings as fd
 from camsim.experiments.datapoints import incident_photons

@@ -11,7 +11,7 @@ import numpy as np
 from camsim.core.errors import CamsimError
 from camsim.io.cube_files import CUBE_READERS, CubeRows, cube_size, read_cube
 from camsim.light.rates import FactoredSpectra
-from camsim.sources.base import SceneSource, SourceSpectra, typed
+from camsim.scene.sources.base import SceneSource, SourceSpectra, typed
 
 CUBE_KINDS = ("reflectance", "radiance")
 

@@ -56,7 +56,7 @@ import numpy as np
 from camsim.core.errors import CamsimError
 from camsim.light.photons import scale_to_luminance
 from camsim.light.rates import FactoredSpectra
-from camsim.sources.base import SceneSource, SourceSpectra, typed
+from camsim.scene.sources.base import SceneSource, SourceSpectra, typed
 from camsim.colour.recovery import (RECOVERY_METHODS, linear_srgb, mallett_basis, recovery_delta_e,
                               rgb_to_distinct_spectra)
 from camsim.light.spectra import WavelengthGrid, cmfs_on_grid, illuminant_spd, import_colour

@@ -32,7 +32,7 @@ import numpy as np
 from camsim.core.errors import CamsimError
 from camsim.core.seeding import target_generator
 from camsim.core.schema import finite_float
-from camsim.sources.base import SceneSource, SourceSpectra, typed
+from camsim.scene.sources.base import SceneSource, SourceSpectra, typed
 from camsim.light.spectra import reflectance_set
 
 TARGET_KINDS = ("dead-leaves", "slanted-edge", "flat")

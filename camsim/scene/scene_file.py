@@ -1,6 +1,6 @@
 """Scene files (TOML): what is in front of the camera, and the camera and sensor that look at it.
 
-What is in front of the camera is a scene *source* read from its own table (:data:`camsim.sources.SOURCES`:
+What is in front of the camera is a scene *source* read from its own table (:data:`camsim.scene.sources.SOURCES`:
 ``[chart]``, a reflectance set laid out as a grid of patches on a surround, a label map plus K spectra;
 ``[cube]``, a hyperspectral cube file of reflectance or radiance (``.npy``, ENVI or ``.mat``); ``[image]``, an RGB
 picture whose colours are recovered as spectra; or ``[target]``, a synthetic dead-leaves chart or slanted edge, also a
@@ -17,16 +17,16 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.builtin_scenes import resolve_scene_file
+from camsim.scene.builtin_scenes import resolve_scene_file
 from camsim.sensor.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
 from camsim.core.errors import CamsimError
 from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
-from camsim.regions import Region, check_regions, parse_regions
+from camsim.scene.regions import Region, check_regions, parse_regions
 from camsim.core.names import safe_component
 from camsim.core.schema import Param, check_frame_size, finite_float, param, params_of, read_toml, typed, validate
 from camsim.sensor.presets import sensor_preset
 from camsim.sensor.params import SENSOR_PARAMS, SensorParams
-from camsim.sources import SOURCES, ChartSource, SceneSource
+from camsim.scene.sources import SOURCES, ChartSource, SceneSource
 from camsim.light.spectra import WavelengthGrid
 
 STATISTICS = ("pixel", "paper")
@@ -45,7 +45,7 @@ class Scene:
     luminance_cd_m2 : float
         Luminance of the perfect white (``chart`` normalisation) or of each spectrum (``per-spectrum``) at F = 1.
     source : SceneSource
-        What is in front of the camera (:data:`camsim.sources.SOURCES`): a chart by default.
+        What is in front of the camera (:data:`camsim.scene.sources.SOURCES`): a chart by default.
     width, height : int
         Frame size in pixels (unless the source has a size of its own, as a cube has).
     preset_name : str
@@ -53,7 +53,7 @@ class Scene:
         camera preset file (``.toml``, relative to the scene file).
     iso : float or None
         The camera preset's ISO (None: its default, ISO 100 where published).
-    regions : tuple of camsim.regions.Region
+    regions : tuple of camsim.scene.regions.Region
         Named rectangles (``[[region]]``) that become the frame's patches, for a source without patches of its own
         (an image, a cube, a dead-leaves target); empty by default.
     """
@@ -109,7 +109,7 @@ class Scene:
             raise CamsimError(f"normalisation must be one of {NORMALISATIONS}, got {self.normalisation!r}")
         validate(self, "scene")
         if not all(isinstance(r, Region) for r in self.regions):
-            raise CamsimError(f"a scene's regions must be camsim.regions.Region, got {self.regions!r}")
+            raise CamsimError(f"a scene's regions must be camsim.scene.regions.Region, got {self.regions!r}")
         if self.regions and not self.source.has_own_size:  # else checked when the source gives its size
             check_regions(self.regions, self.width, self.height, "scene")
         self.sensor  # validate the preset and overrides now
@@ -176,7 +176,7 @@ def _table(doc: dict, key: str, allowed: set, where: str) -> dict:
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene file, given by its path or by a built-in scene's name (``macbeth_26``).
 
-    An existing file always wins; a name (no ``/``, no ``.toml``) is looked up in :mod:`camsim.builtin_scenes`.
+    An existing file always wins; a name (no ``/``, no ``.toml``) is looked up in :mod:`camsim.scene.builtin_scenes`.
 
     Raises
     ------

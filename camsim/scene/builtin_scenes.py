@@ -7,7 +7,7 @@ way (``camsim dataset denoise_small``: :func:`resolve_spec_file`). In a checkout
 ``scenes/`` at the repository root is a symbolic link to this folder, so ``scenes/macbeth_26.toml`` keeps
 working.
 
-This module imports nothing from camsim except :mod:`camsim.core.errors`, so that :mod:`camsim.scene` can use it.
+This module imports nothing from camsim except :mod:`camsim.core.errors`, so that :mod:`camsim.scene.scene_file` can use it.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ __all__ = ["SCENES_DIR", "builtin_scene_names", "builtin_scene_path", "builtin_s
            "resolve_scene_file", "resolve_spec_file"]
 
 #: The folder of the built-in scene files (and example dataset specs).
-SCENES_DIR = Path(__file__).parent / "scenes"
+SCENES_DIR = Path(__file__).parents[1] / "scenes"
 SUFFIX = ".toml"
 
 

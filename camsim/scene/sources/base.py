@@ -29,10 +29,10 @@ class SourceSpectra:
     surround : bool
         Whether the spectrum after the patches is a surround (a chart's), which the sidecar reports.
     target : dict or None
-        A synthetic target's geometry and parameters (:mod:`camsim.sources.target`), the sidecar's ``target``.
+        A synthetic target's geometry and parameters (:mod:`camsim.scene.sources.target`), the sidecar's ``target``.
     recovery : dict or None
         An image's RGB → spectrum recovery and what fell outside its gamut
-        (:meth:`camsim.sources.image.ImageSource.spectra`), the sidecar's ``recovery``; None for spectral sources.
+        (:meth:`camsim.scene.sources.image.ImageSource.spectra`), the sidecar's ``recovery``; None for spectral sources.
     """
 
     labels: np.ndarray
@@ -47,11 +47,11 @@ class SourceSpectra:
 
 
 class SceneSource:
-    """Base class of the scene sources registered in :data:`camsim.sources.SOURCES`.
+    """Base class of the scene sources registered in :data:`camsim.scene.sources.SOURCES`.
 
     A source is a frozen dataclass read from its own table of a scene file (``[chart]``, ``[cube]``, …) by
     :meth:`from_table`, and gives its spectra with :meth:`spectra`. A new kind of scene is one module with one
-    such class, registered in :mod:`camsim.sources`.
+    such class, registered in :mod:`camsim.scene.sources`.
     """
 
     #: The scene-file table this source is read from.

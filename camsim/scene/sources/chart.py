@@ -6,9 +6,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from camsim.chart import ChartGeometry
+from camsim.scene.chart import ChartGeometry
 from camsim.core.errors import CamsimError
-from camsim.sources.base import SceneSource, SourceSpectra, typed
+from camsim.scene.sources.base import SceneSource, SourceSpectra, typed
 from camsim.light.spectra import reflectance_set
 
 
