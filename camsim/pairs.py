@@ -10,9 +10,9 @@ sequence, so a batch depends on the seed and its index only: whichever process d
 :class:`PairBatches` iterates over batch indices (a worker of a data loader takes every n-th).
 
 Per pair, each pixel's mean signal is its photograph's linear sRGB (Mallett 2019's three basis spectra) times one
-3 × 3 matrix of the illuminant and camera — the scene's lit photograph (:func:`camsim.pipeline.light_scene` of an
+3 × 3 matrix of the illuminant and camera — the scene's lit photograph (:func:`camsim.render.pipeline.light_scene` of an
 :class:`~camsim.scene.sources.image.ImageSource`, computed once per image and illuminant) — times T · F. The noise is the
-array path's exact per-pixel law (:func:`camsim.backends.array_path.draw_planes`); the clean target is each pixel's
+array path's exact per-pixel law (:func:`camsim.render.backends.array_path.draw_planes`); the clean target is each pixel's
 exact expectation before quantisation, k · E[min(X + o, full well)] (:func:`camsim.sensor.expected.clean_charge_e`), so that
 ``noisy − clean`` has mean zero at every pixel. Everything per pixel stays on the device: with ``device="cuda"`` the
 arrays are CuPy's (a torch training loop takes them without a copy through the host: :mod:`camsim.pairs_torch`),
@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.backends import array_module, device_generator
-from camsim.backends.array_path import device_maps, draw_planes, mosaic
+from camsim.render.backends import array_module, device_generator
+from camsim.render.backends.array_path import device_maps, draw_planes, mosaic
 from camsim.core.errors import CamsimError
 from camsim.core.seeding import pair_batch_seed_sequence
 
@@ -201,7 +201,7 @@ class PairSource:
 
     def _lit(self, path: str, illuminant: str):
         """The photograph ``path`` lit by ``illuminant`` through the scene's camera (cached)."""
-        from camsim.pipeline import light_scene
+        from camsim.render.pipeline import light_scene
         from camsim.light.rates import FactoredSpectra
         from camsim.scene.sources.image import ImageSource
 
@@ -296,7 +296,7 @@ class PairSource:
         """The pair's T: the sensor's, or with the scene's ``exposure = "auto"`` the frame's auto exposure."""
         if self.scene.exposure == "fixed":
             return sensor.exposure_s
-        from camsim.pipeline import auto_exposure_s
+        from camsim.render.pipeline import auto_exposure_s
 
         return auto_exposure_s(self._lit(self.images[0], illuminant), factor, self.scene.exposure_target_e,
                                self.scene.exposure_max_s)

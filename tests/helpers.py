@@ -6,7 +6,7 @@ from pathlib import Path
 
 from camsim.sensor.camera import load_camera
 from camsim.scene.chart import ChartGeometry
-from camsim.pipeline import light_scene, make_frame
+from camsim.render.pipeline import light_scene, make_frame
 from camsim.scene.scene_file import Scene
 from camsim.scene.sources import ChartSource
 from camsim.light.spectra import WavelengthGrid

@@ -30,7 +30,7 @@ from camsim.cli import main
 from camsim.core.errors import CamsimError
 from camsim.io.dng import write_dng, write_dng_cfa
 from camsim.sensor.kernels import tukey_lambda, tukey_lambda_variance
-from camsim.pipeline import LitScene, make_frame
+from camsim.render.pipeline import LitScene, make_frame
 from camsim.sensor.params import SensorParams
 from camsim.light.spectra import WavelengthGrid
 

@@ -24,7 +24,7 @@ import pytest
 from camsim.sensor.presets import sensor_preset
 from camsim.cli import main
 from camsim.core.errors import CamsimError
-from camsim.frame_files import load_frame
+from camsim.render.frame_files import load_frame
 from camsim.scene.scene_file import load_scene
 from tests.helpers import ROOT
 

@@ -10,7 +10,7 @@ import tomllib
 
 import pytest
 
-import camsim.pipeline
+import camsim.render.pipeline
 from camsim.scene.builtin_scenes import SCENES_DIR
 from camsim.sensor.presets import CAMERA_PRESETS
 from camsim.cli import main
@@ -106,7 +106,7 @@ def test_a_frame_too_small_for_a_dng_is_refused_before_any_work(tmp_path, capsys
     def never(*args, **kwargs):
         raise AssertionError("work started before the size was checked")
 
-    monkeypatch.setattr(camsim.pipeline, "check_frames", never)
+    monkeypatch.setattr(camsim.render.pipeline, "check_frames", never)
     image = tmp_path / "tiny.toml"
     image.write_text((SCENES_DIR / "astronaut.toml").read_text().replace("# crop = [x, y, width, height]",
                                                                          "crop = [0, 0, 20, 20]"))

@@ -6,7 +6,7 @@ from scipy import stats
 
 from camsim.sensor.dn_law import charge_pmf, dn_pmf
 from camsim.sensor.expected import expected_signal
-from camsim.render import render_frame
+from camsim.render.frame import render_frame
 from camsim.sensor.params import PRESETS, preset
 from tests.theory import digital_pmf, digital_pmf_without_read_noise
 

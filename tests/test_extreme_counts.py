@@ -19,7 +19,7 @@ from scipy import special, stats
 from camsim.sensor.camera import load_camera
 from camsim.cli import main
 from camsim.core.errors import CamsimError
-from camsim.pipeline import check_frames, frame_warnings, light_scene, make_frame
+from camsim.render.pipeline import check_frames, frame_warnings, light_scene, make_frame
 from camsim.sensor.params import PRESETS, SensorParams
 from camsim.sensor.stages import SATURATION_CAP_TAIL, cap_mean_e, collect_charge_e, saturating_mean_e
 from tests.helpers import small_scene

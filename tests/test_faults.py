@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 from camsim.cli import main
-from camsim.frame_manifest import MANIFEST_NAME
+from camsim.render.frame_manifest import MANIFEST_NAME
 
 from tests.helpers import ROOT
 

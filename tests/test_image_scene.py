@@ -18,7 +18,7 @@ from camsim.sensor.camera import load_camera
 from camsim.light.rates import FactoredSpectra
 from camsim.scene.chart import ChartGeometry
 from camsim.cli import main
-from camsim.pipeline import light_scene, make_frame
+from camsim.render.pipeline import light_scene, make_frame
 from camsim.sensor.params import PRESETS, SensorParams
 from camsim.scene.sources import ChartSource, ImageSource
 from tests.helpers import small_scene

@@ -12,7 +12,7 @@ from camsim.core.errors import CamsimError
 from camsim.sensor.expected import expected_signal
 from camsim.light.photons import LIGHT_SPEED_M_S, PLANCK_J_S, photon_radiance
 from camsim.scene.radiance import scene_radiance
-from camsim.pipeline import frame_sensor, light_scene, lit_scene
+from camsim.render.pipeline import frame_sensor, light_scene, lit_scene
 from camsim.sensor.params import PRESETS
 from camsim.light.spectra import WavelengthGrid, illuminant_spd
 from tests.helpers import ROOT, WHITE, small_scene

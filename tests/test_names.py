@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from camsim.cli import main
 from camsim.core.errors import CamsimError, OutputError
-from camsim.frame_files import frame_stem
+from camsim.render.frame_files import frame_stem
 from camsim.io.atomic import write_text_atomic
 from camsim.io.output_folder import make_folder, output_folder
 from camsim.core.names import FORBIDDEN_CHARACTERS, MAX_NAME_BYTES, name_problem, safe_component

@@ -17,7 +17,7 @@ IMAGES = ROOT / "scenes" / "images"
 @pytest.fixture(params=["cpu", "cuda"], scope="module")
 def device(request):
     if request.param == "cuda":
-        from camsim.backends import cuda_module
+        from camsim.render.backends import cuda_module
 
         try:
             cuda_module()
@@ -84,8 +84,8 @@ def test_the_clean_target_is_the_scene_frames_clean_layer(device):
     """A pair's clean planes equal the clean layer of the same crop rendered as a scene (an [images] dataset frame's
     scene: the photograph cropped, lit, seen by the camera), site by site for a Bayer camera."""
     from camsim.sensor.presets import sensor_preset
-    from camsim.pipeline import light_scene
-    from camsim.render import clean_dn
+    from camsim.render.pipeline import light_scene
+    from camsim.render.frame import clean_dn
     from camsim.scene.sources.image import ImageSource
 
     src = source(device, flips=False, cameras=("canon-eos-70d",), iso=(100.0, 6400.0), intensity=(0.05, 2.0))

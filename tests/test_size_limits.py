@@ -157,7 +157,7 @@ def test_a_dng_whose_header_is_over_the_limit_is_refused(tmp_path, capsys):
     """ImageLength 2^31 in a small CFA DNG: refused from the header (before: decoded for 10 s and 1.5 GB)."""
     import tifffile
 
-    from camsim.frame_files import load_frame
+    from camsim.render.frame_files import load_frame
 
     out = tmp_path / "frames"
     assert main(["render", "macbeth_26", "--illuminant", "D65", "-F", "1", "--size", "48x32", "--cfa", "RGGB",

@@ -151,7 +151,7 @@ def test_pixels_with_laws_of_their_own_fall_back_to_poisson(change, statistics):
 
 
 def test_the_same_seed_gives_the_same_frame_whatever_the_workers():
-    from camsim.pipeline import light_scene, make_frame
+    from camsim.render.pipeline import light_scene, make_frame
     from camsim.sensor.camera import load_camera
 
     scene = small_scene(width=600, height=400)

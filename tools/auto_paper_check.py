@@ -29,7 +29,7 @@ def main() -> int:
     from camsim.sensor.camera import load_camera
     from camsim.scene.chart import parse_size
     from camsim.methods.plan import KIND_NAMES
-    from camsim.pipeline import light_scene, make_frame
+    from camsim.render.pipeline import light_scene, make_frame
     from camsim.scene.scene_file import load_scene
     from camsim.sensor.params import PRESETS
 

@@ -89,7 +89,7 @@ def measure_render(header: str) -> None:
     """Run in a child process: render one frame of a [cube] scene of the file (paper-table1, D65, F = 1, poisson,
     2 workers), print the peak RSS and the times."""
 
-    from camsim.pipeline import light_scene, make_frame
+    from camsim.render.pipeline import light_scene, make_frame
     from camsim.scene.scene_file import load_scene
     from camsim.scene.sources import CubeSource
 

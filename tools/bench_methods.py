@@ -50,8 +50,8 @@ def frame_records(scene, lit, camera, sensor, factor, method, seed, workers, fol
     """Render one frame, write it, analyse it from the files; returns (frame, analysis result, seconds)."""
     from camsim.analysis.analyze import analyse_paths
     from camsim.analysis.patches import AnalysisSettings
-    from camsim.frame_files import frame_stem, write_frame
-    from camsim.pipeline import make_frame, scene_frame_info
+    from camsim.render.frame_files import frame_stem, write_frame
+    from camsim.render.pipeline import make_frame, scene_frame_info
 
     start = time.perf_counter()
     frame = make_frame(lit, sensor, factor, method=method, rng=seed, workers=workers)
@@ -268,7 +268,7 @@ def main() -> int:
     sys.path.insert(0, str(ROOT))
     from camsim.sensor.camera import load_camera
     from camsim.scene.chart import parse_size
-    from camsim.pipeline import light_scene, make_frame
+    from camsim.render.pipeline import light_scene, make_frame
     from camsim.scene.scene_file import load_scene
     from camsim.sensor.params import PRESETS as SENSORS
 

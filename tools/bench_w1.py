@@ -85,7 +85,7 @@ def peak_rss_mb() -> float:
 def setup(width: int, height: int) -> dict:
     """W1's scene lit by D65 through its camera, and its expected signal (imports camsim and colour-science)."""
     from camsim.sensor.camera import load_camera
-    from camsim.pipeline import light_scene
+    from camsim.render.pipeline import light_scene
     from camsim.scene.scene_file import load_scene
 
     scene = load_scene(SCENE).replace(width=width, height=height, illuminants=(ILLUMINANT,),
@@ -116,7 +116,7 @@ def image_setup(path: Path) -> dict:
     """W1's camera, light and sensor looking at the photograph ``path`` (:func:`child_make_image`): the keys of
     :func:`setup`, plus ``recovery_s`` (reading, distinct colours and Mallett's recovery) and ``colours``."""
     from camsim.sensor.camera import load_camera
-    from camsim.pipeline import light_scene
+    from camsim.render.pipeline import light_scene
     from camsim.scene.scene_file import load_scene
     from camsim.scene.sources import ImageSource
 
@@ -133,7 +133,7 @@ def image_setup(path: Path) -> dict:
 
 def render(w: dict, method: str, workers: int = 2, rng=None):
     """W1 by ``method`` through camsim's frame pipeline (the frame's own seed unless ``rng`` is given)."""
-    from camsim.pipeline import make_frame
+    from camsim.render.pipeline import make_frame
     from camsim.core.seeding import frame_seed_sequence
 
     rng = frame_seed_sequence(SEED, ILLUMINANT, FACTOR) if rng is None else rng
@@ -148,7 +148,7 @@ def floor_draws(lam, threads: int, blocked: bool = True) -> None:
     if not blocked:
         np.random.default_rng(SEED).poisson(lam)
         return
-    from camsim.render import BLOCK_PIXELS
+    from camsim.render.frame import BLOCK_PIXELS
 
     height, width = lam.shape[1:]
     rows = max(1, BLOCK_PIXELS // width)
@@ -206,8 +206,8 @@ def image_timings(args) -> dict:
 
 
 def frame_info(w: dict, method: str):
-    """The FrameInfo of a frame, built by camsim.pipeline as ``camsim render`` builds it."""
-    from camsim.pipeline import scene_frame_info
+    """The FrameInfo of a frame, built by camsim.render.pipeline as ``camsim render`` builds it."""
+    from camsim.render.pipeline import scene_frame_info
 
     return scene_frame_info(w["scene"].replace(method=method), w["lit"], w["camera"].name, FACTOR, SEED)
 
@@ -216,7 +216,7 @@ def child_timing(args) -> dict:
     """Interleaved floor/render timings, then file writing, then the spectral method on a small chart."""
     import numpy as np
 
-    from camsim.frame_files import frame_stem, write_frame
+    from camsim.render.frame_files import frame_stem, write_frame
     from camsim.methods import METHOD_NAMES
 
     w = setup(args.width, args.height)

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from camsim.frame_files import (LoadedFrame, load_frame, no_frames_message, read_frame_meta, search_frames,
+from camsim.render.frame_files import (LoadedFrame, load_frame, no_frames_message, read_frame_meta, search_frames,
                                 uncommitted_lines)
 from camsim.analysis.dark import DarkFrame, load_dark
 from camsim.analysis.frame_stats import FRAME_STAT_COLUMNS, frame_statistics
@@ -294,7 +294,7 @@ def analyse_paths(paths, settings: AnalysisSettings | None = None, source="dng",
     ----------
     paths : iterable of str or Path
         Frame files (``.dng`` with its sidecar, ``.exr``) or folders searched recursively for committed frames
-        (whose sidecar claims the file; :func:`camsim.frame_files.search_frames`).
+        (whose sidecar claims the file; :func:`camsim.render.frame_files.search_frames`).
     settings : AnalysisSettings, optional
         Border, black-level mode and camera → XYZ matrix (default ``AnalysisSettings()``: the paper's way).
     source : {'dng', 'exr'}

@@ -10,7 +10,7 @@ import numpy as np
 
 from camsim.colour.colorimetry import CHANNELS
 from camsim.core.errors import CamsimError
-from camsim.frame_files import LoadedFrame, load_frame
+from camsim.render.frame_files import LoadedFrame, load_frame
 
 #: A dark frame whose sidecar expects more signal than this in any patch (or the surround) is lit. Unit: e⁻.
 DARK_MAX_SIGNAL_E = 0.5

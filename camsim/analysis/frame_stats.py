@@ -35,7 +35,7 @@ import numpy as np
 from camsim.colour.colorimetry import CHANNELS
 from camsim.core.errors import CamsimError
 from camsim.io.exr import read_exr_clean
-from camsim.frame_files import EXR_METADATA_KEY, LoadedFrame
+from camsim.render.frame_files import EXR_METADATA_KEY, LoadedFrame
 from camsim.core.optional_numbers import finite_or_none
 
 #: A pixel whose clean value lies within this many predicted σ of a clip (0, the white level, the full well) is

@@ -61,7 +61,7 @@ def run(args) -> int:
     from camsim.optimise.report import write_report
     from camsim.optimise.search import exposure_axis, iso_axis, optimise, patch_rates
     from camsim.optimise.verify import three_chip, verify_choice
-    from camsim.pipeline import light_scene
+    from camsim.render.pipeline import light_scene
     from camsim.scene.scene_file import load_scene
 
     if not args.max_exposure > 0:

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from camsim.backends import DEVICES
+from camsim.render.backends import DEVICES
 from camsim.cli_types import exposure_setting, positive_float, positive_int, schema_value, sensor_setting
 from camsim.commands import DEFAULT_OUT, camera_argument, exr_compression_argument, preset_argument
 from camsim.core.errors import CamsimError
@@ -153,19 +153,19 @@ def _warn_clear_of_the_bar(line: str) -> None:
 def run(args) -> int:
     """Carry out ``camsim render``; returns the exit status (0).
 
-    Before anything is written, every frame is checked (:func:`camsim.pipeline.check_frames`: a frame that cannot
+    Before anything is written, every frame is checked (:func:`camsim.render.pipeline.check_frames`: a frame that cannot
     be drawn is a :class:`CamsimError`) and the warnings of valid but dark-saturated frames go to stderr, one line
     each, ``camsim: warning: ...``.
     """
-    from camsim.pipeline import check_frames
-    from camsim.run import check_scene, render_scene
+    from camsim.render.pipeline import check_frames
+    from camsim.render.run import check_scene, render_scene
     from camsim.scene.scene_file import load_scene
 
     scene = apply_overrides(load_scene(args.scene), args)
     check_scene(scene)  # names and sizes (a DNG's 22 x 22 minimum, an image's own size too): before any work
     device = getattr(args, "device", "cpu")
     if device != "cpu":  # one line and exit 2 before anything is written: no CuPy, no GPU, a method it cannot draw
-        from camsim.backends import check_device, device_method
+        from camsim.render.backends import check_device, device_method
 
         drawn = device_method(scene.method, scene.statistics)
         check_device(device)
@@ -199,7 +199,7 @@ def written_summary(scene, manifest: dict, out: Path) -> str:
     scene : camsim.scene.scene_file.Scene
         The scene as rendered (its illuminants × intensity factors are this run's frames).
     manifest : dict
-        :func:`camsim.run.render_scene`'s manifest of the folder (this run's frames and earlier ones).
+        :func:`camsim.render.run.render_scene`'s manifest of the folder (this run's frames and earlier ones).
     out : pathlib.Path
         The output folder.
 
@@ -208,7 +208,7 @@ def written_summary(scene, manifest: dict, out: Path) -> str:
     str
         E.g. ``wrote 1 frame (EXR, JSON; no DNG: quantisation is off) to OUT/ — index: OUT/manifest.json``.
     """
-    from camsim.frame_files import frame_stem
+    from camsim.render.frame_files import frame_stem
 
     stems = {frame_stem(scene.name, ill, f) for ill in scene.illuminants for f in scene.intensity_factors}
     kinds = set()

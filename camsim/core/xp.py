@@ -1,6 +1,6 @@
 """Array namespaces: numpy on the CPU, CuPy on an NVIDIA GPU — the one switch of camsim's array code.
 
-The stages (:mod:`camsim.sensor.stages`) and the device path (:mod:`camsim.backends.array_path`) are written once, against
+The stages (:mod:`camsim.sensor.stages`) and the device path (:mod:`camsim.render.backends.array_path`) are written once, against
 what numpy and CuPy share: the module functions (``xp.minimum``, ``xp.where``, …) and the methods of their random
 generators that take the same arguments (``poisson(lam)``, ``standard_normal(size, dtype)``, ``random(size, dtype)``).
 The namespace of an array is found from its type, so CuPy is imported only by code that already holds a CuPy array

@@ -82,8 +82,8 @@ from pathlib import Path, PurePosixPath
 from camsim.scene.builtin_scenes import resolve_scene_file, resolve_spec_file
 from camsim.sensor.camera import load_camera
 from camsim.core.errors import CamsimError
-from camsim.pipeline import check_frame, exposure_record, frame_sensor, light_scene
-from camsim.run import check_scene
+from camsim.render.pipeline import check_frame, exposure_record, frame_sensor, light_scene
+from camsim.render.run import check_scene
 from camsim.io.dng import MIN_SIZE
 from camsim.io.exr_compression import check_exr_compression
 from camsim.core.names import safe_component
@@ -886,7 +886,7 @@ def _frame_values(job: _Job) -> Iterator[tuple]:
 
 @dataclass
 class _FrameCheck:
-    """Checks the frames of one group as drawing each checks it first (:func:`camsim.pipeline.check_frame`: its
+    """Checks the frames of one group as drawing each checks it first (:func:`camsim.render.pipeline.check_frame`: its
     expected signal finite, its values within float32, its exposure within a DNG's), so that a frame the run would
     refuse is refused when the spec is planned, by the dry run too. The group's lit scene stands for its frames' (an ``[images]`` spec's first
     crop for every crop, as in the other checks).
@@ -896,7 +896,7 @@ class _FrameCheck:
     """
 
     scene: Scene
-    lit: object  # camsim.pipeline.LitScene
+    lit: object  # camsim.render.pipeline.LitScene
     sensor_keys: tuple
     last: tuple | None = None  # (own sensor values, the largest F checked with them)
 

@@ -285,7 +285,7 @@ def _remove_partials(root: Path) -> None:
 
 
 def frame_arrays(rendered, layout: StoreLayout) -> dict:
-    """A rendered :class:`camsim.render.Frame` as the store's layers (``digital`` None where not quantised)."""
+    """A rendered :class:`camsim.render.frame.Frame` as the store's layers (``digital`` None where not quantised)."""
     digital = rendered.digital_dn
     return {"noisy": rendered.noisy_dn, "clean": rendered.clean_dn(),
             "digital": None if digital is None else digital.astype(layout.digital, copy=False)}

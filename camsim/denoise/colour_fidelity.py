@@ -2,7 +2,7 @@
 
 Needs no chart and no F = 1 frame, so every frame of every dataset is judged for colour. For a frame:
 
-1. **Camera → XYZ.** The black level (the sidecar's, :meth:`camsim.frame_files.LoadedFrame.expected_black_dn`) is
+1. **Camera → XYZ.** The black level (the sidecar's, :meth:`camsim.render.frame_files.LoadedFrame.expected_black_dn`) is
    subtracted from the test image (noisy or denoised) and from the clean layer, and both are mapped to XYZ by the
    same camera → XYZ matrix M that the chart metrics use (the paper's Eq. 15 from the sidecar's Qe,
    :func:`camsim.analysis.patches.frame_matrix`). M's overall scale is immaterial: the white below goes through it

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from camsim.analysis.grouping import group_key
-from camsim.frame_files import load_frame
+from camsim.render.frame_files import load_frame
 from camsim.analysis.patches import frame_matrix, patch_samples
 from camsim.colour.colorimetry import CHANNELS
 from camsim.denoise.colour_fidelity import frame_white_xyz, mean_delta_e00

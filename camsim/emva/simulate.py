@@ -40,7 +40,7 @@ from camsim.sensor.camera import DEFAULT_CAMERA, PhysicalScale, absolute_qe, loa
 from camsim.core.errors import CamsimError
 from camsim.sensor.fixed_pattern import fixed_pattern
 from camsim.core.optional_numbers import finite_or_none
-from camsim.pipeline import LitScene, make_frame
+from camsim.render.pipeline import LitScene, make_frame
 from camsim.core.seeding import emva_frame_seed_sequence
 from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.params import SensorParams

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.frame_files import load_frame
+from camsim.render.frame_files import load_frame
 from camsim.analysis.patches import AnalysisSettings, demosaiced_samples, frame_matrix, patch_samples
 from camsim.colour.colorimetry import CHANNELS, chromaticity_xy, xyz_from_camera
 from camsim.core.errors import CamsimError
@@ -601,7 +601,7 @@ def _analysis_groups(results) -> list:
     """The frames with patches, by measurement (:func:`camsim.analysis.grouping.group_key`): per group its file
     prefix, panel title, frames (largest F first) and camera black point (of its lowest-F frame)."""
     from camsim.analysis.grouping import group_key
-    from camsim.frame_files import read_frame_meta
+    from camsim.render.frame_files import read_frame_meta
 
     groups: dict = {}
     for result in results or []:

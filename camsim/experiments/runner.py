@@ -13,11 +13,11 @@ from camsim.analysis.analyze import analyse_paths
 from camsim.analysis.patches import AnalysisSettings
 from camsim.sensor.camera import AnchorScale, absolute_qe, load_camera
 from camsim.experiments.datapoints import data_points, points_radiance
-from camsim.frame_files import FrameInfo, write_frame
-from camsim.frame_manifest import FrameManifest
+from camsim.render.frame_files import FrameInfo, write_frame
+from camsim.render.frame_manifest import FrameManifest
 from camsim.io.output_folder import make_folder
 from camsim.light.photons import photon_radiance
-from camsim.pipeline import LitScene, make_frame
+from camsim.render.pipeline import LitScene, make_frame
 from camsim.core.seeding import frame_seed_sequence
 from camsim.scene.scene_file import load_scene
 from camsim.sensor.params import SensorParams

@@ -42,7 +42,7 @@ from camsim.colour.colorimetry import CHANNELS
 from camsim.experiments import findings as fd
 from camsim.experiments.report import Finding, write_csv, write_report
 from camsim.experiments.runner import STATISTICS_METHODS, Setup, analyse_series, prepare, run_conditions
-from camsim.frame_files import read_frame_meta
+from camsim.render.frame_files import read_frame_meta
 from camsim.core.optional_numbers import finite_or_none
 from camsim.sensor.params import PRESETS, SensorParams
 
@@ -109,7 +109,7 @@ def model_snr(meta: dict, index: int, source: str, form: str, quantisation_term:
     Parameters
     ----------
     meta : dict
-        The frame's sidecar (:func:`camsim.frame_files.read_frame_meta`).
+        The frame's sidecar (:func:`camsim.render.frame_files.read_frame_meta`).
     index : int
         Patch index.
     source : {'dng', 'exr'}

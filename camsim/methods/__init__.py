@@ -45,7 +45,7 @@ class SamplingMethod:
         One line for help texts.
     draw_module : str
         The module whose ``draw_block(job, r0, r1, rng, scratch)`` draws rows ``r0:r1`` of the frame ``job`` (a
-        :class:`camsim.render.FrameJob`): DN before quantisation into ``job.noisy`` and, if quantised, digital
+        :class:`camsim.render.frame.FrameJob`): DN before quantisation into ``job.noisy`` and, if quantised, digital
         numbers into ``job.digital``. Imported on first use, so that listing the methods costs nothing.
     planned : bool
         Whether the method decides per spectrum and channel before drawing (:attr:`plan`).

@@ -180,7 +180,7 @@ def bins_signal(labels, plan: DrawPlan, expected: ExpectedSignal, sensor: Sensor
 def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None:
     """Rows ``r0:r1`` of a frame by its plan: every channel (or CFA site) in one pass, then row noise and the ADC.
 
-    ``job`` is the frame's :class:`camsim.render.FrameJob`; ``scratch`` the thread's buffers.
+    ``job`` is the frame's :class:`camsim.render.frame.FrameJob`; ``scratch`` the thread's buffers.
     """
     sensor, plan, expected = job.sensor, job.plan, job.expected
     block = job.noisy[:, r0:r1]  # work in place in the output

@@ -114,7 +114,7 @@ def patch_rates(scene, illuminant: str, sensor) -> PatchRates:
 
     from camsim.analysis.delta_e import d65_white_xy
     from camsim.colour.colorimetry import camera_to_xyz_matrix
-    from camsim.pipeline import light_scene
+    from camsim.render.pipeline import light_scene
 
     lit = light_scene(scene, illuminant)
     names = list(lit.radiance.patch_names)

@@ -55,7 +55,7 @@ def verify_choice(choice: Choice, result, lit, rates: PatchRates, sensor_at, see
     ``sensor_at(iso, exposure_s)`` gives the :class:`camsim.sensor.params.SensorParams` of a setting.
     """
     from camsim.optimise.model import SensorAtIso, expected_delta_e
-    from camsim.pipeline import make_frame
+    from camsim.render.pipeline import make_frame
 
     exposures, isos = list(result.exposures_s), result.isos
     i, j = exposures.index(choice.exposure_s), isos.index(choice.iso)

@@ -112,7 +112,7 @@ def dng_noise_profile(sensor: SensorParams, shot_step: float | np.ndarray = 1.0)
 
 
 def frame_noise_profile(frame, statistics: str) -> np.ndarray | None:
-    """:func:`dng_noise_profile` of a rendered :class:`camsim.render.Frame` under its photon ``statistics``."""
+    """:func:`dng_noise_profile` of a rendered :class:`camsim.render.frame.Frame` under its photon ``statistics``."""
     ex = frame.expected
     step = shot_step_e(statistics, ex.signal_e, ex.signal_var_e2, frame.labels if statistics != "pixel" else None)
     return dng_noise_profile(frame.sensor, step)

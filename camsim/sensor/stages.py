@@ -5,7 +5,7 @@ fused per channel, straight to digital numbers; ``spectral`` runs them in sequen
 electrons until :func:`electrons_to_dn`.
 
 The functions take numpy or CuPy arrays (:mod:`camsim.core.xp`: the namespace follows the arrays, the random draws the
-generator): the device path (:mod:`camsim.backends.array_path`) composes the same functions on a GPU. Two CPU
+generator): the device path (:mod:`camsim.render.backends.array_path`) composes the same functions on a GPU. Two CPU
 kernels are used only where the CPU's block renderer asks for them — the histogram sampler of one mean over a
 rectangle (``size`` with a scalar mean) and float32 Box–Muller (``work`` scratch) — and two numpy calls that CuPy
 does not take with the same keywords (a casting rule) have a CuPy form with the same casts.

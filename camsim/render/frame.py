@@ -254,7 +254,7 @@ def render_frame(
     labels : numpy.ndarray, shape (H, W), unsigned integer
         Spectrum index per pixel.
     expected : ExpectedSignal
-        From :meth:`camsim.pipeline.LitScene.expected` or :func:`camsim.sensor.expected.expected_signal`.
+        From :meth:`camsim.render.pipeline.LitScene.expected` or :func:`camsim.sensor.expected.expected_signal`.
     sensor : SensorParams
     statistics : {'pixel', 'paper'}
     method : str

@@ -5,7 +5,7 @@
     scene source ──(illuminant)──▶ SceneRadiance ──(camera, scale)──▶ LitScene   (per illuminant: K spectra)
     LitScene ──(sensor, F, exposure mode)──▶ the frame's sensor, its T                (frame_sensor)
     LitScene ──(sensor, F, statistics)──▶ ExpectedSignal ──(method, seed)──▶ Frame   (make_frame)
-    Frame + FrameInfo ──▶ .dng / .exr / .json                                    (camsim.frame_files)
+    Frame + FrameInfo ──▶ .dng / .exr / .json                                    (camsim.render.frame_files)
 
 :func:`make_frame` draws every frame camsim makes: ``camsim render`` and ``camsim dataset`` (through
 :func:`scene_frame`), the paper's experiments (their data points as a :class:`LitScene`), ``camsim emva`` (a
@@ -25,14 +25,14 @@ from camsim.sensor.camera import Camera, absolute_qe, load_camera
 from camsim.core.errors import CamsimError
 from camsim.sensor.expected import ExpectedSignal, expected_signal
 from camsim.sensor.fixed_pattern import dark_gain_at
-from camsim.frame_files import FrameInfo
+from camsim.render.frame_files import FrameInfo
 from camsim.io.dng import MAX_EXPOSURE_S
 from camsim.light.photons import KM_LM_PER_W, photon_radiance
 from camsim.scene.radiance import SceneRadiance, scene_radiance
 from camsim.light.rates import FactoredSpectra, all_finite
 from camsim.colour.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
 from camsim.scene.regions import weighted_rows
-from camsim.render import Frame, check_frame_values, render_frame
+from camsim.render.frame import Frame, check_frame_values, render_frame
 from camsim.scene.scene_file import Scene
 from camsim.core.seeding import frame_seed_sequence
 from camsim.sensor.params import SensorParams
@@ -174,8 +174,8 @@ def make_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, *, 
     workers : int, optional
         Threads (default: every core).
     device : {'cpu', 'cuda', 'numpy'}
-        ``cpu``: the block renderer (:func:`camsim.render.render_frame`). ``cuda``: the array path on an NVIDIA GPU
-        with CuPy; ``numpy``: the same code on the CPU (:mod:`camsim.backends`). On a device every method but
+        ``cpu``: the block renderer (:func:`camsim.render.frame.render_frame`). ``cuda``: the array path on an NVIDIA GPU
+        with CuPy; ``numpy``: the same code on the CPU (:mod:`camsim.render.backends`). On a device every method but
         ``spectral`` draws the exact per-pixel law, ``pixel`` statistics only; the frame's pixels are copied to
         the host (its ``plan`` is None). The same seed, device and library version give the same frame; the
         devices agree in distribution, not in bits.
@@ -186,8 +186,8 @@ def make_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, *, 
     """
     expected = lit.expected(sensor, intensity_factor, statistics)
     if device != "cpu":
-        from camsim.backends import array_module
-        from camsim.backends.array_path import render_frame_xp
+        from camsim.render.backends import array_module
+        from camsim.render.backends.array_path import render_frame_xp
 
         drawn = render_frame_xp(array_module(device), lit.labels, expected, sensor, rng=rng, statistics=statistics,
                                 method=method)
@@ -214,13 +214,13 @@ def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, intensity_fa
     """The :class:`FrameInfo` of one frame of ``scene`` under ``lit``: what its files say besides its pixels.
 
     On a device (``device`` other than ``cpu``) the method is the one drawn there
-    (:func:`camsim.backends.device_method`) and the sidecar records the device (:func:`camsim.backends.device_record`)
+    (:func:`camsim.render.backends.device_method`) and the sidecar records the device (:func:`camsim.render.backends.device_record`)
     and, where it differs, the scene's method as ``method_requested``.
     """
     radiance, grid = lit.radiance, scene.grid
     method, record = scene.method, None
     if device != "cpu":
-        from camsim.backends import array_module, device_method, device_record
+        from camsim.render.backends import array_module, device_method, device_record
 
         method = device_method(scene.method, scene.statistics)
         record = device_record(array_module(device)) | (
@@ -309,7 +309,7 @@ def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed:
 def check_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, statistics: str) -> None:
     """Refuse a frame that cannot be drawn or written, before it is: its expected signal must be finite
     (:func:`camsim.sensor.expected.expected_signal`), its values must fit the frame's float32 pixels
-    (:func:`camsim.render.check_frame_values`) — what drawing it checks first — and what is written after the
+    (:func:`camsim.render.frame.check_frame_values`) — what drawing it checks first — and what is written after the
     drawing must be finite and fit: the perfect white's signal (the sidecar's ``white_signal_e``) and a quantised
     frame's exposure (its DNG's, :data:`camsim.io.dng.MAX_EXPOSURE_S`).
 
@@ -338,7 +338,7 @@ def check_frames(scene: Scene, camera: Camera | None = None) -> list[str]:
 
     Every illuminant is lit once and its brightest frame checked (every mean grows with F): its expected signal
     must be finite (:func:`camsim.sensor.expected.expected_signal`) and its values must fit the frame's float32 pixels
-    (:func:`camsim.render.check_frame_values`). Means far above the full well are no reason to refuse: they are
+    (:func:`camsim.render.frame.check_frame_values`). Means far above the full well are no reason to refuse: they are
     drawn at the saturation cap (:func:`camsim.sensor.stages.cap_mean_e`).
 
     Parameters

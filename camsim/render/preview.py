@@ -36,7 +36,7 @@ from camsim.colour.colorimetry import camera_to_xyz_matrix
 from camsim.core.errors import CamsimError
 from camsim.io.atomic import atomic_path
 from camsim.light.photons import KM_LM_PER_W
-from camsim.render import BLOCK_PIXELS  # the preview works in the renderer's row blocks: memory does not grow
+from camsim.render.frame import BLOCK_PIXELS  # the preview works in the renderer's row blocks: memory does not grow
 
 __all__ = ["EXPOSURES", "MATRICES", "linear_srgb", "preview_srgb", "preview_transform", "write_preview_png"]
 
@@ -65,7 +65,7 @@ def _facts(info) -> _ColourFacts:
         xyz = [p.get("xyz_cd_m2") for p in patches]
         xyz = np.asarray(xyz, dtype=np.float64) if xyz and all(v is not None for v in xyz) else None
         values = (info["intensity_factor"], info["luminance_cd_m2"], info["wavelengths_nm"], info["as_shot_neutral"])
-    else:  # camsim.frame_files.FrameInfo
+    else:  # camsim.render.frame_files.FrameInfo
         xyz = info.patch_xyz
         values = (info.intensity_factor, info.luminance_cd_m2, info.wavelengths_nm, info.as_shot_neutral)
     factor, luminance, wl, neutral = values
@@ -151,11 +151,11 @@ def preview_srgb(frame, info, *, exposure: str | float = "scene", matrix: str = 
 
     Parameters
     ----------
-    frame : camsim.render.Frame
+    frame : camsim.render.frame.Frame
         A rendered frame: three-chip (3, H, W) or Bayer (1, H, W) numbers; ``digital_dn`` is used when the frame
         is quantised, ``noisy_dn`` otherwise.
-    info : camsim.frame_files.FrameInfo or dict
-        The frame's FrameInfo, or its sidecar (the dict :func:`camsim.frame_files.sidecar` returns): the intensity
+    info : camsim.render.frame_files.FrameInfo or dict
+        The frame's FrameInfo, or its sidecar (the dict :func:`camsim.render.frame_files.sidecar` returns): the intensity
         factor F, the scene's reference luminance, the wavelength grid, ``as_shot_neutral`` and the patches' XYZ.
     exposure : {"scene", "auto"} or float
         ``"scene"`` (default): the perfect white at F = 1 (the scene's ``luminance_cd_m2``) maps to sRGB white
@@ -217,13 +217,13 @@ def linear_srgb(frame, info, *, matrix: str = "least-squares", transform: np.nda
     Steps 2 to 5 of the module docstring with the ``"scene"`` exposure: black-subtracted camera DN → XYZ → white
     balance to D65 → linear sRGB (IEC 61966-2-1 primaries, D65 white), scaled so that the perfect white at F = 1
     (the scene's ``luminance_cd_m2``) is 1 in every channel. A Bayer mosaic is demosaiced (bilinear). What the EXR
-    of a frame holds in ``R, G, B`` (:func:`camsim.frame_files.write_frame`).
+    of a frame holds in ``R, G, B`` (:func:`camsim.render.frame_files.write_frame`).
 
     Parameters
     ----------
-    frame : camsim.render.Frame
+    frame : camsim.render.frame.Frame
         A rendered frame, three-chip (3, H, W) or Bayer (1, H, W) ``noisy_dn``. Unit: DN.
-    info : camsim.frame_files.FrameInfo or dict
+    info : camsim.render.frame_files.FrameInfo or dict
         As for :func:`preview_srgb`.
     matrix : {"least-squares", "paper"}
         As for :func:`preview_srgb`.

@@ -3,8 +3,8 @@
 ==========  ===============================================================================================
 device      what draws the frame
 ==========  ===============================================================================================
-``cpu``     :func:`camsim.render.render_frame`: row blocks on a thread pool, every method, both statistics
-``cuda``    :func:`camsim.backends.array_path.render_frame_xp` with CuPy on an NVIDIA GPU (optional extra
+``cpu``     :func:`camsim.render.frame.render_frame`: row blocks on a thread pool, every method, both statistics
+``cuda``    :func:`camsim.render.backends.array_path.render_frame_xp` with CuPy on an NVIDIA GPU (optional extra
             ``gpu``: ``pip install '.[gpu]'`` in camsim's folder, which installs ``cupy-cuda12x``)
 ``numpy``   the same array path with numpy as its namespace, on the CPU: the GPU's code, run where there is no
             GPU (the tests prove it against the exact law; ``tools/bench_gpu.py`` times it). Python API only

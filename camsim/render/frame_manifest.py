@@ -1,6 +1,6 @@
 """A render folder's ``manifest.json``: at every moment, the frames committed in the folder.
 
-``camsim render`` (and the experiments) update it as each frame commits (:func:`camsim.frame_files.write_frame`
+``camsim render`` (and the experiments) update it as each frame commits (:func:`camsim.render.frame_files.write_frame`
 renames a frame's sidecar into place last), so a run stopped at any point leaves a manifest that lists exactly
 the complete frames. Runs into one folder add to it: it starts from the earlier manifest's entries whose frames
 are still committed, adds every committed frame on disk it does not list (a run killed between a frame's commit
@@ -21,7 +21,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from camsim.core.errors import CamsimError
-from camsim.frame_files import SIDECAR_SUFFIX, FrameInfo
+from camsim.render.frame_files import SIDECAR_SUFFIX, FrameInfo
 from camsim.io.atomic import write_json_atomic
 
 __all__ = ["MANIFEST_NAME", "FrameManifest", "manifest_entry"]

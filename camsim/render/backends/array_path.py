@@ -1,7 +1,7 @@
 """The array path: a whole frame drawn at once, by the stage functions of :mod:`camsim.sensor.stages`, on numpy or CuPy.
 
 One implementation for both namespaces (:mod:`camsim.core.xp`): the arrays' type picks the device, and the random
-generator (numpy's ``PCG64`` or CuPy's cuRAND Philox, :func:`camsim.backends.device_generator`) draws there. It
+generator (numpy's ``PCG64`` or CuPy's cuRAND Philox, :func:`camsim.render.backends.device_generator`) draws there. It
 draws the exact law of ``pixel`` statistics per pixel and plane:
 
 ::
@@ -15,7 +15,7 @@ draws the exact law of ``pixel`` statistics per pixel and plane:
 
 with g, d, o the sensor's fixed-pattern maps (PRNU, dark-current DSNU, offset DSNU; drawn on the CPU from
 ``sensor_seed`` as for every frame, and copied to the device once). A Bayer sensor draws one plane, each site its own
-channel. The law is the CPU's (:func:`camsim.render.render_frame`): the two agree in distribution, not in bits (the
+channel. The law is the CPU's (:func:`camsim.render.frame.render_frame`): the two agree in distribution, not in bits (the
 CPU draws in row blocks, each from its own generator, with its own fast kernels).
 
 :func:`draw_planes` draws from per-pixel means (an image's crops, :mod:`camsim.pairs`); :func:`render_frame_xp`
@@ -29,11 +29,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from camsim.backends import device_generator, device_method
+from camsim.render.backends import device_generator, device_method
 from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.expected import ExpectedSignal
 from camsim.sensor.fixed_pattern import FixedPattern, _dark_gain_map, _unit_maps, fixed_pattern
-from camsim.render import Frame, block_rows, check_frame_values
+from camsim.render.frame import Frame, block_rows, check_frame_values
 from camsim.sensor.params import SensorParams
 from camsim.sensor.stages import (
     add_offset_e,
@@ -71,7 +71,7 @@ class DeviceFrame:
     maps: FixedPattern | None = None
 
     def to_frame(self, labels: np.ndarray, expected: ExpectedSignal, sensor: SensorParams) -> Frame:
-        """The host :class:`~camsim.render.Frame` (its pixels copied from the device), for the usual writers."""
+        """The host :class:`~camsim.render.frame.Frame` (its pixels copied from the device), for the usual writers."""
         return Frame(to_host(self.noisy_dn), to_host(self.digital_dn), labels, expected, sensor, None,
                      fixed_pattern(sensor, labels.shape))
 
@@ -121,7 +121,7 @@ def mosaic(xp, cfa: str, planes) -> object:
     """The Bayer mosaic (1, H, W) of per-channel planes: each 2 × 2 site of ``cfa`` takes its channel's values.
 
     ``planes`` is an array (3, H, W), or a function ``(channel, site) -> that site's values`` (an array of the
-    site's shape). The frame's sizes are even (:func:`camsim.render.block_rows` checks).
+    site's shape). The frame's sizes are even (:func:`camsim.render.frame.block_rows` checks).
     """
     pick = planes if callable(planes) else (lambda c, site: planes[c][site])
     out = None
@@ -201,16 +201,16 @@ def render_frame_xp(xp, labels, expected: ExpectedSignal, sensor: SensorParams, 
     expected : ExpectedSignal
     sensor : SensorParams
     rng : SeedSequence, int, numpy Generator or an ``xp`` generator
-        The frame's seed (:func:`camsim.backends.device_generator`): the same seed, device and library version
+        The frame's seed (:func:`camsim.render.backends.device_generator`): the same seed, device and library version
         give the same frame.
     statistics, method : str
-        ``pixel`` statistics only; every method but ``spectral`` (:func:`camsim.backends.device_method`).
+        ``pixel`` statistics only; every method but ``spectral`` (:func:`camsim.render.backends.device_method`).
 
     Raises
     ------
     CamsimError
         ``paper`` statistics, ``spectral``, a Bayer sensor with an odd frame size, values beyond float32
-        (:func:`camsim.render.check_frame_values`).
+        (:func:`camsim.render.frame.check_frame_values`).
     """
     device_method(method, statistics)
     check_frame_values(expected, sensor)

@@ -40,8 +40,8 @@ from camsim.scene.regions import weighted_rows
 from camsim.methods import get_method
 from camsim.core.names import MAX_STEM_BYTES, safe_component
 from camsim.sensor.noise_profile import frame_noise_profile
-from camsim.render import Frame
-from camsim.sidecar_schema import check_sidecar, parse_sidecar
+from camsim.render.frame import Frame
+from camsim.render.sidecar_schema import check_sidecar, parse_sidecar
 
 
 #: The sidecar file's suffix, beside the DNG and EXR of the same stem.
@@ -72,7 +72,7 @@ class FrameInfo:
     color_matrix1: np.ndarray
     as_shot_neutral: np.ndarray
     patch_xyz: np.ndarray | None = None
-    exposure: dict | None = None  # how T was chosen: camsim.pipeline.exposure_record (None: a fixed T)
+    exposure: dict | None = None  # how T was chosen: camsim.render.pipeline.exposure_record (None: a fixed T)
     surround: bool = True  # whether the spectrum after the patches is a chart's surround
     target: dict | None = None  # a synthetic target's geometry (camsim.scene.sources.target), the sidecar's "target"
     recovery: dict | None = None  # an image's RGB → spectrum recovery, out of gamut (camsim.scene.sources.image)
@@ -80,7 +80,7 @@ class FrameInfo:
     patch_weights: tuple | None = None
     white_signal_e_per_s: np.ndarray | None = None  # the perfect white's e⁻/s per channel at F = 1 (LitScene)
     preset: dict | None = None  # a camera preset's name (or file) and ISO: the sidecar's "preset" and "iso"
-    # the device that drew the frame, where not the CPU (camsim.backends.device_record): the sidecar's "device",
+    # the device that drew the frame, where not the CPU (camsim.render.backends.device_record): the sidecar's "device",
     # "device_name", "device_library" and, where a device draws another method, "method_requested"
     device: dict | None = None
 
@@ -200,7 +200,7 @@ def write_frame(out_dir: Path, stem: str, frame: Frame, info: FrameInfo, preview
 
     A three-chip DNG gets ``stem.dng.xmp`` beside it, ``files``' ``xmp``: darktable's sidecar with its black level
     (:func:`camsim.io.dng.darktable_xmp`), which darktable cannot read from such a DNG. With ``preview``, also
-    ``stem.png``: an 8-bit sRGB picture of the frame (:func:`camsim.preview.preview_srgb`,
+    ``stem.png``: an 8-bit sRGB picture of the frame (:func:`camsim.render.preview.preview_srgb`,
     default exposure), listed in the sidecar's ``files`` as ``png``. ``exr_compression``: a lossless name of
     :data:`camsim.io.exr.EXR_COMPRESSIONS`, recorded in the sidecar.
 
@@ -279,7 +279,7 @@ def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo
     header.update(view_header)
     write_exr(out_dir / files["exr"], frame.noisy_dn, frame.clean_dn(), header, exr_compression, view=view)
     if "png" in files:
-        from camsim.preview import preview_srgb, write_preview_png
+        from camsim.render.preview import preview_srgb, write_preview_png
 
         write_preview_png(out_dir / files["png"], preview_srgb(frame, info))
 
@@ -301,7 +301,7 @@ def exr_view(frame: Frame, info: FrameInfo) -> tuple[np.ndarray, dict[str, str]]
     """The picture a frame's EXR holds in ``R, G, B`` for image viewers, and the header attributes saying what it is.
 
     Linear sRGB, 1 = the perfect white at F = 1, from the values before quantisation
-    (:func:`camsim.preview.linear_srgb`: the ``--preview`` PNG's picture before its clip and transfer function), so
+    (:func:`camsim.render.preview.linear_srgb`: the ``--preview`` PNG's picture before its clip and transfer function), so
     that a viewer shows the scene in its colours, at its light level (a frame at F is F times darker), with black at
     0. The camera → XYZ matrix is fitted on the chart's patches; where that fit cannot be made (a frame without
     patches, or patches that do not span the colours, such as a dark or a flat frame) Eq. 15's matrix is taken; where
@@ -317,7 +317,7 @@ def exr_view(frame: Frame, info: FrameInfo) -> tuple[np.ndarray, dict[str, str]]
         from black-subtracted camera DN to linear sRGB, rows R, G, B, as JSON) or, for ``camera``,
         ``camsim:view_black_dn`` (per channel, DN, as JSON).
     """
-    from camsim.preview import linear_srgb, preview_transform
+    from camsim.render.preview import linear_srgb, preview_transform
 
     fit = info.patch_xyz is not None and len(info.patch_xyz) >= 3  # else preview_transform takes Eq. 15's
     for matrix in ("least-squares", "paper") if fit else ("paper",):
@@ -426,7 +426,7 @@ def _read_sidecar(path: Path) -> dict:
 
 
 def _check_meta(meta, path: Path, shape=None) -> dict:
-    """``meta`` if it is a camsim frame's metadata (:func:`camsim.sidecar_schema.check_sidecar`: every key the
+    """``meta`` if it is a camsim frame's metadata (:func:`camsim.render.sidecar_schema.check_sidecar`: every key the
     readers use of the right type, shape and range, and finite) that fits pixels of ``shape`` (planes, H, W);
     else CamsimError.
 
