@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 import camsim.dataset.runner as runner
-from camsim.commands.dataset import add_parser, run
+from camsim.cli.commands.dataset import add_parser, run
 from camsim.dataset import _pool
 from camsim.dataset import load_spec, read_manifest, run_dataset
 from camsim.core.errors import CamsimError

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from camsim.commands.dataset import print_plan
+from camsim.cli.commands.dataset import print_plan
 from camsim.dataset import spec as spec_module
 from camsim.dataset.spec import OWN_VALUE_PARAMS, load_spec, plan_spec
 from camsim.core.errors import CamsimError

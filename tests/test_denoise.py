@@ -11,7 +11,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from camsim.commands.denoise_eval import add_parser, run
+from camsim.cli.commands.denoise_eval import add_parser, run
 from camsim.denoise.denoisers import (DENOISERS, bm3d_available, estimate_noise_sigma, model_noise_sigma,
                                      resolve_denoiser)
 from camsim.denoise.evaluate import EvalSettings, evaluate

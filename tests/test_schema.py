@@ -62,7 +62,7 @@ def test_every_sensor_parameter_reaches_every_consumer(p, tmp_path):
         list(value) if p.kind == "rgb" else value)
     # command line: --sensor NAME=VALUE
     from camsim.cli import build_parser
-    from camsim.commands.render import sensor_overrides
+    from camsim.cli.commands.render import sensor_overrides
 
     args = build_parser().parse_args(["render", "macbeth_26", "--sensor", f"{p.name}={literal.strip(chr(34))}"])
     assert getattr(SensorParams(**context, **{p.name: sensor_overrides(args)[p.name]}), p.name) == value

@@ -6,8 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from camsim.cli_types import non_negative_int
-from camsim.commands import DEFAULT_OUT, camera_argument, writing_to
+from camsim.cli.types import non_negative_int
+from camsim.cli.commands import DEFAULT_OUT, camera_argument, writing_to
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:

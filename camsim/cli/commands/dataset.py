@@ -8,8 +8,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from camsim.cli_types import positive_int
-from camsim.commands import DEFAULT_OUT, exr_compression_argument
+from camsim.cli.types import positive_int
+from camsim.cli.commands import DEFAULT_OUT, exr_compression_argument
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:

@@ -12,8 +12,8 @@ import sys
 import textwrap
 from pathlib import Path
 
-from camsim.cli_types import non_negative_int, positive_float
-from camsim.commands import DEFAULT_OUT, writing_to
+from camsim.cli.types import non_negative_int, positive_float
+from camsim.cli.commands import DEFAULT_OUT, writing_to
 from camsim.core.errors import CamsimError
 
 #: Longest default output folder name (the denoisers' names joined by '+'); beyond it, "comparison".

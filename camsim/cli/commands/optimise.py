@@ -6,8 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from camsim.cli_types import positive_float, sensor_setting
-from camsim.commands import DEFAULT_OUT, preset_argument, writing_to
+from camsim.cli.types import positive_float, sensor_setting
+from camsim.cli.commands import DEFAULT_OUT, preset_argument, writing_to
 from camsim.core.errors import CamsimError
 
 DEFAULT_FACTORS = (1.0, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)

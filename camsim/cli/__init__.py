@@ -1,10 +1,14 @@
 """The ``camsim`` command line. ``main(argv)`` does the work and returns an exit status; importing does nothing.
 
-Each sub-command is a module of :mod:`camsim.commands` with ``add_parser(subparsers)`` and ``run(args)``;
+Each sub-command is a module of :mod:`camsim.cli.commands` with ``add_parser(subparsers)`` and ``run(args)``;
 :data:`COMMANDS` names them. User errors (bad names, malformed files, bad values) and the environment's (a folder
 that cannot be written, a full disk, no memory) print one line, ``camsim: error: ...``, and exit with 2. Ctrl-C
 (SIGINT) exits with 130 and SIGTERM (``kill``, ``timeout``, batch schedulers) with 143, both after the files being
 written are removed: what a run leaves is complete.
+
+Layer 10, the commands: this package (with :mod:`camsim.cli.types`, the argparse value types the sub-commands
+share) may import every layer below it, the applications included; only ``camsim.__main__`` imports it.
+``tests/test_layers.py`` checks the layers.
 """
 
 from __future__ import annotations
@@ -15,8 +19,8 @@ import sys
 import warnings
 
 from camsim import __version__
-from camsim.commands import analyze, calibrate, dataset, denoise_eval, emva, experiment, optimise, render
-from camsim.commands import list as list_command
+from camsim.cli.commands import analyze, calibrate, dataset, denoise_eval, emva, experiment, optimise, render
+from camsim.cli.commands import list as list_command
 from camsim.core.errors import CamsimError, describe_os_error
 from camsim.core.signals import handlers_installed
 

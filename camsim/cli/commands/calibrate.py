@@ -6,8 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from camsim.cli_types import file_name, positive_float
-from camsim.commands import DEFAULT_OUT, writing_to
+from camsim.cli.types import file_name, positive_float
+from camsim.cli.commands import DEFAULT_OUT, writing_to
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:

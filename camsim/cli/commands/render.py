@@ -7,8 +7,8 @@ import sys
 from pathlib import Path
 
 from camsim.render.backends import DEVICES
-from camsim.cli_types import exposure_setting, positive_float, positive_int, schema_value, sensor_setting
-from camsim.commands import DEFAULT_OUT, camera_argument, exr_compression_argument, preset_argument
+from camsim.cli.types import exposure_setting, positive_float, positive_int, schema_value, sensor_setting
+from camsim.cli.commands import DEFAULT_OUT, camera_argument, exr_compression_argument, preset_argument
 from camsim.core.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS
 from camsim.scene.scene_file import RENDER_PARAMS
