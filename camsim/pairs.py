@@ -5,15 +5,15 @@ camera curves and sensor overrides (as a dataset spec's ``scene``), photographs 
 as an ``[images]`` spec's), a crop size, a range of intensity factors F, camera presets with an ISO range or
 virtual cameras drawn from their noise fits — and a seed. ``source.batch(b)`` renders batch *b*: for each of its
 pairs an image, a crop (and flips), an illuminant, F and a camera are drawn on the host from
-:func:`camsim.seeding.pair_batch_seed_sequence` (seed, b), and the noise on the device from a child of the same
+:func:`camsim.core.seeding.pair_batch_seed_sequence` (seed, b), and the noise on the device from a child of the same
 sequence, so a batch depends on the seed and its index only: whichever process draws it, whatever was drawn before.
 :class:`PairBatches` iterates over batch indices (a worker of a data loader takes every n-th).
 
 Per pair, each pixel's mean signal is its photograph's linear sRGB (Mallett 2019's three basis spectra) times one
-3 × 3 matrix of the illuminant and camera — the scene's lit photograph (:func:`camsim.pipeline.light_scene` of an
-:class:`~camsim.sources.image.ImageSource`, computed once per image and illuminant) — times T · F. The noise is the
-array path's exact per-pixel law (:func:`camsim.backends.array_path.draw_planes`); the clean target is each pixel's
-exact expectation before quantisation, k · E[min(X + o, full well)] (:func:`camsim.expected.clean_charge_e`), so that
+3 × 3 matrix of the illuminant and camera — the scene's lit photograph (:func:`camsim.render.pipeline.light_scene` of an
+:class:`~camsim.scene.sources.image.ImageSource`, computed once per image and illuminant) — times T · F. The noise is the
+array path's exact per-pixel law (:func:`camsim.render.backends.array_path.draw_planes`); the clean target is each pixel's
+exact expectation before quantisation, k · E[min(X + o, full well)] (:func:`camsim.sensor.expected.clean_charge_e`), so that
 ``noisy − clean`` has mean zero at every pixel. Everything per pixel stays on the device: with ``device="cuda"`` the
 arrays are CuPy's (a torch training loop takes them without a copy through the host: :mod:`camsim.pairs_torch`),
 with ``device="cpu"`` numpy's.
@@ -29,10 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.backends import array_module, device_generator
-from camsim.backends.array_path import device_maps, draw_planes, mosaic
-from camsim.errors import CamsimError
-from camsim.seeding import pair_batch_seed_sequence
+from camsim.render.backends import array_module, device_generator
+from camsim.render.backends.array_path import device_maps, draw_planes, mosaic
+from camsim.core.errors import CamsimError
+from camsim.core.seeding import pair_batch_seed_sequence
 
 #: What ``cameras_mode`` may be: camera presets at an ISO drawn log-uniformly, or virtual cameras (LED's).
 CAMERA_MODES = ("preset", "virtual")
@@ -50,7 +50,7 @@ class PairBatch:
     Attributes
     ----------
     index : int
-        The batch's index (its seed: :func:`camsim.seeding.pair_batch_seed_sequence`).
+        The batch's index (its seed: :func:`camsim.core.seeding.pair_batch_seed_sequence`).
     noisy : array, shape (B, planes, H, W), float32
         DN before quantisation (the EXR's values): k · (charge + read noise) + row noise. Unit: DN.
     clean : array, shape (B, planes, H, W), float32
@@ -86,7 +86,7 @@ class PairSource:
 
     Attributes
     ----------
-    scene : camsim.scene.Scene
+    scene : camsim.scene.scene_file.Scene
         The light (its ``illuminants``, drawn uniformly), luminance, wavelength grid, camera curves, exposure and
         sensor overrides (applied to every camera before a virtual camera's own parameters).
     images : tuple of str
@@ -99,14 +99,14 @@ class PairSource:
         F drawn log-uniformly between these (F = 1: the perfect white at the scene's luminance, 8000 e⁻ in the
         strongest channel at T = 1 s).
     cameras : tuple of str
-        Camera presets (:data:`camsim.camera_presets.CAMERA_PRESETS`), drawn uniformly; all of one layout (Bayer or
+        Camera presets (:data:`camsim.sensor.presets.CAMERA_PRESETS`), drawn uniformly; all of one layout (Bayer or
         three planes).
     iso : (float, float) or None
         ``preset`` mode: ISO drawn log-uniformly in this range, clipped to each camera's; None: each camera's
         default ISO.
     cameras_mode : {'preset', 'virtual'}
         ``virtual``: each pair's camera drawn around the presets' noise fits
-        (:func:`camsim.camera_presets.virtual.draw_virtual_cameras`, ``k_range``).
+        (:func:`camsim.sensor.presets.virtual.draw_virtual_cameras`, ``k_range``).
     k_range : {'camera', 'union'}
     flips : bool
         Random left-right and upside-down flips of each crop, probability ½ each.
@@ -129,8 +129,8 @@ class PairSource:
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
-        from camsim.camera_presets import CAMERA_PRESETS
-        from camsim.scene import Scene
+        from camsim.sensor.presets import CAMERA_PRESETS
+        from camsim.scene.scene_file import Scene
 
         if not isinstance(self.scene, Scene):
             raise CamsimError(f"a pair source needs a camsim Scene (camsim.load_scene), got {self.scene!r}")
@@ -169,10 +169,10 @@ class PairSource:
 
     @classmethod
     def from_scene(cls, scene, images, **settings) -> PairSource:
-        """A source from a scene file or built-in name (:func:`camsim.scene.load_scene`) and ``images``: a folder
+        """A source from a scene file or built-in name (:func:`camsim.scene.scene_file.load_scene`) and ``images``: a folder
         (every .png, .jpg, .jpeg, .tif, .tiff, .exr file in it, in name order) or a list of files."""
         from camsim.dataset.spec import IMAGE_SUFFIXES
-        from camsim.scene import Scene, load_scene
+        from camsim.scene.scene_file import Scene, load_scene
 
         scene = scene if isinstance(scene, Scene) else load_scene(scene)
         if isinstance(images, (str, Path)) and Path(images).is_dir():
@@ -194,16 +194,16 @@ class PairSource:
 
     @cached_property
     def _camera(self):
-        from camsim.camera import load_camera
+        from camsim.sensor.camera import load_camera
 
         scene = self.scene
         return load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
 
     def _lit(self, path: str, illuminant: str):
         """The photograph ``path`` lit by ``illuminant`` through the scene's camera (cached)."""
-        from camsim.pipeline import light_scene
-        from camsim.rates import FactoredSpectra
-        from camsim.sources.image import ImageSource
+        from camsim.render.pipeline import light_scene
+        from camsim.light.rates import FactoredSpectra
+        from camsim.scene.sources.image import ImageSource
 
         key = ("lit", path, illuminant)
         if key not in self._cache:
@@ -216,7 +216,7 @@ class PairSource:
 
     @cached_property
     def _photos(self) -> tuple:
-        from camsim.sources.image import ImageSource
+        from camsim.scene.sources.image import ImageSource
 
         photos = []
         for path in self.images:
@@ -243,15 +243,15 @@ class PairSource:
         return self._cache[key]
 
     def _sensor(self, preset: str, iso, overrides: dict):
-        from camsim.camera_presets import sensor_preset
+        from camsim.sensor.presets import sensor_preset
 
         return sensor_preset(preset, iso, self.scene.base_dir, **(dict(self.scene.sensor_overrides) | overrides))
 
     # ------------------------------------------------------------------------------------------------ draws
     def _draw_params(self, children: list) -> list:
         """The parameters of a batch's pairs, drawn on the host from the children of its seed sequence."""
-        from camsim.camera_presets import CAMERA_PRESETS
-        from camsim.camera_presets.virtual import draw_virtual_cameras
+        from camsim.sensor.presets import CAMERA_PRESETS
+        from camsim.sensor.presets.virtual import draw_virtual_cameras
 
         n, (width, height) = self.batch_size, self.crop
         images = np.random.default_rng(children[_IMAGES])
@@ -296,7 +296,7 @@ class PairSource:
         """The pair's T: the sensor's, or with the scene's ``exposure = "auto"`` the frame's auto exposure."""
         if self.scene.exposure == "fixed":
             return sensor.exposure_s
-        from camsim.pipeline import auto_exposure_s
+        from camsim.render.pipeline import auto_exposure_s
 
         return auto_exposure_s(self._lit(self.images[0], illuminant), factor, self.scene.exposure_target_e,
                                self.scene.exposure_max_s)
@@ -366,7 +366,7 @@ class PairSource:
         else:
             noisy, digital = draw_planes(rng, signal, sensor, dark_e=dark_planes, gain=gain, dark_gain=dark_gain,
                                          offset_e=offset)
-        from camsim.expected import clean_charge_e
+        from camsim.sensor.expected import clean_charge_e
 
         clean = clean_charge_e(poisson_mean, sensor, base) * sensor.dn_per_electron
         return noisy, clean.astype(xp.float32), digital

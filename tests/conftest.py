@@ -2,8 +2,8 @@
 
 import pytest
 
-from camsim.camera import AnchorScale, load_camera
-from camsim.radiance import scene_radiance
+from camsim.sensor.camera import AnchorScale, load_camera
+from camsim.scene.radiance import scene_radiance
 from tests.helpers import small_scene
 
 

@@ -4,12 +4,12 @@ closed forms in ``tests.theory``."""
 
 from pathlib import Path
 
-from camsim.camera import load_camera
-from camsim.chart import ChartGeometry
-from camsim.pipeline import light_scene, make_frame
-from camsim.scene import Scene
-from camsim.sources import ChartSource
-from camsim.spectra import WavelengthGrid
+from camsim.sensor.camera import load_camera
+from camsim.scene.chart import ChartGeometry
+from camsim.render.pipeline import light_scene, make_frame
+from camsim.scene.scene_file import Scene
+from camsim.scene.sources import ChartSource
+from camsim.light.spectra import WavelengthGrid
 
 ROOT = Path(__file__).resolve().parents[1]
 WHITE = 18  # "white 9.5 (.05 D)" in ColorChecker order

@@ -10,9 +10,9 @@ import pytest
 from camsim.analysis.analyze import analyse_paths
 from camsim.analysis.patches import AnalysisSettings, analyse_frame
 from camsim.cli import main
-from camsim.errors import CamsimError
-from camsim.frame_files import load_frame
-from camsim.run import render_scene
+from camsim.core.errors import CamsimError
+from camsim.render.frame_files import load_frame
+from camsim.render.run import render_scene
 from tests.helpers import ROOT, small_scene
 
 SCENE = ROOT / "scenes" / "macbeth_26.toml"

@@ -16,14 +16,14 @@ from camsim.analysis.delta_e import (
 )
 from camsim.analysis.ellipse import fit_ellipse
 from camsim.analysis.snr import delta_snr_percent, snr_empirical, snr_model
-from camsim.colorimetry import (
+from camsim.colour.colorimetry import (
     camera_to_xyz_matrix,
     chromaticity_xy,
     matrix_condition,
     xyz_from_camera,
 )
-from camsim.photons import LIGHT_SPEED_M_S, PLANCK_J_S
-from camsim.spectra import cmfs_at
+from camsim.light.photons import LIGHT_SPEED_M_S, PLANCK_J_S
+from camsim.light.spectra import cmfs_at
 
 WL = np.arange(380.0, 780.0 + 1e-9, 4.0)
 

@@ -17,12 +17,12 @@ import numpy as np
 import pytest
 
 from camsim.cli import main
-from camsim.errors import CamsimError
-from camsim.pipeline import light_scene
-from camsim.camera import load_camera
-from camsim.regions import Region
-from camsim.run import render_scene
-from camsim.sources import CubeSource, ImageSource
+from camsim.core.errors import CamsimError
+from camsim.render.pipeline import light_scene
+from camsim.sensor.camera import load_camera
+from camsim.scene.regions import Region
+from camsim.render.run import render_scene
+from camsim.scene.sources import CubeSource, ImageSource
 from tests.helpers import small_scene
 
 with warnings.catch_warnings():

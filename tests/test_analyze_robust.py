@@ -15,10 +15,10 @@ from camsim.analysis.dark import channel_means, lit_reason
 from camsim.analysis.patches import AnalysisSettings, demosaiced_samples
 from camsim.cli import main
 from camsim.denoise.frames import UNCOMMITTED, find_dataset
-from camsim.errors import CamsimError
-from camsim.frame_files import LoadedFrame, find_frames, load_frame, search_frames, uncommitted_lines
+from camsim.core.errors import CamsimError
+from camsim.render.frame_files import LoadedFrame, find_frames, load_frame, search_frames, uncommitted_lines
 from camsim.io.dng import read_dng
-from camsim.run import render_scene
+from camsim.render.run import render_scene
 from tests.helpers import small_scene
 
 SIZE = {"width": 64, "height": 48}  # 24 patches of 9 x 10 pixels

@@ -20,9 +20,9 @@ def test_import_camsim_loads_nothing_heavy():
 
 def test_exports_are_the_implementations():
     from camsim.analysis.analyze import analyse_paths
-    from camsim.frame_files import load_frame, write_frame
-    from camsim.pipeline import scene_frame
-    from camsim.scene import load_scene
+    from camsim.render.frame_files import load_frame, write_frame
+    from camsim.render.pipeline import scene_frame
+    from camsim.scene.scene_file import load_scene
 
     assert camsim.load_scene is load_scene and camsim.scene_frame is scene_frame
     assert camsim.write_frame is write_frame and camsim.load_frame is load_frame

@@ -1,8 +1,8 @@
-"""The array path (camsim.backends.array_path) against the exact law, on every namespace it runs on.
+"""The array path (camsim.render.backends.array_path) against the exact law, on every namespace it runs on.
 
 Each test runs with numpy as the namespace (always: the GPU's code, run on the CPU in CI) and with CuPy on an
 NVIDIA GPU (skipped cleanly where CuPy or a GPU is missing). The samplers are checked against the exact laws —
-Poisson's pmf, the digital number's pmf (camsim.dn_law.dn_pmf), scipy's Tukey λ — by χ² or KS tests and by their
+Poisson's pmf, the digital number's pmf (camsim.sensor.dn_law.dn_pmf), scipy's Tukey λ — by χ² or KS tests and by their
 moments; the frames against the CPU's block renderer in distribution; and the same seed on the same device
 gives the same bits.
 """
@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.backends import device_generator
-from camsim.backends.array_path import render_frame_xp
-from camsim.dn_law import dn_pmf
-from camsim.errors import CamsimError
-from camsim.expected import expected_signal
-from camsim.kernels import poisson, tukey_lambda_variance
-from camsim.render import clean_dn
-from camsim.sensor import PRESETS, SensorParams
-from camsim.xp import to_host
+from camsim.render.backends import device_generator
+from camsim.render.backends.array_path import render_frame_xp
+from camsim.sensor.dn_law import dn_pmf
+from camsim.core.errors import CamsimError
+from camsim.sensor.expected import expected_signal
+from camsim.sensor.kernels import poisson, tukey_lambda_variance
+from camsim.render.frame import clean_dn
+from camsim.sensor.params import PRESETS, SensorParams
+from camsim.core.xp import to_host
 from tests.helpers import patch_pixels, small_scene
 
 TABLE1 = PRESETS["paper-table1"]
@@ -32,7 +32,7 @@ def xp(request):
     """numpy, or CuPy where it sees a GPU (else the test is skipped)."""
     if request.param == "numpy":
         return np
-    from camsim.backends import cuda_module
+    from camsim.render.backends import cuda_module
 
     try:
         return cuda_module()
@@ -75,7 +75,7 @@ def poisson_pmf_window(lam: float):
 
 @pytest.mark.parametrize("lam", [0.5, 3.0, 30.0, 500.0, 3000.0, 10000.0])
 def test_poisson_draws_follow_the_exact_pmf(xp, lam):
-    """The stage's Poisson sampler (camsim.kernels.poisson, the device's generator) against Poisson's pmf: χ², the
+    """The stage's Poisson sampler (camsim.sensor.kernels.poisson, the device's generator) against Poisson's pmf: χ², the
     mean and the variance (the issue's check, which torch.poisson fails on CUDA at λ = 3000)."""
     n = 400_000
     draws = to_host(poisson(device_generator(xp, 11), xp.full(n, lam)))
@@ -101,7 +101,7 @@ def _uniform_expected(sensor, means_e):
                   full_well_e=5000.0, dark_current=False), (0.7, 40.0, 4990.0)),  # no read noise: the lattice
 ])
 def test_digital_numbers_follow_the_exact_law(xp, sensor, means):
-    """A uniform frame's digital numbers per channel against camsim.dn_law.dn_pmf (Poisson charge with the dark
+    """A uniform frame's digital numbers per channel against camsim.sensor.dn_law.dn_pmf (Poisson charge with the dark
     current, full well, read noise, gain, floor, ADC clip): χ² and the mean."""
     expected = _uniform_expected(sensor, means)
     labels = np.zeros((300, 400), np.uint8)
@@ -150,7 +150,7 @@ SCENE = small_scene(width=240, height=160)
 
 @pytest.fixture(scope="module")
 def lit():
-    from camsim.pipeline import light_scene
+    from camsim.render.pipeline import light_scene
 
     return light_scene(SCENE, "D65")
 
@@ -166,7 +166,7 @@ def lit():
 def test_array_path_agrees_with_the_cpu_in_distribution(xp, lit, overrides, factor):
     """Per patch and plane, the array path's values before quantisation against the CPU block renderer's (the same
     sensor, maps and F; independent noise): two-sample KS, and the means within their standard errors."""
-    from camsim.pipeline import make_frame
+    from camsim.render.pipeline import make_frame
 
     sensor = SCENE.sensor.__class__(**{**TABLE1.__dict__, **overrides})
     expected = lit.expected(sensor, factor, "pixel")
@@ -196,9 +196,9 @@ def test_same_seed_same_frame_other_seed_other_frame(xp, lit):
 
 
 def test_clean_layer_on_the_device_is_the_cpu_one(xp, lit):
-    """camsim.render.clean_dn with the labels and maps on the device gives the host's clean layer."""
-    from camsim.backends.array_path import device_maps
-    from camsim.fixed_pattern import fixed_pattern
+    """camsim.render.frame.clean_dn with the labels and maps on the device gives the host's clean layer."""
+    from camsim.render.backends.array_path import device_maps
+    from camsim.sensor.fixed_pattern import fixed_pattern
 
     sensor = SensorParams(dsnu_e=3.0, prnu_percent=2.0, dsnu_dark_current_percent=20.0)
     expected = lit.expected(sensor, 1.2, "pixel")
@@ -221,7 +221,7 @@ def test_device_refuses_what_it_does_not_draw(lit):
 def test_make_frame_on_a_device_returns_a_host_frame(lit):
     """make_frame(device="numpy") runs the device code and hands back a host Frame the writers take, the same for
     the same seed; gaussian and auto are drawn exactly there."""
-    from camsim.pipeline import make_frame
+    from camsim.render.pipeline import make_frame
 
     a = make_frame(lit, TABLE1, 0.4, rng=9, device="numpy", method="auto")
     b = make_frame(lit, TABLE1, 0.4, rng=9, device="numpy")

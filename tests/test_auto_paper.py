@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 from scipy import special, stats
 
-from camsim.camera import load_camera
+from camsim.sensor.camera import load_camera
 from camsim.methods import DEFAULT_TOLERANCE
 from camsim.methods.plan import BINS, GAUSSIAN, ks_gaussian, ks_normals, paper_ks_bounds, plan_methods
-from camsim.pipeline import light_scene
-from camsim.render import render_frame
-from camsim.sensor import PRESETS
+from camsim.render.pipeline import light_scene
+from camsim.render.frame import render_frame
+from camsim.sensor.params import PRESETS
 from tests.helpers import WHITE, patch_pixels, small_scene
 from tests.theory import compound_poisson_cdf_bounds, ks_to_normal_bounds
 
@@ -160,7 +160,7 @@ def test_channel_correlation_under_paper_statistics(lit):
 
 
 def test_auto_bins_draws_do_not_depend_on_the_thread_count(lit, monkeypatch):
-    import camsim.render as render_module
+    import camsim.render.frame as render_module
 
     monkeypatch.setattr(render_module, "BLOCK_PIXELS", 4096)
     ex = lit.expected(PRESETS["paper-table1"].with_stages(read_noise=False), 1e-16, "paper")

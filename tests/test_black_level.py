@@ -1,4 +1,4 @@
-"""The true black level (camsim.black_level): the exact mean digital number of an unlit pixel, against closed forms
+"""The true black level (camsim.sensor.black_level): the exact mean digital number of an unlit pixel, against closed forms
 computed here by other routes (tail sums, the Owen-free integral over the DSNU, scipy's Tukey CDF), Monte Carlo
 where no closed form exists, rendered dark frames, and what the DNG and the sidecar say."""
 
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from scipy import integrate, special, stats
 
-from camsim.black_level import unlit_mean_dn
-from camsim.kernels import tukey_lambda_variance
-from camsim.sensor import PRESETS, SensorParams
+from camsim.sensor.black_level import unlit_mean_dn
+from camsim.sensor.kernels import tukey_lambda_variance
+from camsim.sensor.params import PRESETS, SensorParams
 from tests.helpers import libraw_black_levels, render, small_scene
 from tests.theory import digital_pmf, mean_dn_tail_sum, pmf_moments
 
@@ -64,7 +64,7 @@ def test_the_pedestal_against_the_floors_law(mu, k, sigma, pedestal, bits, full_
 
 @pytest.mark.parametrize("lam, dsnu, full_well", [(-0.1, 0.0, None), (0.1, 2.0, 1010.0)])
 def test_the_pedestal_with_tukey_noise_and_dsnu_at_the_well_against_monte_carlo(lam, dsnu, full_well):
-    from camsim.kernels import tukey_lambda
+    from camsim.sensor.kernels import tukey_lambda
 
     rng, n, mu, k, sigma, pedestal = np.random.default_rng(5), 2_000_000, 1000.0, 1.0, 2.0, 64
     charge = rng.poisson(mu, n) + (rng.normal(0, dsnu, n) if dsnu else 0.0)

@@ -14,13 +14,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from camsim.builtin_scenes import SCENES_DIR, builtin_scene_names, builtin_scene_path, resolve_scene_file
+from camsim.scene.builtin_scenes import SCENES_DIR, builtin_scene_names, builtin_scene_path, resolve_scene_file
 from camsim.cli import main
 from camsim.dataset import load_spec
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.experiments.scenarios import DEFAULT_SCENE
-from camsim.scene import load_scene
-from camsim.sources import ImageSource
+from camsim.scene.scene_file import load_scene
+from camsim.scene.sources import ImageSource
 from tests.helpers import ROOT
 
 BUILTIN = "astronaut, chelsea, coffee, dark, dead_leaves, flat, macbeth_26, slanted_edge"
@@ -209,7 +209,7 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
         for image in ("astronaut.png", "chelsea.png", "coffee.png", "README.md"):  # denoise_small's [images]
             assert archive.read(f"camsim/scenes/images/{image}") == (SCENES_DIR / "images" / image).read_bytes()
         metadata = next(archive.read(n).decode() for n in names if n.endswith(".dist-info/METADATA"))
-    assert "camsim/builtin_scenes.py" in names and not any(n.startswith(("scenes/", "tests/")) for n in names)
+    assert "camsim/scene/builtin_scenes.py" in names and not any(n.startswith(("scenes/", "tests/")) for n in names)
     for extra, requirement in (("xarray", "xarray>=2024.1"), ("gpu", "cupy-cuda12x"), ("torch", "torch")):
         # pip install 'WHEEL[xarray]' (README, "Installing"): the extra is in the wheel
         assert f"Provides-Extra: {extra}" in metadata
@@ -217,7 +217,7 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
     # installed as pip installs it (into a folder of its own: the console script too), away from any checkout
     subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "--no-index", "-q", "--target",
                     str(tmp_path / "site"), str(wheel)], check=True, capture_output=True, cwd=tmp_path)
-    code = ("import camsim, camsim.builtin_scenes as b, camsim.scene as s, camsim.experiments.scenarios as e\n"
+    code = ("import camsim, camsim.scene.builtin_scenes as b, camsim.scene.scene_file as s, camsim.experiments.scenarios as e\n"
             "print(camsim.__file__); print(b.builtin_scene_names()); print(s.load_scene('macbeth_26').name)\n"
             "print(e.DEFAULT_SCENE.is_file(), e.DEFAULT_SCENE.relative_to(b.SCENES_DIR.parent.parent))\n"
             "from camsim.dataset import load_spec; print(len(load_spec(b.SCENES_DIR / 'denoise_small.toml')))\n")

@@ -21,11 +21,11 @@ import tomllib
 import numpy as np
 import pytest
 
-from camsim.camera_presets import sensor_preset
+from camsim.sensor.presets import sensor_preset
 from camsim.cli import main
-from camsim.errors import CamsimError
-from camsim.frame_files import load_frame
-from camsim.scene import load_scene
+from camsim.core.errors import CamsimError
+from camsim.render.frame_files import load_frame
+from camsim.scene.scene_file import load_scene
 from tests.helpers import ROOT
 
 SIZE = "384x256"

@@ -1,4 +1,4 @@
-"""Camera presets (camsim.camera_presets): the published figures, their conversion to the model's units, the ISO
+"""Camera presets (camsim.sensor.presets): the published figures, their conversion to the model's units, the ISO
 axis and its interpolation, rendered dark frames against the published σ's, preset files, and bad input.
 
 The published tables are read from ``../shared/data/cameras`` where present (skipped cleanly where not): the
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.camera_presets import CAMERA_PRESETS, camera_preset, read_preset_file, sensor_preset
-from camsim.errors import CamsimError
+from camsim.sensor.presets import CAMERA_PRESETS, camera_preset, read_preset_file, sensor_preset
+from camsim.core.errors import CamsimError
 from tests.helpers import render, small_scene
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "cameras"
@@ -162,7 +162,7 @@ def test_an_unlit_pixel_reads_the_published_black_level(name):
 def test_quantisation_with_a_pedestal_rounds_exactly():
     """floor(dn + ½) + P in float32, checked against float64 (where dn + ½ is exact for float32 dn) at the
     values next to each half-integer, where a float32 dn + ½ would round."""
-    from camsim.stages import quantise_dn
+    from camsim.sensor.stages import quantise_dn
 
     halves = np.arange(-3, 4100, dtype=np.float64) + 0.5
     dn = np.concatenate([np.nextafter(halves.astype(np.float32), np.float32(-np.inf)), halves.astype(np.float32),
@@ -239,7 +239,7 @@ def test_a_preset_file_is_read_and_converted(tmp_path):
 
 
 def test_a_scene_file_names_a_camera_preset_and_iso(tmp_path):
-    from camsim.scene import load_scene
+    from camsim.scene.scene_file import load_scene
 
     scene = tmp_path / "s.toml"
     scene.write_text('[chart]\nreflectances = "macbeth"\n[sensor]\npreset = "sony-a7s2"\niso = 3200\n'

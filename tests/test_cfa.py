@@ -9,10 +9,10 @@ import rawpy
 from camsim.analysis.analyze import analyse_paths
 from camsim.analysis.patches import AnalysisSettings
 from camsim.io.exr import read_exr, read_exr_oiio
-from camsim.seeding import frame_seed_sequence
-from camsim.run import render_scene
-from camsim.cfa import CFA_PATTERNS, cfa_sites
-from camsim.sensor import preset
+from camsim.core.seeding import frame_seed_sequence
+from camsim.render.run import render_scene
+from camsim.sensor.cfa import CFA_PATTERNS, cfa_sites
+from camsim.sensor.params import preset
 from tests.helpers import WHITE, render, small_scene
 from tests.theory import assert_mean_var, digital_pmf, pmf_moments
 
@@ -37,7 +37,7 @@ def test_each_site_draws_its_own_channel(pattern, method):
 
 
 def test_odd_frame_sizes_are_refused():
-    from camsim.errors import CamsimError
+    from camsim.core.errors import CamsimError
 
     with pytest.raises(CamsimError, match="even frame size"):
         render(small_scene(width=121, height=80), preset("paper-table1", cfa="RGGB"))

@@ -10,12 +10,12 @@ import tomllib
 
 import pytest
 
-import camsim.pipeline
-from camsim.builtin_scenes import SCENES_DIR
-from camsim.camera_presets import CAMERA_PRESETS
+import camsim.render.pipeline
+from camsim.scene.builtin_scenes import SCENES_DIR
+from camsim.sensor.presets import CAMERA_PRESETS
 from camsim.cli import main
 from camsim.io.dng import MIN_SIZE
-from camsim.sensor import PRESETS, preset
+from camsim.sensor.params import PRESETS, preset
 from tests.helpers import ROOT
 
 SMALL = ["--illuminant", "D65", "-F", "1", "--size", "32x24", "-q"]
@@ -106,7 +106,7 @@ def test_a_frame_too_small_for_a_dng_is_refused_before_any_work(tmp_path, capsys
     def never(*args, **kwargs):
         raise AssertionError("work started before the size was checked")
 
-    monkeypatch.setattr(camsim.pipeline, "check_frames", never)
+    monkeypatch.setattr(camsim.render.pipeline, "check_frames", never)
     image = tmp_path / "tiny.toml"
     image.write_text((SCENES_DIR / "astronaut.toml").read_text().replace("# crop = [x, y, width, height]",
                                                                          "crop = [0, 0, 20, 20]"))

@@ -7,10 +7,10 @@ import pytest
 import scipy.io
 
 from camsim.cli import main
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io import cube_files
 from camsim.io.cube_files import cube_size, read_cube
-from camsim.spectra import WavelengthGrid, import_colour
+from camsim.light.spectra import WavelengthGrid, import_colour
 
 GRID = WavelengthGrid()  # 380–780 nm every 4 nm, N = 101
 H, W = 30, 40
@@ -308,7 +308,7 @@ def test_cube_source_rows_are_each_pixels_resampled_spectrum(tmp_path, monkeypat
     """A [cube] scene's spectra are factored on the file (camsim.io.cube_files.CubeRows): rows, products and the
     expected electrons agree with colour-science's per-pixel resampling (``expected31``), computed independently,
     with blocks of 7 rows and an ENVI scale factor (integer codes)."""
-    from camsim.sources import CubeSource
+    from camsim.scene.sources import CubeSource
 
     monkeypatch.setattr(cube_files, "BLOCK_BYTES", 7 * W * WL31.size * 8)
     codes = np.rint(REF31 * SCALE)

@@ -1,7 +1,7 @@
 """``camsim dataset --dry-run`` checks what the run checks before its first frame (issue 24, point 8): for a spec
 or settings the run refuses, the dry run exits with the same status and the same message, and neither writes
 anything. The run's checks are shared, not copied: the settings (camsim.dataset.runner.check_settings) and every
-frame's, as drawing it would check it (camsim.pipeline.check_frame, from the spec's planning)."""
+frame's, as drawing it would check it (camsim.render.pipeline.check_frame, from the spec's planning)."""
 
 from __future__ import annotations
 

@@ -10,10 +10,10 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from camsim.builtin_scenes import SCENES_DIR, builtin_scene_names
+from camsim.scene.builtin_scenes import SCENES_DIR, builtin_scene_names
 from camsim.cli import main
 from camsim.dataset import load_spec, read_manifest, run_dataset
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io.exr import read_exr
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -11,14 +11,14 @@ import textwrap
 import numpy as np
 import pytest
 
-from camsim.commands.denoise_eval import add_parser, run
+from camsim.cli.commands.denoise_eval import add_parser, run
 from camsim.denoise.denoisers import (DENOISERS, bm3d_available, estimate_noise_sigma, model_noise_sigma,
                                      resolve_denoiser)
 from camsim.denoise.evaluate import EvalSettings, evaluate
 from camsim.denoise.summary import Criterion, verdict
-from camsim.errors import CamsimError
-from camsim.run import render_scene
-from camsim.scene import load_scene
+from camsim.core.errors import CamsimError
+from camsim.render.run import render_scene
+from camsim.scene.scene_file import load_scene
 from tests.helpers import ROOT
 
 FACTORS = (1.0, 0.1, 0.01)
@@ -426,7 +426,7 @@ def test_bm3d_lowers_the_error_of_a_noisy_frame():
 
 
 def test_model_sigma_matches_the_true_noise(dataset):
-    from camsim.frame_files import load_frame
+    from camsim.render.frame_files import load_frame
     from camsim.io.exr import read_exr
 
     for f in FACTORS:

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from camsim.denoise.denoisers import resolve_denoiser
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="process groups are POSIX")
 

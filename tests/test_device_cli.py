@@ -9,9 +9,9 @@ import types
 import numpy as np
 import pytest
 
-from camsim.backends import check_device, device_method
+from camsim.render.backends import check_device, device_method
 from camsim.cli import main
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 RENDER = ["render", "macbeth_26", "--size", "120x80", "--illuminant", "D65", "--intensity", "1", "-q"]
 
@@ -80,7 +80,7 @@ def test_cpu_sidecar_has_no_device_keys_and_the_device_code_writes_the_same_form
     import rawpy
 
     import camsim
-    from camsim.run import render_scene
+    from camsim.render.run import render_scene
 
     scene = camsim.load_scene("macbeth_26").replace(width=120, height=80, illuminants=("D65",),
                                                     intensity_factors=(0.5,), method="gaussian")

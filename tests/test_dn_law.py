@@ -1,13 +1,13 @@
-"""camsim.dn_law: the digital number's pmf against independent closed forms, and against rendered frames."""
+"""camsim.sensor.dn_law: the digital number's pmf against independent closed forms, and against rendered frames."""
 
 import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.dn_law import charge_pmf, dn_pmf
-from camsim.expected import expected_signal
-from camsim.render import render_frame
-from camsim.sensor import PRESETS, preset
+from camsim.sensor.dn_law import charge_pmf, dn_pmf
+from camsim.sensor.expected import expected_signal
+from camsim.render.frame import render_frame
+from camsim.sensor.params import PRESETS, preset
 from tests.theory import digital_pmf, digital_pmf_without_read_noise
 
 TABLE1 = PRESETS["paper-table1"]
@@ -115,7 +115,7 @@ def test_expected_tv_of_an_exact_sample_by_enumeration():
     """E[TV] for n = 4 draws of a 3-level law, summed over every outcome of the multinomial."""
     from itertools import product
 
-    from camsim.dn_law import DnPmf, expected_tv, sample_distances
+    from camsim.sensor.dn_law import DnPmf, expected_tv, sample_distances
 
     law = DnPmf(5, np.array([0.2, 0.5, 0.3]))
     total = 0.0
@@ -127,7 +127,7 @@ def test_expected_tv_of_an_exact_sample_by_enumeration():
 
 
 def test_sample_distances_by_hand():
-    from camsim.dn_law import DnPmf, sample_distances
+    from camsim.sensor.dn_law import DnPmf, sample_distances
 
     law = DnPmf(2, np.array([0.25, 0.75]))
     tv, ks = sample_distances(law, [2, 3, 3, 7])  # one value outside the window: 1/4 of TV, and the CDF ends early

@@ -12,14 +12,14 @@ import pytest
 import rawpy
 import tifffile
 
-from camsim.camera import load_camera
-from camsim.dn_law import dn_pmf
-from camsim.errors import CamsimError
-from camsim.frame_files import write_frame
+from camsim.sensor.camera import load_camera
+from camsim.sensor.dn_law import dn_pmf
+from camsim.core.errors import CamsimError
+from camsim.render.frame_files import write_frame
 from camsim.io.dng import read_dng, write_dng, write_dng_cfa
-from camsim.noise_profile import dng_noise_profile, frame_noise_profile, shot_step_e
-from camsim.pipeline import light_scene, scene_frame
-from camsim.sensor import SensorParams
+from camsim.sensor.noise_profile import dng_noise_profile, frame_noise_profile, shot_step_e
+from camsim.render.pipeline import light_scene, scene_frame
+from camsim.sensor.params import SensorParams
 from tests.helpers import libraw_black_levels, small_scene
 
 NOISE_PROFILE = 51041
@@ -76,7 +76,7 @@ def test_no_profile_without_a_dng_or_shot_noise():
 @pytest.mark.parametrize("fields, shots", [(SONY14, (0.0, 100.0, 1000.0, 4000.0, 8000.0)),
                                            (QUANT, (0.0, 10.0, 1000.0, 6000.0))], ids=["sony14", "quant12"])
 def test_the_profile_is_the_models_exact_variance_below_saturation(fields, shots):
-    """Against the exact law of a pixel's DN (camsim.dn_law: floor of k (Poisson + Gaussian noise) plus the ADC's
+    """Against the exact law of a pixel's DN (camsim.sensor.dn_law: floor of k (Poisson + Gaussian noise) plus the ADC's
     offset, clipped, which clips nothing here): mean and variance at several signals, below the full well."""
     sensor = SensorParams(**(fields | dict(dsnu_e=0.0, prnu_percent=0.0)))  # fixed patterns are no temporal noise
     profile = dng_noise_profile(sensor)

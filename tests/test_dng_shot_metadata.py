@@ -17,10 +17,10 @@ import pytest
 import rawpy
 import tifffile
 
-from camsim.camera_presets import camera_preset
-from camsim.camera_presets.data import build_presets
+from camsim.sensor.presets import camera_preset
+from camsim.sensor.presets.data import build_presets
 from camsim.cli import main
-from camsim.frame_files import camera_identity
+from camsim.render.frame_files import camera_identity
 from camsim.io.dng import read_dng, write_dng, write_dng_cfa
 from tests.helpers import ROOT
 
@@ -143,7 +143,7 @@ def test_a_flat_pair_of_two_exposures_is_refused(sony_3200, tmp_path, capsys):
 
 @pytest.mark.parametrize("name", sorted(build_presets()))
 def test_every_built_in_preset_has_an_ascii_camera_identity(name):
-    from camsim.frame_files import FrameInfo
+    from camsim.render.frame_files import FrameInfo
 
     title = camera_preset(name).title
     info = FrameInfo.__new__(FrameInfo)

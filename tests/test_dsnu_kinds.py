@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.errors import CamsimError
-from camsim.fixed_pattern import fixed_pattern
-from camsim.sensor import SENSOR_PARAMS, preset
+from camsim.core.errors import CamsimError
+from camsim.sensor.fixed_pattern import fixed_pattern
+from camsim.sensor.params import SENSOR_PARAMS, preset
 from tests.helpers import ROOT, render, small_scene
 from tests.theory import assert_mean_var
 
@@ -58,7 +58,7 @@ def test_same_sensor_seed_same_map_and_other_maps_unchanged():
     assert a.dark_gain is None and b.dark_gain is not None
     np.testing.assert_array_equal(a.offset_e, b.offset_e)  # the new stream leaves the others' bits alone
     np.testing.assert_array_equal(a.gain, b.gain)
-    # the streams as documented in camsim.seeding: children 0, 1 and 2 of SeedSequence(sensor_seed, (0x46504E,))
+    # the streams as documented in camsim.core.seeding: children 0, 1 and 2 of SeedSequence(sensor_seed, (0x46504E,))
     children = [np.random.Generator(np.random.PCG64(np.random.SeedSequence(11, spawn_key=(0x46504E, i))))
                 for i in range(3)]
     np.testing.assert_array_equal(a.offset_e, 2.0 * children[0].standard_normal((3, 48, 64), dtype=np.float32))

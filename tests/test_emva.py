@@ -20,7 +20,7 @@ import pytest
 from camsim.cli import main
 from camsim.emva import EmvaSetup, run
 from camsim.emva.simulate import model_dark_temporal_dn, predicted_saturation_e
-from camsim.sensor import PRESETS, preset
+from camsim.sensor.params import PRESETS, preset
 
 KEYS = ["K_dn_per_e", "dark_noise_e", "qe", "saturation_e", "dsnu_e", "prnu_percent"]
 SMALL = EmvaSetup(size=64, steps=30, low_steps=5, stack_frames=16, seed=1)
@@ -238,7 +238,7 @@ def test_no_second_stack_unless_asked_or_needed():
     (40.0, "paper-table1", "saturates this sensor at the DSNU's second exposure time"),
 ])
 def test_a_bad_second_exposure_is_refused(factor, preset_name, message):
-    from camsim.errors import CamsimError
+    from camsim.core.errors import CamsimError
 
     with pytest.raises(CamsimError, match=message):
         run(preset_name, EmvaSetup(size=16, steps=10, low_steps=0, stack_frames=2, dsnu_exposure_factor=factor))

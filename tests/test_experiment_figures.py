@@ -10,8 +10,8 @@ from camsim.analysis.analyze import analyse_paths
 from camsim.analysis.patches import AnalysisSettings
 from camsim.experiments.datapoints import DataPoint
 from camsim.experiments.figures import scenario_figures, snr_figures
-from camsim.run import render_scene
-from camsim.scene import load_scene
+from camsim.render.run import render_scene
+from camsim.scene.scene_file import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 N_POINTS = 4

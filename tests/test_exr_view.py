@@ -13,11 +13,11 @@ import OpenEXR
 import OpenImageIO as oiio
 import pytest
 
-from camsim.frame_files import exr_view, load_frame
+from camsim.render.frame_files import exr_view, load_frame
 from camsim.io.exr import read_exr, read_exr_oiio
-from camsim.pipeline import scene_frame
-from camsim.run import render_scene
-from camsim.scene import load_scene
+from camsim.render.pipeline import scene_frame
+from camsim.render.run import render_scene
+from camsim.scene.scene_file import load_scene
 from tests.helpers import small_scene
 
 ROOT = Path(__file__).resolve().parents[1]

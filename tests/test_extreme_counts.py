@@ -1,6 +1,6 @@
 """Counts that numpy cannot draw, and dark current that fills the well.
 
-* The saturation cap (:func:`camsim.stages.cap_mean_e`): its bound, and the law of the clipped value against the
+* The saturation cap (:func:`camsim.sensor.stages.cap_mean_e`): its bound, and the law of the clipped value against the
   exact clipped Poisson law, computed independently with scipy.
 * Every method and both statistics at astronomically bright light: rendered (saturated, finite, clean layer at the
   full well) where the full well is on, refused with the reason where it is off or where float64 overflows — before
@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 from scipy import special, stats
 
-from camsim.camera import load_camera
+from camsim.sensor.camera import load_camera
 from camsim.cli import main
-from camsim.errors import CamsimError
-from camsim.pipeline import check_frames, frame_warnings, light_scene, make_frame
-from camsim.sensor import PRESETS, SensorParams
-from camsim.stages import SATURATION_CAP_TAIL, cap_mean_e, collect_charge_e, saturating_mean_e
+from camsim.core.errors import CamsimError
+from camsim.render.pipeline import check_frames, frame_warnings, light_scene, make_frame
+from camsim.sensor.params import PRESETS, SensorParams
+from camsim.sensor.stages import SATURATION_CAP_TAIL, cap_mean_e, collect_charge_e, saturating_mean_e
 from tests.helpers import small_scene
 from tests.theory import mean_dn_tail_sum
 

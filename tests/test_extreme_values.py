@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from camsim.cli import main
-from camsim.schema import INT64_MAX, INT64_MIN
+from camsim.core.schema import INT64_MAX, INT64_MIN
 
 from tests.helpers import flat_scene_toml, preset_toml, write_text_file
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 from camsim.cli import main
-from camsim.frame_manifest import MANIFEST_NAME
+from camsim.render.frame_manifest import MANIFEST_NAME
 
 from tests.helpers import ROOT
 
@@ -167,7 +167,7 @@ def test_ctrl_c_while_colour_science_imports():
     while it initialises; camsim holds the signal back during that import and acts on it right after."""
     code = (
         "import os, signal, sys, threading\n"
-        "from camsim.spectra import import_colour\n"
+        "from camsim.light.spectra import import_colour\n"
         "threading.Timer(0.02, os.kill, (os.getpid(), signal.SIGINT)).start()\n"
         "try:\n"
         "    import_colour()\n"

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.sensor import preset
+from camsim.sensor.params import preset
 from tests.helpers import WHITE, patch_pixels, render, small_scene
 from tests.theory import assert_mean_var
 
@@ -99,7 +99,7 @@ def test_auto_takes_no_gaussian_under_tukey_read_noise(scene):
 
 
 def test_prnu_with_the_spectral_method_is_a_clear_error(scene):
-    from camsim.errors import CamsimError
+    from camsim.core.errors import CamsimError
 
     with pytest.raises(CamsimError, match="PRNU"):
         render(scene.replace(width=60, height=40), preset("paper-table1", prnu_percent=1.0), method="spectral")

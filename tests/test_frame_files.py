@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 import rawpy
 
-import camsim.render as render_module
+import camsim.render.frame as render_module
 from camsim.io.dng import read_dng
 from camsim.io.exr import read_exr, read_exr_oiio
-from camsim.noise_profile import frame_noise_profile
-from camsim.seeding import frame_seed_sequence
-from camsim.run import render_scene
+from camsim.sensor.noise_profile import frame_noise_profile
+from camsim.core.seeding import frame_seed_sequence
+from camsim.render.run import render_scene
 from tests.helpers import libraw_black_levels, render, small_scene
 
 FACTORS = (1.0, 0.02)
@@ -128,10 +128,10 @@ def test_no_dng_without_quantisation(scene, tmp_path):
 
 
 def test_render_frame_accepts_a_generator_seed_or_seed_sequence(scene):
-    from camsim.camera import load_camera
-    from camsim.radiance import scene_radiance
-    from camsim.pipeline import lit_scene
-    from camsim.render import render_frame
+    from camsim.sensor.camera import load_camera
+    from camsim.scene.radiance import scene_radiance
+    from camsim.render.pipeline import lit_scene
+    from camsim.render.frame import render_frame
 
     radiance = scene_radiance(scene, "D65")
     camera = load_camera(scene.camera, scene.grid)

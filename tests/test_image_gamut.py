@@ -78,7 +78,7 @@ def test_a_p3_image_outside_srgb_is_recorded_and_warned_once_per_frame(tmp_path)
         assert record["max_delta_e00_outside"] == pytest.approx(loss, abs=0.1)
         assert loss > 5
     # the EXR's header carries the same record
-    from camsim.frame_files import read_frame_meta
+    from camsim.render.frame_files import read_frame_meta
 
     assert read_frame_meta(out / "pic_D65_F1.exr")["recovery"]["out_of_gamut_fraction"] == pytest.approx(SHARE)
 

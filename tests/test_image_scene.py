@@ -14,13 +14,13 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from camsim.camera import load_camera
-from camsim.rates import FactoredSpectra
-from camsim.chart import ChartGeometry
+from camsim.sensor.camera import load_camera
+from camsim.light.rates import FactoredSpectra
+from camsim.scene.chart import ChartGeometry
 from camsim.cli import main
-from camsim.pipeline import light_scene, make_frame
-from camsim.sensor import PRESETS, SensorParams
-from camsim.sources import ChartSource, ImageSource
+from camsim.render.pipeline import light_scene, make_frame
+from camsim.sensor.params import PRESETS, SensorParams
+from camsim.scene.sources import ChartSource, ImageSource
 from tests.helpers import small_scene
 from tests.theory import digital_pmf, pmf_moments
 
@@ -165,7 +165,7 @@ def test_a_colorchecker_painted_in_srgb_comes_back_within_a_stated_delta_e(tmp_p
     """The 24 ColorChecker colours under D65, painted as 8-bit sRGB, rendered as an image scene, taken to XYZ with
     the camera → XYZ matrix fitted on the real chart: mean ΔE00 ≤ 1.6, max ≤ 3.5 against the chart's own XYZ (the
     matrix alone, on the real chart, gives 0.98 / 2.75; measured 1.23 / 3.08 for the image)."""
-    from camsim.colorimetry import camera_to_xyz_matrix
+    from camsim.colour.colorimetry import camera_to_xyz_matrix
 
     checker = colour.SDS_COLOURCHECKERS["ColorChecker N Ohta"]
     d65 = colour.SDS_ILLUMINANTS["D65"]

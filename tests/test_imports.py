@@ -91,10 +91,10 @@ def test_a_command_that_works_imports_them(tmp_path):
 
 
 def test_the_names_camsim_list_prints_are_colour_sciences():
-    """``camsim list`` prints colour-science's names from a static copy (camsim.colour_names); they are the names
+    """``camsim list`` prints colour-science's names from a static copy (camsim.colour.colour_names); they are the names
     the installed colour-science ships, which a scene's ``illuminants``, ``camera`` and ``reflectances`` accept."""
-    from camsim import colour_names
-    from camsim.spectra import camera_names, illuminant_names, reflectance_set_names
+    from camsim.colour import colour_names
+    from camsim.light.spectra import camera_names, illuminant_names, reflectance_set_names
 
     assert list(colour_names.ILLUMINANTS) == illuminant_names()
     assert list(colour_names.CAMERAS) == camera_names()

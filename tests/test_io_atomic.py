@@ -5,7 +5,7 @@ import re
 
 import pytest
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io.atomic import atomic_path, write_json_atomic, write_text_atomic
 
 

@@ -9,7 +9,7 @@ import pytest
 import rawpy
 import tifffile
 
-from camsim.errors import CamsimError, OutputError
+from camsim.core.errors import CamsimError, OutputError
 from camsim.io import dng as dng_mod
 from camsim.io.dng import read_dng, write_dng
 

@@ -10,7 +10,7 @@ import pytest
 import rawpy
 import tifffile
 
-from camsim.errors import CamsimError, OutputError
+from camsim.core.errors import CamsimError, OutputError
 from camsim.io import dng as dng_mod
 from camsim.io.dng import CFA_PATTERNS, read_dng, write_dng, write_dng_cfa
 

@@ -7,7 +7,7 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from camsim.errors import CamsimError, OutputError
+from camsim.core.errors import CamsimError, OutputError
 from camsim.io import exr as exr_mod
 from camsim.io.exr import (
     DEFAULT_EXR_COMPRESSION,

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.expected import expected_signal
+from camsim.sensor.expected import expected_signal
 from camsim.methods.plan import (
     DEFAULT_TOLERANCE,
     EXACT,
@@ -15,7 +15,7 @@ from camsim.methods.plan import (
     plan_methods,
     predicted_ks,
 )
-from camsim.sensor import PRESETS, preset
+from camsim.sensor.params import PRESETS, preset
 from tests.helpers import ROOT, WHITE, patch_pixels, render, small_scene
 from tests.theory import assert_mean_var, digital_pmf, pmf_moments
 
@@ -50,7 +50,7 @@ def test_gaussian_breaks_at_low_counts(lam):
     """Without read noise, N(λ, λ) against Poisson(λ): negative values, no zeros, no skew — as predicted."""
     expected = expected_signal(np.array([[1.0]]), np.array([[lam], [lam], [lam]]), IDEAL, 1.0, "pixel")
     labels = np.zeros((300, 400), np.uint8)
-    from camsim.render import render_frame
+    from camsim.render.frame import render_frame
 
     gauss = render_frame(labels, expected, IDEAL, method="gaussian", rng=1).noisy_dn[0].ravel().astype(float)
     exact = render_frame(labels, expected, IDEAL, method="poisson", rng=1).noisy_dn[0].ravel().astype(float)
@@ -137,11 +137,11 @@ def test_spectral_method_with_bins_of_zero_radiance(scene):
     grid = scene.grid
     cube = np.zeros((40, 60, grid.size))
     cube[:, :30, grid.wavelengths_nm >= 500] = 0.5  # left half: half-grey above 500 nm only; right: black
-    from camsim.camera import load_camera
-    from camsim.radiance import SceneRadiance
-    from camsim.photons import photon_radiance, scale_to_luminance
-    from camsim.pipeline import lit_scene, make_frame
-    from camsim.spectra import cmfs_on_grid, illuminant_spd
+    from camsim.sensor.camera import load_camera
+    from camsim.scene.radiance import SceneRadiance
+    from camsim.light.photons import photon_radiance, scale_to_luminance
+    from camsim.render.pipeline import lit_scene, make_frame
+    from camsim.light.spectra import cmfs_on_grid, illuminant_spd
 
     white = scale_to_luminance(illuminant_spd("D65", grid), cmfs_on_grid(grid)[1], grid.step_nm, 100.0)
     labels = np.zeros((40, 60), np.uint8)
@@ -168,7 +168,7 @@ def test_quantisation_that_collapses_a_patch(scene, tmp_path):
     """A gain of 6e-4 DN/e⁻ (1 DN ≈ 1700 e⁻, noise ≤ 0.05 DN) maps most patches to one number, named as such."""
     from camsim.analysis.analyze import analyse_paths
     from camsim.analysis.patches import AnalysisSettings
-    from camsim.run import render_scene
+    from camsim.render.run import render_scene
 
     sc = scene.replace(intensity_factors=(1.0,), width=240, height=160).with_sensor(analog_gain_dn_per_v=3.0)
     render_scene(sc, tmp_path, progress=False)
@@ -220,10 +220,10 @@ def test_near_singular_camera_is_a_clear_error(tmp_path, capsys):
 
 @pytest.mark.parametrize("method", ["poisson", "spectral", "gaussian", "auto"])
 def test_output_does_not_depend_on_the_thread_count(scene, method, monkeypatch):
-    import camsim.render as render_module
+    import camsim.render.frame as render_module
 
     monkeypatch.setattr(render_module, "BLOCK_PIXELS", 2048)
-    from camsim.render import render_frame
+    from camsim.render.frame import render_frame
 
     first, _ = render(scene.replace(width=160, height=120), TABLE1, factor=0.1, method=method, seed=9)
     for workers in (1, 2, 3):
@@ -235,8 +235,8 @@ def test_output_does_not_depend_on_the_thread_count(scene, method, monkeypatch):
 def test_the_tolerance_carries_to_the_digital_numbers_but_not_to_their_total_variation():
     """What auto's tolerance promises: the KS distance ε of a pixel value's law before quantisation bounds that of
     its digital number (floor and clip are monotone) — checked against closed forms: the Gaussian path's DN law
-    from Φ at the level edges, the exact one from camsim.dn_law — but not the total variation of the DN pmf."""
-    from camsim.dn_law import dn_pmf
+    from Φ at the level edges, the exact one from camsim.sensor.dn_law — but not the total variation of the DN pmf."""
+    from camsim.sensor.dn_law import dn_pmf
 
     def dn_distances(lam, k, read, full_well, bits):
         exact = np.cumsum(dn_pmf(lam, k, read, full_well, bits).dense(2**bits))

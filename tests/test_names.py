@@ -1,4 +1,4 @@
-"""Names that become part of a path (issue 24, point 1): every one is a safe file name (camsim.names), refused
+"""Names that become part of a path (issue 24, point 1): every one is a safe file name (camsim.core.names), refused
 where it is read — one line ``camsim: error: …``, exit 2, nothing written anywhere (not in --out, not in the folders
 above it) — and, behind that, no write of a run leaves its output folder (camsim.io.atomic.confined_to)."""
 
@@ -12,11 +12,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from camsim.cli import main
-from camsim.errors import CamsimError, OutputError
-from camsim.frame_files import frame_stem
+from camsim.core.errors import CamsimError, OutputError
+from camsim.render.frame_files import frame_stem
 from camsim.io.atomic import write_text_atomic
 from camsim.io.output_folder import make_folder, output_folder
-from camsim.names import FORBIDDEN_CHARACTERS, MAX_NAME_BYTES, name_problem, safe_component
+from camsim.core.names import FORBIDDEN_CHARACTERS, MAX_NAME_BYTES, name_problem, safe_component
 
 from tests.helpers import flat_scene_toml, preset_toml, write_text_file
 

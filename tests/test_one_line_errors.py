@@ -117,7 +117,7 @@ def test_extreme_values_give_no_runtime_warning(tmp_path, capsys, extra, status,
 
 
 def test_normal_draws_with_a_sigma_whose_square_is_beyond_float32():
-    from camsim.kernels import standard_normal_f32
+    from camsim.sensor.kernels import standard_normal_f32
 
     out, work = np.empty(100_000, np.float32), np.empty(50_000, np.float32)
     standard_normal_f32(np.random.default_rng(1), out, work, scale=1e30)

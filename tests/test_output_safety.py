@@ -17,8 +17,8 @@ import pytest
 
 import camsim.io.atomic as atomic
 from camsim.cli import main
-from camsim.errors import OutputError
-from camsim.frame_manifest import MANIFEST_NAME
+from camsim.core.errors import OutputError
+from camsim.render.frame_manifest import MANIFEST_NAME
 from camsim.io.atomic import atomic_path, undo_on_failure, write_text_atomic
 from camsim.io.output_folder import FolderBusyError, output_folder
 
@@ -96,14 +96,14 @@ def test_output_under_a_file_fails_before_any_work(name, frames, tmp_path, capsy
     import camsim.dataset.runner
     import camsim.emva
     import camsim.experiments.scenarios
-    import camsim.pipeline
-    import camsim.run
+    import camsim.render.pipeline
+    import camsim.render.run
 
 
     def no_work(*args, **kwargs):
         raise AssertionError("work started before the output folder was checked")
 
-    monkeypatch.setattr(camsim.pipeline, "make_frame", no_work)
+    monkeypatch.setattr(camsim.render.pipeline, "make_frame", no_work)
     monkeypatch.setattr(camsim.experiments.runner, "make_frame", no_work)
     monkeypatch.setattr(camsim.analysis.analyze, "analyse", no_work)
     monkeypatch.setattr(camsim.emva, "run", no_work)
@@ -275,7 +275,7 @@ def test_manifest_is_rebuilt_from_the_committed_frames(tmp_path):
 def test_interrupt_mid_frame_leaves_only_committed_frames(tmp_path, capsys, monkeypatch):
     """Ctrl-C while the second frame's EXR is written: the first frame and a manifest listing it stay; nothing of
     the second frame is left (its DNG, written already, is removed)."""
-    import camsim.frame_files as frame_files
+    import camsim.render.frame_files as frame_files
 
     real = frame_files.write_exr
     calls = []
@@ -332,7 +332,7 @@ def test_a_failed_run_removes_the_empty_folders_it_made(tmp_path):
 def test_a_frame_committed_but_not_yet_recorded_is_listed(tmp_path, monkeypatch):
     """A signal between a frame's commit (its sidecar renamed into place) and the manifest's update: the run's
     unwinding still lists the frame, so the manifest equals the committed frames."""
-    from camsim.frame_manifest import FrameManifest
+    from camsim.render.frame_manifest import FrameManifest
 
     def interrupted(self, info, files):
         raise KeyboardInterrupt

@@ -1,4 +1,4 @@
-"""The sRGB preview (camsim.preview, render_scene(..., preview=True)): colours, white balance, exposure, files."""
+"""The sRGB preview (camsim.render.preview, render_scene(..., preview=True)): colours, white balance, exposure, files."""
 
 import dataclasses
 import json
@@ -7,12 +7,12 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io.exr import read_exr
-from camsim.preview import preview_srgb, write_preview_png
-from camsim.seeding import frame_seed_sequence
-from camsim.run import render_scene
-from camsim.scene import load_scene
+from camsim.render.preview import preview_srgb, write_preview_png
+from camsim.core.seeding import frame_seed_sequence
+from camsim.render.run import render_scene
+from camsim.scene.scene_file import load_scene
 from tests.helpers import ROOT, render
 
 SEED = 11
@@ -157,7 +157,7 @@ def test_bayer_frame(scene, tmp_path):
 
 @pytest.mark.parametrize("cfa", [None, "BGGR"])
 def test_row_blocks_do_not_change_the_picture(scene, monkeypatch, cfa):
-    import camsim.preview as preview_module
+    import camsim.render.preview as preview_module
     from colour_demosaicing import demosaicing_CFA_Bayer_bilinear
 
     one = scene if cfa is None else scene.with_sensor(cfa=cfa)
@@ -202,7 +202,7 @@ def test_paper_matrix_and_frames_without_patches(rendered, scene):
 
 
 def test_frame_info_and_sidecar_give_the_same_picture(rendered, scene):
-    from camsim.frame_files import FrameInfo
+    from camsim.render.frame_files import FrameInfo
 
     _, sidecar = picture(rendered, "A", 1.0)
     frame, _ = render(scene, factor=1.0, seed=frame_seed_sequence(SEED, "A", 1.0), illuminant="A")

@@ -1,13 +1,13 @@
-"""RGB → spectrum recovery (camsim.recovery) against colour-science's own data and functions."""
+"""RGB → spectrum recovery (camsim.colour.recovery) against colour-science's own data and functions."""
 
 import numpy as np
 import pytest
 
-from camsim import recovery
-from camsim.errors import CamsimError
-from camsim.recovery import (RECOVERY_METHODS, basis_matrix, clear_cache, mallett_basis, rgb_to_distinct_spectra,
+from camsim.colour import recovery
+from camsim.core.errors import CamsimError
+from camsim.colour.recovery import (RECOVERY_METHODS, basis_matrix, clear_cache, mallett_basis, rgb_to_distinct_spectra,
                              rgb_to_spectra)
-from camsim.spectra import CMFS_NAME, WavelengthGrid, camera_sensitivities, illuminant_spd, import_colour
+from camsim.light.spectra import CMFS_NAME, WavelengthGrid, camera_sensitivities, illuminant_spd, import_colour
 
 GRID = WavelengthGrid()  # 380–780 nm every 4 nm
 #: Round-trip tolerance (CIE 2000 ΔE under D65) for colours inside sRGB that the method does not clip.

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.kernels import POISSON_LAM_MAX, poisson, standard_normal_f32
+from camsim.sensor.kernels import POISSON_LAM_MAX, poisson, standard_normal_f32
 
 
 @pytest.mark.parametrize("size", [2_000_000, 1_000_001])
@@ -47,7 +47,7 @@ def test_poisson_beyond_numpy_limit():
 @pytest.mark.parametrize("lam", [0.5, 3.0, 30.0, 230.0, 7000.0, 4e5])
 def test_histogram_poisson_sampler_is_poisson(lam):
     """Multinomial histogram + random order: the law, the moments and independence of iid Poisson draws."""
-    from camsim.kernels import HISTOGRAM_MIN_PIXELS_PER_VALUE, poisson_run
+    from camsim.sensor.kernels import HISTOGRAM_MIN_PIXELS_PER_VALUE, poisson_run
 
     shape = (400, 1000)
     assert shape[0] * shape[1] >= HISTOGRAM_MIN_PIXELS_PER_VALUE * (26 * np.sqrt(lam) + 41)
@@ -81,7 +81,7 @@ def test_histogram_poisson_sampler_is_poisson(lam):
 
 
 def test_histogram_sampler_falls_back_for_short_runs_and_huge_means():
-    from camsim.kernels import poisson_run
+    from camsim.sensor.kernels import poisson_run
 
     rng = np.random.default_rng(0)
     assert poisson_run(rng, 7000.0, (3, 4)).dtype == np.int64  # 12 pixels: numpy's sampler

@@ -12,11 +12,11 @@ import pytest
 
 from camsim.analysis.grouping import GROUP_KEYS
 from camsim.dataset.spec import PARAMETERS
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS, get_method
-from camsim.scene import RENDER_PARAMS, load_scene
-from camsim.schema import Param
-from camsim.sensor import SENSOR_PARAMS, STAGES, SensorParams
+from camsim.scene.scene_file import RENDER_PARAMS, load_scene
+from camsim.core.schema import Param
+from camsim.sensor.params import SENSOR_PARAMS, STAGES, SensorParams
 
 #: A valid value different from the default, for each kind of parameter.
 OTHER = {"float": lambda p: (p.low if p.low is not None else 0) + 0.25 if p.default == 0 else p.default * 0.5,
@@ -62,7 +62,7 @@ def test_every_sensor_parameter_reaches_every_consumer(p, tmp_path):
         list(value) if p.kind == "rgb" else value)
     # command line: --sensor NAME=VALUE
     from camsim.cli import build_parser
-    from camsim.commands.render import sensor_overrides
+    from camsim.cli.commands.render import sensor_overrides
 
     args = build_parser().parse_args(["render", "macbeth_26", "--sensor", f"{p.name}={literal.strip(chr(34))}"])
     assert getattr(SensorParams(**context, **{p.name: sensor_overrides(args)[p.name]}), p.name) == value

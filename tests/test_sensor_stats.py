@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.sensor import PRESETS, preset
+from camsim.sensor.params import PRESETS, preset
 from tests.helpers import WHITE, patch_pixels, render, small_scene
 from tests.theory import anchored_signal_e, assert_mean_var, digital_pmf, pmf_moments
 
@@ -220,8 +220,8 @@ def test_bits_set_the_full_scale(scene):
 
 
 def test_label_runs_tile_the_block_exactly(scene):
-    from camsim.radiance import scene_radiance
-    from camsim.kernels import label_runs
+    from camsim.scene.radiance import scene_radiance
+    from camsim.sensor.kernels import label_runs
 
     labels = scene_radiance(scene, "D65").labels
     for r0, r1 in ((0, 480), (100, 163), (7, 8)):
@@ -239,10 +239,10 @@ def test_label_runs_tile_the_block_exactly(scene):
 @pytest.mark.parametrize("statistics", ["pixel", "paper"])
 def test_pixel_by_pixel_path_has_the_same_statistics(scene, monkeypatch, statistics):
     """The fallback for fragmented label maps (cubes) draws per-pixel means; same model, same moments."""
-    import camsim.kernels
+    import camsim.sensor.kernels
 
-    monkeypatch.setattr(camsim.kernels, "MIN_PIXELS_PER_RUN", 10**9)
-    assert camsim.kernels.label_runs(np.zeros((4, 4), np.uint8)) is None
+    monkeypatch.setattr(camsim.sensor.kernels, "MIN_PIXELS_PER_RUN", 10**9)
+    assert camsim.sensor.kernels.label_runs(np.zeros((4, 4), np.uint8)) is None
     frame, radiance = render(scene, TABLE1.with_stages(quantisation=False), factor=0.1, statistics=statistics,
                              seed=21)
     k = TABLE1.dn_per_electron

@@ -17,7 +17,7 @@ import pytest
 from camsim.analysis.analyze import non_finite
 from camsim.cli import main
 from camsim.io.exr import read_exr, write_exr
-from camsim.run import render_scene
+from camsim.render.run import render_scene
 from tests.helpers import small_scene
 
 GOOD = "test_D65_F1"

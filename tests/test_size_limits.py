@@ -1,4 +1,4 @@
-"""One limit on sizes (camsim.pixel_limit.MAX_PIXELS, 200 megapixels), checked from the header, before anything is
+"""One limit on sizes (camsim.core.pixel_limit.MAX_PIXELS, 200 megapixels), checked from the header, before anything is
 decoded or rendered: an image file, a cube file, a scene's [frame], --size and a dataset spec's [frame] each get one
 ``camsim: error:`` line and exit 2, at once and without decoding (issue 24, point 3)."""
 
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from camsim.cli import main
-from camsim.pixel_limit import MAX_PIXELS
-from camsim.sources.image import read_image_codes
+from camsim.core.pixel_limit import MAX_PIXELS
+from camsim.scene.sources.image import read_image_codes
 
 #: A 27 KB PNG that decodes to 15 000 × 15 000 pixels (225 megapixels): before the check, camsim decoded it whole
 #: (11.4 GB resident, 495 s, SIGTERM ignored until the decoding ended). The refusal takes milliseconds.
@@ -64,7 +64,7 @@ def test_an_image_bomb_is_refused_from_its_header(bomb, tmp_path, capsys):
 
 
 def test_the_reader_refuses_before_decoding(bomb):
-    from camsim.errors import CamsimError
+    from camsim.core.errors import CamsimError
 
     start = time.monotonic()
     with pytest.raises(CamsimError, match="over camsim's limit"):
@@ -82,8 +82,8 @@ def test_the_refusal_does_not_grow_memory(bomb):
 
     # VmHWM, the peak of this process's own memory map: ru_maxrss would also count the test process's resident
     # memory, which Linux carries into a child through fork and exec (406 MB after the image tests had run)
-    code = ("import re, sys\nfrom camsim.errors import CamsimError\n"
-            "from camsim.sources.image import read_image_codes\n"
+    code = ("import re, sys\nfrom camsim.core.errors import CamsimError\n"
+            "from camsim.scene.sources.image import read_image_codes\n"
             "try:\n    read_image_codes(sys.argv[1])\nexcept CamsimError:\n    pass\nelse:\n    sys.exit(1)\n"
             "print(re.search(r'VmHWM:\\s*(\\d+) kB', open('/proc/self/status').read()).group(1))")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
@@ -157,7 +157,7 @@ def test_a_dng_whose_header_is_over_the_limit_is_refused(tmp_path, capsys):
     """ImageLength 2^31 in a small CFA DNG: refused from the header (before: decoded for 10 s and 1.5 GB)."""
     import tifffile
 
-    from camsim.frame_files import load_frame
+    from camsim.render.frame_files import load_frame
 
     out = tmp_path / "frames"
     assert main(["render", "macbeth_26", "--illuminant", "D65", "-F", "1", "--size", "48x32", "--cfa", "RGGB",
@@ -166,7 +166,7 @@ def test_a_dng_whose_header_is_over_the_limit_is_refused(tmp_path, capsys):
     dng = out / "macbeth_26_D65_F1.dng"
     with tifffile.TiffFile(dng, mode="r+b") as tif:
         tif.pages.first.tags["ImageLength"].overwrite(2**31)
-    from camsim.errors import CamsimError
+    from camsim.core.errors import CamsimError
 
     start = time.monotonic()
     with pytest.raises(CamsimError, match="over camsim's limit of 200 megapixels"):

@@ -1,6 +1,6 @@
 """The ``table`` method: the alias construction against the law it must hold (mass reconstructed column by
 column), the alias draws and whole rendered frames against the exact pmf (χ² per patch and channel, with
-camsim.dn_law's independent computation of the digital number's law), the EXR's noisy layer's moments, where it
+camsim.sensor.dn_law's independent computation of the digital number's law), the EXR's noisy layer's moments, where it
 falls back to ``poisson``'s draws, and reproducibility."""
 
 import dataclasses
@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from scipy import special, stats
 
-from camsim.dn_law import charge_pmf, dn_pmf
-from camsim.kernels import alias_columns, alias_draw, alias_table
+from camsim.sensor.dn_law import charge_pmf, dn_pmf
+from camsim.sensor.kernels import alias_columns, alias_draw, alias_table
 from camsim.methods.table import charge_table
-from camsim.sensor import PRESETS, SensorParams
+from camsim.sensor.params import PRESETS, SensorParams
 from tests.helpers import render, small_scene
 
 TABLE1 = PRESETS["paper-table1"]
@@ -151,8 +151,8 @@ def test_pixels_with_laws_of_their_own_fall_back_to_poisson(change, statistics):
 
 
 def test_the_same_seed_gives_the_same_frame_whatever_the_workers():
-    from camsim.pipeline import light_scene, make_frame
-    from camsim.camera import load_camera
+    from camsim.render.pipeline import light_scene, make_frame
+    from camsim.sensor.camera import load_camera
 
     scene = small_scene(width=600, height=400)
     lit = light_scene(scene, "D65", load_camera(scene.camera, scene.grid))

@@ -9,20 +9,20 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.builtin_scenes import builtin_scene_names
+from camsim.scene.builtin_scenes import builtin_scene_names
 from camsim.cli import main
-from camsim.errors import CamsimError
-from camsim.radiance import scene_radiance
-from camsim.scene import load_scene
-from camsim.sources import SOURCES, TargetSource
-from camsim.sources.target import (
+from camsim.core.errors import CamsimError
+from camsim.scene.radiance import scene_radiance
+from camsim.scene.scene_file import load_scene
+from camsim.scene.sources import SOURCES, TargetSource
+from camsim.scene.sources.target import (
     DeadLeavesTarget,
     SlantedEdgeTarget,
     _dead_leaves_cached,
     dead_leaves,
     edge_coverage,
 )
-from camsim.spectra import WavelengthGrid
+from camsim.light.spectra import WavelengthGrid
 
 GRID = WavelengthGrid()
 

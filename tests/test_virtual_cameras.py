@@ -1,4 +1,4 @@
-"""Virtual cameras (camsim.camera_presets.virtual) and camera presets in dataset specs: K log-uniform over the
+"""Virtual cameras (camsim.sensor.presets.virtual) and camera presets in dataset specs: K log-uniform over the
 camera's range, each noise scale on its fit with the fit's residual scatter (tested by Kolmogorov–Smirnov against
 the laws the draws should follow), the conversion to the model's units, and the spec's ``[virtual_camera]`` table
 and ``iso`` parameter."""
@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.camera_presets import CAMERA_PRESETS, sensor_preset
-from camsim.camera_presets.virtual import draw_virtual_cameras
+from camsim.sensor.presets import CAMERA_PRESETS, sensor_preset
+from camsim.sensor.presets.virtual import draw_virtual_cameras
 from camsim.dataset.spec import load_spec
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 N = 4000
 QUANTITIES = ("tukey_scale_dn", "gaussian_sigma_dn", "row_sigma_dn")
@@ -78,7 +78,7 @@ def test_the_union_of_ranges_and_a_uniform_choice_of_camera():
 
 
 def _spec(tmp_path, body):
-    from camsim.builtin_scenes import resolve_scene_file
+    from camsim.scene.builtin_scenes import resolve_scene_file
 
     path = tmp_path / "spec.toml"
     path.write_text(f'name = "v"\nscene = "{resolve_scene_file("macbeth_26")}"\nseed = 4\n[frame]\nwidth = 64\n'

@@ -12,9 +12,9 @@ import pytest
 import tifffile
 
 from camsim.cli import main
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io.dng import read_dng
-from camsim.run import render_scene
+from camsim.render.run import render_scene
 from tests.helpers import small_scene
 
 STEM = "test_D65_F1"

@@ -63,7 +63,7 @@ def vm_hwm_mib() -> float:
 def measure(header: str, release: bool) -> None:
     """Run in a child process: read the cube, pass over its blocks, print the peak RSS."""
     from camsim.io import cube_files
-    from camsim.spectra import WavelengthGrid, import_colour
+    from camsim.light.spectra import WavelengthGrid, import_colour
 
     import_colour()
     if not release:
@@ -89,9 +89,9 @@ def measure_render(header: str) -> None:
     """Run in a child process: render one frame of a [cube] scene of the file (paper-table1, D65, F = 1, poisson,
     2 workers), print the peak RSS and the times."""
 
-    from camsim.pipeline import light_scene, make_frame
-    from camsim.scene import load_scene
-    from camsim.sources import CubeSource
+    from camsim.render.pipeline import light_scene, make_frame
+    from camsim.scene.scene_file import load_scene
+    from camsim.scene.sources import CubeSource
 
     scene = load_scene(Path(__file__).resolve().parents[1] / "scenes" / "macbeth_26.toml")
     scene = scene.replace(source=CubeSource(path=Path(header)), illuminants=("D65",), intensity_factors=(1.0,),

@@ -49,8 +49,8 @@ def frame_layers(preset: str) -> dict:
     """The noisy and clean layers of the benchmark frame, as EXR channels (and, under ``arrays``, as the Zarr
     store's layers)."""
     from camsim.io.exr import CLEAN_CHANNELS, NOISY_CHANNELS
-    from camsim.pipeline import scene_frame
-    from camsim.scene import load_scene
+    from camsim.render.pipeline import scene_frame
+    from camsim.scene.scene_file import load_scene
 
     scene = load_scene(ROOT / "scenes" / "macbeth_26.toml").replace(width=WIDTH, height=HEIGHT, preset_name=preset,
                                                                    method="poisson")

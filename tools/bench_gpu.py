@@ -8,7 +8,7 @@ Keys of the JSON line (seconds are medians of ``--repeats`` runs after a warm-up
 each clock reading):
 
 * ``device`` — the GPU's name, or ``"none"`` (no CuPy, or no GPU: every GPU key is then null);
-* ``w1_render_s`` — W1 drawn exactly on the device by the array path (:func:`camsim.backends.array_path
+* ``w1_render_s`` — W1 drawn exactly on the device by the array path (:func:`camsim.render.backends.array_path
   .render_frame_xp`: its generator seeded, the means gathered, Poisson, full well, read noise, gain, ADC), the label
   map already on the device, excluding the copy to the host; ``w1_transfer_s`` — that copy (noisy float32 and
   digital uint8 planes);
@@ -54,7 +54,7 @@ def progress(message: str) -> None:
 
 def timed(fn, xp, repeats: int) -> float:
     """Median wall time of ``fn()`` over ``repeats`` runs after one warm-up, the device synchronised."""
-    from camsim.xp import synchronize
+    from camsim.core.xp import synchronize
 
     fn()
     synchronize(xp)
@@ -68,8 +68,8 @@ def timed(fn, xp, repeats: int) -> float:
 
 
 def w1_setup(width: int, height: int) -> dict:
-    from camsim.pipeline import light_scene
-    from camsim.scene import load_scene
+    from camsim.render.pipeline import light_scene
+    from camsim.scene.scene_file import load_scene
 
     scene = load_scene(SCENE).replace(width=width, height=height, illuminants=(ILLUMINANT,),
                                       intensity_factors=(FACTOR,), preset_name="paper-table1", statistics="pixel")
@@ -79,8 +79,8 @@ def w1_setup(width: int, height: int) -> dict:
 
 def w1_device(xp, w: dict, repeats: int) -> tuple[float, float]:
     """(render, transfer) seconds of W1 on ``xp``'s device."""
-    from camsim.backends.array_path import render_frame_xp
-    from camsim.xp import to_host
+    from camsim.render.backends.array_path import render_frame_xp
+    from camsim.core.xp import to_host
 
     labels = xp.asarray(w["lit"].labels)
     sensor = w["scene"].sensor
@@ -92,7 +92,7 @@ def w1_device(xp, w: dict, repeats: int) -> tuple[float, float]:
 
 
 def w1_cpu_fast(w: dict, repeats: int) -> float:
-    from camsim.pipeline import make_frame
+    from camsim.render.pipeline import make_frame
 
     return timed(lambda: make_frame(w["lit"], w["scene"].sensor, FACTOR, rng=SEED), np, repeats)
 
@@ -114,11 +114,11 @@ def make_image(folder: Path, size: int) -> Path:
 
 
 def pairs_per_s(device: str, image: Path, crop: int, batch: int, batches: int) -> float:
-    from camsim.camera_presets import CAMERA_PRESETS
-    from camsim.camera_presets.virtual import cameras_with_fits
+    from camsim.sensor.presets import CAMERA_PRESETS
+    from camsim.sensor.presets.virtual import cameras_with_fits
     from camsim.pairs import PairSource
-    from camsim.scene import load_scene
-    from camsim.xp import synchronize
+    from camsim.scene.scene_file import load_scene
+    from camsim.core.xp import synchronize
 
     scene = load_scene(SCENE).replace(illuminants=(ILLUMINANT,))
     source = PairSource(scene, (str(image),), crop=(crop, crop), batch_size=batch, intensity=(1e-3, 1.0),
@@ -137,9 +137,9 @@ def poisson_chi2(xp, draws: int) -> dict:
     """χ² p of ``draws`` Poisson draws per λ of :data:`LAMBDAS` on ``xp``'s generator against the exact pmf."""
     from scipy import stats
 
-    from camsim.backends import device_generator
-    from camsim.kernels import poisson
-    from camsim.xp import to_host
+    from camsim.render.backends import device_generator
+    from camsim.sensor.kernels import poisson
+    from camsim.core.xp import to_host
 
     rng = device_generator(xp, np.random.SeedSequence(SEED, spawn_key=(0xC412,)))
     out = {}
@@ -178,8 +178,8 @@ def main() -> None:
     repeats = 1 if args.quick else args.repeats
     draws = args.draws or (100_000 if args.quick else 1_000_000)
 
-    from camsim.backends import cuda_module, device_name
-    from camsim.errors import CamsimError
+    from camsim.render.backends import cuda_module, device_name
+    from camsim.core.errors import CamsimError
 
     result = {"device": device_name(), "w1_size": [width, height], "pair_size": crop, "batch": args.batch}
     try:

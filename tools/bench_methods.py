@@ -7,10 +7,10 @@ statistics, 2 worker threads) and measures:
 
 * speed: pixels per second of ``render_frame`` (the fastest of the repeats, the figure least moved by other work
   on a shared machine; file writing excluded);
-* error against the exact law, computed analytically (:func:`camsim.dn_law.dn_pmf`): per patch and channel, the
+* error against the exact law, computed analytically (:func:`camsim.sensor.dn_law.dn_pmf`): per patch and channel, the
   total variation (TV) and Kolmogorov–Smirnov distances between the frame's digital numbers (Table I) or its
   values binned to whole electrons (the ideal sensor, unquantised) and their exact pmf, beside the noise floor of
-  an exact sampler with as many pixels (E[TV], :func:`camsim.dn_law.expected_tv`: the mean over patches and
+  an exact sampler with as many pixels (E[TV], :func:`camsim.sensor.dn_law.expected_tv`: the mean over patches and
   channels of E[TV] is exactly what an exact sampler's mean TV is on average; the KS floor as the median over 16
   multinomial samples of the exact pmf) — at the chart's size and at a large size (default 4000 × 3000, where the
   floor is about 4 times lower; ``spectral`` only at the chart's size: its law under ``pixel`` statistics is
@@ -50,8 +50,8 @@ def frame_records(scene, lit, camera, sensor, factor, method, seed, workers, fol
     """Render one frame, write it, analyse it from the files; returns (frame, analysis result, seconds)."""
     from camsim.analysis.analyze import analyse_paths
     from camsim.analysis.patches import AnalysisSettings
-    from camsim.frame_files import frame_stem, write_frame
-    from camsim.pipeline import make_frame, scene_frame_info
+    from camsim.render.frame_files import frame_stem, write_frame
+    from camsim.render.pipeline import make_frame, scene_frame_info
 
     start = time.perf_counter()
     frame = make_frame(lit, sensor, factor, method=method, rng=seed, workers=workers)
@@ -106,8 +106,8 @@ def patch_values(frame, rect, c, border=3):
 
 
 def exact_law(frame, index, c):
-    """The exact pmf (camsim.dn_law) of the values :func:`patch_values` returns for spectrum ``index``."""
-    from camsim.dn_law import dn_pmf
+    """The exact pmf (camsim.sensor.dn_law) of the values :func:`patch_values` returns for spectrum ``index``."""
+    from camsim.sensor.dn_law import dn_pmf
 
     sensor, ex = frame.sensor, frame.expected
     return dn_pmf(ex.signal_e[index, c] + ex.dark_e[c], sensor.dn_per_electron,
@@ -155,7 +155,7 @@ def law_errors(frame, rects, seed, chi2=False, floor_samples=16):
     largest of TV and KS, their exact-sampler floors, and with ``chi2`` the χ² rejections and pooled p-value."""
     from scipy import stats
 
-    from camsim.dn_law import expected_tv, sample_distances
+    from camsim.sensor.dn_law import expected_tv, sample_distances
 
     rng = np.random.default_rng(seed)
     tv, ks, tv_floor, ks_floor, chis, dofs, rejects = [], [], [], [], [], [], 0
@@ -257,7 +257,7 @@ def chart(rows, path: Path) -> None:
     handles += [Line2D([], [], color="0.2", ls=styles[z], label=f"{z} pixels") for z in sizes]
     handles += [Line2D([], [], color="0.3", lw=6, alpha=0.25, label="exact sampler's floor E[TV]")]
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
-    fig.suptitle("Sampling methods against the exact law (camsim.dn_law) of the digital numbers (Table I) or of the "
+    fig.suptitle("Sampling methods against the exact law (camsim.sensor.dn_law) of the digital numbers (Table I) or of the "
                  "electrons binned to 1 e⁻ (ideal)\nColorChecker under D65, pixel statistics")
     fig.tight_layout(rect=(0, 0.03, 1, 1))
     fig.savefig(path, dpi=110)
@@ -266,11 +266,11 @@ def chart(rows, path: Path) -> None:
 
 def main() -> int:
     sys.path.insert(0, str(ROOT))
-    from camsim.camera import load_camera
-    from camsim.chart import parse_size
-    from camsim.pipeline import light_scene, make_frame
-    from camsim.scene import load_scene
-    from camsim.sensor import PRESETS as SENSORS
+    from camsim.sensor.camera import load_camera
+    from camsim.scene.chart import parse_size
+    from camsim.render.pipeline import light_scene, make_frame
+    from camsim.scene.scene_file import load_scene
+    from camsim.sensor.params import PRESETS as SENSORS
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--size", default="1000x700")

@@ -130,7 +130,7 @@ def child_prepare(args) -> dict:
     """W1's Pyxel input: per channel the mean signal electrons per pixel, as float32 .npy; and the sensor."""
     import numpy as np
 
-    from camsim.sensor import STAGES
+    from camsim.sensor.params import STAGES
 
     w = setup(args.width, args.height)
     ex, labels, s = w["expected"], w["radiance"].labels, w["scene"].sensor

@@ -33,7 +33,7 @@ What it measures (seconds are wall-clock; MB = 2^20 bytes):
 7. Method ``table`` (issue 14: exact, each spectrum's charge from its alias table), measured like ``poisson`` on
    2 workers (``table_2t_s``, ``ratio_table_2t``; ``table_first_s``, the first call in a process, which builds the
    frame's 72 tables; ``peak_rss_mb_table``), and its accuracy: a χ² test of the digital numbers of a whole frame
-   against their exact pmf (camsim.dn_law), per patch and channel (``table_chi2_p_min``) and pooled over the 72
+   against their exact pmf (camsim.sensor.dn_law), per patch and channel (``table_chi2_p_min``) and pooled over the 72
    (``table_chi2_p_pooled``: the statistics and degrees of freedom summed).
 
 Targets: the render (no file writing) within 1.5× of the bare draws, and peak memory under 600 MB; the image scene
@@ -84,9 +84,9 @@ def peak_rss_mb() -> float:
 
 def setup(width: int, height: int) -> dict:
     """W1's scene lit by D65 through its camera, and its expected signal (imports camsim and colour-science)."""
-    from camsim.camera import load_camera
-    from camsim.pipeline import light_scene
-    from camsim.scene import load_scene
+    from camsim.sensor.camera import load_camera
+    from camsim.render.pipeline import light_scene
+    from camsim.scene.scene_file import load_scene
 
     scene = load_scene(SCENE).replace(width=width, height=height, illuminants=(ILLUMINANT,),
                                       intensity_factors=(FACTOR,), preset_name="paper-table1", statistics="pixel")
@@ -115,10 +115,10 @@ def child_make_image(args) -> dict:
 def image_setup(path: Path) -> dict:
     """W1's camera, light and sensor looking at the photograph ``path`` (:func:`child_make_image`): the keys of
     :func:`setup`, plus ``recovery_s`` (reading, distinct colours and Mallett's recovery) and ``colours``."""
-    from camsim.camera import load_camera
-    from camsim.pipeline import light_scene
-    from camsim.scene import load_scene
-    from camsim.sources import ImageSource
+    from camsim.sensor.camera import load_camera
+    from camsim.render.pipeline import light_scene
+    from camsim.scene.scene_file import load_scene
+    from camsim.scene.sources import ImageSource
 
     scene = load_scene(SCENE).replace(source=ImageSource(path=path), illuminants=(ILLUMINANT,),
                                       intensity_factors=(FACTOR,), preset_name="paper-table1", statistics="pixel")
@@ -133,8 +133,8 @@ def image_setup(path: Path) -> dict:
 
 def render(w: dict, method: str, workers: int = 2, rng=None):
     """W1 by ``method`` through camsim's frame pipeline (the frame's own seed unless ``rng`` is given)."""
-    from camsim.pipeline import make_frame
-    from camsim.seeding import frame_seed_sequence
+    from camsim.render.pipeline import make_frame
+    from camsim.core.seeding import frame_seed_sequence
 
     rng = frame_seed_sequence(SEED, ILLUMINANT, FACTOR) if rng is None else rng
     return make_frame(w["lit"], w["scene"].sensor, FACTOR, statistics="pixel", method=method, rng=rng,
@@ -148,7 +148,7 @@ def floor_draws(lam, threads: int, blocked: bool = True) -> None:
     if not blocked:
         np.random.default_rng(SEED).poisson(lam)
         return
-    from camsim.render import BLOCK_PIXELS
+    from camsim.render.frame import BLOCK_PIXELS
 
     height, width = lam.shape[1:]
     rows = max(1, BLOCK_PIXELS // width)
@@ -206,8 +206,8 @@ def image_timings(args) -> dict:
 
 
 def frame_info(w: dict, method: str):
-    """The FrameInfo of a frame, built by camsim.pipeline as ``camsim render`` builds it."""
-    from camsim.pipeline import scene_frame_info
+    """The FrameInfo of a frame, built by camsim.render.pipeline as ``camsim render`` builds it."""
+    from camsim.render.pipeline import scene_frame_info
 
     return scene_frame_info(w["scene"].replace(method=method), w["lit"], w["camera"].name, FACTOR, SEED)
 
@@ -216,7 +216,7 @@ def child_timing(args) -> dict:
     """Interleaved floor/render timings, then file writing, then the spectral method on a small chart."""
     import numpy as np
 
-    from camsim.frame_files import frame_stem, write_frame
+    from camsim.render.frame_files import frame_stem, write_frame
     from camsim.methods import METHOD_NAMES
 
     w = setup(args.width, args.height)
@@ -266,13 +266,13 @@ def child_timing(args) -> dict:
 
 
 def table_accuracy(w: dict) -> tuple:
-    """χ² of the ``table`` frame's digital numbers against their exact pmf (camsim.dn_law), per patch and channel
+    """χ² of the ``table`` frame's digital numbers against their exact pmf (camsim.sensor.dn_law), per patch and channel
     (every pixel of the patch; levels of expected count < 5 pooled into one cell): the smallest p-value, and the
     p-value of the pooled χ² (the statistics and degrees of freedom summed over the 72 patch-channels)."""
     import numpy as np
     from scipy import stats
 
-    from camsim.dn_law import dn_pmf
+    from camsim.sensor.dn_law import dn_pmf
 
     frame = render(w, "table", 2, rng=SEED + 2)
     sensor, ex = frame.sensor, frame.expected

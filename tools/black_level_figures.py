@@ -1,6 +1,6 @@
 """The README's black-level figures: dark-frame means against the black level.
 
-1. Dark frames (no light: every spectrum zero) of 2000 × 2000 pixels from :func:`camsim.pipeline.make_frame`, per
+1. Dark frames (no light: every spectrum zero) of 2000 × 2000 pixels from :func:`camsim.render.pipeline.make_frame`, per
    channel: the old BlackLevel k · σ²_dark · T (now ``dark_level_dn``), the black level ``black_level_dn`` and the
    frame's mean DN ± one standard error (from the row means: rows are independent, pixels of a row are not when
    there is row noise), for Table I (three-chip and Bayer) and a 12-bit Bayer sensor with DSNU, row noise and
@@ -21,10 +21,10 @@ import time
 
 import numpy as np
 
-from camsim.cfa import cfa_sites
-from camsim.pipeline import LitScene, make_frame
-from camsim.sensor import PRESETS
-from camsim.spectra import WavelengthGrid
+from camsim.sensor.cfa import cfa_sites
+from camsim.render.pipeline import LitScene, make_frame
+from camsim.sensor.params import PRESETS
+from camsim.light.spectra import WavelengthGrid
 
 def dark_means(sensor, size: int, seed: int = 1):
     """Per channel (mean DN, standard error) of a dark frame of ``sensor``."""

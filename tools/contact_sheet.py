@@ -1,7 +1,7 @@
 """A contact sheet of sRGB previews: the default scene under D65 and A at several intensity factors F.
 
 Renders ``scenes/macbeth_26.toml`` (its sensor, camera, statistics and seed) at a modest size, develops every
-frame with :func:`camsim.preview.preview_srgb` and tiles the pictures, at their own pixels (no resampling), into
+frame with :func:`camsim.render.preview.preview_srgb` and tiles the pictures, at their own pixels (no resampling), into
 one labelled PNG:
 
 * row 1, D65 and row 2, A: the preview's default exposure (``"scene"``): the perfect white at F = 1 is sRGB
@@ -35,8 +35,8 @@ ROW_LABELS = {
 
 def previews(scene, illuminant, factors, exposure):
     """sRGB previews of ``scene`` under ``illuminant`` at each F, as ``camsim render --preview`` makes them."""
-    from camsim.pipeline import light_scene, scene_frame
-    from camsim.preview import preview_srgb
+    from camsim.render.pipeline import light_scene, scene_frame
+    from camsim.render.preview import preview_srgb
 
     lit = light_scene(scene, illuminant)
     pictures = []
@@ -93,7 +93,7 @@ def main(argv=None) -> int:
     parser.add_argument("--size", default="150x100", help="frame size WxH (pixels), default 150x100")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "contact_sheet.png")
     args = parser.parse_args(argv)
-    from camsim.scene import load_scene
+    from camsim.scene.scene_file import load_scene
 
     width, height = (int(v) for v in args.size.lower().split("x"))
     scene = load_scene(ROOT / "scenes" / "macbeth_26.toml").replace(width=width, height=height)

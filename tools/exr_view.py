@@ -46,7 +46,7 @@ def srgb_encode(linear: np.ndarray) -> np.ndarray:
 
 def patch_means(path: str | Path, rgb: np.ndarray) -> dict[str, list[float]]:
     """Each patch's mean R, G, B as the viewer reads them, from the rectangles of the sidecar in the header."""
-    from camsim.frame_files import read_frame_meta
+    from camsim.render.frame_files import read_frame_meta
 
     meta = read_frame_meta(path)
     out = {}

@@ -1,4 +1,4 @@
-"""Error and cost of each RGB → spectrum recovery method (camsim.recovery) on the ColorChecker.
+"""Error and cost of each RGB → spectrum recovery method (camsim.colour.recovery) on the ColorChecker.
 
 For each of the 24 patches of colour-science's ``SDS_COLOURCHECKERS["ColorChecker N Ohta"]``:
 
@@ -28,8 +28,8 @@ import warnings
 
 import numpy as np
 
-from camsim.recovery import (RECOVERY_METHODS, basis_matrix, clear_cache, mallett_basis, rgb_to_distinct_spectra)
-from camsim.spectra import CMFS_NAME, WavelengthGrid, camera_sensitivities, illuminant_spd, import_colour
+from camsim.colour.recovery import (RECOVERY_METHODS, basis_matrix, clear_cache, mallett_basis, rgb_to_distinct_spectra)
+from camsim.light.spectra import CMFS_NAME, WavelengthGrid, camera_sensitivities, illuminant_spd, import_colour
 
 CHART = "ColorChecker N Ohta"
 LIGHTS = ("D65", "A", "FL2")
@@ -72,7 +72,7 @@ def main(argv=None):
     for name, row in zip(names, rgb_raw):
         if row.min() < 0:
             print(f"note: patch {name!r} is outside sRGB (linear sRGB {np.round(row, 4).tolist()}); clipped at 0")
-    from camsim.spectra import reflectance_set
+    from camsim.light.spectra import reflectance_set
     _, measured = reflectance_set(CHART, grid)
     _, qe = camera_sensitivities(CAMERA, grid)
 

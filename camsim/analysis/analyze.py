@@ -10,15 +10,15 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from camsim.frame_files import (LoadedFrame, load_frame, no_frames_message, read_frame_meta, search_frames,
+from camsim.render.frame_files import (LoadedFrame, load_frame, no_frames_message, read_frame_meta, search_frames,
                                 uncommitted_lines)
 from camsim.analysis.dark import DarkFrame, load_dark
 from camsim.analysis.frame_stats import FRAME_STAT_COLUMNS, frame_statistics
 from camsim.analysis.grouping import group_key
 from camsim.analysis.patches import AnalysisSettings, analyse_frame, frame_matrix
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io.atomic import write_json_atomic, write_text_atomic
-from camsim.optional_numbers import mean_of_defined
+from camsim.core.optional_numbers import mean_of_defined
 from camsim.io.output_folder import make_folder
 
 CSV_NAME = "analysis.csv"
@@ -294,7 +294,7 @@ def analyse_paths(paths, settings: AnalysisSettings | None = None, source="dng",
     ----------
     paths : iterable of str or Path
         Frame files (``.dng`` with its sidecar, ``.exr``) or folders searched recursively for committed frames
-        (whose sidecar claims the file; :func:`camsim.frame_files.search_frames`).
+        (whose sidecar claims the file; :func:`camsim.render.frame_files.search_frames`).
     settings : AnalysisSettings, optional
         Border, black-level mode and camera → XYZ matrix (default ``AnalysisSettings()``: the paper's way).
     source : {'dng', 'exr'}

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.colorimetry import CHANNELS
-from camsim.errors import CamsimError
-from camsim.frame_files import LoadedFrame, load_frame
+from camsim.colour.colorimetry import CHANNELS
+from camsim.core.errors import CamsimError
+from camsim.render.frame_files import LoadedFrame, load_frame
 
 #: A dark frame whose sidecar expects more signal than this in any patch (or the surround) is lit. Unit: e⁻.
 DARK_MAX_SIGNAL_E = 0.5
@@ -49,7 +49,7 @@ class DarkFrame:
 
 def channel_values(frame: LoadedFrame, channel: int) -> np.ndarray:
     """All values of one channel of a frame, shape (n,): a plane, or a Bayer frame's sites of that colour."""
-    from camsim.cfa import cfa_sites
+    from camsim.sensor.cfa import cfa_sites
 
     if not frame.cfa_pattern:
         return frame.pixels_dn[channel].ravel()

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.spectra import CMFS_NAME, import_colour
+from camsim.light.spectra import CMFS_NAME, import_colour
 
 
 

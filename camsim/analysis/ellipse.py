@@ -66,7 +66,7 @@ def fit_ellipse(xy, confidence_sigma=1.0, weights=None) -> Ellipse:
     Parameters
     ----------
     xy : array_like, shape (n, 2)
-        Samples as rows (e.g. xy chromaticities from :func:`camsim.colorimetry.chromaticity_xy`).
+        Samples as rows (e.g. xy chromaticities from :func:`camsim.colour.colorimetry.chromaticity_xy`).
         Must be finite: exclude undefined samples first.
     confidence_sigma : float
         k: the semi-axes are k standard deviations along the principal axes (k = 1: the 1 σ ellipse).

@@ -32,11 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.colorimetry import CHANNELS
-from camsim.errors import CamsimError
+from camsim.colour.colorimetry import CHANNELS
+from camsim.core.errors import CamsimError
 from camsim.io.exr import read_exr_clean
-from camsim.frame_files import EXR_METADATA_KEY, LoadedFrame
-from camsim.optional_numbers import finite_or_none
+from camsim.render.frame_files import EXR_METADATA_KEY, LoadedFrame
+from camsim.core.optional_numbers import finite_or_none
 
 #: A pixel whose clean value lies within this many predicted σ of a clip (0, the white level, the full well) is
 #: left out of the residual.
@@ -83,7 +83,7 @@ def _planes(frame: LoadedFrame, channel: int):
     frame's sites of that colour (one plane per site of the 2 × 2 cell, a strided view: no copy)."""
     if not frame.cfa_pattern:
         return [(frame.pixels_dn[channel], (slice(None), slice(None)))]
-    from camsim.cfa import cfa_sites
+    from camsim.sensor.cfa import cfa_sites
 
     return [(frame.pixels_dn[0][dy::2, dx::2], (slice(dy, None, 2), slice(dx, None, 2)))
             for dy, dx, c in cfa_sites(frame.cfa_pattern) if c == channel]

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 
-from camsim.sensor import EXPOSURE_KEYS, SENSOR_PARAMS, SensorParams
+from camsim.sensor.params import EXPOSURE_KEYS, SENSOR_PARAMS, SensorParams
 
 #: Sidecar values that must agree for two frames to be the same measurement at different F (ΔE reference): the
 #: scene, light, camera and render settings, and every sensor key the schema writes (so a new sensor parameter

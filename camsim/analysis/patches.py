@@ -8,11 +8,11 @@ import numpy as np
 
 from camsim.analysis.delta_e import delta_e_5step, reference_lab
 from camsim.analysis.ellipse import fit_ellipse
-from camsim.frame_files import LoadedFrame
+from camsim.render.frame_files import LoadedFrame
 from camsim.analysis.snr import snr_from_moments, snr_model
-from camsim.colorimetry import CHANNELS, camera_to_xyz_matrix, chromaticity_xy, xyz_from_camera
-from camsim.errors import CamsimError
-from camsim.optional_numbers import finite_or_none
+from camsim.colour.colorimetry import CHANNELS, camera_to_xyz_matrix, chromaticity_xy, xyz_from_camera
+from camsim.core.errors import CamsimError
+from camsim.core.optional_numbers import finite_or_none
 
 BLACK_MODES = ("none", "sidecar", "dark-frame")
 
@@ -29,7 +29,7 @@ class AnalysisSettings:
         Black-level subtraction: none (as in the paper), the sidecar's (the mean of an unlit pixel's numbers), or a
         dark frame's mean.
     matrix : str
-        Camera → XYZ method (``camsim.colorimetry.CAMERA_TO_XYZ_METHODS``).
+        Camera → XYZ method (``camsim.colour.colorimetry.CAMERA_TO_XYZ_METHODS``).
     """
 
     border_px: int = 3
@@ -100,7 +100,7 @@ def site_values(mosaic: np.ndarray, rect, border: int, pattern: str, channel: in
 
     ``mosaic`` is (1, H, W); a pixel's channel follows from its absolute row and column parity.
     """
-    from camsim.cfa import cfa_sites
+    from camsim.sensor.cfa import cfa_sites
 
     x, y, w, h = rect
     if 2 * border >= min(w, h):

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 #: Two flats belong to one level when their mean signals differ by at most this fraction (and
 #: :data:`LEVEL_TOLERANCE_DN`): the light's flicker and the shutter's jitter between the frames of a pair.

@@ -19,9 +19,9 @@ import numpy as np
 from camsim.calibration import dark, flats, ptc, tukey
 from camsim.calibration.estimate import Estimate, ratio, sqrt_estimate
 from camsim.calibration.rawfiles import Layout, check_same_exposure, check_same_layout, read_raw
-from camsim.errors import CamsimError
-from camsim.kernels import tukey_lambda_variance
-from camsim.names import name_problem, safe_component
+from camsim.core.errors import CamsimError
+from camsim.sensor.kernels import tukey_lambda_variance
+from camsim.core.names import name_problem, safe_component
 
 #: Fewest dark frames: the per-pixel mean needs two to leave a residual.
 MIN_DARKS = 2
@@ -309,7 +309,7 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
     iso : float, optional
         The ISO the values belong to (default: the files', else :data:`DEFAULT_ISO`).
     name : str, optional
-        The preset's name, a safe file name (:mod:`camsim.names`; default: the camera model in the files where it
+        The preset's name, a safe file name (:mod:`camsim.core.names`; default: the camera model in the files where it
         is one, else :data:`DEFAULT_NAME`).
     progress : bool
         Progress bars on stderr.

@@ -1,6 +1,6 @@
 """The outputs of ``camsim calibrate``: ``preset.toml``, ``calibration.json``, ``report.md`` and three plots.
 
-``preset.toml`` is an interface (read by ``camsim.camera_presets`` for ``--preset PATH.toml``); its keys are:
+``preset.toml`` is an interface (read by ``camsim.sensor.presets`` for ``--preset PATH.toml``); its keys are:
 
 * ``[preset]``: ``name``, ``source``, ``bits``, ``pedestal_dn``, ``cfa`` (absent for a 3-colour stack or a
   monochrome sensor), ``read_noise_model`` (``"gaussian"`` or ``"tukey-lambda"``);
@@ -9,7 +9,7 @@
   ``prnu_percent``.
 
 Every file is written atomically (:mod:`camsim.io.atomic`); the plots need matplotlib, imported when they are drawn
-(:mod:`camsim.plotting`: no pyplot, no backend change).
+(:mod:`camsim.io.figures`: no pyplot, no backend change).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from camsim.calibration.measure import GAUSSIAN_LAMBDA_TOLERANCE, Calibration
 from camsim.calibration.ptc import FIT_FRACTION
 from camsim.calibration.tukey import GAUSSIAN_LAMBDA
 from camsim.io.atomic import write_json_atomic, write_text_atomic
-from camsim.optional_numbers import finite_or_none
+from camsim.core.optional_numbers import finite_or_none
 
 FILES = {
     "preset": "preset.toml",
@@ -222,7 +222,7 @@ def report_markdown(cal: Calibration) -> str:
 
 
 def _plot_ptc(cal: Calibration, path: Path) -> None:
-    from camsim.plotting import new_figure, save_png
+    from camsim.io.figures import new_figure, save_png
 
     fig = new_figure(figsize=(7.5, 5.0), layout="constrained")
     ax = fig.add_subplot()
@@ -248,7 +248,7 @@ def _plot_ptc(cal: Calibration, path: Path) -> None:
 
 
 def _plot_probability(cal: Calibration, path: Path) -> None:
-    from camsim.plotting import new_figure, save_png
+    from camsim.io.figures import new_figure, save_png
 
     fig = new_figure(figsize=(11, 4.4), layout="constrained")
     left, right = fig.subplots(1, 2)
@@ -278,7 +278,7 @@ def _plot_probability(cal: Calibration, path: Path) -> None:
 
 
 def _plot_rows(cal: Calibration, path: Path) -> None:
-    from camsim.plotting import new_figure, save_png
+    from camsim.io.figures import new_figure, save_png
 
     freq, power = cal.row_spectrum
     fig = new_figure(figsize=(7.5, 4.4), layout="constrained")

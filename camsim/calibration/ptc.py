@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.calibration.estimate import Estimate, sqrt_estimate
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 #: The fit uses the levels up to this fraction of saturation (EMVA 1288: 70 %).
 FIT_FRACTION = 0.7

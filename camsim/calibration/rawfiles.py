@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 #: LibRaw's colour letters beyond R, G, B: a second green (``RGBG``) is G.
 _LETTER = {"R": "R", "G": "G", "B": "B"}

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, special
 
-from camsim.kernels import tukey_lambda_variance
+from camsim.sensor.kernels import tukey_lambda_variance
 
 #: The plain grid of λ (ELD's range): −0.5 < λ ≤ 0.5, step 0.01 (λ = −0.5 itself has no variance).
 LAMBDA_GRID = np.round(np.arange(-0.49, 0.5001, 0.01), 2)

@@ -10,6 +10,6 @@ from camsim.dataset._pool import bind_to_parent
 bind_to_parent()  # first: before the imports, which take a second or two
 
 import camsim.dataset.task  # noqa: E402, F401
-from camsim.spectra import import_colour  # noqa: E402
+from camsim.light.spectra import import_colour  # noqa: E402
 
 import_colour()

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from camsim.dataset._pool import pool_context, worker_init
 from camsim.dataset.manifest import FRAMES_DIR
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io.exr import restore_exr_threads, set_exr_threads
 
 __all__ = ["run_serial", "run_pool", "run_dask"]

@@ -11,12 +11,12 @@ import dataclasses
 from functools import lru_cache
 from pathlib import Path
 
-from camsim.camera import load_camera
+from camsim.sensor.camera import load_camera
 from camsim.dataset.spec import FrameSpec
-from camsim.frame_files import write_frame
+from camsim.render.frame_files import write_frame
 from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION
-from camsim.pipeline import light_scene, scene_frame
-from camsim.scene import load_scene
+from camsim.render.pipeline import light_scene, scene_frame
+from camsim.scene.scene_file import load_scene
 
 __all__ = ["render_frame", "render_files"]
 
@@ -41,9 +41,9 @@ def _lit(path: str, width: int, height: int, illuminant: str, camera: str, sourc
 
 
 def render_frame(frame: FrameSpec, threads: int = 1):
-    """Render one frame of a dataset in memory: its :class:`camsim.render.Frame` and :class:`FrameInfo`.
+    """Render one frame of a dataset in memory: its :class:`camsim.render.frame.Frame` and :class:`FrameInfo`.
 
-    :func:`camsim.pipeline.scene_frame`, as for ``camsim render``, with the frame's own seed. A frame of an
+    :func:`camsim.render.pipeline.scene_frame`, as for ``camsim render``, with the frame's own seed. A frame of an
     ``[images]`` spec has the scene file's source replaced by its crop of an image, lit as a reflectance image;
     its flips mirror the lit scene's label map (every pixel keeps its colour's spectrum).
     """

@@ -35,10 +35,10 @@ from camsim.dataset.manifest import (
 )
 from camsim.dataset.spec import DatasetSpec, FrameSpec, load_spec
 from camsim.dataset.task import render_task, zarr_task
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION, check_exr_compression
 from camsim.io.output_folder import output_folder
-from camsim.render import default_workers
+from camsim.render.frame import default_workers
 
 __all__ = ["run_dataset", "check_settings", "FORMATS"]
 

@@ -33,12 +33,12 @@ keeps the scene file's value; the scene's ``illuminants`` and ``intensity_factor
 
 Distributions of ``[random]``: ``uniform = [a, b]``, ``log_uniform = [a, b]`` (a > 0), ``integers = [a, b]``
 (inclusive) and ``choice = [v, ...]``. Each parameter draws from its own stream,
-:func:`camsim.seeding.dataset_parameter_generator`, one value per frame in frame order, so
+:func:`camsim.core.seeding.dataset_parameter_generator`, one value per frame in frame order, so
 the frame list is the same on every run and adding a parameter leaves the others' draws unchanged.
 
 Scenes may come from a folder of images (an ``[images]`` table): each frame is a random crop of a randomly chosen
 image, lit, seen and sensed as the ``scene`` file says (its light, camera, sensor, spectral grid and luminance; its
-chart, cube or image replaced by the crop, a reflectance image: :class:`camsim.sources.image.ImageSource`)::
+chart, cube or image replaced by the crop, a reflectance image: :class:`camsim.scene.sources.image.ImageSource`)::
 
     [images]
     folder = "images"                  # relative to the spec file
@@ -50,7 +50,7 @@ chart, cube or image replaced by the crop, a reflectance image: :class:`camsim.s
 Each grid point's draw (its repeats share it: noise2noise pairs of one crop) picks an image (uniformly among the
 files, in name order), the crop's offset (x, y uniform over every position inside the image) and, with
 ``flips``, whether it is flipped left-right and upside-down (each with probability 1/2), each from its own stream
-(:func:`camsim.seeding.dataset_parameter_generator` of ``images.file``, ``images.x``, ``images.y``,
+(:func:`camsim.core.seeding.dataset_parameter_generator` of ``images.file``, ``images.x``, ``images.y``,
 ``images.flip_horizontal``, ``images.flip_vertical``). The frame's record holds them (:data:`IMAGE_KEYS`: the file
 name relative to the folder, its SHA-256, ``crop_x``, ``crop_y``, ``flip_horizontal``, ``flip_vertical``), so that
 the id changes with the image's bytes. A crop is of the file as stored; a flip mirrors the cropped frame.
@@ -79,27 +79,27 @@ from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path, PurePosixPath
 
-from camsim.builtin_scenes import resolve_scene_file, resolve_spec_file
-from camsim.camera import load_camera
-from camsim.errors import CamsimError
-from camsim.pipeline import check_frame, exposure_record, frame_sensor, light_scene
-from camsim.run import check_scene
+from camsim.scene.builtin_scenes import resolve_scene_file, resolve_spec_file
+from camsim.sensor.camera import load_camera
+from camsim.core.errors import CamsimError
+from camsim.render.pipeline import check_frame, exposure_record, frame_sensor, light_scene
+from camsim.render.run import check_scene
 from camsim.io.dng import MIN_SIZE
 from camsim.io.exr_compression import check_exr_compression
-from camsim.names import safe_component
-from camsim.schema import INT64_MAX, check_frame_size
-from camsim.scene import FRAME_PARAMS, RENDER_PARAMS, Scene, check_intensity_factor, load_scene, read_toml
-from camsim.seeding import dataset_frame_seeds, dataset_parameter_generator
-from camsim.sensor import SENSOR_PARAMS, with_checked_values
-from camsim.sources.image import ImageSource
-from camsim.camera_presets.virtual import VIRTUAL_KEYS
+from camsim.core.names import safe_component
+from camsim.core.schema import INT64_MAX, check_frame_size
+from camsim.scene.scene_file import FRAME_PARAMS, RENDER_PARAMS, Scene, check_intensity_factor, load_scene, read_toml
+from camsim.core.seeding import dataset_frame_seeds, dataset_parameter_generator
+from camsim.sensor.params import SENSOR_PARAMS, with_checked_values
+from camsim.scene.sources.image import ImageSource
+from camsim.sensor.presets.virtual import VIRTUAL_KEYS
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT = 256, 192
 MAX_FRAMES = 1_000_000
 
 #: Every parameter a spec may set, by name: the frame's choices, the render settings and the sensor's (the schema).
 PARAMETERS = {p.name: p for p in (*FRAME_PARAMS, *RENDER_PARAMS, *SENSOR_PARAMS) if p.name != "seed"}
-#: The render settings of :class:`camsim.scene.Scene` a frame takes from its spec (all but the seed: a frame has
+#: The render settings of :class:`camsim.scene.scene_file.Scene` a frame takes from its spec (all but the seed: a frame has
 #: its own).
 RENDER_KEYS = tuple(p.name for p in RENDER_PARAMS if p.name != "seed")
 #: Plural spellings accepted in [grid] (the scene file's [light] names).
@@ -245,7 +245,7 @@ class FrameSpec:
         every frame of the spec, at least five digits).
     seed : int
         The frame's seed (< 2**53): its generator is
-        ``camsim.seeding.frame_seed_sequence(seed, illuminant, intensity_factor)``, as for ``camsim render``.
+        ``camsim.core.seeding.frame_seed_sequence(seed, illuminant, intensity_factor)``, as for ``camsim render``.
     group : FrameGroup
     values : tuple
         The frame's own values, named by ``group.value_keys``: repeat, intensity factor, sensor parameters.
@@ -741,11 +741,11 @@ def plan_spec(path: str | Path) -> SpecPlan:
 
 
 def _virtual_cameras(table, points: int, seed: int, axes: dict, where: str) -> list:
-    """The ``[virtual_camera]`` draws (:func:`camsim.camera_presets.virtual.draw_virtual_cameras`), one per grid
+    """The ``[virtual_camera]`` draws (:func:`camsim.sensor.presets.virtual.draw_virtual_cameras`), one per grid
     point and draw, each parameter from its own stream (``virtual_camera.camera``, ``.k``, ``.shape`` and one per
     noise quantity)."""
-    from camsim.camera_presets import CAMERA_PRESETS
-    from camsim.camera_presets.virtual import K_RANGES, cameras_with_fits, draw_virtual_cameras
+    from camsim.sensor.presets import CAMERA_PRESETS
+    from camsim.sensor.presets.virtual import K_RANGES, cameras_with_fits, draw_virtual_cameras
 
     at = f"{where} [virtual_camera]"
     if not isinstance(table, dict):
@@ -886,7 +886,7 @@ def _frame_values(job: _Job) -> Iterator[tuple]:
 
 @dataclass
 class _FrameCheck:
-    """Checks the frames of one group as drawing each checks it first (:func:`camsim.pipeline.check_frame`: its
+    """Checks the frames of one group as drawing each checks it first (:func:`camsim.render.pipeline.check_frame`: its
     expected signal finite, its values within float32, its exposure within a DNG's), so that a frame the run would
     refuse is refused when the spec is planned, by the dry run too. The group's lit scene stands for its frames' (an ``[images]`` spec's first
     crop for every crop, as in the other checks).
@@ -896,7 +896,7 @@ class _FrameCheck:
     """
 
     scene: Scene
-    lit: object  # camsim.pipeline.LitScene
+    lit: object  # camsim.render.pipeline.LitScene
     sensor_keys: tuple
     last: tuple | None = None  # (own sensor values, the largest F checked with them)
 

@@ -51,7 +51,7 @@ def zarr_task(frame: FrameSpec, out_dir: str | None, threads: int = 1, *, layout
     frame on ``threads`` threads and write its chunks into the store (with ``out_dir``; the result lists them), or,
     without, send its arrays and sidecar back (``data``, ``sidecar``) for the caller to write."""
     from camsim.dataset.zarr_store import STORE_NAME, frame_arrays, write_frame_arrays
-    from camsim.frame_files import sidecar
+    from camsim.render.frame_files import sidecar
 
     rendered, info = render_frame(frame, threads)
     data = frame_arrays(rendered, layout)

@@ -45,7 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from camsim.dataset.manifest import DONE_SUFFIX, append_manifest, frame_record, manifest_line
-from camsim.errors import CamsimError, output_error
+from camsim.core.errors import CamsimError, output_error
 from camsim.io import atomic  # atomic.fsync_path: one flush, which tests can fail as a full disk does
 
 __all__ = ["STORE_NAME", "RECORDS_DIR", "LAYERS", "COMPRESSORS", "StoreLayout", "store_layout", "open_store",
@@ -285,7 +285,7 @@ def _remove_partials(root: Path) -> None:
 
 
 def frame_arrays(rendered, layout: StoreLayout) -> dict:
-    """A rendered :class:`camsim.render.Frame` as the store's layers (``digital`` None where not quantised)."""
+    """A rendered :class:`camsim.render.frame.Frame` as the store's layers (``digital`` None where not quantised)."""
     digital = rendered.digital_dn
     return {"noisy": rendered.noisy_dn, "clean": rendered.clean_dn(),
             "digital": None if digital is None else digital.astype(layout.digital, copy=False)}

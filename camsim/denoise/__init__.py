@@ -9,7 +9,7 @@
 * :mod:`camsim.denoise.summary` — means per light level and per band of F, the criteria and the verdicts;
 * :mod:`camsim.denoise.evaluate` — the loop: every denoiser on every frame, scored;
 * :mod:`camsim.denoise.report` — CSV, plots, ``report.md`` and ``summary.json``;
-* the sub-command itself is :mod:`camsim.commands.denoise_eval`.
+* the sub-command itself is :mod:`camsim.cli.commands.denoise_eval`.
 """
 
 from camsim.denoise.denoisers import DENOISERS, Denoiser, estimate_noise_sigma, resolve_denoiser

@@ -2,7 +2,7 @@
 
 Needs no chart and no F = 1 frame, so every frame of every dataset is judged for colour. For a frame:
 
-1. **Camera → XYZ.** The black level (the sidecar's, :meth:`camsim.frame_files.LoadedFrame.expected_black_dn`) is
+1. **Camera → XYZ.** The black level (the sidecar's, :meth:`camsim.render.frame_files.LoadedFrame.expected_black_dn`) is
    subtracted from the test image (noisy or denoised) and from the clean layer, and both are mapped to XYZ by the
    same camera → XYZ matrix M that the chart metrics use (the paper's Eq. 15 from the sidecar's Qe,
    :func:`camsim.analysis.patches.frame_matrix`). M's overall scale is immaterial: the white below goes through it
@@ -32,9 +32,9 @@ import warnings
 
 import numpy as np
 
-from camsim.colorimetry import xyz_from_camera
-from camsim.optional_numbers import finite_or_none
-from camsim.spectra import import_colour
+from camsim.colour.colorimetry import xyz_from_camera
+from camsim.core.optional_numbers import finite_or_none
+from camsim.light.spectra import import_colour
 
 __all__ = ["WHITE_SIDECAR", "WHITE_CLEAN_MAX", "frame_white_xyz", "lab_against_white", "mean_delta_e00"]
 

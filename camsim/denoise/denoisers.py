@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 __all__ = ["DENOISERS", "Denoiser", "estimate_noise_sigma", "model_noise_sigma", "resolve_denoiser", "COMMAND_PREFIX",
            "SIGMA_BLIND", "SIGMA_MODEL"]

@@ -28,9 +28,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from camsim.analysis.grouping import group_key
-from camsim.frame_files import load_frame
+from camsim.render.frame_files import load_frame
 from camsim.analysis.patches import frame_matrix, patch_samples
-from camsim.colorimetry import CHANNELS
+from camsim.colour.colorimetry import CHANNELS
 from camsim.denoise.colour_fidelity import frame_white_xyz, mean_delta_e00
 from camsim.denoise.denoisers import SIGMA_MODEL, Denoiser, estimate_noise_sigma, model_noise_sigma
 from camsim.denoise.frames import Dataset, DatasetFrame, find_dataset
@@ -38,7 +38,7 @@ from camsim.denoise.image_scores import image_scores
 from camsim.denoise.patch_colour import patch_colour, patch_row, reference_labs
 from camsim.denoise.summary import (NOISY, Criterion, band_verdicts, f_band, summarise, summarise_bands,
                                     undefined_counts, verdict)
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 __all__ = ["EvalSettings", "FrameResult", "Evaluation", "evaluate", "evaluate_frame"]
 

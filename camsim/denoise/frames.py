@@ -1,5 +1,5 @@
 """The frames ``camsim denoise-eval`` scores: camsim EXR frames found under folders (searched recursively, committed
-frames only: :func:`camsim.frame_files.search_frames`) and files — layer ``noisy.R/G/B`` = the noisy DN before
+frames only: :func:`camsim.render.frame_files.search_frames`) and files — layer ``noisy.R/G/B`` = the noisy DN before
 quantisation, layer ``clean.R/G/B`` = their expected value, header ``camsim:metadata`` = the sidecar. Bayer (CFA)
 frames, EXRs without a clean layer, uncommitted EXRs and other files are skipped, each with its reason.
 """
@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.frame_files import load_frame, search_frames
-from camsim.errors import CamsimError
+from camsim.render.frame_files import load_frame, search_frames
+from camsim.core.errors import CamsimError
 
 #: Why an EXR in a folder that no sidecar claims is not scored.
 UNCOMMITTED = "uncommitted: no sidecar claims it (a frame being written, or left by an interrupted writer)"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from camsim.optional_numbers import finite_or_none
+from camsim.core.optional_numbers import finite_or_none
 
 SSIM_MIN_SIDE = 7  # scikit-image's default SSIM window
 

@@ -12,8 +12,8 @@ import numpy as np
 from camsim.analysis.delta_e import delta_e_5step, reference_lab
 from camsim.analysis.ellipse import fit_ellipse
 from camsim.analysis.patches import patch_samples
-from camsim.colorimetry import chromaticity_xy, xyz_from_camera
-from camsim.optional_numbers import finite_or_none
+from camsim.colour.colorimetry import chromaticity_xy, xyz_from_camera
+from camsim.core.optional_numbers import finite_or_none
 
 
 def _xy_of_mean(xyz: np.ndarray):

@@ -30,7 +30,7 @@ from camsim.denoise.denoisers import MODEL_SIGMA_TEXT, SIGMA_ESTIMATOR, SIGMA_MO
 from camsim.denoise.evaluate import Evaluation
 from camsim.denoise.summary import NOISY, band_label
 from camsim.io.atomic import write_json_atomic, write_text_atomic
-from camsim.plotting import new_figure, save_png
+from camsim.io.figures import new_figure, save_png
 from camsim.io.output_folder import make_folder
 
 FRAME_COLUMNS = ("denoiser", "file", "scene", "illuminant", "intensity_factor", "width_px", "height_px",

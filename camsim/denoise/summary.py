@@ -9,8 +9,8 @@ import math
 from collections import defaultdict
 from dataclasses import dataclass
 
-from camsim.errors import CamsimError
-from camsim.optional_numbers import mean_of_defined, median_of_defined
+from camsim.core.errors import CamsimError
+from camsim.core.optional_numbers import mean_of_defined, median_of_defined
 
 NOISY = "noisy"  # the name of the no-denoising baseline in summaries
 

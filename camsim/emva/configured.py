@@ -6,10 +6,10 @@ import math
 
 import numpy as np
 
-from camsim.errors import CamsimError
-from camsim.fixed_pattern import lognormal_log_sigma
-from camsim.sensor import PRESETS, SensorParams
-from camsim.stages import adc_offset_dn
+from camsim.core.errors import CamsimError
+from camsim.sensor.fixed_pattern import lognormal_log_sigma
+from camsim.sensor.params import PRESETS, SensorParams
+from camsim.sensor.stages import adc_offset_dn
 
 #: The preset ``camsim emva`` measures by default: 12 bits, so that quantisation does not dominate the dark noise.
 DEFAULT_PRESET = "emva-12bit"
@@ -69,7 +69,7 @@ def predicted_saturation_e(sensor: SensorParams) -> float:
 
     The charge clips at the full well, the ADC at 2^nb − 1 DN, i.e. at (2^nb − 1) / K electrons; whichever comes
     first, minus the dark electrons already in the pixel. With a pedestal P the ADC adds P + ½ before its floor
-    (:func:`camsim.stages.adc_offset_dn`), so its top code is reached at (2^nb − 1 − P − ½) / K electrons.
+    (:func:`camsim.sensor.stages.adc_offset_dn`), so its top code is reached at (2^nb − 1 − P − ½) / K electrons.
     """
     limits = [(sensor.max_dn - adc_offset_dn(sensor.pedestal_dn)) / sensor.dn_per_electron]
     if sensor.saturation:
@@ -81,7 +81,7 @@ def model_dark_temporal_dn(sensor: SensorParams) -> tuple[float, float]:
     """The dark signal's mean and temporal variance in quantised DN, exactly from camsim's model, over pixels.
 
     A dark pixel reads floor(K · (D + o + r) + h) + P clipped to [0, 2^nb − 1] (P the pedestal, h = ½ with one,
-    else 0: :func:`camsim.stages.adc_offset_dn`), with D ~ Poisson(μ_dark · d), o its offset
+    else 0: :func:`camsim.sensor.stages.adc_offset_dn`), with D ~ Poisson(μ_dark · d), o its offset
     DSNU (fixed), d its dark-current DSNU factor (fixed, log-normal of mean 1; 1 when off) and
     r ~ N(0, σ²_read + σ²_row). The variance is taken per pixel (temporal) and averaged over the offsets and the
     factors (Gauss–Hermite in their normals), which is what the pair difference of the photon transfer method

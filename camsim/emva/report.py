@@ -26,7 +26,7 @@ from camsim.emva.simulate import (
     model_dark_temporal_dn,
 )
 from camsim.io.atomic import write_json_atomic, write_text_atomic
-from camsim.plotting import new_figure, save_png
+from camsim.io.figures import new_figure, save_png
 from camsim.io.output_folder import make_folder
 
 PLOTS = {

@@ -21,7 +21,7 @@ noise (``SeedSequence(seed, spawn_key=(kind, step, frame))``). The G channel is 
 measurement through the G filter; on a Bayer sensor, the first G site of the 2 × 2 cell).
 
 The camera's quantum efficiency is camsim's: the default camera's relative QE (``Nikon 5100 (NPL)``) at its
-physical scale (:class:`camsim.camera.PhysicalScale`, peak QE 0.5, 4.65 µm pixels), so that a pixel collects
+physical scale (:class:`camsim.sensor.camera.PhysicalScale`, peak QE 0.5, 4.65 µm pixels), so that a pixel collects
 η_G(λ) · μ_p electrons from μ_p photons, μ_p = T · g · (pixel étendue). The digital numbers (``frame.digital_dn``)
 go to ``emva1288``'s in-memory entry points, :class:`Data1288` and :class:`Results1288`, with no image file.
 """
@@ -36,15 +36,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from camsim.camera import DEFAULT_CAMERA, PhysicalScale, absolute_qe, load_camera
-from camsim.errors import CamsimError
-from camsim.fixed_pattern import fixed_pattern
-from camsim.optional_numbers import finite_or_none
-from camsim.pipeline import LitScene, make_frame
-from camsim.seeding import emva_frame_seed_sequence
-from camsim.cfa import cfa_sites
-from camsim.sensor import SensorParams
-from camsim.spectra import WavelengthGrid
+from camsim.sensor.camera import DEFAULT_CAMERA, PhysicalScale, absolute_qe, load_camera
+from camsim.core.errors import CamsimError
+from camsim.sensor.fixed_pattern import fixed_pattern
+from camsim.core.optional_numbers import finite_or_none
+from camsim.render.pipeline import LitScene, make_frame
+from camsim.core.seeding import emva_frame_seed_sequence
+from camsim.sensor.cfa import cfa_sites
+from camsim.sensor.params import SensorParams
+from camsim.light.spectra import WavelengthGrid
 from camsim.emva.configured import (  # noqa: F401 (re-exported)
     CHANNEL,
     DEFAULT_PRESET,

@@ -5,7 +5,7 @@ draw one panel per labelled series of frames (``{panel title: frames}``): the ex
 ``paper`` and ``pixel`` photon statistics; ``camsim analyze`` gives one per measurement of the user's own frames
 (:func:`analysis_figures`). Undefined values (None) are never plotted; each
 panel's legend says how many were left out. A data point keeps its colour (``tab20`` by point number) throughout.
-The figures are drawn without pyplot (:mod:`camsim.plotting`); matplotlib is imported when the first is drawn.
+The figures are drawn without pyplot (:mod:`camsim.io.figures`); matplotlib is imported when the first is drawn.
 """
 
 from __future__ import annotations
@@ -16,12 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.frame_files import load_frame
+from camsim.render.frame_files import load_frame
 from camsim.analysis.patches import AnalysisSettings, demosaiced_samples, frame_matrix, patch_samples
-from camsim.colorimetry import CHANNELS, chromaticity_xy, xyz_from_camera
-from camsim.errors import CamsimError
-from camsim.optional_numbers import finite_or_none as _num
-from camsim.plotting import new_figure, save_png
+from camsim.colour.colorimetry import CHANNELS, chromaticity_xy, xyz_from_camera
+from camsim.core.errors import CamsimError
+from camsim.core.optional_numbers import finite_or_none as _num
+from camsim.io.figures import new_figure, save_png
 from camsim.io.output_folder import make_folder
 
 MAX_SAMPLES = 300
@@ -567,7 +567,7 @@ ANALYSIS_FIGURES = ("xy", "delta_e", "snr")
 def _slug(text: str) -> str:
     """``text`` (from a sidecar: input) as a file-name prefix: letters, digits, ``-`` and ``.`` kept, the rest ``_``;
     no leading ``.`` (a hidden file) and at most 100 characters, so that the figure's name is a safe file name
-    (:mod:`camsim.names`)."""
+    (:mod:`camsim.core.names`)."""
     slug = "".join(ch if ch.isalnum() or ch in "-." else "_" for ch in text).strip("_").lstrip(".")
     return slug[:100] or "frames"
 
@@ -580,7 +580,7 @@ def _channel_value(patch, channel: str, key: str):
 def _analysis_black_xy(meta: dict, result: dict):
     """xy of the camera black point of a frame (its expected black level through the frame's camera → XYZ
     matrix), where the analysis subtracted no black level; None otherwise, or where it is undefined."""
-    from camsim.colorimetry import camera_to_xyz_matrix
+    from camsim.colour.colorimetry import camera_to_xyz_matrix
 
     method = result.get("camera_to_xyz") or "paper"
     if result.get("black_subtraction") != "none" or method == "least-squares":
@@ -601,7 +601,7 @@ def _analysis_groups(results) -> list:
     """The frames with patches, by measurement (:func:`camsim.analysis.grouping.group_key`): per group its file
     prefix, panel title, frames (largest F first) and camera black point (of its lowest-F frame)."""
     from camsim.analysis.grouping import group_key
-    from camsim.frame_files import read_frame_meta
+    from camsim.render.frame_files import read_frame_meta
 
     groups: dict = {}
     for result in results or []:

@@ -11,16 +11,16 @@ from tqdm import tqdm
 
 from camsim.analysis.analyze import analyse_paths
 from camsim.analysis.patches import AnalysisSettings
-from camsim.camera import AnchorScale, absolute_qe, load_camera
+from camsim.sensor.camera import AnchorScale, absolute_qe, load_camera
 from camsim.experiments.datapoints import data_points, points_radiance
-from camsim.frame_files import FrameInfo, write_frame
-from camsim.frame_manifest import FrameManifest
+from camsim.render.frame_files import FrameInfo, write_frame
+from camsim.render.frame_manifest import FrameManifest
 from camsim.io.output_folder import make_folder
-from camsim.photons import photon_radiance
-from camsim.pipeline import LitScene, make_frame
-from camsim.seeding import frame_seed_sequence
-from camsim.scene import load_scene
-from camsim.sensor import SensorParams
+from camsim.light.photons import photon_radiance
+from camsim.render.pipeline import LitScene, make_frame
+from camsim.core.seeding import frame_seed_sequence
+from camsim.scene.scene_file import load_scene
+from camsim.sensor.params import SensorParams
 
 #: The photon statistics every experiment runs under, and the sampling method used for each: ``paper`` draws
 #: per bin (Eq. 4 literally, with the channels' shared photon counts); ``pixel`` draws once per pixel (exact).
@@ -106,11 +106,11 @@ def analyse_series(folder: Path, black: str = "none", source: str = "dng") -> li
 def black_point_xy(prep: Prepared, sensor: SensorParams) -> tuple[float, float] | None:
     """Chromaticity of the camera black point, or None without dark current.
 
-    The mean digital number of an unlit pixel (:attr:`camsim.sensor.SensorParams.black_level_dn`: after the ADC's
+    The mean digital number of an unlit pixel (:attr:`camsim.sensor.params.SensorParams.black_level_dn`: after the ADC's
     floor where the sensor quantises, as in the DNGs the series is analysed from) through the paper's M: where the
     ellipse centres go as F falls.
     """
-    from camsim.colorimetry import camera_to_xyz_matrix
+    from camsim.colour.colorimetry import camera_to_xyz_matrix
 
     if not sensor.dark_current:
         return None
@@ -121,7 +121,7 @@ def black_point_xy(prep: Prepared, sensor: SensorParams) -> tuple[float, float] 
 
 def noise_free_xy(prep: Prepared, sensor: SensorParams, factor: float) -> np.ndarray:
     """Chromaticity of each point's expected camera signal (signal + dark, saturated) through M, shape (P, 2)."""
-    from camsim.colorimetry import camera_to_xyz_matrix
+    from camsim.colour.colorimetry import camera_to_xyz_matrix
 
     expected = prep.lit.expected(sensor, factor, "pixel")
     dn = expected.clean_e[: len(prep.points)] * sensor.dn_per_electron

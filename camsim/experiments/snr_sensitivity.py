@@ -38,13 +38,13 @@ from pathlib import Path
 import numpy as np
 
 from camsim.analysis.snr import delta_snr_percent, quantised_signal_dn, snr_model
-from camsim.colorimetry import CHANNELS
+from camsim.colour.colorimetry import CHANNELS
 from camsim.experiments import findings as fd
 from camsim.experiments.report import Finding, write_csv, write_report
 from camsim.experiments.runner import STATISTICS_METHODS, Setup, analyse_series, prepare, run_conditions
-from camsim.frame_files import read_frame_meta
-from camsim.optional_numbers import finite_or_none
-from camsim.sensor import PRESETS, SensorParams
+from camsim.render.frame_files import read_frame_meta
+from camsim.core.optional_numbers import finite_or_none
+from camsim.sensor.params import PRESETS, SensorParams
 
 SNR_FACTORS = (0.1, 0.05, 0.01, 0.005, 0.001)
 #: The paper's SNR analysis uses the boundary data points 1–13.
@@ -109,7 +109,7 @@ def model_snr(meta: dict, index: int, source: str, form: str, quantisation_term:
     Parameters
     ----------
     meta : dict
-        The frame's sidecar (:func:`camsim.frame_files.read_frame_meta`).
+        The frame's sidecar (:func:`camsim.render.frame_files.read_frame_meta`).
     index : int
         Patch index.
     source : {'dng', 'exr'}

@@ -3,12 +3,12 @@
 Every writer in :mod:`camsim.io` writes into a temporary file next to the target and renames it onto the target
 with :func:`os.replace` only after the write has finished. A crash, an exception or Ctrl-C in the middle of a write
 therefore never leaves a truncated file under the final name (an older complete file, if any, stays in place).
-A write the environment refuses (no space, no permission) raises :class:`camsim.errors.OutputError`, one line.
+A write the environment refuses (no space, no permission) raises :class:`camsim.core.errors.OutputError`, one line.
 
 Inside :func:`confined_to` (every sub-command's output folder holds its writes so:
 :func:`camsim.io.output_folder.output_folder`), a write whose target lies outside the folder is refused before
 anything is created: the last line of defence behind the checks of every name that becomes part of a path
-(:mod:`camsim.names`).
+(:mod:`camsim.core.names`).
 
 :func:`undo_on_failure` groups writes into one unit: if the block fails, the files it completed are removed too,
 so that a set of files that belong together (a frame's DNG and EXR, a report and its tables) appears whole or
@@ -25,7 +25,7 @@ from contextvars import ContextVar
 from pathlib import Path
 from typing import Any
 
-from camsim.errors import CamsimError, OutputError, output_error
+from camsim.core.errors import CamsimError, OutputError, output_error
 
 __all__ = ["atomic_path", "write_json_atomic", "write_text_atomic", "undo_on_failure", "record_created",
            "fsync_path", "confined_to", "check_confined", "PARTIAL_SUFFIX"]
@@ -136,7 +136,7 @@ def atomic_path(path: str | os.PathLike[str], *, renamed: Callable[[], None] | N
     :func:`os.replace`, replacing any existing file. On any exception (including ``KeyboardInterrupt``) the
     temporary file is deleted and the exception re-raised, so neither a partial final file nor a temporary file
     is left behind; an :class:`OSError` (no space, no permission, an I/O error) is re-raised as
-    :class:`camsim.errors.OutputError` naming ``path``.
+    :class:`camsim.core.errors.OutputError` naming ``path``.
     """
     final = Path(path)
     check_confined(final)

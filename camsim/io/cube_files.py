@@ -31,9 +31,9 @@ Wavelengths and resampling
 --------------------------
 A cube whose wavelengths are the scene grid's is used as it is. Any other cube is resampled to the grid by linear
 interpolation with colour-science's ``LinearInterpolator`` (as every spectrum in camsim is,
-:func:`camsim.spectra.align_to_grid`): being linear in the values, the interpolation of every pixel is one
+:func:`camsim.light.spectra.align_to_grid`): being linear in the values, the interpolation of every pixel is one
 B → N matrix, built once from colour-science's interpolation of the B unit vectors and applied to each block. The
-cube must cover the grid: camsim does not extrapolate (:mod:`camsim.spectra`).
+cube must cover the grid: camsim does not extrapolate (:mod:`camsim.light.spectra`).
 
 Values must be finite and non-negative (checked block by block when the cube is read).
 """
@@ -48,8 +48,8 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.errors import CamsimError
-from camsim.spectra import WavelengthGrid, align_to_grid
+from camsim.core.errors import CamsimError
+from camsim.light.spectra import WavelengthGrid, align_to_grid
 
 #: Bytes of float64 values in one block (its B source bands or N grid bins, whichever is more): 32 MiB.
 BLOCK_BYTES = 32 * 2**20
@@ -182,8 +182,8 @@ class CubeData:
 
 @dataclass(frozen=True, eq=False)
 class CubeRows:
-    """A cube's pixels as the K = H · W coefficient rows of :class:`camsim.rates.FactoredSpectra` (the
-    :class:`camsim.rates.CoefficientRows` protocol): row p is pixel
+    """A cube's pixels as the K = H · W coefficient rows of :class:`camsim.light.rates.FactoredSpectra` (the
+    :class:`camsim.light.rates.CoefficientRows` protocol): row p is pixel
     (p // W, p % W), its B stored values as float64 (unscaled: the scale and the resampling to the grid are the
     factored spectra's basis, :meth:`basis`). Read block by block from the file, the mapped pages dropped after
     each block: the cube is never copied whole.
@@ -252,7 +252,7 @@ def read_npy(path: Path, *, variable: str | None = None) -> _Stored:
 
 
 def _check_npy_header(path: Path) -> None:
-    """Check the (H, W) of a ``.npy`` file's header against :data:`camsim.pixel_limit.MAX_PIXELS` before the file is
+    """Check the (H, W) of a ``.npy`` file's header against :data:`camsim.core.pixel_limit.MAX_PIXELS` before the file is
     mapped (a header may claim any shape); other problems are left to ``np.load``, which reports them."""
     from numpy.lib import format as npy_format
 
@@ -279,7 +279,7 @@ def _check_npy_header(path: Path) -> None:
 
 
 def _check_size(width, height, path: Path) -> None:
-    from camsim.pixel_limit import check_pixel_count
+    from camsim.core.pixel_limit import check_pixel_count
 
     check_pixel_count(int(width), int(height), f"cube {path}")
 

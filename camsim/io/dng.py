@@ -5,7 +5,7 @@ R, G and B value per pixel, no mosaic) written with :mod:`tifffile`, so that Lib
 developers and Adobe tools read the exact numbers. Deflate compression is deliberately not used: LibRaw cannot
 read deflate-compressed DNGs.
 
-camsim writes the true black level (:attr:`camsim.sensor.SensorParams.black_level_dn`, the exact mean digital
+camsim writes the true black level (:attr:`camsim.sensor.params.SensorParams.black_level_dn`, the exact mean digital
 number of an unlit pixel, clipped below the WhiteLevel) as BlackLevel: RATIONAL, one value per sample (LinearRaw,
 without BlackLevelRepeatDim: its default 1 x 1) or per CFA position (Bayer, BlackLevelRepeatDim 2 x 2), within
 1 / (2 D) of the value with the largest denominator D it allows (:func:`rational_bound`: below 7.63e-6 DN for any
@@ -43,7 +43,7 @@ The DNG NoiseProfile (tag 51041, DNG 1.3; the files say DNGVersion 1.4.0.0, DNGB
 reader that ignores the tag still renders them) is written when a ``noise_profile`` is given: pairs (S, O), one per
 sample or CFA plane colour (R, G, B) or one for all, as DOUBLE, such that the temporal noise variance of the
 normalised value x = (DN − BlackLevel) / (WhiteLevel − BlackLevel) is S · x + O
-(:mod:`camsim.noise_profile` computes them from the model). LibRaw reads the files as it does without the tag;
+(:mod:`camsim.sensor.noise_profile` computes them from the model). LibRaw reads the files as it does without the tag;
 ExifTool shows it as ``NoiseProfile``.
 
 A Bayer sensor's mosaic (one digital number per pixel) is stored by :func:`write_dng_cfa` as an uncompressed
@@ -77,10 +77,10 @@ from typing import Any
 import numpy as np
 import tifffile
 
-from camsim.cfa import CFA_PATTERNS
-from camsim.errors import CamsimError
+from camsim.sensor.cfa import CFA_PATTERNS
+from camsim.core.errors import CamsimError
 from camsim.io.atomic import atomic_path
-from camsim.pixel_limit import check_pixel_count
+from camsim.core.pixel_limit import check_pixel_count
 
 __all__ = ["write_dng", "write_dng_cfa", "read_dng", "shot_metadata", "rational_bound", "darktable_xmp",
            "DARKTABLE_XMP_SUFFIX", "MIN_SIZE", "CFA_PATTERNS"]
@@ -394,7 +394,7 @@ def write_dng(path: str | os.PathLike[str], dn: np.ndarray, *, black_level_dn: f
     noise_profile : array_like, shape (3, 2) or (1, 2), optional
         DNG NoiseProfile: per sample (R, G, B), or one for all, the pair (S, O) such that the temporal noise
         variance of a normalised value x = (DN − BlackLevel) / (WhiteLevel − BlackLevel) is S · x + O (unitless;
-        :func:`camsim.noise_profile.dng_noise_profile`). S > 0, O >= 0, stored as DOUBLE. None (default): no tag.
+        :func:`camsim.sensor.noise_profile.dng_noise_profile`). S > 0, O >= 0, stored as DOUBLE. None (default): no tag.
     iso : float, optional
         The camera's ISO setting: ISOSpeedRatings (EXIF PhotographicSensitivity, tag 34855, SHORT, rounded; above
         65535 it holds 65535 and SensitivityType 3 with ISOSpeed, tag 34867, the value), in the EXIF IFD. None

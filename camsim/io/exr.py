@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 import OpenEXR
 
-from camsim.errors import CamsimError, output_error
+from camsim.core.errors import CamsimError, output_error
 from camsim.io.atomic import atomic_path
 from camsim.io.library_stderr import library_stderr
 from camsim.io.exr_compression import (

@@ -6,7 +6,7 @@ See :mod:`camsim.io.exr` for the measurements behind the default (``python tools
 
 from __future__ import annotations
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 __all__ = ["EXR_COMPRESSIONS", "DEFAULT_EXR_COMPRESSION", "LOSSLESS_EXR_COMPRESSIONS", "exr_compressions",
            "check_exr_compression"]

@@ -22,7 +22,7 @@ import re
 from collections.abc import Iterator
 from pathlib import Path
 
-from camsim.errors import CamsimError, OutputError, describe_os_error
+from camsim.core.errors import CamsimError, OutputError, describe_os_error
 from camsim.io.atomic import PARTIAL_SUFFIX, check_confined, confined_to, record_created
 
 __all__ = ["output_folder", "make_folder", "check_writable", "remove_stale_partials", "FolderBusyError"]

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from importlib import import_module
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 
 #: Default ``auto`` tolerance: the largest KS distance accepted between a pixel value's exact law (before
 #: quantisation) and the law ``auto`` draws it from, per spectrum and channel. With Table I's 4 e⁻ read noise the
@@ -45,7 +45,7 @@ class SamplingMethod:
         One line for help texts.
     draw_module : str
         The module whose ``draw_block(job, r0, r1, rng, scratch)`` draws rows ``r0:r1`` of the frame ``job`` (a
-        :class:`camsim.render.FrameJob`): DN before quantisation into ``job.noisy`` and, if quantised, digital
+        :class:`camsim.render.frame.FrameJob`): DN before quantisation into ``job.noisy`` and, if quantised, digital
         numbers into ``job.digital``. Imported on first use, so that listing the methods costs nothing.
     planned : bool
         Whether the method decides per spectrum and channel before drawing (:attr:`plan`).

@@ -2,9 +2,9 @@
 
 A :class:`~camsim.methods.plan.DrawPlan` says how each spectrum and channel is drawn; :func:`fill_channel` then
 walks a block's rectangles of equal label (or, for a cube, its pixels grouped by kind) and writes DN before
-quantisation. The exact path composes the stage functions of :mod:`camsim.stages` (charge, DSNU offset, full
+quantisation. The exact path composes the stage functions of :mod:`camsim.sensor.stages` (charge, DSNU offset, full
 well, read noise, gain; where the full well can act, the charge's Poisson means are capped far above it,
-:func:`camsim.stages.cap_mean_e`); the Gaussian paths replace charge and read noise by one moment-matched normal.
+:func:`camsim.sensor.stages.cap_mean_e`); the Gaussian paths replace charge and read noise by one moment-matched normal.
 ``auto``'s Eq. 4 path (:data:`~camsim.methods.plan.BINS`, ``paper`` statistics at low F) takes the signal of
 ``spectral``'s per-bin draws (:func:`camsim.methods.spectral.draw_bins`, shared by the three channels of a pixel,
 drawn once per block) and goes on as the exact path.
@@ -14,14 +14,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from camsim.expected import ExpectedSignal
-from camsim.kernels import alias_draw_words, alias_words, label_runs, standard_normal_f32
+from camsim.sensor.expected import ExpectedSignal
+from camsim.sensor.kernels import alias_draw_words, alias_words, label_runs, standard_normal_f32
 from camsim.methods.plan import BINS, EXACT, GAUSSIAN, GAUSSIAN_CLIPPED, SATURATED, TABLE, DrawPlan
 from camsim.methods.table import charge_table
 from camsim.methods.spectral import draw_bins
-from camsim.cfa import cfa_sites
-from camsim.sensor import SensorParams
-from camsim.stages import (
+from camsim.sensor.cfa import cfa_sites
+from camsim.sensor.params import SensorParams
+from camsim.sensor.stages import (
     add_offset_e,
     add_read_noise_e,
     add_row_noise,
@@ -44,7 +44,7 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
     noise, draw their own normals. ``offset`` (offset DSNU, e⁻), ``gain`` (PRNU) and ``dark_gain`` (dark-current
     DSNU) are this block's fixed-pattern maps, (h, w), or None. ``bins`` (h, w): this channel's per-bin signal
     (:func:`bins_signal`, e⁻) where the plan has :data:`~camsim.methods.plan.BINS`, else None. ``runs``:
-    :func:`camsim.kernels.label_runs` of ``labels``, when the caller has it (the three channels of a block share it).
+    :func:`camsim.sensor.kernels.label_runs` of ``labels``, when the caller has it (the three channels of a block share it).
     """
     k = sensor.dn_per_electron
     read = sensor.read_noise_e if sensor.read_noise else 0.0
@@ -180,7 +180,7 @@ def bins_signal(labels, plan: DrawPlan, expected: ExpectedSignal, sensor: Sensor
 def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None:
     """Rows ``r0:r1`` of a frame by its plan: every channel (or CFA site) in one pass, then row noise and the ADC.
 
-    ``job`` is the frame's :class:`camsim.render.FrameJob`; ``scratch`` the thread's buffers.
+    ``job`` is the frame's :class:`camsim.render.frame.FrameJob`; ``scratch`` the thread's buffers.
     """
     sensor, plan, expected = job.sensor, job.plan, job.expected
     block = job.noisy[:, r0:r1]  # work in place in the output

@@ -35,11 +35,11 @@ from functools import cached_property, lru_cache
 import numpy as np
 from scipy import special, stats
 
-from camsim.expected import ExpectedSignal
-from camsim.rates import FactoredSpectra
-from camsim.fixed_pattern import dark_gain_at
+from camsim.sensor.expected import ExpectedSignal
+from camsim.light.rates import FactoredSpectra
+from camsim.sensor.fixed_pattern import dark_gain_at
 from camsim.methods import DEFAULT_TOLERANCE
-from camsim.sensor import SensorParams
+from camsim.sensor.params import SensorParams
 
 #: Saturation cannot act on a spectrum whose mean is this many standard deviations below the full well.
 SATURATION_MARGIN_SIGMA = 6.0

@@ -5,20 +5,20 @@ T · Qe (Eq. 4 literally, so the channels are correlated as the paper's model sa
 per-bin detected electrons Poisson(T F g Qe) per channel, summed: equal in distribution to ``poisson``, a live
 check of the thinning argument. Dark current is added as Poisson(D̄), or Poisson(D̄ d) per pixel with the
 dark-current DSNU map d; with photon noise off the charge is S̄ plus that dark draw. Then saturation, read noise,
-row noise, gain and the ADC (:mod:`camsim.stages`), plane by plane.
+row noise, gain and the ADC (:mod:`camsim.sensor.stages`), plane by plane.
 Where the full well acts, a spectrum far above it has its per-bin means scaled down to the saturation cap of
-:func:`camsim.stages.cap_mean_e` (:func:`bin_scale`), and the dark mean is capped alike.
+:func:`camsim.sensor.stages.cap_mean_e` (:func:`bin_scale`), and the dark mean is capped alike.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from camsim.expected import ExpectedSignal
-from camsim.kernels import label_runs, poisson
-from camsim.cfa import cfa_sites
-from camsim.sensor import SensorParams
-from camsim.stages import (
+from camsim.sensor.expected import ExpectedSignal
+from camsim.sensor.kernels import label_runs, poisson
+from camsim.sensor.cfa import cfa_sites
+from camsim.sensor.params import SensorParams
+from camsim.sensor.stages import (
     add_read_noise_e,
     add_row_noise,
     cap_mean_e,
@@ -37,7 +37,7 @@ def draw_bins(labels, expected: ExpectedSignal, sensor: SensorParams, statistics
 
     ``saturation_e``: with a full well, the charge at and above which every pixel is saturated (the full well
     minus the most negative DSNU offset); a spectrum whose mean charge is far above it has its bins' means scaled
-    down to the saturation cap (:func:`camsim.stages.cap_mean_e`, :func:`bin_scale`), and the dark mean is capped.
+    down to the saturation cap (:func:`camsim.sensor.stages.cap_mean_e`, :func:`bin_scale`), and the dark mean is capped.
     ``dark_gain``: the dark-current DSNU map d of these pixels, (3, h, w), or None: the dark charge is then
     Poisson(D̄ d), one draw per pixel and channel.
     ``dark`` False: the signal S alone (``auto``'s Eq. 4 path adds the dark charge itself, per channel).
@@ -83,7 +83,7 @@ def bin_scale(expected: ExpectedSignal, statistics: str, saturation_e: float):
 
     ``pixel`` statistics, shape (K, 3): channel κ's bins draw independent Poisson counts whose sum is
     Poisson(S̄_κ); scaling them by α_κ = cap / S̄_κ makes it Poisson(cap) exactly, the ``poisson`` method's capped
-    law (:func:`camsim.stages.cap_mean_e`). ``paper`` statistics, shape (K,): the bins' photon counts are shared
+    law (:func:`camsim.sensor.stages.cap_mean_e`). ``paper`` statistics, shape (K,): the bins' photon counts are shared
     by the channels, so one factor per spectrum, α = max over channels (with S̄_κ > 0) of cap_κ / S̄_κ, where
     cap_κ = min(S̄_κ, M(L, s_κ)) with s_κ = Var S_κ / S̄_κ (unchanged by the scaling): every channel then keeps a mean
     of at least its M, or its own, so each saturates or is drawn as before, and the law of each channel's

@@ -6,7 +6,7 @@ D = d · T dark electrons; its black-subtracted value, in electrons, has mean S 
     S (shot) + D (dark shot) + σ_read² + σ_row² + 1 / (12 k²) (the quantiser, Sheppard: its steps are 1 / k e⁻),
 
 with k, σ_read, σ_row (and the well, the ADC's range and the pedestal) the camera preset's at that ISO
-(:func:`camsim.camera_presets.sensor_preset`, dual conversion gain included). These are Eqs. 13–14 of the paper
+(:func:`camsim.sensor.presets.sensor_preset`, dual conversion gain included). These are Eqs. 13–14 of the paper
 (SNR = (k S)² / k² · variance, a power ratio) with the quantiser's variance 1/12 DN²; they are exact for the pixel
 values while nothing clips, which :func:`saturation_free` makes a constraint: a setting is allowed only where every
 patch and channel stays :data:`CLIP_SIGMAS` standard deviations below the well and below the top of the ADC.
@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.stages import adc_offset_dn
+from camsim.sensor.stages import adc_offset_dn
 
 #: A setting may not bring any patch within this many standard deviations of the well or the ADC's top.
 CLIP_SIGMAS = 4.0
@@ -28,7 +28,7 @@ DELTA_E_NODES = 24
 
 @dataclass(frozen=True)
 class SensorAtIso:
-    """The figures of one ISO setting the moments need (from a :class:`camsim.sensor.SensorParams`)."""
+    """The figures of one ISO setting the moments need (from a :class:`camsim.sensor.params.SensorParams`)."""
 
     iso: float | None
     dn_per_electron: float

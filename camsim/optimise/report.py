@@ -13,7 +13,7 @@ import numpy as np
 
 from camsim.io.atomic import write_text_atomic
 from camsim.optimise.search import OptimiseResult
-from camsim.plotting import new_figure, save_png
+from camsim.io.figures import new_figure, save_png
 
 
 def _csv(rows: list) -> str:

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from camsim.errors import CamsimError
+from camsim.core.errors import CamsimError
 from camsim.optimise.model import (
     expected_delta_e,
     lab_of,
@@ -113,8 +113,8 @@ def patch_rates(scene, illuminant: str, sensor) -> PatchRates:
     import dataclasses
 
     from camsim.analysis.delta_e import d65_white_xy
-    from camsim.colorimetry import camera_to_xyz_matrix
-    from camsim.pipeline import light_scene
+    from camsim.colour.colorimetry import camera_to_xyz_matrix
+    from camsim.render.pipeline import light_scene
 
     lit = light_scene(scene, illuminant)
     names = list(lit.radiance.patch_names)

@@ -3,7 +3,7 @@ and one ISO point either way), their measured SNR and ΔE against the model's, a
 choice beyond noise.
 
 Measured per patch and channel from the frame's digital numbers less the exact black level
-(:attr:`camsim.sensor.SensorParams.black_level_dn`): SNR = mean² / variance, in dB, with its standard error by the
+(:attr:`camsim.sensor.params.SensorParams.black_level_dn`): SNR = mean² / variance, in dB, with its standard error by the
 delta method, 10 / ln 10 · √(4 var / (n mean²) + 2 / (n − 1)); ΔE of every pixel by the paper's procedure against
 the patch's noise-free colour, the mean over pixels with its standard error. The scene's figures are the means
 over patches (and channels), their standard errors √(Σ SE²) / count.
@@ -52,10 +52,10 @@ def verify_choice(choice: Choice, result, lit, rates: PatchRates, sensor_at, see
     """Render the choice and its grid neighbours (allowed ones); one row per setting with the model's and the
     measured SNR and ΔE, and, for the neighbours, whether they beat the choice beyond noise.
 
-    ``sensor_at(iso, exposure_s)`` gives the :class:`camsim.sensor.SensorParams` of a setting.
+    ``sensor_at(iso, exposure_s)`` gives the :class:`camsim.sensor.params.SensorParams` of a setting.
     """
     from camsim.optimise.model import SensorAtIso, expected_delta_e
-    from camsim.pipeline import make_frame
+    from camsim.render.pipeline import make_frame
 
     exposures, isos = list(result.exposures_s), result.isos
     i, j = exposures.index(choice.exposure_s), isos.index(choice.iso)

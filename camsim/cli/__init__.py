@@ -1,0 +1,126 @@
+"""The ``camsim`` command line. ``main(argv)`` does the work and returns an exit status; importing does nothing.
+
+Each sub-command is a module of :mod:`camsim.cli.commands` with ``add_parser(subparsers)`` and ``run(args)``;
+:data:`COMMANDS` names them. User errors (bad names, malformed files, bad values) and the environment's (a folder
+that cannot be written, a full disk, no memory) print one line, ``camsim: error: ...``, and exit with 2. Ctrl-C
+(SIGINT) exits with 130 and SIGTERM (``kill``, ``timeout``, batch schedulers) with 143, both after the files being
+written are removed: what a run leaves is complete.
+
+Layer 10, the commands: this package (with :mod:`camsim.cli.types`, the argparse value types the sub-commands
+share) may import every layer below it, the applications included; only ``camsim.__main__`` imports it.
+``tests/test_layers.py`` checks the layers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import warnings
+
+from camsim import __version__
+from camsim.cli.commands import analyze, calibrate, dataset, denoise_eval, emva, experiment, optimise, render
+from camsim.cli.commands import list as list_command
+from camsim.core.errors import CamsimError, describe_os_error
+from camsim.core.signals import handlers_installed
+
+#: The sub-commands, by name, in the order ``camsim --help`` lists them.
+COMMANDS = {
+    "render": render,
+    "analyze": analyze,
+    "experiment": experiment,
+    "emva": emva,
+    "calibrate": calibrate,
+    "optimise": optimise,
+    "dataset": dataset,
+    "denoise-eval": denoise_eval,
+    "list": list_command,
+}
+
+
+#: The modules whose warnings ``-q`` silences: colour-science's and colour-demosaicing's (e.g. "Interpolating ...
+#: cmfs to 1nm interval" from a spectral recovery); camsim's own warnings (``camsim: warning: ...``) stay.
+QUIET_MODULES = r"colour(_demosaicing)?(\.|$)"
+
+
+class _UsageError(Exception):
+    """A command-line usage error, reported on one line like any other user error."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse would print the usage block and exit; camsim prints one line
+        raise _UsageError(f"{message} (see '{self.prog} --help')")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``camsim`` parser, with every sub-command of :data:`COMMANDS`."""
+    parser = _Parser(
+        prog="camsim",
+        description=(
+            "Physically grounded camera simulator: spectral scenes through the image-sensor model of "
+            "'Image Sensor Modeling: Color Measurement at Low Light Levels' (2014) into 8-bit DNG raw, "
+            "float EXR and JSON sidecar files."
+        ),
+        epilog="Run 'camsim render --help' for the rendering options.",
+    )
+    parser.add_argument("--version", action="version", version=f"camsim {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for command in COMMANDS.values():
+        command.add_parser(sub)
+    return parser
+
+
+class Terminated(BaseException):
+    """Raised in the main thread when the process receives SIGTERM, so that it unwinds like Ctrl-C."""
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated
+
+
+def _os_error_text(exc: OSError) -> str:
+    where = f"{exc.filename}: " if exc.filename else ""
+    return f"{where}{describe_os_error(exc)}"
+
+
+#: Exit status after Ctrl-C (128 + SIGINT) and SIGTERM (128 + SIGTERM), as shells report them.
+EXIT_INTERRUPTED, EXIT_TERMINATED = 128 + signal.SIGINT, 128 + signal.SIGTERM
+_STOPPED = "what was complete is kept, nothing half-written is left"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit status (0 ok, 2 error, 130 interrupted, 143 terminated)."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except _UsageError as exc:
+        print(f"camsim: error: {exc}", file=sys.stderr)
+        return 2
+    if args.command is None:
+        parser.print_help()
+        return 2
+    try:
+        with handlers_installed({signal.SIGTERM: _raise_terminated}), warnings.catch_warnings():
+            if getattr(args, "quiet", False):  # -q: no library chatter either
+                warnings.filterwarnings("ignore", module=QUIET_MODULES)
+            return COMMANDS[args.command].run(args)
+    except CamsimError as exc:
+        print(f"camsim: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # the environment's: a file or folder that cannot be read or written
+        print(f"camsim: error: {_os_error_text(exc)}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print("camsim: error: out of memory (try a smaller --size, or fewer --workers)", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"camsim: interrupted; {_STOPPED}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Terminated:
+        print(f"camsim: terminated (SIGTERM); {_STOPPED}", file=sys.stderr)
+        return EXIT_TERMINATED
+
+
+def main_entry() -> None:
+    """Console-script entry point."""
+    sys.exit(main())

@@ -1,0 +1,96 @@
+"""``camsim analyze``: measure the patches of rendered frames (statistics, chromaticity ellipses, ΔE, SNR)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from camsim.cli.types import non_negative_int
+from camsim.cli.commands import DEFAULT_OUT, writing_to
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add ``analyze`` and its options to ``subparsers``; returns its parser."""
+    parser = subparsers.add_parser(
+        "analyze",
+        help="measure patches of rendered frames: statistics, chromaticity ellipses, ΔE, SNR",
+        description=(
+            "Measure every patch of every frame (DNG + sidecar, or EXR) in the given files and folders: per-channel "
+            "mean, variance and standard deviation in DN and e⁻, the xy chromaticity ellipse (PCA, 1 σ), ΔE_ab by "
+            "the paper's 5-step procedure against the same patch at F = 1, and SNR from the model and from the "
+            "pixels. For every frame, with or without patches: per channel the black-level-subtracted mean and σ, the "
+            "fractions clipped at 0 and at the white level, and (with the EXR's clean layer) the residual noisy − "
+            "clean, its bias and its variance against the model's. Writes OUT/analysis.csv (one row per frame × "
+            "patch × channel), OUT/frame_statistics.csv (one row per frame × channel), OUT/analysis.json, "
+            "OUT/README.txt (every column explained; SNR is signal² / variance, a power ratio) and PNG figures. "
+            "Folders give their committed frames only (the sidecar, written last, names the file); other frame "
+            "files there are ignored with one warning per folder, hidden files silently. A bad file (unreadable, "
+            "truncated, foreign, a compressed DNG, a missing or mismatched sidecar, a sidecar value of the wrong "
+            "type or range or not finite) is skipped with a warning and the rest analysed; "
+            "the exit status is 2 only when no frame could be (or, with --strict, at the first bad file). Frames "
+            "are read one at a time: memory does not grow with their number."
+        ),
+    )
+    parser.add_argument("paths", nargs="+", metavar="DIR_OR_FILES", help="frame files (.dng, .exr) or folders")
+    parser.add_argument("--subtract-black", action="store_true",
+                        help="subtract the black level (the sidecar's mean DN of an unlit pixel, or --dark's mean) "
+                             "before measuring; the paper does not, which drags dark colours to the black point")
+    parser.add_argument("--dark", metavar="FILE", type=Path,
+                        help="a dark frame (.dng or .exr) whose per-channel mean is the black level (DN); "
+                             "implies --subtract-black. It must have the frames' size and CFA layout, and be "
+                             "dark: refused when its sidecar expects more than 0.5 e⁻ of signal in any patch, or "
+                             "(without a chart) when a channel's mean exceeds the expected black level by more "
+                             "than 5 standard errors + 1 DN")
+    parser.add_argument("--source", choices=("dng", "exr"), default="dng",
+                        help="which file of a frame to measure: 'dng' = the quantised digital numbers (default), "
+                             "'exr' = the signal before quantisation")
+    parser.add_argument("--matrix", choices=("paper", "paper-literal", "least-squares"), default="paper",
+                        help="camera → XYZ matrix: 'paper' = Eq. 15 from the Qe (default), 'paper-literal' = Eq. 16 "
+                             "as printed, 'least-squares' = fitted to the chart's patches")
+    parser.add_argument("--border", metavar="PIXELS", type=non_negative_int, default=3,
+                        help="pixels left out along each edge of a patch (default 3); refused when it "
+                             "leaves a patch empty")
+    parser.add_argument("--out", metavar="DIR", type=Path, help="output folder (default outputs/analysis)")
+    parser.add_argument("--strict", action="store_true",
+                        help="stop at the first bad file (exit status 2) instead of skipping it")
+    parser.add_argument("--no-figures", action="store_true",
+                        help="write no PNG figures (by default: per scene and light, the xy diagram with the noise "
+                             "ellipses, the ellipse centres, and ellipse size, ΔE and SNR against F)")
+    parser.add_argument("--quiet", "-q", action="store_true",
+                        help="no progress bar, no table, no colour-science warnings")
+    return parser
+
+
+def _warn(line: str) -> None:
+    """One warning line on stderr, clear of the progress bar."""
+    from tqdm import tqdm
+
+    tqdm.write(f"camsim: warning: {line}", file=sys.stderr)
+
+
+def run(args) -> int:
+    """Carry out ``camsim analyze``; returns the exit status (0)."""
+    from camsim.analysis.analyze import FRAME_CSV_NAME, GUIDE_NAME, analyse, frame_table, table, write_outputs
+    from camsim.analysis.patches import AnalysisSettings
+
+    black = "dark-frame" if args.dark is not None else ("sidecar" if args.subtract_black else "none")
+    settings = AnalysisSettings(border_px=args.border, black=black, matrix=args.matrix)
+    out = args.out if args.out is not None else DEFAULT_OUT / "analysis"
+    with writing_to(out):
+        analysis = analyse(args.paths, settings, source=args.source, dark_frame=args.dark,
+                           progress=not args.quiet, strict=args.strict, warn=_warn)
+        results = analysis.results
+        csv_path, json_path, figures = write_outputs(results, settings, out, analysis.skipped, analysis.uncommitted,
+                                                     figures=not args.no_figures)
+    if not args.quiet:
+        from camsim.analysis.columns import legend_text
+
+        print(table(results))
+        print(frame_table(results))
+        print(legend_text())
+    ignored = f", ignored {len(analysis.uncommitted)} uncommitted file(s)" if analysis.uncommitted else ""
+    print(f"analysed {len(results)} frames, skipped {len(analysis.skipped)} bad file(s){ignored}: {csv_path} "
+          f"(one row per frame × patch × channel), {out / FRAME_CSV_NAME} (one row per frame × channel), {json_path}"
+          f", {len(figures)} figure(s); columns explained in {out / GUIDE_NAME}")
+    return 0

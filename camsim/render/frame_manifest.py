@@ -1,0 +1,125 @@
+"""A render folder's ``manifest.json``: at every moment, the frames committed in the folder.
+
+``camsim render`` (and the experiments) update it as each frame commits (:func:`camsim.render.frame_files.write_frame`
+renames a frame's sidecar into place last), so a run stopped at any point leaves a manifest that lists exactly
+the complete frames. Runs into one folder add to it: it starts from the earlier manifest's entries whose frames
+are still committed, adds every committed frame on disk it does not list (a run killed between a frame's commit
+and the manifest's update), and a re-rendered frame replaces its entry in place.
+
+Format::
+
+    {"scene": NAME,                 # the scene of the last run into the folder
+     "frames": [{"scene", "illuminant", "intensity_factor", "seed", "photon_statistics", "method",
+                 "files": {"dng", "exr", "json"[, "xmp"][, "png"]}}, ...]}      # file names relative to the folder
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+from collections.abc import Iterator
+from pathlib import Path
+
+from camsim.core.errors import CamsimError
+from camsim.render.frame_files import SIDECAR_SUFFIX, FrameInfo
+from camsim.io.atomic import write_json_atomic
+
+__all__ = ["MANIFEST_NAME", "FrameManifest", "manifest_entry"]
+
+MANIFEST_NAME = "manifest.json"
+_ENTRY_KEYS = ("scene", "illuminant", "intensity_factor", "seed", "photon_statistics", "method")
+
+
+def manifest_entry(meta: dict) -> dict:
+    """A frame's manifest entry, from its sidecar: the keys that tell frames apart, and its files."""
+    return {**{key: meta.get(key) for key in _ENTRY_KEYS}, "files": meta["files"]}
+
+
+def _read_json(path: Path):
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
+        return None
+
+
+def _committed_sidecar(path: Path) -> dict | None:
+    """The sidecar at ``path`` if it is a camsim frame's commit record naming itself, else None."""
+    meta = _read_json(path)
+    if not isinstance(meta, dict) or "camsim_version" not in meta or not isinstance(meta.get("files"), dict):
+        return None
+    return meta if meta["files"].get("json") == path.name else None
+
+
+class FrameManifest:
+    """The manifest of the render folder ``out_dir``, kept on disk as frames commit.
+
+    Parameters
+    ----------
+    out_dir : path
+        The render folder (held by this run: :func:`camsim.io.output_folder.output_folder`).
+    scene : str
+        The name of the scene being rendered (the manifest's ``scene``).
+    """
+
+    def __init__(self, out_dir: str | Path, scene: str):
+        self.out_dir = Path(out_dir)
+        self.scene = scene
+        self.entries: dict[str, dict | None] = {}  # sidecar name → entry (None: being re-written), in order
+        earlier = _read_json(self.out_dir / MANIFEST_NAME)
+        listed = earlier.get("frames") if isinstance(earlier, dict) else None
+        for entry in listed if isinstance(listed, list) else ():
+            name = entry.get("files", {}).get("json") if isinstance(entry, dict) else None
+            if isinstance(name, str) and (self.out_dir / name).is_file():
+                self.entries[name] = entry
+        self._add_unlisted()
+
+    def _add_unlisted(self) -> bool:
+        """Add the committed frames on disk that no entry lists (in name order); returns whether there were any."""
+        added = False
+        for path in sorted(self.out_dir.glob(f"*{SIDECAR_SUFFIX}")):
+            if self.entries.get(path.name) is None and path.name != MANIFEST_NAME:
+                meta = _committed_sidecar(path)
+                if meta is not None:
+                    self.entries[path.name] = manifest_entry(meta)
+                    added = True
+        return added
+
+    @contextlib.contextmanager
+    def kept_on_failure(self) -> Iterator[FrameManifest]:
+        """Render into the folder in the block; if the block fails or is interrupted, add to the manifest (and
+        write, as far as the disk allows) a frame that committed but was not recorded yet: a signal can land
+        between a frame's commit and :meth:`commit`."""
+        try:
+            yield self
+        except BaseException:
+            if self._add_unlisted():
+                with contextlib.suppress(CamsimError):
+                    self.write()
+            raise
+
+    @property
+    def frames(self) -> list[dict]:
+        return [entry for entry in self.entries.values() if entry is not None]
+
+    def as_dict(self) -> dict:
+        return {"scene": self.scene, "frames": self.frames}
+
+    def write(self) -> Path:
+        """Write the manifest (atomically); returns its path."""
+        path = self.out_dir / MANIFEST_NAME
+        write_json_atomic(path, self.as_dict())
+        return path
+
+    def withdraw(self, stem: str) -> None:
+        """Drop frame ``stem`` before it is re-written (its sidecar is about to go), so the manifest never lists
+        a frame that is not committed."""
+        name = f"{stem}{SIDECAR_SUFFIX}"
+        if self.entries.get(name) is not None:
+            self.entries[name] = None  # keeps its place for the new entry
+            self.write()
+
+    def commit(self, info: FrameInfo, files: dict) -> None:
+        """Add (or replace in place) the frame ``info`` that has just committed with ``files``, and write the
+        manifest."""
+        self.entries[files["json"]] = {**{key: getattr(info, key) for key in _ENTRY_KEYS}, "files": files}
+        self.write()

@@ -1,0 +1,95 @@
+"""Rendering a whole scene: every illuminant × intensity factor, into frame files and a manifest."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from tqdm import tqdm
+
+from camsim.sensor.camera import load_camera
+from camsim.core.errors import CamsimError
+from camsim.render.frame_files import frame_stem, write_frame
+from camsim.render.frame_manifest import MANIFEST_NAME, FrameManifest
+from camsim.io.dng import MIN_SIZE
+from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression
+from camsim.io.output_folder import output_folder
+from camsim.methods import get_method
+from camsim.render.pipeline import light_scene, scene_frame
+from camsim.scene.scene_file import Scene
+from camsim.light.spectra import illuminant_spd
+
+
+def check_scene(scene: Scene) -> None:
+    """Fail early, before any frame is written, on names that do not resolve (or make unsafe file names:
+    :mod:`camsim.core.names`) and sizes that cannot be written."""
+    get_method(scene.method)
+    for name in scene.illuminants:
+        illuminant_spd(name, scene.grid)
+        for factor in scene.intensity_factors:  # every file name the frames will have
+            frame_stem(scene.name, name, factor)
+    reference = getattr(scene.scale, "reference_illuminant", None)  # the anchor's light (AnchorScale)
+    if reference is not None:
+        illuminant_spd(reference, scene.grid)
+    if scene.sensor.quantisation:  # a DNG will be written: an image's or a cube's size is its own (its header's)
+        own = scene.source.has_own_size
+        width, height = scene.source.own_size() if own else (scene.width, scene.height)
+        if min(width, height) < MIN_SIZE:
+            where = f"{scene.source.table} scene's frame" if own else "frame"
+            raise CamsimError(f"{where} {width}x{height} is smaller than {MIN_SIZE}x{MIN_SIZE} pixels, which raw "
+                              "readers (LibRaw) refuse")
+
+
+def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = None, progress: bool = True,
+                 preview: bool = False, device: str = "cpu", exr_compression: str = DEFAULT_EXR_COMPRESSION,
+                 warn=None) -> dict:
+    """Render every frame of ``scene`` into ``out_dir``, keeping ``manifest.json`` there up to date.
+
+    The folder is made ready and held before any work (:func:`camsim.io.output_folder.output_folder`: created,
+    checked writable, locked against other camsim runs, swept of temporaries left by killed runs). Each frame
+    commits on its own (:func:`camsim.render.frame_files.write_frame`) and the manifest follows each commit, adding to
+    the frames of earlier runs in the folder (:class:`camsim.render.frame_manifest.FrameManifest`). With ``preview``,
+    each frame also gets an sRGB PNG (:mod:`camsim.render.preview`), listed in its ``files``. ``device`` draws the frames
+    on the CPU (default) or a device (:func:`camsim.render.pipeline.make_frame`; checked before the folder is touched).
+    ``exr_compression``: a lossless name of :data:`camsim.io.exr.EXR_COMPRESSIONS` (checked before anything is
+    written). ``warn``, if given, is called with one line (no prefix) per frame of an image scene whose colours
+    fell partly outside the recovery method's gamut (:func:`camsim.scene.sources.image.recovery_warning`: the share of
+    the pixels; the sidecar's ``recovery`` records it either way).
+
+    Returns
+    -------
+    dict
+        The manifest: per frame of the folder, scene, illuminant, F, seed and file paths relative to ``out_dir``.
+    """
+    check_scene(scene)
+    check_exr_compression(exr_compression)
+    if device != "cpu":
+        from camsim.render.backends import check_device, device_method
+
+        check_device(device)
+        device_method(scene.method, scene.statistics)
+    with output_folder(out_dir) as out_dir:
+        camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
+        manifest = FrameManifest(out_dir, scene.name)
+        if manifest.frames or (out_dir / MANIFEST_NAME).exists():
+            manifest.write()  # from the start, the manifest lists the folder's committed frames (earlier runs')
+        jobs = [(ill, f) for ill in scene.illuminants for f in scene.intensity_factors]
+        bar = tqdm(total=len(jobs), desc=f"rendering {scene.name}", unit="frame", disable=not progress)
+        lit = None
+        with bar, manifest.kept_on_failure():
+            for illuminant, factor in jobs:
+                if lit is None or lit.illuminant != illuminant:  # jobs come grouped by illuminant: lit once each
+                    lit = light_scene(scene, illuminant, camera)
+                frame, info = scene_frame(scene, illuminant, factor, lit=lit, camera=camera, workers=workers,
+                                          device=device)
+                stem = frame_stem(scene.name, illuminant, factor)
+                manifest.withdraw(stem)
+                files = write_frame(out_dir, stem, frame, info, preview=preview, exr_compression=exr_compression)
+                manifest.commit(info, files)
+                if warn is not None and info.recovery is not None:
+                    from camsim.scene.sources.image import recovery_warning
+
+                    line = recovery_warning(info.recovery, info.reflectances)
+                    if line is not None:
+                        warn(f"{stem}: {line}")
+                bar.update()
+    return manifest.as_dict()

@@ -1,0 +1,271 @@
+"""The image sensor's parameters (the paper's Table I and beyond) and named presets.
+
+The stages themselves are pure array functions in :mod:`camsim.sensor.stages`. Every stage can be switched off on its
+own, and a switched-off stage costs nothing.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from camsim.sensor.cfa import CFA_PATTERNS
+from camsim.core.errors import CamsimError
+from camsim.core.schema import param, params_of, record, validate
+
+READ_NOISE_MODELS = ("gaussian", "tukey-lambda")
+
+
+def _layout_record(sensor) -> dict:
+    return {"sensor_layout": "three-chip" if sensor.cfa is None else "bayer", "cfa_pattern": sensor.cfa}
+
+
+def _adc_record(sensor) -> dict:
+    record = {"bits": sensor.bits, "white_level_dn": sensor.max_dn, "dn_per_electron": sensor.dn_per_electron,
+              "black_level_dn": sensor.black_level_dn.tolist(), "dark_level_dn": sensor.dark_level_dn.tolist()}
+    tag = sensor.black_level_tag_dn
+    if sensor.quantisation and np.any(tag != sensor.black_level_dn):  # only where the DNG says something else
+        record["black_level_tag_dn"] = tag.tolist()
+    return record
+
+
+def _tukey_record(sensor) -> dict:
+    return {"tukey_lambda": sensor.tukey_lambda if sensor.read_noise_model == "tukey-lambda" else None}
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    """Sensor model parameters (the paper's Table I by default), with each stage's on/off switch.
+
+    Every field is declared with :func:`camsim.core.schema.param` (type, unit, range, help): that declaration is the
+    only one, and the scene-file reader, the dataset spec, the command line (``--sensor NAME=VALUE``), the
+    sidecar and the analysis's grouping keys all derive from it. Values are checked (and ints made floats where
+    a float is meant) on construction; a bad one is a :class:`CamsimError`.
+    """
+
+    cfa: str | None = param(
+        None, "str", "Bayer colour filter array (colours of the 2 × 2 cell, row by row; one channel per pixel), or "
+        "none: a three-chip sensor with R, G and B at every pixel, like the paper's Sony DXC-930",
+        choices=CFA_PATTERNS, optional=True, sidecar=_layout_record)
+    bits: int = param(8, "int", "ADC resolution nb: digital numbers lie in [0, 2^nb − 1]", "bits", low=1, below=17,
+                      sidecar=_adc_record)
+    full_well_e: float = param(9000.0, "float", "full-well capacity", "e⁻", above=0)
+    read_noise_e: float = param(4.0, "float", "σ_read, standard deviation of the read noise", "e⁻", low=0)
+    exposure_s: float = param(1.0, "float", "exposure (integration) time T", "s", above=0)
+    conversion_gain_v_per_e: float = param(0.0002, "float", "G_Ve⁻, charge-to-voltage conversion", "V/e⁻",
+                                           above=0)
+    analog_gain_dn_per_v: float = param(141.67, "float", "G, the gain in front of the ADC", "DN/V", above=0)
+    dark_current_e_per_s: tuple = param(
+        (195.0, 230.0, 218.0), "rgb", "(σ_dark^κ)², mean dark electrons per pixel per second for R, G, B "
+        "(one number or three)", "e⁻/s", low=0)
+    photon_noise: bool = param(True, "bool", "photon (shot) noise; off gives the mean signal exactly", stage=True)
+    dark_current: bool = param(True, "bool", "dark current; off removes the dark electrons (mean and noise)",
+                               stage=True)
+    saturation: bool = param(True, "bool", "clipping at the full well", stage=True)
+    read_noise: bool = param(True, "bool", "read noise", stage=True)
+    quantisation: bool = param(True, "bool", "the nb-bit ADC; off keeps the float DN (no DNG is then written)",
+                               stage=True)
+    dsnu_e: float = param(0.0, "float", "dark signal non-uniformity: spatial σ of a fixed per-pixel dark offset "
+                          "(Gaussian map fixed for a sensor_seed) added to the charge before saturation; 0 = off",
+                          "e⁻", low=0)
+    dsnu_dark_current_percent: float = param(
+        0.0, "float", "dark-current DSNU: spatial σ of a fixed per-pixel factor d on the dark-current rate "
+        "(log-normal map of mean 1 fixed for a sensor_seed), so that a pixel collects Poisson(σ²_dark · T · d) dark "
+        "electrons: its spatial σ grows ∝ T, while dsnu_e's does not; 0 = off (and not written to records)", "%",
+        low=0, below=100, omit_default=True)
+    prnu_percent: float = param(0.0, "float", "photo-response non-uniformity: spatial σ of a fixed per-pixel gain on "
+                                "the mean signal, so that a pixel collects Poisson(g S̄); 0 = off", "%", low=0,
+                                below=30)
+    pedestal_dn: int = param(0, "int", "black-level pedestal: a constant the ADC adds to every digital number before "
+                             "its clip to [0, 2^nb − 1], as raw cameras do (Sony 14-bit: 512); the DNG carries it, "
+                             "the EXR's values (before the ADC) do not; 0 = off (and not written to records)", "DN",
+                             low=0, omit_default=True)
+    row_noise_e: float = param(0.0, "float", "temporal row noise: one Gaussian offset per row, channel and frame, "
+                               "added at readout; 0 = off", "e⁻", low=0)
+    read_noise_model: str = param("gaussian", "str", "law of the read noise (its σ is read_noise_e either way); "
+                                  "Tukey lambda has heavier tails, as in the ELD low-light noise model",
+                                  choices=READ_NOISE_MODELS)
+    tukey_lambda: float = param(-0.1, "float", "shape of the Tukey lambda read noise (0: logistic; < 0.14: heavier "
+                                "tails than the Gaussian)", above=-0.5, below=1, sidecar=_tukey_record)
+    sensor_seed: int = param(0, "int", "seed of the fixed-pattern maps: frames of one sensor share them, while "
+                             "their temporal noise changes", low=0)
+
+    def __post_init__(self):
+        validate(self, "sensor parameter")
+        self._check_across()
+        dark = tuple(float(v) for v in np.broadcast_to(np.asarray(self.dark_current_e_per_s, float), (3,)))
+        object.__setattr__(self, "dark_current_e_per_s", dark)
+
+    def _check_across(self) -> None:
+        """The checks that involve more than one field (each field is checked by its schema entry)."""
+        if not 0 < self.dn_per_electron < math.inf:  # each gain is finite and positive, their product may not be
+            raise CamsimError(f"sensor parameters analog_gain_dn_per_v = {self.analog_gain_dn_per_v:g} and "
+                              f"conversion_gain_v_per_e = {self.conversion_gain_v_per_e:g} give a gain of "
+                              f"{self.dn_per_electron:g} DN/e⁻, outside float64's range")
+        if self.pedestal_dn >= 2**self.bits - 1:
+            raise CamsimError(f"sensor parameter pedestal_dn must be below the white level {2**self.bits - 1} DN "
+                              f"of a {self.bits}-bit ADC, got {self.pedestal_dn}")
+
+    @property
+    def fixed_pattern(self) -> bool:
+        """Whether a fixed-pattern map (DSNU offset, dark-current DSNU or PRNU) is on."""
+        return self.dsnu_e > 0 or self.prnu_percent > 0 or self.dsnu_dark_current_percent > 0
+
+    @property
+    def gaussian_read_noise(self) -> bool:
+        """Whether the read noise (if on) is Gaussian."""
+        return self.read_noise_model == "gaussian"
+
+    @property
+    def dn_per_electron(self) -> float:
+        """Overall gain G · G_Ve⁻ from electrons to digital numbers. Unit: DN / e⁻."""
+        return self.analog_gain_dn_per_v * self.conversion_gain_v_per_e
+
+    @property
+    def max_dn(self) -> int:
+        """Largest digital number, 2^nb − 1. Unit: DN."""
+        return 2**self.bits - 1
+
+    @property
+    def dark_mean_e(self) -> np.ndarray:
+        """Mean dark electrons per pixel in the exposure, per channel, shape (3,). Unit: e⁻."""
+        if not self.dark_current:
+            return np.zeros(3)
+        return np.asarray(self.dark_current_e_per_s) * self.exposure_s
+
+    def _unlit_mean_dn(self, quantisation: bool) -> np.ndarray:
+        from camsim.sensor.black_level import unlit_mean_dn  # imports scipy: here, so that the command line starts without
+
+        return unlit_mean_dn(
+            self.dark_mean_e, dn_per_electron=self.dn_per_electron, bits=self.bits, quantisation=quantisation,
+            full_well_e=self.full_well_e if self.saturation else None, dsnu_e=self.dsnu_e,
+            dark_rate_rel_sigma=self.dsnu_dark_current_percent / 100 if self.dark_current else 0.0,
+            read_noise_e=self.read_noise_e if self.read_noise else 0.0,
+            read_noise_model=self.read_noise_model, tukey_lambda=self.tukey_lambda, row_noise_e=self.row_noise_e,
+            pedestal_dn=self.pedestal_dn if quantisation else 0)
+
+    @property
+    def black_level_dn(self) -> np.ndarray:
+        """The true black level: the exact mean digital number of an unlit pixel, per channel, shape (3,). Unit: DN.
+
+        E[clip(floor(k (min(D + o, FW) + read + row)), 0, 2^nb − 1)] over the dark charge, the noise and the
+        fixed-pattern maps' law (:func:`camsim.sensor.black_level.unlit_mean_dn`): what a dark frame's mean converges to,
+        and so what a raw reader must subtract. Eq. 11's floor puts it about ½ DN below :attr:`dark_level_dn`
+        (Table I: 5.025, 6.018, 5.683 DN against 5.525, 6.517, 6.177). Without quantisation it is :attr:`dark_level_dn`.
+        """
+        return self._unlit_mean_dn(self.quantisation)
+
+    @property
+    def dark_level_dn(self) -> np.ndarray:
+        """The mean dark level before the ADC, per channel, shape (3,). Unit: DN.
+
+        k · E[min(D + o, FW)]: k · σ²_dark · T wherever the dark charge stays below the full well (every ordinary
+        sensor). The mean of an unlit pixel's values before quantisation (the EXR's).
+        """
+        return self._unlit_mean_dn(False)
+
+    @property
+    def black_level_tag_dn(self) -> np.ndarray:
+        """The black level a DNG's BlackLevel tag holds, per channel, shape (3,). Unit: DN.
+
+        :attr:`black_level_dn`, at most the white level − 1 (:attr:`max_dn` − 1): a dark current that alone reaches
+        the top of the ADC (or fills a well that maps there) would otherwise put it at or above the WhiteLevel,
+        which readers cannot use (LibRaw also rounds 254.5 up to 255). Such a frame is saturated everywhere; its
+        sidecar then records this value as ``black_level_tag_dn`` beside the model's ``black_level_dn``.
+        """
+        return np.minimum(self.black_level_dn, self.max_dn - 1)
+
+    def with_stages(self, **switches) -> SensorParams:
+        """A copy with some stage switches changed (``with_stages(dark_current=False)``)."""
+        unknown = set(switches) - set(STAGES)
+        if unknown:
+            raise CamsimError(f"unknown sensor stage(s) {sorted(unknown)}; stages: {', '.join(STAGES)}")
+        return dataclasses.replace(self, **switches)
+
+    def to_dict(self) -> dict:
+        """Parameters with units in their names, JSON-ready (those declared ``omit_default`` only when set)."""
+        out = dataclasses.asdict(self)
+        for p in SENSOR_PARAMS:  # parameters recorded only when set (camsim.core.schema.Param.omit_default)
+            if p.omit_default and out[p.name] == p.default:
+                del out[p.name]
+        out["dark_current_e_per_s"] = list(self.dark_current_e_per_s)
+        out["dn_per_electron"] = self.dn_per_electron
+        return out
+
+    def sidecar_record(self) -> dict:
+        """The sidecar's sensor keys (:func:`camsim.core.schema.record`): parameters, derived levels and ``stages``."""
+        return record(self)
+
+
+#: Sidecar keys of the sensor that change with the exposure time T alone: frames of one auto-exposed series
+#: (``exposure = "auto"``) differ in them and are still one measurement.
+EXPOSURE_KEYS = ("exposure_s", "black_level_dn", "dark_level_dn", "black_level_tag_dn")
+
+#: The sensor's parameters (:class:`camsim.core.schema.Param`), in declaration order.
+SENSOR_PARAMS = params_of(SensorParams)
+#: Names of the stage switches.
+STAGES = tuple(p.name for p in SENSOR_PARAMS if p.stage)
+
+
+#: Named presets. ``paper-table1``: Table I with every stage on (scenario III). ``paper-photon-dark``: photon and
+#: dark noise only (scenario II). ``ideal``: photon noise only, output in electrons (scenario I).
+PRESETS = {
+    "paper-table1": SensorParams(),
+    "paper-photon-dark": SensorParams(saturation=False, read_noise=False, quantisation=False),
+    "ideal": SensorParams(
+        conversion_gain_v_per_e=1.0,
+        analog_gain_dn_per_v=1.0,
+        dark_current=False,
+        saturation=False,
+        read_noise=False,
+        quantisation=False,
+    ),
+    # A 12-bit machine-vision-like sensor for `camsim emva`: K = 40 µV/e⁻ · 10 000 DN/V = 0.4 DN/e⁻, so the
+    # 10 000 e⁻ full well reads 4000 DN, below the ADC's 4095; 3 e⁻ read noise (1.2 DN ≫ the 0.29 DN of the
+    # quantiser); 25 e⁻/s of dark current over the 1 s exposure lifts the dark level to 10 DN, clear of the ADC's
+    # zero (camsim has no black-level pedestal); DSNU 2 e⁻ and PRNU 1 % on.
+    "emva-12bit": SensorParams(
+        conversion_gain_v_per_e=4e-5,
+        analog_gain_dn_per_v=1e4,
+        dark_current_e_per_s=(25.0, 25.0, 25.0),
+        read_noise_e=3.0,
+        full_well_e=10000.0,
+        bits=12,
+        dsnu_e=2.0,
+        prnu_percent=1.0,
+    ),
+}
+
+
+def preset(name: str, **overrides) -> SensorParams:
+    """A named preset, optionally with fields overridden."""
+    if name not in PRESETS:
+        raise CamsimError(f"unknown sensor preset {name!r}; presets: {', '.join(PRESETS)}")
+    return with_overrides(PRESETS[name], **overrides)
+
+
+def with_checked_values(sensor: SensorParams, **values) -> SensorParams:
+    """``sensor`` with scalar fields set to ``values`` that are already checked and typed one by one, each by its
+    schema entry (:meth:`camsim.core.schema.Param.coerce`, as a dataset's own values are): only the checks across fields
+    run again — a tenth of :func:`with_overrides`'s work, for a dataset's planning, which makes one per frame."""
+    sensor = copy.copy(sensor)
+    for name, value in values.items():
+        object.__setattr__(sensor, name, value)
+    sensor._check_across()
+    return sensor
+
+
+def with_overrides(sensor: SensorParams, **overrides) -> SensorParams:
+    """``sensor`` with fields overridden; an unknown name or a bad value is a :class:`CamsimError`."""
+    fields = {f.name for f in dataclasses.fields(SensorParams)}
+    unknown = set(overrides) - fields
+    if unknown:
+        raise CamsimError(f"unknown sensor parameter(s) {sorted(unknown)}; known: {', '.join(sorted(fields))}")
+    try:
+        return dataclasses.replace(sensor, **overrides)
+    except TypeError as exc:
+        raise CamsimError(f"bad sensor parameter: {exc}") from None

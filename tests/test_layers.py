@@ -1,0 +1,240 @@
+"""The package layout is camsim's layers (docs/architecture.md): each module imports only its own layer and the
+layers below it, and the packages import one another without a cycle.
+
+Every module of ``camsim/`` is parsed with :mod:`ast` (nothing is imported): its ``import`` statements at the top
+and inside functions, and the modules it imports by name (a string constant that is a module's dotted name, as in
+``_EXPORTS`` tables, ``import_module(...)`` and the samplers' ``draw_module``). ``from camsim import NAME`` counts
+as an import of the module that defines NAME (``camsim._EXPORTS``); ``from camsim import __version__`` imports
+nothing. A new package or top-level module must be given its layer in :data:`LAYERS` (and in the architecture page).
+"""
+
+from __future__ import annotations
+
+import ast
+import tomllib
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "camsim"
+
+#: The layers, bottom to top: each unit (a package or a module directly in ``camsim/``) and its layer's number.
+LAYERS = {
+    "core": 1,        # errors, names, schema, pixel_limit, optional_numbers, seeding, xp, signals
+    "light": 2,       # spectra, photons, rates
+    "colour": 3,      # colorimetry, recovery, colour_names, rawcolour
+    "sensor": 4,      # params, stages, kernels, dn_law, black_level, fixed_pattern, expected, noise_profile, cfa,
+                      # camera, presets
+    "io": 5,          # the file-format codecs, atomic writes, figures
+    "methods": 6,     # the samplers
+    "scene": 7,       # scene files, sources, chart, built-in scenes, regions, radiance
+    "render": 8,      # frame, pipeline, run, frame files, manifest, sidecar schema, preview, backends
+    # the applications: one layer, they may import one another (without a cycle)
+    "analysis": 9, "calibration": 9, "dataset": 9, "denoise": 9, "emva": 9, "experiments": 9, "optimise": 9,
+    "pairs": 9, "pairs_torch": 9,
+    "cli": 10,        # the command line and its sub-commands
+    "__main__": 11,   # python -m camsim
+}
+LAYER_NAMES = {1: "core", 2: "light", 3: "colour", 4: "sensor", 5: "io", 6: "methods", 7: "scene", 8: "render",
+               9: "applications", 10: "cli", 11: "__main__"}
+
+#: Package-level import edges allowed to close a cycle, with the reason. Applications are one layer, so one may
+#: import another; this is the one pair that import each other today.
+CYCLE_EXCEPTIONS = {
+    ("analysis", "experiments"): "camsim.analysis.analyze draws its figures with camsim.experiments.figures, "
+                                 "imported inside the function (the experiments import the analysis at the top)",
+}
+
+#: The only modules directly in camsim/ (everything else sits in the package of its layer).
+TOP_LEVEL_MODULES = {"__init__", "__main__", "pairs", "pairs_torch"}
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {_module_name(p): p for p in sorted(PACKAGE.rglob("*.py")) if "scenes" not in p.relative_to(PACKAGE).parts}
+
+
+def _root_exports() -> dict[str, str]:
+    """``camsim._EXPORTS`` (public name -> defining module), read from the source."""
+    tree = ast.parse((PACKAGE / "__init__.py").read_text())
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "_EXPORTS" for t in node.targets):
+            return ast.literal_eval(node.value)
+    raise AssertionError("camsim/__init__.py has no _EXPORTS")
+
+
+ROOT_EXPORTS = _root_exports()
+
+
+def _target(name: str) -> str | None:
+    """The camsim module an import of the dotted ``name`` loads (its longest prefix that is a module)."""
+    parts = name.split(".")
+    while parts:
+        if ".".join(parts) in MODULES:
+            return ".".join(parts)
+        parts.pop()
+    return None
+
+
+def imports_of(module: str) -> list[tuple[str, int]]:
+    """``(imported camsim module, line)`` for every import in ``module``, at the top or inside functions."""
+    path = MODULES[module]
+    is_package = path.name == "__init__.py"
+    tree = ast.parse(path.read_text(), filename=str(path))
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found += [(_target(alias.name), node.lineno) for alias in node.names if alias.name.split(".")[0] == "camsim"]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:  # relative: from the module's package, one level up per extra dot
+                base = module.split(".") if is_package else module.split(".")[:-1]
+                base = base[:len(base) - (node.level - 1)]
+                source = ".".join(base + ([node.module] if node.module else []))
+            else:
+                source = node.module or ""
+            if source.split(".")[0] != "camsim":
+                continue
+            for alias in node.names:
+                if source == "camsim" and alias.name in ROOT_EXPORTS:  # a lazy re-export: its defining module
+                    found.append((ROOT_EXPORTS[alias.name], node.lineno))
+                elif f"{source}.{alias.name}" in MODULES:  # a submodule
+                    found.append((f"{source}.{alias.name}", node.lineno))
+                elif source != "camsim":  # a name of a module (camsim's own names, __version__, import nothing)
+                    found.append((_target(source), node.lineno))
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in MODULES \
+                and node.value != "camsim":  # a module imported by name
+            found.append((node.value, node.lineno))
+    assert all(target is not None for target, _ in found), f"{module}: an import of no camsim module: {found}"
+    return [(target, line) for target, line in found if target != module]
+
+
+def unit_of(module: str) -> str:
+    """The layer unit of a module: the package (or top-level module) directly under camsim that holds it."""
+    return module.split(".")[1]
+
+
+def layer_of(module: str) -> int:
+    unit = unit_of(module)
+    assert unit in LAYERS, (f"camsim.{unit} has no layer: give it one in LAYERS (tests/test_layers.py) and in "
+                            "docs/architecture.md")
+    return LAYERS[unit]
+
+
+def _violations() -> list[str]:
+    bad = []
+    for module in MODULES:
+        if module == "camsim":  # the front door: its names load, lazily, modules of every layer
+            continue
+        own = layer_of(module)
+        for target, line in imports_of(module):
+            if target != "camsim" and layer_of(target) > own:
+                bad.append(f"{MODULES[module].relative_to(ROOT)}:{line}: {module} (layer {own}, "
+                           f"{LAYER_NAMES[own]}) imports {target} (layer {layer_of(target)}, "
+                           f"{LAYER_NAMES[layer_of(target)]})")
+    return bad
+
+
+def package_graph() -> dict[str, set[str]]:
+    """Unit -> the units it imports (lazy imports included)."""
+    graph = defaultdict(set)
+    for module in MODULES:
+        if module == "camsim":
+            continue
+        for target, _ in imports_of(module):
+            if target != "camsim" and unit_of(target) != unit_of(module):
+                graph[unit_of(module)].add(unit_of(target))
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """A cycle of ``graph`` as a path that ends where it starts, or None."""
+    state, stack = {}, []
+
+    def visit(node):
+        state[node] = "open"
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == "open":
+                return stack[stack.index(nxt):] + [nxt]
+            if nxt not in state and (cycle := visit(nxt)):
+                return cycle
+        state[node] = "done"
+        stack.pop()
+        return None
+
+    for node in sorted(graph):
+        if node not in state and (cycle := visit(node)):
+            return cycle
+    return None
+
+
+def test_every_module_has_a_layer():
+    units = {unit_of(m) for m in MODULES if m != "camsim"}
+    assert units <= set(LAYERS), f"no layer for {sorted(units - set(LAYERS))}: add them to LAYERS"
+    assert set(LAYERS) <= units, f"LAYERS names what camsim does not have: {sorted(set(LAYERS) - units)}"
+
+
+def test_only_the_front_door_and_the_pairs_are_top_level_modules():
+    top = {p.stem for p in PACKAGE.glob("*.py")}
+    assert top == TOP_LEVEL_MODULES, f"modules directly in camsim/: {sorted(top - TOP_LEVEL_MODULES)} belong in " \
+                                     "the package of their layer"
+
+
+def test_imports_go_only_downwards():
+    bad = _violations()
+    assert not bad, "imports of a higher layer:\n" + "\n".join(bad)
+
+
+def test_the_parser_sees_lazy_and_by_name_imports():
+    """The check reads imports inside functions and by name, not only the top of a module."""
+    assert "camsim.experiments.figures" in {t for t, _ in imports_of("camsim.analysis.analyze")}
+    assert "camsim.methods.fused" in {t for t, _ in imports_of("camsim.methods")}
+    assert "camsim.scene.scene_file" in {t for t, _ in imports_of("camsim.scene")}
+
+
+def test_the_packages_import_one_another_without_a_cycle():
+    graph = package_graph()
+    for (a, b), reason in CYCLE_EXCEPTIONS.items():
+        assert b in graph.get(a, set()), f"the exception {a} -> {b} ({reason}) is no longer needed: remove it"
+        graph[a].discard(b)
+    cycle = find_cycle(graph)
+    assert cycle is None, "a cycle of package imports: " + " -> ".join(f"camsim.{u}" for u in cycle)
+
+
+def test_the_cycle_finder_finds_one():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b", "c"}, "b": {"c"}, "c": set()}) is None
+
+
+def test_the_public_paths_are_kept():
+    import importlib.util
+
+    import camsim
+    import camsim.scene
+    import camsim.sensor
+    from camsim.scene.scene_file import Scene, load_scene
+    from camsim.sensor.params import PRESETS, SensorParams, preset
+
+    for name in camsim.__all__:
+        assert getattr(camsim, name) is not None, name
+    assert camsim.sensor.SensorParams is SensorParams and camsim.sensor.PRESETS is PRESETS
+    assert camsim.sensor.preset is preset
+    assert camsim.scene.load_scene is load_scene and camsim.scene.Scene is Scene
+    for module in ("camsim.pairs", "camsim.pairs_torch", "camsim.cli", "camsim.__main__"):
+        assert importlib.util.find_spec(module) is not None, module
+    from camsim.cli import main, main_entry
+    assert callable(main) and callable(main_entry)
+    scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+    assert scripts == {"camsim": "camsim.cli:main_entry"}
+
+
+@pytest.mark.parametrize("unit", ["core", "light", "colour", "sensor", "io", "methods", "scene", "render", "cli"])
+def test_each_layer_package_says_what_it_holds(unit):
+    """A reader of the tree learns what a layer's package holds, and what it may import, from its docstring."""
+    module = f"camsim.{unit}"
+    assert ast.get_docstring(ast.parse(MODULES[module].read_text())), f"{module} has no docstring"
