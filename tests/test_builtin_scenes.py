@@ -211,7 +211,7 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
         metadata = next(archive.read(n).decode() for n in names if n.endswith(".dist-info/METADATA"))
     assert "camsim/scene/builtin_scenes.py" in names and not any(n.startswith(("scenes/", "tests/")) for n in names)
     for extra, requirement in (("xarray", "xarray>=2024.1"), ("gpu", "cupy-cuda12x"), ("torch", "torch")):
-        # pip install 'WHEEL[xarray]' (README, "Installing"): the extra is in the wheel
+        # pip install 'WHEEL[xarray]' (docs, 'Getting started'): the extra is in the wheel
         assert f"Provides-Extra: {extra}" in metadata
         assert f'Requires-Dist: {requirement}; extra == "{extra}"' in metadata
     # installed as pip installs it (into a folder of its own: the console script too), away from any checkout

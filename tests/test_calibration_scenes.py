@@ -1,6 +1,6 @@
-"""The built-in ``dark`` and ``flat`` scenes and the README's calibration recipe (issue 23, point 8).
+"""The built-in ``dark`` and ``flat`` scenes and the calibration recipe of the docs (camera guide) (issue 23, point 8).
 
-The recipe is read from the README (the ``sh`` block after the ``calibration recipe`` marker) and run as written,
+The recipe is read from the README or the docs' pages (the ``sh`` block after the ``calibration recipe`` marker) and run as written,
 each line in a real ``camsim`` process, the renders at 384 × 256 instead of the scenes' 600 × 400. The preset it
 renders with is ``sony-a7s2`` at ISO 3200 (K = 3.06 DN/e⁻, read noise 1.288 e⁻ Tukey λ = −0.0349, row noise
 0.1454 e⁻, no DSNU, PRNU or dark current), so the calibration must give back those numbers. Margins at 384 × 256

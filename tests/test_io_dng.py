@@ -97,7 +97,7 @@ def test_dng_tags(tmp_path):
     assert tags[50708] == "camsim test camera" and tags[271] == "camsim" and tags[272] == "sim-1"
     assert tags[305] == "camsim 0.1.0" and tags[50778] == 17
     # BlackLevelRepeatDim absent, i.e. its default 1 x 1, with one BlackLevel per sample (RawTherapee 5.9 drops red's
-    # level when the tag is written: README, "Raw readers and camsim's DNGs")
+    # level when the tag is written: docs, reference 'File formats')
     assert 50713 not in tags and len(tags[50714]) == 2 * 3 and tuple(tags[50717]) == (255, 255, 255)
     assert 306 not in tags and 270 not in tags  # no DateTime, no ImageDescription
     _, info = read_dng(path)

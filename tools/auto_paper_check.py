@@ -1,5 +1,5 @@
 """``auto`` and ``poisson`` against ``spectral`` (Eq. 4 literally) under ``paper`` statistics at low F: the figures
-of the README's methods section.
+of the docs' benchmarks page (methods section).
 
 For each F it renders the ColorChecker under D65 (ideal sensor, 360 × 240, 2304 pixels a patch) with ``auto``,
 ``poisson`` and ``spectral`` and prints, over the 72 patch-channels, the largest two-sample KS statistic of

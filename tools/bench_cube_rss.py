@@ -12,7 +12,7 @@ and the frame needs (H · W, 3) moments, not the H · W · N spectra (9.7 GB as 
 
     PYTHONPATH=. python tools/bench_cube_rss.py [--interleave bsq|bil|bip] [--keep DIR]
 
-Nothing is asserted: it prints the figures the README quotes.
+Nothing is asserted: it prints the figures the docs (benchmarks page) quote.
 """
 
 from __future__ import annotations

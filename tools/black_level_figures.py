@@ -1,4 +1,4 @@
-"""The README's black-level figures: dark-frame means against the black level.
+"""The black-level figures of the docs (benchmarks page): dark-frame means against the black level.
 
 1. Dark frames (no light: every spectrum zero) of 2000 × 2000 pixels from :func:`camsim.render.pipeline.make_frame`, per
    channel: the old BlackLevel k · σ²_dark · T (now ``dark_level_dn``), the black level ``black_level_dn`` and the

@@ -5,13 +5,13 @@ Each directive reads the code at build time, so the pages cannot drift from it:
 ``camsim-cli``
     every command and option of ``camsim``, from ``camsim.cli.build_parser()`` (the argparse parser itself);
 ``camsim-scene-keys``
-    the scene file's tables and keys: the declared parameters (:class:`camsim.schema.Param`) of ``[sensor]`` and
+    the scene file's tables and keys: the declared parameters (:class:`camsim.core.schema.Param`) of ``[sensor]`` and
     ``[render]`` with type, unit, default, bounds and description, the tables a scene file may have, and the keys
     of each scene source's table, of ``[camera.scale]`` and of ``[[region]]``;
 ``camsim-dataset-keys``
     the dataset spec's parameters (the same declarations) and its tables;
 ``camsim-sidecar-keys``
-    the JSON sidecar's keys, as :func:`camsim.sidecar_schema.check_sidecar` checks them.
+    the JSON sidecar's keys, as :func:`camsim.render.sidecar_schema.check_sidecar` checks them.
 
 The module paths below ``camsim.`` are resolved through public names where there is one
 (``camsim.load_scene.__module__``), so that moving a module does not break the docs. Each directive is a thin
@@ -39,17 +39,6 @@ from docutils.parsers.rst import Directive
 
 def _module_of(obj):
     return sys.modules[obj.__module__] if obj.__module__ in sys.modules else importlib.import_module(obj.__module__)
-
-
-def _first_module(*names: str):
-    """The first of ``names`` that imports (for a module with no public name to resolve it through)."""
-    errors = []
-    for name in names:
-        try:
-            return importlib.import_module(name)
-        except ModuleNotFoundError as exc:
-            errors.append(f"{name}: {exc}")
-    raise ImportError("none of these modules imports: " + "; ".join(errors))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -80,8 +69,7 @@ def sidecar_module():
     import camsim
 
     frame_files = camsim.write_frame.__module__  # the sidecar checker sits beside the frame files
-    return _first_module(frame_files.rsplit(".", 1)[0] + ".sidecar_schema", "camsim.sidecar_schema",
-                         "camsim.render.sidecar_schema")
+    return importlib.import_module(frame_files.rsplit(".", 1)[0] + ".sidecar_schema")
 
 
 def scale_classes() -> dict:
@@ -359,7 +347,7 @@ def cli_nodes(parser: argparse.ArgumentParser | None = None) -> list[nodes.Node]
 
 
 # -------------------------------------------------------------------------------------------------------------------
-# Declared parameters (camsim.schema.Param)
+# Declared parameters (camsim.core.schema.Param)
 # -------------------------------------------------------------------------------------------------------------------
 
 

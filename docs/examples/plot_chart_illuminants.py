@@ -28,7 +28,7 @@ import dataclasses
 import matplotlib.pyplot as plt
 
 import camsim
-from camsim.preview import preview_srgb  # the one import from below camsim's top level
+from camsim.render.preview import preview_srgb  # the one import from below camsim's top level
 
 scene = camsim.load_scene("macbeth_26").replace(width=240, height=160)
 illuminants = ["D65", "A", "FL2", "HP1"]

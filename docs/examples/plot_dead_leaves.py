@@ -29,7 +29,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import camsim
-from camsim.preview import preview_srgb  # the one import from below camsim's top level
+from camsim.render.preview import preview_srgb  # the one import from below camsim's top level
 
 scene = camsim.load_scene("dead_leaves").replace(width=400, height=300)
 factors = [1.0, 0.1, 0.01, 0.003]

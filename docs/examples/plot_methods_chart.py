@@ -11,9 +11,9 @@ sensor and for the ideal sensor (photon noise only, whose counts fall below one 
 method's speed against its error.
 
 The error is measured against the exact law of the digital numbers, computed analytically: per patch and channel
-the pmf of the pixel's value (``camsim.dn_law.dn_pmf``: Poisson charge, full well, read noise, gain, ADC), its
+the pmf of the pixel's value (``camsim.sensor.dn_law.dn_pmf``: Poisson charge, full well, read noise, gain, ADC), its
 total variation (TV) distance to the frame's histogram, divided by the TV that an exact sampler with as many
-pixels shows on average (``camsim.dn_law.expected_tv``), averaged over the 72 patch-channels. An exact sampler
+pixels shows on average (``camsim.sensor.dn_law.expected_tv``), averaged over the 72 patch-channels. An exact sampler
 sits at 1 whatever the frame size.
 
 What to notice: with the ideal sensor ``gaussian`` leaves the exact law by orders of magnitude as the counts
@@ -35,7 +35,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import camsim
-from camsim.dn_law import dn_pmf, expected_tv, sample_distances  # the one import from below camsim's top level
+from camsim.sensor.dn_law import dn_pmf, expected_tv, sample_distances  # the one import from below camsim's top level
 
 FACTORS = (1.0, 0.1, 0.01, 1e-3, 1e-4, 1e-5)
 METHODS = ("poisson", "table", "gaussian", "auto", "spectral")

@@ -28,7 +28,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import camsim
-from camsim.colorimetry import camera_to_xyz_matrix  # the one import from below camsim's top level
+from camsim.colour.colorimetry import camera_to_xyz_matrix  # the one import from below camsim's top level
 
 scene = camsim.load_scene("macbeth_26").replace(width=360, height=240)
 factors = [1.0, 0.3, 0.1]
