@@ -173,8 +173,13 @@ def _colour_demosaicing(function_name):
     def method(mosaic, cfa_pattern):
         import colour_demosaicing
 
-        pad = DEMOSAIC_PAD if min(mosaic.shape) > DEMOSAIC_PAD else 0
-        padded = np.pad(mosaic, pad, mode="reflect") if pad else mosaic
+        pad, mode = DEMOSAIC_PAD, "reflect"
+        if min(mosaic.shape) <= DEMOSAIC_PAD:  # a mirror needs more rows than it adds
+            if mosaic.shape[0] % 2 == 0 and mosaic.shape[1] % 2 == 0:
+                mode = "wrap"  # whole 2 × 2 cells repeated: the phase holds
+            else:
+                pad = (min(mosaic.shape) - 1) // 2 * 2
+        padded = np.pad(mosaic, pad, mode=mode) if pad else mosaic
         rgb = getattr(colour_demosaicing, function_name)(padded, cfa_pattern)
         height, width = mosaic.shape
         out = np.empty((3, height, width), dtype=np.float32)
