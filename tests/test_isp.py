@@ -420,3 +420,11 @@ def test_a_frames_dng_and_exr_normalise_alike(frames, kind):
     unclipped = (numbers > 0) & (numbers < dng.meta["white_level_dn"])  # the ADC's clip at 0 or the white: not compared
     difference = np.abs(from_dng - from_exr)[unclipped]
     assert difference.max() <= step, difference.max() / step
+
+
+def test_encoding_clips_and_takes_nan_as_black():
+    from camsim.isp.writers import encode_image
+
+    image = np.array([np.nan, np.inf, -np.inf, -0.2, 0.5, 1.7], dtype=np.float32).reshape(1, 1, 6).repeat(3, axis=0)
+    assert encode_image(image, 8)[0, :, 0].tolist() == [0, 255, 0, 0, 128, 255]
+    assert encode_image(image, 16)[0, :, 1].tolist() == [0, 65535, 0, 0, 32768, 65535]

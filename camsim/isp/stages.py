@@ -387,12 +387,12 @@ def apply_gain(x, gain: float) -> np.ndarray:
 def _srgb(x):
     """IEC 61966-2-1 (sRGB) transfer function, on values clipped to [0, 1]: 12.92 x for x ≤ 0.0031308, else
     1.055 x^(1/2.4) − 0.055."""
-    x = np.clip(np.asarray(x, dtype=np.float32), 0.0, 1.0)
+    x = np.clip(np.asarray(x, dtype=np.float32), np.float32(0.0), np.float32(1.0))
     low = x <= np.float32(0.0031308)
     out = np.power(x, np.float32(1 / 2.4))
     out *= np.float32(1.055)
     out -= np.float32(0.055)
-    np.copyto(out, x * np.float32(12.92), where=low)
+    np.multiply(x, np.float32(12.92), out=out, where=low)
     return out
 
 
