@@ -1,0 +1,443 @@
+"""Noise through the ISP, measured exactly: what each stage does to a frame's noise.
+
+A camsim frame knows its noise: the clean layer (each pixel's expected value, :meth:`camsim.render.frame.Frame.clean_dn`,
+or an EXR's ``clean`` layer) is developed through the same ISP, with the same facts and settings, as the noisy
+frame, and the noise at stage s is the difference of the two images at that stage::
+
+    noise_s = develop_stages(noisy)[s] − develop_stages(clean)[s]
+
+(:func:`camsim.isp.develop_stages`; stages ``raw``, ``normalised``, ``white_balanced``, ``demosaiced``,
+``srgb_linear``, ``gained``, ``toned``). Nothing is estimated from the image content: the statistics below are of
+the exact noise of that frame, in the units of each stage.
+
+:func:`noise_through_isp` gives, per region, stage, channel (and, for a Bayer frame, CFA site), the noise's mean,
+standard deviation and the correlation between horizontal and vertical neighbours, and the noise power spectrum's
+radial profile (relative to white noise of the same variance); :func:`write_noise_report` writes them as a CSV
+table and a figure. ``camsim develop --noise-report`` calls both.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from camsim.core.errors import CamsimError
+from camsim.io.atomic import undo_on_failure, write_text_atomic
+from camsim.io.figures import new_figure, save_png
+from camsim.sensor.cfa import cfa_sites
+
+__all__ = ["NOISE_COLUMNS", "NPS_BINS", "NPS_WINDOW", "BAYER_MARGIN_PX", "noise_through_isp", "stage_noise",
+           "nps_frequencies", "noise_csv_text", "noise_figure", "write_noise_report"]
+
+#: The radial bins of the noise power spectrum: equal widths from 0 to 0.5 cycles per pixel (Nyquist).
+NPS_BINS = 8
+
+#: The noise power spectrum is computed on a centred window of the region of at most this many pixels a side.
+NPS_WINDOW = 512
+
+#: The columns of ``STEM_noise_stages.csv``, in order (the NPS columns ``nps_f…`` follow them).
+NOISE_COLUMNS = ("region", "stage", "domain", "channel", "site", "unit", "pixels", "signal", "mean", "std",
+                 "corr_h", "corr_v", "clipped_fraction")
+
+_CHANNELS = "RGB"
+
+#: Margin left out at each edge of a region of a Bayer frame, where the demosaicing kernels reach past it. Unit: px.
+BAYER_MARGIN_PX = 4
+
+
+def nps_frequencies(bins: int = NPS_BINS) -> np.ndarray:
+    """The centres of the NPS's radial bins, shape (bins,). Unit: cycles per pixel."""
+    edges = np.linspace(0.0, 0.5, bins + 1)
+    return (edges[:-1] + edges[1:]) / 2
+
+
+def _nps_column(f: float) -> str:
+    return f"nps_f{f:.3f}"
+
+
+def stage_noise(noisy_stages: Mapping[str, np.ndarray],
+                clean_stages: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The noise at each stage: noisy − clean, in float64.
+
+    Parameters
+    ----------
+    noisy_stages, clean_stages : mapping of str to numpy.ndarray
+        :func:`camsim.isp.develop_stages` of the noisy and of the clean frame (same facts and settings): per
+        stage a mosaic (H, W) or an image (3, H, W).
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Per stage, in the order of ``noisy_stages``, an array of the stage's shape, float64. Unit: the stage's.
+    """
+    out = {}
+    for name, noisy in noisy_stages.items():
+        clean = clean_stages[name]
+        if np.shape(noisy) != np.shape(clean):
+            raise CamsimError(f"noise through the ISP: stage {name!r} has shape {np.shape(noisy)} for the noisy "
+                              f"frame but {np.shape(clean)} for the clean one")
+        out[name] = np.asarray(noisy, dtype=np.float64) - np.asarray(clean, dtype=np.float64)
+    return out
+
+
+def _region_list(regions, height: int, width: int, margin: int) -> list[tuple[str, tuple[int, int, int, int]]]:
+    """[(name, (y0, y1, x0, x1))] of the regions, each shrunk by ``margin`` pixels at every edge."""
+    if regions is None:
+        items = [("frame", (0, 0, width, height))]
+    elif isinstance(regions, Mapping):
+        items = list(regions.items())
+    else:
+        items = [(r.name, r.rect) if hasattr(r, "rect") else tuple(r) for r in regions]
+    out = []
+    for name, rect in items:
+        try:
+            x, y, w, h = (int(v) for v in rect)
+        except (TypeError, ValueError):
+            raise CamsimError(f"noise through the ISP: region {name!r} must be (x, y, width, height) in pixels, "
+                              f"got {rect!r}") from None
+        if w <= 0 or h <= 0 or x < 0 or y < 0 or x + w > width or y + h > height:
+            raise CamsimError(f"noise through the ISP: region {name!r} {(x, y, w, h)} does not lie inside the "
+                              f"{width}x{height} frame")
+        y0, y1, x0, x1 = y + margin, y + h - margin, x + margin, x + w - margin
+        if y1 - y0 < 4 or x1 - x0 < 4:
+            raise CamsimError(f"noise through the ISP: region {name!r} {(x, y, w, h)} leaves fewer than 4 x 4 "
+                              f"pixels inside its {margin}-pixel margin")
+        out.append((str(name), (y0, y1, x0, x1)))
+    if not out:
+        raise CamsimError("noise through the ISP: no regions given")
+    return out
+
+
+def _site_names(pattern: str) -> dict[tuple[int, int], tuple[str, int]]:
+    """{(dy, dx): (site name, channel)}: R, G1 (the green on R's row), G2, B."""
+    sites = cfa_sites(pattern)
+    red_row = next(dy for dy, _, c in sites if c == 0)
+    out = {}
+    for dy, dx, c in sites:
+        name = "G1" if c == 1 and dy == red_row else "G2" if c == 1 else _CHANNELS[c]
+        out[(dy, dx)] = (name, c)
+    return out
+
+
+def _pairs(plane: np.ndarray, axis: int, starts: list[tuple[int, int]]):
+    """The (pixel, neighbour) values of ``plane`` along ``axis`` (1: the right neighbour, 0: the one below), for
+    the pixels on the lattices starting at ``starts`` [(row, column)] with step 2 (None: every pixel)."""
+    h, w = plane.shape
+    if not starts:
+        if axis == 1:
+            return plane[:, :-1].ravel(), plane[:, 1:].ravel()
+        return plane[:-1, :].ravel(), plane[1:, :].ravel()
+    a_parts, b_parts = [], []
+    for r0, c0 in starts:
+        if axis == 1:
+            a = plane[r0::2, c0:w - 1:2]
+            b = plane[r0::2, c0 + 1::2][:, :a.shape[1]]
+        else:
+            a = plane[r0:h - 1:2, c0::2]
+            b = plane[r0 + 1::2, c0::2][:a.shape[0], :]
+        a_parts.append(a.ravel())
+        b_parts.append(b.ravel())
+    return np.concatenate(a_parts), np.concatenate(b_parts)
+
+
+def _correlation(a: np.ndarray, b: np.ndarray) -> float | None:
+    """Pearson's correlation of two samples; None where either is constant or there are fewer than 3 pairs."""
+    if a.size < 3:
+        return None
+    da, db = a - a.mean(), b - b.mean()
+    denominator = math.sqrt(float(da @ da) * float(db @ db))
+    return float(da @ db) / denominator if denominator > 0 else None
+
+
+def _radial_nps(plane: np.ndarray, mask: np.ndarray | None, bins: int) -> list[float | None]:
+    """The noise power spectrum's radial profile of ``plane`` relative to white noise of the same power.
+
+    The mean is subtracted (over the pixels of ``mask``, the others set to 0), the power |DFT|² averaged in radial
+    frequency bins of equal width from 0 to 0.5 cycles per pixel and divided by its mean over the whole frequency
+    plane: 1 at every frequency for uncorrelated noise, whatever its variance (also with ``mask``: a channel's
+    sites of a mosaic).
+    """
+    h, w = plane.shape
+    wh, ww = min(h, NPS_WINDOW), min(w, NPS_WINDOW)
+    y0, x0 = (h - wh) // 2, (w - ww) // 2
+    window = plane[y0:y0 + wh, x0:x0 + ww]
+    if mask is not None:
+        m = mask[y0:y0 + wh, x0:x0 + ww]
+        window = np.where(m, window - window[m].mean(), 0.0)
+    else:
+        window = window - window.mean()
+    power = np.abs(np.fft.fft2(window)) ** 2
+    total = power.mean()
+    if not total > 0:
+        return [None] * bins
+    fy = np.fft.fftfreq(wh)[:, None]
+    fx = np.fft.fftfreq(ww)[None, :]
+    radius = np.hypot(fy, fx)
+    index = np.floor(radius / 0.5 * bins).astype(np.int64)
+    inside = index < bins
+    sums = np.bincount(index[inside], weights=power[inside], minlength=bins)
+    counts = np.bincount(index[inside], minlength=bins)
+    return [float(s / c / total) if c else None for s, c in zip(sums, counts)]
+
+
+def _unit(stage: str) -> str:
+    return "DN" if stage == "raw" else "sRGB value" if stage == "toned" else "white level"
+
+
+def _stats(values, pairs_h, pairs_v, clean_values, clipped) -> dict:
+    n = values.size
+    return {
+        "pixels": int(n),
+        "signal": float(clean_values.mean()),
+        "mean": float(values.mean()),
+        "std": float(values.std(ddof=1)) if n > 1 else None,
+        "corr_h": _correlation(*pairs_h),
+        "corr_v": _correlation(*pairs_v),
+        "clipped_fraction": None if clipped is None else float(clipped.mean()),
+    }
+
+
+def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margin: int | None = None,
+                      nps_bins: int = NPS_BINS) -> list[dict]:
+    """How the noise of a frame changes through each stage of the ISP, measured exactly.
+
+    The noisy and the clean raw frame are developed with :func:`camsim.isp.develop_stages` (same facts, same
+    settings) and their difference at each stage is the noise (:func:`stage_noise`).
+
+    Parameters
+    ----------
+    noisy, clean : numpy.ndarray
+        The raw frame and its clean layer (the expected value of every pixel), in the same units: a Bayer mosaic
+        (H, W) or a three-chip image (3, H, W). Unit: DN.
+    facts : camsim.isp.IspFacts
+        What the ISP knows of the frame (:func:`camsim.isp.facts_of`, :func:`camsim.isp.facts_from_info`).
+    settings : camsim.isp.IspSettings, optional
+        The ISP's settings (default ``IspSettings()``).
+    regions : mapping of str to (x, y, width, height), or sequence of regions, optional
+        Rectangles to measure, in pixels (the sidecar's ``patch_rects`` convention; objects with ``name`` and
+        ``rect`` such as :class:`camsim.scene.regions.Region` are taken too). Default: the whole frame, named
+        ``frame``.
+    margin : int, optional
+        Pixels left out at every edge of each region. Default 4 for a Bayer frame (where the demosaicing kernels
+        reach past the region's edge or the frame's), 0 for a three-chip frame.
+    nps_bins : int
+        The number of radial bins of the noise power spectrum, from 0 to 0.5 cycles per pixel.
+
+    Returns
+    -------
+    list of dict
+        One row per region, stage, channel and site, with the keys of :data:`NOISE_COLUMNS` and ``nps`` (list of
+        ``nps_bins`` values, or None) and ``nps_frequency`` (the bins' centres, cycles per pixel):
+
+        - ``domain``: ``mosaic`` for the stages before demosaicing of a Bayer frame, ``rgb`` otherwise;
+        - ``channel``: ``R``, ``G``, ``B``; ``site``: ``all`` (every pixel of the channel: in a mosaic the sites of
+          its colour, in an image every pixel), or, for a Bayer frame, one class of CFA site (``R``, ``G1`` — the
+          green on the red row —, ``G2``, ``B``; in a mosaic only the sites of the channel's own colour);
+        - ``pixels``: the pixels measured; ``signal``: the mean of the clean frame at the stage over them;
+          ``mean``, ``std`` (ddof 1): of the noise, in ``unit`` (``DN`` for ``raw``, the white level = 1 for
+          ``normalised`` … ``gained``, the sRGB value in [0, 1] for ``toned``);
+        - ``corr_h``, ``corr_v``: Pearson's correlation between the noise of each pixel and that of its right
+          (``h``) and lower (``v``) neighbour in the same plane (in a mosaic the neighbour is a site of another
+          colour), both inside the region;
+        - ``clipped_fraction``: for ``toned``, the fraction of the noisy pixels at 0 or 1 (where clipping changes
+          the noise), else None;
+        - ``nps``: for the ``all`` rows, the noise power spectrum's radial profile relative to white noise of the
+          same power (1 at every frequency for uncorrelated noise; a low-pass filter's noise falls towards 0.5),
+          computed on a centred window of at most :data:`NPS_WINDOW` pixels a side; for a channel of a mosaic,
+          on the mosaic with the other colours' sites set to 0. None for the site rows.
+
+    Raises
+    ------
+    CamsimError
+        The noisy and clean frames differ in shape, a region does not fit the frame.
+    """
+    from camsim.isp import IspSettings, develop_stages
+
+    noisy = np.asarray(noisy)
+    clean = np.asarray(clean)
+    if noisy.shape != clean.shape:
+        raise CamsimError(f"noise through the ISP: the noisy frame is {noisy.shape} but the clean one {clean.shape}")
+    if noisy.ndim not in (2, 3):
+        raise CamsimError(f"noise through the ISP: a frame is a mosaic (H, W) or an image (3, H, W), got "
+                          f"shape {noisy.shape}")
+    settings = IspSettings() if settings is None else settings
+    pattern = facts.cfa_pattern if noisy.ndim == 2 else None
+    if noisy.ndim == 2 and pattern is None:
+        raise CamsimError("noise through the ISP: a mosaic (H, W) needs facts with a CFA pattern")
+    height, width = noisy.shape[-2:]
+    margin = (BAYER_MARGIN_PX if pattern else 0) if margin is None else int(margin)
+    boxes = _region_list(regions, height, width, margin)
+    noisy_stages = develop_stages(noisy, facts, settings)
+    clean_stages = develop_stages(clean, facts, settings)
+    noise = stage_noise(noisy_stages, clean_stages)
+    sites = _site_names(pattern) if pattern else {}
+    frequencies = nps_frequencies(nps_bins)
+    rows = []
+    for region, (y0, y1, x0, x1) in boxes:
+        for stage, stage_values in noise.items():
+            unit = _unit(stage)
+            planes = stage_values[None] if stage_values.ndim == 2 else stage_values
+            cleans = np.asarray(clean_stages[stage], dtype=np.float64)
+            cleans = cleans[None] if cleans.ndim == 2 else cleans
+            noisy_planes = np.asarray(noisy_stages[stage])
+            noisy_planes = noisy_planes[None] if noisy_planes.ndim == 2 else noisy_planes
+            mosaic = stage_values.ndim == 2
+            domain = "mosaic" if mosaic else "rgb"
+            # (row, column) of a site class's first pixel inside the region
+            starts = {key: ((key[0] - y0) % 2, (key[1] - x0) % 2) for key in sites}
+            for c in range(3):
+                plane = planes[0 if mosaic else c, y0:y1, x0:x1]
+                clean_plane = cleans[0 if mosaic else c, y0:y1, x0:x1]
+                noisy_plane = noisy_planes[0 if mosaic else c, y0:y1, x0:x1]
+                own = [key for key, (_, colour) in sites.items() if colour == c] if mosaic else []
+                if mosaic and not own:
+                    continue
+                groups = [("all", [starts[k] for k in own])]
+                groups += [(sites[k][0], [starts[k]]) for k in (own if mosaic else sites)]
+                for site, lattice in groups:
+                    if lattice:
+                        values = np.concatenate([plane[r::2, q::2].ravel() for r, q in lattice])
+                        clean_values = np.concatenate([clean_plane[r::2, q::2].ravel() for r, q in lattice])
+                        chosen = np.concatenate([noisy_plane[r::2, q::2].ravel() for r, q in lattice])
+                    else:
+                        values, clean_values, chosen = plane.ravel(), clean_plane.ravel(), noisy_plane.ravel()
+                    clipped = ((chosen <= 0) | (chosen >= 1)) if stage == "toned" else None
+                    row = {"region": region, "stage": stage, "domain": domain, "channel": _CHANNELS[c],
+                           "site": site, "unit": unit,
+                           **_stats(values, _pairs(plane, 1, lattice), _pairs(plane, 0, lattice), clean_values,
+                                    clipped),
+                           "nps": None, "nps_frequency": frequencies.tolist()}
+                    if site == "all":
+                        mask = None
+                        if lattice:
+                            mask = np.zeros(plane.shape, dtype=bool)
+                            for r, q in lattice:
+                                mask[r::2, q::2] = True
+                        row["nps"] = _radial_nps(plane, mask, nps_bins)
+                    rows.append(row)
+    return rows
+
+
+# --- the report ---------------------------------------------------------------------------------------------
+
+
+def _cell(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return "" if not math.isfinite(value) else f"{value:.6g}"
+    return str(value)
+
+
+def noise_csv_text(rows: list[dict]) -> str:
+    """The CSV text of :func:`noise_through_isp`'s rows: the columns of :data:`NOISE_COLUMNS`, then one column
+    per NPS bin named by its centre frequency (``nps_f0.031``: cycles per pixel). Empty cells are undefined."""
+    frequencies = rows[0]["nps_frequency"] if rows else nps_frequencies().tolist()
+    nps_columns = [_nps_column(f) for f in frequencies]
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(list(NOISE_COLUMNS) + nps_columns)
+    for row in rows:
+        nps = row.get("nps") or [None] * len(nps_columns)
+        writer.writerow([_cell(row.get(k)) for k in NOISE_COLUMNS] + [_cell(v) for v in nps])
+    return buffer.getvalue()
+
+
+def _stage_order(rows: list[dict]) -> list[str]:
+    order = []
+    for row in rows:
+        if row["stage"] not in order:
+            order.append(row["stage"])
+    return order
+
+
+_COLOURS = {"R": "tab:red", "G": "tab:green", "B": "tab:blue"}
+
+
+def noise_figure(rows: list[dict], title: str = ""):
+    """The figure of :func:`write_noise_report`: for the first region, per stage and channel, the noise's standard
+    deviation (relative to the clean signal) and the correlation between neighbours, and the NPS's radial profile
+    of the raw and the developed noise."""
+    region = rows[0]["region"]
+    mine = [r for r in rows if r["region"] == region and r["site"] == "all"]
+    stages = _stage_order(mine)
+    x = np.arange(len(stages))
+    fig = new_figure(figsize=(15, 4.6), layout="constrained")
+    ax_std, ax_corr, ax_nps = fig.subplots(1, 3)
+
+    def series(channel, key):
+        by_stage = {r["stage"]: r.get(key) for r in mine if r["channel"] == channel}
+        return np.array([np.nan if by_stage.get(s) is None else by_stage[s] for s in stages], dtype=float)
+
+    for channel, colour in _COLOURS.items():
+        std, signal = series(channel, "std"), series(channel, "signal")
+        raw_signal = signal.copy()
+        if "raw" in stages:  # the raw signal includes the black level: its relative noise is read after normalising
+            raw_signal[stages.index("raw")] = np.nan
+        with np.errstate(invalid="ignore", divide="ignore"):
+            relative = np.where(raw_signal > 0, std / raw_signal, np.nan)
+        ax_std.plot(x, 100 * relative, "o-", color=colour, label=channel)
+        ax_corr.plot(x, series(channel, "corr_h"), "o-", color=colour, label=f"{channel}, horizontal")
+        ax_corr.plot(x, series(channel, "corr_v"), "s--", color=colour, mfc="none", label=f"{channel}, vertical")
+    for ax in (ax_std, ax_corr):
+        ax.set_xticks(x, stages, rotation=30, ha="right")
+        ax.grid(alpha=0.3)
+    ax_std.set(ylabel="noise std / clean signal (%)",
+               title="Relative noise per stage (raw: see normalised)")
+    ax_std.legend(fontsize=8)
+    ax_corr.axhline(0, color="0.3", lw=0.8)
+    ax_corr.set(ylabel="correlation with the neighbour", title="Correlation between neighbours per stage")
+    ax_corr.legend(fontsize=7, ncol=3)
+    first = "normalised" if "normalised" in stages else stages[0]
+    last = stages[-1]
+    for stage, style in ((first, ":"), (last, "-")):
+        for channel, colour in _COLOURS.items():
+            row = next((r for r in mine if r["stage"] == stage and r["channel"] == channel), None)
+            if row is None or row.get("nps") is None:
+                continue
+            nps = np.array([np.nan if v is None else v for v in row["nps"]], dtype=float)
+            ax_nps.plot(row["nps_frequency"], nps, style, marker="o", ms=3, color=colour,
+                        label=f"{channel}, {stage}")
+    ax_nps.axhline(1, color="0.3", lw=0.8)
+    ax_nps.set(xlabel="radial frequency (cycles per pixel)", ylabel="NPS / white noise of the same variance",
+               title=f"Noise power spectrum: {first} vs {last}", xlim=(0, 0.5), ylim=(0, None))
+    ax_nps.grid(alpha=0.3)
+    ax_nps.legend(fontsize=7, ncol=2)
+    fig.suptitle((title + ": " if title else "") + f"noise through the ISP, region {region!r} "
+                 "(noise = developed noisy − developed clean)")
+    return fig
+
+
+def write_noise_report(rows: list[dict], out_dir, stem: str) -> list[Path]:
+    """Write ``STEM_noise_stages.csv`` (:func:`noise_csv_text`) and ``STEM_noise_stages.png``
+    (:func:`noise_figure`) into ``out_dir``, atomically and both or neither.
+
+    Parameters
+    ----------
+    rows : list of dict
+        :func:`noise_through_isp`'s rows.
+    out_dir : str or pathlib.Path
+        An existing folder.
+    stem : str
+        The files' stem (the frame's).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The CSV and the PNG.
+    """
+    if not rows:
+        raise CamsimError("noise report: no rows to write")
+    out_dir = Path(out_dir)
+    csv_path = out_dir / f"{stem}_noise_stages.csv"
+    png_path = out_dir / f"{stem}_noise_stages.png"
+    fig = noise_figure(rows, stem)
+    with undo_on_failure():
+        write_text_atomic(csv_path, noise_csv_text(rows))
+        save_png(fig, png_path)
+    return [csv_path, png_path]

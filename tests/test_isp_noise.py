@@ -1,0 +1,252 @@
+"""Noise through the ISP (issue 26, point 4) against closed forms written here, independently of camsim.isp.
+
+The thing under test is :mod:`camsim.isp` (its stages, through :func:`camsim.isp.develop_stages`, and
+:func:`camsim.isp.noise.noise_through_isp`). The expectations are computed in this module from
+
+- the sensor model's closed form of a pixel's temporal noise: Poisson charge (signal S and dark D electrons, one
+  Poisson variable of mean S + D) plus Gaussian read noise σ_r, times the gain k: σ² = k² (S + D + σ_r²) DN²
+  (no PRNU and no DSNU in these frames: every pixel has the same variance; ``noisy_dn`` is the signal before the
+  ADC, so there is no quantisation step);
+- the white-balance gains and the colour matrix that the development *records* (``Developed.record``), and the
+  white and black levels of the sensor;
+- the sRGB transfer function and its first three derivatives, written out here (IEC 61966-2-1);
+- the bilinear demosaicing kernels and Malvar, He & Cutler's (ICASSP 2004) 5 × 5 kernels, written out here from
+  the paper's coefficients; a linear demosaicing's output noise has variance Σ_k w_k² τ²_k and covariance between
+  neighbours Σ_q w_p(q) w_p'(q) τ²_q (the overlap of the two pixels' kernels), with τ² the variance of each mosaic
+  site after white balance.
+
+The tolerances are sampling errors, not fudge factors. A sample variance s² of n Gaussian values of variance σ²
+has standard error σ² √(2 / (n − 1)) (the χ² law; with correlated values, as after demosaicing, n is replaced by
+n / Σ_lag ρ_lag², the sum of the squared correlations between a pixel and the pixels of its lattice — computed from
+the kernels too); a sample covariance of independent pairs has variance (σ_i² σ_j² + c_ij²) / (n − 1); a sample
+correlation has standard error (1 − ρ²) / √n_eff. Each check allows 5 standard errors (a false alarm about once in
+3.5 million checks). The Poisson charge's excess kurtosis 1 / (S + D) ≤ 0.001 at the light levels below adds less
+than 0.05 % to the variance of a variance and is left out.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from camsim.render.pipeline import scene_frame
+from camsim.scene.scene_file import load_scene
+
+isp = pytest.importorskip("camsim.isp")
+from camsim.isp.noise import noise_through_isp, write_noise_report  # noqa: E402
+
+K_SE = 5.0  # standard errors allowed in every sampling check
+PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
+
+
+# --- the oracle: closed forms written here -------------------------------------------------------------------
+
+
+def srgb(x):
+    """The sRGB transfer function (IEC 61966-2-1), linear → encoded."""
+    x = np.asarray(x, dtype=np.float64)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.abs(x) ** (1 / 2.4) - 0.055)
+
+
+def srgb_derivatives(x: float) -> tuple[float, float, float]:
+    """f′, f″, f‴ of the sRGB transfer function at x > 0.0031308 (the power segment): f = 1.055 x^(1/2.4) − 0.055."""
+    a = 1 / 2.4
+    d1 = 1.055 * a * x ** (a - 1)
+    d2 = 1.055 * a * (a - 1) * x ** (a - 2)
+    d3 = 1.055 * a * (a - 1) * (a - 2) * x ** (a - 3)
+    return d1, d2, d3
+
+
+def colour_at(pattern: str, y: int, x: int) -> int:
+    """The channel (0 R, 1 G, 2 B) of the mosaic site at row y, column x."""
+    return "RGB".index(pattern[(y % 2) * 2 + (x % 2)])
+
+
+BILINEAR_G = np.array([[0, 1, 0], [1, 4, 1], [0, 1, 0]]) / 4
+BILINEAR_RB = np.array([[1, 2, 1], [2, 4, 2], [1, 2, 1]]) / 4
+
+# Malvar, He & Cutler 2004, Fig. 2: the coefficients, divided by 8 (α = 1/2, β = 5/8, γ = 3/4)
+MALVAR_G_AT_RB = np.array([[0, 0, -1, 0, 0],
+                           [0, 0, 2, 0, 0],
+                           [-1, 2, 4, 2, -1],
+                           [0, 0, 2, 0, 0],
+                           [0, 0, -1, 0, 0]]) / 8
+MALVAR_AT_G_ROW = np.array([[0, 0, 0.5, 0, 0],  # R (or B) at a green site whose row holds R (or B)
+                            [0, -1, 0, -1, 0],
+                            [-1, 4, 5, 4, -1],
+                            [0, -1, 0, -1, 0],
+                            [0, 0, 0.5, 0, 0]]) / 8
+MALVAR_AT_G_COLUMN = MALVAR_AT_G_ROW.T  # … whose column holds it
+MALVAR_OPPOSITE = np.array([[0, 0, -1.5, 0, 0],  # R at a blue site, B at a red one
+                            [0, 2, 0, 2, 0],
+                            [-1.5, 0, 6, 0, -1.5],
+                            [0, 2, 0, 2, 0],
+                            [0, 0, -1.5, 0, 0]]) / 8
+
+
+def bilinear_weights(pattern: str, dy: int, dx: int, channel: int) -> np.ndarray:
+    """(5, 5) weights on the mosaic around a site (row dy, column dx of the 2 × 2 cell) giving the site's value of
+    ``channel``: the bilinear kernel on that channel's sites only."""
+    kernel = BILINEAR_G if channel == 1 else BILINEAR_RB
+    w = np.zeros((5, 5))
+    for i in range(3):
+        for j in range(3):
+            if colour_at(pattern, dy + i - 1, dx + j - 1) == channel:
+                w[i + 1, j + 1] = kernel[i, j]
+    return w
+
+
+def malvar_weights(pattern: str, dy: int, dx: int, channel: int) -> np.ndarray:
+    """(5, 5) weights of Malvar 2004 on the mosaic around a site (every colour's sites)."""
+    own = colour_at(pattern, dy, dx)
+    if own == channel:
+        w = np.zeros((5, 5))
+        w[2, 2] = 1.0
+        return w
+    if channel == 1:
+        return MALVAR_G_AT_RB
+    if own == 1:
+        return MALVAR_AT_G_ROW if colour_at(pattern, dy, dx + 1) == channel else MALVAR_AT_G_COLUMN
+    return MALVAR_OPPOSITE
+
+
+WEIGHTS = {"bilinear": bilinear_weights, "malvar2004": malvar_weights}
+
+
+def covariance(weights, pattern, tau2, site, channel, offset, channel2=None) -> float:
+    """Cov(out_c(p), out_c2(p + offset)) for p a site of class ``site`` = (dy, dx), the mosaic's noise independent
+    with variance ``tau2[colour]`` at each site: Σ_q w_p(q) w_{p+o}(q) τ²_q, the overlap of the two kernels."""
+    channel2 = channel if channel2 is None else channel2
+    dy, dx = site
+    oy, ox = offset
+    total = 0.0
+    w1 = weights(pattern, dy, dx, channel)
+    w2 = weights(pattern, (dy + oy) % 2, (dx + ox) % 2, channel2)
+    for i in range(5):
+        for j in range(5):
+            i2, j2 = i - oy, j - ox  # the same mosaic site seen from p + o
+            if 0 <= i2 < 5 and 0 <= j2 < 5 and w1[i, j] and w2[i2, j2]:
+                total += w1[i, j] * w2[i2, j2] * tau2[colour_at(pattern, dy + i - 2, dx + j - 2)]
+    return total
+
+
+def predicted_demosaic_noise(method, pattern, tau2) -> dict:
+    """{(site (dy, dx), channel): (variance, corr_h, corr_v, Σ_lag ρ²)} of a linear demosaicing's output noise.
+
+    Σ_lag ρ² sums, over the lags (2a, 2b) of the site's own lattice that the kernels reach (|a|, |b| ≤ 2), the
+    squared correlation between the pixel and the pixel at that lag: the factor by which correlation inflates
+    the variance of a sample variance over the lattice."""
+    weights = WEIGHTS[method]
+    out = {}
+    for dy in range(2):
+        for dx in range(2):
+            for c in range(3):
+                var = covariance(weights, pattern, tau2, (dy, dx), c, (0, 0))
+                var_h = covariance(weights, pattern, tau2, (dy, (dx + 1) % 2), c, (0, 0))
+                var_v = covariance(weights, pattern, tau2, ((dy + 1) % 2, dx), c, (0, 0))
+                corr_h = covariance(weights, pattern, tau2, (dy, dx), c, (0, 1)) / math.sqrt(var * var_h)
+                corr_v = covariance(weights, pattern, tau2, (dy, dx), c, (1, 0)) / math.sqrt(var * var_v)
+                lags = sum((covariance(weights, pattern, tau2, (dy, dx), c, (2 * a, 2 * b)) / var) ** 2
+                           for a in range(-2, 3) for b in range(-2, 3))
+                out[(dy, dx), c] = (var, corr_h, corr_v, lags)
+    return out
+
+
+def pixel_variance_dn2(frame) -> np.ndarray:
+    """The closed-form temporal variance of one pixel per channel (R, G, B), k² (S + D + σ_r²). Unit: DN²."""
+    sensor, expected = frame.sensor, frame.expected
+    assert expected.signal_e.shape[0] == 1, "a flat frame has one spectrum"
+    electrons = expected.signal_e[0] + expected.dark_e + sensor.read_noise_e ** 2
+    return sensor.dn_per_electron ** 2 * electrons
+
+
+def clean_mosaic(clean_rgb: np.ndarray, pattern: str) -> np.ndarray:
+    """The clean layer of a Bayer frame as a mosaic: each site its own colour's expected value."""
+    out = np.empty(clean_rgb.shape[1:], dtype=clean_rgb.dtype)
+    for dy in range(2):
+        for dx in range(2):
+            out[dy::2, dx::2] = clean_rgb[colour_at(pattern, dy, dx), dy::2, dx::2]
+    return out
+
+
+def variance_tolerance(var: float, n: int, lag_sum: float = 1.0) -> float:
+    """K_SE standard errors of a sample variance: var √(2 Σρ² / (n − 1))."""
+    return K_SE * var * math.sqrt(2.0 * lag_sum / (n - 1))
+
+
+def correlation_tolerance(rho: float, n: int, lag_sum: float = 1.0) -> float:
+    """K_SE standard errors of a sample correlation, (1 − ρ²) / √(n / Σρ²)."""
+    return K_SE * (1 - rho ** 2) / math.sqrt(n / lag_sum)
+
+
+# --- frames ----------------------------------------------------------------------------------------------------
+
+
+def flat_frame(size: int, factor: float, cfa: str | None = None, seed: int = 1):
+    """A flat field (the built-in ``flat`` scene: reflectance 1 under D65, the emva-12bit sensor: 0.4 DN/e⁻, read
+    noise 3 e⁻, 25 e⁻ dark) without PRNU and DSNU, ``size`` × ``size``, and its FrameInfo."""
+    scene = load_scene("flat").replace(width=size, height=size).with_sensor(
+        prnu_percent=0.0, dsnu_e=0.0, **({"cfa": cfa} if cfa else {}))
+    return scene_frame(scene, "D65", factor, seed=seed)
+
+
+@pytest.fixture(scope="module")
+def three_chip():
+    frame, info = flat_frame(256, 0.25)
+    return frame, info, isp.facts_from_info(frame, info)
+
+
+@pytest.fixture(scope="module")
+def bayer():
+    frame, info = flat_frame(320, 0.25, cfa="RGGB")
+    return frame, info, isp.facts_from_info(frame, info)
+
+
+# --- the oracle checked on its own: colour-demosaicing on white noise -----------------------------------------
+
+
+@pytest.mark.parametrize("method", ["bilinear", "malvar2004"])
+@pytest.mark.parametrize("pattern", ["RGGB", "GBRG"])
+def test_oracle_predicts_colour_demosaicing_on_white_noise(method, pattern):
+    """The oracle's kernels are the published ones: on a mosaic of independent Gaussian noise (a different
+    variance per colour), colour-demosaicing's own bilinear and Malvar 2004 give, at every site class and channel,
+    the predicted variance and neighbour correlations (5 standard errors)."""
+    import colour_demosaicing
+
+    demosaic = {"bilinear": colour_demosaicing.demosaicing_CFA_Bayer_bilinear,
+                "malvar2004": colour_demosaicing.demosaicing_CFA_Bayer_Malvar2004}[method]
+    rng = np.random.default_rng(7)
+    tau = np.array([1.0, 0.6, 1.7])
+    size = 400
+    mosaic = np.empty((size, size))
+    for dy in range(2):
+        for dx in range(2):
+            mosaic[dy::2, dx::2] = tau[colour_at(pattern, dy, dx)] * rng.standard_normal((size // 2, size // 2))
+    out = np.moveaxis(np.asarray(demosaic(mosaic, pattern), dtype=np.float64), -1, 0)[:, 4:-4, 4:-4]
+    for ((dy, dx), c), (var, corr_h, corr_v, lags) in predicted_demosaic_noise(method, pattern, tau ** 2).items():
+        plane = out[c]
+        x = plane[dy::2, dx::2]
+        n = x.size
+        assert abs(x.var() - var) <= variance_tolerance(var, n, lags), (method, pattern, dy, dx, c, x.var(), var)
+        right = plane[dy::2, dx + 1::2][:, :x.shape[1] - 1]
+        below = plane[dy + 1::2, dx::2][:x.shape[0] - 1]
+        rho_h = np.corrcoef(x[:, :right.shape[1]].ravel(), right.ravel())[0, 1]
+        rho_v = np.corrcoef(x[:below.shape[0]].ravel(), below.ravel())[0, 1]
+        assert abs(rho_h - corr_h) <= correlation_tolerance(corr_h, n, lags), (method, (dy, dx, c), rho_h, corr_h)
+        assert abs(rho_v - corr_v) <= correlation_tolerance(corr_v, n, lags), (method, (dy, dx, c), rho_v, corr_v)
+
+
+def test_oracle_bilinear_values_by_hand():
+    """Spot values of the bilinear oracle, by hand: at an R site the G output averages 4 G sites (¼ each: variance
+    σ²/4), at a G site of the red row the R output averages 2 R sites (½ each: σ²/2) and at a B site 4 R sites
+    (¼ each: σ²/4); the G output at a G site is the site itself, and the G outputs at an R site and its right
+    neighbour (a G site) share that G site with weights ¼ and 1: covariance σ²/4, correlation (σ²/4)/√(σ²/4 · σ²)
+    = ½."""
+    pred = predicted_demosaic_noise("bilinear", "RGGB", np.array([1.0, 1.0, 1.0]))
+    assert pred[(0, 0), 1][0] == pytest.approx(0.25)
+    assert pred[(0, 1), 0][0] == pytest.approx(0.5)
+    assert pred[(1, 1), 0][0] == pytest.approx(0.25)
+    assert pred[(0, 1), 1][0] == pytest.approx(1.0)
+    assert pred[(0, 0), 1][1] == pytest.approx(0.5)
