@@ -188,8 +188,41 @@ def flat_frame(size: int, factor: float, cfa: str | None = None, seed: int = 1):
     """A flat field (the built-in ``flat`` scene: reflectance 1 under D65, the emva-12bit sensor: 0.4 DN/e⁻, read
     noise 3 e⁻, 25 e⁻ dark) without PRNU and DSNU, ``size`` × ``size``, and its FrameInfo."""
     scene = load_scene("flat").replace(width=size, height=size).with_sensor(
-        prnu_percent=0.0, dsnu_e=0.0, **({"cfa": cfa} if cfa else {}))
+        prnu_percent=0.0, dsnu_e=0.0, quantisation=False, **({"cfa": cfa} if cfa else {}))
     return scene_frame(scene, "D65", factor, seed=seed)
+
+
+def raw_layers(frame):
+    """(noisy, clean) raw numbers of a frame as the ISP takes them: (3, H, W), or a mosaic (H, W). Unit: DN."""
+    pattern = frame.sensor.cfa
+    if pattern is None:
+        return frame.noisy_dn, frame.clean_dn()
+    return frame.noisy_dn[0], clean_mosaic(frame.clean_dn(), pattern)
+
+
+def developed_noise(frame, facts, settings):
+    """(noise per stage (float64), clean stages, the development's record)."""
+    noisy, clean = raw_layers(frame)
+    noisy_stages = isp.develop_stages(noisy, facts, settings)
+    clean_stages = isp.develop_stages(clean, facts, settings)
+    noise = {k: np.asarray(noisy_stages[k], np.float64) - np.asarray(clean_stages[k], np.float64)
+             for k in noisy_stages}
+    return noise, clean_stages, noisy_stages, isp.develop(clean, facts, settings).record
+
+
+def linear_factors(frame, record):
+    """From the record and the sensor: the white-balance gains g (3,), the matrix M (3, 3) (identity if off), the
+    digital gain, and the normalisation's scale 1 / (white − black) per channel — the black and white levels
+    taken from the sensor itself (``noisy_dn`` is before the ADC: the mean dark level ``dark_level_dn``)."""
+    stages = record["stages"]
+    gains = np.asarray(stages["white_balance"]["gains"], dtype=np.float64)
+    m = stages["matrix"]["matrix"]
+    m = np.eye(3) if m is None else np.asarray(m, dtype=np.float64)
+    gain = float(stages["gain"]["value"])
+    scale = 1.0 / (frame.sensor.max_dn - np.asarray(frame.sensor.dark_level_dn, dtype=np.float64))
+    np.testing.assert_allclose(stages["black"]["black_dn"], frame.sensor.dark_level_dn, rtol=1e-12)
+    assert stages["black"]["white_dn"] == frame.sensor.max_dn
+    return gains, m, gain, scale
 
 
 @pytest.fixture(scope="module")
@@ -250,3 +283,97 @@ def test_oracle_bilinear_values_by_hand():
     assert pred[(1, 1), 0][0] == pytest.approx(0.25)
     assert pred[(0, 1), 1][0] == pytest.approx(1.0)
     assert pred[(0, 0), 1][1] == pytest.approx(0.5)
+
+
+# --- three-chip flat field: through the matrix exactly, through the tone curve to first order ----------------
+
+
+def test_raw_noise_of_the_flat_frame_is_the_closed_form(three_chip):
+    """The premise: the raw noise noisy − clean of the flat frame has the closed-form variance k² (S + D + σ_r²)
+    per channel (5 standard errors of the χ² law) and no correlation between channels."""
+    frame, _, _ = three_chip
+    noisy, clean = raw_layers(frame)
+    n = (np.asarray(noisy, np.float64) - clean).reshape(3, -1)
+    var = pixel_variance_dn2(frame)
+    sample = np.cov(n)
+    for c in range(3):
+        assert abs(sample[c, c] - var[c]) <= variance_tolerance(var[c], n.shape[1]), (c, sample[c, c], var[c])
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        assert abs(sample[i, j]) <= K_SE * math.sqrt(var[i] * var[j] / (n.shape[1] - 1))
+
+
+def test_three_chip_covariance_through_the_matrix(three_chip):
+    """Linear sRGB noise covariance = A Σ_raw Aᵀ with A = gain · M · diag(g) · diag(1 / (white − black)):
+    exactly on the frame's own raw sample covariance (float32 rounding only), and within 5 standard errors of
+    the closed form Σ_raw = diag(k² (S + D + σ_r²)) (a sample covariance of n independent pairs has variance
+    (Σ_ii Σ_jj + Σ_ij²) / (n − 1))."""
+    frame, _, facts = three_chip
+    settings = isp.IspSettings(gain=1.5, tone="srgb")
+    noise, _, _, record = developed_noise(frame, facts, settings)
+    gains, m, gain, scale = linear_factors(frame, record)
+    assert record["stages"]["matrix"]["matrix"] is not None and gain == 1.5
+    a = gain * m @ np.diag(gains * scale)
+    raw = noise["raw"].reshape(3, -1)
+    out = noise["srgb_linear"].reshape(3, -1) * gain  # srgb_linear is before the gain
+    gained = noise["gained"].reshape(3, -1)
+    n = raw.shape[1]
+    sample_out = np.cov(gained)
+    np.testing.assert_allclose(gained, out, atol=1e-6)  # float32 rounding of values below 1
+    # exact: the same samples through A
+    exact = a @ np.cov(raw) @ a.T
+    scale_ij = np.sqrt(np.outer(np.diag(exact), np.diag(exact)))
+    assert np.all(np.abs(sample_out - exact) <= 1e-4 * scale_ij), (sample_out, exact)
+    # the closed form, within the sampling error
+    predicted = a @ np.diag(pixel_variance_dn2(frame)) @ a.T
+    for i in range(3):
+        for j in range(3):
+            se = math.sqrt((predicted[i, i] * predicted[j, j] + predicted[i, j] ** 2) / (n - 1))
+            assert abs(sample_out[i, j] - predicted[i, j]) <= K_SE * se, (i, j, sample_out[i, j], predicted[i, j])
+    # the matrix mixes the channels: the developed channels' noise is correlated (not a property of the raw)
+    rho_rg = predicted[0, 1] / math.sqrt(predicted[0, 0] * predicted[1, 1])
+    assert abs(rho_rg) > 10 * K_SE / math.sqrt(n)
+
+
+def test_three_chip_tone_curve_first_order(three_chip):
+    """Through the sRGB curve f: the toned values are f of the gained ones (written out here), and the toned noise
+    variance is f′(μ)² σ² to first order, μ the clean value, σ² the propagated closed-form variance.
+
+    Second order (f(μ + n) − f(μ) = f′ n + f″ n² / 2 + f‴ n³ / 6): Var = f′² σ² + f′ f″ κ₃ + (f″² / 2 + f′ f‴) σ⁴
+    + …, κ₃ the noise's third cumulant (Poisson: Σ_j A_cj³ k³ (S_j + D_j); the Gaussian read noise has none). Both
+    corrections are computed and must be below the χ² tolerance here (they are below 0.1 % of the variance); the
+    sharper check divides the toned sample variance by the gained one (the same samples): its ratio to f′(μ)² is
+    1 + (f″ / f′) m₃ / σ² + (f″² / (2 f′²) + f‴ / f′) σ² + …, m₃ the sample third moment, whose standard error
+    √(15 σ⁶ / n) sets the tolerance."""
+    frame, _, facts = three_chip
+    settings = isp.IspSettings(gain=1.0, tone="srgb")
+    noise, clean_stages, noisy_stages, record = developed_noise(frame, facts, settings)
+    gains, m, gain, scale = linear_factors(frame, record)
+    a = gain * m @ np.diag(gains * scale)
+    k = frame.sensor.dn_per_electron
+    charge = frame.expected.signal_e[0] + frame.expected.dark_e
+    sigma2 = np.diag(a @ np.diag(pixel_variance_dn2(frame)) @ a.T)
+    kappa3 = (a * k) ** 3 @ charge
+    gained = np.asarray(noisy_stages["gained"], np.float64)
+    toned = np.asarray(noisy_stages["toned"], np.float64)
+    n = gained[0].size
+    # the tone stage is the sRGB function, element by element (float32 arithmetic in the ISP)
+    np.testing.assert_allclose(toned, srgb(np.clip(gained, 0, 1)), atol=3e-6)
+    for c in range(3):
+        mu = float(np.asarray(clean_stages["gained"][c], np.float64).mean())
+        assert np.ptp(clean_stages["gained"][c]) <= 1e-6 * mu  # flat: one clean value
+        assert gained[c].min() > 0.0031308 and gained[c].max() < 1  # the power segment, no clipping
+        d1, d2, d3 = srgb_derivatives(mu)
+        first = d1 ** 2 * sigma2[c]
+        second = d1 * d2 * kappa3[c] + (d2 ** 2 / 2 + d1 * d3) * sigma2[c] ** 2
+        tolerance = variance_tolerance(first, n)
+        assert abs(second) < 0.1 * tolerance  # the first order is all that the sample can tell
+        t = noise["toned"][c].ravel()
+        assert abs(t.var(ddof=1) - first) <= tolerance, (c, t.var(ddof=1), first)
+        # the same samples: toned over gained variance against f'(μ)², the residual set by the third moment
+        g = noise["gained"][c].ravel()
+        ratio = t.var(ddof=1) / g.var(ddof=1) / d1 ** 2
+        expected = 1 + (d2 ** 2 / (2 * d1 ** 2) + d3 / d1) * sigma2[c]
+        se = abs(d2 / d1) * math.sqrt(15 * sigma2[c] ** 3 / n) / sigma2[c]
+        assert abs(ratio - expected) <= K_SE * se + abs(d2 / d1) * abs(kappa3[c]) / sigma2[c], (c, ratio, expected)
+        # the linear law without f' is far off: the curve's slope is what changes the noise
+        assert abs(t.var(ddof=1) - sigma2[c]) > 5 * tolerance
