@@ -132,26 +132,112 @@ def covariance(weights, pattern, tau2, site, channel, offset, channel2=None) -> 
     return total
 
 
-def predicted_demosaic_noise(method, pattern, tau2) -> dict:
-    """{(site (dy, dx), channel): (variance, corr_h, corr_v, Σ_lag ρ²)} of a linear demosaicing's output noise.
+def cross_covariance(method, pattern, tau2, site, offset, matrix=None) -> np.ndarray:
+    """(3, 3): Cov(y_j(p), y_k(p + offset)) of y = matrix · (the demosaiced noise), p a site of class ``site``:
+    matrix · C · matrixᵀ with C[j, k] = :func:`covariance` of channels j and k."""
+    c = np.array([[covariance(WEIGHTS[method], pattern, tau2, site, j, offset, k) for k in range(3)]
+                  for j in range(3)])
+    m = np.eye(3) if matrix is None else np.asarray(matrix, dtype=np.float64)
+    return m @ c @ m.T
+
+
+def predicted_demosaic_noise(method, pattern, tau2, matrix=None) -> dict:
+    """{(site (dy, dx), channel): (variance, corr_h, corr_v, Σ_lag ρ²)} of a linear demosaicing's output noise,
+    or of ``matrix`` times it.
 
     Σ_lag ρ² sums, over the lags (2a, 2b) of the site's own lattice that the kernels reach (|a|, |b| ≤ 2), the
     squared correlation between the pixel and the pixel at that lag: the factor by which correlation inflates
     the variance of a sample variance over the lattice."""
-    weights = WEIGHTS[method]
     out = {}
     for dy in range(2):
         for dx in range(2):
+            cov = {o: cross_covariance(method, pattern, tau2, (dy, dx), o, matrix)
+                   for o in [(0, 0), (0, 1), (1, 0)] + [(2 * a, 2 * b) for a in range(-2, 3) for b in range(-2, 3)]}
+            var_h = np.diag(cross_covariance(method, pattern, tau2, (dy, (dx + 1) % 2), (0, 0), matrix))
+            var_v = np.diag(cross_covariance(method, pattern, tau2, ((dy + 1) % 2, dx), (0, 0), matrix))
             for c in range(3):
-                var = covariance(weights, pattern, tau2, (dy, dx), c, (0, 0))
-                var_h = covariance(weights, pattern, tau2, (dy, (dx + 1) % 2), c, (0, 0))
-                var_v = covariance(weights, pattern, tau2, ((dy + 1) % 2, dx), c, (0, 0))
-                corr_h = covariance(weights, pattern, tau2, (dy, dx), c, (0, 1)) / math.sqrt(var * var_h)
-                corr_v = covariance(weights, pattern, tau2, (dy, dx), c, (1, 0)) / math.sqrt(var * var_v)
-                lags = sum((covariance(weights, pattern, tau2, (dy, dx), c, (2 * a, 2 * b)) / var) ** 2
-                           for a in range(-2, 3) for b in range(-2, 3))
-                out[(dy, dx), c] = (var, corr_h, corr_v, lags)
+                var = cov[0, 0][c, c]
+                lags = sum((cov[2 * a, 2 * b][c, c] / var) ** 2 for a in range(-2, 3) for b in range(-2, 3))
+                out[(dy, dx), c] = (var, cov[0, 1][c, c] / math.sqrt(var * var_h[c]),
+                                    cov[1, 0][c, c] / math.sqrt(var * var_v[c]), lags)
     return out
+
+
+def predicted_nps(method, pattern, tau2, channel, shape, bins, matrix=None) -> np.ndarray:
+    """The expected radial NPS of a channel of a linear demosaicing's noise (times ``matrix``) on a window of
+    ``shape``, relative to its mean over the frequency plane, in ``bins`` radial bins of equal width from 0 to 0.5
+    cycles per pixel.
+
+    The expected periodogram of the (period-2) noise field on an Ny × Nx window is
+    S(f) = ¼ Σ_sites Σ_lags (1 − |l_y| / Ny)(1 − |l_x| / Nx) Cov_site(l) cos(2π f·l), over the lags the kernels
+    reach (|l| ≤ 4); its mean over the frequency grid is the lag-0 term."""
+    ny, nx = shape
+    fy = np.fft.fftfreq(ny)[:, None]
+    fx = np.fft.fftfreq(nx)[None, :]
+    spectrum = np.zeros((ny, nx))
+    for dy in range(2):
+        for dx in range(2):
+            for ly in range(-4, 5):
+                for lx in range(-4, 5):
+                    cov = cross_covariance(method, pattern, tau2, (dy, dx), (ly, lx), matrix)[channel, channel]
+                    if cov:
+                        taper = (1 - abs(ly) / ny) * (1 - abs(lx) / nx)
+                        spectrum += 0.25 * taper * cov * np.cos(2 * np.pi * (fy * ly + fx * lx))
+    relative = spectrum / spectrum.mean()
+    index = np.floor(np.hypot(fy, fx) / 0.5 * bins).astype(int)
+    inside = index < bins
+    return (np.bincount(index[inside], weights=relative[inside], minlength=bins)
+            / np.bincount(index[inside], minlength=bins))
+
+
+def radial_periodogram(plane, bins) -> np.ndarray:
+    """The radial profile of a plane's periodogram |DFT(x − x̄)|² relative to its mean (written here, for the
+    oracle's own check)."""
+    power = np.abs(np.fft.fft2(plane - plane.mean())) ** 2
+    fy = np.fft.fftfreq(plane.shape[0])[:, None]
+    fx = np.fft.fftfreq(plane.shape[1])[None, :]
+    index = np.floor(np.hypot(fy, fx) / 0.5 * bins).astype(int)
+    inside = index < bins
+    return (np.bincount(index[inside], weights=power[inside] / power.mean(), minlength=bins)
+            / np.bincount(index[inside], minlength=bins))
+
+
+def nps_tolerance(predicted, shape, bins) -> np.ndarray:
+    """K_SE standard errors of a radial NPS bin: each periodogram ordinate is exponential (standard deviation =
+    its mean); a bin of n frequencies holds n / 2 independent ones (a real field's DFT is conjugate symmetric),
+    and n / 4 for a field of period 2 (f and f + ½ are coherent)."""
+    return K_SE * predicted / np.sqrt(nps_bin_counts(shape, bins) / 4)
+
+
+def site_statistics(plane, dy, dx):
+    """(sample variance, correlation with the right neighbour, with the lower one, n) of a plane's pixels of one
+    site class (rows dy::2, columns dx::2), measured here with numpy."""
+    x = plane[dy::2, dx::2]
+    right = plane[dy::2, dx + 1::2]
+    below = plane[dy + 1::2, dx::2]
+    w, h = min(x.shape[1], right.shape[1]), min(x.shape[0], below.shape[0])
+    rho_h = np.corrcoef(x[:, :w].ravel(), right[:, :w].ravel())[0, 1]
+    rho_v = np.corrcoef(x[:h].ravel(), below[:h].ravel())[0, 1]
+    return x.var(ddof=1), rho_h, rho_v, x.size
+
+
+def check_site_statistics(planes, predicted, what):
+    """Every site class and channel of ``planes`` (3, H, W; H, W even, starting on the pattern's first site) has
+    the predicted variance and neighbour correlations, within K_SE standard errors."""
+    for ((dy, dx), c), (var, corr_h, corr_v, lags) in predicted.items():
+        sample, rho_h, rho_v, n = site_statistics(planes[c], dy, dx)
+        where = (what, (dy, dx), "RGB"[c])
+        assert abs(sample - var) <= variance_tolerance(var, n, lags), (where, "variance", sample, var)
+        assert abs(rho_h - corr_h) <= correlation_tolerance(corr_h, n, lags), (where, "corr_h", rho_h, corr_h)
+        assert abs(rho_v - corr_v) <= correlation_tolerance(corr_v, n, lags), (where, "corr_v", rho_v, corr_v)
+
+
+def nps_bin_counts(shape, bins) -> np.ndarray:
+    """The number of frequencies of an Ny × Nx window's DFT in each radial bin."""
+    fy = np.fft.fftfreq(shape[0])[:, None]
+    fx = np.fft.fftfreq(shape[1])[None, :]
+    index = np.floor(np.hypot(fy, fx) / 0.5 * bins).astype(int)
+    return np.bincount(index[index < bins], minlength=bins)
 
 
 def pixel_variance_dn2(frame) -> np.ndarray:
@@ -231,9 +317,9 @@ def three_chip():
     return frame, info, isp.facts_from_info(frame, info)
 
 
-@pytest.fixture(scope="module")
-def bayer():
-    frame, info = flat_frame(320, 0.25, cfa="RGGB")
+@pytest.fixture(scope="module", params=["RGGB", "GBRG"])
+def bayer(request):
+    frame, info = flat_frame(320, 0.25, cfa=request.param)
     return frame, info, isp.facts_from_info(frame, info)
 
 
@@ -258,17 +344,12 @@ def test_oracle_predicts_colour_demosaicing_on_white_noise(method, pattern):
         for dx in range(2):
             mosaic[dy::2, dx::2] = tau[colour_at(pattern, dy, dx)] * rng.standard_normal((size // 2, size // 2))
     out = np.moveaxis(np.asarray(demosaic(mosaic, pattern), dtype=np.float64), -1, 0)[:, 4:-4, 4:-4]
-    for ((dy, dx), c), (var, corr_h, corr_v, lags) in predicted_demosaic_noise(method, pattern, tau ** 2).items():
-        plane = out[c]
-        x = plane[dy::2, dx::2]
-        n = x.size
-        assert abs(x.var() - var) <= variance_tolerance(var, n, lags), (method, pattern, dy, dx, c, x.var(), var)
-        right = plane[dy::2, dx + 1::2][:, :x.shape[1] - 1]
-        below = plane[dy + 1::2, dx::2][:x.shape[0] - 1]
-        rho_h = np.corrcoef(x[:, :right.shape[1]].ravel(), right.ravel())[0, 1]
-        rho_v = np.corrcoef(x[:below.shape[0]].ravel(), below.ravel())[0, 1]
-        assert abs(rho_h - corr_h) <= correlation_tolerance(corr_h, n, lags), (method, (dy, dx, c), rho_h, corr_h)
-        assert abs(rho_v - corr_v) <= correlation_tolerance(corr_v, n, lags), (method, (dy, dx, c), rho_v, corr_v)
+    check_site_statistics(out, predicted_demosaic_noise(method, pattern, tau ** 2), (method, pattern))
+    for c in range(3):
+        predicted = predicted_nps(method, pattern, tau ** 2, c, out[c].shape, 8)
+        measured = radial_periodogram(out[c], 8)
+        assert np.all(np.abs(measured - predicted) <= nps_tolerance(predicted, out[c].shape, 8)), (
+            method, c, measured, predicted)
 
 
 def test_oracle_bilinear_values_by_hand():
@@ -377,3 +458,144 @@ def test_three_chip_tone_curve_first_order(three_chip):
         assert abs(ratio - expected) <= K_SE * se + abs(d2 / d1) * abs(kappa3[c]) / sigma2[c], (c, ratio, expected)
         # the linear law without f' is far off: the curve's slope is what changes the noise
         assert abs(t.var(ddof=1) - sigma2[c]) > 5 * tolerance
+
+
+# --- Bayer flat field: linear demosaicing, and the matrix after it --------------------------------------------
+
+MARGIN = 4  # pixels left out at each edge (the 5 × 5 kernels' reach, and even: the site classes keep their phase)
+
+
+def mosaic_variances(frame, record):
+    """(σ² per channel of the raw mosaic (DN²), τ² per channel after normalising and white balance)."""
+    gains, _, _, scale = linear_factors(frame, record)
+    sigma2 = pixel_variance_dn2(frame)
+    return sigma2, (gains * scale) ** 2 * sigma2
+
+
+@pytest.mark.parametrize("method", ["bilinear", "malvar2004"])
+def test_bayer_linear_demosaicing_noise(bayer, method):
+    """Through a linear demosaicing (bilinear; Malvar 2004) and then the colour matrix: at each CFA site class and
+    channel, the variance and the neighbour correlations are the kernels' Σ w² τ² and kernel overlaps (times M), in
+    the mosaic stages the sites' own variance and no correlation."""
+    frame, _, facts = bayer
+    pattern = frame.sensor.cfa
+    settings = isp.IspSettings(demosaic=method, gain=1.0)
+    noise, _, _, record = developed_noise(frame, facts, settings)
+    _, m, gain, _ = linear_factors(frame, record)
+    assert gain == 1.0 and record["stages"]["matrix"]["matrix"] is not None
+    sigma2, tau2 = mosaic_variances(frame, record)
+    crop = np.s_[..., MARGIN:-MARGIN, MARGIN:-MARGIN]
+    for stage, variances in (("raw", sigma2), ("white_balanced", tau2)):
+        plane = noise[stage][crop]
+        for dy in range(2):
+            for dx in range(2):
+                c = colour_at(pattern, dy, dx)
+                sample, rho_h, rho_v, n = site_statistics(plane, dy, dx)
+                assert abs(sample - variances[c]) <= variance_tolerance(variances[c], n), (stage, dy, dx)
+                assert abs(rho_h) <= correlation_tolerance(0.0, n) and abs(rho_v) <= correlation_tolerance(0.0, n)
+    check_site_statistics(noise["demosaiced"][crop], predicted_demosaic_noise(method, pattern, tau2),
+                          (method, pattern, "demosaiced"))
+    check_site_statistics(noise["srgb_linear"][crop], predicted_demosaic_noise(method, pattern, tau2, m),
+                          (method, pattern, "srgb_linear"))
+
+
+# --- noise_through_isp reports what the oracle predicts --------------------------------------------------------
+
+
+def rows_by(rows, **keys):
+    return [r for r in rows if all(r[k] == v for k, v in keys.items())]
+
+
+def one_row(rows, **keys):
+    found = rows_by(rows, **keys)
+    assert len(found) == 1, (keys, len(found))
+    return found[0]
+
+
+@pytest.mark.parametrize("method", ["bilinear", "malvar2004"])
+def test_noise_through_isp_on_a_bayer_flat(bayer, method):
+    """noise_through_isp's rows on the Bayer flat field: the raw and white-balanced sites' std and (absent)
+    correlation, and after demosaicing and the matrix every site class's std and neighbour correlations, the
+    channel's pooled std and correlation, and its radial NPS — each the oracle's value within K_SE standard
+    errors."""
+    frame, _, facts = bayer
+    pattern = frame.sensor.cfa
+    settings = isp.IspSettings(demosaic=method, gain=1.0)
+    noisy, clean = raw_layers(frame)
+    rows = noise_through_isp(noisy, clean, facts, settings)
+    record = isp.develop(clean, facts, settings).record
+    _, m, _, _ = linear_factors(frame, record)
+    sigma2, tau2 = mosaic_variances(frame, record)
+    names = {}  # (dy, dx) → R, G1 (the green of R's row), G2, B
+    red_row = next(dy for dy in range(2) for dx in range(2) if colour_at(pattern, dy, dx) == 0)
+    for dy in range(2):
+        for dx in range(2):
+            c = colour_at(pattern, dy, dx)
+            names[dy, dx] = "G1" if c == 1 and dy == red_row else "G2" if c == 1 else "RGB"[c]
+    assert {r["stage"] for r in rows} == set(isp.STAGE_NAMES)
+    assert {r["region"] for r in rows} == {"frame"}
+    n_site = ((320 - 2 * MARGIN) // 2) ** 2
+    for stage, variances in (("raw", sigma2), ("white_balanced", tau2)):
+        for (dy, dx), site in names.items():
+            c = colour_at(pattern, dy, dx)
+            row = one_row(rows, stage=stage, site=site)
+            assert row["domain"] == "mosaic" and row["channel"] == "RGB"[c] and row["pixels"] == n_site
+            assert abs(row["std"] ** 2 - variances[c]) <= variance_tolerance(variances[c], n_site)
+            assert abs(row["corr_h"]) <= correlation_tolerance(0, n_site)
+            assert abs(row["corr_v"]) <= correlation_tolerance(0, n_site)
+            assert abs(row["mean"]) <= K_SE * math.sqrt(variances[c] / n_site)
+        for c in range(3):  # the channel's sites together: white noise, a flat NPS
+            row = one_row(rows, stage=stage, channel="RGB"[c], site="all")
+            shape = (320 - 2 * MARGIN,) * 2
+            assert np.all(np.abs(np.array(row["nps"]) - 1) <= nps_tolerance(np.ones(8), shape, 8)), row["nps"]
+    assert rows_by(rows, stage="raw", site="all", channel="G")[0]["pixels"] == 2 * n_site
+    for stage, matrix in (("demosaiced", None), ("srgb_linear", m)):
+        predicted = predicted_demosaic_noise(method, pattern, tau2, matrix)
+        for ((dy, dx), c), (var, corr_h, corr_v, lags) in predicted.items():
+            row = one_row(rows, stage=stage, channel="RGB"[c], site=names[dy, dx])
+            assert row["domain"] == "rgb" and row["pixels"] == n_site and row["nps"] is None
+            assert abs(row["std"] ** 2 - var) <= variance_tolerance(var, n_site, lags), (stage, row, var)
+            assert abs(row["corr_h"] - corr_h) <= correlation_tolerance(corr_h, n_site, lags), (stage, row, corr_h)
+            assert abs(row["corr_v"] - corr_v) <= correlation_tolerance(corr_v, n_site, lags), (stage, row, corr_v)
+        for c in range(3):
+            row = one_row(rows, stage=stage, channel="RGB"[c], site="all")
+            sites = [predicted[s, c] for s in names]
+            pooled = sum(v for v, *_ in sites) / 4
+            lags = max(v[3] for v in sites)
+            rho_h = sum(cross_covariance(method, pattern, tau2, s, (0, 1), matrix)[c, c] for s in names) / (4 * pooled)
+            rho_v = sum(cross_covariance(method, pattern, tau2, s, (1, 0), matrix)[c, c] for s in names) / (4 * pooled)
+            assert row["pixels"] == 4 * n_site
+            assert abs(row["std"] ** 2 - pooled) <= variance_tolerance(pooled, n_site, lags)
+            assert abs(row["corr_h"] - rho_h) <= correlation_tolerance(rho_h, n_site, lags)
+            assert abs(row["corr_v"] - rho_v) <= correlation_tolerance(rho_v, n_site, lags)
+            shape = (320 - 2 * MARGIN,) * 2
+            nps = predicted_nps(method, pattern, tau2, c, shape, 8, matrix)
+            assert np.all(np.abs(np.array(row["nps"]) - nps) <= nps_tolerance(nps, shape, 8)), (row["nps"], nps)
+            np.testing.assert_allclose(row["nps_frequency"], (np.arange(8) + 0.5) / 16)
+
+
+def test_noise_through_isp_on_a_three_chip_flat(three_chip):
+    """On the three-chip flat field (no demosaicing): the gained stage's std is the propagated closed form, the
+    toned stage's f′(μ) times it (first order), no stage correlates neighbours, and every NPS is flat."""
+    frame, _, facts = three_chip
+    settings = isp.IspSettings(gain=1.0, tone="srgb")
+    noisy, clean = raw_layers(frame)
+    rows = noise_through_isp(noisy, clean, facts, settings)
+    record = isp.develop(clean, facts, settings).record
+    gains, m, gain, scale = linear_factors(frame, record)
+    a = gain * m @ np.diag(gains * scale)
+    sigma2 = np.diag(a @ np.diag(pixel_variance_dn2(frame)) @ a.T)
+    n = 256 * 256
+    assert {r["site"] for r in rows} == {"all"} and {r["domain"] for r in rows} == {"rgb"}
+    for c in range(3):
+        gained = one_row(rows, stage="gained", channel="RGB"[c])
+        toned = one_row(rows, stage="toned", channel="RGB"[c])
+        assert gained["pixels"] == n and gained["unit"] == "white level" and toned["unit"] == "sRGB value"
+        assert abs(gained["std"] ** 2 - sigma2[c]) <= variance_tolerance(sigma2[c], n)
+        d1 = srgb_derivatives(gained["signal"])[0]
+        assert abs(toned["std"] ** 2 - d1 ** 2 * sigma2[c]) <= variance_tolerance(d1 ** 2 * sigma2[c], n)
+        assert toned["signal"] == pytest.approx(float(srgb(gained["signal"])), rel=1e-5)
+        assert toned["clipped_fraction"] == 0.0 and gained["clipped_fraction"] is None
+        for row in rows_by(rows, channel="RGB"[c]):
+            assert abs(row["corr_h"]) <= correlation_tolerance(0, n) and abs(row["corr_v"]) <= correlation_tolerance(0, n)
+            assert np.all(np.abs(np.array(row["nps"]) - 1) <= K_SE / np.sqrt(nps_bin_counts((256, 256), 8) / 2))
