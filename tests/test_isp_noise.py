@@ -599,3 +599,55 @@ def test_noise_through_isp_on_a_three_chip_flat(three_chip):
         for row in rows_by(rows, channel="RGB"[c]):
             assert abs(row["corr_h"]) <= correlation_tolerance(0, n) and abs(row["corr_v"]) <= correlation_tolerance(0, n)
             assert np.all(np.abs(np.array(row["nps"]) - 1) <= K_SE / np.sqrt(nps_bin_counts((256, 256), 8) / 2))
+
+
+# --- regions, the report, errors -------------------------------------------------------------------------------
+
+
+def test_noise_through_isp_regions_and_margin(bayer):
+    """Regions are (x, y, width, height) rectangles, shrunk by the margin; a (1, H, W) mosaic is taken as (H, W);
+    a region outside the frame, or shapes that differ, are one-line CamsimErrors."""
+    from camsim.core.errors import CamsimError
+
+    frame, _, facts = bayer
+    noisy, clean = raw_layers(frame)
+    settings = isp.IspSettings(demosaic="bilinear")
+    rows = noise_through_isp(noisy[None], clean[None], facts, settings,
+                             regions={"left": (0, 0, 100, 320), "corner": (200, 200, 40, 60)}, margin=2)
+    assert [r["region"] for r in rows if r["stage"] == "raw" and r["site"] == "all"] == ["left"] * 3 + ["corner"] * 3
+    assert one_row(rows, region="left", stage="toned", channel="G", site="all")["pixels"] == 96 * 316
+    assert one_row(rows, region="corner", stage="raw", channel="G", site="all")["pixels"] == 36 * 56 // 2
+    with pytest.raises(CamsimError, match="does not lie inside"):
+        noise_through_isp(noisy, clean, facts, settings, regions={"out": (300, 0, 40, 40)})
+    with pytest.raises(CamsimError, match="shape"):
+        noise_through_isp(noisy, clean[:, :-2], facts, settings)
+
+
+def test_write_noise_report(tmp_path, three_chip):
+    """The CSV has a header of NOISE_COLUMNS and the NPS bins, one line per row, the numbers of the rows; the
+    figure is a PNG; both appear together, and a folder that is not there leaves no file."""
+    import csv
+
+    from camsim.core.errors import CamsimError
+    from camsim.isp.noise import NOISE_COLUMNS
+
+    frame, _, facts = three_chip
+    noisy, clean = raw_layers(frame)
+    rows = noise_through_isp(noisy, clean, facts, isp.IspSettings())
+    paths = write_noise_report(rows, tmp_path, "flat")
+    assert [p.name for p in paths] == ["flat_noise_stages.csv", "flat_noise_stages.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in paths)
+    with open(paths[0], newline="", encoding="utf-8") as handle:
+        table = list(csv.DictReader(handle))
+    assert list(table[0])[:len(NOISE_COLUMNS)] == list(NOISE_COLUMNS)
+    assert [k for k in table[0] if k.startswith("nps_f")] == [f"nps_f{f:.3f}" for f in rows[0]["nps_frequency"]]
+    assert len(table) == len(rows)
+    for line, row in zip(table, rows):
+        assert line["stage"] == row["stage"] and float(line["std"]) == pytest.approx(row["std"], rel=1e-5)
+        assert (line["clipped_fraction"] == "") == (row["clipped_fraction"] is None)
+    assert paths[1].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises((CamsimError, OSError)):
+        write_noise_report(rows, tmp_path / "missing", "flat")
+    assert not (tmp_path / "missing").exists()
+    with pytest.raises(CamsimError):
+        write_noise_report([], tmp_path, "empty")

@@ -189,11 +189,11 @@ def _unit(stage: str) -> str:
     return "DN" if stage == "raw" else "sRGB value" if stage == "toned" else "white level"
 
 
-def _stats(values, pairs_h, pairs_v, clean_values, clipped) -> dict:
+def _stats(values, pairs_h, pairs_v, clean_values, clipped, black: float) -> dict:
     n = values.size
     return {
         "pixels": int(n),
-        "signal": float(clean_values.mean()),
+        "signal": float(clean_values.mean()) - black,
         "mean": float(values.mean()),
         "std": float(values.std(ddof=1)) if n > 1 else None,
         "corr_h": _correlation(*pairs_h),
@@ -213,7 +213,7 @@ def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margi
     ----------
     noisy, clean : numpy.ndarray
         The raw frame and its clean layer (the expected value of every pixel), in the same units: a Bayer mosaic
-        (H, W) or a three-chip image (3, H, W). Unit: DN.
+        (H, W) or (1, H, W), each site its own colour's value, or a three-chip image (3, H, W). Unit: DN.
     facts : camsim.isp.IspFacts
         What the ISP knows of the frame (:func:`camsim.isp.facts_of`, :func:`camsim.isp.facts_from_info`).
     settings : camsim.isp.IspSettings, optional
@@ -238,7 +238,8 @@ def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margi
         - ``channel``: ``R``, ``G``, ``B``; ``site``: ``all`` (every pixel of the channel: in a mosaic the sites of
           its colour, in an image every pixel), or, for a Bayer frame, one class of CFA site (``R``, ``G1`` — the
           green on the red row —, ``G2``, ``B``; in a mosaic only the sites of the channel's own colour);
-        - ``pixels``: the pixels measured; ``signal``: the mean of the clean frame at the stage over them;
+        - ``pixels``: the pixels measured; ``signal``: the mean of the clean frame at the stage over them (for
+          ``raw``, above the black level ``facts.black_dn``);
           ``mean``, ``std`` (ddof 1): of the noise, in ``unit`` (``DN`` for ``raw``, the white level = 1 for
           ``normalised`` … ``gained``, the sRGB value in [0, 1] for ``toned``);
         - ``corr_h``, ``corr_v``: Pearson's correlation between the noise of each pixel and that of its right
@@ -260,8 +261,11 @@ def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margi
 
     noisy = np.asarray(noisy)
     clean = np.asarray(clean)
+    if facts.cfa_pattern is not None:  # a LoadedFrame's (1, H, W) mosaic
+        noisy = noisy[0] if noisy.ndim == 3 and noisy.shape[0] == 1 else noisy
+        clean = clean[0] if clean.ndim == 3 and clean.shape[0] == 1 else clean
     if noisy.shape != clean.shape:
-        raise CamsimError(f"noise through the ISP: the noisy frame is {noisy.shape} but the clean one {clean.shape}")
+        raise CamsimError(f"noise through the ISP: the noisy frame has shape {noisy.shape} but the clean one {clean.shape}")
     if noisy.ndim not in (2, 3):
         raise CamsimError(f"noise through the ISP: a frame is a mosaic (H, W) or an image (3, H, W), got "
                           f"shape {noisy.shape}")
@@ -276,6 +280,7 @@ def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margi
     clean_stages = develop_stages(clean, facts, settings)
     noise = stage_noise(noisy_stages, clean_stages)
     sites = _site_names(pattern) if pattern else {}
+    black = np.asarray(facts.black_dn, dtype=np.float64).reshape(3)
     frequencies = nps_frequencies(nps_bins)
     rows = []
     for region, (y0, y1, x0, x1) in boxes:
@@ -310,7 +315,7 @@ def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margi
                     row = {"region": region, "stage": stage, "domain": domain, "channel": _CHANNELS[c],
                            "site": site, "unit": unit,
                            **_stats(values, _pairs(plane, 1, lattice), _pairs(plane, 0, lattice), clean_values,
-                                    clipped),
+                                    clipped, black[c] if stage == "raw" else 0.0),
                            "nps": None, "nps_frequency": frequencies.tolist()}
                     if site == "all":
                         mask = None
@@ -376,11 +381,8 @@ def noise_figure(rows: list[dict], title: str = ""):
 
     for channel, colour in _COLOURS.items():
         std, signal = series(channel, "std"), series(channel, "signal")
-        raw_signal = signal.copy()
-        if "raw" in stages:  # the raw signal includes the black level: its relative noise is read after normalising
-            raw_signal[stages.index("raw")] = np.nan
         with np.errstate(invalid="ignore", divide="ignore"):
-            relative = np.where(raw_signal > 0, std / raw_signal, np.nan)
+            relative = np.where(signal > 0, std / signal, np.nan)
         ax_std.plot(x, 100 * relative, "o-", color=colour, label=channel)
         ax_corr.plot(x, series(channel, "corr_h"), "o-", color=colour, label=f"{channel}, horizontal")
         ax_corr.plot(x, series(channel, "corr_v"), "s--", color=colour, mfc="none", label=f"{channel}, vertical")
@@ -388,11 +390,11 @@ def noise_figure(rows: list[dict], title: str = ""):
         ax.set_xticks(x, stages, rotation=30, ha="right")
         ax.grid(alpha=0.3)
     ax_std.set(ylabel="noise std / clean signal (%)",
-               title="Relative noise per stage (raw: see normalised)")
+               title="Noise relative to the clean signal (raw: above black)")
     ax_std.legend(fontsize=8)
     ax_corr.axhline(0, color="0.3", lw=0.8)
     ax_corr.set(ylabel="correlation with the neighbour", title="Correlation between neighbours per stage")
-    ax_corr.legend(fontsize=7, ncol=3)
+    ax_corr.legend(fontsize=7, ncol=3, loc="center left")
     first = "normalised" if "normalised" in stages else stages[0]
     last = stages[-1]
     for stage, style in ((first, ":"), (last, "-")):
