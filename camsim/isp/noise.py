@@ -7,8 +7,8 @@ frame, and the noise at stage s is the difference of the two images at that stag
     noise_s = develop_stages(noisy)[s] − develop_stages(clean)[s]
 
 (:func:`camsim.isp.develop_stages`; stages ``raw``, ``normalised``, ``white_balanced``, ``demosaiced``,
-``srgb_linear``, ``gained``, ``toned``). Nothing is estimated from the image content: the statistics below are of
-the exact noise of that frame, in the units of each stage.
+``srgb_linear``, ``gained``, ``toned``; the difference in float64). Nothing is estimated from the image content:
+the statistics below are of the exact noise of that frame, in the units of each stage.
 
 :func:`noise_through_isp` gives, per region, stage, channel (and, for a Bayer frame, CFA site), the noise's mean,
 standard deviation and the correlation between horizontal and vertical neighbours, and the noise power spectrum's
@@ -31,7 +31,7 @@ from camsim.io.atomic import undo_on_failure, write_text_atomic
 from camsim.io.figures import new_figure, save_png
 from camsim.sensor.cfa import cfa_sites
 
-__all__ = ["NOISE_COLUMNS", "NPS_BINS", "NPS_WINDOW", "BAYER_MARGIN_PX", "noise_through_isp", "stage_noise",
+__all__ = ["NOISE_COLUMNS", "NPS_BINS", "NPS_WINDOW", "BAYER_MARGIN_PX", "noise_through_isp",
            "nps_frequencies", "noise_csv_text", "noise_figure", "write_noise_report"]
 
 #: The radial bins of the noise power spectrum: equal widths from 0 to 0.5 cycles per pixel (Nyquist).
@@ -58,31 +58,6 @@ def nps_frequencies(bins: int = NPS_BINS) -> np.ndarray:
 
 def _nps_column(f: float) -> str:
     return f"nps_f{f:.3f}"
-
-
-def stage_noise(noisy_stages: Mapping[str, np.ndarray],
-                clean_stages: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """The noise at each stage: noisy − clean, in float64.
-
-    Parameters
-    ----------
-    noisy_stages, clean_stages : mapping of str to numpy.ndarray
-        :func:`camsim.isp.develop_stages` of the noisy and of the clean frame (same facts and settings): per
-        stage a mosaic (H, W) or an image (3, H, W).
-
-    Returns
-    -------
-    dict of str to numpy.ndarray
-        Per stage, in the order of ``noisy_stages``, an array of the stage's shape, float64. Unit: the stage's.
-    """
-    out = {}
-    for name, noisy in noisy_stages.items():
-        clean = clean_stages[name]
-        if np.shape(noisy) != np.shape(clean):
-            raise CamsimError(f"noise through the ISP: stage {name!r} has shape {np.shape(noisy)} for the noisy "
-                              f"frame but {np.shape(clean)} for the clean one")
-        out[name] = np.asarray(noisy, dtype=np.float64) - np.asarray(clean, dtype=np.float64)
-    return out
 
 
 def _region_list(regions, height: int, width: int, margin: int) -> list[tuple[str, tuple[int, int, int, int]]]:
@@ -124,34 +99,70 @@ def _site_names(pattern: str) -> dict[tuple[int, int], tuple[str, int]]:
     return out
 
 
-def _pairs(plane: np.ndarray, axis: int, starts: list[tuple[int, int]]):
-    """The (pixel, neighbour) values of ``plane`` along ``axis`` (1: the right neighbour, 0: the one below), for
-    the pixels on the lattices starting at ``starts`` [(row, column)] with step 2 (None: every pixel)."""
-    h, w = plane.shape
-    if not starts:
-        if axis == 1:
-            return plane[:, :-1].ravel(), plane[:, 1:].ravel()
-        return plane[:-1, :].ravel(), plane[1:, :].ravel()
-    a_parts, b_parts = [], []
-    for r0, c0 in starts:
-        if axis == 1:
-            a = plane[r0::2, c0:w - 1:2]
-            b = plane[r0::2, c0 + 1::2][:, :a.shape[1]]
-        else:
-            a = plane[r0:h - 1:2, c0::2]
-            b = plane[r0 + 1::2, c0::2][:a.shape[0], :]
-        a_parts.append(a.ravel())
-        b_parts.append(b.ravel())
-    return np.concatenate(a_parts), np.concatenate(b_parts)
+class _Moments:
+    """Centred moments of a sample of values, or of pairs (a, b), combinable exactly (Chan et al.'s parallel
+    formulas): ``n``, the means, and the centred sums of squares and products."""
+
+    __slots__ = ("n", "mean_a", "mean_b", "caa", "cbb", "cab")
+
+    def __init__(self, n=0, mean_a=0.0, mean_b=0.0, caa=0.0, cbb=0.0, cab=0.0):
+        self.n, self.mean_a, self.mean_b, self.caa, self.cbb, self.cab = n, mean_a, mean_b, caa, cbb, cab
+
+    @classmethod
+    def of(cls, a: np.ndarray, b: np.ndarray | None = None) -> _Moments:
+        """The moments of the values ``a`` (float64), or of the pairs (``a``, ``b``) (arrays of one shape)."""
+        if a.size == 0:
+            return cls()
+        mean_a = float(a.mean())
+        da = (a - mean_a).ravel()
+        caa = float(da @ da)
+        if b is None:
+            return cls(a.size, mean_a, 0.0, caa)
+        mean_b = float(b.mean())
+        db = (b - mean_b).ravel()
+        return cls(a.size, mean_a, mean_b, caa, float(db @ db), float(da @ db))
+
+    @classmethod
+    def combined(cls, parts: list[_Moments]) -> _Moments:
+        parts = [p for p in parts if p.n]
+        n = sum(p.n for p in parts)
+        if not n:
+            return cls()
+        mean_a = sum(p.n * p.mean_a for p in parts) / n
+        mean_b = sum(p.n * p.mean_b for p in parts) / n
+        return cls(n, mean_a, mean_b,
+                   sum(p.caa + p.n * (p.mean_a - mean_a) ** 2 for p in parts),
+                   sum(p.cbb + p.n * (p.mean_b - mean_b) ** 2 for p in parts),
+                   sum(p.cab + p.n * (p.mean_a - mean_a) * (p.mean_b - mean_b) for p in parts))
+
+    def std(self) -> float | None:
+        return math.sqrt(self.caa / (self.n - 1)) if self.n > 1 else None
+
+    def correlation(self) -> float | None:
+        """Pearson's correlation of the pairs; None where either side is constant or there are fewer than 3."""
+        if self.n < 3:
+            return None
+        denominator = math.sqrt(self.caa * self.cbb)
+        return self.cab / denominator if denominator > 0 else None
 
 
-def _correlation(a: np.ndarray, b: np.ndarray) -> float | None:
-    """Pearson's correlation of two samples; None where either is constant or there are fewer than 3 pairs."""
-    if a.size < 3:
-        return None
-    da, db = a - a.mean(), b - b.mean()
-    denominator = math.sqrt(float(da @ da) * float(db @ db))
-    return float(da @ db) / denominator if denominator > 0 else None
+def _lattice(plane: np.ndarray, r: int, q: int) -> np.ndarray:
+    """The pixels of ``plane`` on rows r, r + 2, … and columns q, q + 2, … (r, q ≥ 0; may be empty)."""
+    return plane[r::2, q::2]
+
+
+def _class_moments(plane: np.ndarray, r: int | None, q: int | None):
+    """(values, right-neighbour pairs, lower-neighbour pairs) moments of the pixels of one site class of ``plane``
+    (float64), the class starting at row r, column q with step 2 (None: every pixel)."""
+    if r is None:
+        return (_Moments.of(plane), _Moments.of(plane[:, :-1], plane[:, 1:]),
+                _Moments.of(plane[:-1, :], plane[1:, :]))
+    x = _lattice(plane, r, q)
+    right = _lattice(plane, r, q + 1)
+    below = _lattice(plane, r + 1, q)
+    w = min(x.shape[1], right.shape[1])
+    h = min(x.shape[0], below.shape[0])
+    return (_Moments.of(x), _Moments.of(x[:, :w], right[:, :w]), _Moments.of(x[:h], below[:h]))
 
 
 def _radial_nps(plane: np.ndarray, mask: np.ndarray | None, bins: int) -> list[float | None]:
@@ -189,25 +200,13 @@ def _unit(stage: str) -> str:
     return "DN" if stage == "raw" else "sRGB value" if stage == "toned" else "white level"
 
 
-def _stats(values, pairs_h, pairs_v, clean_values, clipped, black: float) -> dict:
-    n = values.size
-    return {
-        "pixels": int(n),
-        "signal": float(clean_values.mean()) - black,
-        "mean": float(values.mean()),
-        "std": float(values.std(ddof=1)) if n > 1 else None,
-        "corr_h": _correlation(*pairs_h),
-        "corr_v": _correlation(*pairs_v),
-        "clipped_fraction": None if clipped is None else float(clipped.mean()),
-    }
-
-
 def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margin: int | None = None,
                       nps_bins: int = NPS_BINS) -> list[dict]:
     """How the noise of a frame changes through each stage of the ISP, measured exactly.
 
     The noisy and the clean raw frame are developed with :func:`camsim.isp.develop_stages` (same facts, same
-    settings) and their difference at each stage is the noise (:func:`stage_noise`).
+    settings) and their difference at each stage (in float64) is the noise. The statistics of a channel's pixels
+    are those of its CFA site classes combined exactly.
 
     Parameters
     ----------
@@ -278,53 +277,61 @@ def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margi
     boxes = _region_list(regions, height, width, margin)
     noisy_stages = develop_stages(noisy, facts, settings)
     clean_stages = develop_stages(clean, facts, settings)
-    noise = stage_noise(noisy_stages, clean_stages)
     sites = _site_names(pattern) if pattern else {}
     black = np.asarray(facts.black_dn, dtype=np.float64).reshape(3)
-    frequencies = nps_frequencies(nps_bins)
+    frequencies = nps_frequencies(nps_bins).tolist()
     rows = []
     for region, (y0, y1, x0, x1) in boxes:
-        for stage, stage_values in noise.items():
-            unit = _unit(stage)
-            planes = stage_values[None] if stage_values.ndim == 2 else stage_values
-            cleans = np.asarray(clean_stages[stage], dtype=np.float64)
-            cleans = cleans[None] if cleans.ndim == 2 else cleans
-            noisy_planes = np.asarray(noisy_stages[stage])
-            noisy_planes = noisy_planes[None] if noisy_planes.ndim == 2 else noisy_planes
-            mosaic = stage_values.ndim == 2
-            domain = "mosaic" if mosaic else "rgb"
-            # (row, column) of a site class's first pixel inside the region
+        for stage in noisy_stages:
+            noisy_stage, clean_stage = np.asarray(noisy_stages[stage]), np.asarray(clean_stages[stage])
+            if noisy_stage.shape != clean_stage.shape:
+                raise CamsimError(f"noise through the ISP: stage {stage!r} has shape {noisy_stage.shape} for the "
+                                  f"noisy frame but {clean_stage.shape} for the clean one")
+            mosaic = noisy_stage.ndim == 2
+            if mosaic:
+                noisy_stage, clean_stage = noisy_stage[None], clean_stage[None]
+            # the site classes, by the (row, column) of their first pixel inside the region
             starts = {key: ((key[0] - y0) % 2, (key[1] - x0) % 2) for key in sites}
-            for c in range(3):
-                plane = planes[0 if mosaic else c, y0:y1, x0:x1]
-                clean_plane = cleans[0 if mosaic else c, y0:y1, x0:x1]
-                noisy_plane = noisy_planes[0 if mosaic else c, y0:y1, x0:x1]
-                own = [key for key, (_, colour) in sites.items() if colour == c] if mosaic else []
-                if mosaic and not own:
-                    continue
-                groups = [("all", [starts[k] for k in own])]
-                groups += [(sites[k][0], [starts[k]]) for k in (own if mosaic else sites)]
-                for site, lattice in groups:
-                    if lattice:
-                        values = np.concatenate([plane[r::2, q::2].ravel() for r, q in lattice])
-                        clean_values = np.concatenate([clean_plane[r::2, q::2].ravel() for r, q in lattice])
-                        chosen = np.concatenate([noisy_plane[r::2, q::2].ravel() for r, q in lattice])
-                    else:
-                        values, clean_values, chosen = plane.ravel(), clean_plane.ravel(), noisy_plane.ravel()
-                    clipped = ((chosen <= 0) | (chosen >= 1)) if stage == "toned" else None
-                    row = {"region": region, "stage": stage, "domain": domain, "channel": _CHANNELS[c],
-                           "site": site, "unit": unit,
-                           **_stats(values, _pairs(plane, 1, lattice), _pairs(plane, 0, lattice), clean_values,
-                                    clipped, black[c] if stage == "raw" else 0.0),
-                           "nps": None, "nps_frequency": frequencies.tolist()}
-                    if site == "all":
-                        mask = None
-                        if lattice:
-                            mask = np.zeros(plane.shape, dtype=bool)
-                            for r, q in lattice:
-                                mask[r::2, q::2] = True
-                        row["nps"] = _radial_nps(plane, mask, nps_bins)
-                    rows.append(row)
+            for p in range(noisy_stage.shape[0]):
+                crop = np.s_[p, y0:y1, x0:x1]
+                clean_plane = clean_stage[crop].astype(np.float64)
+                plane = noisy_stage[crop].astype(np.float64) - clean_plane
+                clipped = None
+                if stage == "toned":
+                    clipped = (noisy_stage[crop] <= 0) | (noisy_stage[crop] >= 1)
+                classes = {key: _class_moments(plane, *starts[key]) for key in sites} or {None: _class_moments(
+                    plane, None, None)}
+                for c in range(3) if mosaic else [p]:
+                    own = [k for k in sites if sites[k][1] == c] if mosaic else list(classes)
+                    groups = [("all", own)] + ([(sites[k][0], [k]) for k in own] if sites else [])
+                    for site, keys in groups:
+                        values = _Moments.combined([classes[k][0] for k in keys])
+                        if keys == [None]:
+                            signal = float(clean_plane.mean())
+                            clipped_fraction = None if clipped is None else float(clipped.mean())
+                        else:
+                            lattices = [starts[k] for k in keys]
+                            signal = sum(float(_lattice(clean_plane, *rq).sum()) for rq in lattices) / values.n
+                            clipped_fraction = None if clipped is None else sum(
+                                int(_lattice(clipped, *rq).sum()) for rq in lattices) / values.n
+                        row = {"region": region, "stage": stage, "domain": "mosaic" if mosaic else "rgb",
+                               "channel": _CHANNELS[c], "site": site, "unit": _unit(stage),
+                               "pixels": int(values.n),
+                               "signal": signal - (black[c] if stage == "raw" else 0.0),
+                               "mean": values.mean_a, "std": values.std(),
+                               "corr_h": _Moments.combined([classes[k][1] for k in keys]).correlation(),
+                               "corr_v": _Moments.combined([classes[k][2] for k in keys]).correlation(),
+                               "clipped_fraction": clipped_fraction,
+                               "nps": None, "nps_frequency": frequencies}
+                        if site == "all":
+                            mask = None
+                            if keys != [None]:
+                                mask = np.zeros(plane.shape, dtype=bool)
+                                for k in keys:
+                                    mask[starts[k][0]::2, starts[k][1]::2] = True
+                            row["nps"] = _radial_nps(plane, mask, nps_bins)
+                        rows.append(row)
+    # the rows region by region, then stage by stage (as they were made), channels in R, G, B order
     return rows
 
 
