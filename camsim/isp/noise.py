@@ -1,8 +1,9 @@
 """Noise through the ISP, measured exactly: what each stage does to a frame's noise.
 
-A camsim frame knows its noise: the clean layer (each pixel's expected value, :meth:`camsim.render.frame.Frame.clean_dn`,
-or an EXR's ``clean`` layer) is developed through the same ISP, with the same facts and settings, as the noisy
-frame, and the noise at stage s is the difference of the two images at that stage::
+A camsim frame knows its noise: the clean layer (each pixel's expected value,
+:meth:`camsim.render.frame.Frame.clean_dn`, or an EXR's ``clean`` layer) is developed through the same ISP, with
+the same facts and settings, as the noisy frame, and the noise at stage s is the difference of the two images at
+that stage::
 
     noise_s = develop_stages(noisy)[s] − develop_stages(clean)[s]
 
@@ -264,7 +265,8 @@ def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margi
         noisy = noisy[0] if noisy.ndim == 3 and noisy.shape[0] == 1 else noisy
         clean = clean[0] if clean.ndim == 3 and clean.shape[0] == 1 else clean
     if noisy.shape != clean.shape:
-        raise CamsimError(f"noise through the ISP: the noisy frame has shape {noisy.shape} but the clean one {clean.shape}")
+        raise CamsimError(f"noise through the ISP: the noisy frame has shape {noisy.shape} but the clean one "
+                          f"{clean.shape}")
     if noisy.ndim not in (2, 3):
         raise CamsimError(f"noise through the ISP: a frame is a mosaic (H, W) or an image (3, H, W), got "
                           f"shape {noisy.shape}")
