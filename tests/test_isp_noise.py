@@ -163,31 +163,36 @@ def predicted_demosaic_noise(method, pattern, tau2, matrix=None) -> dict:
     return out
 
 
-def predicted_nps(method, pattern, tau2, channel, shape, bins, matrix=None) -> np.ndarray:
-    """The expected radial NPS of a channel of a linear demosaicing's noise (times ``matrix``) on a window of
+def predicted_nps(method, pattern, tau2, shape, bins, matrix=None) -> np.ndarray:
+    """The expected radial NPS of each channel of a linear demosaicing's noise (times ``matrix``) on a window of
     ``shape``, relative to its mean over the frequency plane, in ``bins`` radial bins of equal width from 0 to 0.5
-    cycles per pixel.
+    cycles per pixel: shape (3, bins).
 
     The expected periodogram of the (period-2) noise field on an Ny × Nx window is
     S(f) = ¼ Σ_sites Σ_lags (1 − |l_y| / Ny)(1 − |l_x| / Nx) Cov_site(l) cos(2π f·l), over the lags the kernels
     reach (|l| ≤ 4); its mean over the frequency grid is the lag-0 term."""
     ny, nx = shape
-    fy = np.fft.fftfreq(ny)[:, None]
-    fx = np.fft.fftfreq(nx)[None, :]
-    spectrum = np.zeros((ny, nx))
-    for dy in range(2):
-        for dx in range(2):
-            for ly in range(-4, 5):
-                for lx in range(-4, 5):
-                    cov = cross_covariance(method, pattern, tau2, (dy, dx), (ly, lx), matrix)[channel, channel]
-                    if cov:
-                        taper = (1 - abs(ly) / ny) * (1 - abs(lx) / nx)
-                        spectrum += 0.25 * taper * cov * np.cos(2 * np.pi * (fy * ly + fx * lx))
-    relative = spectrum / spectrum.mean()
-    index = np.floor(np.hypot(fy, fx) / 0.5 * bins).astype(int)
+    fy = np.fft.fftfreq(ny)
+    fx = np.fft.fftfreq(nx)
+    lags = range(-4, 5)
+    # ¼ Σ_sites Cov_site(l) per lag and channel, tapered by the window
+    cov = np.zeros((9, 9, 3))
+    for a, ly in enumerate(lags):
+        for b, lx in enumerate(lags):
+            total = sum(np.diag(cross_covariance(method, pattern, tau2, (dy, dx), (ly, lx), matrix))
+                        for dy in range(2) for dx in range(2))
+            cov[a, b] = 0.25 * (1 - abs(ly) / ny) * (1 - abs(lx) / nx) * total
+    ey = np.exp(2j * np.pi * np.outer(fy, np.array(lags)))  # (ny, 9)
+    ex = np.exp(2j * np.pi * np.outer(fx, np.array(lags)))  # (nx, 9)
+    index = np.floor(np.hypot(fy[:, None], fx[None, :]) / 0.5 * bins).astype(int)
     inside = index < bins
-    return (np.bincount(index[inside], weights=relative[inside], minlength=bins)
-            / np.bincount(index[inside], minlength=bins))
+    counts = np.bincount(index[inside], minlength=bins)
+    out = np.empty((3, bins))
+    for c in range(3):
+        spectrum = np.real(ey @ cov[:, :, c] @ ex.T)  # Σ_l cov(l) e^{2πi f·l}: real, cov being even in l
+        relative = spectrum / spectrum.mean()
+        out[c] = np.bincount(index[inside], weights=relative[inside], minlength=bins) / counts
+    return out
 
 
 def radial_periodogram(plane, bins) -> np.ndarray:
@@ -345,8 +350,9 @@ def test_oracle_predicts_colour_demosaicing_on_white_noise(method, pattern):
             mosaic[dy::2, dx::2] = tau[colour_at(pattern, dy, dx)] * rng.standard_normal((size // 2, size // 2))
     out = np.moveaxis(np.asarray(demosaic(mosaic, pattern), dtype=np.float64), -1, 0)[:, 4:-4, 4:-4]
     check_site_statistics(out, predicted_demosaic_noise(method, pattern, tau ** 2), (method, pattern))
+    nps = predicted_nps(method, pattern, tau ** 2, out[0].shape, 8)
     for c in range(3):
-        predicted = predicted_nps(method, pattern, tau ** 2, c, out[c].shape, 8)
+        predicted = nps[c]
         measured = radial_periodogram(out[c], 8)
         assert np.all(np.abs(measured - predicted) <= nps_tolerance(predicted, out[c].shape, 8)), (
             method, c, measured, predicted)
@@ -549,8 +555,10 @@ def test_noise_through_isp_on_a_bayer_flat(bayer, method):
             shape = (320 - 2 * MARGIN,) * 2
             assert np.all(np.abs(np.array(row["nps"]) - 1) <= nps_tolerance(np.ones(8), shape, 8)), row["nps"]
     assert rows_by(rows, stage="raw", site="all", channel="G")[0]["pixels"] == 2 * n_site
+    shape = (320 - 2 * MARGIN,) * 2
     for stage, matrix in (("demosaiced", None), ("srgb_linear", m)):
         predicted = predicted_demosaic_noise(method, pattern, tau2, matrix)
+        all_nps = predicted_nps(method, pattern, tau2, shape, 8, matrix)
         for ((dy, dx), c), (var, corr_h, corr_v, lags) in predicted.items():
             row = one_row(rows, stage=stage, channel="RGB"[c], site=names[dy, dx])
             assert row["domain"] == "rgb" and row["pixels"] == n_site and row["nps"] is None
@@ -568,8 +576,7 @@ def test_noise_through_isp_on_a_bayer_flat(bayer, method):
             assert abs(row["std"] ** 2 - pooled) <= variance_tolerance(pooled, n_site, lags)
             assert abs(row["corr_h"] - rho_h) <= correlation_tolerance(rho_h, n_site, lags)
             assert abs(row["corr_v"] - rho_v) <= correlation_tolerance(rho_v, n_site, lags)
-            shape = (320 - 2 * MARGIN,) * 2
-            nps = predicted_nps(method, pattern, tau2, c, shape, 8, matrix)
+            nps = all_nps[c]
             assert np.all(np.abs(np.array(row["nps"]) - nps) <= nps_tolerance(nps, shape, 8)), (row["nps"], nps)
             np.testing.assert_allclose(row["nps_frequency"], (np.arange(8) + 0.5) / 16)
 
