@@ -659,3 +659,14 @@ def test_write_noise_report(tmp_path, three_chip):
     assert not (tmp_path / "missing").exists()
     with pytest.raises(CamsimError):
         write_noise_report([], tmp_path, "empty")
+
+
+@pytest.mark.parametrize("pattern", PATTERNS)
+def test_clean_mosaic(pattern):
+    """clean_mosaic keeps at each site its own colour's plane: planes filled with 0, 1, 2 give the pattern's
+    colour indices, read here from the pattern's letters."""
+    from camsim.isp.noise import clean_mosaic
+
+    planes = np.stack([np.full((4, 6), c, dtype=np.float32) for c in range(3)])
+    expected = np.array([["RGB".index(pattern[2 * (y % 2) + x % 2]) for x in range(6)] for y in range(4)])
+    np.testing.assert_array_equal(clean_mosaic(planes, pattern), expected)

@@ -32,7 +32,7 @@ from camsim.io.atomic import undo_on_failure, write_text_atomic
 from camsim.io.figures import new_figure, save_png
 from camsim.sensor.cfa import cfa_sites
 
-__all__ = ["NOISE_COLUMNS", "NPS_BINS", "NPS_WINDOW", "BAYER_MARGIN_PX", "noise_through_isp",
+__all__ = ["NOISE_COLUMNS", "NPS_BINS", "NPS_WINDOW", "BAYER_MARGIN_PX", "clean_mosaic", "noise_through_isp",
            "nps_frequencies", "noise_csv_text", "noise_figure", "write_noise_report"]
 
 #: The radial bins of the noise power spectrum: equal widths from 0 to 0.5 cycles per pixel (Nyquist).
@@ -59,6 +59,31 @@ def nps_frequencies(bins: int = NPS_BINS) -> np.ndarray:
 
 def _nps_column(f: float) -> str:
     return f"nps_f{f:.3f}"
+
+
+def clean_mosaic(clean_rgb, cfa_pattern: str) -> np.ndarray:
+    """The clean layer of a Bayer frame as a mosaic: at each site its own colour's plane.
+
+    A Bayer frame's clean layer (:meth:`camsim.render.frame.Frame.clean_dn`, an EXR's ``clean`` layer) holds the
+    expected value of each colour at every pixel; the mosaic that goes with the noisy one keeps each site's own.
+
+    Parameters
+    ----------
+    clean_rgb : numpy.ndarray, shape (3, H, W)
+        The clean layer. Unit: DN.
+    cfa_pattern : {"RGGB", "BGGR", "GRBG", "GBRG"}
+
+    Returns
+    -------
+    numpy.ndarray, shape (H, W), the dtype of ``clean_rgb``
+    """
+    clean_rgb = np.asarray(clean_rgb)
+    if clean_rgb.ndim != 3 or clean_rgb.shape[0] != 3:
+        raise CamsimError(f"a clean layer is (3, H, W), got shape {clean_rgb.shape}")
+    out = np.empty(clean_rgb.shape[1:], dtype=clean_rgb.dtype)
+    for dy, dx, c in cfa_sites(cfa_pattern):
+        out[dy::2, dx::2] = clean_rgb[c, dy::2, dx::2]
+    return out
 
 
 def _region_list(regions, height: int, width: int, margin: int) -> list[tuple[str, tuple[int, int, int, int]]]:
@@ -213,7 +238,10 @@ def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margi
     ----------
     noisy, clean : numpy.ndarray
         The raw frame and its clean layer (the expected value of every pixel), in the same units: a Bayer mosaic
-        (H, W) or (1, H, W), each site its own colour's value, or a three-chip image (3, H, W). Unit: DN.
+        (H, W) or (1, H, W), each site its own colour's value (:func:`clean_mosaic`), or a three-chip image
+        (3, H, W). Unit: DN. The clean layer is the expected signal before the ADC (``Frame.clean_dn()``, an EXR's
+        ``clean`` layer), so the noisy frame that goes with it is the one before the ADC too (``Frame.noisy_dn``,
+        an EXR's ``noisy`` layer), with ``facts`` for those numbers (black level: the dark level before the ADC).
     facts : camsim.isp.IspFacts
         What the ISP knows of the frame (:func:`camsim.isp.facts_of`, :func:`camsim.isp.facts_from_info`).
     settings : camsim.isp.IspSettings, optional

@@ -32,24 +32,20 @@ clipped pixels is printed below).
 # ---------------------
 # The frames are drawn without the ADC's rounding (``quantisation=False``): their numbers are the signal before
 # the ADC, so that noisy − clean is the sensor's noise alone. ``clean_dn()`` is each pixel's expected value (three
-# planes); a Bayer frame's clean mosaic takes at each site its own colour's plane.
+# planes); a Bayer frame's clean mosaic (``clean_mosaic``) takes at each site its own colour's plane.
 import matplotlib.pyplot as plt
 import matplotlib.ticker
 import numpy as np
 
 import camsim
 from camsim import isp
-from camsim.isp.noise import noise_through_isp
-from camsim.sensor.cfa import cfa_sites
+from camsim.isp.noise import clean_mosaic, noise_through_isp
 
 
 def mosaic_pair(scene, factor):
     """The frame's noisy mosaic, its clean mosaic, and the ISP's facts about it."""
     frame, info = camsim.scene_frame(scene, "D65", factor, seed=1)
-    clean_rgb = frame.clean_dn()
-    clean = np.empty(clean_rgb.shape[1:], dtype=np.float32)
-    for dy, dx, c in cfa_sites(frame.sensor.cfa):
-        clean[dy::2, dx::2] = clean_rgb[c, dy::2, dx::2]
+    clean = clean_mosaic(frame.clean_dn(), frame.sensor.cfa)
     return frame.noisy_dn[0], clean, isp.facts_from_info(frame, info), info
 
 
