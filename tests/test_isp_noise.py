@@ -670,3 +670,27 @@ def test_clean_mosaic(pattern):
     planes = np.stack([np.full((4, 6), c, dtype=np.float32) for c in range(3)])
     expected = np.array([["RGB".index(pattern[2 * (y % 2) + x % 2]) for x in range(6)] for y in range(4)])
     np.testing.assert_array_equal(clean_mosaic(planes, pattern), expected)
+
+
+def test_clipped_fraction_near_white(three_chip):
+    """With a gain that puts the flat field's clean linear sRGB just under 1, the toned rows' clipped fraction is
+    the Gaussian tail P(x > 1) = Φ((μ − 1) / σ) of the propagated closed form (5 binomial standard errors; the
+    Poisson skewness, about 0.02 here, moves the tail by less than 0.001)."""
+    from scipy.stats import norm
+
+    frame, _, facts = three_chip
+    noisy, clean = raw_layers(frame)
+    unit = isp.develop_stages(clean, facts, isp.IspSettings(gain=1.0))["gained"]
+    settings = isp.IspSettings(gain=0.97 / float(np.asarray(unit[1], np.float64).mean()))
+    record = isp.develop(clean, facts, settings).record
+    gains, m, gain, scale = linear_factors(frame, record)
+    a = gain * m @ np.diag(gains * scale)
+    sigma = np.sqrt(np.diag(a @ np.diag(pixel_variance_dn2(frame)) @ a.T))
+    rows = noise_through_isp(noisy, clean, facts, settings)
+    n = 256 * 256
+    for c in range(3):
+        mu = one_row(rows, stage="gained", channel="RGB"[c])["signal"]
+        p = norm.sf((1 - mu) / sigma[c]) + norm.cdf(-mu / sigma[c])
+        measured = one_row(rows, stage="toned", channel="RGB"[c])["clipped_fraction"]
+        assert 0.05 < p < 0.5
+        assert abs(measured - p) <= K_SE * math.sqrt(p * (1 - p) / n) + 0.001, (c, measured, p)

@@ -47,6 +47,9 @@ NOISE_COLUMNS = ("region", "stage", "domain", "channel", "site", "unit", "pixels
 
 _CHANNELS = "RGB"
 
+#: A toned value this close to 0 or 1 counts as clipped by the tone curve.
+_CLIP_TOLERANCE = 1e-6
+
 #: Margin left out at each edge of a region of a Bayer frame, where the demosaicing kernels reach past it. Unit: px.
 BAYER_MARGIN_PX = 4
 
@@ -273,8 +276,8 @@ def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margi
         - ``corr_h``, ``corr_v``: Pearson's correlation between the noise of each pixel and that of its right
           (``h``) and lower (``v``) neighbour in the same plane (in a mosaic the neighbour is a site of another
           colour), both inside the region;
-        - ``clipped_fraction``: for ``toned``, the fraction of the noisy pixels at 0 or 1 (where clipping changes
-          the noise), else None;
+        - ``clipped_fraction``: for ``toned``, the fraction of the noisy pixels at 0 or 1 (within 10⁻⁶: where the
+          tone curve's clipping changes the noise), else None;
         - ``nps``: for the ``all`` rows, the noise power spectrum's radial profile relative to white noise of the
           same power (1 at every frequency for uncorrelated noise; a low-pass filter's noise falls towards 0.5),
           computed on a centred window of at most :data:`NPS_WINDOW` pixels a side; for a channel of a mosaic,
@@ -328,7 +331,8 @@ def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margi
                 plane = noisy_stage[crop].astype(np.float64) - clean_plane
                 clipped = None
                 if stage == "toned":
-                    clipped = (noisy_stage[crop] <= 0) | (noisy_stage[crop] >= 1)
+                    # at 0 or 1 within float32 rounding (the sRGB curve gives 1 − 6e-8 at 1)
+                    clipped = (noisy_stage[crop] <= _CLIP_TOLERANCE) | (noisy_stage[crop] >= 1 - _CLIP_TOLERANCE)
                 classes = {key: _class_moments(plane, *starts[key]) for key in sites} or {None: _class_moments(
                     plane, None, None)}
                 for c in range(3) if mosaic else [p]:
