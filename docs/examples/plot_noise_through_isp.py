@@ -23,8 +23,8 @@ than half at the highest). The colour matrix, with its negative off-diagonal ter
 the signal and the correlation further. The tone curve roughly halves the relative noise: to first order the
 noise is f′(μ) times the linear noise, and in the power segment of the sRGB curve f′(μ) μ / f(μ) is 0.44 at white
 (μ = 1), 0.46 at μ = 0.2 and 0.51 at μ = 0.05 (camsim's tests check this, and the other stages, against closed
-forms). In the darkest patches the noisy values reach below zero, where the curve clips them (the fraction of
-clipped pixels is printed below).
+forms). In the darkest patches the noisy values reach below zero, and in the white patch above the white level:
+there the curve clips them (the fraction of clipped pixels is printed below).
 """
 
 # %%
