@@ -629,6 +629,18 @@ def test_noise_through_isp_regions_and_margin(bayer):
         noise_through_isp(noisy, clean, facts, settings, regions={"out": (300, 0, 40, 40)})
     with pytest.raises(CamsimError, match="shape"):
         noise_through_isp(noisy, clean[:, :-2], facts, settings)
+    from camsim.scene.regions import Region
+
+    rows = noise_through_isp(noisy, clean, facts, settings, regions=[Region("a", (10, 10, 40, 40)),
+                                                                     ("b", [50, 50, 20, 20])])
+    assert {r["region"] for r in rows} == {"a", "b"}
+    for bad in ([("a", (0, 0, 10, 10)), ("a", (20, 20, 10, 10))], [("a", (0, 0, 10.5, 10))],
+                [("a", (0, 0, float("inf"), 10))], [(0, 0, 10, 10)], {"tiny": (0, 0, 10, 10)}):
+        with pytest.raises(CamsimError):
+            noise_through_isp(noisy, clean, facts, settings, regions=bad)
+    for margin in (-1, 1.5, True):
+        with pytest.raises(CamsimError, match="margin"):
+            noise_through_isp(noisy, clean, facts, settings, margin=margin)
 
 
 def test_write_noise_report(tmp_path, three_chip):

@@ -96,14 +96,25 @@ def _region_list(regions, height: int, width: int, margin: int) -> list[tuple[st
     elif isinstance(regions, Mapping):
         items = list(regions.items())
     else:
-        items = [(r.name, r.rect) if hasattr(r, "rect") else tuple(r) for r in regions]
+        items = []
+        for r in regions:
+            if hasattr(r, "rect") and hasattr(r, "name"):
+                items.append((r.name, r.rect))
+            elif isinstance(r, (tuple, list)) and len(r) == 2:
+                items.append(tuple(r))
+            else:
+                raise CamsimError(f"noise through the ISP: a region is (name, (x, y, width, height)) or has a name "
+                                  f"and a rect, got {r!r}")
     out = []
     for name, rect in items:
         try:
-            x, y, w, h = (int(v) for v in rect)
-        except (TypeError, ValueError):
-            raise CamsimError(f"noise through the ISP: region {name!r} must be (x, y, width, height) in pixels, "
-                              f"got {rect!r}") from None
+            values = [v for v in rect]
+            if len(values) != 4 or any(isinstance(v, bool) or int(v) != v for v in values):
+                raise ValueError
+            x, y, w, h = (int(v) for v in values)
+        except (TypeError, ValueError, OverflowError):
+            raise CamsimError(f"noise through the ISP: region {name!r} must be (x, y, width, height) in whole "
+                              f"pixels, got {rect!r}") from None
         if w <= 0 or h <= 0 or x < 0 or y < 0 or x + w > width or y + h > height:
             raise CamsimError(f"noise through the ISP: region {name!r} {(x, y, w, h)} does not lie inside the "
                               f"{width}x{height} frame")
@@ -111,6 +122,8 @@ def _region_list(regions, height: int, width: int, margin: int) -> list[tuple[st
         if y1 - y0 < 4 or x1 - x0 < 4:
             raise CamsimError(f"noise through the ISP: region {name!r} {(x, y, w, h)} leaves fewer than 4 x 4 "
                               f"pixels inside its {margin}-pixel margin")
+        if str(name) in {n for n, _ in out}:
+            raise CamsimError(f"noise through the ISP: two regions are named {str(name)!r}")
         out.append((str(name), (y0, y1, x0, x1)))
     if not out:
         raise CamsimError("noise through the ISP: no regions given")
@@ -279,14 +292,16 @@ def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margi
         - ``clipped_fraction``: for ``toned``, the fraction of the noisy pixels at 0 or 1 (within 10⁻⁶: where the
           tone curve's clipping changes the noise), else None;
         - ``nps``: for the ``all`` rows, the noise power spectrum's radial profile relative to white noise of the
-          same power (1 at every frequency for uncorrelated noise; a low-pass filter's noise falls towards 0.5),
+          same power (1 at every frequency for uncorrelated noise; above 1 at low frequencies and below it at high
+          ones for noise that demosaicing has smoothed),
           computed on a centred window of at most :data:`NPS_WINDOW` pixels a side; for a channel of a mosaic,
           on the mosaic with the other colours' sites set to 0. None for the site rows.
 
     Raises
     ------
     CamsimError
-        The noisy and clean frames differ in shape, a region does not fit the frame.
+        The noisy and clean frames differ in shape, a region does not fit the frame (or leaves fewer than 4 × 4
+        pixels inside its margin), a bad margin or number of NPS bins.
     """
     from camsim.isp import IspSettings, develop_stages
 
@@ -306,7 +321,11 @@ def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margi
     if noisy.ndim == 2 and pattern is None:
         raise CamsimError("noise through the ISP: a mosaic (H, W) needs facts with a CFA pattern")
     height, width = noisy.shape[-2:]
-    margin = (BAYER_MARGIN_PX if pattern else 0) if margin is None else int(margin)
+    margin = (BAYER_MARGIN_PX if pattern else 0) if margin is None else margin
+    if isinstance(margin, bool) or not isinstance(margin, (int, np.integer)) or margin < 0:
+        raise CamsimError(f"noise through the ISP: the margin must be a whole number of pixels ≥ 0, got {margin!r}")
+    if isinstance(nps_bins, bool) or not isinstance(nps_bins, (int, np.integer)) or not 1 <= nps_bins <= 256:
+        raise CamsimError(f"noise through the ISP: nps_bins must be a whole number from 1 to 256, got {nps_bins!r}")
     boxes = _region_list(regions, height, width, margin)
     noisy_stages = develop_stages(noisy, facts, settings)
     clean_stages = develop_stages(clean, facts, settings)
