@@ -453,8 +453,13 @@ def noise_figure(rows: list[dict], title: str = ""):
                title="Noise relative to the clean signal (raw: above black)")
     ax_std.legend(fontsize=8)
     ax_corr.axhline(0, color="0.3", lw=0.8)
+    pixels = min(r["pixels"] for r in mine)
+    band = 2 / math.sqrt(pixels)  # two standard errors of a zero correlation
+    ax_corr.axhspan(-band, band, color="0.85", zorder=0, label=f"±2/√n: no correlation (n = {pixels})")
+    measured = [v for r in mine for v in (r["corr_h"], r["corr_v"]) if v is not None]
+    ax_corr.set_ylim(min([-0.2] + [v - 0.05 for v in measured]), max([1.0] + [v + 0.05 for v in measured]))
     ax_corr.set(ylabel="correlation with the neighbour", title="Correlation between neighbours per stage")
-    ax_corr.legend(fontsize=7, ncol=3, loc="center left")
+    ax_corr.legend(fontsize=7, ncol=2, loc="upper left")
     first = "normalised" if "normalised" in stages else stages[0]
     last = stages[-1]
     for stage, style in ((first, ":"), (last, "-")):
