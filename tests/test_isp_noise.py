@@ -13,15 +13,20 @@ The thing under test is :mod:`camsim.isp` (its stages, through :func:`camsim.isp
 - the bilinear demosaicing kernels and Malvar, He & Cutler's (ICASSP 2004) 5 × 5 kernels, written out here from
   the paper's coefficients; a linear demosaicing's output noise has variance Σ_k w_k² τ²_k and covariance between
   neighbours Σ_q w_p(q) w_p'(q) τ²_q (the overlap of the two pixels' kernels), with τ² the variance of each mosaic
-  site after white balance.
+  site after white balance. The oracle's kernels are checked on their own first: colour-demosaicing's bilinear and
+  Malvar 2004 on a mosaic of Gaussian white noise give the variances, correlations and NPS it predicts.
 
 The tolerances are sampling errors, not fudge factors. A sample variance s² of n Gaussian values of variance σ²
 has standard error σ² √(2 / (n − 1)) (the χ² law; with correlated values, as after demosaicing, n is replaced by
 n / Σ_lag ρ_lag², the sum of the squared correlations between a pixel and the pixels of its lattice — computed from
-the kernels too); a sample covariance of independent pairs has variance (σ_i² σ_j² + c_ij²) / (n − 1); a sample
-correlation has standard error (1 − ρ²) / √n_eff. Each check allows 5 standard errors (a false alarm about once in
-3.5 million checks). The Poisson charge's excess kurtosis 1 / (S + D) ≤ 0.001 at the light levels below adds less
-than 0.05 % to the variance of a variance and is left out.
+the kernels too — which is the exact large-n variance of a Gaussian field's sample variance); a sample covariance
+of independent pairs has variance (σ_i² σ_j² + c_ij²) / (n − 1); a sample correlation has standard error about
+(1 − ρ²) / √n_eff (Fisher's large-n form, with the same n_eff); a radial NPS bin averages periodogram ordinates,
+each exponential (standard deviation = mean), of which a quarter of the bin's frequencies are independent (the
+conjugate symmetry of a real field's DFT, and the coherence of frequencies ½ apart in a field of period 2). Each
+check allows 5 standard errors (a two-sided false alarm about once in 1.7 million checks; the frames' seeds are
+fixed, so a run is repeatable). The Poisson charge's excess kurtosis 1 / (S + D) ≤ 0.001 at the light levels below
+adds less than 0.05 % to the variance of a variance and is left out.
 """
 
 from __future__ import annotations
@@ -34,8 +39,8 @@ import pytest
 from camsim.render.pipeline import scene_frame
 from camsim.scene.scene_file import load_scene
 
-isp = pytest.importorskip("camsim.isp")
-from camsim.isp.noise import noise_through_isp, write_noise_report  # noqa: E402
+from camsim import isp
+from camsim.isp.noise import noise_through_isp, write_noise_report
 
 K_SE = 5.0  # standard errors allowed in every sampling check
 PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
