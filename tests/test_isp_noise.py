@@ -36,11 +36,10 @@ import math
 import numpy as np
 import pytest
 
-from camsim.render.pipeline import scene_frame
-from camsim.scene.scene_file import load_scene
-
 from camsim import isp
 from camsim.isp.noise import noise_through_isp, write_noise_report
+from camsim.render.pipeline import scene_frame
+from camsim.scene.scene_file import load_scene
 
 K_SE = 5.0  # standard errors allowed in every sampling check
 PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
