@@ -710,3 +710,27 @@ def test_clipped_fraction_near_white(three_chip):
         measured = one_row(rows, stage="toned", channel="RGB"[c])["clipped_fraction"]
         assert 0.05 < p < 0.5
         assert abs(measured - p) <= K_SE * math.sqrt(p * (1 - p) / n) + 0.001, (c, measured, p)
+
+
+def test_noise_layers_from_files(tmp_path):
+    """noise_layers reads a written frame's EXR (named directly, or through its DNG): the noisy layer is the
+    frame's noisy_dn, the clean one its clean layer as a mosaic (built here), the facts' black level the dark
+    level before the ADC; without the EXR it says so in one line."""
+    from camsim.core.errors import CamsimError
+    from camsim.isp.noise import noise_layers
+    from camsim.render.frame_files import write_frame
+
+    scene = load_scene("flat").replace(width=64, height=48).with_sensor(cfa="GRBG", prnu_percent=0.0, dsnu_e=0.0)
+    frame, info = scene_frame(scene, "D65", 0.1, seed=3)
+    write_frame(tmp_path, "f", frame, info)
+    for name in ("f.dng", "f.exr"):
+        noisy, clean, facts = noise_layers(tmp_path / name)
+        np.testing.assert_array_equal(noisy, frame.noisy_dn[0])
+        np.testing.assert_array_equal(clean, clean_mosaic(frame.clean_dn(), "GRBG"))
+        np.testing.assert_allclose(facts.black_dn, frame.sensor.dark_level_dn)
+        assert facts.cfa_pattern == "GRBG"
+    rows = noise_through_isp(noisy, clean, facts, isp.IspSettings(demosaic="bilinear"))
+    assert one_row(rows, stage="raw", channel="G", site="all")["pixels"] == (64 - 8) * (48 - 8) // 2
+    (tmp_path / "f.exr").unlink()
+    with pytest.raises(CamsimError, match="EXR"):
+        noise_layers(tmp_path / "f.dng")

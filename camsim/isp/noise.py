@@ -32,7 +32,8 @@ from camsim.io.atomic import undo_on_failure, write_text_atomic
 from camsim.io.figures import new_figure, save_png
 from camsim.sensor.cfa import cfa_sites
 
-__all__ = ["NOISE_COLUMNS", "NPS_BINS", "NPS_WINDOW", "BAYER_MARGIN_PX", "clean_mosaic", "noise_through_isp",
+__all__ = ["NOISE_COLUMNS", "NPS_BINS", "NPS_WINDOW", "BAYER_MARGIN_PX", "clean_mosaic", "noise_layers",
+           "noise_through_isp",
            "nps_frequencies", "noise_csv_text", "noise_figure", "write_noise_report"]
 
 #: The radial bins of the noise power spectrum: equal widths from 0 to 0.5 cycles per pixel (Nyquist).
@@ -87,6 +88,53 @@ def clean_mosaic(clean_rgb, cfa_pattern: str) -> np.ndarray:
     for dy, dx, c in cfa_sites(cfa_pattern):
         out[dy::2, dx::2] = clean_rgb[c, dy::2, dx::2]
     return out
+
+
+def noise_layers(path) -> tuple[np.ndarray, np.ndarray, object]:
+    """A frame file's noisy and clean numbers, and the ISP's facts about them: what :func:`noise_through_isp` takes.
+
+    The clean layer is in a frame's EXR, beside its DNG (same stem): the EXR's noisy and clean layers (the signal
+    before the ADC, and its expected value) are read, with the facts of the EXR's numbers
+    (:func:`camsim.isp.facts_of`: black level = the dark level before the ADC). A Bayer frame's clean layer becomes
+    the mosaic that goes with its noisy one (:func:`clean_mosaic`).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A camsim frame's ``.exr``, or its ``.dng`` (then the ``.exr`` beside it is read).
+
+    Returns
+    -------
+    noisy : numpy.ndarray, float32, shape (3, H, W), or (H, W) for a Bayer frame
+    clean : numpy.ndarray, float32, same shape
+    facts : camsim.isp.IspFacts
+
+    Raises
+    ------
+    CamsimError
+        No EXR beside the DNG, an EXR without a clean layer, or what :func:`camsim.render.frame_files.load_frame`
+        refuses.
+    """
+    from camsim.io.exr import read_exr_clean
+    from camsim.isp.facts import facts_of
+    from camsim.render.frame_files import load_frame
+
+    path = Path(path)
+    exr = path.with_suffix(".exr") if path.suffix.lower() == ".dng" else path
+    if not exr.is_file():
+        raise CamsimError(f"{path}: the noise report needs the frame's EXR ({exr.name}): its clean layer holds the "
+                          "noise-free values")
+    loaded = load_frame(exr)
+    clean, _ = read_exr_clean(exr)
+    if clean is None:
+        raise CamsimError(f"{exr}: no clean layer (clean.R, clean.G, clean.B): the noise report needs one")
+    noisy = loaded.pixels_dn
+    if clean.shape[1:] != noisy.shape[1:]:
+        raise CamsimError(f"{exr}: the clean layer is {clean.shape[2]}x{clean.shape[1]} but the frame "
+                          f"{noisy.shape[2]}x{noisy.shape[1]}")
+    if loaded.cfa_pattern is not None:
+        return noisy[0], clean_mosaic(clean, loaded.cfa_pattern), facts_of(loaded)
+    return noisy, clean, facts_of(loaded)
 
 
 def _region_list(regions, height: int, width: int, margin: int) -> list[tuple[str, tuple[int, int, int, int]]]:
