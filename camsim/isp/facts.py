@@ -94,7 +94,8 @@ class IspFacts:
         if self.white_signal_dn is not None:
             white = np.asarray(self.white_signal_dn, dtype=np.float64).reshape(-1)
             if white.shape != (3,) or not (np.all(np.isfinite(white)) and np.all(white > 0)):
-                raise CamsimError(f"the perfect white's signal must be 3 positive numbers, got {self.white_signal_dn!r}")
+                raise CamsimError(f"the perfect white's signal must be 3 positive numbers, got "
+                                  f"{self.white_signal_dn!r}")
             object.__setattr__(self, "white_signal_dn", white)
         if self.qe is None and self.color_matrix1 is None:
             raise CamsimError("the ISP needs the camera's spectral sensitivities (a sidecar's qe) or a "
