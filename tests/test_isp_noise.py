@@ -734,3 +734,45 @@ def test_noise_layers_from_files(tmp_path):
     (tmp_path / "f.exr").unlink()
     with pytest.raises(CamsimError, match="EXR"):
         noise_layers(tmp_path / "f.dng")
+
+
+def test_noise_through_isp_per_patch_of_a_three_chip_chart():
+    """A three-chip ColorChecker (the macbeth_26 scene's Table I sensor, 8 bits, no fixed pattern), measured patch
+    by patch through the regions: at each patch the gained noise variance is A diag(k² (S_c + D_c + σ_r²)) Aᵀ of
+    that patch's own signal, and the toned variance f′(μ)² times it (plus the second-order terms, computed) where
+    the patch lies in the sRGB curve's power segment, 5 standard errors from μ to its ends."""
+    scene = load_scene("macbeth_26").replace(width=360, height=240, illuminants=("D65",)).with_sensor(
+        quantisation=False)
+    frame, info = scene_frame(scene, "D65", 1.0, seed=5)
+    facts = isp.facts_from_info(frame, info)
+    settings = isp.IspSettings(gain=1.0)
+    regions = dict(zip(info.patch_names, info.patch_rects))
+    rows = noise_through_isp(frame.noisy_dn, frame.clean_dn(), facts, settings, regions=regions)
+    record = isp.develop(frame.clean_dn(), facts, settings).record
+    gains, m, gain, scale = linear_factors(frame, record)
+    a = gain * m @ np.diag(gains * scale)
+    sensor, expected = frame.sensor, frame.expected
+    k = sensor.dn_per_electron
+    toned_checked = 0
+    for name, (x, y, w, h) in regions.items():
+        label = np.unique(frame.labels[y:y + h, x:x + w])
+        assert label.size == 1, name
+        charge = expected.signal_e[label[0]] + expected.dark_e
+        raw_var = k ** 2 * (charge + sensor.read_noise_e ** 2)
+        sigma2 = np.diag(a @ np.diag(raw_var) @ a.T)
+        kappa3 = (a * k) ** 3 @ charge
+        for c in range(3):
+            gained = one_row(rows, region=name, stage="gained", channel="RGB"[c])
+            n = gained["pixels"]
+            assert n == w * h
+            assert abs(gained["std"] ** 2 - sigma2[c]) <= variance_tolerance(sigma2[c], n), (name, c)
+            mu, sigma = gained["signal"], math.sqrt(sigma2[c])
+            if mu - 5 * sigma > 0.0031308 and mu + 5 * sigma < 1:
+                d1, d2, d3 = srgb_derivatives(mu)
+                predicted = d1 ** 2 * sigma2[c] + (d2 ** 2 / 2 + d1 * d3) * sigma2[c] ** 2
+                skew_bound = abs(d1 * d2 * kappa3[c])
+                toned = one_row(rows, region=name, stage="toned", channel="RGB"[c])
+                assert abs(toned["std"] ** 2 - predicted) <= variance_tolerance(predicted, n) + skew_bound, (
+                    name, c, toned["std"] ** 2, predicted)
+                toned_checked += 1
+    assert toned_checked >= 60, toned_checked  # most of the 24 × 3 patch channels lie in the power segment

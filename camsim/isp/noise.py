@@ -324,7 +324,7 @@ def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margi
     -------
     list of dict
         One row per region, stage, channel and site, with the keys of :data:`NOISE_COLUMNS` and ``nps`` (list of
-        ``nps_bins`` values, or None) and ``nps_frequency`` (the bins' centres, cycles per pixel):
+        ``nps_bins`` values, or None) and ``nps_frequency`` (tuple: the bins' centres, cycles per pixel):
 
         - ``domain``: ``mosaic`` for the stages before demosaicing of a Bayer frame, ``rgb`` otherwise;
         - ``channel``: ``R``, ``G``, ``B``; ``site``: ``all`` (every pixel of the channel: in a mosaic the sites of
@@ -379,7 +379,7 @@ def noise_through_isp(noisy, clean, facts, settings=None, regions=None, *, margi
     clean_stages = develop_stages(clean, facts, settings)
     sites = _site_names(pattern) if pattern else {}
     black = np.asarray(facts.black_dn, dtype=np.float64).reshape(3)
-    frequencies = nps_frequencies(nps_bins).tolist()
+    frequencies = tuple(nps_frequencies(nps_bins).tolist())
     rows = []
     for region, (y0, y1, x0, x1) in boxes:
         for stage in noisy_stages:
