@@ -670,6 +670,10 @@ def test_write_noise_report(tmp_path, three_chip):
         assert line["stage"] == row["stage"] and float(line["std"]) == pytest.approx(row["std"], rel=1e-5)
         assert (line["clipped_fraction"] == "") == (row["clipped_fraction"] is None)
     assert paths[1].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    several = noise_through_isp(noisy, clean, facts, isp.IspSettings(),
+                                regions={f"r{i}": (40 * i, 0, 40, 40) for i in range(6)})
+    assert [p.name for p in write_noise_report(several, tmp_path, "six")] == ["six_noise_stages.csv",
+                                                                             "six_noise_stages.png"]
     with pytest.raises((CamsimError, OSError)):
         write_noise_report(rows, tmp_path / "missing", "flat")
     assert not (tmp_path / "missing").exists()

@@ -472,41 +472,74 @@ def _stage_order(rows: list[dict]) -> list[str]:
 _COLOURS = {"R": "tab:red", "G": "tab:green", "B": "tab:blue"}
 
 
+def _series(rows: list[dict], stages: list[str], key: str) -> np.ndarray:
+    by_stage = {r["stage"]: r.get(key) for r in rows}
+    return np.array([np.nan if by_stage.get(s) is None else by_stage[s] for s in stages], dtype=float)
+
+
+def _relative(rows: list[dict], stages: list[str]) -> np.ndarray:
+    std, signal = _series(rows, stages, "std"), _series(rows, stages, "signal")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return 100 * np.where(signal > 0, std / signal, np.nan)
+
+
+#: The figure draws one line per region (green channel) for up to this many regions, and names them up to 12.
+_MAX_REGION_LINES = 30
+
+
 def noise_figure(rows: list[dict], title: str = ""):
-    """The figure of :func:`write_noise_report`: for the first region, per stage and channel, the noise's standard
-    deviation (relative to the clean signal) and the correlation between neighbours, and the NPS's radial profile
-    of the raw and the developed noise."""
-    region = rows[0]["region"]
-    mine = [r for r in rows if r["region"] == region and r["site"] == "all"]
+    """The figure of :func:`write_noise_report`: per stage, the noise's standard deviation relative to the clean
+    signal and the correlation between neighbours — per channel for one region, for the green channel of each
+    region (up to 30) when there are several — and the radial NPS of the first region's noise, normalised raw vs
+    developed."""
+    regions = list(dict.fromkeys(r["region"] for r in rows))
+    first_region = regions[0]
+    all_rows = [r for r in rows if r["site"] == "all"]
+    mine = [r for r in all_rows if r["region"] == first_region]
     stages = _stage_order(mine)
     x = np.arange(len(stages))
     fig = new_figure(figsize=(15, 4.6), layout="constrained")
     ax_std, ax_corr, ax_nps = fig.subplots(1, 3)
+    if len(regions) == 1:
+        for channel, colour in _COLOURS.items():
+            picked = [r for r in mine if r["channel"] == channel]
+            ax_std.plot(x, _relative(picked, stages), "o-", color=colour, label=channel)
+            ax_corr.plot(x, _series(picked, stages, "corr_h"), "o-", color=colour, label=f"{channel}, horizontal")
+            ax_corr.plot(x, _series(picked, stages, "corr_v"), "s--", color=colour, mfc="none",
+                         label=f"{channel}, vertical")
+        scope = f"region {first_region!r}"
+    else:
+        shown = regions[:_MAX_REGION_LINES]
+        from matplotlib import colormaps
 
-    def series(channel, key):
-        by_stage = {r["stage"]: r.get(key) for r in mine if r["channel"] == channel}
-        return np.array([np.nan if by_stage.get(s) is None else by_stage[s] for s in stages], dtype=float)
-
-    for channel, colour in _COLOURS.items():
-        std, signal = series(channel, "std"), series(channel, "signal")
-        with np.errstate(invalid="ignore", divide="ignore"):
-            relative = np.where(signal > 0, std / signal, np.nan)
-        ax_std.plot(x, 100 * relative, "o-", color=colour, label=channel)
-        ax_corr.plot(x, series(channel, "corr_h"), "o-", color=colour, label=f"{channel}, horizontal")
-        ax_corr.plot(x, series(channel, "corr_v"), "s--", color=colour, mfc="none", label=f"{channel}, vertical")
+        colours = colormaps["viridis"](np.linspace(0, 0.9, len(shown)))
+        for region, colour in zip(shown, colours):
+            picked = [r for r in all_rows if r["region"] == region and r["channel"] == "G"]
+            label = region if len(shown) <= 12 else None
+            ax_std.plot(x, _relative(picked, stages), "o-", color=colour, ms=3, lw=1)  # named on the right
+            ax_corr.plot(x, _series(picked, stages, "corr_h"), "o-", color=colour, ms=3, lw=1,
+                         label=None if label is None else f"{region}, horizontal")
+        scope = (f"green channel of {len(shown)} regions" + (f" (of {len(regions)})" if len(shown) < len(regions)
+                                                              else ""))
     for ax in (ax_std, ax_corr):
         ax.set_xticks(x, stages, rotation=30, ha="right")
         ax.grid(alpha=0.3)
-    ax_std.set(ylabel="noise std / clean signal (%)",
-               title="Noise relative to the clean signal (raw: above black)")
-    ax_std.legend(fontsize=8)
+    ax_std.set(yscale="log", ylabel="noise std / clean signal (%)",
+               title="Noise relative to the clean signal\n(raw: above black)")
+    from matplotlib.ticker import LogLocator, NullFormatter, ScalarFormatter
+
+    ax_std.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+    ax_std.yaxis.set_major_formatter(ScalarFormatter())
+    ax_std.yaxis.set_minor_formatter(NullFormatter())
     ax_corr.axhline(0, color="0.3", lw=0.8)
-    pixels = min(r["pixels"] for r in mine)
+    pixels = min(r["pixels"] for r in all_rows)
     band = 2 / math.sqrt(pixels)  # two standard errors of a zero correlation
     ax_corr.axhspan(-band, band, color="0.85", zorder=0, label=f"±2/√n: no correlation (n = {pixels})")
-    measured = [v for r in mine for v in (r["corr_h"], r["corr_v"]) if v is not None]
+    measured = [v for r in all_rows for v in (r["corr_h"], r["corr_v"]) if v is not None]
     ax_corr.set_ylim(min([-0.2] + [v - 0.05 for v in measured]), max([1.0] + [v + 0.05 for v in measured]))
-    ax_corr.set(ylabel="correlation with the neighbour", title="Correlation between neighbours per stage")
+    ax_corr.set(ylabel="correlation with the neighbour", title="Correlation between neighbours\nper stage")
+    if ax_std.get_legend_handles_labels()[1]:
+        ax_std.legend(fontsize=7, loc="best")
     ax_corr.legend(fontsize=7, ncol=2, loc="upper left")
     first = "normalised" if "normalised" in stages else stages[0]
     last = stages[-1]
@@ -520,10 +553,11 @@ def noise_figure(rows: list[dict], title: str = ""):
                         label=f"{channel}, {stage}")
     ax_nps.axhline(1, color="0.3", lw=0.8)
     ax_nps.set(xlabel="radial frequency (cycles per pixel)", ylabel="NPS / white noise of the same variance",
-               title=f"Noise power spectrum: {first} vs {last}", xlim=(0, 0.5), ylim=(0, None))
+               title=f"Noise power spectrum: {first} vs {last}\nregion {first_region!r}", xlim=(0, 0.5),
+               ylim=(0, None))
     ax_nps.grid(alpha=0.3)
     ax_nps.legend(fontsize=7, ncol=2)
-    fig.suptitle((title + ": " if title else "") + f"noise through the ISP, region {region!r} "
+    fig.suptitle((title + ": " if title else "") + f"noise through the ISP, {scope} "
                  "(noise = developed noisy − developed clean)")
     return fig
 
