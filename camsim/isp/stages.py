@@ -399,7 +399,8 @@ def _srgb(x):
 def _filmic(x):
     """Narkowicz's 2015 fit of the ACES filmic tone curve (K. Narkowicz, "ACES Filmic Tone Mapping Curve", 2015),
     f(x) = x (2.51 x + 0.03) / (x (2.43 x + 0.59) + 0.14), clipped to [0, 1], then the sRGB transfer function.
-    f(1) ≈ 0.80: highlights up to about 10 × the white level roll off instead of clipping."""
+    f(1) ≈ 0.80 and f reaches 1 at x ≈ 7.2: highlights up to about 7 × the white level roll off instead of
+    clipping."""
     x = np.maximum(np.asarray(x, dtype=np.float32), 0.0)
     y = x * (np.float32(2.51) * x + np.float32(0.03)) / (x * (np.float32(2.43) * x + np.float32(0.59))
                                                           + np.float32(0.14))
