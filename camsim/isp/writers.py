@@ -114,7 +114,7 @@ def read_png_record(path) -> dict | None:
 def write_jpeg(path, image, quality: int, record: dict | None = None) -> None:
     """Write a developed (3, H, W) image (floats in [0, 1]) as an 8-bit baseline JPEG (Pillow, libjpeg) at
     ``quality`` (1–95), chroma not subsampled (4:4:4), atomically; the ``record`` as JSON in the JPEG comment
-    (COM marker), prefixed ``camsim:develop ``. No EXIF, no timestamp."""
+    (COM marker), prefixed with ``camsim:develop`` and a space. No EXIF, no timestamp."""
     from PIL import Image
 
     if isinstance(quality, bool) or not isinstance(quality, int) or not 1 <= quality <= 95:

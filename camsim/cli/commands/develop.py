@@ -23,7 +23,8 @@ DESCRIPTION = (
     "WhiteLevel, CFAPattern, AsShotNeutral, ColorMatrix1), .exr files (the float values before quantisation), or "
     "folders searched recursively for committed frames (the DNG where there is one). Each frame gives OUT/STEM.png "
     "(8 or 16 bits, the record of every stage in its 'camsim:develop' text chunk, no timestamp: the same frame "
-    "gives the same bytes), OUT/STEM.json (the same record) and, with --jpeg-quality, OUT/STEM.jpg."
+    "gives the same bytes), OUT/STEM.json (the same record), with --jpeg-quality OUT/STEM.jpg, and with "
+    "--noise-report how the noise changes through each stage (OUT/STEM_noise_stages.csv and .png)."
 )
 
 EPILOG = """\
@@ -31,6 +32,7 @@ examples:
   camsim develop outputs/macbeth_26 --out outputs/developed
   camsim develop frame.dng --out developed --gain auto --bits 16
   camsim develop frames/ --out developed --demosaic menon2007 --tone filmic --jpeg-quality 92
+  camsim develop outputs/macbeth_26/macbeth_26_D65_F0.01.dng --out developed --gain white --noise-report
 """
 
 
@@ -92,6 +94,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="also write STEM.jpg at this quality (1–95; 4:4:4, no chroma subsampling)")
     parser.add_argument("--no-black", action="store_true",
                         help="do not subtract the black level (only divide by the white level)")
+    parser.add_argument("--noise-report", action="store_true",
+                        help="also write OUT/STEM_noise_stages.csv and .png: the noise (developed noisy minus "
+                             "developed clean, same settings) after each stage — std, neighbour correlation, noise "
+                             "power spectrum; needs the frame's EXR (its clean layer), beside a DNG or given")
     parser.add_argument("--quiet", "-q", action="store_true", help="no line per frame")
     return parser
 
@@ -100,6 +106,7 @@ def run(args) -> int:
     """Carry out ``camsim develop``; returns the exit status (0)."""
     from camsim.isp.develop import IspSettings
     from camsim.isp.files import develop_file, output_names, read_frame_to_develop
+    from camsim.isp.noise import noise_layers, noise_through_isp, write_noise_report
     from camsim.render.frame_files import find_frames
 
     settings = IspSettings(black=not args.no_black, white_balance=args.white_balance, demosaic=args.demosaic,
@@ -111,7 +118,11 @@ def run(args) -> int:
     with writing_to(out):
         for index, (path, stem) in enumerate(zip(paths, stems)):
             frame = frames[0] if frames is not None else read_frame_to_develop(path)
+            if args.noise_report:  # read first: a frame without its clean layer fails before anything is written
+                noisy, clean, facts = noise_layers(path)
             record = develop_file(frame, out, stem, settings, bits=args.bits, jpeg_quality=args.jpeg_quality)
+            if args.noise_report:
+                write_noise_report(noise_through_isp(noisy, clean, facts, settings), out, stem)
             if not args.quiet:
                 print(f"{path} -> {out / record['files']['png']}")
     print(f"developed {len(paths)} frame(s) into {out}/")
