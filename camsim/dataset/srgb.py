@@ -53,11 +53,12 @@ def srgb_dtype(output: str) -> str | None:
 
 
 def quantise(image: np.ndarray, bits: int) -> np.ndarray:
-    """A developed image in [0, 1] as the integers a ``bits``-bit PNG holds: round(clip(x, 0, 1) · (2^bits − 1)),
-    uint8 or uint16 (what :func:`camsim.isp.write_png` writes)."""
-    top = 2**bits - 1
-    values = np.rint(np.clip(np.asarray(image, dtype=np.float32), 0.0, 1.0) * np.float32(top))
-    return values.astype(np.uint8 if bits == 8 else np.uint16)
+    """A developed (3, H, W) image in [0, 1] as the integers a ``bits``-bit PNG of :func:`camsim.isp.write_png`
+    holds (:func:`camsim.isp.writers.encode_image`: round half up of clip(x, 0, 1) · (2^bits − 1)), planes first:
+    (3, H, W) uint8 or uint16."""
+    from camsim.isp.writers import encode_image
+
+    return np.ascontiguousarray(encode_image(image, bits).transpose(2, 0, 1))
 
 
 def mosaic_clean(clean: np.ndarray, cfa_pattern: str) -> np.ndarray:
@@ -90,7 +91,7 @@ def develop_frame(rendered, info, output: str, settings=None) -> tuple[dict, dic
     if bits is None:
         raise CamsimError("no sRGB output asked for (srgb = none)")
     settings = dataset_isp() if settings is None else settings
-    facts = facts_from_info(rendered, info)
+    facts = facts_from_info(rendered, info, quantised=False)  # noisy_dn and clean_dn: the level before the ADC
     noisy = rendered.noisy_dn
     clean = rendered.clean_dn()
     if facts.cfa_pattern is not None:
