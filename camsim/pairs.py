@@ -524,9 +524,9 @@ class WrittenPairs:
     - ``"raw"``: the same normalised with the frame's black level before the ADC and white level
       (:func:`camsim.isp.normalise` with :func:`camsim.isp.facts_from_meta`), a mosaic packed into (4, H/2, W/2)
       planes R, G1, G2, B (:func:`camsim.isp.pack_rggb`);
-    - ``"srgb"``: the developed PNGs ``ID_srgb_noisy.png``, ``ID_srgb_clean.png`` (the store's ``srgb_noisy``,
-      ``srgb_clean``) as (3, H, W) float32 in [0, 1] (code / (2^bits − 1)); the dataset must have been written
-      with ``--srgb png`` or ``png16``.
+    - ``"srgb"``: the developed PNGs ``ID_srgb_noisy.png``, ``ID_srgb_clean.png`` (decoded by OpenImageIO; the
+      store's ``srgb_noisy``, ``srgb_clean``) as (3, H, W) float32 in [0, 1] (code / (2^bits − 1)); the dataset
+      must have been written with ``--srgb png`` or ``png16``.
 
     ``crop`` (width, height) cuts every pair to that size at an offset drawn from
     ``numpy.random.default_rng([seed, i])`` (the same crop of frame ``i`` on every read and in every domain; even
@@ -667,17 +667,14 @@ class WrittenPairs:
 
 
 def _read_png_planes(path: Path) -> np.ndarray:
-    """A PNG's RGB as (3, H, W) uint8 or uint16 codes (imageio)."""
-    import imageio.v3 as iio
+    """A PNG's RGB codes as stored, (3, H, W) uint8 or uint16 (OpenImageIO:
+    :func:`camsim.scene.sources.image.read_image_codes`)."""
+    from camsim.scene.sources.image import read_image_codes
 
-    try:
-        pixels = iio.imread(path)
-    except (OSError, ValueError) as exc:
-        raise CamsimError(f"cannot read {path}: {exc}") from None
-    if pixels.ndim != 3 or pixels.shape[2] != 3:
-        raise CamsimError(f"{path}: not an RGB image (shape {pixels.shape})")
+    pixels, integer, _ = read_image_codes(str(path))
+    if not integer:
+        raise CamsimError(f"{path}: not an 8- or 16-bit image")
     return np.ascontiguousarray(pixels.transpose(2, 0, 1))
-
 
 __all__ = ["CAMERA_MODES", "PAIR_DEMOSAIC", "PAIR_DEVICES", "PAIR_DOMAINS", "PairBatch", "PairBatches", "PairSource",
            "WrittenPairs", "pair_isp"]
