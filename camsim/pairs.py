@@ -34,8 +34,8 @@ The arrays of a batch are in one of :data:`PAIR_DOMAINS`, the source's ``domain`
   what the ISP costs beside the raw domain).
 
 Each batch says its ``domain`` and, per pair, how its arrays were made (``isp``: the ISP's record in ``srgb``, the
-black and white levels and packing in ``raw``). The ISP works on the host: on a GPU, a pair's planes are copied to
-the host for it and back.
+black and white levels and packing in ``raw``). The conversion works on the host: on a GPU, a pair's planes are
+copied to the host for it and back.
 
 :class:`WrittenPairs` reads the pairs of a dataset written by ``camsim dataset`` (files or a Zarr store) in the same
 domains, one frame at a time as numpy arrays (:func:`camsim.pairs_torch.written_pairs` wraps it as a torch
@@ -395,7 +395,8 @@ class PairSource:
             if self.domain == "dn":
                 noisy[i], clean[i] = pair[0], pair[1]
             else:
-                pair_noisy, pair_clean, record = self._to_domain(pair[0], pair[1], p, sensor)
+                pair_noisy, pair_clean, record = self._to_domain(to_host(pair[0]), to_host(pair[1]),
+                                                                 self._facts(p, sensor))
                 noisy[i], clean[i] = xp.asarray(pair_noisy), xp.asarray(pair_clean)
                 records.append(record)
             if digital is not None:
@@ -418,20 +419,19 @@ class PairSource:
                         as_shot_neutral=self._cache[key], intensity_factor=p["intensity_factor"],
                         illuminant=p["illuminant"], wavelengths_nm=lit.grid.wavelengths_nm, qe=lit.qe)
 
-    def _to_domain(self, noisy, clean, p: dict, sensor):
-        """A pair's (planes, H, W) DN in the source's domain, on the host, and its record."""
+    def _to_domain(self, noisy: np.ndarray, clean: np.ndarray, facts):
+        """A pair's (planes, H, W) DN on the host in the source's domain, and its record."""
         from camsim.isp import develop_pair, normalise, pack_rggb
 
-        facts = self._facts(p, sensor)
-        noisy, clean = to_host(noisy), to_host(clean)
-        if sensor.cfa is not None:
+        cfa = facts.cfa_pattern
+        if cfa is not None:
             noisy, clean = noisy[0], clean[0]
         if self.domain == "raw":
             noisy, clean = normalise(noisy, facts), normalise(clean, facts)
-            if sensor.cfa is not None:
-                noisy, clean = pack_rggb(noisy, sensor.cfa), pack_rggb(clean, sensor.cfa)
+            if cfa is not None:
+                noisy, clean = pack_rggb(noisy, cfa), pack_rggb(clean, cfa)
             return noisy, clean, {"domain": "raw", "black_dn": facts.black_dn.tolist(), "white_dn": facts.white_dn,
-                                  "packed": None if sensor.cfa is None else ["R", "G1", "G2", "B"]}
+                                  "packed": None if cfa is None else ["R", "G1", "G2", "B"]}
         developed_noisy, developed_clean = develop_pair(noisy, clean, facts, self.isp or pair_isp())
         return developed_noisy.image, developed_clean.image, {"domain": "srgb", **developed_noisy.record}
 

@@ -15,6 +15,7 @@ stages on one pair of the batch (to see where the sRGB time goes).
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import sys
 import time
@@ -51,7 +52,7 @@ def profile(source_srgb) -> list[tuple[str, float]]:
         settings = pair_isp()
     dn = source_srgb.__class__(**{**{f: getattr(source_srgb, f) for f in (
         "scene", "images", "crop", "batch_size", "intensity", "cameras", "iso", "cameras_mode", "k_range", "flips",
-        "seed", "device")}, "domain": "dn"})
+        "seed", "device")}, "domain": "dn", "isp": None})
     batch = dn.batch(0)
     p = batch.params[0]
     from camsim.sensor.presets import sensor_preset
@@ -103,18 +104,21 @@ def main(argv=None) -> int:
     isp = pair_isp() if args.demosaic is None else IspSettings(gain="auto", demosaic=args.demosaic)
     common = {"crop": (width, height), "batch_size": args.batch_size, "cameras": (args.camera,),
               "intensity": (1e-3, 0.1), "seed": 3, "device": "cpu"}
-    sources = {domain: PairSource.from_scene("macbeth_26", ROOT / "camsim" / "scenes" / "images", domain=domain,
-                                             **common, **({"isp": isp} if domain == "srgb" else {}))
+    images = ROOT / "camsim" / "scenes" / "images"
+    sources = {domain: PairSource.from_scene("macbeth_26", images, domain=domain, **common,
+                                             **({"isp": isp} if domain == "srgb" else {}))
                for domain in PAIR_DOMAINS}
     for source in sources.values():
-        source.batch(0)  # warm-up: recovery, lit scenes, imports
-    rates = {domain: rate(source, args.batches, args.repeats) for domain, source in sources.items()}
-    print(f"camsim.pairs on the CPU ({platform.processor() or platform.machine()}), camera {args.camera}, "
-          f"crop {width}x{height}, batch {args.batch_size}, best of {args.repeats} x {args.batches} batches; "
-          f"srgb: demosaic {isp.demosaic}, gain {isp.gain}, tone {isp.tone}")
-    print(f"{'domain':<8}{'pairs/s':>10}{'MP/s':>9}")
-    for domain, value in rates.items():
-        print(f"{domain:<8}{value:>10.2f}{value * width * height / 1e6:>9.2f}")
+        for index in range(args.batches):
+            source.batch(index)  # warm-up: recovery, lit scenes (every illuminant drawn), imports
+    rates = {name: rate(source, args.batches, args.repeats) for name, source in sources.items()}
+    print(f"camsim.pairs on the CPU ({platform.processor() or platform.machine()}, {os.cpu_count()} cores, load "
+          f"{os.getloadavg()[0]:.1f}), camera {args.camera}, crop {width}x{height}, batch {args.batch_size}, best of "
+          f"{args.repeats} x {args.batches} batches; srgb: demosaic {isp.demosaic}, gain {isp.gain}, tone {isp.tone}; "
+          "one thread")
+    print(f"{'domain':<10}{'pairs/s':>10}{'MP/s':>9}")
+    for name, value in rates.items():
+        print(f"{name:<10}{value:>10.2f}{value * width * height / 1e6:>9.2f}")
     print(f"srgb / raw = {rates['srgb'] / rates['raw']:.3f} (target >= 0.8); raw / dn = "
           f"{rates['raw'] / rates['dn']:.3f}")
     if args.profile:
