@@ -135,3 +135,17 @@ def test_bad_domains_and_settings_are_refused():
         source("raw", isp=IspSettings())
     with pytest.raises(CamsimError, match="IspSettings"):
         source("srgb", isp={"gain": "auto"})
+
+
+def test_the_docs_domain_example_runs(monkeypatch, capsys):
+    """The example of "On the fly: domain" (docs/guides/denoiser-datasets.md) runs and prints what the page says."""
+    import re
+
+    text = (ROOT / "docs" / "guides" / "denoiser-datasets.md").read_text(encoding="utf-8")
+    section = text[text.index("### On the fly: `domain`"):]
+    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    printed = re.search(r"```text\n(.*?)```", section, re.S).group(1).splitlines()
+    monkeypatch.chdir(ROOT)
+    exec(compile(code, "docs/guides/denoiser-datasets.md", "exec"), {})
+    assert capsys.readouterr().out.splitlines() == printed == [
+        "dn (4, 1, 48, 64) float32", "raw (4, 4, 24, 32) float32", "srgb (4, 3, 48, 64) float32"]
