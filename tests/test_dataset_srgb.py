@@ -214,3 +214,12 @@ def test_the_command_line_option(tmp_path, capsys):
     assert main(["dataset", str(spec), "--srgb", "gif"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("camsim: error: argument --srgb: invalid choice: 'gif'") and err.count("\n") == 1
+
+
+def test_processes_give_the_serial_runs_bytes(written, tmp_path):
+    """Two local processes write the same PNGs (and every other file) as the serial run."""
+    spec, out, _ = written
+    pooled = tmp_path / "pooled"
+    run_dataset(spec, pooled, workers=2, progress=False, echo=None)
+    first, second = file_tree(out / "frames"), file_tree(pooled / "frames")
+    assert sorted(first) == sorted(second) and all(first[name] == second[name] for name in first)
