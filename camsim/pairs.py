@@ -575,6 +575,10 @@ class WrittenPairs:
     def __getitem__(self, i: int):
         return self.read(i)
 
+    def __getstate__(self) -> dict:
+        """Pickled without the open store (a data loader's spawned workers open their own)."""
+        return self.__dict__ | {"_group": None, "_pid": None}
+
     # --- reading ------------------------------------------------------------------------------------------------
     def _zarr(self):
         """The store's group, opened once per process (a data loader's workers each open their own)."""
