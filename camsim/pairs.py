@@ -96,7 +96,8 @@ class PairBatch:
         Each pixel's expectation of the DN, k · E[min(X + o, full well)] (in ``"dn"``, ``noisy − clean`` has mean 0),
         in the batch's domain.
     digital : array or None, shape (B, planes, H, W), uint16
-        The raw numbers a camera writes, clip(⌊noisy + ½⌋ + pedestal, 0, 2^nb − 1) (⌊noisy⌋ without a pedestal); None without quantisation, and in the domains other than ``"dn"``. Unit: DN.
+        The raw numbers a camera writes, clip(⌊noisy + ½⌋ + pedestal, 0, 2^nb − 1) (⌊noisy⌋ without a pedestal);
+        None without quantisation, and in the domains other than ``"dn"``. Unit: DN.
     params : list of dict
         Per pair: ``image``, ``crop_x``, ``crop_y``, ``flip_horizontal``, ``flip_vertical``, ``illuminant``,
         ``intensity_factor``, ``preset``, ``iso`` (None for a virtual camera), ``exposure_s``, ``dn_per_electron``,

@@ -102,13 +102,15 @@ def test_the_pngs_are_listed_hashed_and_recorded(written):
         assert record["srgb"]["output"] == "png" and record["srgb"]["bits"] == 8
         stages = record["srgb"]["isp"]["stages"]
         assert stages["gain"]["value"] == pytest.approx(1 / record["intensity_factor"], rel=1e-12)
-        assert stages["demosaic"] == (None if record["cfa"] is None else
-                                      {"method": "malvar2004", "library": "colour-demosaicing"})
+        if record["cfa"] is None:
+            assert stages["demosaic"] is None
+        else:
+            assert stages["demosaic"]["method"] == "malvar2004"
 
 
 def test_a_three_chip_frames_pngs_against_an_independent_development(written):
-    """Decoded PNG codes / 255 = tone(1/F · M · wb · (layer − dark) / (white − dark)) from the EXR's layers and the
-    record's gains and matrix, within one code: the clean target through the same ISP as the noisy frame."""
+    """Decoded PNG codes / 255 = tone(1/F · M · wb · (layer − dark) / (white − dark)) from the EXR's layers and
+    the record's gains and matrix, within one code: the clean target through the same ISP as the noisy frame."""
     _, out, _ = written
     record = next(r for r in read_manifest(out) if r["cfa"] is None)
     noisy, clean, meta = _layers(out, record)

@@ -3,12 +3,13 @@
 ratio srgb / raw (issue 26's target: at least 0.8).
 
 Every domain renders the same batches (the same seed: the same images, crops, cameras, F and noise), so the
-difference is what the domain's conversion costs. Each rate is the best of ``--repeats`` runs of ``--batches``
-batches (the figure least moved by other work on a shared machine), after one warm-up batch per domain (which pays
-for the photographs' recovery, the lit scenes and colour-science's imports). ``--profile`` also times the ISP's
-stages on one pair of the batch (to see where the sRGB time goes).
+difference is what the domain's conversion costs. The domains are timed in turn, round after round (``--repeats``
+rounds of ``--batches`` batches each), and each rate is the domain's best round (the figure least moved by other
+work on a shared machine, and the domains see the same changes of load), after a warm-up round (which pays for the
+photographs' recovery, the lit scenes of every illuminant and colour-science's imports). ``--profile`` also times
+the ISP's stages on one pair of the batch (to see where the sRGB time goes).
 
-    python tools/bench_pair_domains.py [--crop 256x256] [--batch-size 8] [--batches 4] [--repeats 3]
+    python tools/bench_pair_domains.py [--crop 256x256] [--batch-size 8] [--batches 4] [--repeats 5]
                                        [--camera sony-a7s2] [--demosaic bilinear] [--profile]
 """
 
@@ -25,15 +26,17 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 
-def rate(source, batches: int, repeats: int) -> float:
-    """Pairs per second: the best of ``repeats`` runs of batches 0 … batches − 1."""
-    best = float("inf")
+def rates(sources: dict, batches: int, repeats: int) -> dict:
+    """Pairs per second of each source: its best of ``repeats`` rounds of batches 0 … batches − 1, the sources
+    timed in turn in each round."""
+    best = dict.fromkeys(sources, float("inf"))
     for _ in range(repeats):
-        start = time.perf_counter()
-        for index in range(batches):
-            source.batch(index)
-        best = min(best, time.perf_counter() - start)
-    return batches * source.batch_size / best
+        for name, source in sources.items():
+            start = time.perf_counter()
+            for index in range(batches):
+                source.batch(index)
+            best[name] = min(best[name], time.perf_counter() - start)
+    return {name: batches * sources[name].batch_size / seconds for name, seconds in best.items()}
 
 
 def profile(source_srgb) -> list[tuple[str, float]]:
@@ -91,7 +94,7 @@ def main(argv=None) -> int:
     parser.add_argument("--crop", default="256x256", help="pair size WxH (default 256x256)")
     parser.add_argument("--batch-size", type=int, default=8)
     parser.add_argument("--batches", type=int, default=4, help="batches per timed run (default 4)")
-    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--repeats", type=int, default=5, help="timed rounds (default 5)")
     parser.add_argument("--camera", default="sony-a7s2", help="camera preset (default sony-a7s2, Bayer)")
     parser.add_argument("--demosaic", default=None, help="the srgb domain's demosaicing (default: pair_isp's)")
     parser.add_argument("--profile", action="store_true", help="also time the ISP's stages on one pair")
@@ -108,19 +111,17 @@ def main(argv=None) -> int:
     sources = {domain: PairSource.from_scene("macbeth_26", images, domain=domain, **common,
                                              **({"isp": isp} if domain == "srgb" else {}))
                for domain in PAIR_DOMAINS}
-    for source in sources.values():
-        for index in range(args.batches):
-            source.batch(index)  # warm-up: recovery, lit scenes (every illuminant drawn), imports
-    rates = {name: rate(source, args.batches, args.repeats) for name, source in sources.items()}
+    rates(sources, args.batches, 1)  # warm-up: recovery, lit scenes (every illuminant drawn), imports
+    measured = rates(sources, args.batches, args.repeats)
     print(f"camsim.pairs on the CPU ({platform.processor() or platform.machine()}, {os.cpu_count()} cores, load "
           f"{os.getloadavg()[0]:.1f}), camera {args.camera}, crop {width}x{height}, batch {args.batch_size}, best of "
-          f"{args.repeats} x {args.batches} batches; srgb: demosaic {isp.demosaic}, gain {isp.gain}, tone {isp.tone}; "
-          "one thread")
+          f"{args.repeats} rounds of {args.batches} batches; srgb: demosaic {isp.demosaic}, gain {isp.gain}, "
+          f"tone {isp.tone}; one thread")
     print(f"{'domain':<10}{'pairs/s':>10}{'MP/s':>9}")
-    for name, value in rates.items():
+    for name, value in measured.items():
         print(f"{name:<10}{value:>10.2f}{value * width * height / 1e6:>9.2f}")
-    print(f"srgb / raw = {rates['srgb'] / rates['raw']:.3f} (target >= 0.8); raw / dn = "
-          f"{rates['raw'] / rates['dn']:.3f}")
+    print(f"srgb / raw = {measured['srgb'] / measured['raw']:.3f} (target >= 0.8); raw / dn = "
+          f"{measured['raw'] / measured['dn']:.3f}")
     if args.profile:
         print("ISP stages on one pair (best of 5):")
         for name, seconds in profile(sources["srgb"]):
