@@ -194,6 +194,10 @@ def test_zarr_arrays_hold_the_pngs_codes(tmp_path):
     stored = read_manifest(store)
     assert [r["srgb"] for r in stored] == [r["srgb"] for r in read_manifest(files)]
     assert all(r["arrays"]["srgb_noisy"]["chunk"].startswith("srgb_noisy/") for r in stored)
+    # a re-run that does not name the output keeps the store's; another output is refused
+    assert run_dataset(spec, store, workers=1, progress=False, echo=None, output="zarr")["srgb"] == "png16"
+    with pytest.raises(CamsimError, match="another layout \\(srgb png16 there, png here\\)"):
+        run_dataset(spec, store, workers=1, progress=False, echo=None, output="zarr", srgb="png")
 
 
 def test_bad_srgb_values_are_refused(tmp_path):

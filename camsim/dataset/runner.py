@@ -91,8 +91,9 @@ def run_dataset(
     srgb : {'none', 'png', 'png16'}, optional
         Each frame's noisy and clean layers developed through one camera ISP as 8-bit (``png``) or 16-bit
         (``png16``) sRGB (:mod:`camsim.dataset.srgb`): ``ID_srgb_noisy.png`` and ``ID_srgb_clean.png``, or the
-        store's arrays ``srgb_noisy`` and ``srgb_clean``. Default the spec's ``srgb``, else ``none``. Complete
-        frames without it are rendered again (the same bytes) with it.
+        store's arrays ``srgb_noisy`` and ``srgb_clean``. Default the spec's ``srgb``, else (a Zarr store) the
+        existing store's, else ``none``. Complete frames of the file layout without it are rendered again (the same
+        bytes) with it; a store holds one sRGB output (another is refused).
 
     Returns
     -------
@@ -107,6 +108,8 @@ def run_dataset(
     if scheduler is None and workers != 1:
         start_fork_server(zarr=output == "zarr")  # it imports camsim while the spec is read and frames checked
     spec = spec if isinstance(spec, DatasetSpec) else load_spec(spec)
+    if output == "zarr" and not (srgb or spec.srgb):
+        srgb = zarr_store.held_srgb(out_dir)  # a store keeps its sRGB arrays when a re-run does not name them
     srgb = check_srgb(srgb or spec.srgb or "none")
     if output == "files":
         exr_compression = check_exr_compression(exr_compression or spec.exr_compression or DEFAULT_EXR_COMPRESSION)

@@ -52,7 +52,8 @@ from camsim.core.errors import CamsimError, output_error
 from camsim.io import atomic  # atomic.fsync_path: one flush, which tests can fail as a full disk does
 
 __all__ = ["STORE_NAME", "RECORDS_DIR", "LAYERS", "COMPRESSORS", "StoreLayout", "store_layout", "open_store",
-           "write_frame_arrays", "verified_record", "store_result", "write_done", "frame_arrays", "record_path"]
+           "write_frame_arrays", "verified_record", "store_result", "write_done", "frame_arrays", "record_path",
+           "held_srgb"]
 
 STORE_NAME = "dataset.zarr"
 RECORDS_DIR = "records"
@@ -131,6 +132,16 @@ class StoreLayout:
         return {k: v for k, v in asdict(self).items() if k != "path" and not (k == "srgb" and v is None)}
 
 
+def held_srgb(out_dir: Path) -> str | None:
+    """The sRGB output (``png``, ``png16``) of the store in ``out_dir``, read from its metadata; None where there is
+    no store, or one without sRGB arrays."""
+    try:
+        meta = json.loads((Path(out_dir) / STORE_NAME / "zarr.json").read_text(encoding="utf-8"))
+        return meta["attributes"]["camsim"]["layout"].get("srgb")
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+
+
 def store_layout(spec, out_dir: Path, srgb: str = "none") -> StoreLayout:
     """The layout of ``spec``'s store in ``out_dir`` (with the sRGB output ``srgb``: ``none``, ``png``, ``png16``);
     :class:`CamsimError` for a spec whose frames differ in size or in the kind of sensor (three-chip or colour
@@ -178,7 +189,8 @@ def open_store(layout: StoreLayout, spec, echo=None):
     held = group.attrs.get("camsim", {}).get("layout")
     if held is not None:
         here = layout.describe()
-        mismatch = {k: (held.get(k), here.get(k)) for k in set(here) | set(held)
+        blank = {"srgb": "none"}  # how a layout without the key reads in the message
+        mismatch = {k: (held.get(k, blank.get(k)), here.get(k, blank.get(k))) for k in sorted(set(here) | set(held))
                     if k != "frames" and held.get(k) != here.get(k)}
         if mismatch:
             differences = ", ".join(f"{k} {there} there, {here} here" for k, (there, here) in mismatch.items())
