@@ -11,10 +11,10 @@ balance gains and the matrix).
 The developed frame is the one in the EXR: ``noisy`` is the signal before quantisation (``Frame.noisy_dn``, the
 EXR's noisy layer; for a Bayer sensor the mosaic, demosaiced by the ISP), ``clean`` its expectation per pixel (the
 EXR's clean layer; for a Bayer sensor taken at the mosaic's sites, so that the target goes through the same
-demosaicing as the input), both with the black level before the ADC (:meth:`camsim.isp.facts_from_info`).
-:data:`DATASET_ISP` holds the ISP's settings: the ISP's defaults (as-shot white balance, Malvar 2004, the camera's
-matrix, the sRGB curve) but for ``gain = "auto"`` (1 / F, the exposure ratio of SID and ELD), so that a frame at
-F = 10⁻³ is as bright developed as one at F = 1.
+demosaicing as the input), both with the black level before the ADC (:func:`camsim.isp.facts_from_info` with
+``quantised=False``). :func:`dataset_isp` gives the ISP's settings: the ISP's defaults (as-shot white balance, Malvar
+2004, the camera's matrix, the sRGB curve) but for ``gain = "auto"`` (1 / F, the exposure ratio of SID and ELD), so
+that a frame at F = 10⁻³ is as bright developed as one at F = 1.
 """
 
 from __future__ import annotations
