@@ -30,7 +30,7 @@ The arrays of a batch are in one of :data:`PAIR_DOMAINS`, the source's ``domain`
   balance gains, colour matrix, gain and tone curve for both; the clean mosaic demosaiced as the noisy one is), (3,
   H, W) in [0, 1]. The source's ``isp`` settings (:class:`camsim.isp.IspSettings`), by default :func:`pair_isp`:
   ``gain = "auto"`` (1 / F, the exposure ratio of SID and ELD, so that a pair at F = 10⁻³ is as bright as one at
-  F = 1) and bilinear demosaicing (:data:`PAIR_DEMOSAIC`: the cheapest; ``tools/bench_pair_domains.py`` measures
+  F = 1; 1 for a scene whose exposure is ``auto``) and bilinear demosaicing (:data:`PAIR_DEMOSAIC`: the cheapest; ``tools/bench_pair_domains.py`` measures
   what the ISP costs beside the raw domain).
 
 Each batch says its ``domain`` and, per pair, how its arrays were made (``isp``: the ISP's record in ``srgb``, the
@@ -68,13 +68,14 @@ PAIR_DOMAINS = ("dn", "raw", "srgb")
 PAIR_DEMOSAIC = "bilinear"
 
 
-def pair_isp():
+def pair_isp(exposure: str = "fixed"):
     """The ISP settings of ``srgb`` pairs unless a source gives its own: :class:`camsim.isp.IspSettings` with
     ``gain="auto"`` (1 / F) and ``demosaic=PAIR_DEMOSAIC``; the rest the ISP's defaults (as-shot white balance, the
-    camera's matrix, the sRGB curve)."""
+    camera's matrix, the sRGB curve). For a scene with ``exposure = "auto"`` (each pair's exposure time already
+    brings the white to the scene's target whatever F) the gain is 1."""
     from camsim.isp import IspSettings
 
-    return IspSettings(gain="auto", demosaic=PAIR_DEMOSAIC)
+    return IspSettings(gain="auto" if exposure == "fixed" else 1.0, demosaic=PAIR_DEMOSAIC)
 #: The children of a batch's seed sequence, by use.
 _NOISE, _IMAGES, _LIGHT, _CAMERA, _ISO = 0, 1, 2, 3, 4
 _VIRTUAL_STREAMS = {"camera": 3, "k": 4, "shape": 5, "tukey_scale_dn": 6, "gaussian_sigma_dn": 7, "row_sigma_dn": 8}
@@ -433,7 +434,8 @@ class PairSource:
                 noisy, clean = pack_rggb(noisy, cfa), pack_rggb(clean, cfa)
             return noisy, clean, {"domain": "raw", "black_dn": facts.black_dn.tolist(), "white_dn": facts.white_dn,
                                   "packed": None if cfa is None else ["R", "G1", "G2", "B"]}
-        developed_noisy, developed_clean = develop_pair(noisy, clean, facts, self.isp or pair_isp())
+        settings = self.isp or pair_isp(self.scene.exposure)
+        developed_noisy, developed_clean = develop_pair(noisy, clean, facts, settings)
         return developed_noisy.image, developed_clean.image, {"domain": "srgb", **developed_noisy.record}
 
     def _render_pair(self, xp, rng, p: dict, sensor):

@@ -229,3 +229,12 @@ def test_processes_give_the_serial_runs_bytes(written, tmp_path):
     run_dataset(spec, pooled, workers=2, progress=False, echo=None)
     first, second = file_tree(out / "frames"), file_tree(pooled / "frames")
     assert sorted(first) == sorted(second) and all(first[name] == second[name] for name in first)
+
+
+def test_frames_with_auto_exposure_are_developed_with_a_gain_of_one(tmp_path):
+    text = spec_text("auto", cfa='["RGGB"]').replace('preset = "emva-12bit"', 'preset = "emva-12bit"\nexposure = "auto"')
+    spec = write_text_file(tmp_path, "auto.toml", text)
+    run_dataset(spec, tmp_path / "out", workers=1, progress=False, echo=None)
+    records = read_manifest(tmp_path / "out")
+    assert [r["exposure"] for r in records] == ["auto", "auto"]
+    assert [r["srgb"]["isp"]["stages"]["gain"]["value"] for r in records] == [1.0, 1.0]

@@ -149,3 +149,14 @@ def test_the_docs_domain_example_runs(monkeypatch, capsys):
     exec(compile(code, "docs/guides/denoiser-datasets.md", "exec"), {})
     assert capsys.readouterr().out.splitlines() == printed == [
         "dn (4, 1, 48, 64) float32", "raw (4, 4, 24, 32) float32", "srgb (4, 3, 48, 64) float32"]
+
+
+def test_the_default_gain_is_one_over_f_with_a_fixed_exposure_and_one_with_auto_exposure():
+    fixed = source("srgb").batch(0)
+    assert [r["stages"]["gain"]["value"] for r in fixed.isp] == pytest.approx(
+        [1 / p["intensity_factor"] for p in fixed.params], rel=1e-12)
+    base = source("srgb")
+    auto = PairSource(base.scene.replace(exposure="auto"), base.images, crop=base.crop, batch_size=2,
+                      cameras=base.cameras, intensity=base.intensity, seed=base.seed, domain="srgb").batch(0)
+    assert [r["stages"]["gain"]["value"] for r in auto.isp] == [1.0, 1.0]
+    assert auto.isp[0]["settings"] == pair_isp("auto").record() and pair_isp("auto").gain == 1.0

@@ -14,7 +14,8 @@ EXR's clean layer; for a Bayer sensor taken at the mosaic's sites, so that the t
 demosaicing as the input), both with the black level before the ADC (:func:`camsim.isp.facts_from_info` with
 ``quantised=False``). :func:`dataset_isp` gives the ISP's settings: the ISP's defaults (as-shot white balance, Malvar
 2004, the camera's matrix, the sRGB curve) but for ``gain = "auto"`` (1 / F, the exposure ratio of SID and ELD), so
-that a frame at F = 10⁻³ is as bright developed as one at F = 1.
+that a frame at F = 10⁻³ is as bright developed as one at F = 1 (a gain of 1 for a scene with ``exposure = "auto"``,
+whose exposure times already make up for F).
 """
 
 from __future__ import annotations
@@ -30,11 +31,13 @@ SRGB_LAYERS = ("srgb_noisy", "srgb_clean")
 _BITS = {"png": 8, "png16": 16}
 
 
-def dataset_isp():
-    """The ISP settings of a dataset's sRGB outputs: :class:`camsim.isp.IspSettings` with ``gain="auto"``."""
+def dataset_isp(exposure: str = "fixed"):
+    """The ISP settings of a dataset's sRGB outputs: :class:`camsim.isp.IspSettings` with ``gain="auto"`` (1 / F);
+    a gain of 1 for frames whose ``exposure`` is ``auto`` (the exposure time already brings the white to the
+    scene's target whatever F)."""
     from camsim.isp import IspSettings
 
-    return IspSettings(gain="auto")
+    return IspSettings(gain="auto" if exposure == "fixed" else 1.0)
 
 
 def srgb_bits(output: str) -> int | None:
@@ -90,7 +93,8 @@ def develop_frame(rendered, info, output: str, settings=None) -> tuple[dict, dic
     bits = srgb_bits(output)
     if bits is None:
         raise CamsimError("no sRGB output asked for (srgb = none)")
-    settings = dataset_isp() if settings is None else settings
+    if settings is None:
+        settings = dataset_isp((info.exposure or {}).get("exposure", "fixed"))
     facts = facts_from_info(rendered, info, quantised=False)  # noisy_dn and clean_dn: the level before the ADC
     noisy = rendered.noisy_dn
     clean = rendered.clean_dn()
