@@ -30,8 +30,8 @@ The arrays of a batch are in one of :data:`PAIR_DOMAINS`, the source's ``domain`
   balance gains, colour matrix, gain and tone curve for both; the clean mosaic demosaiced as the noisy one is), (3,
   H, W) in [0, 1]. The source's ``isp`` settings (:class:`camsim.isp.IspSettings`), by default :func:`pair_isp`:
   ``gain = "auto"`` (1 / F, the exposure ratio of SID and ELD, so that a pair at F = 10⁻³ is as bright as one at
-  F = 1; 1 for a scene whose exposure is ``auto``) and bilinear demosaicing (:data:`PAIR_DEMOSAIC`: the cheapest; ``tools/bench_pair_domains.py`` measures
-  what the ISP costs beside the raw domain).
+  F = 1; 1 for a scene whose exposure is ``auto``) and bilinear demosaicing (:data:`PAIR_DEMOSAIC`: the
+  cheapest; ``tools/bench_pair_domains.py`` measures what the ISP costs beside the raw domain).
 
 Each batch says its ``domain`` and, per pair, how its arrays were made (``isp``: the ISP's record in ``srgb``, the
 black and white levels and packing in ``raw``). The conversion works on the host: on a GPU, a pair's planes are
