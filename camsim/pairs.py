@@ -66,6 +66,9 @@ PAIR_DEVICES = ("cpu", "cuda")
 PAIR_DOMAINS = ("dn", "raw", "srgb")
 #: The demosaicing of :func:`pair_isp` (the ISP's cheapest; its default, Malvar 2004, is an ``isp`` setting away).
 PAIR_DEMOSAIC = "bilinear"
+#: The children of a batch's seed sequence, by use.
+_NOISE, _IMAGES, _LIGHT, _CAMERA, _ISO = 0, 1, 2, 3, 4
+_VIRTUAL_STREAMS = {"camera": 3, "k": 4, "shape": 5, "tukey_scale_dn": 6, "gaussian_sigma_dn": 7, "row_sigma_dn": 8}
 
 
 def pair_isp(exposure: str = "fixed"):
@@ -76,9 +79,6 @@ def pair_isp(exposure: str = "fixed"):
     from camsim.isp import IspSettings
 
     return IspSettings(gain="auto" if exposure == "fixed" else 1.0, demosaic=PAIR_DEMOSAIC)
-#: The children of a batch's seed sequence, by use.
-_NOISE, _IMAGES, _LIGHT, _CAMERA, _ISO = 0, 1, 2, 3, 4
-_VIRTUAL_STREAMS = {"camera": 3, "k": 4, "shape": 5, "tukey_scale_dn": 6, "gaussian_sigma_dn": 7, "row_sigma_dn": 8}
 
 
 @dataclass(frozen=True)
