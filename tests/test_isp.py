@@ -29,7 +29,8 @@ def frames(tmp_path_factory):
     for name, extra in (("bayer", ["--preset", "sony-a7s2"]), ("chip3", [])):
         assert main(["render", "macbeth_26", *extra, "-F", "1", "--illuminant", "D65", "--seed", "3",
                      "--out", str(out / name), "-q"]) == 0
-    return {name: out / name / "macbeth_26_D65_F1.dng" for name in ("bayer", "chip3")}
+    files = {name: out / name / "macbeth_26_D65_F1.dng" for name in ("bayer", "chip3")}
+    return files | {"bayer-exr": files["bayer"].with_suffix(".exr")}
 
 
 def _colour():
@@ -85,7 +86,8 @@ def _expected_camera(meta):
     return camera / white
 
 
-@pytest.mark.parametrize("kind, matrix", [("bayer", "camera"), ("chip3", "camera"), ("bayer", "paper")])
+@pytest.mark.parametrize("kind, matrix", [("bayer", "camera"), ("chip3", "camera"), ("bayer", "paper"),
+                                          ("bayer-exr", "camera")])
 def test_colorchecker_within_the_cameras_colorimetric_error(frames, kind, matrix):
     """The developed chart's mean ΔE00 against its true sRGB colours is within the camera's colorimetric error —
     the same matrix on the patches' noise-free camera values — plus CHART_MARGIN.
@@ -93,7 +95,8 @@ def test_colorchecker_within_the_cameras_colorimetric_error(frames, kind, matrix
     Measured on 2026-11-25 (seed 3, F = 1, D65, the camera "Nikon 5100 (NPL)" of both presets). The ``"camera"``
     matrix (fitted on 190 training reflectances, not the chart): bound 0.947 (largest 3.02), the developed a7s2
     Bayer frame (Malvar 2004) 0.950, the three-chip paper-table1 frame 0.944. The ``"paper"`` matrix (Eq. 15):
-    bound 1.39 (largest 4.47), the Bayer frame 1.39.
+    bound 1.39 (largest 4.47), the Bayer frame 1.39. ``bayer-exr`` is the Bayer frame's EXR: its float values
+    before quantisation, less the level before the ADC.
     """
     loaded = load_frame(frames[kind])
     meta, facts = loaded.meta, isp.facts_of(loaded)
@@ -402,3 +405,26 @@ def test_jpeg_quality_is_the_quality_asked_for(frames, tmp_path):
         sizes[quality] = path.stat().st_size
     assert errors[95] < 4.0 and errors[20] > 1.5 * errors[95], errors
     assert sizes[20] < sizes[95] / 2, sizes
+
+
+@pytest.mark.parametrize("kind", ["bayer", "chip3"])
+def test_a_frames_dng_and_exr_normalise_alike(frames, kind):
+    """The DNG holds the EXR's float values quantised (floor(dn + ½) + P with the A7S2's pedestal P = 512, floor(dn)
+    for paper-table1): normalised, each pixel of one is within a quantisation step of the other."""
+    dng = load_frame(frames[kind])
+    exr = load_frame(frames[kind].with_suffix(".exr"))
+    from_dng = isp.normalise(dng.pixels_dn, isp.facts_of(dng))
+    from_exr = isp.normalise(exr.pixels_dn, isp.facts_of(exr))
+    step = 1.0 / (dng.meta["white_level_dn"] - max(dng.meta["black_level_dn"]))
+    numbers = dng.pixels_dn[0] if kind == "bayer" else dng.pixels_dn
+    unclipped = (numbers > 0) & (numbers < dng.meta["white_level_dn"])  # the ADC's clip at 0 or the white: not compared
+    difference = np.abs(from_dng - from_exr)[unclipped]
+    assert difference.max() <= step, difference.max() / step
+
+
+def test_encoding_clips_and_takes_nan_as_black():
+    from camsim.isp.writers import encode_image
+
+    image = np.array([np.nan, np.inf, -np.inf, -0.2, 0.5, 1.7], dtype=np.float32).reshape(1, 1, 6).repeat(3, axis=0)
+    assert encode_image(image, 8)[0, :, 0].tolist() == [0, 255, 0, 0, 128, 255]
+    assert encode_image(image, 16)[0, :, 1].tolist() == [0, 65535, 0, 0, 32768, 65535]

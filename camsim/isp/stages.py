@@ -387,19 +387,20 @@ def apply_gain(x, gain: float) -> np.ndarray:
 def _srgb(x):
     """IEC 61966-2-1 (sRGB) transfer function, on values clipped to [0, 1]: 12.92 x for x ≤ 0.0031308, else
     1.055 x^(1/2.4) − 0.055."""
-    x = np.clip(np.asarray(x, dtype=np.float32), 0.0, 1.0)
+    x = np.clip(np.asarray(x, dtype=np.float32), np.float32(0.0), np.float32(1.0))
     low = x <= np.float32(0.0031308)
     out = np.power(x, np.float32(1 / 2.4))
     out *= np.float32(1.055)
     out -= np.float32(0.055)
-    np.copyto(out, x * np.float32(12.92), where=low)
+    np.multiply(x, np.float32(12.92), out=out, where=low)
     return out
 
 
 def _filmic(x):
     """Narkowicz's 2015 fit of the ACES filmic tone curve (K. Narkowicz, "ACES Filmic Tone Mapping Curve", 2015),
     f(x) = x (2.51 x + 0.03) / (x (2.43 x + 0.59) + 0.14), clipped to [0, 1], then the sRGB transfer function.
-    f(1) ≈ 0.80: highlights up to about 10 × the white level roll off instead of clipping."""
+    f(1) ≈ 0.80 and f reaches 1 at x ≈ 7.2: highlights up to about 7 × the white level roll off instead of
+    clipping."""
     x = np.maximum(np.asarray(x, dtype=np.float32), 0.0)
     y = x * (np.float32(2.51) * x + np.float32(0.03)) / (x * (np.float32(2.43) * x + np.float32(0.59))
                                                           + np.float32(0.14))

@@ -44,8 +44,8 @@ def encode_image(image, bits: int) -> np.ndarray:
     dtype = np.uint8 if bits == 8 else np.uint16
     out = np.empty(image.shape[1:] + (3,), dtype=dtype)
     for c in range(3):
-        v = np.nan_to_num(image[c].astype(np.float32), nan=0.0)
-        np.clip(v, 0.0, 1.0, out=v)
+        v = np.fmax(image[c], np.float32(0.0), dtype=np.float32)  # fmax and fmin take the number, not a NaN
+        np.fmin(v, np.float32(1.0), out=v)
         v *= np.float32(top)
         v += np.float32(0.5)
         out[..., c] = v.astype(dtype)  # floor of v + 0.5: round half up
