@@ -118,7 +118,8 @@ def test_a_three_chip_frames_pngs_against_an_independent_development(written):
     gains = np.asarray(stages["white_balance"]["gains"])[:, None, None]
     matrix, gain = np.asarray(stages["matrix"]["matrix"]), stages["gain"]["value"]
     black = np.asarray(meta["dark_level_dn"])[:, None, None]
-    white = float(meta["white_level_dn"])
+    # the white of the values before the ADC: 2^nb − 1 less the offset of the quantised black level (the ISP's rule)
+    white = float(meta["white_level_dn"]) - np.mean(np.subtract(meta["black_level_dn"], meta["dark_level_dn"]))
     assert np.allclose(stages["black"]["black_dn"], meta["dark_level_dn"])
     for layer, values in (("srgb_noisy", noisy), ("srgb_clean", clean)):
         linear = np.einsum("cj,jhw->chw", matrix, gains * (values - black) / (white - black)) * gain

@@ -29,6 +29,14 @@ def source(domain="dn", cfa=None, **settings):
     return src
 
 
+def float_white(p) -> float:
+    """The DN before quantisation that the ADC turns into the white level: 2^nb − 1 − pedestal (the ADC rounds and
+    adds the pedestal), 2^nb − ½ without a pedestal (the ADC's floor)."""
+    top = 2 ** p["bits"] - 1
+    assert p["white_level_dn"] == top
+    return float(top - p["pedestal_dn"]) if p["pedestal_dn"] else top + 0.5
+
+
 def dark_level(p) -> np.ndarray:
     """The pair's black level before the ADC, per channel (the sensor model's, not the ISP's)."""
     from camsim.sensor.presets import sensor_preset
@@ -47,13 +55,14 @@ def test_dn_is_the_default_domain_and_unchanged():
 @pytest.mark.parametrize("pattern", ["RGGB", "BGGR", "GRBG", "GBRG"])
 def test_raw_pairs_are_the_normalised_mosaic_packed(pattern):
     """The same draws in both domains (the domain changes nothing before the conversion): packed raw plane k is the
-    mosaic's site k of (dn − black_c) / (white − black_c), black the dark level before the ADC, white 2^nb − 1."""
+    mosaic's site k of (dn − black_c) / (white − black_c), black the dark level before the ADC, white the DN the
+    ADC turns into 2^nb − 1."""
     dn, raw = source(cfa=pattern).batch(0), source("raw", cfa=pattern).batch(0)
     assert raw.domain == "raw" and raw.digital is None
     assert raw.noisy.shape == raw.clean.shape == (2, 4, 12, 16) and raw.noisy.dtype == np.float32
     for i, p in enumerate(dn.params):
         assert p["cfa_pattern"] == pattern
-        black, white = dark_level(p), float(p["white_level_dn"])
+        black, white = dark_level(p), float_white(p)
         for layer, packed in ((dn.noisy, raw.noisy), (dn.clean, raw.clean)):
             mosaic = layer[i, 0].astype(np.float64)
             for k, (dy, dx) in enumerate(PACKED_SITES[pattern]):
@@ -69,7 +78,7 @@ def test_raw_pairs_of_a_three_chip_camera_are_the_normalised_planes():
     dn, raw = source(cameras=("sony-imx174",)).batch(0), source("raw", cameras=("sony-imx174",)).batch(0)
     assert raw.noisy.shape == (2, 3, 24, 32) and raw.isp[0]["packed"] is None
     for i, p in enumerate(dn.params):
-        black, white = dark_level(p), float(p["white_level_dn"])
+        black, white = dark_level(p), float_white(p)
         expected = (dn.clean[i].astype(np.float64) - black[:, None, None]) / (white - black[:, None, None])
         np.testing.assert_allclose(raw.clean[i], expected, rtol=1e-6, atol=1e-7)
 
@@ -94,7 +103,7 @@ def test_srgb_pairs_of_a_three_chip_camera_against_an_independent_development():
         gain = stages["gain"]["value"]
         assert gain == pytest.approx(1 / p["intensity_factor"], rel=1e-12)
         assert srgb.isp[i]["settings"] == pair_isp().record()
-        black, white = dark_level(p), float(p["white_level_dn"])
+        black, white = dark_level(p), float_white(p)
         for layer, developed in ((dn.noisy, srgb.noisy), (dn.clean, srgb.clean)):
             x = (layer[i].astype(np.float64) - black[:, None, None]) / (white - black[:, None, None])
             x = gains[:, None, None] * x
@@ -111,7 +120,7 @@ def test_srgb_clean_target_of_a_bayer_camera_is_the_isp_of_the_clean_mosaic():
     src = source()
     for i, p in enumerate(dn.params):
         lit = src._lit(src.images[0], p["illuminant"])
-        facts = IspFacts(cfa_pattern="RGGB", black_dn=dark_level(p), white_dn=p["white_level_dn"],
+        facts = IspFacts(cfa_pattern="RGGB", black_dn=dark_level(p), white_dn=float_white(p),
                          as_shot_neutral=lit.as_shot_neutral, intensity_factor=p["intensity_factor"],
                          illuminant=p["illuminant"], wavelengths_nm=lit.grid.wavelengths_nm, qe=lit.qe)
         for layer, developed in ((dn.noisy, srgb.noisy), (dn.clean, srgb.clean)):

@@ -91,7 +91,8 @@ def test_each_domain_is_what_the_files_hold(datasets):
     for i, record in enumerate(records):
         noisy, clean, meta, png = direct(files, record)
         dark = np.asarray(meta["dark_level_dn"], dtype=np.float64)
-        white = float(meta["white_level_dn"])
+        # the white of the values before the ADC: 2^nb − 1 less the offset of the quantised black level (the ISP's rule)
+        white = float(meta["white_level_dn"]) - np.mean(np.subtract(meta["black_level_dn"], meta["dark_level_dn"]))
         n, c, info = pairs["dn"][i]
         assert info["id"] == record["id"] and info["domain"] == "dn" and info["crop"] is None
         if cfa == "none":
