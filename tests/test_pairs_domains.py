@@ -169,3 +169,15 @@ def test_the_default_gain_is_one_over_f_with_a_fixed_exposure_and_one_with_auto_
                       cameras=base.cameras, intensity=base.intensity, seed=base.seed, domain="srgb").batch(0)
     assert [r["stages"]["gain"]["value"] for r in auto.isp] == [1.0, 1.0]
     assert auto.isp[0]["settings"] == pair_isp("auto").record() and pair_isp("auto").gain == 1.0
+
+
+def test_torch_tensors_of_a_domain_batch():
+    torch = pytest.importorskip("torch")
+    from camsim.pairs_torch import batch_tensors, pair_dataset
+
+    batch = source("raw").batch(2)
+    tensors = batch_tensors(batch)
+    assert tensors["domain"] == "raw" and tensors["isp"] == batch.isp and tensors["digital"] is None
+    assert tensors["noisy"].shape == (2, 4, 12, 16) and tensors["noisy"].data_ptr() == batch.noisy.ctypes.data
+    first = next(iter(pair_dataset(source("srgb"), start=1, stop=2)))
+    assert first["domain"] == "srgb" and torch.equal(first["clean"], torch.from_numpy(source("srgb").batch(1).clean))
