@@ -239,3 +239,18 @@ def test_frames_with_auto_exposure_are_developed_with_a_gain_of_one(tmp_path):
     records = read_manifest(tmp_path / "out")
     assert [r["exposure"] for r in records] == ["auto", "auto"]
     assert [r["srgb"]["isp"]["stages"]["gain"]["value"] for r in records] == [1.0, 1.0]
+
+
+@pytest.mark.slow
+def test_a_dask_cluster_sends_the_pngs_back(written, tmp_path):
+    """Dask workers render into their own temporary folders and send the files back, PNGs included: the same bytes
+    as the serial run."""
+    distributed = pytest.importorskip("distributed")
+    spec, out, _ = written
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        summary = run_dataset(spec, tmp_path / "dask", scheduler=cluster.scheduler_address, progress=False,
+                              echo=None)
+    assert summary["rendered"] == 4 and summary["srgb"] == "png"
+    first, second = file_tree(out / "frames"), file_tree(tmp_path / "dask" / "frames")
+    assert sorted(first) == sorted(second) and all(first[name] == second[name] for name in first)
