@@ -24,7 +24,7 @@ The arrays of a batch are in one of :data:`PAIR_DOMAINS`, the source's ``domain`
   resolution;
 - ``"raw"``: what raw denoisers (SID, ELD, PMN, LED) take: the same DN with the black level before the ADC subtracted
   and divided by white − black (:func:`camsim.isp.normalise`: 0 = black, 1 = the value the ADC turns into the white
-  level 2^nb − 1, :func:`float_white_dn`), a Bayer
+  level 2^nb − 1, :func:`adc_white_dn`), a Bayer
   mosaic packed into four half-resolution planes R, G1, G2, B (:func:`camsim.isp.pack_rggb`, G1 the green on red's
   row, whatever the camera's pattern); for a three-chip sensor the normalised (3, H, W) planes;
 - ``"srgb"``: noisy and clean developed through one camera ISP (:func:`camsim.isp.develop_pair`: the same white
@@ -411,7 +411,7 @@ class PairSource:
     # ------------------------------------------------------------------------------------------------ domains
     def _facts(self, p: dict, sensor):
         """What the ISP knows of a pair (:class:`camsim.isp.IspFacts`): its DN's black level before the ADC, the
-        white level in the same units (:func:`float_white_dn`), the camera's Qe and neutral under the pair's
+        white level in the same units (:func:`adc_white_dn`), the camera's Qe and neutral under the pair's
         illuminant, and F."""
         from camsim.isp import IspFacts
 
@@ -419,7 +419,7 @@ class PairSource:
         key = ("neutral", p["illuminant"])
         if key not in self._cache:
             self._cache[key] = np.asarray(lit.as_shot_neutral, dtype=np.float64)
-        return IspFacts(cfa_pattern=sensor.cfa, black_dn=sensor.dark_level_dn, white_dn=float_white_dn(sensor),
+        return IspFacts(cfa_pattern=sensor.cfa, black_dn=sensor.dark_level_dn, white_dn=adc_white_dn(sensor),
                         as_shot_neutral=self._cache[key], intensity_factor=p["intensity_factor"],
                         illuminant=p["illuminant"], wavelengths_nm=lit.grid.wavelengths_nm, qe=lit.qe)
 
@@ -482,16 +482,16 @@ class PairSource:
         return noisy, clean.astype(xp.float32), digital
 
 
-def float_white_dn(sensor) -> float:
+def adc_white_dn(sensor) -> float:
     """The white level of the DN before quantisation: the value the ADC turns into 2^nb − 1, 2^nb − 1 − P with a
     pedestal P (the ADC rounds and adds P), 2^nb − ½ without (the ADC's floor); 2^nb − 1 without quantisation.
     Unit: DN.
 
-    What :func:`camsim.isp.facts_from_info` takes as the float values' white, 2^nb − 1 less the offset between the
-    two black levels (``black_level_dn − dark_level_dn``), without the exact black level's integration (milliseconds
-    per camera: a pair may have a camera of its own): the two differ where the clipping of an unlit pixel's noise
-    at 0 moves the quantised black level, by a fraction of a DN (0.6 DN of 4095 for ``sony-imx174``, none for
-    ``sony-a7s2`` with its pedestal of 512 DN)."""
+    What :func:`camsim.isp.float_white_dn` (the white of :func:`camsim.isp.facts_from_info`) computes as 2^nb − 1
+    less the offset between the two black levels (``black_level_dn − dark_level_dn``), without the exact black
+    level's integration (milliseconds per camera: a pair may have a camera of its own): the two differ where the
+    clipping of an unlit pixel's noise at 0 moves the quantised black level, by a fraction of a DN (0.6 DN of 4095
+    for ``sony-imx174``, none for ``sony-a7s2`` with its pedestal of 512 DN)."""
     if not sensor.quantisation:
         return float(sensor.max_dn)
     return float(sensor.max_dn - sensor.pedestal_dn) if sensor.pedestal_dn else sensor.max_dn + 0.5
@@ -701,4 +701,4 @@ def _read_png_planes(path: Path) -> np.ndarray:
     return np.ascontiguousarray(pixels.transpose(2, 0, 1))
 
 __all__ = ["CAMERA_MODES", "PAIR_DEMOSAIC", "PAIR_DEVICES", "PAIR_DOMAINS", "PairBatch", "PairBatches", "PairSource",
-           "WrittenPairs", "float_white_dn", "pair_isp"]
+           "WrittenPairs", "adc_white_dn", "pair_isp"]
