@@ -17,6 +17,30 @@ exact expectation before quantisation, k · E[min(X + o, full well)] (:func:`cam
 ``noisy − clean`` has mean zero at every pixel. Everything per pixel stays on the device: with ``device="cuda"`` the
 arrays are CuPy's (a torch training loop takes them without a copy through the host: :mod:`camsim.pairs_torch`),
 with ``device="cpu"`` numpy's.
+
+The arrays of a batch are in one of :data:`PAIR_DOMAINS`, the source's ``domain``:
+
+- ``"dn"`` (the default): the DN above, planes (1 for a Bayer mosaic, 3 for a three-chip sensor) at full
+  resolution;
+- ``"raw"``: what raw denoisers (SID, ELD, PMN, LED) take: the same DN with the black level before the ADC subtracted
+  and divided by white − black (:func:`camsim.isp.normalise`: 0 = black, 1 = the value the ADC turns into the white
+  level 2^nb − 1, :func:`adc_white_dn`), a Bayer
+  mosaic packed into four half-resolution planes R, G1, G2, B (:func:`camsim.isp.pack_rggb`, G1 the green on red's
+  row, whatever the camera's pattern); for a three-chip sensor the normalised (3, H, W) planes;
+- ``"srgb"``: noisy and clean developed through one camera ISP (:func:`camsim.isp.develop_pair`: the same white
+  balance gains, colour matrix, gain and tone curve for both; the clean mosaic demosaiced as the noisy one is), (3,
+  H, W) in [0, 1]. The source's ``isp`` settings (:class:`camsim.isp.IspSettings`), by default :func:`pair_isp`:
+  ``gain = "auto"`` (1 / F, the exposure ratio of SID and ELD, so that a pair at F = 10⁻³ is as bright as one at
+  F = 1; 1 for a scene whose exposure is ``auto``) and bilinear demosaicing (:data:`PAIR_DEMOSAIC`: the
+  cheapest; ``tools/bench_pair_domains.py`` measures what the ISP costs beside the raw domain).
+
+Each batch says its ``domain`` and, per pair, how its arrays were made (``isp``: the ISP's record in ``srgb``, the
+black and white levels and packing in ``raw``). The conversion works on the host: on a GPU, a pair's planes are
+copied to the host for it and back.
+
+:class:`WrittenPairs` reads the pairs of a dataset written by ``camsim dataset`` (files or a Zarr store) in the same
+domains, one frame at a time as numpy arrays (:func:`camsim.pairs_torch.written_pairs` wraps it as a torch
+``Dataset``).
 """
 
 from __future__ import annotations
@@ -33,14 +57,29 @@ from camsim.render.backends import array_module, device_generator
 from camsim.render.backends.array_path import device_maps, draw_planes, mosaic
 from camsim.core.errors import CamsimError
 from camsim.core.seeding import pair_batch_seed_sequence
+from camsim.core.xp import to_host
 
 #: What ``cameras_mode`` may be: camera presets at an ISO drawn log-uniformly, or virtual cameras (LED's).
 CAMERA_MODES = ("preset", "virtual")
 #: The devices a source renders on: ``cpu`` (numpy) or ``cuda`` (CuPy).
 PAIR_DEVICES = ("cpu", "cuda")
+#: The domains of a batch's arrays (module docstring): DN as rendered, normalised (packed) raw, developed sRGB.
+PAIR_DOMAINS = ("dn", "raw", "srgb")
+#: The demosaicing of :func:`pair_isp` (the ISP's cheapest; its default, Malvar 2004, is an ``isp`` setting away).
+PAIR_DEMOSAIC = "bilinear"
 #: The children of a batch's seed sequence, by use.
 _NOISE, _IMAGES, _LIGHT, _CAMERA, _ISO = 0, 1, 2, 3, 4
 _VIRTUAL_STREAMS = {"camera": 3, "k": 4, "shape": 5, "tukey_scale_dn": 6, "gaussian_sigma_dn": 7, "row_sigma_dn": 8}
+
+
+def pair_isp(exposure: str = "fixed"):
+    """The ISP settings of ``srgb`` pairs unless a source gives its own: :class:`camsim.isp.IspSettings` with
+    ``gain="auto"`` (1 / F) and ``demosaic=PAIR_DEMOSAIC``; the rest the ISP's defaults (as-shot white balance, the
+    camera's matrix, the sRGB curve). For a scene with ``exposure = "auto"`` (each pair's exposure time already
+    brings the white to the scene's target whatever F) the gain is 1."""
+    from camsim.isp import IspSettings
+
+    return IspSettings(gain="auto" if exposure == "fixed" else 1.0, demosaic=PAIR_DEMOSAIC)
 
 
 @dataclass(frozen=True)
@@ -52,16 +91,27 @@ class PairBatch:
     index : int
         The batch's index (its seed: :func:`camsim.core.seeding.pair_batch_seed_sequence`).
     noisy : array, shape (B, planes, H, W), float32
-        DN before quantisation (the EXR's values): k · (charge + read noise) + row noise. Unit: DN.
-    clean : array, shape (B, planes, H, W), float32
-        Each pixel's expectation of ``noisy``, k · E[min(X + o, full well)]: ``noisy − clean`` has mean 0. Unit: DN.
+        ``domain`` ``"dn"``: DN before quantisation (the EXR's values): k · (charge + read noise) + row noise.
+        Unit: DN. ``"raw"``: the same normalised, (B, 4, H/2, W/2) packed R, G1, G2, B for a Bayer camera (B, 3, H,
+        W for three chips). ``"srgb"``: developed, (B, 3, H, W) in [0, 1].
+    clean : array, shape as ``noisy``, float32
+        Each pixel's expectation of the DN, k · E[min(X + o, full well)] (in ``"dn"``, ``noisy − clean`` has mean 0),
+        in the batch's domain.
     digital : array or None, shape (B, planes, H, W), uint16
-        The raw numbers a camera writes, clip(⌊noisy + ½⌋ + pedestal, 0, 2^nb − 1) (⌊noisy⌋ without a pedestal); None without quantisation. Unit: DN.
+        The raw numbers a camera writes, clip(⌊noisy + ½⌋ + pedestal, 0, 2^nb − 1) (⌊noisy⌋ without a pedestal);
+        None without quantisation, and in the domains other than ``"dn"``. Unit: DN.
     params : list of dict
         Per pair: ``image``, ``crop_x``, ``crop_y``, ``flip_horizontal``, ``flip_vertical``, ``illuminant``,
         ``intensity_factor``, ``preset``, ``iso`` (None for a virtual camera), ``exposure_s``, ``dn_per_electron``,
         ``read_noise_e``, ``read_noise_model``, ``tukey_lambda``, ``row_noise_e``, ``full_well_e``, ``dark_e``
         (per channel), ``bits``, ``pedestal_dn``, ``white_level_dn``, ``cfa_pattern``.
+    domain : str
+        One of :data:`PAIR_DOMAINS`.
+    isp : list of dict or None
+        Per pair, how its arrays were made from the DN: in ``"srgb"`` the ISP's record
+        (:attr:`camsim.isp.Developed.record`: each stage, the white-balance gains, the matrix, the gain); in
+        ``"raw"`` ``black_dn``, ``white_dn`` and ``packed`` (the planes' names, or None for three chips); None in
+        ``"dn"``.
     """
 
     index: int
@@ -69,6 +119,8 @@ class PairBatch:
     clean: object
     digital: object
     params: list
+    domain: str = "dn"
+    isp: list | None = None
 
 
 @dataclass(frozen=True)
@@ -112,6 +164,10 @@ class PairSource:
         Random left-right and upside-down flips of each crop, probability ½ each.
     seed : int
     device : {'cpu', 'cuda'}
+    domain : {'dn', 'raw', 'srgb'}
+        The batches' arrays: DN (default), normalised and packed raw, or developed sRGB (module docstring).
+    isp : camsim.isp.IspSettings or None
+        ``srgb``: the ISP's settings (None: :func:`pair_isp`).
     """
 
     scene: object
@@ -126,6 +182,8 @@ class PairSource:
     flips: bool = True
     seed: int = 0
     device: str = "cpu"
+    domain: str = "dn"
+    isp: object = None
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
@@ -136,6 +194,15 @@ class PairSource:
             raise CamsimError(f"a pair source needs a camsim Scene (camsim.load_scene), got {self.scene!r}")
         if self.device not in PAIR_DEVICES:
             raise CamsimError(f"unknown pair device {self.device!r}; devices: {', '.join(PAIR_DEVICES)}")
+        if self.domain not in PAIR_DOMAINS:
+            raise CamsimError(f"unknown pair domain {self.domain!r}; domains: {', '.join(PAIR_DOMAINS)}")
+        if self.isp is not None:
+            from camsim.isp import IspSettings
+
+            if not isinstance(self.isp, IspSettings):
+                raise CamsimError(f"isp must be a camsim.isp.IspSettings, got {self.isp!r}")
+            if self.domain != "srgb":
+                raise CamsimError(f"isp settings are for the srgb domain, not {self.domain!r}")
         if self.cameras_mode not in CAMERA_MODES:
             raise CamsimError(f"cameras_mode must be one of {CAMERA_MODES}, got {self.cameras_mode!r}")
         if not self.images:
@@ -314,21 +381,64 @@ class PairSource:
         first = self._sensor(params[0]["preset"], params[0]["iso"], params[0]["_overrides"])
         planes = 3 if first.cfa is None else 1
         shape = (self.batch_size, planes, height, width)
+        if self.domain == "raw" and first.cfa is not None:
+            shape = (self.batch_size, 4, height // 2, width // 2)
+        elif self.domain == "srgb":
+            shape = (self.batch_size, 3, height, width)
         noisy = xp.empty(shape, dtype=xp.float32)
         clean = xp.empty(shape, dtype=xp.float32)
-        digital = xp.empty(shape, dtype=xp.uint16) if first.quantisation else None
+        digital = xp.empty(shape, dtype=xp.uint16) if first.quantisation and self.domain == "dn" else None
+        records = None if self.domain == "dn" else []
         for i, p in enumerate(params):
             sensor = self._sensor(p["preset"], p["iso"], p["_overrides"])
             exposure = self._exposure_s(sensor, p["illuminant"], p["intensity_factor"])
             if exposure != sensor.exposure_s:
                 sensor = dataclasses.replace(sensor, exposure_s=exposure)
             pair = self._render_pair(xp, rng, p, sensor)
-            noisy[i], clean[i] = pair[0], pair[1]
+            if self.domain == "dn":
+                noisy[i], clean[i] = pair[0], pair[1]
+            else:
+                pair_noisy, pair_clean, record = self._to_domain(to_host(pair[0]), to_host(pair[1]),
+                                                                 self._facts(p, sensor))
+                noisy[i], clean[i] = xp.asarray(pair_noisy), xp.asarray(pair_clean)
+                records.append(record)
             if digital is not None:
                 digital[i] = pair[2]
             del p["_overrides"]
             p.update(_sensor_record(sensor))
-        return PairBatch(int(index), noisy, clean, digital, params)
+        return PairBatch(int(index), noisy, clean, digital, params, self.domain, records)
+
+    # ------------------------------------------------------------------------------------------------ domains
+    def _facts(self, p: dict, sensor):
+        """What the ISP knows of a pair (:class:`camsim.isp.IspFacts`): its DN's black level before the ADC, the
+        white level in the same units (:func:`adc_white_dn`), the camera's Qe and neutral under the pair's
+        illuminant, and F."""
+        from camsim.isp import IspFacts
+
+        lit = self._lit(self.images[0], p["illuminant"])
+        key = ("neutral", p["illuminant"])
+        if key not in self._cache:
+            self._cache[key] = np.asarray(lit.as_shot_neutral, dtype=np.float64)
+        return IspFacts(cfa_pattern=sensor.cfa, black_dn=sensor.dark_level_dn, white_dn=adc_white_dn(sensor),
+                        as_shot_neutral=self._cache[key], intensity_factor=p["intensity_factor"],
+                        illuminant=p["illuminant"], wavelengths_nm=lit.grid.wavelengths_nm, qe=lit.qe)
+
+    def _to_domain(self, noisy: np.ndarray, clean: np.ndarray, facts):
+        """A pair's (planes, H, W) DN on the host in the source's domain, and its record."""
+        from camsim.isp import develop_pair, normalise, pack_rggb
+
+        cfa = facts.cfa_pattern
+        if cfa is not None:
+            noisy, clean = noisy[0], clean[0]
+        if self.domain == "raw":
+            noisy, clean = normalise(noisy, facts), normalise(clean, facts)
+            if cfa is not None:
+                noisy, clean = pack_rggb(noisy, cfa), pack_rggb(clean, cfa)
+            return noisy, clean, {"domain": "raw", "black_dn": facts.black_dn.tolist(), "white_dn": facts.white_dn,
+                                  "packed": None if cfa is None else ["R", "G1", "G2", "B"]}
+        settings = self.isp or pair_isp(self.scene.exposure)
+        developed_noisy, developed_clean = develop_pair(noisy, clean, facts, settings)
+        return developed_noisy.image, developed_clean.image, {"domain": "srgb", **developed_noisy.record}
 
     def _render_pair(self, xp, rng, p: dict, sensor):
         """One pair's (noisy, clean, digital) planes."""
@@ -372,6 +482,21 @@ class PairSource:
         return noisy, clean.astype(xp.float32), digital
 
 
+def adc_white_dn(sensor) -> float:
+    """The white level of the DN before quantisation: the value the ADC turns into 2^nb − 1, 2^nb − 1 − P with a
+    pedestal P (the ADC rounds and adds P), 2^nb − ½ without (the ADC's floor); 2^nb − 1 without quantisation.
+    Unit: DN.
+
+    What :func:`camsim.isp.float_white_dn` (the white of :func:`camsim.isp.facts_from_info`) computes as 2^nb − 1
+    less the offset between the two black levels (``black_level_dn − dark_level_dn``), without the exact black
+    level's integration (milliseconds per camera: a pair may have a camera of its own): the two differ where the
+    clipping of an unlit pixel's noise at 0 moves the quantised black level, by a fraction of a DN (0.6 DN of 4095
+    for ``sony-imx174``, none for ``sony-a7s2`` with its pedestal of 512 DN)."""
+    if not sensor.quantisation:
+        return float(sensor.max_dn)
+    return float(sensor.max_dn - sensor.pedestal_dn) if sensor.pedestal_dn else sensor.max_dn + 0.5
+
+
 def _sensor_record(sensor) -> dict:
     """A pair's sensor figures for its ``params``."""
     return {"exposure_s": sensor.exposure_s, "dn_per_electron": sensor.dn_per_electron,
@@ -406,4 +531,174 @@ class PairBatches:
         return max(0, -(-(self.stop - self.start) // self.step))
 
 
-__all__ = ["CAMERA_MODES", "PAIR_DEVICES", "PairBatch", "PairBatches", "PairSource"]
+# ---------------------------------------------------------------------------------------------------- written pairs
+class WrittenPairs:
+    """The pairs of a dataset written by ``camsim dataset`` (the file layout or a Zarr store), one per complete
+    frame (in the manifest's order: frame order after a finished run), read one at a time as numpy arrays.
+
+    ``pairs[i]`` (:meth:`read`) is ``(noisy, clean, meta)`` in ``domain``:
+
+    - ``"dn"``: the EXR's noisy layer (the store's ``noisy``) and its clean layer, float32 DN before quantisation:
+      (3, H, W), or (1, H, W) for a Bayer mosaic, whose clean layer is taken at the mosaic's sites (each pixel its
+      own channel), as :class:`PairSource` gives it;
+    - ``"raw"``: the same normalised with the frame's black level before the ADC and white level
+      (:func:`camsim.isp.normalise` with :func:`camsim.isp.facts_from_meta`), a mosaic packed into (4, H/2, W/2)
+      planes R, G1, G2, B (:func:`camsim.isp.pack_rggb`);
+    - ``"srgb"``: the developed PNGs ``ID_srgb_noisy.png``, ``ID_srgb_clean.png`` (decoded by OpenImageIO; the
+      store's ``srgb_noisy``, ``srgb_clean``) as (3, H, W) float32 in [0, 1] (code / (2^bits − 1)); the dataset
+      must have been written with ``--srgb png`` or ``png16``.
+
+    ``crop`` (width, height) cuts every pair to that size at an offset drawn from
+    ``numpy.random.default_rng([seed, i])`` (the same crop of frame ``i`` on every read and in every domain; even
+    offsets for a Bayer frame, whose crop must then be even). ``meta`` holds ``id``, ``index`` (the frame's),
+    ``domain``, ``crop`` ((x, y, width, height) or None), ``record`` (the frame's manifest line: its parameters and
+    seed) and how the arrays were made (``isp``: the ISP's record for ``srgb``; ``black_dn``, ``white_dn`` and
+    ``packed`` for ``raw``).
+
+    Raises
+    ------
+    CamsimError
+        No dataset at ``path`` (neither ``manifest.jsonl`` nor ``dataset.zarr``), an unknown domain, an ``srgb``
+        domain without sRGB outputs, a crop larger than the frames.
+    """
+
+    def __init__(self, path, domain: str = "dn", crop: tuple | None = None, seed: int = 0):
+        from camsim.dataset.manifest import MANIFEST_NAME, read_manifest
+        from camsim.dataset.zarr_store import STORE_NAME
+
+        if domain not in PAIR_DOMAINS:
+            raise CamsimError(f"unknown pair domain {domain!r}; domains: {', '.join(PAIR_DOMAINS)}")
+        path = Path(path)
+        if path.name == STORE_NAME:
+            path = path.parent
+        if not (path / MANIFEST_NAME).is_file():
+            raise CamsimError(f"{path} holds no camsim dataset ({MANIFEST_NAME} not found)")
+        self.path, self.domain, self.seed = path, domain, int(seed)
+        self.store = path / STORE_NAME if (path / STORE_NAME).is_dir() else None
+        self.records = [r for r in read_manifest(path) if ("arrays" if self.store else "files") in r]
+        if crop is not None:
+            width, height = crop
+            if not (isinstance(width, int) and isinstance(height, int) and width >= 1 and height >= 1):
+                raise CamsimError(f"crop must be (width, height) in pixels, got {crop!r}")
+        self.crop = None if crop is None else (int(crop[0]), int(crop[1]))
+        if domain == "srgb":
+            without = [r["id"] for r in self.records if not isinstance(r.get("srgb"), dict)]
+            if without:
+                raise CamsimError(f"{path}: {len(without)} frame(s) have no sRGB outputs (e.g. {without[0]}): write "
+                                  "the dataset with camsim dataset --srgb png (or png16)")
+        self._group = None
+        self._pid = None
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def __getitem__(self, i: int):
+        return self.read(i)
+
+    def __getstate__(self) -> dict:
+        """Pickled without the open store (a data loader's spawned workers open their own)."""
+        return self.__dict__ | {"_group": None, "_pid": None}
+
+    # --- reading ------------------------------------------------------------------------------------------------
+    def _zarr(self):
+        """The store's group, opened once per process (a data loader's workers each open their own)."""
+        import os
+
+        if self._group is None or self._pid != os.getpid():
+            import zarr
+
+            self._group = zarr.open_group(self.store, mode="r", zarr_format=3, use_consolidated=False)
+            self._pid = os.getpid()
+        return self._group
+
+    def _layers(self, record: dict, names: tuple) -> tuple:
+        """The frame's arrays ``names`` (``noisy``, ``clean``, ``srgb_noisy``, ``srgb_clean``) as stored, and its
+        sidecar (None where not needed)."""
+        import json
+
+        if self.store is not None:
+            group = self._zarr()
+            index = record["index"]
+            arrays = tuple(np.asarray(group[name][index]) for name in names)
+            meta = json.loads(str(group["sidecar"][index])) if "noisy" in names else None
+            return arrays, meta
+        files = record["files"]
+        if "noisy" in names:
+            from camsim.io.exr import read_exr
+            from camsim.render.frame_files import read_frame_meta
+
+            exr = self.path / files["exr"]["name"]
+            noisy, clean, _ = read_exr(exr)
+            return (noisy, clean), read_frame_meta(exr)
+        return tuple(_read_png_planes(self.path / files[name]["name"]) for name in names), None
+
+    def _offset(self, i: int, width: int, height: int, bayer: bool) -> tuple | None:
+        """Crop ``i``'s (x, y) in a frame of width × height (None without a crop)."""
+        if self.crop is None:
+            return None
+        cw, ch = self.crop
+        if cw > width or ch > height:
+            raise CamsimError(f"crop {cw}x{ch} is larger than the frames ({width}x{height})")
+        if bayer and (cw % 2 or ch % 2):
+            raise CamsimError(f"a Bayer frame needs an even crop, got {cw}x{ch}")
+        rng = np.random.default_rng([self.seed, int(i)])
+        step = 2 if bayer else 1
+        x = int(rng.integers((width - cw) // step + 1)) * step
+        y = int(rng.integers((height - ch) // step + 1)) * step
+        return x, y
+
+    def read(self, i: int) -> tuple:
+        """Pair ``i``: ``(noisy, clean, meta)`` (class docstring)."""
+        if not (isinstance(i, (int, np.integer)) and -len(self) <= i < len(self)):
+            raise IndexError(f"pair {i!r} of a dataset of {len(self)}")
+        i = int(i) % len(self)
+        record = self.records[i]
+        cfa = record.get("cfa")
+        bayer = cfa is not None
+        meta = {"id": record["id"], "index": record["index"], "domain": self.domain, "crop": None,
+                "record": {k: v for k, v in record.items() if k not in ("files", "arrays")}}
+        if self.domain == "srgb":
+            (noisy, clean), _ = self._layers(record, ("srgb_noisy", "srgb_clean"))
+            bits = record["srgb"]["bits"]
+            noisy = noisy.astype(np.float32) / np.float32(2**bits - 1)
+            clean = clean.astype(np.float32) / np.float32(2**bits - 1)
+            meta["isp"] = record["srgb"]["isp"]
+        else:
+            (noisy, clean), sidecar = self._layers(record, ("noisy", "clean"))
+            cfa = sidecar.get("cfa_pattern") or None
+            bayer = cfa is not None
+            if bayer:
+                from camsim.dataset.srgb import mosaic_clean
+
+                clean = mosaic_clean(clean, cfa)[None]
+        height, width = noisy.shape[1:]
+        offset = self._offset(i, width, height, bayer)
+        if offset is not None:
+            (x, y), (cw, ch) = offset, self.crop
+            noisy, clean = noisy[:, y:y + ch, x:x + cw], clean[:, y:y + ch, x:x + cw]
+            meta["crop"] = (x, y, cw, ch)
+        if self.domain == "raw":
+            from camsim.isp import facts_from_meta, normalise, pack_rggb
+
+            facts = facts_from_meta(sidecar, quantised=False)
+            noisy = normalise(noisy[0] if bayer else noisy, facts)
+            clean = normalise(clean[0] if bayer else clean, facts)
+            if bayer:
+                noisy, clean = pack_rggb(noisy, cfa), pack_rggb(clean, cfa)  # even offsets keep the pattern
+            meta.update(black_dn=facts.black_dn.tolist(), white_dn=facts.white_dn,
+                        packed=["R", "G1", "G2", "B"] if bayer else None)
+        return (np.ascontiguousarray(noisy, dtype=np.float32), np.ascontiguousarray(clean, dtype=np.float32), meta)
+
+
+def _read_png_planes(path: Path) -> np.ndarray:
+    """A PNG's RGB codes as stored, (3, H, W) uint8 or uint16 (OpenImageIO:
+    :func:`camsim.scene.sources.image.read_image_codes`)."""
+    from camsim.scene.sources.image import read_image_codes
+
+    pixels, integer, _ = read_image_codes(str(path))
+    if not integer:
+        raise CamsimError(f"{path}: not an 8- or 16-bit image")
+    return np.ascontiguousarray(pixels.transpose(2, 0, 1))
+
+__all__ = ["CAMERA_MODES", "PAIR_DEMOSAIC", "PAIR_DEVICES", "PAIR_DOMAINS", "PairBatch", "PairBatches", "PairSource",
+           "WrittenPairs", "adc_white_dn", "pair_isp"]

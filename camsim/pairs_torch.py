@@ -7,11 +7,15 @@ batch's CuPy arrays, handed over by DLPack (``torch.from_dlpack``: the same devi
 on the CPU numpy's (``torch.from_numpy``). Give the dataset to a ``DataLoader`` with ``batch_size=None`` (the
 batches are formed already); with CPU workers each worker renders every n-th batch, so a run's batches do not depend
 on the number of workers (CUDA sources render in the main process: ``num_workers=0``).
+
+:func:`written_pairs` is a map-style ``Dataset`` over a dataset written by ``camsim dataset`` (files or a Zarr
+store): item *i* is frame *i*'s pair in a domain (:class:`camsim.pairs.WrittenPairs`) as tensors, batched by a
+``DataLoader`` with :func:`collate_pairs`.
 """
 
 from __future__ import annotations
 
-from camsim.pairs import PairBatch, PairBatches, PairSource
+from camsim.pairs import PairBatch, PairBatches, PairSource, WrittenPairs
 
 _CLASSES: dict = {}
 
@@ -27,14 +31,15 @@ def to_torch(array):
 
 
 def batch_tensors(batch: PairBatch) -> dict:
-    """A :class:`~camsim.pairs.PairBatch` as a dict of tensors: ``noisy``, ``clean`` (float32, DN), ``digital``
-    (the raw numbers as float32, exact below 2²⁴; None without quantisation), ``params`` (list of dict) and
-    ``index``."""
+    """A :class:`~camsim.pairs.PairBatch` as a dict of tensors: ``noisy``, ``clean`` (float32, in the batch's
+    domain: DN, normalised raw or sRGB), ``digital`` (the raw numbers as float32, exact below 2²⁴; None without
+    quantisation and outside the ``dn`` domain), ``params`` (list of dict), ``index``, ``domain`` and ``isp`` (per
+    pair, how the arrays were made; None in ``dn``)."""
     digital = None
     if batch.digital is not None:
         digital = to_torch(batch.digital.astype(batch.noisy.dtype))
     return {"noisy": to_torch(batch.noisy), "clean": to_torch(batch.clean), "digital": digital,
-            "params": batch.params, "index": batch.index}
+            "params": batch.params, "index": batch.index, "domain": batch.domain, "isp": batch.isp}
 
 
 def _dataset_class():
@@ -61,10 +66,52 @@ def _dataset_class():
     return _CLASSES["dataset"]
 
 
+def _written_class():
+    """The map-style ``Dataset`` subclass over a written dataset, made on first use (torch is imported then)."""
+    if "written" not in _CLASSES:
+        import torch
+
+        class WrittenPairDataset(torch.utils.data.Dataset):
+            """Frame *i*'s pair of a written dataset (:class:`~camsim.pairs.WrittenPairs`) as a dict: ``noisy``,
+            ``clean`` (float32 tensors, (planes, H, W)) and ``meta``."""
+
+            def __init__(self, pairs: WrittenPairs):
+                super().__init__()
+                self.pairs = pairs
+
+            def __len__(self) -> int:
+                return len(self.pairs)
+
+            def __getitem__(self, i: int) -> dict:
+                noisy, clean, meta = self.pairs.read(i)
+                return {"noisy": torch.from_numpy(noisy), "clean": torch.from_numpy(clean), "meta": meta}
+
+        _CLASSES["written"] = WrittenPairDataset
+    return _CLASSES["written"]
+
+
+def written_pairs(path, domain: str = "dn", crop: tuple | None = None, seed: int = 0):
+    """A map-style ``torch.utils.data.Dataset`` over the dataset written by ``camsim dataset`` into ``path`` (its
+    output folder, files or Zarr): item *i* is ``{"noisy", "clean", "meta"}``, the pair of its *i*-th complete
+    frame in ``domain`` (``"dn"``, ``"raw"``, ``"srgb"``), cut to ``crop`` (width, height) at an offset drawn from
+    ``seed`` and *i* (:class:`camsim.pairs.WrittenPairs`). Batch with ``DataLoader(..., collate_fn=collate_pairs)``
+    (the pairs of a batch must have one size: give a ``crop`` where the frames' sizes differ)."""
+    return _written_class()(WrittenPairs(path, domain, crop, seed))
+
+
+def collate_pairs(items: list) -> dict:
+    """A ``DataLoader``'s ``collate_fn`` for :func:`written_pairs`: ``noisy`` and ``clean`` stacked into (B, planes,
+    H, W) tensors, ``meta`` a list of the items' dicts."""
+    import torch
+
+    return {"noisy": torch.stack([item["noisy"] for item in items]),
+            "clean": torch.stack([item["clean"] for item in items]), "meta": [item["meta"] for item in items]}
+
+
 def pair_dataset(source: PairSource, start: int = 0, stop: int | None = None):
     """A ``torch.utils.data.IterableDataset`` of the batches ``start`` … ``stop − 1`` of ``source`` (without end
     for None), each a dict of tensors (:func:`batch_tensors`)."""
     return _dataset_class()(source, start, stop)
 
 
-__all__ = ["batch_tensors", "pair_dataset", "to_torch"]
+__all__ = ["batch_tensors", "collate_pairs", "pair_dataset", "to_torch", "written_pairs"]

@@ -1,7 +1,8 @@
 """Datasets: many frames from a spec (grid and random draws of scenes, illuminants, light levels, exposure and
 sensor parameters), rendered in parallel and resumably, with a JSON Lines manifest. See :mod:`camsim.dataset.spec`
 for the spec format, :mod:`camsim.dataset.runner` for the run, :mod:`camsim.dataset.manifest` for the output
-layout, :mod:`camsim.dataset.backends` for the back-ends and :mod:`camsim.dataset.frame_render` for one frame.
+layout, :mod:`camsim.dataset.backends` for the back-ends, :mod:`camsim.dataset.frame_render` for one frame and
+:mod:`camsim.dataset.srgb` for its developed sRGB pair.
 
 Importing the package is cheap; the names below load their modules on first use.
 """

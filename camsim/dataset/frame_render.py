@@ -65,9 +65,28 @@ def render_frame(frame: FrameSpec, threads: int = 1):
 
 
 def render_files(frame: FrameSpec, directory: Path, threads: int = 1,
-                 exr_compression: str = DEFAULT_EXR_COMPRESSION) -> dict:
+                 exr_compression: str = DEFAULT_EXR_COMPRESSION, srgb: str = "none") -> tuple[dict, dict | None]:
     """Render one frame (:func:`render_frame`) and write ``<id>.dng`` (if quantised), ``<id>.exr`` (with
-    ``exr_compression``) and ``<id>.json`` into ``directory``. Returns the file names by kind (``dng`` None without
-    quantisation)."""
+    ``exr_compression``) and ``<id>.json`` into ``directory``; with ``srgb`` (``png``, ``png16``) also
+    ``<id>_srgb_noisy.png`` and ``<id>_srgb_clean.png`` (:mod:`camsim.dataset.srgb`), each written atomically.
+
+    Returns
+    -------
+    names : dict
+        The file names by kind (``dng`` None without quantisation; ``srgb_noisy``, ``srgb_clean`` with ``srgb``).
+    srgb_record : dict or None
+        What the sRGB files hold (:func:`camsim.dataset.srgb.develop_frame`), None without them.
+    """
     rendered, info = render_frame(frame, threads)
-    return write_frame(Path(directory), frame.id, rendered, info, exr_compression=exr_compression)
+    names = write_frame(Path(directory), frame.id, rendered, info, exr_compression=exr_compression)
+    if srgb == "none":
+        return names, None
+    from camsim.dataset.srgb import develop_frame
+    from camsim.isp import write_png
+
+    images, record = develop_frame(rendered, info, srgb)
+    for layer, image in images.items():
+        names[layer] = f"{frame.id}_{layer}.png"
+        write_png(Path(directory) / names[layer], image, bits=record["bits"],
+                  record={"layer": layer, "frame": frame.id, **record})
+    return names, record

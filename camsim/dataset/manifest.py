@@ -3,11 +3,15 @@
 Layout of ``OUT``::
 
     OUT/frames/<id>.dng, <id>.exr, <id>.json   the frame's files (camsim's writers: temporary name, then rename)
+    OUT/frames/<id>_srgb_noisy.png, <id>_srgb_clean.png   with ``--srgb``: noisy and clean developed through one
+                                               ISP (camsim.dataset.srgb)
     OUT/frames/<id>.done                       the frame's record, written (atomically) after all its files
     OUT/manifest.jsonl                         one line per complete frame, in frame order
 
 A record is the frame's parameters and seed (:attr:`camsim.dataset.spec.FrameSpec.record`), the compression of its
-EXR (``exr_compression``; a record of an earlier camsim has none: its EXRs are ZIP-compressed) and its files.
+EXR (``exr_compression``; a record of an earlier camsim has none: its EXRs are ZIP-compressed), what its developed
+sRGB PNGs hold, if written (``srgb``: :mod:`camsim.dataset.srgb`), and its files (``ID_srgb_noisy.png`` and
+``ID_srgb_clean.png`` among them then).
 A frame is complete when its ``.done`` record exists, describes the same frame (every parameter and the seed)
 and every file it lists exists with the recorded size and SHA-256; the compression it was written with does not
 matter (a re-run keeps it, and writes the frames it renders with its own). The manifest is rebuilt from the records when
@@ -39,7 +43,7 @@ VERIFY_MODES = ("sha256", "size")
 #: three-chip DNG's ``.dng.xmp`` sidecar (``files``' ``xmp``) when it opens the DNG. Listed, not verified.
 READER_OWNED = ("xmp",)
 #: Keys of a record that say how the frame was written, not which frame it is.
-_OUTPUT_KEYS = ("files", "exr_compression")
+_OUTPUT_KEYS = ("files", "exr_compression", "srgb")
 
 
 def sha256_file(path: Path) -> str:
@@ -66,18 +70,22 @@ def frame_record(path: Path, frame: FrameSpec, output_keys) -> dict | None:
     return record
 
 
-def verified_record(out_dir: Path, frame: FrameSpec, verify: str = "sha256") -> dict | None:
+def verified_record(out_dir: Path, frame: FrameSpec, verify: str = "sha256", srgb: str = "none") -> dict | None:
     """The frame's record if the frame is complete and verified, else None.
 
     Complete and verified: the ``.done`` record describes this very frame (every parameter and the seed), and
     every file it lists exists with the recorded size and (``verify="sha256"``) SHA-256, but for the files a
-    reader owns (:data:`READER_OWNED`).
+    reader owns (:data:`READER_OWNED`). With ``srgb`` (``png``, ``png16``), the frame must also have that sRGB
+    output (its record's ``srgb`` and the two PNGs): a frame written without it is rendered again.
     """
     record = frame_record(done_path(out_dir, frame.id), frame, _OUTPUT_KEYS)
     if record is None:
         return None
     files = record.get("files")
     if not isinstance(files, dict) or not files.get("exr") or not files.get("json"):
+        return None
+    if srgb != "none" and ((record.get("srgb") or {}).get("output") != srgb
+                           or not files.get("srgb_noisy") or not files.get("srgb_clean")):
         return None
     for kind, entry in files.items():
         if entry is None or kind in READER_OWNED:
@@ -146,7 +154,8 @@ def store_result(out_dir: Path, frame: FrameSpec, result: dict) -> dict:
         with atomic_path(Path(out_dir) / result["files"][kind]["name"]) as tmp:
             tmp.write_bytes(data)
     record = {**frame.record, **({"exr_compression": result["exr_compression"]} if "exr_compression" in result
-                                 else {}), "files": result["files"]}
+                                 else {}), **({"srgb": result["srgb"]} if "srgb" in result else {}),
+              "files": result["files"]}
     line = manifest_line(record)
     write_json_atomic(done_path(out_dir, frame.id), record, renamed=lambda: append_manifest(out_dir, line))
     return record

@@ -33,7 +33,8 @@ from camsim.dataset.manifest import (
     verified_record,
     write_manifest,
 )
-from camsim.dataset.spec import DatasetSpec, FrameSpec, load_spec
+from camsim.dataset.spec import DatasetSpec, FrameSpec, check_srgb, load_spec
+from camsim.dataset.srgb import srgb_bits
 from camsim.dataset.task import render_task, zarr_task
 from camsim.core.errors import CamsimError
 from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION, check_exr_compression
@@ -58,6 +59,7 @@ def run_dataset(
     echo=print,
     exr_compression: str | None = None,
     output: str = "files",
+    srgb: str | None = None,
 ) -> dict:
     """Render every frame of ``spec`` into ``out_dir`` that is not already complete and verified.
 
@@ -86,20 +88,29 @@ def run_dataset(
     output : {'files', 'zarr'}
         ``files``: ``OUT/frames/ID.{dng,exr,json}`` (:mod:`camsim.dataset.manifest`); ``zarr``: one Zarr store,
         ``OUT/dataset.zarr`` (:mod:`camsim.dataset.zarr_store`).
+    srgb : {'none', 'png', 'png16'}, optional
+        Each frame's noisy and clean layers developed through one camera ISP as 8-bit (``png``) or 16-bit
+        (``png16``) sRGB (:mod:`camsim.dataset.srgb`): ``ID_srgb_noisy.png`` and ``ID_srgb_clean.png``, or the
+        store's arrays ``srgb_noisy`` and ``srgb_clean``. Default the spec's ``srgb``, else (a Zarr store) the
+        existing store's, else ``none``. Complete frames of the file layout without it are rendered again (the same
+        bytes) with it; a store holds one sRGB output (another is refused).
 
     Returns
     -------
     dict
         ``frames``, ``skipped``, ``rendered``, ``seconds`` (rendering wall time), ``frames_per_second``,
         ``megapixels_per_second``, ``backend``, ``manifest`` (path), ``format``, ``exr_compression`` (None for
-        a store), ``store`` (the store's path, or None).
+        a store), ``store`` (the store's path, or None), ``srgb`` (the sRGB output).
     """
     say = echo or (lambda *a, **k: None)
     check_settings(workers=workers, threads=threads, scheduler=scheduler, verify=verify,
-                   exr_compression=exr_compression, output=output)
+                   exr_compression=exr_compression, output=output, srgb=srgb)
     if scheduler is None and workers != 1:
         start_fork_server(zarr=output == "zarr")  # it imports camsim while the spec is read and frames checked
     spec = spec if isinstance(spec, DatasetSpec) else load_spec(spec)
+    if output == "zarr" and not (srgb or spec.srgb):
+        srgb = zarr_store.held_srgb(out_dir)  # a store keeps its sRGB arrays when a re-run does not name them
+    srgb = check_srgb(srgb or spec.srgb or "none")
     if output == "files":
         exr_compression = check_exr_compression(exr_compression or spec.exr_compression or DEFAULT_EXR_COMPRESSION)
     records_dir = FRAMES_DIR if output == "files" else zarr_store.RECORDS_DIR
@@ -108,17 +119,17 @@ def run_dataset(
         _check_format(out_dir, output)
         store = layout = None
         if output == "zarr":
-            layout = zarr_store.store_layout(spec, out_dir)
+            layout = zarr_store.store_layout(spec, out_dir, srgb)
             store = zarr_store.open_store(layout, spec)
             verified = partial(zarr_store.verified_record, out_dir, store)
         else:
-            verified = partial(verified_record, out_dir)
+            verified = partial(verified_record, out_dir, srgb=srgb)
         records = {}
         todo = []
         check = tqdm(spec.frames, desc="checking complete frames", unit="frame", leave=False,
                      disable=not progress or len(spec.frames) < 2)
         for frame in check:
-            record = verified(frame, verify)
+            record = verified(frame, verify=verify)
             if record is None:
                 todo.append(frame)
             else:
@@ -136,6 +147,8 @@ def run_dataset(
             backend = "1 process" if workers == 1 else f"{workers} processes"
         where = (f"into {layout.path}" if store is not None
                  else f"EXR compression {exr_compression}" + _kept_compressions(records, exr_compression))
+        if srgb != "none":
+            where += f"; sRGB {srgb_bits(srgb)}-bit, noisy and clean through one ISP"
         say(f"dataset {spec.name}: {len(spec.frames)} frames of {spec.size_text}, "
             f"{len(records)} complete and verified, {len(todo)} to render ({backend}, {threads} thread(s) each; "
             f"{where})"
@@ -153,7 +166,7 @@ def run_dataset(
             bars[0].update()
 
         task = (partial(zarr_task, layout=layout) if store is not None
-                else partial(render_task, exr_compression=exr_compression))
+                else partial(render_task, exr_compression=exr_compression, srgb=srgb))
         start = time.perf_counter()
         try:
             if not todo:
@@ -186,6 +199,7 @@ def run_dataset(
         "format": output,
         "exr_compression": exr_compression if store is None else None,
         "store": None if layout is None else layout.path,
+        "srgb": srgb,
     }
     rate = "" if not rendered else (f" in {seconds:.2f} s: {summary['frames_per_second']:.2f} frames/s, "
                                     f"{summary['megapixels_per_second']:.2f} MP/s")
@@ -195,7 +209,8 @@ def run_dataset(
 
 
 def check_settings(*, workers: int | None = None, threads: int = 1, scheduler: str | None = None,
-                   verify: str = "sha256", exr_compression: str | None = None, output: str = "files") -> None:
+                   verify: str = "sha256", exr_compression: str | None = None, output: str = "files",
+                   srgb: str | None = None) -> None:
     """Refuse settings of :func:`run_dataset` (its parameters of these names) that cannot run, before the spec is
     read: what the run checks first, and ``camsim dataset --dry-run`` too, so that it refuses what the run would.
 
@@ -217,6 +232,8 @@ def check_settings(*, workers: int | None = None, threads: int = 1, scheduler: s
         raise CamsimError(f"threads must be an integer ≥ 1, got {threads!r}")
     if exr_compression is not None:
         check_exr_compression(exr_compression)
+    if srgb is not None:
+        check_srgb(srgb)
 
 
 def _check_format(out_dir: Path, output: str) -> None:

@@ -7,6 +7,7 @@ A spec names one or more scene files and the parameters to vary over them::
     seed = 0                           # the random draws and every frame's noise derive from it
     repeats = 1                        # noisy realisations of each parameter set (each its own seed)
     exr_compression = "none"           # optional: the EXR files' lossless compression (camsim.io.exr_compression)
+    srgb = "png"                       # optional: developed noisy and clean sRGB per frame (SRGB_OUTPUTS)
 
     [frame]                            # frame size in pixels (default 256 x 192)
     width = 256
@@ -106,7 +107,11 @@ RENDER_KEYS = tuple(p.name for p in RENDER_PARAMS if p.name != "seed")
 GRID_ALIASES = {"illuminants": "illuminant", "intensity_factors": "intensity_factor"}
 DISTRIBUTIONS = ("uniform", "log_uniform", "integers", "choice")
 _TOP_KEYS = {"name", "description", "scene", "seed", "repeats", "frame", "fixed", "grid", "random", "images",
-             "virtual_camera", "exr_compression"}
+             "virtual_camera", "exr_compression", "srgb"}
+#: What a spec's ``srgb`` (and ``camsim dataset --srgb``) may be: ``none``, or each frame's noisy and clean layers
+#: developed through one camera ISP (:mod:`camsim.dataset.srgb`) as 8-bit (``png``) or 16-bit (``png16``) sRGB:
+#: PNG files in the file layout, uint8 or uint16 arrays in a Zarr store.
+SRGB_OUTPUTS = ("none", "png", "png16")
 #: Keys of a ``[virtual_camera]`` table.
 VIRTUAL_CAMERA_TABLE_KEYS = ("cameras", "k_range", "read_noise_model")
 #: Keys of an ``[images]`` table.
@@ -350,6 +355,7 @@ class DatasetSpec:
     frames: tuple
     axes: dict  # parameter -> "fixed" | "grid" | "random" | "scene": how it is set
     exr_compression: str | None = None  # the spec's exr_compression, if it sets one (the files, not the frames)
+    srgb: str | None = None  # the spec's srgb (SRGB_OUTPUTS), if it sets one (outputs, not the frames)
 
     def __len__(self) -> int:
         return len(self.frames)
@@ -378,6 +384,7 @@ class SpecPlan:
     sizes: tuple  # the frames' (width, height), without repetition
     make_frames: Callable[[], Iterator[FrameSpec]] = field(repr=False, compare=False)
     exr_compression: str | None = None  # the spec's exr_compression, if it sets one (the files, not the frames)
+    srgb: str | None = None  # the spec's srgb (SRGB_OUTPUTS), if it sets one (outputs, not the frames)
 
     def __len__(self) -> int:
         return self.count
@@ -394,7 +401,8 @@ class SpecPlan:
     def spec(self) -> DatasetSpec:
         """The spec with every frame made and validated."""
         return DatasetSpec(name=self.name, path=self.path, seed=self.seed, width=self.width, height=self.height,
-                           frames=tuple(self.frames()), axes=self.axes, exr_compression=self.exr_compression)
+                           frames=tuple(self.frames()), axes=self.axes, exr_compression=self.exr_compression,
+                           srgb=self.srgb)
 
 
 # --- values --------------------------------------------------------------------------------------------------
@@ -598,6 +606,13 @@ def load_spec(path: str | Path) -> DatasetSpec:
     return plan_spec(path).spec()
 
 
+def check_srgb(value) -> str:
+    """``value`` if it is one of :data:`SRGB_OUTPUTS`, else :class:`CamsimError`."""
+    if value not in SRGB_OUTPUTS:
+        raise CamsimError(f"sRGB output must be one of {', '.join(SRGB_OUTPUTS)}, got {value!r}")
+    return value
+
+
 def plan_spec(path: str | Path) -> SpecPlan:
     """Read and check a dataset spec (a file, or a built-in spec's name), its scenes (files relative to the spec,
     or built-in scenes' names) and its random draws; the frames are made by :meth:`SpecPlan.frames`, one by one
@@ -633,6 +648,12 @@ def plan_spec(path: str | Path) -> SpecPlan:
             check_exr_compression(exr_compression)
         except CamsimError as exc:
             raise CamsimError(f"{where}: exr_compression: {exc}") from None
+    srgb = doc.get("srgb")
+    if srgb is not None:
+        try:
+            check_srgb(srgb)
+        except CamsimError as exc:
+            raise CamsimError(f"{where}: srgb: {exc}") from None
     scene_files = doc.get("scene")
     if scene_files is None:
         raise CamsimError(f"{where}: needs scene = \"SCENE.toml\" (or a list of scene files)")
@@ -737,7 +758,8 @@ def plan_spec(path: str | Path) -> SpecPlan:
                image_values=_image_draws(images, points, seed) if images is not None else None)
     sizes = tuple(dict.fromkeys((entry.scene.width, entry.scene.height) for entry in scenes))
     return SpecPlan(name=name, path=path, seed=seed, width=width, height=height, axes=axes, count=points * repeats,
-                    sizes=sizes, make_frames=partial(_frames, job), exr_compression=exr_compression)
+                    sizes=sizes, make_frames=partial(_frames, job), exr_compression=exr_compression,
+                    srgb=srgb)
 
 
 def _virtual_cameras(table, points: int, seed: int, axes: dict, where: str) -> list:

@@ -19,9 +19,10 @@ __all__ = ["render_task", "zarr_task"]
 
 
 def render_task(frame: FrameSpec, out_dir: str | None, threads: int = 1,
-                exr_compression: str = DEFAULT_EXR_COMPRESSION) -> dict:
+                exr_compression: str = DEFAULT_EXR_COMPRESSION, srgb: str = "none") -> dict:
     """A worker's task: render one frame on ``threads`` threads (the noise draws' and the EXR compression's), its
-    EXR compressed with ``exr_compression``.
+    EXR compressed with ``exr_compression``, with its developed sRGB PNGs for ``srgb`` other than ``none``
+    (:mod:`camsim.dataset.srgb`; the result's ``srgb`` says what they hold).
 
     With ``out_dir``, the files go to ``out_dir/frames/`` and the result lists them (name relative to
     ``out_dir``, size, SHA-256). Without, they are rendered into a private temporary folder and the result also
@@ -30,20 +31,26 @@ def render_task(frame: FrameSpec, out_dir: str | None, threads: int = 1,
     set_exr_threads(threads)  # 1 thread: OpenEXR works in this thread, i.e. one core
     if out_dir is not None:
         folder = Path(out_dir) / FRAMES_DIR
-        names = render_files(frame, folder, threads, exr_compression)
+        names, srgb_record = render_files(frame, folder, threads, exr_compression, srgb)
         files = {kind: None if name is None else
                  {"name": f"{FRAMES_DIR}/{name}", "bytes": (folder / name).stat().st_size,
                   "sha256": sha256_file(folder / name)}
                  for kind, name in names.items()}
-        return {"id": frame.id, "exr_compression": exr_compression, "files": files}
+        return {"id": frame.id, "exr_compression": exr_compression, "files": files} | _srgb_entry(srgb_record)
     with tempfile.TemporaryDirectory(prefix="camsim-frame-") as tmp:
-        names = render_files(frame, Path(tmp), threads, exr_compression)
+        names, srgb_record = render_files(frame, Path(tmp), threads, exr_compression, srgb)
         blobs = {kind: (Path(tmp) / name).read_bytes() for kind, name in names.items() if name is not None}
     files = {kind: None if name is None else
              {"name": f"{FRAMES_DIR}/{name}", "bytes": len(blobs[kind]),
               "sha256": hashlib.sha256(blobs[kind]).hexdigest()}
              for kind, name in names.items()}
-    return {"id": frame.id, "exr_compression": exr_compression, "files": files, "blobs": blobs}
+    return ({"id": frame.id, "exr_compression": exr_compression, "files": files, "blobs": blobs}
+            | _srgb_entry(srgb_record))
+
+
+def _srgb_entry(record: dict | None) -> dict:
+    """The result's ``srgb`` (what the sRGB outputs hold), or nothing without them."""
+    return {} if record is None else {"srgb": record}
 
 
 def zarr_task(frame: FrameSpec, out_dir: str | None, threads: int = 1, *, layout) -> dict:
@@ -54,9 +61,10 @@ def zarr_task(frame: FrameSpec, out_dir: str | None, threads: int = 1, *, layout
     from camsim.render.frame_files import sidecar
 
     rendered, info = render_frame(frame, threads)
-    data = frame_arrays(rendered, layout)
+    data, srgb_record = frame_arrays(rendered, layout, info)
     meta = sidecar(rendered, info, None) | {"zarr": {"store": STORE_NAME, "index": frame.index}}
     text = json.dumps(meta, ensure_ascii=False, allow_nan=False)
     if out_dir is None:
-        return {"id": frame.id, "data": data, "sidecar": text}
-    return {"id": frame.id, "arrays": write_frame_arrays(layout, frame.index, data, text, threads)}
+        return {"id": frame.id, "data": data, "sidecar": text} | _srgb_entry(srgb_record)
+    return ({"id": frame.id, "arrays": write_frame_arrays(layout, frame.index, data, text, threads)}
+            | _srgb_entry(srgb_record))

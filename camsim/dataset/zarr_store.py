@@ -7,6 +7,8 @@ Layout of ``OUT``::
         noisy     (frame, channel, y, x) float32   the EXR's noisy layer (or (frame, cfa, y, x): the mosaic), DN
         clean     (frame, channel, y, x) float32   the EXR's clean.R, clean.G, clean.B, DN
         digital   (frame, channel, y, x) uint8/16  the DNG's digital numbers (if any frame is quantised)
+        srgb_noisy, srgb_clean (frame, channel, y, x) uint8/16   with ``--srgb png|png16``: the noisy and clean
+                                                   layers developed through one ISP (camsim.dataset.srgb)
         sidecar   (frame,) str                     each frame's sidecar, as JSON (as the file layout's ID.json)
         done      (frame,) bool                    whether the frame is complete (written after its chunks)
         records   (frame,) str                     each frame's parameters, as JSON (a manifest line, less its
@@ -45,18 +47,20 @@ from pathlib import Path
 import numpy as np
 
 from camsim.dataset.manifest import DONE_SUFFIX, append_manifest, frame_record, manifest_line
+from camsim.dataset.srgb import SRGB_LAYERS
 from camsim.core.errors import CamsimError, output_error
 from camsim.io import atomic  # atomic.fsync_path: one flush, which tests can fail as a full disk does
 
 __all__ = ["STORE_NAME", "RECORDS_DIR", "LAYERS", "COMPRESSORS", "StoreLayout", "store_layout", "open_store",
-           "write_frame_arrays", "verified_record", "store_result", "write_done", "frame_arrays", "record_path"]
+           "write_frame_arrays", "verified_record", "store_result", "write_done", "frame_arrays", "record_path",
+           "held_srgb"]
 
 STORE_NAME = "dataset.zarr"
 RECORDS_DIR = "records"
 #: The frame arrays of the store, one chunk per frame each.
-LAYERS = ("noisy", "clean", "digital")
+LAYERS = ("noisy", "clean", "digital", *SRGB_LAYERS)
 #: Arrays that are not parameters of the records (their names are taken).
-_RESERVED = frozenset({*LAYERS, "sidecar", "done", "records", "channel", "cfa", "frame", "y", "x"})
+_RESERVED = frozenset({*LAYERS, "sidecar", "done", "records", "channel", "cfa", "frame", "y", "x", "srgb"})
 #: Frames per chunk of ``done`` and ``records`` (written by the main process only).
 TABLE_CHUNK = 4096
 _KEY_ENCODING = {"name": "default", "separator": "."}  # c.<frame>.0.0.0: one flat folder per array
@@ -90,6 +94,8 @@ class StoreLayout:
     digital : str or None
         NumPy dtype name of the digital numbers (``uint8`` for at most 8 bits, else ``uint16``), or None if no
         frame is quantised.
+    srgb : str or None
+        The sRGB output (``png``: uint8 arrays ``srgb_noisy``, ``srgb_clean``; ``png16``: uint16), or None.
     """
 
     path: str
@@ -98,23 +104,48 @@ class StoreLayout:
     height: int
     width: int
     digital: str | None
+    srgb: str | None = None
 
     def shape(self, layer: str) -> tuple:
-        planes = 3 if layer == "clean" else self.planes
+        planes = 3 if layer == "clean" or layer in SRGB_LAYERS else self.planes
         return (self.frames, planes, self.height, self.width)
 
     def dims(self, layer: str) -> tuple:
-        plane = "channel" if layer == "clean" or self.planes == 3 else "cfa"
+        plane = "channel" if layer == "clean" or layer in SRGB_LAYERS or self.planes == 3 else "cfa"
         return ("frame", plane, "y", "x")
 
+    def layers(self) -> tuple:
+        """The frame arrays of this layout's store."""
+        return tuple(name for name in LAYERS if not (name == "digital" and self.digital is None)
+                     and not (name in SRGB_LAYERS and self.srgb is None))
+
+    def dtype(self, layer: str) -> str:
+        from camsim.dataset.srgb import srgb_dtype
+
+        if layer == "digital":
+            return self.digital
+        return srgb_dtype(self.srgb) if layer in SRGB_LAYERS else "float32"
+
     def describe(self) -> dict:
-        """The layout as the store's attributes record it (without its path)."""
-        return {k: v for k, v in asdict(self).items() if k != "path"}
+        """The layout as the store's attributes record it (without its path; ``srgb`` only when set, so that a
+        store written before sRGB outputs existed has the same layout)."""
+        return {k: v for k, v in asdict(self).items() if k != "path" and not (k == "srgb" and v is None)}
 
 
-def store_layout(spec, out_dir: Path) -> StoreLayout:
-    """The layout of ``spec``'s store in ``out_dir``; :class:`CamsimError` for a spec whose frames differ in size or
-    in the kind of sensor (three-chip or colour filter array), which one store cannot hold."""
+def held_srgb(out_dir: Path) -> str | None:
+    """The sRGB output (``png``, ``png16``) of the store in ``out_dir``, read from its metadata; None where there is
+    no store, or one without sRGB arrays."""
+    try:
+        meta = json.loads((Path(out_dir) / STORE_NAME / "zarr.json").read_text(encoding="utf-8"))
+        return meta["attributes"]["camsim"]["layout"].get("srgb")
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+
+
+def store_layout(spec, out_dir: Path, srgb: str = "none") -> StoreLayout:
+    """The layout of ``spec``'s store in ``out_dir`` (with the sRGB output ``srgb``: ``none``, ``png``, ``png16``);
+    :class:`CamsimError` for a spec whose frames differ in size or in the kind of sensor (three-chip or colour
+    filter array), which one store cannot hold."""
     sizes = sorted({(f.width, f.height) for f in spec.frames})
     if len(sizes) > 1:
         raise CamsimError(f"--format zarr needs frames of one size (one array per layer), but {spec.name} has "
@@ -128,7 +159,8 @@ def store_layout(spec, out_dir: Path) -> StoreLayout:
     (width, height), = sizes or [(spec.width, spec.height)]
     return StoreLayout(path=str(Path(out_dir).resolve() / STORE_NAME), frames=len(spec.frames),
                        planes=1 if kinds == {True} else 3, height=height, width=width,
-                       digital=None if not bits else np.dtype(np.uint8 if max(bits) <= 8 else np.uint16).name)
+                       digital=None if not bits else np.dtype(np.uint8 if max(bits) <= 8 else np.uint16).name,
+                       srgb=None if srgb == "none" else srgb)
 
 
 # --- the main process: the store, its parameter table and its done flags ---------------------------------------
@@ -156,7 +188,10 @@ def open_store(layout: StoreLayout, spec, echo=None):
     group = zarr.open_group(root, mode="a", zarr_format=3)
     held = group.attrs.get("camsim", {}).get("layout")
     if held is not None:
-        mismatch = {k: (held.get(k), v) for k, v in layout.describe().items() if k != "frames" and held.get(k) != v}
+        here = layout.describe()
+        blank = {"srgb": "none"}  # how a layout without the key reads in the message
+        mismatch = {k: (held.get(k, blank.get(k)), here.get(k, blank.get(k))) for k in sorted(set(here) | set(held))
+                    if k != "frames" and held.get(k) != here.get(k)}
         if mismatch:
             differences = ", ".join(f"{k} {there} there, {here} here" for k, (there, here) in mismatch.items())
             raise CamsimError(f"{root} holds frames of another layout ({differences}): choose another --out, or "
@@ -164,13 +199,12 @@ def open_store(layout: StoreLayout, spec, echo=None):
     members = set(group.array_keys())
     columns = parameter_columns([frame.record for frame in spec.frames])
     coordinates = " ".join(columns)
-    for layer in LAYERS:
-        if layer == "digital" and layout.digital is None:
-            continue
-        dtype = layout.digital if layer == "digital" else "float32"
-        attributes = {"units": "DN", "description": _DESCRIPTIONS[layer], "coordinates": coordinates}
+    for layer in layout.layers():
+        dtype = layout.dtype(layer)
+        units = "DN" if layer not in SRGB_LAYERS else f"sRGB (IEC 61966-2-1) code values, 0 to {np.iinfo(dtype).max}"
+        attributes = {"units": units, "description": _DESCRIPTIONS[layer], "coordinates": coordinates}
         _frame_array(group, members, layer, layout.shape(layer), (1, *layout.shape(layer)[1:]), dtype,
-                     0 if layer == "digital" else np.nan, layout.dims(layer), attributes)
+                     np.nan if dtype == "float32" else 0, layout.dims(layer), attributes)
     _frame_array(group, members, "sidecar", (layout.frames,), (1,), str, "", ("frame",),
                  {"description": "each frame's sidecar (the file layout's ID.json), as JSON; '' until rendered",
                   "coordinates": coordinates})
@@ -199,6 +233,10 @@ _DESCRIPTIONS = {
              "mosaic), NaN until rendered",
     "clean": "its expected value per pixel (the EXR's clean.R, clean.G, clean.B), NaN until rendered",
     "digital": "the quantised digital numbers I (the DNG's), 0 until rendered or where not quantised",
+    "srgb_noisy": "the noisy layer developed through the camera ISP (the file layout's ID_srgb_noisy.png; the "
+                  "ISP's record in the frame's record, key srgb), 0 until rendered",
+    "srgb_clean": "the clean layer developed through the same ISP (same white balance, matrix, gain and tone curve; "
+                  "the file layout's ID_srgb_clean.png), 0 until rendered",
 }
 
 
@@ -284,11 +322,20 @@ def _remove_partials(root: Path) -> None:
 # --- a worker: one frame's chunks ------------------------------------------------------------------------------
 
 
-def frame_arrays(rendered, layout: StoreLayout) -> dict:
-    """A rendered :class:`camsim.render.frame.Frame` as the store's layers (``digital`` None where not quantised)."""
+def frame_arrays(rendered, layout: StoreLayout, info=None) -> tuple[dict, dict | None]:
+    """A rendered :class:`camsim.render.frame.Frame` as the store's layers (``digital`` None where not quantised),
+    with the developed ``srgb_noisy`` and ``srgb_clean`` where the layout has an sRGB output (which needs the
+    frame's ``info``); and what those hold (:func:`camsim.dataset.srgb.develop_frame`'s record, None without)."""
     digital = rendered.digital_dn
-    return {"noisy": rendered.noisy_dn, "clean": rendered.clean_dn(),
+    data = {"noisy": rendered.noisy_dn, "clean": rendered.clean_dn(),
             "digital": None if digital is None else digital.astype(layout.digital, copy=False)}
+    if layout.srgb is None:
+        return data, None
+    from camsim.dataset.srgb import develop_frame, quantise
+
+    images, record = develop_frame(rendered, info, layout.srgb)
+    data.update({layer: quantise(image, record["bits"]) for layer, image in images.items()})
+    return data, record
 
 
 _open_arrays: dict = {}  # store path -> {name: zarr.Array}, per process
@@ -347,12 +394,14 @@ def verified_record(out_dir: Path, group, frame, verify: str = "sha256") -> dict
     """The frame's record if it is complete and verified in the store, else None: the record describes this very
     frame, and each chunk it lists is there with the recorded size and (``verify="sha256"``) the recorded SHA-256
     of its array."""
-    record = frame_record(record_path(out_dir, frame.id), frame, ("arrays", "zarr"))
+    record = frame_record(record_path(out_dir, frame.id), frame, ("arrays", "zarr", "srgb"))
     if record is None:
         return None
     entries = record.get("arrays")
     if not isinstance(entries, dict) or not entries.get("noisy") or not entries.get("sidecar"):
         return None
+    if any(layer in group and not entries.get(layer) for layer in SRGB_LAYERS):
+        return None  # the store has sRGB arrays, which this frame's record does not list
     root = Path(str(group.store.root))
     for name, entry in entries.items():
         if entry is None:
@@ -380,7 +429,7 @@ def store_result(out_dir: Path, group, layout: StoreLayout, frame, result: dict,
     entries = result.get("arrays")
     if entries is None:
         entries = write_frame_arrays(layout, frame.index, result["data"], result["sidecar"], threads)
-    record = {**frame.record, "arrays": entries}
+    record = {**frame.record, **({"srgb": result["srgb"]} if "srgb" in result else {}), "arrays": entries}
     atomic.write_json_atomic(record_path(out_dir, frame.id), record)
     with _writing(_member_path(group, "done")):
         group["done"][frame.index] = True

@@ -48,6 +48,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "shape (frame, channel, y, x), one chunk per frame, plus the sidecars, done flags and "
                              "the parameters (docs, guide 'Datasets for denoisers'); every frame must have the same size")
     exr_compression_argument(parser, spec_key=True)
+    parser.add_argument("--srgb", choices=("none", "png", "png16"),
+                        help="also each frame's noisy and clean layers developed through one camera ISP (the same "
+                             "white balance, colour matrix, gain 1/F (1 with auto exposure) and sRGB curve for "
+                             "both): png = 8-bit, png16 = 16-bit, as OUT/frames/ID_srgb_noisy.png and "
+                             "ID_srgb_clean.png, or the arrays srgb_noisy and srgb_clean of a Zarr store (default: "
+                             "the spec's srgb, else a store's own, else none)")
     parser.add_argument("--verify", choices=("sha256", "size"), default="sha256",
                         help="how a re-run checks the files of complete frames: size and SHA-256 (default) or "
                              "size only")
@@ -69,14 +75,14 @@ def run(args) -> int:
 
     if args.dry_run:  # what the run checks before its first frame: the settings, then the spec and every frame
         check_settings(workers=args.workers, threads=args.threads, scheduler=args.scheduler, verify=args.verify,
-                       exr_compression=args.exr_compression, output=args.format)
+                       exr_compression=args.exr_compression, output=args.format, srgb=args.srgb)
         print_plan(plan_spec(args.spec))
         return 0
     spec = load_spec(args.spec)
     out = args.out if args.out is not None else DEFAULT_OUT / spec.name
     run_dataset(spec, out, workers=args.workers, threads=args.threads, scheduler=args.scheduler,
                 verify=args.verify, progress=not args.quiet, exr_compression=args.exr_compression,
-                output=args.format)
+                output=args.format, srgb=args.srgb)
     return 0
 
 

@@ -1,0 +1,106 @@
+"""A dataset's sRGB outputs (``srgb = "png"`` or ``"png16"`` in a spec, ``camsim dataset --srgb``): each frame's
+noisy layer and its clean layer developed through one camera ISP (:func:`camsim.isp.develop_pair`: the same white
+balance, the same camera → sRGB matrix, the same gain and tone curve for both), as 8- or 16-bit sRGB.
+
+The file layout writes ``OUT/frames/ID_srgb_noisy.png`` and ``ID_srgb_clean.png`` (atomically, the ISP's record in
+each PNG's text chunk); a Zarr store holds the same numbers as the arrays ``srgb_noisy`` and ``srgb_clean``
+((frame, 3, y, x), uint8 or uint16). The frame's record (its ``.done`` file and manifest line) says what was
+written under ``srgb``: the output, the bits and the ISP's record (every stage's name and parameters, the white
+balance gains and the matrix).
+
+The developed frame is the one in the EXR: ``noisy`` is the signal before quantisation (``Frame.noisy_dn``, the
+EXR's noisy layer; for a Bayer sensor the mosaic, demosaiced by the ISP), ``clean`` its expectation per pixel (the
+EXR's clean layer; for a Bayer sensor taken at the mosaic's sites, so that the target goes through the same
+demosaicing as the input), both with the black level before the ADC (:func:`camsim.isp.facts_from_info` with
+``quantised=False``). :func:`dataset_isp` gives the ISP's settings: the ISP's defaults (as-shot white balance, Malvar
+2004, the camera's matrix, the sRGB curve) but for ``gain = "auto"`` (1 / F, the exposure ratio of SID and ELD), so
+that a frame at F = 10⁻³ is as bright developed as one at F = 1 (a gain of 1 for a scene with ``exposure = "auto"``,
+whose exposure times already make up for F).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from camsim.core.errors import CamsimError
+
+__all__ = ["SRGB_LAYERS", "dataset_isp", "srgb_bits", "srgb_dtype", "develop_frame", "quantise", "mosaic_clean"]
+
+#: The developed layers, as the file layout names its PNGs (``ID_<layer>.png``) and a Zarr store its arrays.
+SRGB_LAYERS = ("srgb_noisy", "srgb_clean")
+_BITS = {"png": 8, "png16": 16}
+
+
+def dataset_isp(exposure: str = "fixed"):
+    """The ISP settings of a dataset's sRGB outputs: :class:`camsim.isp.IspSettings` with ``gain="auto"`` (1 / F);
+    a gain of 1 for frames whose ``exposure`` is ``auto`` (the exposure time already brings the white to the
+    scene's target whatever F)."""
+    from camsim.isp import IspSettings
+
+    return IspSettings(gain="auto" if exposure == "fixed" else 1.0)
+
+
+def srgb_bits(output: str) -> int | None:
+    """Bits per value of an sRGB output (:data:`camsim.dataset.spec.SRGB_OUTPUTS`): 8, 16, or None for ``none``."""
+    if output == "none":
+        return None
+    if output not in _BITS:
+        raise CamsimError(f"unknown sRGB output {output!r}; outputs: none, {', '.join(_BITS)}")
+    return _BITS[output]
+
+
+def srgb_dtype(output: str) -> str | None:
+    """NumPy dtype name of an sRGB output's values (``uint8``, ``uint16``), None for ``none``."""
+    bits = srgb_bits(output)
+    return None if bits is None else ("uint8" if bits == 8 else "uint16")
+
+
+def quantise(image: np.ndarray, bits: int) -> np.ndarray:
+    """A developed (3, H, W) image in [0, 1] as the integers a ``bits``-bit PNG of :func:`camsim.isp.write_png`
+    holds (:func:`camsim.isp.writers.encode_image`: round half up of clip(x, 0, 1) · (2^bits − 1)), planes first:
+    (3, H, W) uint8 or uint16."""
+    from camsim.isp.writers import encode_image
+
+    return np.ascontiguousarray(encode_image(image, bits).transpose(2, 0, 1))
+
+
+def mosaic_clean(clean: np.ndarray, cfa_pattern: str) -> np.ndarray:
+    """The clean layer (3, H, W) of a Bayer frame at its mosaic's sites: (H, W), each pixel its own channel's value
+    (what the sensor's noisy mosaic is the noisy realisation of)."""
+    from camsim.sensor.cfa import cfa_sites
+
+    out = np.empty(clean.shape[1:], dtype=clean.dtype)
+    for dy, dx, channel in cfa_sites(cfa_pattern):
+        out[dy::2, dx::2] = clean[channel, dy::2, dx::2]
+    return out
+
+
+def develop_frame(rendered, info, output: str, settings=None) -> tuple[dict, dict]:
+    """Develop a rendered frame (:class:`camsim.render.frame.Frame` and its ``FrameInfo``) for the sRGB output
+    ``output`` (``png`` or ``png16``): its noisy and clean layers through one ISP (``settings``, default
+    :func:`dataset_isp`).
+
+    Returns
+    -------
+    images : dict
+        ``srgb_noisy``, ``srgb_clean``: (3, H, W) float32 in [0, 1], the developed images before quantisation.
+    record : dict
+        ``output``, ``bits`` and ``isp``: the ISP's record of the noisy frame's development (the clean one's is the
+        same: one set of gains, one matrix).
+    """
+    from camsim.isp import develop_pair, facts_from_info
+
+    bits = srgb_bits(output)
+    if bits is None:
+        raise CamsimError("no sRGB output asked for (srgb = none)")
+    if settings is None:
+        settings = dataset_isp((info.exposure or {}).get("exposure", "fixed"))
+    facts = facts_from_info(rendered, info, quantised=False)  # noisy_dn and clean_dn: the level before the ADC
+    noisy = rendered.noisy_dn
+    clean = rendered.clean_dn()
+    if facts.cfa_pattern is not None:
+        noisy = noisy[0]
+        clean = mosaic_clean(clean, facts.cfa_pattern)
+    developed_noisy, developed_clean = develop_pair(noisy, clean, facts, settings)
+    images = {"srgb_noisy": developed_noisy.image, "srgb_clean": developed_clean.image}
+    return images, {"output": output, "bits": bits, "isp": developed_noisy.record}

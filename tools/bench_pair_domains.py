@@ -1,0 +1,133 @@
+"""Training pairs per second in each domain of :mod:`camsim.pairs` on the CPU: ``dn`` (as rendered), ``raw``
+(normalised, packed R, G1, G2, B) and ``srgb`` (developed through the ISP), side by side in one run, with the
+ratio srgb / raw (issue 26's target: at least 0.8).
+
+Every domain renders the same batches (the same seed: the same images, crops, cameras, F and noise), so the
+difference is what the domain's conversion costs. The domains are timed in turn, round after round (``--repeats``
+rounds of ``--batches`` batches each), and each rate is the domain's best round (the figure least moved by other
+work on a shared machine, and the domains see the same changes of load), after a warm-up round (which pays for the
+photographs' recovery, the lit scenes of every illuminant and colour-science's imports). ``--profile`` also times
+the ISP's stages on one pair of the batch (to see where the sRGB time goes).
+
+    python tools/bench_pair_domains.py [--crop 256x256] [--batch-size 8] [--batches 4] [--repeats 5]
+                                       [--camera sony-a7s2] [--demosaic bilinear] [--profile]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def rates(sources: dict, batches: int, repeats: int) -> dict:
+    """Pairs per second of each source: its best of ``repeats`` rounds of batches 0 … batches − 1, the sources
+    timed in turn in each round."""
+    best = dict.fromkeys(sources, float("inf"))
+    for _ in range(repeats):
+        for name, source in sources.items():
+            start = time.perf_counter()
+            for index in range(batches):
+                source.batch(index)
+            best[name] = min(best[name], time.perf_counter() - start)
+    return {name: batches * sources[name].batch_size / seconds for name, seconds in best.items()}
+
+
+def profile(source_srgb) -> list[tuple[str, float]]:
+    """Seconds of each ISP stage on one pair of batch 0 (the noisy frame), best of 5."""
+    import numpy as np
+
+    from camsim.isp import (apply_gain, apply_matrix, apply_white_balance, demosaic, normalise, srgb_matrix,
+                            tone_curve, white_balance_gains)
+    from camsim.isp.develop import _plan
+    from camsim.core.xp import to_host
+
+    settings = source_srgb.isp
+    if settings is None:
+        from camsim.pairs import pair_isp
+
+        settings = pair_isp()
+    dn = source_srgb.__class__(**{**{f: getattr(source_srgb, f) for f in (
+        "scene", "images", "crop", "batch_size", "intensity", "cameras", "iso", "cameras_mode", "k_range", "flips",
+        "seed", "device")}, "domain": "dn", "isp": None})
+    batch = dn.batch(0)
+    p = batch.params[0]
+    from camsim.sensor.presets import sensor_preset
+
+    sensor = sensor_preset(p["preset"], p["iso"])
+    facts = dn._facts(p, sensor)
+    raw = to_host(batch.noisy[0])
+    raw = raw[0] if facts.cfa_pattern else raw
+    steps = []
+
+    def timed(name, fn):
+        best = float("inf")
+        for _ in range(5):
+            t = time.perf_counter()
+            out = fn()
+            best = min(best, time.perf_counter() - t)
+        steps.append((name, best))
+        return out
+
+    timed("plan (gains, matrix, record)", lambda: _plan(facts, settings))
+    gains = white_balance_gains(facts, settings.white_balance)
+    m = srgb_matrix(facts, settings.white_balance)
+    x = timed("normalise", lambda: normalise(raw, facts))
+    x = timed("white balance", lambda: apply_white_balance(x, gains, facts.cfa_pattern))
+    if facts.cfa_pattern:
+        x = timed(f"demosaic ({settings.demosaic})", lambda: demosaic(x, facts.cfa_pattern, settings.demosaic))
+    x = timed("matrix", lambda: apply_matrix(x, m))
+    x = timed("gain", lambda: apply_gain(x, 1 / p["intensity_factor"]))
+    timed(f"tone ({settings.tone})", lambda: tone_curve(x, settings.tone))
+    assert np.all(np.isfinite(x))
+    return steps
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--crop", default="256x256", help="pair size WxH (default 256x256)")
+    parser.add_argument("--batch-size", type=int, default=8)
+    parser.add_argument("--batches", type=int, default=4, help="batches per timed run (default 4)")
+    parser.add_argument("--repeats", type=int, default=5, help="timed rounds (default 5)")
+    parser.add_argument("--camera", default="sony-a7s2", help="camera preset (default sony-a7s2, Bayer)")
+    parser.add_argument("--demosaic", default=None, help="the srgb domain's demosaicing (default: pair_isp's)")
+    parser.add_argument("--profile", action="store_true", help="also time the ISP's stages on one pair")
+    args = parser.parse_args(argv)
+
+    from camsim.isp import IspSettings
+    from camsim.pairs import PAIR_DOMAINS, PairSource, pair_isp
+
+    width, height = (int(v) for v in args.crop.lower().split("x"))
+    isp = pair_isp() if args.demosaic is None else IspSettings(gain="auto", demosaic=args.demosaic)
+    common = {"crop": (width, height), "batch_size": args.batch_size, "cameras": (args.camera,),
+              "intensity": (1e-3, 0.1), "seed": 3, "device": "cpu"}
+    images = ROOT / "camsim" / "scenes" / "images"
+    sources = {domain: PairSource.from_scene("macbeth_26", images, domain=domain, **common,
+                                             **({"isp": isp} if domain == "srgb" else {}))
+               for domain in PAIR_DOMAINS}
+    rates(sources, args.batches, 1)  # warm-up: recovery, lit scenes (every illuminant drawn), imports
+    measured = rates(sources, args.batches, args.repeats)
+    print(f"camsim.pairs on the CPU ({platform.processor() or platform.machine()}, {os.cpu_count()} cores, load "
+          f"{os.getloadavg()[0]:.1f}), camera {args.camera}, crop {width}x{height}, batch {args.batch_size}, best of "
+          f"{args.repeats} rounds of {args.batches} batches; srgb: demosaic {isp.demosaic}, gain {isp.gain}, "
+          f"tone {isp.tone}; one thread")
+    print(f"{'domain':<10}{'pairs/s':>10}{'MP/s':>9}")
+    for name, value in measured.items():
+        print(f"{name:<10}{value:>10.2f}{value * width * height / 1e6:>9.2f}")
+    print(f"srgb / raw = {measured['srgb'] / measured['raw']:.3f} (target >= 0.8); raw / dn = "
+          f"{measured['raw'] / measured['dn']:.3f}")
+    if args.profile:
+        print("ISP stages on one pair (best of 5):")
+        for name, seconds in profile(sources["srgb"]):
+            print(f"  {name:<30}{seconds * 1e3:>9.2f} ms")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
