@@ -32,7 +32,7 @@ LAYERS = {
     "scene": 7,       # scene files, sources, chart, built-in scenes, regions, radiance
     "render": 8,      # frame, pipeline, run, frame files, manifest, sidecar schema, preview, backends
     # the applications: one layer, they may import one another (without a cycle)
-    "analysis": 9, "calibration": 9, "dataset": 9, "denoise": 9, "emva": 9, "experiments": 9, "optimise": 9,
+    "analysis": 9, "calibration": 9, "dataset": 9, "denoise": 9, "emva": 9, "experiments": 9, "isp": 9, "optimise": 9,
     "pairs": 9, "pairs_torch": 9,
     "cli": 10,        # the command line and its sub-commands
     "__main__": 11,   # python -m camsim

@@ -19,7 +19,7 @@ import sys
 import warnings
 
 from camsim import __version__
-from camsim.cli.commands import analyze, calibrate, dataset, denoise_eval, emva, experiment, optimise, render
+from camsim.cli.commands import analyze, calibrate, dataset, denoise_eval, develop, emva, experiment, optimise, render
 from camsim.cli.commands import list as list_command
 from camsim.core.errors import CamsimError, describe_os_error
 from camsim.core.signals import handlers_installed
@@ -34,6 +34,7 @@ COMMANDS = {
     "optimise": optimise,
     "dataset": dataset,
     "denoise-eval": denoise_eval,
+    "develop": develop,
     "list": list_command,
 }
 

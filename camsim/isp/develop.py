@@ -1,0 +1,210 @@
+"""The ISP's pipeline: settings, the whole development of a frame, each stage's image, and noisy/clean pairs
+through the same ISP."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from camsim.core.errors import CamsimError
+from camsim.isp.stages import (CHROMATIC_ADAPTATION, DEMOSAIC_METHODS, MATRICES, TONE_CURVES, WHITE_BALANCE_MODES,
+                               apply_gain, apply_matrix, apply_white_balance, demosaic, normalise, srgb_matrix,
+                               tone_curve, white_balance_gains)
+
+__all__ = ["IspSettings", "Developed", "develop", "develop_stages", "develop_pair", "STAGE_NAMES"]
+
+#: The keys of :func:`develop_stages`, in the order of the pipeline.
+STAGE_NAMES = ("raw", "normalised", "white_balanced", "demosaiced", "srgb_linear", "gained", "toned")
+
+
+@dataclass(frozen=True)
+class IspSettings:
+    """The ISP's settings: every stage switchable by name.
+
+    Attributes
+    ----------
+    black : bool
+        Subtract the black level (else only divide by the white level: 0 = zero DN).
+    white_balance : str
+        ``"as-shot"`` (the frame's AsShotNeutral: the perfect white under the frame's illuminant becomes neutral),
+        ``"none"``, or a colour-science illuminant name (e.g. ``"D65"``, ``"A"``): the white under that light.
+    demosaic : str
+        A key of :data:`camsim.isp.stages.DEMOSAIC_METHODS` (``"bilinear"``, ``"malvar2004"``, ``"menon2007"``);
+        ignored for three-chip frames.
+    matrix : str
+        ``"camera"`` (camera → linear sRGB from the camera's spectral sensitivities and the white-balance
+        illuminant, :func:`camsim.isp.stages.srgb_matrix`) or ``"none"``.
+    gain : float or "auto"
+        A digital gain on the linear values (1 = the white level stays 1), or ``"auto"`` = 1 / F, F the frame's
+        intensity factor (the SID/ELD exposure ratio).
+    tone : str
+        A key of :data:`camsim.isp.stages.TONE_CURVES`: ``"srgb"``, ``"filmic"``, ``"linear"``.
+    """
+
+    black: bool = True
+    white_balance: str = "as-shot"
+    demosaic: str = "malvar2004"
+    matrix: str = "camera"
+    gain: float | str = 1.0
+    tone: str = "srgb"
+
+    def __post_init__(self):
+        if not isinstance(self.black, bool):
+            raise CamsimError(f"black must be True or False, got {self.black!r}")
+        if not isinstance(self.white_balance, str) or not self.white_balance:
+            raise CamsimError(f"white balance must be {', '.join(WHITE_BALANCE_MODES)} or an illuminant name, got "
+                              f"{self.white_balance!r}")
+        if self.demosaic not in DEMOSAIC_METHODS:
+            raise CamsimError(f"unknown demosaicing method {self.demosaic!r}; methods: {', '.join(DEMOSAIC_METHODS)}")
+        if self.matrix not in MATRICES:
+            raise CamsimError(f"unknown colour matrix {self.matrix!r}; matrices: {', '.join(MATRICES)}")
+        if self.tone not in TONE_CURVES:
+            raise CamsimError(f"unknown tone curve {self.tone!r}; curves: {', '.join(TONE_CURVES)}")
+        gain = self.gain
+        if isinstance(gain, str):
+            if gain != "auto":
+                raise CamsimError(f"gain must be a positive number or 'auto', got {gain!r}")
+        elif isinstance(gain, bool) or not isinstance(gain, (int, float)) or not (np.isfinite(gain) and gain > 0):
+            raise CamsimError(f"gain must be a positive number or 'auto', got {gain!r}")
+        else:
+            object.__setattr__(self, "gain", float(gain))
+
+    def record(self) -> dict:
+        """The settings as a JSON-ready dict (for metadata)."""
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True, eq=False)
+class Developed:
+    """A developed image.
+
+    Attributes
+    ----------
+    image : numpy.ndarray, shape (3, H, W), float32
+        sRGB R, G, B after the tone curve, in [0, 1].
+    record : dict
+        Every stage's name and parameters, the colour matrix, the white-balance gains, the gain, the facts used
+        and camsim's version (JSON-ready).
+    """
+
+    image: np.ndarray
+    record: dict
+
+
+@dataclass(frozen=True, eq=False)
+class _Plan:
+    """What the ISP applies to every frame with the same facts and settings."""
+
+    gains: np.ndarray  # (3,)
+    matrix: np.ndarray | None  # (3, 3) or None
+    gain: float
+    record: dict
+
+
+def _plan(facts, settings: IspSettings) -> _Plan:
+    import camsim
+
+    gains = white_balance_gains(facts, settings.white_balance)
+    matrix = srgb_matrix(facts, settings.white_balance) if settings.matrix == "camera" else None
+    if settings.gain == "auto":
+        if facts.intensity_factor is None:
+            raise CamsimError("gain 'auto' (1 / F) needs the frame's intensity factor F, which only its sidecar "
+                              "gives; give a number")
+        gain = 1.0 / facts.intensity_factor
+    else:
+        gain = float(settings.gain)
+    colour_source = "qe" if facts.qe is not None else "color_matrix1"
+    record = {
+        "camsim_version": camsim.__version__,
+        "settings": settings.record(),
+        "stages": {
+            "black": {"on": settings.black, "black_dn": facts.black_dn.tolist() if settings.black else [0.0] * 3,
+                      "white_dn": facts.white_dn,
+                      "formula": "(raw - black_c) / (white - black_c)"},
+            "white_balance": {"mode": settings.white_balance, "gains": gains.tolist(),
+                              "formula": "gain_c = neutral_G / neutral_c (neutral: the camera's response to the "
+                                         "perfect white under the white-balance illuminant)"},
+            "demosaic": ({"method": settings.demosaic, "library": "colour-demosaicing"}
+                         if facts.cfa_pattern is not None else None),
+            "matrix": {"name": settings.matrix,
+                       "matrix": None if matrix is None else matrix.tolist(),
+                       "camera_to_xyz": ("Eq. 15 projection of the camera's QE on the CIE 1931 CMFs"
+                                         if colour_source == "qe" else "inverse of ColorMatrix1"),
+                       "adaptation": (None if settings.white_balance == "none"
+                                      else f"von Kries ({CHROMATIC_ADAPTATION}) from the white-balance white to D65"),
+                       "output": "linear sRGB (IEC 61966-2-1 primaries, D65 white)"},
+            "gain": {"mode": "auto (1 / F)" if settings.gain == "auto" else "fixed", "value": gain},
+            "tone": {"name": settings.tone},
+        },
+        "facts": facts.record(),
+    }
+    return _Plan(gains, matrix, gain, record)
+
+
+def _run(raw, facts, settings: IspSettings, plan: _Plan, keep: dict | None) -> np.ndarray:
+    def stage(name, value):
+        if keep is not None:
+            keep[name] = value
+        return value
+
+    cfa = facts.cfa_pattern
+    raw = np.asarray(raw)
+    if cfa is not None and raw.ndim == 3 and raw.shape[0] == 1:
+        raw = raw[0]
+    stage("raw", raw)
+    use = facts if settings.black else dataclasses.replace(facts, black_dn=np.zeros(3))
+    x = stage("normalised", normalise(raw, use))
+    x = stage("white_balanced", apply_white_balance(x, plan.gains, cfa) if settings.white_balance != "none" else x)
+    x = stage("demosaiced", demosaic(x, cfa, settings.demosaic) if cfa is not None else x)
+    x = stage("srgb_linear", apply_matrix(x, plan.matrix) if plan.matrix is not None else x)
+    x = stage("gained", apply_gain(x, plan.gain) if plan.gain != 1.0 else x)
+    return stage("toned", tone_curve(x, settings.tone))
+
+
+def develop(raw, facts, settings: IspSettings = IspSettings()) -> Developed:
+    """Develop a frame's numbers into an sRGB image.
+
+    Parameters
+    ----------
+    raw : array_like, shape (3, H, W), or (H, W) / (1, H, W) for a Bayer mosaic
+        The frame's numbers. Unit: DN (those of ``facts``).
+    facts : IspFacts
+        What the ISP knows about the frame (:func:`camsim.isp.facts_of`, :func:`camsim.isp.facts_from_info`, …).
+    settings : IspSettings
+
+    Returns
+    -------
+    Developed
+        ``image`` (3, H, W) float32 in [0, 1] and its ``record``.
+
+    Stages: :func:`camsim.isp.normalise` → :func:`camsim.isp.apply_white_balance` (gains of
+    :func:`camsim.isp.white_balance_gains`) → :func:`camsim.isp.demosaic` (Bayer frames) →
+    :func:`camsim.isp.apply_matrix` (:func:`camsim.isp.srgb_matrix`) → :func:`camsim.isp.apply_gain` →
+    :func:`camsim.isp.tone_curve` (which clips to [0, 1]).
+    """
+    plan = _plan(facts, settings)
+    return Developed(_run(raw, facts, settings, plan, None), plan.record)
+
+
+def develop_stages(raw, facts, settings: IspSettings = IspSettings()) -> dict[str, np.ndarray]:
+    """The image after each stage of :func:`develop`, keyed :data:`STAGE_NAMES`: ``"raw"`` (the input),
+    ``"normalised"``, ``"white_balanced"`` (a mosaic stays (H, W) until ``"demosaiced"``), ``"demosaiced"``
+    (3, H, W), ``"srgb_linear"``, ``"gained"``, ``"toned"`` (= ``develop(...).image``). A stage switched off
+    gives its input. For the noise analysis."""
+    keep: dict[str, np.ndarray] = {}
+    _run(raw, facts, settings, _plan(facts, settings), keep)
+    return keep
+
+
+def develop_pair(noisy, clean, facts, settings: IspSettings = IspSettings()) -> tuple[Developed, Developed]:
+    """Develop a noisy frame and its clean target through the same ISP: the same white-balance gains, colour matrix
+    and gain (both from ``facts``), the same demosaicing and tone curve. ``noisy`` and ``clean`` have the same
+    shape and units."""
+    noisy, clean = np.asarray(noisy), np.asarray(clean)
+    if noisy.shape != clean.shape:
+        raise CamsimError(f"noisy and clean frames differ in shape: {noisy.shape} and {clean.shape}")
+    plan = _plan(facts, settings)
+    return (Developed(_run(noisy, facts, settings, plan, None), plan.record),
+            Developed(_run(clean, facts, settings, plan, None), plan.record))

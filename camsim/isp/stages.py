@@ -1,0 +1,335 @@
+"""The ISP's stages: one pure array function each (no I/O), and the registries of demosaicing methods and tone
+curves.
+
+Arrays follow camsim's convention: planes first, float32. A three-chip image is (3, H, W); a Bayer mosaic is
+(H, W) with its pattern name (:data:`camsim.sensor.cfa.CFA_PATTERNS`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from camsim.core.errors import CamsimError
+from camsim.sensor.cfa import CFA_PATTERNS, cfa_sites
+
+__all__ = ["DEMOSAIC_METHODS", "TONE_CURVES", "WHITE_BALANCE_MODES", "MATRICES", "CHROMATIC_ADAPTATION",
+           "normalise", "white_balance_gains", "apply_white_balance", "demosaic", "srgb_matrix", "apply_matrix",
+           "apply_gain", "tone_curve", "camera_to_xyz", "illuminant_neutral"]
+
+#: White balance modes besides an illuminant's name.
+WHITE_BALANCE_MODES = ("as-shot", "none")
+#: Colour matrices: camera → linear sRGB from the camera's spectral sensitivities, or none.
+MATRICES = ("camera", "none")
+#: The cone space of the von Kries adaptation from the white-balance illuminant's white to D65.
+CHROMATIC_ADAPTATION = "Bradford"
+
+
+def _check_image(x, what="image") -> np.ndarray:
+    x = np.asarray(x)
+    if x.ndim == 3 and x.shape[0] == 3:
+        return x
+    raise CamsimError(f"{what} must be a (3, H, W) three-chip image, got shape {x.shape}")
+
+
+def _check_mosaic(x, cfa_pattern) -> np.ndarray:
+    x = np.asarray(x)
+    if cfa_pattern not in CFA_PATTERNS:
+        raise CamsimError(f"unknown CFA pattern {cfa_pattern!r}; patterns: {', '.join(CFA_PATTERNS)}")
+    if x.ndim == 3 and x.shape[0] == 1:
+        x = x[0]
+    if x.ndim != 2:
+        raise CamsimError(f"a Bayer mosaic must be (H, W) (or (1, H, W)), got shape {x.shape}")
+    return x
+
+
+def _per_site(x, cfa_pattern, values, op) -> np.ndarray:
+    """``op(site array, values[channel])`` on each 2 × 2 site of a mosaic, or per plane of an image; float32."""
+    if cfa_pattern is None:
+        x = _check_image(x)
+        out = np.empty(x.shape, dtype=np.float32)
+        for c in range(3):
+            out[c] = op(x[c].astype(np.float32, copy=False), np.float32(values[c]))
+        return out
+    x = _check_mosaic(x, cfa_pattern)
+    out = np.empty(x.shape, dtype=np.float32)
+    for dy, dx, c in cfa_sites(cfa_pattern):
+        out[dy::2, dx::2] = op(x[dy::2, dx::2].astype(np.float32, copy=False), np.float32(values[c]))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------------- black
+def normalise(raw, facts) -> np.ndarray:
+    """Black level off and divided by white − black: 0 = black, 1 = the white level.
+
+    Parameters
+    ----------
+    raw : array_like, shape (3, H, W), or (H, W) / (1, H, W) for a Bayer mosaic
+        The frame's numbers. Unit: DN (those of ``facts.black_dn`` and ``facts.white_dn``).
+    facts : IspFacts
+        ``black_dn`` (3,) per channel (a mosaic: each CFA site its channel's), ``white_dn``, ``cfa_pattern``.
+
+    Returns
+    -------
+    numpy.ndarray, float32, same shape as ``raw`` ((H, W) for a mosaic)
+        (raw − black_c) / (white − black_c). Unitless; noise goes below 0.
+    """
+    black = np.asarray(facts.black_dn, dtype=np.float64)
+    scale = 1.0 / (facts.white_dn - black)
+    return _normalise(raw, facts.cfa_pattern, black, scale)
+
+
+def _normalise(raw, cfa_pattern, black, scale):
+    def op(v, c):  # x · s − b · s in float32
+        out = v * np.float32(scale[c])
+        out -= np.float32(black[c] * scale[c])
+        return out
+
+    if cfa_pattern is None:
+        raw = _check_image(raw, "raw")
+        return np.stack([op(raw[c].astype(np.float32, copy=False), c) for c in range(3)])
+    raw = _check_mosaic(raw, cfa_pattern)
+    out = np.empty(raw.shape, dtype=np.float32)
+    for dy, dx, c in cfa_sites(cfa_pattern):
+        out[dy::2, dx::2] = op(raw[dy::2, dx::2].astype(np.float32, copy=False), c)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------- white balance
+def _grid(wavelengths_nm):
+    from camsim.light.spectra import WavelengthGrid
+
+    wl = np.asarray(wavelengths_nm, dtype=np.float64)
+    step = float(wl[1] - wl[0])
+    if not np.allclose(np.diff(wl), step, rtol=1e-6, atol=1e-9):
+        raise CamsimError("the camera's wavelength grid is not uniform: cannot white-balance to a named illuminant")
+    return WavelengthGrid(float(wl[0]), float(wl[-1]), step)
+
+
+def illuminant_neutral(facts, name: str) -> np.ndarray:
+    """The camera's response to the perfect white under the illuminant ``name`` (colour-science's), shape (3,),
+    largest component 1: from the camera's QE (as camsim's AsShotNeutral is computed), or else from ColorMatrix1
+    applied to the illuminant's white XYZ."""
+    if facts.qe is not None:
+        from camsim.colour.rawcolour import as_shot_neutral
+
+        return as_shot_neutral(name, facts.qe, _grid(facts.wavelengths_nm))
+    from camsim.light.spectra import import_colour
+
+    colour = import_colour()
+    if name not in colour.SDS_ILLUMINANTS:
+        raise CamsimError(f"unknown white balance {name!r}: use {', '.join(WHITE_BALANCE_MODES)} or an illuminant "
+                          f"name (e.g. D65, A, FL2)")
+    xyz = colour.sd_to_XYZ(colour.SDS_ILLUMINANTS[name])
+    neutral = facts.color_matrix1 @ (xyz / xyz[1])
+    return neutral / neutral.max()
+
+
+def _neutral(facts, white_balance: str) -> np.ndarray:
+    """The camera neutral (3,) the white balance is made for; None for ``"none"``."""
+    if white_balance == "as-shot":
+        return np.asarray(facts.as_shot_neutral, dtype=np.float64)
+    if white_balance == "none":
+        return None
+    if not isinstance(white_balance, str):
+        raise CamsimError(f"white balance must be a name, got {white_balance!r}")
+    return illuminant_neutral(facts, white_balance)
+
+
+def white_balance_gains(facts, name: str) -> np.ndarray:
+    """The white-balance gains (3,) per channel R, G, B: 1 / neutral, normalised to green (green's gain is 1).
+
+    ``name``: ``"as-shot"`` (the frame's as-shot neutral: the camera's response to the perfect white under the
+    frame's illuminant), ``"none"`` (gains 1) or a colour-science illuminant name (the camera's response to the
+    perfect white under that illuminant). The perfect white's camera values times the gains are equal.
+    """
+    neutral = _neutral(facts, name)
+    if neutral is None:
+        return np.ones(3)
+    if not (np.all(np.isfinite(neutral)) and np.all(neutral > 0)):
+        raise CamsimError(f"cannot white-balance: the neutral {neutral.tolist()} is not positive")
+    return neutral[1] / neutral
+
+
+def apply_white_balance(x, gains, cfa_pattern) -> np.ndarray:
+    """Each channel times its gain: per plane of a (3, H, W) image (``cfa_pattern`` None), per CFA site of an
+    (H, W) mosaic. float32, same shape."""
+    gains = np.asarray(gains, dtype=np.float64).reshape(3)
+    return _per_site(x, cfa_pattern, gains, lambda v, g: v * g)
+
+
+# -------------------------------------------------------------------------------------------------------- demosaic
+def _colour_demosaicing(function_name):
+    def method(mosaic, cfa_pattern):
+        import colour_demosaicing
+
+        rgb = getattr(colour_demosaicing, function_name)(mosaic, cfa_pattern)
+        return np.ascontiguousarray(np.moveaxis(np.asarray(rgb, dtype=np.float32), -1, 0))
+
+    method.__doc__ = f"colour-demosaicing's ``{function_name}``."
+    return method
+
+
+#: Demosaicing methods by name: ``f(mosaic (H, W) float, pattern) -> (3, H, W) float32`` (colour-demosaicing's).
+DEMOSAIC_METHODS = {
+    "bilinear": _colour_demosaicing("demosaicing_CFA_Bayer_bilinear"),
+    "malvar2004": _colour_demosaicing("demosaicing_CFA_Bayer_Malvar2004"),
+    "menon2007": _colour_demosaicing("demosaicing_CFA_Bayer_Menon2007"),
+}
+
+
+def demosaic(mosaic, cfa_pattern: str, method: str = "malvar2004") -> np.ndarray:
+    """A Bayer mosaic to a three-chip image.
+
+    Parameters
+    ----------
+    mosaic : array_like, shape (H, W) or (1, H, W)
+        One value per pixel, the colour of each site given by ``cfa_pattern``.
+    cfa_pattern : {"RGGB", "BGGR", "GRBG", "GBRG"}
+    method : str
+        A key of :data:`DEMOSAIC_METHODS`: ``"bilinear"``, ``"malvar2004"`` (Malvar, He and Cutler 2004,
+        gradient-corrected linear interpolation), ``"menon2007"`` (Menon, Andriani and Calvagno 2007, directional
+        filtering with a posteriori decision), all colour-demosaicing's.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, H, W), float32
+        R, G, B at every pixel, in the units of ``mosaic``.
+    """
+    if method not in DEMOSAIC_METHODS:
+        raise CamsimError(f"unknown demosaicing method {method!r}; methods: {', '.join(DEMOSAIC_METHODS)}")
+    mosaic = _check_mosaic(mosaic, cfa_pattern)
+    return DEMOSAIC_METHODS[method](mosaic, cfa_pattern)
+
+
+# ---------------------------------------------------------------------------------------------------------- matrix
+def camera_to_xyz(facts) -> np.ndarray:
+    """The 3 × 3 matrix from (black-subtracted, normalised) camera R, G, B to CIE 1931 XYZ, any scale
+    (``xyz = M @ rgb``): the paper's Eq. 15 projection of the camera's spectral sensitivities on the
+    colour-matching functions (:func:`camsim.colour.colorimetry.camera_to_xyz_matrix`, method ``"paper"``) where
+    the QE is known, else the inverse of the DNG's ColorMatrix1."""
+    if facts.qe is not None:
+        from camsim.colour.colorimetry import camera_to_xyz_matrix
+
+        try:
+            return camera_to_xyz_matrix(facts.qe, facts.wavelengths_nm, 1.0, method="paper")
+        except ValueError as exc:
+            raise CamsimError(f"no colour matrix for this camera: {exc}") from None
+    try:
+        return np.linalg.inv(facts.color_matrix1)
+    except np.linalg.LinAlgError:
+        raise CamsimError("the DNG's ColorMatrix1 is singular: no colour matrix") from None
+
+
+def srgb_matrix(facts, white_balance: str = "as-shot") -> np.ndarray:
+    """The 3 × 3 matrix from white-balanced camera R, G, B to linear sRGB (``rgb_srgb = M @ rgb_wb``).
+
+    Built as M = XYZ→sRGB · A · C · diag(n / n_G), normalised so that M · (1, 1, 1) = (1, 1, 1):
+
+    * C: camera → XYZ (:func:`camera_to_xyz`: Eq. 15's projection of the camera's QE on the CIE 1931 colour-matching
+      functions, or ColorMatrix1⁻¹);
+    * n: the camera neutral of the white balance (the camera's response to the perfect white under the
+      white-balance illuminant: the as-shot neutral, or the named illuminant's); diag(n / n_G) undoes the
+      white-balance gains, so M acts on white-balanced values;
+    * A: von Kries chromatic adaptation in Bradford cone space from the white C · n (the perfect white under the
+      white-balance illuminant) to D65, the sRGB white (colour-science's
+      ``matrix_chromatic_adaptation_VonKries``);
+    * XYZ→sRGB: the inverse of the normalised primary matrix of the sRGB primaries and D65 white (IEC 61966-2-1;
+      colour-science's ``normalised_primary_matrix``).
+
+    So the perfect white under the white-balance illuminant — (1, 1, 1) after the white balance — maps to sRGB
+    white (1, 1, 1), and a camera value at level v of the white level, neutral, maps to v. With
+    ``white_balance="none"`` no adaptation is made: M = XYZ→sRGB · C, scaled so that the as-shot neutral at
+    green level 1 has luminance Y = 1 (the scene's white keeps its colour).
+    """
+    from camsim.light.spectra import import_colour
+
+    colour = import_colour()
+    to_xyz = camera_to_xyz(facts)
+    srgb = colour.RGB_COLOURSPACES["sRGB"]
+    # XYZ → sRGB from the primaries and the D65 white point themselves (the colourspace's stored matrix is rounded
+    # to 4 decimals, which would leave the white 2e-4 off (1, 1, 1))
+    xyz_to_srgb = np.linalg.inv(colour.normalised_primary_matrix(srgb.primaries, srgb.whitepoint))
+    neutral = _neutral(facts, white_balance)
+    if neutral is None:
+        white = to_xyz @ (facts.as_shot_neutral / facts.as_shot_neutral[1])
+        if not (np.isfinite(white[1]) and white[1] > 0):
+            raise CamsimError(f"no colour matrix: the camera's white maps to XYZ {white.tolist()}")
+        return xyz_to_srgb @ to_xyz / white[1]
+    white = to_xyz @ neutral
+    if not (np.all(np.isfinite(white)) and white[1] > 0):
+        raise CamsimError(f"cannot white-balance: the camera's white maps to XYZ {white.tolist()}")
+    d65 = colour.xy_to_XYZ(srgb.whitepoint)
+    adapt = colour.adaptation.matrix_chromatic_adaptation_VonKries(white / white[1], d65 / d65[1],
+                                                                   transform=CHROMATIC_ADAPTATION)
+    m = xyz_to_srgb @ adapt @ to_xyz @ np.diag(neutral / neutral[1])
+    return m / np.mean(m.sum(axis=1))
+
+
+def apply_matrix(rgb, m) -> np.ndarray:
+    """``out[c] = Σ_j m[c, j] · rgb[j]`` on a (3, H, W) image, in float32, element by element. Returns (3, H, W)
+    float32."""
+    rgb = _check_image(rgb, "rgb")
+    m = np.asarray(m, dtype=np.float64)
+    if m.shape != (3, 3) or not np.all(np.isfinite(m)):
+        raise CamsimError(f"colour matrix must be a finite 3 × 3, got {m.shape}")
+    m32 = m.astype(np.float32)
+    out = np.empty(rgb.shape, dtype=np.float32)
+    term = np.empty(rgb.shape[1:], dtype=np.float32)
+    for c in range(3):
+        np.multiply(rgb[0], m32[c, 0], out=out[c])
+        for j in (1, 2):
+            np.multiply(rgb[j], m32[c, j], out=term)
+            out[c] += term
+    return out
+
+
+def apply_gain(x, gain: float) -> np.ndarray:
+    """A digital gain on normalised linear values: ``x · gain`` (float32)."""
+    if not (np.isfinite(gain) and gain > 0):
+        raise CamsimError(f"gain must be a positive number, got {gain!r}")
+    x = np.asarray(x, dtype=np.float32)
+    return x * np.float32(gain)
+
+
+# ------------------------------------------------------------------------------------------------------ tone curves
+def _srgb(x):
+    """IEC 61966-2-1 (sRGB) transfer function, on values clipped to [0, 1]: 12.92 x for x ≤ 0.0031308, else
+    1.055 x^(1/2.4) − 0.055."""
+    x = np.clip(np.asarray(x, dtype=np.float32), 0.0, 1.0)
+    low = x <= np.float32(0.0031308)
+    out = np.power(x, np.float32(1 / 2.4))
+    out *= np.float32(1.055)
+    out -= np.float32(0.055)
+    np.copyto(out, x * np.float32(12.92), where=low)
+    return out
+
+
+def _filmic(x):
+    """Narkowicz's 2015 fit of the ACES filmic tone curve (K. Narkowicz, "ACES Filmic Tone Mapping Curve", 2015),
+    f(x) = x (2.51 x + 0.03) / (x (2.43 x + 0.59) + 0.14), clipped to [0, 1], then the sRGB transfer function.
+    f(1) ≈ 0.80: highlights up to about 10 × the white level roll off instead of clipping."""
+    x = np.maximum(np.asarray(x, dtype=np.float32), 0.0)
+    y = x * (np.float32(2.51) * x + np.float32(0.03)) / (x * (np.float32(2.43) * x + np.float32(0.59))
+                                                          + np.float32(0.14))
+    return _srgb(y)
+
+
+def _linear(x):
+    """No curve: the linear values, clipped to [0, 1]."""
+    return np.clip(np.asarray(x, dtype=np.float32), 0.0, 1.0)
+
+
+#: Tone curves by name: linear sRGB (1 = white) → encoded values in [0, 1].
+TONE_CURVES = {"srgb": _srgb, "filmic": _filmic, "linear": _linear}
+
+
+def tone_curve(rgb, name: str = "srgb") -> np.ndarray:
+    """The tone curve ``name`` (:data:`TONE_CURVES`) on linear values; result float32 in [0, 1].
+
+    * ``"srgb"``: the IEC 61966-2-1 transfer function (values clipped to [0, 1] first);
+    * ``"filmic"``: Narkowicz 2015's ACES fit, x (2.51 x + 0.03) / (x (2.43 x + 0.59) + 0.14), then sRGB's;
+    * ``"linear"``: the values clipped to [0, 1].
+    """
+    if name not in TONE_CURVES:
+        raise CamsimError(f"unknown tone curve {name!r}; curves: {', '.join(TONE_CURVES)}")
+    return TONE_CURVES[name](rgb)
