@@ -15,6 +15,8 @@ import pytest
 from camsim.cli import main
 from tests.helpers import ROOT
 
+pytestmark = pytest.mark.slow  # CLI runs on a rendered dataset (about 7 s in all)
+
 N_FRAMES = 3
 WIDTH, HEIGHT = 128, 96
 
