@@ -29,7 +29,7 @@ from camsim.denoise.bayer import BAYER_PLANES, ISP_TEXT
 from camsim.denoise.colour_fidelity import WHITE_CLEAN_MAX
 from camsim.denoise.denoisers import MODEL_SIGMA_TEXT, SIGMA_ESTIMATOR, SIGMA_MODEL, WAVELET_IMPLEMENTATION
 from camsim.denoise.evaluate import Evaluation
-from camsim.denoise.summary import NOISY, band_label
+from camsim.denoise.summary import NOISY, band_label, f_band
 from camsim.io.atomic import write_json_atomic, write_text_atomic
 from camsim.io.figures import new_figure, save_png
 from camsim.io.output_folder import make_folder
@@ -499,33 +499,39 @@ def _bayer_lines(ev: Evaluation) -> list[str]:
              "SSIM (`data_range` = 1) and the mean CIEDE2000 of every pixel (sRGB → CIELAB, D65) against the "
              "developed clean frame. These are the `psnr_*`, `ssim_*` and `delta_e00_*` of these frames in "
              "`frames.csv` (column `scored_as`) and in the bands above.", "",
-             "Means over the Bayer frames at each F (`a → b`: noisy → denoised):", "",
-             "| denoiser | F | raw PSNR (dB) | raw SSIM | sRGB PSNR (dB) | sRGB SSIM | sRGB ΔE00 |",
+             "Means over the Bayer frames in each half-decade band of F (`a → b`: noisy → denoised; per frame in "
+             "`frames.csv`):", "",
+             "| denoiser | F band (frames) | raw PSNR (dB) | raw SSIM | sRGB PSNR (dB) | sRGB SSIM | sRGB ΔE00 |",
              "|---|---|---|---|---|---|---|"]
-    factors = sorted({r["intensity_factor"] for r in rows}, reverse=True)
+    bands = sorted({f_band(r["intensity_factor"]) for r in rows}, reverse=True)
+
+    def in_band(name, band):
+        return [r for r in rows if r["denoiser"] == name and f_band(r["intensity_factor"]) == band]
+
     for name in names:
-        for f in factors:
-            fr = [r for r in rows if r["denoiser"] == name and r["intensity_factor"] == f]
+        for band in bands:
+            fr = in_band(name, band)
             if not fr:
                 continue
             lines.append(
-                f"| {name} | {_f(f)} | {_fmt(_mean(fr, 'raw_psnr_noisy_db'), '.2f')} → "
+                f"| {name} | {band_label(band)} ({len(fr)}) | {_fmt(_mean(fr, 'raw_psnr_noisy_db'), '.2f')} → "
                 f"{_fmt(_mean(fr, 'raw_psnr_denoised_db'), '.2f')} | {_fmt(_mean(fr, 'raw_ssim_noisy'), '.3f')} → "
                 f"{_fmt(_mean(fr, 'raw_ssim_denoised'), '.3f')} | {_fmt(_mean(fr, 'srgb_psnr_noisy_db'), '.2f')} → "
                 f"{_fmt(_mean(fr, 'srgb_psnr_denoised_db'), '.2f')} | {_fmt(_mean(fr, 'srgb_ssim_noisy'), '.3f')} → "
                 f"{_fmt(_mean(fr, 'srgb_ssim_denoised'), '.3f')} | "
                 f"{_fmt(_mean(fr, 'srgb_delta_e00_noisy'), '.3g')} → {_fmt(_mean(fr, 'srgb_delta_e00_denoised'), '.3g')} |")
-    lines += ["", "Raw PSNR per plane of the denoised frames (dB, mean over the Bayer frames at each F; noisy first):", "",
-              "| F | " + " | ".join(f"{NOISY_LABEL if k == 0 else names[k - 1]} R / G1 / G2 / B"
+    lines += ["", "Raw PSNR per plane R / G1 / G2 / B (dB, mean over the Bayer frames in each band of F; noisy first):",
+              "",
+              "| F band | " + " | ".join(f"{NOISY_LABEL if k == 0 else names[k - 1]}"
                                    for k in range(len(names) + 1)) + " |",
               "|---|" + "---|" * (len(names) + 1)]
-    for f in factors:
+    for band in bands:
         cells = []
         for k, name in enumerate([first, *names]):
             label = "noisy" if k == 0 else "denoised"
-            fr = [r for r in rows if r["denoiser"] == name and r["intensity_factor"] == f]
+            fr = in_band(name, band)
             cells.append(" / ".join(_fmt(_mean(fr, f"raw_psnr_{p}_{label}_db"), ".1f") for p in BAYER_PLANES))
-        lines.append(f"| {_f(f)} | " + " | ".join(cells) + " |")
+        lines.append(f"| {band_label(band)} | " + " | ".join(cells) + " |")
     lines += ["", "Per frame and plane (PSNR and SSIM), the noise σ per plane (the blind estimate, the sensor "
               "model's and the true one, in the normalised unit): the `raw_*` and `srgb_*` columns of `frames.csv`.",
               ""]
