@@ -11,7 +11,7 @@ with the same gains and matrix. :func:`pack_rggb` / :func:`unpack_rggb` pack a m
 :func:`write_png` and :func:`write_jpeg` write the result with its record.
 """
 
-from camsim.isp.develop import STAGE_NAMES, Developed, IspSettings, develop, develop_pair, develop_stages
+from camsim.isp.develop import GAIN_MODES, STAGE_NAMES, Developed, IspSettings, develop, develop_pair, develop_stages
 from camsim.isp.facts import IspFacts, facts_from_dng_tags, facts_from_info, facts_from_meta, facts_of
 from camsim.isp.pack import PACKED_PLANES, pack_rggb, unpack_rggb
 from camsim.isp.stages import (DEMOSAIC_METHODS, MATRICES, TONE_CURVES, WHITE_BALANCE_MODES, apply_gain,
@@ -20,7 +20,7 @@ from camsim.isp.stages import (DEMOSAIC_METHODS, MATRICES, TONE_CURVES, WHITE_BA
 from camsim.isp.writers import read_png_record, write_jpeg, write_png
 
 __all__ = [
-    "IspSettings", "IspFacts", "Developed", "STAGE_NAMES", "DEMOSAIC_METHODS", "TONE_CURVES", "MATRICES",
+    "IspSettings", "IspFacts", "Developed", "STAGE_NAMES", "GAIN_MODES", "DEMOSAIC_METHODS", "TONE_CURVES", "MATRICES",
     "WHITE_BALANCE_MODES", "PACKED_PLANES",
     "facts_from_meta", "facts_of", "facts_from_info", "facts_from_dng_tags",
     "normalise", "white_balance_gains", "apply_white_balance", "demosaic", "srgb_matrix", "apply_matrix",

@@ -10,11 +10,13 @@ import numpy as np
 
 from camsim.core.errors import CamsimError
 from camsim.isp.stages import (CHROMATIC_ADAPTATION, DEMOSAIC_METHODS, MATRICES, TONE_CURVES, WHITE_BALANCE_MODES,
-                               apply_gain, apply_matrix, apply_white_balance, demosaic, normalise, srgb_matrix,
+                               _srgb_matrix, apply_gain, apply_matrix, apply_white_balance, demosaic, normalise,
                                tone_curve, white_balance_gains)
 
-__all__ = ["IspSettings", "Developed", "develop", "develop_stages", "develop_pair", "STAGE_NAMES"]
+__all__ = ["IspSettings", "Developed", "develop", "develop_stages", "develop_pair", "STAGE_NAMES", "GAIN_MODES"]
 
+#: The named gains: ``"auto"`` = 1 / F; ``"white"`` = the perfect white at the frame's F maps to 1.
+GAIN_MODES = ("auto", "white")
 #: The keys of :func:`develop_stages`, in the order of the pipeline.
 STAGE_NAMES = ("raw", "normalised", "white_balanced", "demosaiced", "srgb_linear", "gained", "toned")
 
@@ -35,10 +37,12 @@ class IspSettings:
         ignored for three-chip frames.
     matrix : str
         ``"camera"`` (camera → linear sRGB from the camera's spectral sensitivities and the white-balance
-        illuminant, :func:`camsim.isp.stages.srgb_matrix`) or ``"none"``.
-    gain : float or "auto"
-        A digital gain on the linear values (1 = the white level stays 1), or ``"auto"`` = 1 / F, F the frame's
-        intensity factor (the SID/ELD exposure ratio).
+        illuminant, :func:`camsim.isp.stages.srgb_matrix`), ``"paper"`` (from the paper's Eq. 15 projection of
+        the sensitivities), ``"dng"`` (from the DNG's ColorMatrix1, as raw converters do) or ``"none"``.
+    gain : float or "auto" or "white"
+        A digital gain on the linear values (1 = the white level stays 1), ``"auto"`` = 1 / F, F the frame's
+        intensity factor (the SID/ELD exposure ratio), or ``"white"``: the perfect white under the frame's light
+        at its F maps to 1 (1 / its green level, from the sidecar's ``white_signal_e``).
     tone : str
         A key of :data:`camsim.isp.stages.TONE_CURVES`: ``"srgb"``, ``"filmic"``, ``"linear"``.
     """
@@ -64,10 +68,10 @@ class IspSettings:
             raise CamsimError(f"unknown tone curve {self.tone!r}; curves: {', '.join(TONE_CURVES)}")
         gain = self.gain
         if isinstance(gain, str):
-            if gain != "auto":
-                raise CamsimError(f"gain must be a positive number or 'auto', got {gain!r}")
+            if gain not in GAIN_MODES:
+                raise CamsimError(f"gain must be a positive number, 'auto' or 'white', got {gain!r}")
         elif isinstance(gain, bool) or not isinstance(gain, (int, float)) or not (np.isfinite(gain) and gain > 0):
-            raise CamsimError(f"gain must be a positive number or 'auto', got {gain!r}")
+            raise CamsimError(f"gain must be a positive number, 'auto' or 'white', got {gain!r}")
         else:
             object.__setattr__(self, "gain", float(gain))
 
@@ -103,19 +107,28 @@ class _Plan:
     record: dict
 
 
+_GAIN_RECORD = {"auto": "auto (1 / F)", "white": "white (the perfect white at this F -> 1)"}
+
+
 def _plan(facts, settings: IspSettings) -> _Plan:
     import camsim
 
     gains = white_balance_gains(facts, settings.white_balance)
-    matrix = srgb_matrix(facts, settings.white_balance) if settings.matrix == "camera" else None
+    matrix, to_xyz = (_srgb_matrix(facts, settings.white_balance, settings.matrix) if settings.matrix != "none"
+                      else (None, None))
     if settings.gain == "auto":
         if facts.intensity_factor is None:
             raise CamsimError("gain 'auto' (1 / F) needs the frame's intensity factor F, which only its sidecar "
                               "gives; give a number")
         gain = 1.0 / facts.intensity_factor
+    elif settings.gain == "white":
+        if facts.white_signal_dn is None:
+            raise CamsimError("gain 'white' needs the perfect white's signal (the sidecar's white_signal_e), which "
+                              "this frame's metadata lacks; give a number")
+        span = facts.white_dn - (facts.black_dn[1] if settings.black else 0.0)  # what normalise divides by
+        gain = span / facts.white_signal_dn[1]
     else:
         gain = float(settings.gain)
-    colour_source = "qe" if facts.qe is not None else "color_matrix1"
     record = {
         "camsim_version": camsim.__version__,
         "settings": settings.record(),
@@ -130,12 +143,12 @@ def _plan(facts, settings: IspSettings) -> _Plan:
                          if facts.cfa_pattern is not None else None),
             "matrix": {"name": settings.matrix,
                        "matrix": None if matrix is None else matrix.tolist(),
-                       "camera_to_xyz": ("Eq. 15 projection of the camera's QE on the CIE 1931 CMFs"
-                                         if colour_source == "qe" else "inverse of ColorMatrix1"),
+                       "camera_to_xyz": to_xyz,
                        "adaptation": (None if settings.white_balance == "none"
                                       else f"von Kries ({CHROMATIC_ADAPTATION}) from the white-balance white to D65"),
                        "output": "linear sRGB (IEC 61966-2-1 primaries, D65 white)"},
-            "gain": {"mode": "auto (1 / F)" if settings.gain == "auto" else "fixed", "value": gain},
+            "gain": {"mode": _GAIN_RECORD.get(settings.gain, "fixed") if isinstance(settings.gain, str) else "fixed",
+                     "value": gain},
             "tone": {"name": settings.tone},
         },
         "facts": facts.record(),

@@ -42,7 +42,12 @@ class IspFacts:
         The camera's quantum efficiency per channel on ``wavelengths_nm`` (any common scale). Unit:
         e⁻·m²·sr/photon in a sidecar.
     color_matrix1 : numpy.ndarray, shape (3, 3), or None
-        The DNG's ColorMatrix1 (XYZ → camera under D65), used for the colour matrix where ``qe`` is None.
+        The DNG's ColorMatrix1 (XYZ → camera under D65), used for the colour matrix where ``qe`` is None (or where
+        the settings ask for it: ``matrix="dng"``).
+    white_signal_dn : numpy.ndarray, shape (3,), or None
+        The perfect white's expected signal under the frame's light at its F, per channel, above the black level
+        (the sidecar's ``white_signal_e`` × ``dn_per_electron``): what ``gain="white"`` maps to 1. None where
+        unknown. Unit: DN.
     """
 
     cfa_pattern: str | None
@@ -54,6 +59,7 @@ class IspFacts:
     wavelengths_nm: np.ndarray | None = None
     qe: np.ndarray | None = None
     color_matrix1: np.ndarray | None = field(default=None)
+    white_signal_dn: np.ndarray | None = None
 
     def __post_init__(self):
         if self.cfa_pattern is not None and self.cfa_pattern not in CFA_PATTERNS:
@@ -85,6 +91,11 @@ class IspFacts:
         if self.color_matrix1 is not None:
             cm = np.asarray(self.color_matrix1, dtype=np.float64).reshape(3, 3)
             object.__setattr__(self, "color_matrix1", cm)
+        if self.white_signal_dn is not None:
+            white = np.asarray(self.white_signal_dn, dtype=np.float64).reshape(-1)
+            if white.shape != (3,) or not (np.all(np.isfinite(white)) and np.all(white > 0)):
+                raise CamsimError(f"the perfect white's signal must be 3 positive numbers, got {self.white_signal_dn!r}")
+            object.__setattr__(self, "white_signal_dn", white)
         if self.qe is None and self.color_matrix1 is None:
             raise CamsimError("the ISP needs the camera's spectral sensitivities (a sidecar's qe) or a "
                               "ColorMatrix1 for its colour matrix")
@@ -94,6 +105,7 @@ class IspFacts:
         return {"cfa_pattern": self.cfa_pattern, "black_dn": self.black_dn.tolist(), "white_dn": self.white_dn,
                 "as_shot_neutral": self.as_shot_neutral.tolist(), "intensity_factor": self.intensity_factor,
                 "illuminant": self.illuminant,
+                "white_signal_dn": None if self.white_signal_dn is None else self.white_signal_dn.tolist(),
                 "colour_source": "qe" if self.qe is not None else "color_matrix1"}
 
 
@@ -119,6 +131,9 @@ def facts_from_meta(meta: dict, quantised: bool) -> IspFacts:
             qe=np.asarray(meta["qe_e_m2_sr_per_photon"], dtype=np.float64),
             color_matrix1=(np.asarray(meta["color_matrix1_xyz_to_camera"], dtype=np.float64)
                            if meta.get("color_matrix1_xyz_to_camera") is not None else None),
+            white_signal_dn=(np.asarray(meta["white_signal_e"], dtype=np.float64) * float(meta["dn_per_electron"])
+                             if meta.get("white_signal_e") is not None and min(meta["white_signal_e"]) > 0
+                             else None),
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise CamsimError(f"the frame's metadata lacks what the ISP needs ({type(exc).__name__}: {exc})") from None
@@ -151,6 +166,9 @@ def facts_from_info(frame, info, quantised: bool | None = None) -> IspFacts:
         wavelengths_nm=np.asarray(info.wavelengths_nm, dtype=np.float64),
         qe=np.asarray(frame.expected.qe, dtype=np.float64),
         color_matrix1=np.asarray(info.color_matrix1, dtype=np.float64),
+        white_signal_dn=(None if info.white_signal_e_per_s is None or np.min(info.white_signal_e_per_s) <= 0 else
+                         np.asarray(info.white_signal_e_per_s, dtype=np.float64) * info.intensity_factor
+                         * sensor.exposure_s * sensor.dn_per_electron),
     )
 
 

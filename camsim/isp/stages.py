@@ -18,8 +18,10 @@ __all__ = ["DEMOSAIC_METHODS", "TONE_CURVES", "WHITE_BALANCE_MODES", "MATRICES",
 
 #: White balance modes besides an illuminant's name.
 WHITE_BALANCE_MODES = ("as-shot", "none")
-#: Colour matrices: camera → linear sRGB from the camera's spectral sensitivities, or none.
-MATRICES = ("camera", "none")
+#: Colour matrices (camera → XYZ, :func:`camera_to_xyz`, then to linear sRGB): from the camera's spectral
+#: sensitivities under the white-balance illuminant (``"camera"``), the paper's Eq. 15 projection (``"paper"``),
+#: the DNG's ColorMatrix1 as raw converters use it (``"dng"``), or none.
+MATRICES = ("camera", "paper", "dng", "none")
 #: The cone space of the von Kries adaptation from the white-balance illuminant's white to D65.
 CHROMATIC_ADAPTATION = "Bradford"
 
@@ -158,12 +160,25 @@ def apply_white_balance(x, gains, cfa_pattern) -> np.ndarray:
 
 
 # -------------------------------------------------------------------------------------------------------- demosaic
+#: Pixels of mirrored mosaic added along each edge before demosaicing (an even number: the mirror, which leaves the
+#: edge row out, keeps the Bayer phase), and cut off after: colour-demosaicing's own boundary handling mirrors
+#: through the edge pixel, which breaks the pattern there (bilinear gives 2.25 × a constant mosaic's value in a
+#: corner and 1.5 × along the edges).
+DEMOSAIC_PAD = 4
+
+
 def _colour_demosaicing(function_name):
     def method(mosaic, cfa_pattern):
         import colour_demosaicing
 
-        rgb = getattr(colour_demosaicing, function_name)(mosaic, cfa_pattern)
-        return np.ascontiguousarray(np.moveaxis(np.asarray(rgb, dtype=np.float32), -1, 0))
+        pad = DEMOSAIC_PAD if min(mosaic.shape) > DEMOSAIC_PAD else 0
+        padded = np.pad(mosaic, pad, mode="reflect") if pad else mosaic
+        rgb = getattr(colour_demosaicing, function_name)(padded, cfa_pattern)
+        height, width = mosaic.shape
+        out = np.empty((3, height, width), dtype=np.float32)
+        for c in range(3):
+            out[c] = rgb[pad:pad + height, pad:pad + width, c]
+        return out
 
     method.__doc__ = f"colour-demosaicing's ``{function_name}``."
     return method
@@ -202,31 +217,92 @@ def demosaic(mosaic, cfa_pattern: str, method: str = "malvar2004") -> np.ndarray
 
 
 # ---------------------------------------------------------------------------------------------------------- matrix
-def camera_to_xyz(facts) -> np.ndarray:
-    """The 3 × 3 matrix from (black-subtracted, normalised) camera R, G, B to CIE 1931 XYZ, any scale
-    (``xyz = M @ rgb``): the paper's Eq. 15 projection of the camera's spectral sensitivities on the
-    colour-matching functions (:func:`camsim.colour.colorimetry.camera_to_xyz_matrix`, method ``"paper"``) where
-    the QE is known, else the inverse of the DNG's ColorMatrix1."""
-    if facts.qe is not None:
+#: The training reflectances of the ``"camera"`` matrix: colour-science's copy of the 190 patches of rawtoaces'
+#: training data (``colour.characterisation.read_training_data_rawtoaces_v1``), not the ColorChecker.
+TRAINING_SET = "rawtoaces v1 training data (190 reflectances)"
+
+
+def _grid_of(facts):
+    return _grid(facts.wavelengths_nm)
+
+
+def _trained_camera_to_xyz(facts, illuminant: str) -> np.ndarray:
+    """Least squares camera → XYZ over the :data:`TRAINING_SET` reflectances under ``illuminant``: the camera's
+    values Σ_λ Qe ρ E λ (photons: the energy radiance ρ E over h c / λ; any common scale) against XYZ = Σ_λ
+    (x̄, ȳ, z̄) ρ E, both on the frame's wavelength grid."""
+    from camsim.light.spectra import cmfs_on_grid, illuminant_spd, import_colour
+
+    colour = import_colour()
+    grid = _grid_of(facts)
+    wl = np.asarray(facts.wavelengths_nm, dtype=np.float64)
+    shape = colour.SpectralShape(float(wl[0]), float(wl[-1]), float(grid.step_nm))
+    training = colour.characterisation.read_training_data_rawtoaces_v1().copy().align(shape)
+    reflectances = np.asarray(training.values, dtype=np.float64).T  # (K, N)
+    radiance = reflectances * illuminant_spd(illuminant, grid)
+    camera = (radiance * wl) @ (facts.qe / np.max(facts.qe)).T
+    xyz = radiance @ cmfs_on_grid(grid).T
+    solution, *_ = np.linalg.lstsq(camera, xyz, rcond=None)  # xyz ≈ camera @ solution
+    return solution.T
+
+
+def _camera_to_xyz(facts, source: str, illuminant: str | None) -> tuple[np.ndarray, str]:
+    """(C, what C is): see :func:`camera_to_xyz`."""
+    if source not in ("camera", "paper", "dng"):
+        raise CamsimError(f"unknown colour matrix {source!r}; matrices: {', '.join(MATRICES)}")
+    if source in ("camera", "paper") and facts.qe is not None:
+        from camsim.light.spectra import import_colour
+
+        if source == "camera" and illuminant is not None and illuminant in import_colour().SDS_ILLUMINANTS:
+            return (_trained_camera_to_xyz(facts, illuminant),
+                    f"least squares on the {TRAINING_SET} under {illuminant}, from the camera's QE")
         from camsim.colour.colorimetry import camera_to_xyz_matrix
 
         try:
-            return camera_to_xyz_matrix(facts.qe, facts.wavelengths_nm, 1.0, method="paper")
+            return (camera_to_xyz_matrix(facts.qe, facts.wavelengths_nm, 1.0, method="paper"),
+                    "Eq. 15 projection of the camera's QE on the CIE 1931 CMFs")
         except ValueError as exc:
             raise CamsimError(f"no colour matrix for this camera: {exc}") from None
+    if source == "paper":
+        raise CamsimError("matrix 'paper' needs the camera's spectral sensitivities (a sidecar's qe)")
+    if facts.color_matrix1 is None:
+        raise CamsimError("matrix 'dng' needs the frame's ColorMatrix1, which its metadata lacks")
     try:
-        return np.linalg.inv(facts.color_matrix1)
+        return np.linalg.inv(facts.color_matrix1), "inverse of ColorMatrix1"
     except np.linalg.LinAlgError:
         raise CamsimError("the DNG's ColorMatrix1 is singular: no colour matrix") from None
 
 
-def srgb_matrix(facts, white_balance: str = "as-shot") -> np.ndarray:
+def _white_balance_illuminant(facts, white_balance: str) -> str | None:
+    """The illuminant the white balance is made for: the frame's for ``"as-shot"`` and ``"none"``, else the
+    name given."""
+    return facts.illuminant if white_balance in WHITE_BALANCE_MODES else white_balance
+
+
+def camera_to_xyz(facts, source: str = "camera", illuminant: str | None = None) -> np.ndarray:
+    """The 3 × 3 matrix C from (black-subtracted, normalised) camera R, G, B to CIE 1931 XYZ, any scale
+    (``xyz = C @ rgb``).
+
+    ``source``:
+
+    * ``"camera"``: from the camera's spectral sensitivities (the sidecar's QE) and ``illuminant`` (a
+      colour-science name): the least-squares fit of the XYZ of :data:`TRAINING_SET` (190 reflectances, not the
+      ColorChecker) under that light to the camera's values of the same light; without a known illuminant, as
+      ``"paper"``; without a QE (a DNG alone), as ``"dng"``;
+    * ``"paper"``: the paper's Eq. 15 projection of the QE on the colour-matching functions, which does not depend
+      on the light (:func:`camsim.colour.colorimetry.camera_to_xyz_matrix`, method ``"paper"``);
+    * ``"dng"``: the inverse of the DNG's ColorMatrix1 (camsim's: a least-squares fit on the ColorChecker under
+      D65), as raw converters use it.
+    """
+    return _camera_to_xyz(facts, source, illuminant)[0]
+
+
+def srgb_matrix(facts, white_balance: str = "as-shot", source: str = "camera") -> np.ndarray:
     """The 3 × 3 matrix from white-balanced camera R, G, B to linear sRGB (``rgb_srgb = M @ rgb_wb``).
 
     Built as M = XYZ→sRGB · A · C · diag(n / n_G), normalised so that M · (1, 1, 1) = (1, 1, 1):
 
-    * C: camera → XYZ (:func:`camera_to_xyz`: Eq. 15's projection of the camera's QE on the CIE 1931 colour-matching
-      functions, or ColorMatrix1⁻¹);
+    * C: camera → XYZ, :func:`camera_to_xyz` with ``source`` (``"camera"``: fitted on training reflectances
+      under the white-balance illuminant; ``"paper"``: Eq. 15; ``"dng"``: ColorMatrix1⁻¹);
     * n: the camera neutral of the white balance (the camera's response to the perfect white under the
       white-balance illuminant: the as-shot neutral, or the named illuminant's); diag(n / n_G) undoes the
       white-balance gains, so M acts on white-balanced values;
@@ -241,10 +317,14 @@ def srgb_matrix(facts, white_balance: str = "as-shot") -> np.ndarray:
     ``white_balance="none"`` no adaptation is made: M = XYZ→sRGB · C, scaled so that the as-shot neutral at
     green level 1 has luminance Y = 1 (the scene's white keeps its colour).
     """
+    return _srgb_matrix(facts, white_balance, source)[0]
+
+
+def _srgb_matrix(facts, white_balance: str, source: str) -> tuple[np.ndarray, str]:
     from camsim.light.spectra import import_colour
 
     colour = import_colour()
-    to_xyz = camera_to_xyz(facts)
+    to_xyz, what = _camera_to_xyz(facts, source, _white_balance_illuminant(facts, white_balance))
     srgb = colour.RGB_COLOURSPACES["sRGB"]
     # XYZ → sRGB from the primaries and the D65 white point themselves (the colourspace's stored matrix is rounded
     # to 4 decimals, which would leave the white 2e-4 off (1, 1, 1))
@@ -254,7 +334,7 @@ def srgb_matrix(facts, white_balance: str = "as-shot") -> np.ndarray:
         white = to_xyz @ (facts.as_shot_neutral / facts.as_shot_neutral[1])
         if not (np.isfinite(white[1]) and white[1] > 0):
             raise CamsimError(f"no colour matrix: the camera's white maps to XYZ {white.tolist()}")
-        return xyz_to_srgb @ to_xyz / white[1]
+        return xyz_to_srgb @ to_xyz / white[1], what
     white = to_xyz @ neutral
     if not (np.all(np.isfinite(white)) and white[1] > 0):
         raise CamsimError(f"cannot white-balance: the camera's white maps to XYZ {white.tolist()}")
@@ -262,7 +342,7 @@ def srgb_matrix(facts, white_balance: str = "as-shot") -> np.ndarray:
     adapt = colour.adaptation.matrix_chromatic_adaptation_VonKries(white / white[1], d65 / d65[1],
                                                                    transform=CHROMATIC_ADAPTATION)
     m = xyz_to_srgb @ adapt @ to_xyz @ np.diag(neutral / neutral[1])
-    return m / np.mean(m.sum(axis=1))
+    return m / np.mean(m.sum(axis=1)), what
 
 
 def apply_matrix(rgb, m) -> np.ndarray:

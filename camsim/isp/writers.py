@@ -18,8 +18,9 @@ __all__ = ["PNG_TEXT_KEY", "PNG_COMPRESS_LEVEL", "JPEG_SUBSAMPLING", "write_png"
 
 #: The keyword of the PNG tEXt chunk (and the start of the JPEG comment) that holds the record as JSON.
 PNG_TEXT_KEY = "camsim:develop"
-#: zlib's compression level for PNGs: 3 writes fast; noise barely compresses at higher levels.
-PNG_COMPRESS_LEVEL = 3
+#: zlib's compression level for PNGs. With the Up filter, level 1 writes a 12 MP developed chart in 0.5 s where 3
+#: takes 1.1 s and 6 takes 4.4 s, for 10 % and 23 % more bytes (noise barely compresses).
+PNG_COMPRESS_LEVEL = 1
 #: JPEG chroma subsampling: 4:4:4 (none), so that the colour of single pixels is kept.
 JPEG_SUBSAMPLING = "4:4:4"
 
@@ -56,14 +57,16 @@ def _chunk(kind: bytes, data: bytes) -> bytes:
 
 
 def _png_bytes(pixels: np.ndarray, text: str | None, level: int) -> bytes:
-    """A PNG (colour type 2, RGB; 8 or 16 bits, filter 0 on every row) of (H, W, 3) uint8/uint16 pixels, with an
+    """A PNG (colour type 2, RGB; 8 or 16 bits, filter 2 (Up) on every row) of (H, W, 3) uint8/uint16 pixels, with an
     optional tEXt chunk ``PNG_TEXT_KEY`` = ``text`` (ASCII)."""
     height, width, _ = pixels.shape
     bits = 8 if pixels.dtype == np.uint8 else 16
-    rows = np.empty((height, 1 + width * 3 * bits // 8), dtype=np.uint8)
-    rows[:, 0] = 0  # filter type 0 (None)
-    data = pixels.astype(">u2", copy=False) if bits == 16 else pixels
-    rows[:, 1:] = np.ascontiguousarray(data).view(np.uint8).reshape(height, -1)
+    data = np.ascontiguousarray(pixels.astype(">u2", copy=False) if bits == 16 else pixels)
+    data = data.view(np.uint8).reshape(height, -1)
+    rows = np.empty((height, 1 + data.shape[1]), dtype=np.uint8)
+    rows[:, 0] = 2  # filter type 2 (Up): each byte less the byte above it, modulo 256
+    rows[0, 1:] = data[0]
+    np.subtract(data[1:], data[:-1], out=rows[1:, 1:])  # uint8 arithmetic wraps: modulo 256
     header = struct.pack(">IIBBBBB", width, height, bits, 2, 0, 0, 0)
     out = [b"\x89PNG\r\n\x1a\n", _chunk(b"IHDR", header)]
     if text is not None:

@@ -35,14 +35,14 @@ examples:
 
 
 def _gain(text: str):
-    if text == "auto":
-        return "auto"
+    if text in ("auto", "white"):
+        return text
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"gain must be a positive number or 'auto', got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"gain must be a positive number, 'auto' or 'white', got {text!r}") from None
     if not (value > 0 and value < float("inf")):
-        raise argparse.ArgumentTypeError(f"gain must be a positive number or 'auto', got {text!r}")
+        raise argparse.ArgumentTypeError(f"gain must be a positive number, 'auto' or 'white', got {text!r}")
     return value
 
 
@@ -78,10 +78,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help=f"demosaicing of Bayer frames: {', '.join(DEMOSAIC_METHODS)} (default malvar2004)")
     parser.add_argument("--matrix", metavar="NAME", default="camera", choices=list(MATRICES),
                         help="'camera' (default: camera → linear sRGB from the camera's spectral sensitivities and "
-                             "the white-balance illuminant) or 'none'")
-    parser.add_argument("--gain", metavar="X|auto", type=_gain, default=1.0,
-                        help="digital gain on the linear values (default 1: the white level is 1), or 'auto' = "
-                             "1 / F, F the frame's intensity factor (the SID/ELD exposure ratio)")
+                             "the white-balance illuminant), 'dng' (from the DNG's ColorMatrix1, as raw converters "
+                             "do) or 'none'")
+    parser.add_argument("--gain", metavar="X|auto|white", type=_gain, default=1.0,
+                        help="digital gain on the linear values (default 1: the white level is 1), 'auto' = 1 / F, "
+                             "F the frame's intensity factor (the SID/ELD exposure ratio), or 'white': the perfect "
+                             "white under the frame's light at its F is 1")
     parser.add_argument("--tone", metavar="NAME", default="srgb", choices=list(TONE_CURVES),
                         help="tone curve: srgb (default, IEC 61966-2-1), filmic (Narkowicz 2015's ACES fit, then "
                              "sRGB's), linear")
