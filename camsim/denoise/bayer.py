@@ -57,8 +57,8 @@ def isp_settings():
 
 
 ISP_TEXT = ("camsim.isp.develop with white balance as shot (the frame's AsShotNeutral), the camera → sRGB matrix "
-            "(from the camera's spectral sensitivities), the default demosaicing, gain = auto (1 / F: every frame "
-            "at the brightness of F = 1) and the sRGB tone curve, clipped to [0, 1]")
+            "(from the camera's spectral sensitivities), the default demosaicing (Malvar 2004), gain = auto (1 / F: "
+            "every frame at the brightness of F = 1) and the sRGB tone curve, clipped to [0, 1]")
 """How the frames are developed for the scores after the ISP (for the report)."""
 
 

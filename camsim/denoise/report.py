@@ -519,7 +519,8 @@ def _bayer_lines(ev: Evaluation) -> list[str]:
                 f"{_fmt(_mean(fr, 'raw_ssim_denoised'), '.3f')} | {_fmt(_mean(fr, 'srgb_psnr_noisy_db'), '.2f')} → "
                 f"{_fmt(_mean(fr, 'srgb_psnr_denoised_db'), '.2f')} | {_fmt(_mean(fr, 'srgb_ssim_noisy'), '.3f')} → "
                 f"{_fmt(_mean(fr, 'srgb_ssim_denoised'), '.3f')} | "
-                f"{_fmt(_mean(fr, 'srgb_delta_e00_noisy'), '.3g')} → {_fmt(_mean(fr, 'srgb_delta_e00_denoised'), '.3g')} |")
+                f"{_fmt(_mean(fr, 'srgb_delta_e00_noisy'), '.3g')} → "
+                f"{_fmt(_mean(fr, 'srgb_delta_e00_denoised'), '.3g')} |")
     lines += ["", "Raw PSNR per plane R / G1 / G2 / B (dB, mean over the Bayer frames in each band of F; noisy first):",
               "",
               "| F band | " + " | ".join(f"{NOISY_LABEL if k == 0 else names[k - 1]}"
