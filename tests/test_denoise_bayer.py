@@ -257,3 +257,4 @@ def test_a_command_denoiser_gets_the_packed_planes(dataset, tmp_path):
         (cmd,) = [row for name, row in pair.items() if name.startswith("cmd-")]
         assert cmd["raw_psnr_denoised_db"] == ident["raw_psnr_denoised_db"]
         assert cmd["srgb_delta_e00_denoised"] == ident["srgb_delta_e00_denoised"]
+
