@@ -231,22 +231,25 @@ def test_a_denoiser_returning_the_wrong_shape_is_one_line(dataset, user_module, 
     assert not (out / "report.md").exists()
 
 
-def test_a_command_denoiser_gets_the_packed_planes(dataset, tmp_path):
-    """A ``cmd:`` denoiser reads an EXR of channels R, G1, G2, B at half resolution and writes the same: copying
-    them gives the identity's scores."""
+@pytest.mark.parametrize("option, channels, shape", [("packed", ["B", "G1", "G2", "R"], (HEIGHT // 2, WIDTH // 2)),
+                                                     ("mosaic", ["CFA"], (HEIGHT, WIDTH))])
+def test_a_command_denoiser_gets_the_planes_or_the_mosaic(dataset, tmp_path, option, channels, shape):
+    """A ``cmd:`` denoiser reads an EXR of channels R, G1, G2, B at half resolution (or CFA at full resolution) and
+    writes the same: copying them gives the identity's scores."""
     program = tmp_path / "copy_planes.py"
-    program.write_text(textwrap.dedent("""\
+    program.write_text(textwrap.dedent(f"""\
         import sys
         import OpenEXR
         with OpenEXR.File(sys.argv[1], separate_channels=True) as exr:
-            channels = {k: v.pixels for k, v in exr.channels().items()}
-        assert sorted(channels) == ["B", "G1", "G2", "R"], sorted(channels)
-        OpenEXR.File({"compression": OpenEXR.NO_COMPRESSION, "type": OpenEXR.scanlineimage},
+            channels = {{k: v.pixels for k, v in exr.channels().items()}}
+        assert sorted(channels) == {channels!r}, sorted(channels)
+        assert all(v.shape == {shape!r} for v in channels.values())
+        OpenEXR.File({{"compression": OpenEXR.NO_COMPRESSION, "type": OpenEXR.scanlineimage}},
                      channels).write(sys.argv[2])
         """))
     out = tmp_path / "cmd"
     assert _cli([str(dataset), "-d", "identity", "-d", f"cmd:{sys.executable} {program} {{input}} {{output}}",
-                 "--out", str(out), "-q"]) == 0
+                 "--bayer-input", option, "--out", str(out), "-q"]) == 0
     rows = _frames_csv(out)
     by_file = {}
     for r in rows:
@@ -258,3 +261,30 @@ def test_a_command_denoiser_gets_the_packed_planes(dataset, tmp_path):
         assert cmd["raw_psnr_denoised_db"] == ident["raw_psnr_denoised_db"]
         assert cmd["srgb_delta_e00_denoised"] == ident["srgb_delta_e00_denoised"]
 
+
+
+def test_a_command_denoiser_runs_from_the_command_line_on_a_three_chip_frame(tmp_path):
+    """The ``cmd:`` denoiser's input EXR lies in a temporary folder, outside the output folder the run holds (where
+    camsim's own writes are confined): it is written there all the same, and copying R, G, B gives the identity's
+    scores (this failed from the command line before issue 26: "refusing to write …/noisy.exr")."""
+    assert main(["render", "macbeth_26", "--size", "96x64", "--intensity", "1", "--illuminant", "D65",
+                 "--out", str(tmp_path / "frames"), "-q"]) == 0
+    program = tmp_path / "copy_rgb.py"
+    program.write_text(textwrap.dedent("""\
+        import sys
+        import OpenEXR
+        with OpenEXR.File(sys.argv[1], separate_channels=True) as exr:
+            channels = {k: v.pixels for k, v in exr.channels().items()}
+        assert sorted(channels) == ["B", "G", "R"], sorted(channels)
+        OpenEXR.File({"compression": OpenEXR.NO_COMPRESSION, "type": OpenEXR.scanlineimage},
+                     channels).write(sys.argv[2])
+        """))
+    out = tmp_path / "eval"
+    command = f"cmd:{sys.executable} {program} {{input}} {{output}}"
+    assert _cli([str(tmp_path / "frames"), "-d", "identity", "-d", command, "--out", str(out), "-q"]) == 0
+    rows = _frames_csv(out)
+    (ident,) = [r for r in rows if r["denoiser"] == "identity"]
+    (cmd,) = [r for r in rows if r["denoiser"].startswith("cmd-")]
+    assert ident["frame_kind"] == "three-chip" and ident["raw_psnr_noisy_db"] == ""
+    assert cmd["psnr_denoised_db"] == ident["psnr_denoised_db"] != ""
+    assert cmd["delta_e00_denoised"] == ident["delta_e00_denoised"]

@@ -507,14 +507,27 @@ def _run_in_own_group(args: list[str], timeout_s: float | None, folder: Path) ->
 PACKED_CHANNELS = ("R", "G1", "G2", "B")
 
 
-def _write_planes_exr(path: Path, planes: np.ndarray, header: dict) -> None:
-    """An uncompressed float32 EXR with the (h, w, 4) planes as channels R, G1, G2, B."""
+#: The EXR channel of a Bayer mosaic given to (and read back from) a ``cmd:`` denoiser.
+MOSAIC_CHANNEL = "CFA"
+
+
+def _write_input_exr(path: Path, planes: dict, header: dict) -> None:
+    """The noisy frame a ``cmd:`` denoiser reads: an uncompressed float32 EXR with ``planes`` (name → 2-D array) as
+    its channels and ``header``'s string attributes.
+
+    Written with the OpenEXR bindings straight into the private temporary folder, not with
+    :func:`camsim.io.exr.write_exr`: that one writes atomically and only inside the output folder a run holds
+    (:func:`camsim.io.atomic.confined_to`), which this temporary file, no output of the run, lies outside of.
+    """
     import OpenEXR
 
-    channels = {c: np.ascontiguousarray(planes[..., i], dtype=np.float32) for i, c in enumerate(PACKED_CHANNELS)}
-    with OpenEXR.File({"compression": OpenEXR.NO_COMPRESSION, "type": OpenEXR.scanlineimage, **header},
-                      channels) as exr:
-        exr.write(str(path))
+    channels = {c: np.ascontiguousarray(v, dtype=np.float32) for c, v in planes.items()}
+    try:
+        with OpenEXR.File({"compression": OpenEXR.NO_COMPRESSION, "type": OpenEXR.scanlineimage, **header},
+                          channels) as exr:
+            exr.write(str(path))
+    except RuntimeError as exc:  # OpenEXR reports a failed write (no space, I/O error) as RuntimeError
+        raise CamsimError(f"cannot write the denoiser's input {path}: {exc}") from None
 
 
 def _read_planes_exr(path: Path, template: str) -> np.ndarray:
@@ -554,7 +567,7 @@ def _command_denoiser(target: str, timeout_s: float | None) -> Denoiser:
         raise CamsimError(f"denoiser {target!r}: program {program!r} not found")
 
     def run(image, sigma_dn):
-        from camsim.io.exr import read_exr, write_exr
+        from camsim.io.exr import read_exr
 
         with tempfile.TemporaryDirectory(prefix="camsim-denoise-") as tmp:
             source, result = Path(tmp) / "noisy.exr", Path(tmp) / "denoised.exr"
@@ -563,11 +576,11 @@ def _command_denoiser(target: str, timeout_s: float | None) -> Denoiser:
             if sigma_dn is not None:
                 header["camsim:denoise_sigma_dn"] = json.dumps([float(s) for s in np.ravel(sigma_dn)])
             if image.ndim == 2:  # a Bayer mosaic: one channel CFA
-                write_exr(source, np.ascontiguousarray(image[None], dtype=np.float32), None, header)
+                _write_input_exr(source, {MOSAIC_CHANNEL: image}, header)
             elif image.shape[-1] == 3:
-                write_exr(source, np.ascontiguousarray(np.moveaxis(image, -1, 0), dtype=np.float32), None, header)
+                _write_input_exr(source, {c: image[..., i] for i, c in enumerate("RGB")}, header)
             else:  # packed planes R, G1, G2, B
-                _write_planes_exr(source, image, header)
+                _write_input_exr(source, {c: image[..., i] for i, c in enumerate(PACKED_CHANNELS)}, header)
             args = [a.replace(INPUT_PLACEHOLDER, str(source)).replace(OUTPUT_PLACEHOLDER, str(result)) for a in argv]
             try:
                 done = _run_in_own_group(args, timeout_s, Path(tmp))
