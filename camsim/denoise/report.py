@@ -421,7 +421,10 @@ def _band_lines(ev: Evaluation) -> list[str]:
              f"* **preserves colour** when the mean ΔE00 (CIEDE2000, per pixel, against the clean layer; see *How it "
              f"was measured*) is **≤ {crit.max_delta_e00:g}**.", "",
              *(["For Bayer frames the SSIM and ΔE00 are those after the ISP: the developed denoised (or noisy) "
-                "frame against the developed clean one (see *Bayer frames* below).", ""] if _bayer_rows(ev) else []),
+                "frame against the developed clean one (see *Bayer frames* below)"
+                + ("; this dataset mixes them with three-chip frames, scored in camera DN, in the same bands and "
+                   "means — score the two kinds in separate runs for comparable numbers." if
+                   len(_bayer_rows(ev)) != len(ev.frame_rows) else "."), ""] if _bayer_rows(ev) else []),
              "It preserves an aspect *down to* the lowest F tested in the last band, from the brightest down, in "
              "which the criterion holds in that band and every brighter one; below it, it stops. The noisy frames "
              "(no denoising) are judged by the same rule: a denoiser is worth running where it passes and they "
@@ -471,9 +474,10 @@ def bayer_input_text(bayer_input: str) -> str:
     """What a user's denoiser gets for a Bayer frame (for the report)."""
     if bayer_input == "mosaic":
         return ("the (H, W) float32 mosaic in the frame's own pattern, black subtracted and divided by white − black "
-                "(0 = black, 1 = the white level; noise goes below 0)")
+                "(0 = black, 1 = the white level; not clipped: noise goes below 0)")
     return ("the (H/2, W/2, 4) float32 planes R, G1, G2, B (G1 the green on R's row; channels last), black "
-            "subtracted and divided by white − black (0 = black, 1 = the white level; noise goes below 0)")
+            "subtracted and divided by white − black (0 = black, 1 = the white level; not clipped: noise goes below "
+            "0)")
 
 
 def _bayer_lines(ev: Evaluation) -> list[str]:

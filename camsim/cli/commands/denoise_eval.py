@@ -44,7 +44,7 @@ what a denoiser gets (and must return: an array of the same shape, finite number
   three-chip frame          a (H, W, 3) float32 array in DN (R, G, B last; the EXR's noisy values before
                             quantisation, black level included); sigma_dn: (3,) per channel, in DN
   Bayer frame, packed       a (H/2, W/2, 4) float32 array: the mosaic black-subtracted and divided by
-  (default)                 white - black (0 = black, 1 = the white level; noise goes below 0), planes
+  (default)                 white - black (0 = black, 1 = the white level; not clipped), planes
                             R, G1, G2, B last whatever the pattern (G1: the green on R's row);
                             sigma_dn: (4,) per plane, in that normalised unit
   Bayer frame, mosaic       (--bayer-input mosaic; your denoisers only) the same values as a (H, W) float32
@@ -102,7 +102,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--keep-black", action="store_true",
                         help="do not subtract the sidecar's black level (mean DN of an unlit pixel) before the colour "
                              "quantities, as the paper; by default it is subtracted, so that they measure the "
-                             "denoiser and not the dark current's drag toward the camera black point")
+                             "denoiser and not the dark current's drag toward the camera black point (three-chip "
+                             "frames; a Bayer frame is always black-subtracted and normalised)")
     parser.add_argument("--max-delta-e", metavar="DE", type=positive_float, default=3.0,
                         help="criterion: largest mean ΔE_ab at which colour counts as preserved (default 3)")
     parser.add_argument("--max-bias", metavar="DXY", type=positive_float, default=0.005,
