@@ -288,3 +288,24 @@ def test_a_command_denoiser_runs_from_the_command_line_on_a_three_chip_frame(tmp
     assert ident["frame_kind"] == "three-chip" and ident["raw_psnr_noisy_db"] == ""
     assert cmd["psnr_denoised_db"] == ident["psnr_denoised_db"] != ""
     assert cmd["delta_e00_denoised"] == ident["delta_e00_denoised"]
+
+
+def test_isp_gain_option(dataset, tmp_path, capsys):
+    """--isp-gain auto develops as at F = 1 (recorded per frame; the raw scores do not change); a bad value is one
+    line."""
+    runs = {}
+    for gain in ("white", "auto"):
+        out = tmp_path / gain
+        assert _cli([str(dataset), "-d", "identity", "--isp-gain", gain, "--out", str(out), "-q"]) == 0
+        runs[gain] = {r["file"]: r for r in _frames_csv(out)}
+        assert {r["isp_gain"] for r in runs[gain].values()} == {gain}
+        assert json.loads((out / "summary.json").read_text())["bayer"]["isp_gain"] == gain
+    for name, white in runs["white"].items():
+        auto = runs["auto"][name]
+        assert auto["raw_psnr_noisy_db"] == white["raw_psnr_noisy_db"]
+        assert auto["srgb_psnr_noisy_db"] != white["srgb_psnr_noisy_db"]
+    capsys.readouterr()
+    assert _cli([str(dataset), "-d", "identity", "--isp-gain", "bright", "--out", str(tmp_path / "bad")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--isp-gain: expected white, auto or a positive number" in err
+    assert not (tmp_path / "bad").exists()

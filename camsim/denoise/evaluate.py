@@ -39,8 +39,8 @@ from camsim.analysis.grouping import group_key
 from camsim.render.frame_files import load_frame
 from camsim.analysis.patches import frame_matrix, patch_samples
 from camsim.colour.colorimetry import CHANNELS
-from camsim.denoise.bayer import (BAYER_INPUTS, BAYER_PLANES, MOSAIC, PACKED, bayer_frame, developed_image,
-                                  from_packed, raw_scores, srgb_scores, to_packed)
+from camsim.denoise.bayer import (BAYER_INPUTS, BAYER_PLANES, DEFAULT_ISP_GAIN, MOSAIC, PACKED, bayer_frame,
+                                  developed_image, from_packed, raw_scores, srgb_scores, to_packed)
 from camsim.denoise.colour_fidelity import frame_white_xyz, mean_delta_e00
 from camsim.denoise.denoisers import SIGMA_MODEL, Denoiser, estimate_noise_sigma, model_noise_sigma
 from camsim.denoise.frames import Dataset, DatasetFrame, find_dataset
@@ -72,6 +72,10 @@ class EvalSettings:
         What a user's denoiser (``MODULE:FUNCTION``, ``cmd:``) gets for a Bayer frame: the normalised packed planes
         (H/2, W/2, 4) or the normalised mosaic (H, W) (:mod:`camsim.denoise.bayer`). The built-ins always get the
         packed planes.
+    isp_gain : {'white', 'auto'} or float
+        The gain of the development for a Bayer frame's scores after the ISP (:mod:`camsim.denoise.bayer`):
+        ``"white"`` maps the perfect white under the frame's light at its F to 1 (``"auto"`` where a sidecar lacks
+        it), ``"auto"`` is 1 / F, a number a fixed gain.
     """
 
     border_px: int = 3
@@ -79,12 +83,17 @@ class EvalSettings:
     criterion: Criterion = field(default_factory=Criterion)
     matrix: str = "paper"
     bayer_input: str = PACKED
+    isp_gain: str | float = DEFAULT_ISP_GAIN
 
     def __post_init__(self):
         if not (isinstance(self.border_px, int) and self.border_px >= 0):
             raise CamsimError(f"border must be a non-negative number of pixels, got {self.border_px!r}")
         if self.bayer_input not in BAYER_INPUTS:
             raise CamsimError(f"unknown Bayer input {self.bayer_input!r}: one of {', '.join(BAYER_INPUTS)}")
+        gain = self.isp_gain
+        if not (gain in ("white", "auto") or (isinstance(gain, (int, float)) and not isinstance(gain, bool)
+                                              and np.isfinite(gain) and gain > 0)):
+            raise CamsimError(f"the ISP gain must be 'white', 'auto' or a positive number, got {gain!r}")
 
 
 @dataclass
@@ -245,7 +254,7 @@ def evaluate_bayer_frame(frame: DatasetFrame, loaded, clean, denoisers: list[Den
                          keep_example: bool = False, keep_band_crop: bool = False) -> FrameResult:
     """Score every denoiser on one Bayer frame (:mod:`camsim.denoise.bayer`): raw scores per packed plane and
     overall, and scores after the ISP. No patch rows (the chart's quantities are three-chip only)."""
-    bf = bayer_frame(loaded, clean)
+    bf = bayer_frame(loaded, clean, settings.isp_gain)
     facts, pattern = bf.facts, bf.pattern
     black4 = np.asarray(facts.black_dn, dtype=np.float64)[list(PLANE_CHANNELS)]
     scale4 = float(facts.white_dn) - black4
@@ -262,6 +271,7 @@ def evaluate_bayer_frame(frame: DatasetFrame, loaded, clean, denoisers: list[Den
     srgb_noisy = srgb_scores(clean_dev, noisy_dev, clean_lab)
     row = _frame_fields(frame)
     row.update({"bayer_input": settings.bayer_input, "data_range_source": "1 (developed sRGB; raw: the white level)",
+                "isp_gain": bf.gain if isinstance(bf.gain, str) else float(bf.gain),
                 **_per_plane("raw_sigma_est", sigma), **_per_plane("raw_sigma_model", sigma_model),
                 **_per_plane("raw_noise_std", true_sigma),
                 **_raw_columns(raw_noisy, "noisy"), **_srgb_columns(srgb_noisy, "noisy")})

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.denoise.bayer import BAYER_PLANES, ISP_TEXT
+from camsim.denoise.bayer import BAYER_PLANES, GAIN_WHY, isp_text
 from camsim.denoise.colour_fidelity import WHITE_CLEAN_MAX
 from camsim.denoise.denoisers import MODEL_SIGMA_TEXT, SIGMA_ESTIMATOR, SIGMA_MODEL, WAVELET_IMPLEMENTATION
 from camsim.denoise.evaluate import Evaluation
@@ -43,7 +43,7 @@ BAYER_FRAME_COLUMNS = (
     *(f"raw_ssim_{p}_{label}" for p in BAYER_PLANES for label in ("noisy", "denoised")),
     *(f"raw_sigma_est_{p}" for p in BAYER_PLANES), *(f"raw_sigma_model_{p}" for p in BAYER_PLANES),
     *(f"raw_noise_std_{p}" for p in BAYER_PLANES),
-    "srgb_psnr_noisy_db", "srgb_psnr_denoised_db", "srgb_ssim_noisy", "srgb_ssim_denoised", "srgb_delta_e00_noisy",
+    "isp_gain", "srgb_psnr_noisy_db", "srgb_psnr_denoised_db", "srgb_ssim_noisy", "srgb_ssim_denoised", "srgb_delta_e00_noisy",
     "srgb_delta_e00_denoised")
 FRAME_COLUMNS = ("denoiser", "file", "scene", "illuminant", "intensity_factor", "width_px", "height_px",
                  "data_range_dn", "data_range_source", "sigma_est_R_dn", "sigma_est_G_dn", "sigma_est_B_dn",
@@ -226,7 +226,7 @@ def crops_by_band_figure(ev: Evaluation, path: Path) -> Path:
     """The crops figure: per half-decade band of F (rows, brightest first) a centre crop of one frame in the band
     (the one closest to the band's centre in log F) — noisy, then each denoiser, then clean (columns). Three-chip
     frames: black level subtracted, each row scaled to its clean crop's maximum, γ 1/2.2; Bayer frames: developed
-    by :func:`camsim.isp.develop` (:func:`camsim.denoise.bayer.isp_settings`). Written as a PNG with matplotlib's Agg
+    by :func:`camsim.isp.develop` (:func:`camsim.denoise.bayer.isp_settings`, the run's ``isp_gain``). Written as a PNG with matplotlib's Agg
     canvas, chosen here for this figure alone (no process-wide backend)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
@@ -237,7 +237,7 @@ def crops_by_band_figure(ev: Evaluation, path: Path) -> Path:
     _crop_grid(fig, [ev.band_crops[band] for band in bands], columns,
                [f"F {band_label(band)}\n(F = {ev.band_crops[band]['intensity_factor']:.3g})" for band in bands], 8)
     fig.suptitle("Noisy / denoised / clean per band of F (centre crop)\n"
-                 + _crop_note([ev.band_crops[band] for band in bands]), fontsize=9)
+                 + _crop_note([ev.band_crops[band] for band in bands], _gain_word(ev.settings.isp_gain)), fontsize=9)
     return save_png(fig, path)
 
 
@@ -262,14 +262,18 @@ def _crop_grid(fig, rows: list, columns: list, row_labels: list, label_size: int
                 ax.set_ylabel(row_labels[i], fontsize=label_size)
 
 
-def _crop_note(rows: list) -> str:
+def _crop_note(rows: list, gain="white") -> str:
     """How the crops of ``rows`` are shown, for a figure's title (one line per kind of frame among them)."""
     notes = []
     if any(not r.get("developed") for r in rows):
         notes.append("three-chip: black subtracted, row scaled to its clean maximum, γ 1/2.2")
     if any(r.get("developed") for r in rows):
-        notes.append("Bayer: developed by camsim.isp (as shot, camera matrix, gain 1/F, sRGB)")
+        notes.append(f"Bayer: developed by camsim.isp (as shot, camera matrix, gain {gain}, sRGB)")
     return "\n".join(notes)
+
+
+def _gain_word(gain) -> str:
+    return {"white": "white", "auto": "1/F"}.get(gain, f"{gain:g}" if isinstance(gain, (int, float)) else str(gain))
 
 
 def _display(img, black, scale):
@@ -282,7 +286,8 @@ def _example_plot(ev: Evaluation, path: Path) -> None:
     columns = ["clean", "noisy", *[d.name for d in ev.denoisers]]
     fig = new_figure(figsize=(2.3 * len(columns), 1.9 * len(factors) + 0.5), layout="constrained")
     _crop_grid(fig, [ev.examples[factor] for factor in factors], columns, [f"F = {_f(f)}" for f in factors], 9)
-    fig.suptitle("Clean, noisy and denoised\n" + _crop_note([ev.examples[factor] for factor in factors]), fontsize=9)
+    fig.suptitle("Clean, noisy and denoised\n"
+                 + _crop_note([ev.examples[factor] for factor in factors], _gain_word(ev.settings.isp_gain)), fontsize=9)
     save_png(fig, path)
 
 
@@ -480,6 +485,25 @@ def bayer_input_text(bayer_input: str) -> str:
             "0)")
 
 
+def _gain_fallbacks(ev: Evaluation) -> list[str]:
+    """The Bayer frames developed with gain auto because their sidecar gives no perfect white (gain white asked)."""
+    if ev.settings.isp_gain != "white":
+        return []
+    return sorted({r["file"] for r in _bayer_rows(ev) if r.get("isp_gain") == "auto"})
+
+
+def _gain_note(ev: Evaluation) -> str:
+    gain = ev.settings.isp_gain
+    note = ""
+    if gain == "white":
+        note = f" (the default: {GAIN_WHY}; `--isp-gain auto` gives 1 / F)"
+    fallbacks = _gain_fallbacks(ev)
+    if fallbacks:
+        note += (f"; {len(fallbacks)} frame(s) whose sidecar gives no perfect white (`white_signal_e`) with gain auto "
+                 f"instead: {', '.join(fallbacks[:5])}{' …' if len(fallbacks) > 5 else ''}")
+    return note
+
+
 def _bayer_lines(ev: Evaluation) -> list[str]:
     rows = _bayer_rows(ev)
     if not rows:
@@ -499,7 +523,8 @@ def _bayer_lines(ev: Evaluation) -> list[str]:
              "over all four planes, overall SSIM the mean of the four. At low light the signal spans a small part of "
              "the white level, so raw PSNR is high and raw SSIM near 1 for every result: compare denoisers within a "
              "light level, or after the ISP;",
-             f"* **after the ISP**: the noisy, denoised and clean mosaics each developed by {ISP_TEXT}; PSNR and "
+             f"* **after the ISP**: the noisy, denoised and clean mosaics each developed by "
+             f"{isp_text(ev.settings.isp_gain)}{_gain_note(ev)}; PSNR and "
              "SSIM (`data_range` = 1) and the mean CIEDE2000 of every pixel (sRGB → CIELAB, D65) against the "
              "developed clean frame. These are the `psnr_*`, `ssim_*` and `delta_e00_*` of these frames in "
              "`frames.csv` (column `scored_as`) and in the bands above.", "",
@@ -695,7 +720,7 @@ def report_text(ev: Evaluation) -> str:
               "`camsim.analysis.grouping.group_key`), so that it is noise-free and the same for every denoiser.",
               *([f"* **Bayer frames**: a user's denoiser got {bayer_input_text(s.bayer_input)} "
                  f"(`--bayer-input {s.bayer_input}`), the built-ins the packed planes; developed for the scores after "
-                 f"the ISP by {ISP_TEXT}. The PSNR/SSIM bullet below is for three-chip frames; a Bayer frame's "
+                 f"the ISP by {isp_text(s.isp_gain)}{_gain_note(ev)}. The PSNR/SSIM bullet below is for three-chip frames; a Bayer frame's "
                  "frame-level PSNR, SSIM and ΔE00 are those after the ISP (data range 1)."] if _bayer_rows(ev) else []),
               "* **Denoisers**: " + "; ".join(f"`{d.target}` — {d.description}" for d in ev.denoisers) + ".",
               ]
@@ -727,7 +752,8 @@ def summary_json(ev: Evaluation) -> dict:
         "skipped": ev.dataset.skipped,
         "frames_scored_bayer": len({r["file"] for r in _bayer_rows(ev)}),
         "bayer": {"denoiser_input": bayer_input_text(s.bayer_input), "builtin_input": bayer_input_text("packed"),
-                  "bayer_input": s.bayer_input, "planes": list(BAYER_PLANES), "isp": ISP_TEXT,
+                  "bayer_input": s.bayer_input, "planes": list(BAYER_PLANES), "isp": isp_text(s.isp_gain),
+                  "isp_gain": s.isp_gain, "isp_gain_auto_fallback": _gain_fallbacks(ev),
                   "raw_data_range": 1.0, "srgb_data_range": 1.0},
         "settings": {"border_px": s.border_px, "black_subtraction": "sidecar" if s.subtract_black else "none",
                      "camera_to_xyz": s.matrix, "data_range": "clean layer range per frame",

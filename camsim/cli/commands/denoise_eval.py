@@ -35,7 +35,7 @@ DESCRIPTION = (
     "mosaic black-subtracted and normalised to the white level, packed R, G1, G2, B at half resolution (the SID/ELD "
     "convention; --bayer-input mosaic: unpacked) — and scored in the raw domain (PSNR and SSIM per packed plane and "
     "overall, data range 1) and after camsim's ISP (noisy, denoised and clean each developed alike: white balance as "
-    "shot, the camera matrix, gain 1/F, sRGB; PSNR, SSIM and mean ΔE00 against the developed clean frame), which "
+    "shot, the camera matrix, --isp-gain, sRGB; PSNR, SSIM and mean ΔE00 against the developed clean frame), which "
     "give their detail and colour verdicts; the chart's patch quantities are three-chip only."
 )
 
@@ -119,10 +119,25 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="what your denoisers (MODULE:FUNCTION, cmd:) get for a Bayer frame: 'packed' (default) "
                              "the normalised planes R, G1, G2, B as a (H/2, W/2, 4) array, 'mosaic' the normalised "
                              "(H, W) mosaic; the built-ins always get the packed planes")
+    parser.add_argument("--isp-gain", metavar="white|auto|X", type=_isp_gain, default="white",
+                        help="the gain with which Bayer frames are developed for the scores after the ISP: 'white' "
+                             "(default) maps the perfect white under the frame's light at its F to 1 (exposed for "
+                             "its light), 'auto' is 1/F (as at F = 1: clips wherever F = 1 would pass the white "
+                             "level), a number a fixed gain")
     parser.add_argument("--timeout", metavar="SECONDS", type=positive_float,
                         help="time limit per frame for a 'cmd:' denoiser (default none)")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no colour-science warnings")
     return parser
+
+
+def _isp_gain(text: str):
+    """--isp-gain: 'white', 'auto' or a positive number."""
+    if text in ("white", "auto"):
+        return text
+    try:
+        return positive_float(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected white, auto or a positive number, got {text!r}") from None
 
 
 def _unique_names(denoisers):
@@ -153,6 +168,7 @@ def run(args) -> int:
 
     denoisers = _unique_names([resolve_denoiser(t, timeout_s=args.timeout) for t in args.denoiser])
     settings = EvalSettings(border_px=args.border, subtract_black=not args.keep_black, bayer_input=args.bayer_input,
+                            isp_gain=args.isp_gain,
                             criterion=Criterion(args.max_delta_e, args.max_bias, args.min_ssim,
                                                 args.max_delta_e00))
     out = args.out if args.out is not None else default_out(denoisers)
