@@ -108,6 +108,22 @@ class _Plan:
 
 
 _GAIN_RECORD = {"auto": "auto (1 / F)", "white": "white (the perfect white at this F -> 1)"}
+_SRGB = "IEC 61966-2-1: 12.92 x for x <= 0.0031308, else 1.055 x^(1/2.4) - 0.055, on x clipped to [0, 1]"
+_TONE_RECORD = {
+    "srgb": _SRGB,
+    "filmic": "Narkowicz 2015 ACES fit f(x) = x (2.51 x + 0.03) / (x (2.43 x + 0.59) + 0.14), clipped to [0, 1], "
+              "then " + _SRGB,
+    "linear": "x clipped to [0, 1]",
+}
+
+
+def _version(distribution: str) -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(distribution)
+    except PackageNotFoundError:
+        return "(version unknown)"
 
 
 def _plan(facts, settings: IspSettings) -> _Plan:
@@ -139,7 +155,8 @@ def _plan(facts, settings: IspSettings) -> _Plan:
             "white_balance": {"mode": settings.white_balance, "gains": gains.tolist(),
                               "formula": "gain_c = neutral_G / neutral_c (neutral: the camera's response to the "
                                          "perfect white under the white-balance illuminant)"},
-            "demosaic": ({"method": settings.demosaic, "library": "colour-demosaicing"}
+            "demosaic": ({"method": settings.demosaic,
+                          "library": f"colour-demosaicing {_version('colour-demosaicing')}"}
                          if facts.cfa_pattern is not None else None),
             "matrix": {"name": settings.matrix,
                        "matrix": None if matrix is None else matrix.tolist(),
@@ -149,7 +166,7 @@ def _plan(facts, settings: IspSettings) -> _Plan:
                        "output": "linear sRGB (IEC 61966-2-1 primaries, D65 white)"},
             "gain": {"mode": _GAIN_RECORD.get(settings.gain, "fixed") if isinstance(settings.gain, str) else "fixed",
                      "value": gain},
-            "tone": {"name": settings.tone},
+            "tone": {"name": settings.tone, "formula": _TONE_RECORD[settings.tone]},
         },
         "facts": facts.record(),
     }

@@ -11,7 +11,7 @@ import numpy as np
 from camsim.core.errors import CamsimError
 from camsim.sensor.cfa import CFA_PATTERNS
 
-__all__ = ["IspFacts", "facts_from_meta", "facts_of", "facts_from_info", "facts_from_dng_tags"]
+__all__ = ["IspFacts", "facts_from_meta", "facts_of", "facts_from_info", "facts_from_dng_tags", "float_white_dn"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -27,7 +27,10 @@ class IspFacts:
         take the sidecar's ``black_level_dn`` (the mean digital number of an unlit pixel), an EXR's or an
         in-memory ``noisy_dn``'s the level before the ADC (``dark_level_dn``). Unit: DN.
     white_dn : float
-        The white level 2^nb − 1 in the same units. Unit: DN.
+        The white level 2^nb − 1 in the same units. Unit: DN. For the float values before the ADC it is moved by
+        the offset between the two black levels (:func:`float_white_dn`): the ADC adds the pedestal P and rounds,
+        so the quantised white 2^nb − 1 is the float value 2^nb − 1 − P (2^nb − ½ without a pedestal), and a
+        frame's DNG and EXR normalise to the same values.
     as_shot_neutral : numpy.ndarray, shape (3,)
         The camera's response to the perfect white under the frame's illuminant (any scale; camsim writes it
         with its largest component 1).
@@ -94,7 +97,8 @@ class IspFacts:
         if self.white_signal_dn is not None:
             white = np.asarray(self.white_signal_dn, dtype=np.float64).reshape(-1)
             if white.shape != (3,) or not (np.all(np.isfinite(white)) and np.all(white > 0)):
-                raise CamsimError(f"the perfect white's signal must be 3 positive numbers, got {self.white_signal_dn!r}")
+                raise CamsimError(f"the perfect white's signal must be 3 positive numbers, got "
+                                  f"{self.white_signal_dn!r}")
             object.__setattr__(self, "white_signal_dn", white)
         if self.qe is None and self.color_matrix1 is None:
             raise CamsimError("the ISP needs the camera's spectral sensitivities (a sidecar's qe) or a "
@@ -109,6 +113,14 @@ class IspFacts:
                 "colour_source": "qe" if self.qe is not None else "color_matrix1"}
 
 
+def float_white_dn(white_level_dn: float, black_level_dn, dark_level_dn) -> float:
+    """The white level in the units of the float values before the ADC: ``white_level_dn`` less the mean offset
+    between the quantised numbers' black level and the float values' (``black_level_dn − dark_level_dn``: the
+    pedestal, or −½ from the ADC's floor without one). Unit: DN."""
+    offset = np.mean(np.asarray(black_level_dn, dtype=np.float64) - np.asarray(dark_level_dn, dtype=np.float64))
+    return float(white_level_dn) - float(offset)
+
+
 def facts_from_meta(meta: dict, quantised: bool) -> IspFacts:
     """The facts of a frame from its sidecar (a dict as :func:`camsim.render.frame_files.read_frame_meta` gives).
 
@@ -120,10 +132,12 @@ def facts_from_meta(meta: dict, quantised: bool) -> IspFacts:
 
     try:
         black = LoadedFrame(Path(""), "dng" if quantised else "exr", None, meta).expected_black_dn()
+        quantised_black = LoadedFrame(Path(""), "dng", None, meta).expected_black_dn()
+        white = float(meta["white_level_dn"])
         return IspFacts(
             cfa_pattern=meta.get("cfa_pattern") or None,
             black_dn=black,
-            white_dn=float(meta["white_level_dn"]),
+            white_dn=white if quantised else float_white_dn(white, quantised_black, black),
             as_shot_neutral=np.asarray(meta["as_shot_neutral"], dtype=np.float64),
             intensity_factor=float(meta["intensity_factor"]),
             illuminant=meta.get("illuminant"),
@@ -156,10 +170,11 @@ def facts_from_info(frame, info, quantised: bool | None = None) -> IspFacts:
     if quantised is None:
         quantised = frame.digital_dn is not None
     black = sensor.black_level_dn if quantised else sensor.dark_level_dn
+    white = float(sensor.max_dn)
     return IspFacts(
         cfa_pattern=sensor.cfa,
         black_dn=np.asarray(black, dtype=np.float64),
-        white_dn=float(sensor.max_dn),
+        white_dn=white if quantised else float_white_dn(white, sensor.black_level_dn, sensor.dark_level_dn),
         as_shot_neutral=np.asarray(info.as_shot_neutral, dtype=np.float64),
         intensity_factor=float(info.intensity_factor),
         illuminant=info.illuminant,

@@ -7,6 +7,8 @@ Arrays follow camsim's convention: planes first, float32. A three-chip image is 
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from camsim.core.errors import CamsimError
@@ -171,8 +173,13 @@ def _colour_demosaicing(function_name):
     def method(mosaic, cfa_pattern):
         import colour_demosaicing
 
-        pad = DEMOSAIC_PAD if min(mosaic.shape) > DEMOSAIC_PAD else 0
-        padded = np.pad(mosaic, pad, mode="reflect") if pad else mosaic
+        pad, mode = DEMOSAIC_PAD, "reflect"
+        if min(mosaic.shape) <= DEMOSAIC_PAD:  # a mirror needs more rows than it adds
+            if mosaic.shape[0] % 2 == 0 and mosaic.shape[1] % 2 == 0:
+                mode = "wrap"  # whole 2 × 2 cells repeated: the phase holds
+            else:
+                pad = (min(mosaic.shape) - 1) // 2 * 2
+        padded = np.pad(mosaic, pad, mode=mode) if pad else mosaic
         rgb = getattr(colour_demosaicing, function_name)(padded, cfa_pattern)
         height, width = mosaic.shape
         out = np.empty((3, height, width), dtype=np.float32)
@@ -222,24 +229,29 @@ def demosaic(mosaic, cfa_pattern: str, method: str = "malvar2004") -> np.ndarray
 TRAINING_SET = "rawtoaces v1 training data (190 reflectances)"
 
 
-def _grid_of(facts):
-    return _grid(facts.wavelengths_nm)
-
-
 def _trained_camera_to_xyz(facts, illuminant: str) -> np.ndarray:
     """Least squares camera → XYZ over the :data:`TRAINING_SET` reflectances under ``illuminant``: the camera's
     values Σ_λ Qe ρ E λ (photons: the energy radiance ρ E over h c / λ; any common scale) against XYZ = Σ_λ
-    (x̄, ȳ, z̄) ρ E, both on the frame's wavelength grid."""
+    (x̄, ȳ, z̄) ρ E, both on the frame's wavelength grid. Cached per camera, grid and illuminant (the frames of a
+    dataset share them)."""
+    qe = np.ascontiguousarray(facts.qe, dtype=np.float64)
+    wl = np.ascontiguousarray(facts.wavelengths_nm, dtype=np.float64)
+    return _trained_cached(qe.tobytes(), wl.tobytes(), illuminant).copy()
+
+
+@functools.lru_cache(maxsize=32)
+def _trained_cached(qe_bytes: bytes, wl_bytes: bytes, illuminant: str) -> np.ndarray:
     from camsim.light.spectra import cmfs_on_grid, illuminant_spd, import_colour
 
     colour = import_colour()
-    grid = _grid_of(facts)
-    wl = np.asarray(facts.wavelengths_nm, dtype=np.float64)
+    wl = np.frombuffer(wl_bytes, dtype=np.float64)
+    qe = np.frombuffer(qe_bytes, dtype=np.float64).reshape(3, wl.size)
+    grid = _grid(wl)
     shape = colour.SpectralShape(float(wl[0]), float(wl[-1]), float(grid.step_nm))
     training = colour.characterisation.read_training_data_rawtoaces_v1().copy().align(shape)
     reflectances = np.asarray(training.values, dtype=np.float64).T  # (K, N)
     radiance = reflectances * illuminant_spd(illuminant, grid)
-    camera = (radiance * wl) @ (facts.qe / np.max(facts.qe)).T
+    camera = (radiance * wl) @ (qe / np.max(qe)).T
     xyz = radiance @ cmfs_on_grid(grid).T
     solution, *_ = np.linalg.lstsq(camera, xyz, rcond=None)  # xyz ≈ camera @ solution
     return solution.T
@@ -375,19 +387,20 @@ def apply_gain(x, gain: float) -> np.ndarray:
 def _srgb(x):
     """IEC 61966-2-1 (sRGB) transfer function, on values clipped to [0, 1]: 12.92 x for x ≤ 0.0031308, else
     1.055 x^(1/2.4) − 0.055."""
-    x = np.clip(np.asarray(x, dtype=np.float32), 0.0, 1.0)
+    x = np.clip(np.asarray(x, dtype=np.float32), np.float32(0.0), np.float32(1.0))
     low = x <= np.float32(0.0031308)
     out = np.power(x, np.float32(1 / 2.4))
     out *= np.float32(1.055)
     out -= np.float32(0.055)
-    np.copyto(out, x * np.float32(12.92), where=low)
+    np.multiply(x, np.float32(12.92), out=out, where=low)
     return out
 
 
 def _filmic(x):
     """Narkowicz's 2015 fit of the ACES filmic tone curve (K. Narkowicz, "ACES Filmic Tone Mapping Curve", 2015),
     f(x) = x (2.51 x + 0.03) / (x (2.43 x + 0.59) + 0.14), clipped to [0, 1], then the sRGB transfer function.
-    f(1) ≈ 0.80: highlights up to about 10 × the white level roll off instead of clipping."""
+    f(1) ≈ 0.80 and f reaches 1 at x ≈ 7.2: highlights up to about 7 × the white level roll off instead of
+    clipping."""
     x = np.maximum(np.asarray(x, dtype=np.float32), 0.0)
     y = x * (np.float32(2.51) * x + np.float32(0.03)) / (x * (np.float32(2.43) * x + np.float32(0.59))
                                                           + np.float32(0.14))

@@ -18,8 +18,8 @@ __all__ = ["PNG_TEXT_KEY", "PNG_COMPRESS_LEVEL", "JPEG_SUBSAMPLING", "write_png"
 
 #: The keyword of the PNG tEXt chunk (and the start of the JPEG comment) that holds the record as JSON.
 PNG_TEXT_KEY = "camsim:develop"
-#: zlib's compression level for PNGs. With the Up filter, level 1 writes a 12 MP developed chart in 0.5 s where 3
-#: takes 1.1 s and 6 takes 4.4 s, for 10 % and 23 % more bytes (noise barely compresses).
+#: zlib's compression level for PNGs. With the Up filter, level 1 compressed the 8-bit pixels of a 12 MP developed
+#: chart in 0.48 s to 11.0 MB, level 3 in 1.13 s to 10.0 MB, level 6 in 4.41 s to 8.9 MB (noise barely compresses).
 PNG_COMPRESS_LEVEL = 1
 #: JPEG chroma subsampling: 4:4:4 (none), so that the colour of single pixels is kept.
 JPEG_SUBSAMPLING = "4:4:4"
@@ -44,8 +44,8 @@ def encode_image(image, bits: int) -> np.ndarray:
     dtype = np.uint8 if bits == 8 else np.uint16
     out = np.empty(image.shape[1:] + (3,), dtype=dtype)
     for c in range(3):
-        v = np.nan_to_num(image[c].astype(np.float32), nan=0.0)
-        np.clip(v, 0.0, 1.0, out=v)
+        v = np.fmax(image[c], np.float32(0.0), dtype=np.float32)  # fmax and fmin take the number, not a NaN
+        np.fmin(v, np.float32(1.0), out=v)
         v *= np.float32(top)
         v += np.float32(0.5)
         out[..., c] = v.astype(dtype)  # floor of v + 0.5: round half up

@@ -1,5 +1,5 @@
 """The sub-commands of ``camsim``, one module each (``render``, ``analyze``, ``experiment``, ``emva``, ``calibrate``,
-``dataset``, ``denoise_eval``, ``list``), all alike:
+``dataset``, ``denoise_eval``, ``develop``, ``list``), all alike:
 
 * ``add_parser(subparsers)`` adds the sub-command and its options to an ``ArgumentParser.add_subparsers()``
   object and returns its parser;
