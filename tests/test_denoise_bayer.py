@@ -117,10 +117,12 @@ def _exr_frame(path):
 
 def _normalised(noisy, clean, meta):
     """This test's own normalisation: each site's colour from the pattern string, (x − black) / (white − black),
-    black the EXR's level before the ADC (``dark_level_dn``) and white the sidecar's white level."""
+    black the EXR's level before the ADC (``dark_level_dn``) and white the DNG's white level moved into the EXR's
+    units: less the offset between the DNG's black level and the EXR's (the pedestal the ADC adds)."""
     pattern = meta["cfa_pattern"]
     black = np.asarray(meta["dark_level_dn"], dtype=np.float64)
-    white = float(meta["white_level_dn"])
+    offset = np.mean(np.asarray(meta["black_level_dn"], dtype=np.float64) - black)
+    white = float(meta["white_level_dn"]) - offset
     noisy_n, clean_n = np.empty_like(noisy), np.empty_like(noisy)
     colour_of = {}
     for i, letter in enumerate(pattern):
@@ -154,6 +156,14 @@ def test_every_bayer_frame_is_scored_and_identity_raw_psnr_matches_the_files(dat
         expected = np.clip(np.floor(noisy + 0.5) + meta["pedestal_dn"], 0, meta["white_level_dn"])
         assert np.mean(dng == expected) > 0.999  # (float32 ties at .5 may round either way)
         noisy_n, clean_n, colour_of = _normalised(noisy, clean, meta)
+        # ... and normalised as raw converters normalise the DNG, (DN − BlackLevel) / (WhiteLevel − BlackLevel),
+        # it gives the same values but for the rounding: within ½ DN (and ties)
+        dng_black = np.asarray(meta["black_level_dn"], dtype=np.float64)
+        for i, letter in enumerate(meta["cfa_pattern"]):
+            dy, dx = divmod(i, 2)
+            b = dng_black["RGB".index(letter)]
+            dng_n = (dng[dy::2, dx::2] - b) / (meta["white_level_dn"] - b)
+            assert np.quantile(np.abs(dng_n - noisy_n[dy::2, dx::2]), 0.999) <= 0.5 / (meta["white_level_dn"] - b)
         mse = np.mean((noisy_n - clean_n) ** 2)
         psnr = 10 * math.log10(1.0 / mse)  # data range 1: the white level
         assert float(row["raw_psnr_noisy_db"]) == pytest.approx(psnr, abs=1e-4)
