@@ -8,9 +8,9 @@ clean layer's value of each site's own colour (:func:`clean_mosaic`).
 What a denoiser gets (:data:`BAYER_INPUTS`):
 
 * ``packed`` (default; the SID/ELD convention): the mosaic, black subtracted and divided by white − black
-  (:func:`camsim.isp.normalise`: 0 = black, 1 = the white level), packed into four half-resolution planes in the
-  order R, G1, G2, B whatever the native pattern (G1 the green on R's row; :func:`camsim.isp.pack_rggb`), given
-  channels-last: a (H/2, W/2, 4) float32 array;
+  (:func:`camsim.isp.normalise` with :func:`camsim.isp.facts_of`: 0 = black, 1 = the white level; not clipped),
+  packed into four half-resolution planes in the order R, G1, G2, B whatever the native pattern (G1 the green on
+  R's row; :func:`camsim.isp.pack_rggb`), given channels-last: a (H/2, W/2, 4) float32 array;
 * ``mosaic``: the same normalised values unpacked, a (H, W) float32 array in the frame's own pattern.
 
 The result has the same shape, unit and (for the mosaic) pattern. Scores:
@@ -22,9 +22,9 @@ The result has the same shape, unit and (for the mosaic) pattern. Scores:
   the frame's facts and :func:`isp_settings` (white balance as shot, the camera matrix, the default demosaicing,
   ``gain="white"`` by default — the perfect white under the frame's light at its F maps to 1, so that low-light
   frames are seen exposed for their light; ``"auto"`` = 1 / F clips much of a frame where F = 1 would pass the
-  white level, :data:`GAIN_WHY` — and the sRGB tone curve), then
-  PSNR and SSIM (``data_range`` = 1) and the mean CIEDE2000 over the pixels of the developed denoised (or noisy)
-  image against the developed clean one, both taken as sRGB (IEC 61966-2-1, D65) to CIELAB — :func:`srgb_scores`.
+  white level, :data:`GAIN_WHY` — and the sRGB tone curve), then PSNR and SSIM (``data_range`` = 1) and the mean
+  CIEDE2000 over the pixels of the developed denoised (or noisy) image against the developed clean one, both taken
+  as sRGB (IEC 61966-2-1, D65) to CIELAB — :func:`srgb_scores`.
 """
 
 from __future__ import annotations
@@ -38,9 +38,9 @@ from camsim.core.optional_numbers import finite_or_none
 from camsim.denoise.image_scores import SSIM_MIN_SIDE
 from camsim.sensor.cfa import cfa_sites
 
-__all__ = ["BAYER_INPUTS", "BAYER_PLANES", "DEFAULT_ISP_GAIN", "GAIN_WHY", "gain_text", "isp_text", "isp_settings", "BayerFrame", "bayer_frame", "clean_mosaic",
-           "denormalise", "developed_image", "srgb_lab", "raw_scores", "srgb_scores", "to_packed", "from_packed",
-           "PACKED", "MOSAIC"]
+__all__ = ["BAYER_INPUTS", "BAYER_PLANES", "PACKED", "MOSAIC", "DEFAULT_ISP_GAIN", "GAIN_WHY", "gain_text",
+           "isp_text", "isp_settings", "BayerFrame", "bayer_frame", "clean_mosaic", "denormalise", "to_packed",
+           "from_packed", "developed_image", "raw_scores", "srgb_lab", "srgb_scores"]
 
 PACKED = "packed"
 MOSAIC = "mosaic"

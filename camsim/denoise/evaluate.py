@@ -40,7 +40,7 @@ from camsim.render.frame_files import load_frame
 from camsim.analysis.patches import frame_matrix, patch_samples
 from camsim.colour.colorimetry import CHANNELS
 from camsim.denoise.bayer import (BAYER_INPUTS, BAYER_PLANES, DEFAULT_ISP_GAIN, MOSAIC, PACKED, bayer_frame,
-                                  developed_image, from_packed, raw_scores, srgb_scores, to_packed)
+                                  developed_image, from_packed, raw_scores, srgb_lab, srgb_scores, to_packed)
 from camsim.denoise.colour_fidelity import frame_white_xyz, mean_delta_e00
 from camsim.denoise.denoisers import SIGMA_MODEL, Denoiser, estimate_noise_sigma, model_noise_sigma
 from camsim.denoise.frames import Dataset, DatasetFrame, find_dataset
@@ -225,8 +225,8 @@ def evaluate_frame(frame: DatasetFrame, denoisers: list[Denoiser], settings: Eva
 PLANE_CHANNELS = (0, 1, 1, 2)
 
 
-def _per_plane(prefix: str, values, suffix: str = "") -> dict:
-    return {f"{prefix}_{p}{suffix}": (None if v is None else float(v)) for p, v in zip(BAYER_PLANES, values)}
+def _per_plane(prefix: str, values) -> dict:
+    return {f"{prefix}_{p}": (None if v is None else float(v)) for p, v in zip(BAYER_PLANES, values)}
 
 
 def _raw_columns(scores: dict, label: str) -> dict:
@@ -264,8 +264,6 @@ def evaluate_bayer_frame(frame: DatasetFrame, loaded, clean, denoisers: list[Den
     true_sigma = (bf.noisy_packed.astype(np.float64) - bf.clean_packed).std(axis=(0, 1))
     clean_dev = developed_image(bf.clean_mosaic, bf)
     noisy_dev = developed_image(bf.noisy_mosaic, bf)
-    from camsim.denoise.bayer import srgb_lab
-
     clean_lab = srgb_lab(clean_dev)
     raw_noisy = raw_scores(bf.clean_packed, bf.noisy_packed)
     srgb_noisy = srgb_scores(clean_dev, noisy_dev, clean_lab)
