@@ -240,12 +240,12 @@ def test_cli_outputs_report_and_comparison(dataset_with_bayer, tmp_path, capsys)
     assert (out / "bands.csv").is_file() and (out / "crops_by_band.png").is_file()
     assert re.search(r"\*\*nl-means\*\* preserves colour down to F = [0-9.]+ and stops at F = [0-9.]+", report)
     assert "Comparison per light level" in report  # two denoisers: one comparison table
-    assert "Bayer" in report and "bayer" in report  # the skipped CFA frame is named, with the reason
+    assert "## Bayer frames: raw and after the ISP" in report  # the CFA frame is scored (issue 26), in its section
     data = json.loads((out / "summary.json").read_text())
-    assert len(data["skipped"]) == 1 and data["frames_scored"] == len(FACTORS)
+    assert data["skipped"] == [] and data["frames_scored"] == len(FACTORS) + 1 and data["frames_scored_bayer"] == 1
     assert {d["name"] for d in data["denoisers"]} == {"identity", "nl-means"}
     printed = capsys.readouterr().out
-    assert "nl-means preserves colour down to F =" in printed and "skipped 1 file" in printed
+    assert "nl-means preserves colour down to F =" in printed and "skipped" not in printed
 
 
 @pytest.mark.slow

@@ -2,7 +2,10 @@
 
 * :mod:`camsim.denoise.denoisers` — the built-in baselines (:data:`DENOISERS`, BM3D among them) and user targets
   (``MODULE:FUNCTION``, ``cmd:PROGRAM ... {input} {output}``);
-* :mod:`camsim.denoise.frames` — the scorable frames of a dataset (three-chip camsim EXR with a clean layer);
+* :mod:`camsim.denoise.frames` — the scorable frames of a dataset (camsim EXR with a clean layer, three-chip or
+  Bayer);
+* :mod:`camsim.denoise.bayer` — a Bayer frame's denoiser input (normalised packed R, G1, G2, B planes, or the
+  mosaic) and its scores in the raw domain (per plane) and after the ISP (:mod:`camsim.isp`);
 * :mod:`camsim.denoise.image_scores` — PSNR / SSIM of a frame against its clean layer;
 * :mod:`camsim.denoise.patch_colour` — the colour quantities per patch (bias, noise ellipse, ΔE against F = 1);
 * :mod:`camsim.denoise.colour_fidelity` — chart-free colour: mean ΔE00 of every pixel against the clean layer;

@@ -1,9 +1,17 @@
 """Denoisers for ``camsim denoise-eval``: the built-in scikit-image baselines and the user's own.
 
-Every denoiser has one interface: ``f(image, sigma_dn) -> denoised``, with ``image`` a (H, W, 3) float32 array of
-noisy digital numbers (R, G, B as the last axis, black level included: the EXR's values before quantisation) and
-``sigma_dn`` the estimated noise standard deviation per channel (3,) in DN, or None. The result has the same shape
-and unit.
+Every denoiser has one interface: ``f(image, sigma_dn) -> denoised``, the result of the same shape and unit as
+``image``, which is, for
+
+* a three-chip frame: a (H, W, 3) float32 array of noisy digital numbers (R, G, B as the last axis, black level
+  included: the EXR's values before quantisation), ``sigma_dn`` (3,) per channel in DN;
+* a Bayer frame (:mod:`camsim.denoise.bayer`): the mosaic with its black level subtracted and divided by white −
+  black (0 = black, 1 = the white level; noise makes values below 0), either packed — a (H/2, W/2, 4) float32
+  array, planes R, G1, G2, B as the last axis — or, for a user's denoiser with ``--bayer-input mosaic``, the (H, W)
+  float32 mosaic in the frame's own pattern; ``sigma_dn`` (4,) per plane R, G1, G2, B in that normalised unit
+  (the parameter keeps its name).
+
+``sigma_dn`` is the estimated noise standard deviation, or None.
 
 The noise level a blind denoiser may use is *estimated from the noisy image itself*
 (:func:`estimate_noise_sigma`, scikit-image's wavelet-domain median absolute deviation); the sidecar's noise model
@@ -15,13 +23,19 @@ A target names a denoiser:
   ``tv``, ``bm3d`` (PyPI ``bm3d``, the classic baseline; the one built-in given the *model's* noise level,
   :func:`model_noise_sigma`, since BM3D's result depends on σ and it has no blind mode);
 * ``MODULE:FUNCTION`` — e.g. ``mypkg.filters:denoise`` (imported with the current directory on ``sys.path``) or
-  ``path/to/file.py:denoise``; called as ``FUNCTION(image)`` with the (H, W, 3) float32 DN array, or as
+  ``path/to/file.py:denoise``; called as ``FUNCTION(image)`` with the array above, or as
   ``FUNCTION(image, sigma_dn=...)`` if it has a parameter named ``sigma_dn``; it must return an array of the same
   shape;
 * ``cmd:COMMAND ARGS...`` — a program run once per frame, with ``{input}`` and ``{output}`` in its arguments
-  replaced by the paths of a temporary EXR holding the noisy frame (channels R, G, B in DN, float32; header
-  ``camsim:denoise_sigma_dn`` = the estimated σ per channel as JSON) and of the EXR it must write (channels R,
-  G, B). The command line is split like a POSIX shell would (``shlex``) but run without a shell.
+  replaced by the paths of a temporary EXR holding the noisy frame (float32; header ``camsim:denoise_sigma_dn`` =
+  the estimated σ per channel as JSON) and of the EXR it must write, with the same channels: ``R``, ``G``, ``B``
+  in DN for a three-chip frame; for a Bayer frame ``R``, ``G1``, ``G2``, ``B`` at half resolution (packed) or one
+  channel ``CFA`` (the mosaic), normalised. The command line is split like a POSIX shell would (``shlex``) but
+  run without a shell.
+
+The built-ins work on a Bayer frame's packed planes (given the packed planes whatever ``--bayer-input`` says):
+``identity``, ``wavelet`` and ``tv`` each plane on its own, ``nl-means`` the four planes as the channels of one
+image (patch distances over all four), ``bm3d`` each plane on its own (:func:`bm3d.bm3d`, grey).
 """
 
 from __future__ import annotations
@@ -100,7 +114,7 @@ SIGMA_MODEL = "model"
 """A denoiser given :func:`model_noise_sigma` (the sidecar's sensor figures)."""
 
 
-def model_noise_sigma(meta: dict, image: np.ndarray, black_dn) -> np.ndarray:
+def model_noise_sigma(meta: dict, image: np.ndarray, black_dn, channel_of=(0, 1, 2)) -> np.ndarray:
     """The frame's noise level per channel from the sensor model in its sidecar. Unit: DN.
 
     Each pixel's variance about its expectation (the clean layer, which holds the fixed pattern — DSNU, PRNU — so
@@ -115,25 +129,29 @@ def model_noise_sigma(meta: dict, image: np.ndarray, black_dn) -> np.ndarray:
     meta : dict
         The frame's sidecar (``dn_per_electron``, ``read_noise_e``, ``dark_current_e_per_s``, ``exposure_s``,
         ``stages``; ``row_noise_e`` if present).
-    image : numpy.ndarray, shape (H, W, 3)
-        The noisy frame, black level included. Unit: DN.
-    black_dn : array_like, shape (3,)
+    image : numpy.ndarray, shape (H, W, C)
+        The noisy frame, black level included (C = 3: R, G, B; a Bayer frame's packed planes: C = 4). Unit: DN.
+    black_dn : array_like, shape (C,)
         The mean DN of an unlit pixel. Unit: DN.
+    channel_of : sequence of int, length C
+        The colour (0 = R, 1 = G, 2 = B) of each plane, for the per-colour dark current (packed planes R, G1, G2,
+        B: ``(0, 1, 1, 2)``).
 
     Returns
     -------
-    numpy.ndarray, shape (3,)
+    numpy.ndarray, shape (C,)
         σ per channel. Unit: DN.
     """
     k = float(meta["dn_per_electron"])
     stages = meta.get("stages") or {}
     mean_dn = np.asarray(image, dtype=np.float64).mean(axis=(0, 1)) - np.asarray(black_dn, dtype=np.float64)
     signal_e = np.maximum(mean_dn, 0.0) / k
-    var_e = np.zeros(3)
+    var_e = np.zeros(signal_e.shape)
     if stages.get("photon_noise", True):
         var_e += signal_e
     if stages.get("dark_current", True):
-        var_e += np.asarray(meta.get("dark_current_e_per_s", 0.0), dtype=np.float64) * float(meta["exposure_s"])
+        dark = np.broadcast_to(np.asarray(meta.get("dark_current_e_per_s", 0.0), dtype=np.float64), (3,))
+        var_e += dark[list(channel_of)] * float(meta["exposure_s"])
     if stages.get("read_noise", True):
         var_e += float(meta.get("read_noise_e") or 0.0) ** 2 + float(meta.get("row_noise_e") or 0.0) ** 2
     return k * np.sqrt(var_e)
@@ -228,6 +246,9 @@ def bm3d(image: np.ndarray, sigma_dn=None) -> np.ndarray:
     """BM3D (Dabov et al. 2007), the PyPI ``bm3d`` package's :func:`bm3d.bm3d_rgb`: block matching on the
     luminance of the opponent colour transform, collaborative hard thresholding then Wiener filtering.
 
+    A (H, W, 3) image is denoised as colour; any other number of planes (a Bayer frame's packed R, G1, G2, B) plane
+    by plane with the grey :func:`bm3d.bm3d`, each with its own σ.
+
     ``sigma_dn`` (3,) is the noise σ per R, G, B channel in DN — in ``denoise-eval`` the sensor model's
     (:func:`model_noise_sigma`), else estimated blindly. The image is shifted and scaled to [0, 1] per channel by
     ``bm3d_rgb`` itself, which scales the σ with it and carries the per-channel σ through the colour transform
@@ -251,8 +272,17 @@ def bm3d(image: np.ndarray, sigma_dn=None) -> np.ndarray:
         return identity(image)
     profile = bm3d_package.BM3DProfile()  # the "np" profile's settings
     profile.step_ht = profile.step_wiener = BM3D_STEP_PX
-    out = bm3d_package.bm3d_rgb(image64, [float(s) for s in sigma], profile=profile)
-    return np.asarray(out, dtype=np.float32)
+    if image64.ndim == 3 and image64.shape[-1] == 3:
+        out = bm3d_package.bm3d_rgb(image64, [float(s) for s in sigma], profile=profile)
+        return np.asarray(out, dtype=np.float32)
+    # Any other number of planes (a Bayer frame's packed R, G1, G2, B): each plane on its own, grey BM3D.
+    planes = image64[..., None] if image64.ndim == 2 else image64
+    sigma = np.broadcast_to(sigma, (planes.shape[-1],))
+    out = np.empty(planes.shape, dtype=np.float32)
+    for i in range(planes.shape[-1]):
+        out[..., i] = np.asarray(bm3d_package.bm3d(planes[..., i], float(sigma[i]), profile=profile)).reshape(
+            planes.shape[:2])
+    return out.reshape(image64.shape)
 
 
 def bm3d_available() -> bool:
@@ -311,7 +341,8 @@ class Denoiser:
     sigma_source: str = SIGMA_BLIND
 
     def __call__(self, image: np.ndarray, sigma_dn=None) -> np.ndarray:
-        """Denoise a (H, W, 3) float32 DN image; the result is checked: same shape, finite, float32.
+        """Denoise an image (see the module docstring: (H, W, 3) DN, or a Bayer frame's normalised (H/2, W/2, 4)
+        planes or (H, W) mosaic); the result is checked: same shape, finite, float32.
 
         Raises
         ------
@@ -333,7 +364,7 @@ class Denoiser:
             raise CamsimError(f"denoiser {self.target!r} returned {type(out).__name__}, not an array") from exc
         if out.shape != image.shape:
             raise CamsimError(f"denoiser {self.target!r} returned an array of shape {out.shape} for an input of "
-                              f"shape {image.shape}; it must return the same shape (H, W, 3)")
+                              f"shape {image.shape}; it must return the same shape {_layout(image.shape)}")
         if out.dtype.kind not in "biuf":
             raise CamsimError(f"denoiser {self.target!r} returned a {out.dtype} array; expected numbers")
         out = out.astype(np.float32)
@@ -341,6 +372,15 @@ class Denoiser:
             raise CamsimError(f"denoiser {self.target!r} returned {np.count_nonzero(~np.isfinite(out))} non-finite "
                               "values (NaN or inf)")
         return out
+
+
+def _layout(shape) -> str:
+    """How an input of ``shape`` is laid out, for messages."""
+    if len(shape) == 2:
+        return "(H, W): a Bayer mosaic"
+    if len(shape) == 3 and shape[-1] == 4:
+        return "(H/2, W/2, 4): packed planes R, G1, G2, B"
+    return "(H, W, 3)"
 
 
 def _slug(text: str) -> str:
@@ -463,6 +503,53 @@ def _run_in_own_group(args: list[str], timeout_s: float | None, folder: Path) ->
     return subprocess.CompletedProcess(args, process.returncode, captured(out_path), captured(err_path))
 
 
+#: The EXR channels of a Bayer frame's packed planes given to (and read back from) a ``cmd:`` denoiser.
+PACKED_CHANNELS = ("R", "G1", "G2", "B")
+
+
+#: The EXR channel of a Bayer mosaic given to (and read back from) a ``cmd:`` denoiser.
+MOSAIC_CHANNEL = "CFA"
+
+
+def _write_input_exr(path: Path, planes: dict, header: dict) -> None:
+    """The noisy frame a ``cmd:`` denoiser reads: an uncompressed float32 EXR with ``planes`` (name → 2-D array) as
+    its channels and ``header``'s string attributes.
+
+    Written with the OpenEXR bindings straight into the private temporary folder, not with
+    :func:`camsim.io.exr.write_exr`: that one writes atomically and only inside the output folder a run holds
+    (:func:`camsim.io.atomic.confined_to`), which this temporary file, no output of the run, lies outside of.
+    """
+    import OpenEXR
+
+    channels = {c: np.ascontiguousarray(v, dtype=np.float32) for c, v in planes.items()}
+    try:
+        with OpenEXR.File({"compression": OpenEXR.NO_COMPRESSION, "type": OpenEXR.scanlineimage, **header},
+                          channels) as exr:
+            exr.write(str(path))
+    except RuntimeError as exc:  # OpenEXR reports a failed write (no space, I/O error) as RuntimeError
+        raise CamsimError(f"cannot write the denoiser's input {path}: {exc}") from None
+
+
+def _read_planes_exr(path: Path, template: str) -> np.ndarray:
+    """The (h, w, 4) planes of channels R, G1, G2, B of an EXR a ``cmd:`` denoiser wrote."""
+    import OpenEXR
+
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as exr:
+            found = {k: np.array(v.pixels) for k, v in exr.channels().items()}
+    except Exception as exc:
+        raise CamsimError(f"denoiser command {template!r} wrote an unreadable EXR: {type(exc).__name__}: "
+                          f"{exc}") from None
+    missing = [c for c in PACKED_CHANNELS if c not in found]
+    if missing:
+        raise CamsimError(f"denoiser command {template!r} wrote an EXR without channel(s) {', '.join(missing)} "
+                          f"(a Bayer frame's packed planes are channels {', '.join(PACKED_CHANNELS)})")
+    shapes = {found[c].shape for c in PACKED_CHANNELS}
+    if len(shapes) != 1:
+        raise CamsimError(f"denoiser command {template!r} wrote channels of different sizes")
+    return np.stack([found[c] for c in PACKED_CHANNELS], axis=-1)
+
+
 def _command_denoiser(target: str, timeout_s: float | None) -> Denoiser:
     template = target[len(COMMAND_PREFIX):].strip()
     try:
@@ -480,14 +567,20 @@ def _command_denoiser(target: str, timeout_s: float | None) -> Denoiser:
         raise CamsimError(f"denoiser {target!r}: program {program!r} not found")
 
     def run(image, sigma_dn):
-        from camsim.io.exr import read_exr, write_exr
+        from camsim.io.exr import read_exr
 
         with tempfile.TemporaryDirectory(prefix="camsim-denoise-") as tmp:
             source, result = Path(tmp) / "noisy.exr", Path(tmp) / "denoised.exr"
-            header = {"camsim:units": "DN"}
+            header = {"camsim:units": "DN" if image.ndim == 3 and image.shape[-1] == 3 else
+                      "normalised: 0 = black, 1 = the white level"}
             if sigma_dn is not None:
-                header["camsim:denoise_sigma_dn"] = json.dumps([float(s) for s in sigma_dn])
-            write_exr(source, np.ascontiguousarray(np.moveaxis(image, -1, 0), dtype=np.float32), None, header)
+                header["camsim:denoise_sigma_dn"] = json.dumps([float(s) for s in np.ravel(sigma_dn)])
+            if image.ndim == 2:  # a Bayer mosaic: one channel CFA
+                _write_input_exr(source, {MOSAIC_CHANNEL: image}, header)
+            elif image.shape[-1] == 3:
+                _write_input_exr(source, {c: image[..., i] for i, c in enumerate("RGB")}, header)
+            else:  # packed planes R, G1, G2, B
+                _write_input_exr(source, {c: image[..., i] for i, c in enumerate(PACKED_CHANNELS)}, header)
             args = [a.replace(INPUT_PLACEHOLDER, str(source)).replace(OUTPUT_PLACEHOLDER, str(result)) for a in argv]
             try:
                 done = _run_in_own_group(args, timeout_s, Path(tmp))
@@ -502,7 +595,13 @@ def _command_denoiser(target: str, timeout_s: float | None) -> Denoiser:
             if not result.is_file():
                 raise CamsimError(f"denoiser command {template!r} exited with status 0 but wrote no {{output}} EXR; "
                                   f"stderr: {_tail(done.stderr)}")
+            if image.ndim == 3 and image.shape[-1] == 4:
+                return _read_planes_exr(result, template)
             pixels, _, _ = read_exr(result)
+        if image.ndim == 2:
+            if pixels.shape[0] != 1:
+                raise CamsimError(f"denoiser command {template!r} wrote an EXR without the channel CFA")
+            return pixels[0]
         if pixels.shape[0] != 3:
             raise CamsimError(f"denoiser command {template!r} wrote an EXR without channels R, G, B")
         return np.moveaxis(pixels, 0, -1)

@@ -16,6 +16,14 @@ denoiser sees each noisy frame as a (H, W, 3) float32 DN array; it is scored
 * per intensity factor: means, undefined counts and the chart's colour-preservation verdicts; per half-decade band
   of F the detail (SSIM) and colour (ΔE00) verdicts (:mod:`camsim.denoise.summary`).
 
+A Bayer (CFA) frame is denoised and scored as :mod:`camsim.denoise.bayer` says: each denoiser gets the mosaic
+black-subtracted and normalised to the white level, packed R, G1, G2, B at half resolution (or, for a user's
+denoiser with ``bayer_input="mosaic"``, unpacked); it is scored in the raw domain (PSNR and SSIM per packed plane
+and overall, data range 1) and after the ISP (the noisy, denoised and clean mosaics developed alike: PSNR, SSIM,
+mean ΔE00 against the developed clean). Its frame-level columns ``psnr_*``, ``ssim_*`` and ``delta_e00_*`` (and
+so the bands' verdicts) hold the scores after the ISP (``scored_as`` says so); the chart's patch quantities are
+three-chip only.
+
 Undefined quantities (no chromaticity where X + Y + Z ≤ 0, degenerate ellipses, no F = 1 reference, an
 infinite PSNR of a perfect result) are None and counted, never NaN.
 """
@@ -31,6 +39,8 @@ from camsim.analysis.grouping import group_key
 from camsim.render.frame_files import load_frame
 from camsim.analysis.patches import frame_matrix, patch_samples
 from camsim.colour.colorimetry import CHANNELS
+from camsim.denoise.bayer import (BAYER_INPUTS, BAYER_PLANES, DEFAULT_ISP_GAIN, MOSAIC, PACKED, bayer_frame,
+                                  developed_image, from_packed, raw_scores, srgb_lab, srgb_scores, to_packed)
 from camsim.denoise.colour_fidelity import frame_white_xyz, mean_delta_e00
 from camsim.denoise.denoisers import SIGMA_MODEL, Denoiser, estimate_noise_sigma, model_noise_sigma
 from camsim.denoise.frames import Dataset, DatasetFrame, find_dataset
@@ -58,16 +68,32 @@ class EvalSettings:
     criterion : Criterion
     matrix : str
         Camera → XYZ method; the paper's M by default.
+    bayer_input : {'packed', 'mosaic'}
+        What a user's denoiser (``MODULE:FUNCTION``, ``cmd:``) gets for a Bayer frame: the normalised packed planes
+        (H/2, W/2, 4) or the normalised mosaic (H, W) (:mod:`camsim.denoise.bayer`). The built-ins always get the
+        packed planes.
+    isp_gain : {'white', 'auto'} or float
+        The gain of the development for a Bayer frame's scores after the ISP (:mod:`camsim.denoise.bayer`):
+        ``"white"`` maps the perfect white under the frame's light at its F to 1 (``"auto"`` where a sidecar lacks
+        it), ``"auto"`` is 1 / F, a number a fixed gain.
     """
 
     border_px: int = 3
     subtract_black: bool = True
     criterion: Criterion = field(default_factory=Criterion)
     matrix: str = "paper"
+    bayer_input: str = PACKED
+    isp_gain: str | float = DEFAULT_ISP_GAIN
 
     def __post_init__(self):
         if not (isinstance(self.border_px, int) and self.border_px >= 0):
             raise CamsimError(f"border must be a non-negative number of pixels, got {self.border_px!r}")
+        if self.bayer_input not in BAYER_INPUTS:
+            raise CamsimError(f"unknown Bayer input {self.bayer_input!r}: one of {', '.join(BAYER_INPUTS)}")
+        gain = self.isp_gain
+        if not (gain in ("white", "auto") or (isinstance(gain, (int, float)) and not isinstance(gain, bool)
+                                              and np.isfinite(gain) and gain > 0)):
+            raise CamsimError(f"the ISP gain must be 'white', 'auto' or a positive number, got {gain!r}")
 
 
 @dataclass
@@ -86,11 +112,18 @@ EXAMPLE_CROP = (240, 320)  # rows, columns of the crop kept for the example figu
 BAND_CROP = (96, 128)  # rows, columns of the centre crop kept per F band for the crops figure
 
 
+#: ``scored_as``: what a frame's ``psnr_*``, ``ssim_*`` and ``delta_e00_*`` columns score.
+SCORED_THREE_CHIP = "camera DN"
+SCORED_DEVELOPED = "developed sRGB"
+
+
 def _frame_fields(frame: DatasetFrame) -> dict:
     meta = frame.meta
+    pattern = meta.get("cfa_pattern")
     return {"file": frame.name, "scene": meta.get("scene"), "illuminant": meta.get("illuminant"),
             "intensity_factor": float(meta["intensity_factor"]), "width_px": meta.get("width_px"),
-            "height_px": meta.get("height_px")}
+            "height_px": meta.get("height_px"), "frame_kind": f"Bayer {pattern}" if pattern else "three-chip",
+            "scored_as": SCORED_DEVELOPED if pattern else SCORED_THREE_CHIP}
 
 
 def _centre_crop(shape) -> tuple:
@@ -107,6 +140,8 @@ def evaluate_frame(frame: DatasetFrame, denoisers: list[Denoiser], settings: Eva
 
     loaded = load_frame(frame.path)
     _, clean, _ = read_exr(frame.path)
+    if loaded.cfa_pattern:
+        return evaluate_bayer_frame(frame, loaded, clean, denoisers, settings, keep_example, keep_band_crop), None
     noisy_chw = loaded.pixels_dn.astype(np.float32, copy=False)
     noisy = np.ascontiguousarray(np.moveaxis(noisy_chw, 0, -1))
     clean_hw3 = np.ascontiguousarray(np.moveaxis(clean, 0, -1))
@@ -184,6 +219,99 @@ def evaluate_frame(frame: DatasetFrame, denoisers: list[Denoiser], settings: Eva
             rows.append(patch_row(index, patch, ref, truth, before, after))
         result.patch_rows[denoiser.name] = rows
     return result, own_refs
+
+
+#: The colour (0 = R, 1 = G, 2 = B) of each packed plane R, G1, G2, B.
+PLANE_CHANNELS = (0, 1, 1, 2)
+
+
+def _per_plane(prefix: str, values) -> dict:
+    return {f"{prefix}_{p}": (None if v is None else float(v)) for p, v in zip(BAYER_PLANES, values)}
+
+
+def _raw_columns(scores: dict, label: str) -> dict:
+    """raw_psnr_{label}_db, raw_ssim_{label} and per plane raw_psnr_{P}_{label}_db, raw_ssim_{P}_{label}."""
+    out = {f"raw_psnr_{label}_db": scores["psnr_db"], f"raw_ssim_{label}": scores["ssim"]}
+    for p in BAYER_PLANES:
+        out[f"raw_psnr_{p}_{label}_db"] = scores[f"psnr_{p}_db"]
+        out[f"raw_ssim_{p}_{label}"] = scores[f"ssim_{p}"]
+    return out
+
+
+def _srgb_columns(scores: dict, label: str) -> dict:
+    return {f"srgb_psnr_{label}_db": scores["psnr_db"], f"srgb_ssim_{label}": scores["ssim"],
+            f"srgb_delta_e00_{label}": scores["delta_e00"],
+            # the generic columns (bands, summary): for a Bayer frame, the scores after the ISP
+            f"psnr_{label}_db": scores["psnr_db"], f"ssim_{label}": scores["ssim"],
+            f"delta_e00_{label}": scores["delta_e00"]}
+
+
+def _gain(a, b):
+    return None if a is None or b is None else a - b
+
+
+def evaluate_bayer_frame(frame: DatasetFrame, loaded, clean, denoisers: list[Denoiser], settings: EvalSettings,
+                         keep_example: bool = False, keep_band_crop: bool = False) -> FrameResult:
+    """Score every denoiser on one Bayer frame (:mod:`camsim.denoise.bayer`): raw scores per packed plane and
+    overall, and scores after the ISP. No patch rows (the chart's quantities are three-chip only)."""
+    bf = bayer_frame(loaded, clean, settings.isp_gain)
+    facts, pattern = bf.facts, bf.pattern
+    black4 = np.asarray(facts.black_dn, dtype=np.float64)[list(PLANE_CHANNELS)]
+    scale4 = float(facts.white_dn) - black4
+    sigma = estimate_noise_sigma(bf.noisy_packed)
+    packed_dn = to_packed(loaded.pixels_dn[0].astype(np.float32, copy=False), pattern)
+    sigma_model = model_noise_sigma(loaded.meta, packed_dn, black4, PLANE_CHANNELS) / scale4
+    true_sigma = (bf.noisy_packed.astype(np.float64) - bf.clean_packed).std(axis=(0, 1))
+    clean_dev = developed_image(bf.clean_mosaic, bf)
+    noisy_dev = developed_image(bf.noisy_mosaic, bf)
+    clean_lab = srgb_lab(clean_dev)
+    raw_noisy = raw_scores(bf.clean_packed, bf.noisy_packed)
+    srgb_noisy = srgb_scores(clean_dev, noisy_dev, clean_lab)
+    row = _frame_fields(frame)
+    row.update({"bayer_input": settings.bayer_input, "data_range_source": "1 (developed sRGB; raw: the white level)",
+                "isp_gain": bf.gain if isinstance(bf.gain, str) else float(bf.gain),
+                **_per_plane("raw_sigma_est", sigma), **_per_plane("raw_sigma_model", sigma_model),
+                **_per_plane("raw_noise_std", true_sigma),
+                **_raw_columns(raw_noisy, "noisy"), **_srgb_columns(srgb_noisy, "noisy")})
+    result = FrameResult(row, {}, {})
+    height, width = bf.noisy_mosaic.shape
+    crop = (slice(0, min(height, EXAMPLE_CROP[0])), slice(0, min(width, EXAMPLE_CROP[1])))
+    centre = _centre_crop((height, width))
+
+    def hw3(image):
+        return np.moveaxis(image, 0, -1)
+
+    common = {"developed": True, "black": np.zeros(3)}
+    if keep_example:
+        result.examples.update(noisy=hw3(noisy_dev)[crop].copy(), clean=hw3(clean_dev)[crop].copy(), **common)
+    if keep_band_crop:
+        result.band_crops.update(noisy=hw3(noisy_dev)[centre].copy(), clean=hw3(clean_dev)[centre].copy(),
+                                 file=frame.name, intensity_factor=float(frame.meta["intensity_factor"]), **common)
+    for denoiser in denoisers:
+        given = sigma_model if denoiser.sigma_source == SIGMA_MODEL else sigma
+        mosaic_in = settings.bayer_input == MOSAIC and denoiser.kind != "builtin"
+        start = time.perf_counter()
+        out = denoiser(bf.noisy_mosaic if mosaic_in else bf.noisy_packed, given)
+        result.seconds[denoiser.name] = time.perf_counter() - start
+        packed_out = to_packed(out, pattern) if mosaic_in else out
+        mosaic_out = out if mosaic_in else from_packed(out, pattern)
+        raw = raw_scores(bf.clean_packed, packed_out)
+        dev = developed_image(mosaic_out, bf)
+        srgb = srgb_scores(clean_dev, dev, clean_lab)
+        result.denoised_rows[denoiser.name] = {
+            "sigma_given": denoiser.sigma_source, "seconds": result.seconds[denoiser.name],
+            **_raw_columns(raw, "denoised"), **_srgb_columns(srgb, "denoised"),
+            "raw_psnr_gain_db": _gain(raw["psnr_db"], raw_noisy["psnr_db"]),
+            "raw_ssim_gain": _gain(raw["ssim"], raw_noisy["ssim"]),
+            "psnr_gain_db": _gain(srgb["psnr_db"], srgb_noisy["psnr_db"]),
+            "ssim_gain": _gain(srgb["ssim"], srgb_noisy["ssim"]),
+        }
+        result.patch_rows[denoiser.name] = []
+        if keep_example:
+            result.examples[denoiser.name] = hw3(dev)[crop].copy()
+        if keep_band_crop:
+            result.band_crops[denoiser.name] = hw3(dev)[centre].copy()
+    return result
 
 
 @dataclass

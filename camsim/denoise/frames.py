@@ -1,7 +1,9 @@
 """The frames ``camsim denoise-eval`` scores: camsim EXR frames found under folders (searched recursively, committed
 frames only: :func:`camsim.render.frame_files.search_frames`) and files — layer ``noisy.R/G/B`` = the noisy DN before
-quantisation, layer ``clean.R/G/B`` = their expected value, header ``camsim:metadata`` = the sidecar. Bayer (CFA)
-frames, EXRs without a clean layer, uncommitted EXRs and other files are skipped, each with its reason.
+quantisation (a Bayer frame's ``noisy.CFA``: the mosaic), layer ``clean.R/G/B`` = their expected value (for a Bayer
+frame, of every colour at every pixel), header ``camsim:metadata`` = the sidecar. Three-chip and Bayer (CFA) frames
+are both scored (a Bayer frame as :mod:`camsim.denoise.bayer` says). Bayer frames of an odd width or height, EXRs
+without a clean layer, uncommitted EXRs and other files are skipped, each with its reason.
 """
 
 from __future__ import annotations
@@ -47,8 +49,9 @@ def find_dataset(paths) -> Dataset:
     """The EXR frames under ``paths`` (folders searched recursively, or files) that can be scored.
 
     In folders only committed frames count (the sidecar, written last, names the EXR); hidden files are passed
-    over. Bayer (CFA) frames, EXRs without a clean layer, uncommitted EXRs, unreadable sidecars and files that
-    are not camsim frames are skipped, each with its reason.
+    over. Bayer (CFA) frames of an odd width or height (they cannot be packed into 2 × 2 cells), EXRs without a
+    clean layer, uncommitted EXRs, unreadable sidecars and files that are not camsim frames are skipped, each with
+    its reason.
 
     Raises
     ------
@@ -79,9 +82,11 @@ def find_dataset(paths) -> Dataset:
             except CamsimError as exc:
                 skipped.append({"file": name, "reason": f"not a readable camsim frame: {exc}"})
                 continue
-            if frame.cfa_pattern or frame.pixels_dn.shape[0] != 3:
-                skipped.append({"file": name, "reason": f"Bayer (CFA {frame.cfa_pattern}) mosaic: denoise-eval "
-                                                        "scores three-chip (R, G, B at every pixel) frames only"})
+            height, width = frame.pixels_dn.shape[1:]
+            if frame.cfa_pattern and (height % 2 or width % 2):
+                skipped.append({"file": name, "reason": f"Bayer (CFA {frame.cfa_pattern}) mosaic of {width}x{height} "
+                                                        "pixels: an odd width or height cannot be packed into 2 × 2 "
+                                                        "cells (R, G1, G2, B)"})
                 continue
             _, clean, _ = read_exr(path)
             if clean is None:
@@ -94,6 +99,6 @@ def find_dataset(paths) -> Dataset:
             frames.append(DatasetFrame(path, name, frame.meta))
     if not frames:
         reasons = "; ".join(f"{s['file']}: {s['reason']}" for s in skipped[:3])
-        raise CamsimError(f"no scorable frames (three-chip camsim EXR with a clean layer) in "
+        raise CamsimError(f"no scorable frames (camsim EXR with a clean layer) in "
                           f"{', '.join(str(p) for p in paths)}" + (f" — skipped {reasons}" if reasons else ""))
     return Dataset(frames, skipped, roots)

@@ -25,20 +25,33 @@ from pathlib import Path
 
 import numpy as np
 
+from camsim.denoise.bayer import BAYER_PLANES, GAIN_WHY, isp_text
 from camsim.denoise.colour_fidelity import WHITE_CLEAN_MAX
 from camsim.denoise.denoisers import MODEL_SIGMA_TEXT, SIGMA_ESTIMATOR, SIGMA_MODEL, WAVELET_IMPLEMENTATION
 from camsim.denoise.evaluate import Evaluation
-from camsim.denoise.summary import NOISY, band_label
+from camsim.denoise.summary import NOISY, band_label, f_band
 from camsim.io.atomic import write_json_atomic, write_text_atomic
 from camsim.io.figures import new_figure, save_png
 from camsim.io.output_folder import make_folder
 
+#: The columns of ``frames.csv`` for Bayer frames (empty for three-chip frames): raw scores on the normalised packed
+#: planes (overall, then per plane R, G1, G2, B), the noise σ per plane (normalised), and the scores after the ISP.
+BAYER_FRAME_COLUMNS = (
+    "raw_psnr_noisy_db", "raw_psnr_denoised_db", "raw_psnr_gain_db", "raw_ssim_noisy", "raw_ssim_denoised",
+    "raw_ssim_gain",
+    *(f"raw_psnr_{p}_{label}_db" for p in BAYER_PLANES for label in ("noisy", "denoised")),
+    *(f"raw_ssim_{p}_{label}" for p in BAYER_PLANES for label in ("noisy", "denoised")),
+    *(f"raw_sigma_est_{p}" for p in BAYER_PLANES), *(f"raw_sigma_model_{p}" for p in BAYER_PLANES),
+    *(f"raw_noise_std_{p}" for p in BAYER_PLANES),
+    "isp_gain", "srgb_psnr_noisy_db", "srgb_psnr_denoised_db", "srgb_ssim_noisy", "srgb_ssim_denoised", "srgb_delta_e00_noisy",
+    "srgb_delta_e00_denoised")
 FRAME_COLUMNS = ("denoiser", "file", "scene", "illuminant", "intensity_factor", "width_px", "height_px",
                  "data_range_dn", "data_range_source", "sigma_est_R_dn", "sigma_est_G_dn", "sigma_est_B_dn",
                  "sigma_model_R_dn", "sigma_model_G_dn", "sigma_model_B_dn", "sigma_given",
                  "noise_std_R_dn", "noise_std_G_dn", "noise_std_B_dn", "psnr_noisy_db", "psnr_denoised_db",
                  "psnr_gain_db", "ssim_noisy", "ssim_denoised", "ssim_gain", "white_source", "delta_e00_noisy",
-                 "delta_e00_denoised", "seconds")
+                 "delta_e00_denoised", "seconds", "frame_kind", "scored_as", "bayer_input",
+                 *BAYER_FRAME_COLUMNS)
 BAND_COLUMNS = ("denoiser", "band", "f_band_low", "f_band_high", "f_min", "f_max", "n_frames", "ssim_noisy",
                 "ssim_denoised", "ssim_gain", "psnr_gain_db", "delta_e00_noisy", "delta_e00_denoised", "seconds",
                 "detail_preserved", "colour_preserved_e00", "detail_preserved_noisy", "colour_preserved_e00_noisy")
@@ -129,7 +142,8 @@ def _plots(ev: Evaluation, out: Path) -> dict:
     axes = fig.subplots(1, 2)
     _against_f(axes[0], ev, "psnr_noisy_db", "psnr_denoised_db", "PSNR against the clean layer (dB)")
     _against_f(axes[1], ev, "ssim_noisy", "ssim_denoised", "SSIM against the clean layer")
-    fig.suptitle("PSNR and SSIM (mean over frames) — data range: each frame's clean range")
+    fig.suptitle("PSNR and SSIM (mean over frames) — data range: each frame's clean range"
+                 + ("; Bayer frames: after the ISP, data range 1" if _bayer_rows(ev) else ""))
     save_png(fig, out / PLOTS["psnr_ssim"])
 
     fig = new_figure(figsize=(6.5, 4.4), layout="constrained")
@@ -210,8 +224,9 @@ def _against_f_frames(ax, ev: Evaluation, key_noisy: str, key_denoised: str, yla
 
 def crops_by_band_figure(ev: Evaluation, path: Path) -> Path:
     """The crops figure: per half-decade band of F (rows, brightest first) a centre crop of one frame in the band
-    (the one closest to the band's centre in log F) — noisy, then each denoiser, then clean (columns). Black level
-    subtracted, each row scaled to its clean crop's maximum, γ 1/2.2. Written as a PNG with matplotlib's Agg
+    (the one closest to the band's centre in log F) — noisy, then each denoiser, then clean (columns). Three-chip
+    frames: black level subtracted, each row scaled to its clean crop's maximum, γ 1/2.2; Bayer frames: developed
+    by :func:`camsim.isp.develop` (:func:`camsim.denoise.bayer.isp_settings`, the run's ``isp_gain``). Written as a PNG with matplotlib's Agg
     canvas, chosen here for this figure alone (no process-wide backend)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
@@ -221,8 +236,8 @@ def crops_by_band_figure(ev: Evaluation, path: Path) -> Path:
     FigureCanvasAgg(fig)
     _crop_grid(fig, [ev.band_crops[band] for band in bands], columns,
                [f"F {band_label(band)}\n(F = {ev.band_crops[band]['intensity_factor']:.3g})" for band in bands], 8)
-    fig.suptitle("Noisy / denoised / clean per band of F\n(centre crop; black subtracted, row scaled to its clean "
-                 "maximum, γ 1/2.2)", fontsize=9)
+    fig.suptitle("Noisy / denoised / clean per band of F (centre crop)\n"
+                 + _crop_note([ev.band_crops[band] for band in bands], _gain_word(ev.settings.isp_gain)), fontsize=9)
     return save_png(fig, path)
 
 
@@ -236,13 +251,29 @@ def _crop_grid(fig, rows: list, columns: list, row_labels: list, label_size: int
         scale = float(np.max(crops["clean"] - black)) or 1.0
         for j, col in enumerate(columns):
             ax = axes[i, j]
-            ax.imshow(_display(crops[col], black, scale), interpolation="nearest")
+            # a Bayer frame's crops are developed already (camsim.isp, sRGB in [0, 1]): shown as they are
+            shown = np.clip(crops[col], 0.0, 1.0) if crops.get("developed") else _display(crops[col], black, scale)
+            ax.imshow(shown, interpolation="nearest")
             ax.set_xticks([])
             ax.set_yticks([])
             if i == 0:
                 ax.set_title(col, fontsize=9)
             if j == 0:
                 ax.set_ylabel(row_labels[i], fontsize=label_size)
+
+
+def _crop_note(rows: list, gain="white") -> str:
+    """How the crops of ``rows`` are shown, for a figure's title (one line per kind of frame among them)."""
+    notes = []
+    if any(not r.get("developed") for r in rows):
+        notes.append("three-chip: black subtracted, row scaled to its clean maximum, γ 1/2.2")
+    if any(r.get("developed") for r in rows):
+        notes.append(f"Bayer: developed by camsim.isp (as shot, camera matrix, gain {gain}, sRGB)")
+    return "\n".join(notes)
+
+
+def _gain_word(gain) -> str:
+    return {"white": "white", "auto": "1/F"}.get(gain, f"{gain:g}" if isinstance(gain, (int, float)) else str(gain))
 
 
 def _display(img, black, scale):
@@ -255,8 +286,8 @@ def _example_plot(ev: Evaluation, path: Path) -> None:
     columns = ["clean", "noisy", *[d.name for d in ev.denoisers]]
     fig = new_figure(figsize=(2.3 * len(columns), 1.9 * len(factors) + 0.5), layout="constrained")
     _crop_grid(fig, [ev.examples[factor] for factor in factors], columns, [f"F = {_f(f)}" for f in factors], 9)
-    fig.suptitle("Clean, noisy and denoised (black subtracted, each row scaled to its clean maximum, γ 1/2.2)",
-                 fontsize=9)
+    fig.suptitle("Clean, noisy and denoised\n"
+                 + _crop_note([ev.examples[factor] for factor in factors], _gain_word(ev.settings.isp_gain)), fontsize=9)
     save_png(fig, path)
 
 
@@ -394,6 +425,11 @@ def _band_lines(ev: Evaluation) -> list[str]:
              f"{crit.min_ssim:g}**;",
              f"* **preserves colour** when the mean ΔE00 (CIEDE2000, per pixel, against the clean layer; see *How it "
              f"was measured*) is **≤ {crit.max_delta_e00:g}**.", "",
+             *(["For Bayer frames the SSIM and ΔE00 are those after the ISP: the developed denoised (or noisy) "
+                "frame against the developed clean one (see *Bayer frames* below)"
+                + ("; this dataset mixes them with three-chip frames, scored in camera DN, in the same bands and "
+                   "means — score the two kinds in separate runs for comparable numbers." if
+                   len(_bayer_rows(ev)) != len(ev.frame_rows) else "."), ""] if _bayer_rows(ev) else []),
              "It preserves an aspect *down to* the lowest F tested in the last band, from the brightest down, in "
              "which the criterion holds in that band and every brighter one; below it, it stops. The noisy frames "
              "(no denoising) are judged by the same rule: a denoiser is worth running where it passes and they "
@@ -430,6 +466,108 @@ def _band_lines(ev: Evaluation) -> list[str]:
     return lines
 
 
+def _bayer_rows(ev: Evaluation) -> list[dict]:
+    return [r for r in ev.frame_rows if r.get("frame_kind", "three-chip") != "three-chip"]
+
+
+def _mean(rows, key):
+    values = [r[key] for r in rows if r.get(key) is not None]
+    return float(np.mean(values)) if values else None
+
+
+def bayer_input_text(bayer_input: str) -> str:
+    """What a user's denoiser gets for a Bayer frame (for the report)."""
+    if bayer_input == "mosaic":
+        return ("the (H, W) float32 mosaic in the frame's own pattern, black subtracted and divided by white − black "
+                "(0 = black, 1 = the white level; not clipped: noise goes below 0)")
+    return ("the (H/2, W/2, 4) float32 planes R, G1, G2, B (G1 the green on R's row; channels last), black "
+            "subtracted and divided by white − black (0 = black, 1 = the white level; not clipped: noise goes below "
+            "0)")
+
+
+def _gain_fallbacks(ev: Evaluation) -> list[str]:
+    """The Bayer frames developed with gain auto because their sidecar gives no perfect white (gain white asked)."""
+    if ev.settings.isp_gain != "white":
+        return []
+    return sorted({r["file"] for r in _bayer_rows(ev) if r.get("isp_gain") == "auto"})
+
+
+def _gain_note(ev: Evaluation) -> str:
+    gain = ev.settings.isp_gain
+    note = ""
+    if gain == "white":
+        note = f" (the default: {GAIN_WHY}; `--isp-gain auto` gives 1 / F)"
+    fallbacks = _gain_fallbacks(ev)
+    if fallbacks:
+        note += (f"; {len(fallbacks)} frame(s) whose sidecar gives no perfect white (`white_signal_e`) with gain auto "
+                 f"instead: {', '.join(fallbacks[:5])}{' …' if len(fallbacks) > 5 else ''}")
+    return note
+
+
+def _bayer_lines(ev: Evaluation) -> list[str]:
+    rows = _bayer_rows(ev)
+    if not rows:
+        return []
+    names = [d.name for d in ev.denoisers]
+    first = names[0]
+    n = len({r["file"] for r in rows})
+    patterns = sorted({r["frame_kind"].split()[-1] for r in rows})
+    lines = ["## Bayer frames: raw and after the ISP", "",
+             f"{n} Bayer frame{'s' if n != 1 else ''} (CFA {', '.join(patterns)}). Each denoiser got "
+             f"{bayer_input_text('packed')}"
+             + ("" if ev.settings.bayer_input == "packed" else
+                f" — the built-ins; a user's denoiser got {bayer_input_text('mosaic')}")
+             + ", and the noise σ per plane in that unit. Scores:", "",
+             "* **raw**: PSNR and SSIM (scikit-image) on the normalised packed planes R, G1, G2, B against the clean "
+             "mosaic normalised alike, `data_range` = 1 (the white level); overall PSNR from the mean squared error "
+             "over all four planes, overall SSIM the mean of the four. At low light the signal spans a small part of "
+             "the white level, so raw PSNR is high and raw SSIM near 1 for every result: compare denoisers within a "
+             "light level, or after the ISP;",
+             f"* **after the ISP**: the noisy, denoised and clean mosaics each developed by "
+             f"{isp_text(ev.settings.isp_gain)}{_gain_note(ev)}; PSNR and "
+             "SSIM (`data_range` = 1) and the mean CIEDE2000 of every pixel (sRGB → CIELAB, D65) against the "
+             "developed clean frame. These are the `psnr_*`, `ssim_*` and `delta_e00_*` of these frames in "
+             "`frames.csv` (column `scored_as`) and in the bands above.", "",
+             "Means over the Bayer frames in each half-decade band of F (`a → b`: noisy → denoised; per frame in "
+             "`frames.csv`):", "",
+             "| denoiser | F band (frames) | raw PSNR (dB) | raw SSIM | sRGB PSNR (dB) | sRGB SSIM | sRGB ΔE00 |",
+             "|---|---|---|---|---|---|---|"]
+    bands = sorted({f_band(r["intensity_factor"]) for r in rows}, reverse=True)
+
+    def in_band(name, band):
+        return [r for r in rows if r["denoiser"] == name and f_band(r["intensity_factor"]) == band]
+
+    for name in names:
+        for band in bands:
+            fr = in_band(name, band)
+            if not fr:
+                continue
+            lines.append(
+                f"| {name} | {band_label(band)} ({len(fr)}) | {_fmt(_mean(fr, 'raw_psnr_noisy_db'), '.2f')} → "
+                f"{_fmt(_mean(fr, 'raw_psnr_denoised_db'), '.2f')} | {_fmt(_mean(fr, 'raw_ssim_noisy'), '.3f')} → "
+                f"{_fmt(_mean(fr, 'raw_ssim_denoised'), '.3f')} | {_fmt(_mean(fr, 'srgb_psnr_noisy_db'), '.2f')} → "
+                f"{_fmt(_mean(fr, 'srgb_psnr_denoised_db'), '.2f')} | {_fmt(_mean(fr, 'srgb_ssim_noisy'), '.3f')} → "
+                f"{_fmt(_mean(fr, 'srgb_ssim_denoised'), '.3f')} | "
+                f"{_fmt(_mean(fr, 'srgb_delta_e00_noisy'), '.3g')} → "
+                f"{_fmt(_mean(fr, 'srgb_delta_e00_denoised'), '.3g')} |")
+    lines += ["", "Raw PSNR per plane R / G1 / G2 / B (dB, mean over the Bayer frames in each band of F; noisy first):",
+              "",
+              "| F band | " + " | ".join(f"{NOISY_LABEL if k == 0 else names[k - 1]}"
+                                   for k in range(len(names) + 1)) + " |",
+              "|---|" + "---|" * (len(names) + 1)]
+    for band in bands:
+        cells = []
+        for k, name in enumerate([first, *names]):
+            label = "noisy" if k == 0 else "denoised"
+            fr = in_band(name, band)
+            cells.append(" / ".join(_fmt(_mean(fr, f"raw_psnr_{p}_{label}_db"), ".1f") for p in BAYER_PLANES))
+        lines.append(f"| {band_label(band)} | " + " | ".join(cells) + " |")
+    lines += ["", "Per frame and plane (PSNR and SSIM), the noise σ per plane (the blind estimate, the sensor "
+              "model's and the true one, in the normalised unit): the `raw_*` and `srgb_*` columns of `frames.csv`.",
+              ""]
+    return lines
+
+
 def report_text(ev: Evaluation) -> str:
     crit = ev.settings.criterion
     names = [d.name for d in ev.denoisers]
@@ -448,10 +586,15 @@ def report_text(ev: Evaluation) -> str:
               + (f"; {len(ev.dataset.skipped)} file(s) skipped (see the end)." if ev.dataset.skipped else "."), ""]
 
     lines += _band_lines(ev)
+    lines += _bayer_lines(ev)
 
     chart = _chart_judged(ev)
     lines += ["## Chart colour (ColorChecker patches, against F = 1)", ""]
-    if not ev.patch_rows:
+    if not ev.patch_rows and _bayer_rows(ev) and len(_bayer_rows(ev)) == len(ev.frame_rows):
+        lines += ["The chart metrics (patch bias, noise ellipses, 5-step ΔE_ab) are computed for three-chip frames "
+                  "only, and every frame here is a Bayer mosaic: colour is judged by the ΔE00 after the ISP above.",
+                  ""]
+    elif not ev.patch_rows:
         lines += ["No chart in view: the chart metrics (patch bias, noise ellipses, 5-step ΔE_ab) do not apply; "
                   "colour is judged by the chart-free ΔE00 above.", ""]
     elif not chart:
@@ -575,6 +718,10 @@ def report_text(ev: Evaluation) -> str:
               "* **ΔE reference**: the mean Lab (5-step) of the same patch in the *clean* layer of the F = 1 frame "
               "of the same measurement (same scene, illuminant, camera, sensor settings and size — "
               "`camsim.analysis.grouping.group_key`), so that it is noise-free and the same for every denoiser.",
+              *([f"* **Bayer frames**: a user's denoiser got {bayer_input_text(s.bayer_input)} "
+                 f"(`--bayer-input {s.bayer_input}`), the built-ins the packed planes; developed for the scores after "
+                 f"the ISP by {isp_text(s.isp_gain)}{_gain_note(ev)}. The PSNR/SSIM bullet below is for three-chip frames; a Bayer frame's "
+                 "frame-level PSNR, SSIM and ΔE00 are those after the ISP (data range 1)."] if _bayer_rows(ev) else []),
               "* **Denoisers**: " + "; ".join(f"`{d.target}` — {d.description}" for d in ev.denoisers) + ".",
               ]
     if any(d.target == "wavelet" for d in ev.denoisers):
@@ -589,10 +736,7 @@ def report_text(ev: Evaluation) -> str:
         lines.append(f"| {key} | " + " | ".join(str(ev.counts[n][key]) for n in names) + " |")
     lines.append("")
     if ev.dataset.skipped:
-        lines += ["## Skipped files", "",
-                  "Bayer (CFA) frames are not supported: a denoiser here takes R, G and B at every pixel, and a "
-                  "mosaic would have to be demosaiced first, which would mix the demosaicing's errors into the "
-                  "score. They are listed here and left out.", ""]
+        lines += ["## Skipped files", "", "These files were not scored, each for the reason given:", ""]
         lines += [f"* `{s['file']}` — {s['reason']}" for s in ev.dataset.skipped]
         lines.append("")
     lines += ["Files: `frames.csv` (per frame), `patches.csv` (per frame × patch), `summary.csv` (per denoiser × F), "
@@ -606,6 +750,11 @@ def summary_json(ev: Evaluation) -> dict:
         "dataset": ev.dataset.roots,
         "frames_scored": len(ev.dataset.frames),
         "skipped": ev.dataset.skipped,
+        "frames_scored_bayer": len({r["file"] for r in _bayer_rows(ev)}),
+        "bayer": {"denoiser_input": bayer_input_text(s.bayer_input), "builtin_input": bayer_input_text("packed"),
+                  "bayer_input": s.bayer_input, "planes": list(BAYER_PLANES), "isp": isp_text(s.isp_gain),
+                  "isp_gain": s.isp_gain, "isp_gain_auto_fallback": _gain_fallbacks(ev),
+                  "raw_data_range": 1.0, "srgb_data_range": 1.0},
         "settings": {"border_px": s.border_px, "black_subtraction": "sidecar" if s.subtract_black else "none",
                      "camera_to_xyz": s.matrix, "data_range": "clean layer range per frame",
                      "sigma_estimator": SIGMA_ESTIMATOR, "sigma_model": MODEL_SIGMA_TEXT,

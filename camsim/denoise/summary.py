@@ -132,7 +132,7 @@ def summarise(frame_rows, patch_rows, names, criterion: Criterion) -> list[dict]
     for name in names:
         for factor in sorted({k[1] for k in frames_by if k[0] == name}, reverse=True):
             fr, pr = frames_by[(name, factor)], patches_by[(name, factor)]
-            has_ref = any(p["delta_e_status"] != "no-reference" for p in pr) or not pr
+            has_ref = any(p["delta_e_status"] != "no-reference" for p in pr)  # no patches: nothing to judge
             row = {"denoiser": name, "intensity_factor": factor, "n_frames": len(fr), "n_patches": len(pr)}
             for key in ("psnr_noisy_db", "psnr_denoised_db", "psnr_gain_db", "ssim_noisy", "ssim_denoised",
                         "ssim_gain"):

@@ -31,12 +31,29 @@ DESCRIPTION = (
     "of F down to which light level each denoiser preserves detail (mean SSIM ≥ --min-ssim) and colour (mean ΔE00 ≤ "
     "--max-delta-e00), and, with a chart and an F = 1 frame, down to which it preserves the chart's colour "
     "(mean ΔE ≤ --max-delta-e and mean chromaticity bias ≤ --max-bias, no patch colour undefined). Bayer (CFA) "
-    "frames are skipped and listed in the report."
+    "frames (layer noisy.CFA, e.g. a dataset of the sony-a7s2 preset) are denoised as raw denoisers take them — the "
+    "mosaic black-subtracted and normalised to the white level, packed R, G1, G2, B at half resolution (the SID/ELD "
+    "convention; --bayer-input mosaic: unpacked) — and scored in the raw domain (PSNR and SSIM per packed plane and "
+    "overall, data range 1) and after camsim's ISP (noisy, denoised and clean each developed alike: white balance as "
+    "shot, the camera matrix, --isp-gain, sRGB; PSNR, SSIM and mean ΔE00 against the developed clean frame), which "
+    "give their detail and colour verdicts; the chart's patch quantities are three-chip only."
 )
 
 EPILOG = """\
-denoisers (--denoiser, repeatable; each gets the noisy frame as a (H, W, 3) float32 array in DN, black level
-included, and the noise sigma per channel estimated blindly from the frame itself):
+what a denoiser gets (and must return: an array of the same shape, finite numbers; float32 given):
+  three-chip frame          a (H, W, 3) float32 array in DN (R, G, B last; the EXR's noisy values before
+                            quantisation, black level included); sigma_dn: (3,) per channel, in DN
+  Bayer frame, packed       a (H/2, W/2, 4) float32 array: the mosaic black-subtracted and divided by
+  (default)                 white - black (0 = black, 1 = the white level; not clipped), planes
+                            R, G1, G2, B last whatever the pattern (G1: the green on R's row);
+                            sigma_dn: (4,) per plane, in that normalised unit
+  Bayer frame, mosaic       (--bayer-input mosaic; your denoisers only) the same values as a (H, W) float32
+                            mosaic in the frame's own pattern; sigma_dn: (4,) per plane R, G1, G2, B
+  the built-ins always get the packed planes: identity, wavelet and tv work on each plane, nl-means on the
+  four planes as channels of one image, bm3d on each plane (grey BM3D, its own sigma)
+
+denoisers (--denoiser, repeatable; each gets the noisy frame as above and the noise sigma per channel
+estimated blindly from the frame itself):
   identity                  the control: returns its input (scores = the noisy baseline)
   nl-means                  scikit-image non-local means (fast mode, h = 0.8 sigma)
   wavelet                   wavelet shrinkage (BayesShrink, soft, Haar), scikit-image's algorithm
@@ -46,15 +63,17 @@ included, and the noise sigma per channel estimated blindly from the frame itsel
   MODULE:FUNCTION           your Python function, e.g. mypkg.filters:denoise or path/to/file.py:denoise
                             (the current directory is on sys.path); called as FUNCTION(image), or
                             FUNCTION(image, sigma_dn=...) if it has a parameter named sigma_dn; must return an
-                            array of the same shape (H, W, 3)
+                            array of the same shape
   'cmd:PROGRAM ARGS...'     a program run once per frame (no shell; split like a POSIX shell would), in which
                             {input} is replaced by the path of an EXR holding the noisy frame (float32 channels
-                            R, G, B in DN; header camsim:denoise_sigma_dn = the estimated sigma as JSON) and
-                            {output} by the path of the EXR it must write (channels R, G, B, same size); a
-                            non-zero exit status stops the run with the program's stderr
+                            R, G, B in DN; a Bayer frame's R, G1, G2, B at half resolution, or with --bayer-input
+                            mosaic one channel CFA, normalised; header camsim:denoise_sigma_dn = the estimated
+                            sigma as JSON) and {output} by the path of the EXR it must write (the same channels,
+                            same size); a non-zero exit status stops the run with the program's stderr
 
 examples:
   camsim denoise-eval outputs/macbeth_26 --denoiser nl-means
+  camsim denoise-eval outputs/a7s2 -d wavelet -d mypkg.raw:denoise_packed       # a Bayer dataset
   camsim denoise-eval frames/ -d identity -d nl-means -d wavelet -d tv --out outputs/denoise-eval/all
   camsim denoise-eval frames/ -d mypkg.filters:denoise
   camsim denoise-eval frames/ -d 'cmd:python my_denoiser.py --in {input} --out {output}'
@@ -83,7 +102,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--keep-black", action="store_true",
                         help="do not subtract the sidecar's black level (mean DN of an unlit pixel) before the colour "
                              "quantities, as the paper; by default it is subtracted, so that they measure the "
-                             "denoiser and not the dark current's drag toward the camera black point")
+                             "denoiser and not the dark current's drag toward the camera black point (three-chip "
+                             "frames; a Bayer frame is always black-subtracted and normalised)")
     parser.add_argument("--max-delta-e", metavar="DE", type=positive_float, default=3.0,
                         help="criterion: largest mean ΔE_ab at which colour counts as preserved (default 3)")
     parser.add_argument("--max-bias", metavar="DXY", type=positive_float, default=0.005,
@@ -95,10 +115,29 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--max-delta-e00", metavar="DE00", type=positive_float, default=5.0,
                         help="criterion: largest mean ΔE00 against the clean layer (chart-free, every pixel) at "
                              "which colour counts as preserved in a band of F (default 5)")
+    parser.add_argument("--bayer-input", choices=("packed", "mosaic"), default="packed",
+                        help="what your denoisers (MODULE:FUNCTION, cmd:) get for a Bayer frame: 'packed' (default) "
+                             "the normalised planes R, G1, G2, B as a (H/2, W/2, 4) array, 'mosaic' the normalised "
+                             "(H, W) mosaic; the built-ins always get the packed planes")
+    parser.add_argument("--isp-gain", metavar="white|auto|X", type=_isp_gain, default="white",
+                        help="the gain with which Bayer frames are developed for the scores after the ISP: 'white' "
+                             "(default) maps the perfect white under the frame's light at its F to 1 (exposed for "
+                             "its light), 'auto' is 1/F (as at F = 1: clips wherever F = 1 would pass the white "
+                             "level), a number a fixed gain")
     parser.add_argument("--timeout", metavar="SECONDS", type=positive_float,
                         help="time limit per frame for a 'cmd:' denoiser (default none)")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no colour-science warnings")
     return parser
+
+
+def _isp_gain(text: str):
+    """--isp-gain: 'white', 'auto' or a positive number."""
+    if text in ("white", "auto"):
+        return text
+    try:
+        return positive_float(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected white, auto or a positive number, got {text!r}") from None
 
 
 def _unique_names(denoisers):
@@ -128,7 +167,8 @@ def run(args) -> int:
     from camsim.denoise.report import band_verdict_sentence, verdict_sentence, write_outputs
 
     denoisers = _unique_names([resolve_denoiser(t, timeout_s=args.timeout) for t in args.denoiser])
-    settings = EvalSettings(border_px=args.border, subtract_black=not args.keep_black,
+    settings = EvalSettings(border_px=args.border, subtract_black=not args.keep_black, bayer_input=args.bayer_input,
+                            isp_gain=args.isp_gain,
                             criterion=Criterion(args.max_delta_e, args.max_bias, args.min_ssim,
                                                 args.max_delta_e00))
     out = args.out if args.out is not None else default_out(denoisers)
@@ -154,6 +194,6 @@ def run(args) -> int:
         print(f"camsim: warning: ignored {len(uncommitted)} uncommitted frame file(s) (no sidecar claims them): "
               f"{shown}", file=sys.stderr)
     if evaluation.dataset.skipped:
-        print(f"skipped {len(evaluation.dataset.skipped)} file(s) (e.g. Bayer frames): listed in {paths['report']}")
+        print(f"skipped {len(evaluation.dataset.skipped)} file(s): listed, with the reason, in {paths['report']}")
     print(f"wrote {paths['report']}, {paths['summary']}, {paths['frames']}, {paths['patches']} and plots to {out}/")
     return 0
