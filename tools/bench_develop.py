@@ -74,7 +74,6 @@ def stage_times(path: Path, repeats: int) -> dict[str, float]:
         best[name] = min(best.get(name, float("inf")), time.perf_counter() - start)
         return value
 
-    settings = isp.IspSettings()
     for _ in range(repeats):
         frame = step("read DNG and sidecar", lambda: read_frame_to_develop(path))
         facts = frame.facts

@@ -11,7 +11,6 @@ import textwrap
 from pathlib import Path
 
 from camsim.cli.commands import DEFAULT_OUT, writing_to
-from camsim.core.errors import CamsimError
 
 DESCRIPTION = (
     "Develop camsim frames into sRGB pictures through a camera ISP: black level off and normalised to the white "
