@@ -613,6 +613,17 @@ def check_srgb(value) -> str:
     return value
 
 
+def _checked_key(doc: dict, key: str, check, where: str):
+    """The spec's ``key`` (None when absent), checked by ``check``; its error names the spec and the key."""
+    value = doc.get(key)
+    if value is not None:
+        try:
+            check(value)
+        except CamsimError as exc:
+            raise CamsimError(f"{where}: {key}: {exc}") from None
+    return value
+
+
 def plan_spec(path: str | Path) -> SpecPlan:
     """Read and check a dataset spec (a file, or a built-in spec's name), its scenes (files relative to the spec,
     or built-in scenes' names) and its random draws; the frames are made by :meth:`SpecPlan.frames`, one by one
@@ -642,18 +653,8 @@ def plan_spec(path: str | Path) -> SpecPlan:
     repeats = doc.get("repeats", 1)
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise CamsimError(f"{where}: repeats must be an integer ≥ 1, got {repeats!r}")
-    exr_compression = doc.get("exr_compression")
-    if exr_compression is not None:
-        try:
-            check_exr_compression(exr_compression)
-        except CamsimError as exc:
-            raise CamsimError(f"{where}: exr_compression: {exc}") from None
-    srgb = doc.get("srgb")
-    if srgb is not None:
-        try:
-            check_srgb(srgb)
-        except CamsimError as exc:
-            raise CamsimError(f"{where}: srgb: {exc}") from None
+    exr_compression = _checked_key(doc, "exr_compression", check_exr_compression, where)
+    srgb = _checked_key(doc, "srgb", check_srgb, where)
     scene_files = doc.get("scene")
     if scene_files is None:
         raise CamsimError(f"{where}: needs scene = \"SCENE.toml\" (or a list of scene files)")
