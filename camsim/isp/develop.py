@@ -4,14 +4,16 @@ through the same ISP."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.isp.stages import (CHROMATIC_ADAPTATION, DEMOSAIC_METHODS, MATRICES, TONE_CURVES, WHITE_BALANCE_MODES,
-                               _srgb_matrix, apply_gain, apply_matrix, apply_white_balance, demosaic, normalise,
-                               tone_curve, white_balance_gains)
+from camsim.isp.stages import (CHROMATIC_ADAPTATION, DEMOSAIC_METHODS, DEMOSAIC_SOURCES, MATRICES,
+                               PER_CHANNEL_LINEAR, TONE_CURVES, WHITE_BALANCE_MODES, _bilinear, _srgb, _srgb_matrix,
+                               apply_gain, apply_matrix, apply_white_balance, demosaic, normalise, tone_curve,
+                               white_balance_gains)
 
 __all__ = ["IspSettings", "Developed", "develop", "develop_stages", "develop_pair", "STAGE_NAMES", "GAIN_MODES"]
 
@@ -117,6 +119,7 @@ _TONE_RECORD = {
 }
 
 
+@functools.lru_cache(maxsize=None)
 def _version(distribution: str) -> str:
     from importlib.metadata import PackageNotFoundError, version
 
@@ -126,12 +129,40 @@ def _version(distribution: str) -> str:
         return "(version unknown)"
 
 
+def _bytes(a) -> bytes | None:
+    return None if a is None else np.ascontiguousarray(a, dtype=np.float64).tobytes()
+
+
+#: The white-balance gains and colour matrices computed, by settings and the facts' colour (:func:`_colour`).
+_COLOUR_CACHE: dict = {}
+_COLOUR_CACHE_SIZE = 64
+
+
+def _colour(facts, settings: IspSettings) -> tuple:
+    """(white-balance gains (3,), colour matrix (3, 3) or None, what the matrix's camera → XYZ is): the numbers of
+    :func:`white_balance_gains` and :func:`camsim.isp.stages.srgb_matrix`, kept (read-only) per settings and the
+    facts' colour — the neutral, the illuminant, the QE and its grid, ColorMatrix1 — since a pair batch reuses a
+    few cameras and illuminants."""
+    key = (settings.white_balance, settings.matrix, facts.illuminant, _bytes(facts.as_shot_neutral),
+           _bytes(facts.qe), _bytes(facts.wavelengths_nm), _bytes(facts.color_matrix1))
+    found = _COLOUR_CACHE.get(key)
+    if found is None:
+        gains = np.asarray(white_balance_gains(facts, settings.white_balance), dtype=np.float64)
+        m, to_xyz = (_srgb_matrix(facts, settings.white_balance, settings.matrix) if settings.matrix != "none"
+                     else (None, None))
+        for a in (gains, m):
+            if a is not None:
+                a.setflags(write=False)
+        if len(_COLOUR_CACHE) >= _COLOUR_CACHE_SIZE:
+            _COLOUR_CACHE.clear()
+        found = _COLOUR_CACHE[key] = (gains, m, to_xyz)
+    return found
+
+
 def _plan(facts, settings: IspSettings) -> _Plan:
     import camsim
 
-    gains = white_balance_gains(facts, settings.white_balance)
-    matrix, to_xyz = (_srgb_matrix(facts, settings.white_balance, settings.matrix) if settings.matrix != "none"
-                      else (None, None))
+    gains, matrix, to_xyz = _colour(facts, settings)
     if settings.gain == "auto":
         if facts.intensity_factor is None:
             raise CamsimError("gain 'auto' (1 / F) needs the frame's intensity factor F, which only its sidecar "
@@ -156,7 +187,8 @@ def _plan(facts, settings: IspSettings) -> _Plan:
                               "formula": "gain_c = neutral_G / neutral_c (neutral: the camera's response to the "
                                          "perfect white under the white-balance illuminant)"},
             "demosaic": ({"method": settings.demosaic,
-                          "library": f"colour-demosaicing {_version('colour-demosaicing')}"}
+                          "library": (DEMOSAIC_SOURCES[settings.demosaic] if settings.demosaic in PER_CHANNEL_LINEAR
+                                      else f"colour-demosaicing {_version('colour-demosaicing')}")}
                          if facts.cfa_pattern is not None else None),
             "matrix": {"name": settings.matrix,
                        "matrix": None if matrix is None else matrix.tolist(),
@@ -193,6 +225,45 @@ def _run(raw, facts, settings: IspSettings, plan: _Plan, keep: dict | None) -> n
     return stage("toned", tone_curve(x, settings.tone))
 
 
+def _linear_after_demosaic(facts, settings: IspSettings) -> bool:
+    """Whether the white balance, the colour matrix and the gain can be one 3 × 3 matrix after demosaicing: a
+    three-chip frame, or a demosaicing that is linear per channel (:data:`camsim.isp.stages.PER_CHANNEL_LINEAR`)."""
+    return facts.cfa_pattern is None or settings.demosaic in PER_CHANNEL_LINEAR
+
+
+def _fused_matrix(plan: _Plan) -> np.ndarray:
+    """gain · M · diag(white-balance gains), float64 (3, 3): the three linear stages in one."""
+    m = np.eye(3) if plan.matrix is None else np.asarray(plan.matrix, dtype=np.float64)
+    return plan.gain * (m * np.asarray(plan.gains, dtype=np.float64)[None, :])
+
+
+def _run_fused(raw, facts, settings: IspSettings, plan: _Plan) -> np.ndarray:
+    """:func:`_run` where :func:`_linear_after_demosaic`: normalise → demosaic (without the white balance) → one
+    3 × 3 matrix (:func:`_fused_matrix`) → tone curve, in float32. Exact in exact arithmetic (per-channel gains
+    before a per-channel linear demosaicing equal the same gains after it; the gain and the matrix commute with
+    both); in float32 it differs from the stage-by-stage result by rounding alone."""
+    cfa = facts.cfa_pattern
+    raw = np.asarray(raw)
+    if cfa is not None and raw.ndim == 3 and raw.shape[0] == 1:
+        raw = raw[0]
+    use = facts if settings.black else dataclasses.replace(facts, black_dn=np.zeros(3))
+    x = normalise(raw, use)
+    if cfa is not None:
+        x = _bilinear(x, cfa)
+    a = _fused_matrix(plan)
+    if not np.array_equal(a, np.eye(3)):
+        x = apply_matrix(x, a)
+    if settings.tone == "srgb":
+        return _srgb(x, out=x)  # x is this function's own array: clipped in place
+    return tone_curve(x, settings.tone)
+
+
+def _develop(raw, facts, settings: IspSettings, plan: _Plan) -> np.ndarray:
+    if _linear_after_demosaic(facts, settings):
+        return _run_fused(raw, facts, settings, plan)
+    return _run(raw, facts, settings, plan, None)
+
+
 def develop(raw, facts, settings: IspSettings = IspSettings()) -> Developed:
     """Develop a frame's numbers into an sRGB image.
 
@@ -215,7 +286,7 @@ def develop(raw, facts, settings: IspSettings = IspSettings()) -> Developed:
     :func:`camsim.isp.tone_curve` (which clips to [0, 1]).
     """
     plan = _plan(facts, settings)
-    return Developed(_run(raw, facts, settings, plan, None), plan.record)
+    return Developed(_develop(raw, facts, settings, plan), plan.record)
 
 
 def develop_stages(raw, facts, settings: IspSettings = IspSettings()) -> dict[str, np.ndarray]:
@@ -236,5 +307,5 @@ def develop_pair(noisy, clean, facts, settings: IspSettings = IspSettings()) -> 
     if noisy.shape != clean.shape:
         raise CamsimError(f"noisy and clean frames differ in shape: {noisy.shape} and {clean.shape}")
     plan = _plan(facts, settings)
-    return (Developed(_run(noisy, facts, settings, plan, None), plan.record),
-            Developed(_run(clean, facts, settings, plan, None), plan.record))
+    return (Developed(_develop(noisy, facts, settings, plan), plan.record),
+            Developed(_develop(clean, facts, settings, plan), plan.record))

@@ -14,7 +14,7 @@ import numpy as np
 from camsim.core.errors import CamsimError
 from camsim.sensor.cfa import CFA_PATTERNS, cfa_sites
 
-__all__ = ["DEMOSAIC_METHODS", "TONE_CURVES", "WHITE_BALANCE_MODES", "MATRICES", "CHROMATIC_ADAPTATION",
+__all__ = ["DEMOSAIC_METHODS", "PER_CHANNEL_LINEAR", "TONE_CURVES", "WHITE_BALANCE_MODES", "MATRICES", "CHROMATIC_ADAPTATION",
            "normalise", "white_balance_gains", "apply_white_balance", "demosaic", "srgb_matrix", "apply_matrix",
            "apply_gain", "tone_curve", "camera_to_xyz", "illuminant_neutral"]
 
@@ -191,12 +191,89 @@ def _colour_demosaicing(function_name):
     return method
 
 
-#: Demosaicing methods by name: ``f(mosaic (H, W) float, pattern) -> (3, H, W) float32`` (colour-demosaicing's).
+def _bilinear(mosaic, cfa_pattern) -> np.ndarray:
+    """Bilinear demosaicing by slicing, in float32: at each site the missing colours are the mean of the nearest
+    sites of that colour (the 2 beside it, the 2 above and below, or the 4 on the diagonals; green: the 4 beside,
+    above and below), with the ISP's border rule (:data:`DEMOSAIC_PAD`: the mosaic mirrored without its edge row,
+    which keeps the Bayer phase). Equal to colour-demosaicing's ``demosaicing_CFA_Bayer_bilinear`` on the padded
+    mosaic within float32 rounding: its 2-site means are the same numbers (float64 sums of two float32 values,
+    rounded once), its 4-site means differ by at most a few units in the last place of the largest of the four
+    (three float32 roundings instead of one). Mosaics of 4 pixels or fewer on a side go to colour-demosaicing
+    (:data:`DEMOSAIC_PAD`'s rules for them).
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray, shape (..., H, W)
+        One or more mosaics of the same pattern (e.g. a noisy frame and its clean target stacked).
+    cfa_pattern : str
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., 3, H, W), float32
+    """
+    mosaic = np.asarray(mosaic)
+    height, width = mosaic.shape[-2:]
+    if min(height, width) <= DEMOSAIC_PAD:
+        fallback = _colour_demosaicing("demosaicing_CFA_Bayer_bilinear")
+        flat = mosaic.reshape(-1, height, width)
+        return np.stack([fallback(m, cfa_pattern) for m in flat]).reshape(*mosaic.shape[:-2], 3, height, width)
+    out = np.empty((*mosaic.shape[:-2], 3, height, width), dtype=np.float32)
+    if mosaic.ndim > 2:  # one mosaic at a time: the temporaries of one stay in the cache
+        for index in np.ndindex(*mosaic.shape[:-2]):
+            out[index] = _bilinear(mosaic[index], cfa_pattern)
+        return out
+    m = mosaic.astype(np.float32, copy=False)
+    # a 1-pixel mirror gives the 3 × 3 neighbourhoods that DEMOSAIC_PAD's 4-pixel mirror gives the interior
+    p = np.pad(m, 1, mode="reflect")
+    vertical_full = p[:-2] + p[2:]  # (H, W + 2): above + below
+    vertical = vertical_full[:, 1:-1]
+    horizontal = p[1:-1, :-2] + p[1:-1, 2:]
+    diagonal = vertical_full[:, :-2] + vertical_full[:, 2:]  # the 4 diagonal neighbours
+    cross = horizontal + vertical  # the 4 neighbours beside, above and below
+    half, quarter = np.float32(0.5), np.float32(0.25)
+    where = {"RGB".index(letter): (i // 2, i % 2) for i, letter in enumerate(cfa_pattern) if letter != "G"}
+    for dy, dx, own in cfa_sites(cfa_pattern):
+        site = (slice(dy, None, 2), slice(dx, None, 2))
+        for c in range(3):
+            target = out[(c,) + site]
+            if c == own:
+                target[...] = m[site]
+            elif c == 1:  # green at a red or blue site
+                np.multiply(cross[site], quarter, out=target)
+            else:
+                cy, cx = where[c]
+                if cy == dy:  # the colour is beside this site
+                    np.multiply(horizontal[site], half, out=target)
+                elif cx == dx:  # above and below
+                    np.multiply(vertical[site], half, out=target)
+                else:
+                    np.multiply(diagonal[site], quarter, out=target)
+    return out
+
+
+def _bilinear_method(mosaic, cfa_pattern):
+    """camsim's bilinear demosaicing by slicing (:func:`_bilinear`), equal to colour-demosaicing's
+    ``demosaicing_CFA_Bayer_bilinear`` within float32 rounding."""
+    return _bilinear(mosaic, cfa_pattern)
+
+
+#: Demosaicing methods by name: ``f(mosaic (H, W) float, pattern) -> (3, H, W) float32``: bilinear by slicing
+#: (:func:`_bilinear`, colour-demosaicing's within float32 rounding), the others colour-demosaicing's.
 DEMOSAIC_METHODS = {
-    "bilinear": _colour_demosaicing("demosaicing_CFA_Bayer_bilinear"),
+    "bilinear": _bilinear_method,
     "malvar2004": _colour_demosaicing("demosaicing_CFA_Bayer_Malvar2004"),
     "menon2007": _colour_demosaicing("demosaicing_CFA_Bayer_Menon2007"),
 }
+#: The demosaicing methods that are linear and per channel — each output colour a weighted sum of that colour's
+#: sites only — so that white-balance gains (or any per-channel gains) before them equal the same gains after
+#: them, and the white balance, the colour matrix and the digital gain become one 3 × 3 matrix after demosaicing
+#: (:func:`camsim.isp.develop`). Bilinear is; Malvar 2004 mixes channels (its corrections add the other colours'
+#: Laplacians) and Menon 2007 is not linear.
+PER_CHANNEL_LINEAR = frozenset({"bilinear"})
+#: Where each demosaicing method comes from (for the developed image's record).
+DEMOSAIC_SOURCES = {"bilinear": "camsim (slicing; colour-demosaicing's demosaicing_CFA_Bayer_bilinear within "
+                                "float32 rounding)",
+                    "malvar2004": "colour-demosaicing", "menon2007": "colour-demosaicing"}
 
 
 def demosaic(mosaic, cfa_pattern: str, method: str = "malvar2004") -> np.ndarray:
@@ -384,16 +461,30 @@ def apply_gain(x, gain: float) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------------------------ tone curves
-def _srgb(x):
+def _srgb(x, out=None, scratch=None):
     """IEC 61966-2-1 (sRGB) transfer function, on values clipped to [0, 1]: 12.92 x for x ≤ 0.0031308, else
-    1.055 x^(1/2.4) − 0.055."""
-    x = np.clip(np.asarray(x, dtype=np.float32), np.float32(0.0), np.float32(1.0))
-    low = x <= np.float32(0.0031308)
-    out = np.power(x, np.float32(1 / 2.4))
-    out *= np.float32(1.055)
-    out -= np.float32(0.055)
-    np.multiply(x, np.float32(12.92), out=out, where=low)
-    return out
+    1.055 x^(1/2.4) − 0.055. float32. ``out`` (float32, the shape of ``x``) may be ``x`` itself: clipped in place;
+    ``scratch`` (the same) is a buffer it may overwrite.
+
+    The same numbers as the formula taken branch by branch in float32 (checked on every float32 in [0, 1]),
+    without its slow parts: the power is taken of max(x, 0.0031308) (numpy's power is slow on zeros), and the
+    branch is chosen without a masked select (``where=``, which costs three times the power itself on noisy
+    images): each branch is divided by its condition (a boolean: ÷ 1 keeps the value, ÷ 0 makes it +∞) and the
+    smaller of the two kept."""
+    x = np.clip(np.asarray(x, dtype=np.float32), np.float32(0.0), np.float32(1.0), out=out)
+    y = np.maximum(x, _SRGB_THRESHOLD)
+    np.power(y, np.float32(1 / 2.4), out=y)
+    y *= np.float32(1.055)
+    y -= np.float32(0.055)
+    low = np.multiply(x, np.float32(12.92), out=scratch)
+    below = x <= _SRGB_THRESHOLD
+    with np.errstate(divide="ignore"):
+        np.divide(low, below, out=low)  # +∞ above the threshold
+        np.divide(y, np.invert(below, out=below), out=y)  # +∞ at and below it (y > 0 there)
+    return np.minimum(y, low, out=y)
+
+
+_SRGB_THRESHOLD = np.float32(0.0031308)
 
 
 def _filmic(x):
