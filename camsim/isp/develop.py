@@ -11,7 +11,8 @@ import numpy as np
 
 from camsim.core.errors import CamsimError
 from camsim.isp.stages import (CHROMATIC_ADAPTATION, DEMOSAIC_METHODS, DEMOSAIC_SOURCES, MATRICES,
-                               PER_CHANNEL_LINEAR, TONE_CURVES, WHITE_BALANCE_MODES, _bilinear, _srgb, _srgb_matrix,
+                               DEMOSAIC_PAD, PER_CHANNEL_LINEAR, TONE_CURVES, WHITE_BALANCE_MODES, _bilinear,
+                               _bilinear_padded, _normalise_into, _srgb, _srgb_matrix, _workspace,
                                apply_gain, apply_matrix, apply_white_balance, demosaic, normalise, tone_curve,
                                white_balance_gains)
 
@@ -237,31 +238,61 @@ def _fused_matrix(plan: _Plan) -> np.ndarray:
     return plan.gain * (m * np.asarray(plan.gains, dtype=np.float64)[None, :])
 
 
-def _run_fused(raw, facts, settings: IspSettings, plan: _Plan) -> np.ndarray:
+def _run_fused(raw, facts, settings: IspSettings, plan: _Plan, out: np.ndarray | None = None) -> np.ndarray:
     """:func:`_run` where :func:`_linear_after_demosaic`: normalise → demosaic (without the white balance) → one
-    3 × 3 matrix (:func:`_fused_matrix`) → tone curve, in float32. Exact in exact arithmetic (per-channel gains
-    before a per-channel linear demosaicing equal the same gains after it; the gain and the matrix commute with
-    both); in float32 it differs from the stage-by-stage result by rounding alone."""
+    3 × 3 matrix (:func:`_fused_matrix`) → tone curve, in float32; the result in ``out`` ((3, H, W) float32,
+    C-contiguous) if given. Exact in exact arithmetic (per-channel gains before a per-channel linear demosaicing
+    equal the same gains after it; the gain and the matrix commute with both); in float32 it differs from the
+    stage-by-stage result by rounding alone."""
     cfa = facts.cfa_pattern
     raw = np.asarray(raw)
     if cfa is not None and raw.ndim == 3 and raw.shape[0] == 1:
         raw = raw[0]
-    use = facts if settings.black else dataclasses.replace(facts, black_dn=np.zeros(3))
-    x = normalise(raw, use)
-    if cfa is not None:
-        x = _bilinear(x, cfa)
+    black = facts.black_dn if settings.black else np.zeros(3)
+    if cfa is None:
+        x = _normalise_into(raw, facts, black, _workspace("develop.normalised", raw.shape))
+    elif raw.ndim == 2 and min(raw.shape) > DEMOSAIC_PAD:
+        height, width = raw.shape
+        padded = _workspace("bilinear.padded", (height + 2, width + 2))
+        _normalise_into(raw, facts, black, padded[1:-1, 1:-1])
+        x = _bilinear_padded(padded, cfa, _workspace("develop.demosaiced", (3, height, width)))
+    else:  # a small mosaic (colour-demosaicing's border rules), or a wrong shape (normalise says so)
+        x = _bilinear(normalise(raw, dataclasses.replace(facts, black_dn=black)), cfa)
+    if out is None:
+        out = np.empty(x.shape, dtype=np.float32)
+    elif not (out.shape == x.shape and out.dtype == np.float32 and out.flags.c_contiguous):
+        raise CamsimError(f"the ISP's output must be a C-contiguous float32 array of shape {x.shape}")
     a = _fused_matrix(plan)
-    if not np.array_equal(a, np.eye(3)):
-        x = apply_matrix(x, a)
+    if np.array_equal(a, np.eye(3)):
+        np.copyto(out, x)
+    else:
+        np.matmul(a.astype(np.float32), x.reshape(3, -1), out=out.reshape(3, -1))
     if settings.tone == "srgb":
-        return _srgb(x, out=x)  # x is this function's own array: clipped in place
-    return tone_curve(x, settings.tone)
+        return _srgb(out, out=out, scratch=x)
+    np.copyto(out, tone_curve(out, settings.tone))
+    return out
 
 
-def _develop(raw, facts, settings: IspSettings, plan: _Plan) -> np.ndarray:
+def _develop(raw, facts, settings: IspSettings, plan: _Plan, out: np.ndarray | None = None) -> np.ndarray:
     if _linear_after_demosaic(facts, settings):
-        return _run_fused(raw, facts, settings, plan)
-    return _run(raw, facts, settings, plan, None)
+        return _run_fused(raw, facts, settings, plan, out)
+    image = _run(raw, facts, settings, plan, None)
+    if out is None:
+        return image
+    np.copyto(out, image)
+    return out
+
+
+def _develop_pair_into(noisy, clean, facts, settings: IspSettings, out_noisy, out_clean) -> dict:
+    """:func:`develop_pair` with the images written into ``out_noisy`` and ``out_clean`` ((3, H, W) float32,
+    C-contiguous: e.g. a batch's slots); returns the record."""
+    noisy, clean = np.asarray(noisy), np.asarray(clean)
+    if noisy.shape != clean.shape:
+        raise CamsimError(f"noisy and clean frames differ in shape: {noisy.shape} and {clean.shape}")
+    plan = _plan(facts, settings)
+    _develop(noisy, facts, settings, plan, out_noisy)
+    _develop(clean, facts, settings, plan, out_clean)
+    return plan.record
 
 
 def develop(raw, facts, settings: IspSettings = IspSettings()) -> Developed:
