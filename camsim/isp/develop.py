@@ -314,7 +314,10 @@ def develop(raw, facts, settings: IspSettings = IspSettings()) -> Developed:
     Stages: :func:`camsim.isp.normalise` → :func:`camsim.isp.apply_white_balance` (gains of
     :func:`camsim.isp.white_balance_gains`) → :func:`camsim.isp.demosaic` (Bayer frames) →
     :func:`camsim.isp.apply_matrix` (:func:`camsim.isp.srgb_matrix`) → :func:`camsim.isp.apply_gain` →
-    :func:`camsim.isp.tone_curve` (which clips to [0, 1]).
+    :func:`camsim.isp.tone_curve` (which clips to [0, 1]). With a demosaicing that is linear per channel
+    (bilinear; :data:`camsim.isp.stages.PER_CHANNEL_LINEAR`) or a three-chip frame, the white balance, the matrix
+    and the gain are one 3 × 3 matrix, gain · M · diag(gains), applied after demosaicing: the same in exact
+    arithmetic (per-channel gains commute with such a demosaicing), the same but for float32 rounding here.
     """
     plan = _plan(facts, settings)
     return Developed(_develop(raw, facts, settings, plan), plan.record)
@@ -323,8 +326,10 @@ def develop(raw, facts, settings: IspSettings = IspSettings()) -> Developed:
 def develop_stages(raw, facts, settings: IspSettings = IspSettings()) -> dict[str, np.ndarray]:
     """The image after each stage of :func:`develop`, keyed :data:`STAGE_NAMES`: ``"raw"`` (the input),
     ``"normalised"``, ``"white_balanced"`` (a mosaic stays (H, W) until ``"demosaiced"``), ``"demosaiced"``
-    (3, H, W), ``"srgb_linear"``, ``"gained"``, ``"toned"`` (= ``develop(...).image``). A stage switched off
-    gives its input. For the noise analysis."""
+    (3, H, W), ``"srgb_linear"``, ``"gained"``, ``"toned"`` (``develop(...).image``: the same numbers with Malvar
+    2004 or Menon 2007; with bilinear demosaicing or a three-chip frame, where :func:`develop` applies the white
+    balance, the matrix and the gain as one matrix, the same but for float32 rounding). A stage switched off gives
+    its input. For the noise analysis."""
     keep: dict[str, np.ndarray] = {}
     _run(raw, facts, settings, _plan(facts, settings), keep)
     return keep

@@ -351,7 +351,8 @@ def demosaic(mosaic, cfa_pattern: str, method: str = "malvar2004") -> np.ndarray
     method : str
         A key of :data:`DEMOSAIC_METHODS`: ``"bilinear"``, ``"malvar2004"`` (Malvar, He and Cutler 2004,
         gradient-corrected linear interpolation), ``"menon2007"`` (Menon, Andriani and Calvagno 2007, directional
-        filtering with a posteriori decision), all colour-demosaicing's.
+        filtering with a posteriori decision), the last two colour-demosaicing's; ``"bilinear"`` is camsim's own
+        in float32, colour-demosaicing's bilinear within float32 rounding (:func:`_bilinear`).
 
     Returns
     -------
