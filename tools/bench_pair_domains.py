@@ -87,7 +87,8 @@ def profile(source_srgb) -> list[tuple[str, float]]:
     if facts.cfa_pattern:
         x = timed(f"demosaic ({settings.demosaic})", lambda: demosaic(x, facts.cfa_pattern, settings.demosaic))
     if fused:
-        x = timed("wb · matrix · gain (one 3 x 3)", lambda: apply_matrix(x, _fused_matrix(plan)))
+        m = _fused_matrix(plan).astype(np.float32)
+        x = timed("wb · matrix · gain (one 3 x 3)", lambda: np.matmul(m, x.reshape(3, -1)).reshape(x.shape))
     else:
         x = timed("matrix", lambda: apply_matrix(x, plan.matrix) if plan.matrix is not None else x)
         x = timed("gain", lambda: apply_gain(x, plan.gain))
