@@ -16,8 +16,8 @@ from camsim.core.errors import CamsimError
 from camsim.sensor.cfa import CFA_PATTERNS, cfa_sites
 
 __all__ = ["DEMOSAIC_METHODS", "PER_CHANNEL_LINEAR", "TONE_CURVES", "WHITE_BALANCE_MODES", "MATRICES",
-           "CHROMATIC_ADAPTATION", "normalise", "white_balance_gains", "apply_white_balance", "demosaic", "srgb_matrix", "apply_matrix",
-           "apply_gain", "tone_curve", "camera_to_xyz", "illuminant_neutral"]
+           "CHROMATIC_ADAPTATION", "normalise", "white_balance_gains", "apply_white_balance", "demosaic",
+           "srgb_matrix", "apply_matrix", "apply_gain", "tone_curve", "camera_to_xyz", "illuminant_neutral"]
 
 #: White balance modes besides an illuminant's name.
 WHITE_BALANCE_MODES = ("as-shot", "none")
