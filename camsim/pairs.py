@@ -397,6 +397,8 @@ class PairSource:
             pair = self._render_pair(xp, rng, p, sensor)
             if self.domain == "dn":
                 noisy[i], clean[i] = pair[0], pair[1]
+            elif self.domain == "srgb" and xp is np:  # developed straight into the batch
+                records.append(self._develop(pair[0], pair[1], self._facts(p, sensor), noisy[i], clean[i]))
             else:
                 pair_noisy, pair_clean, record = self._to_domain(to_host(pair[0]), to_host(pair[1]),
                                                                  self._facts(p, sensor))
@@ -439,6 +441,17 @@ class PairSource:
         settings = self.isp or pair_isp(self.scene.exposure)
         developed_noisy, developed_clean = develop_pair(noisy, clean, facts, settings)
         return developed_noisy.image, developed_clean.image, {"domain": "srgb", **developed_noisy.record}
+
+    def _develop(self, noisy: np.ndarray, clean: np.ndarray, facts, out_noisy, out_clean) -> dict:
+        """``srgb`` on the CPU: a pair's (planes, H, W) DN developed into ``out_noisy`` and ``out_clean`` (the
+        batch's (3, H, W) slots) as :meth:`_to_domain` develops it; returns the record."""
+        from camsim.isp.develop import _develop_pair_into
+
+        if facts.cfa_pattern is not None:
+            noisy, clean = noisy[0], clean[0]
+        record = _develop_pair_into(noisy, clean, facts, self.isp or pair_isp(self.scene.exposure), out_noisy,
+                                    out_clean)
+        return {"domain": "srgb", **record}
 
     def _render_pair(self, xp, rng, p: dict, sensor):
         """One pair's (noisy, clean, digital) planes."""

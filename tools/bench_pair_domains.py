@@ -7,7 +7,8 @@ difference is what the domain's conversion costs. The domains are timed in turn,
 rounds of ``--batches`` batches each), and each rate is the domain's best round (the figure least moved by other
 work on a shared machine, and the domains see the same changes of load), after a warm-up round (which pays for the
 photographs' recovery, the lit scenes of every illuminant and colour-science's imports). ``--profile`` also times
-the ISP's stages on one pair of the batch (to see where the sRGB time goes).
+the ISP's stages on one image of the batch, one by one, and the whole pair as the srgb domain develops it (to see
+where the sRGB time goes).
 
     python tools/bench_pair_domains.py [--crop 256x256] [--batch-size 8] [--batches 4] [--repeats 5]
                                        [--camera sony-a7s2] [--demosaic bilinear] [--profile]
@@ -40,13 +41,14 @@ def rates(sources: dict, batches: int, repeats: int) -> dict:
 
 
 def profile(source_srgb) -> list[tuple[str, float]]:
-    """Seconds of each ISP stage on one pair of batch 0 (the noisy frame), best of 5."""
+    """Seconds of each ISP stage on one pair of batch 0 (the noisy frame), best of 5, as :func:`camsim.isp.develop`
+    runs them: with a per-channel linear demosaicing (bilinear) the white balance, the matrix and the gain are one
+    3 × 3 matrix after demosaicing; otherwise stage by stage."""
     import numpy as np
 
-    from camsim.isp import (apply_gain, apply_matrix, apply_white_balance, demosaic, normalise, srgb_matrix,
-                            tone_curve, white_balance_gains)
-    from camsim.isp.develop import _plan
     from camsim.core.xp import to_host
+    from camsim.isp import apply_gain, apply_matrix, apply_white_balance, demosaic, normalise, tone_curve
+    from camsim.isp.develop import _develop_pair_into, _fused_matrix, _linear_after_demosaic, _plan
 
     settings = source_srgb.isp
     if settings is None:
@@ -64,6 +66,8 @@ def profile(source_srgb) -> list[tuple[str, float]]:
     facts = dn._facts(p, sensor)
     raw = to_host(batch.noisy[0])
     raw = raw[0] if facts.cfa_pattern else raw
+    clean = to_host(batch.clean[0])
+    clean = clean[0] if facts.cfa_pattern else clean
     steps = []
 
     def timed(name, fn):
@@ -75,17 +79,24 @@ def profile(source_srgb) -> list[tuple[str, float]]:
         steps.append((name, best))
         return out
 
-    timed("plan (gains, matrix, record)", lambda: _plan(facts, settings))
-    gains = white_balance_gains(facts, settings.white_balance)
-    m = srgb_matrix(facts, settings.white_balance)
+    plan = timed("plan (gains, matrix, record)", lambda: _plan(facts, settings))
     x = timed("normalise", lambda: normalise(raw, facts))
-    x = timed("white balance", lambda: apply_white_balance(x, gains, facts.cfa_pattern))
+    fused = _linear_after_demosaic(facts, settings)
+    if not fused:
+        x = timed("white balance", lambda: apply_white_balance(x, plan.gains, facts.cfa_pattern))
     if facts.cfa_pattern:
         x = timed(f"demosaic ({settings.demosaic})", lambda: demosaic(x, facts.cfa_pattern, settings.demosaic))
-    x = timed("matrix", lambda: apply_matrix(x, m))
-    x = timed("gain", lambda: apply_gain(x, 1 / p["intensity_factor"]))
+    if fused:
+        m = _fused_matrix(plan).astype(np.float32)
+        x = timed("wb · matrix · gain (one 3 x 3)", lambda: np.matmul(m, x.reshape(3, -1)).reshape(x.shape))
+    else:
+        x = timed("matrix", lambda: apply_matrix(x, plan.matrix) if plan.matrix is not None else x)
+        x = timed("gain", lambda: apply_gain(x, plan.gain))
     timed(f"tone ({settings.tone})", lambda: tone_curve(x, settings.tone))
     assert np.all(np.isfinite(x))
+    shape = (3, *raw.shape[-2:])
+    out_noisy, out_clean = np.empty(shape, dtype=np.float32), np.empty(shape, dtype=np.float32)
+    timed("the pair (as camsim.pairs)", lambda: _develop_pair_into(raw, clean, facts, settings, out_noisy, out_clean))
     return steps
 
 
@@ -123,7 +134,7 @@ def main(argv=None) -> int:
     print(f"srgb / raw = {measured['srgb'] / measured['raw']:.3f} (target >= 0.8); raw / dn = "
           f"{measured['raw'] / measured['dn']:.3f}")
     if args.profile:
-        print("ISP stages on one pair (best of 5):")
+        print("ISP stages on one image, one by one, and on the pair (best of 5):")
         for name, seconds in profile(sources["srgb"]):
             print(f"  {name:<30}{seconds * 1e3:>9.2f} ms")
     return 0

@@ -4,14 +4,17 @@ through the same ISP."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.isp.stages import (CHROMATIC_ADAPTATION, DEMOSAIC_METHODS, MATRICES, TONE_CURVES, WHITE_BALANCE_MODES,
-                               _srgb_matrix, apply_gain, apply_matrix, apply_white_balance, demosaic, normalise,
-                               tone_curve, white_balance_gains)
+from camsim.isp.stages import (CHROMATIC_ADAPTATION, DEMOSAIC_METHODS, DEMOSAIC_SOURCES, MATRICES,
+                               DEMOSAIC_PAD, PER_CHANNEL_LINEAR, TONE_CURVES, WHITE_BALANCE_MODES, _bilinear,
+                               _bilinear_padded, _normalise_into, _srgb, _srgb_matrix, _workspace,
+                               apply_gain, apply_matrix, apply_white_balance, demosaic, normalise, tone_curve,
+                               white_balance_gains)
 
 __all__ = ["IspSettings", "Developed", "develop", "develop_stages", "develop_pair", "STAGE_NAMES", "GAIN_MODES"]
 
@@ -117,6 +120,7 @@ _TONE_RECORD = {
 }
 
 
+@functools.lru_cache(maxsize=None)
 def _version(distribution: str) -> str:
     from importlib.metadata import PackageNotFoundError, version
 
@@ -126,12 +130,40 @@ def _version(distribution: str) -> str:
         return "(version unknown)"
 
 
+def _bytes(a) -> bytes | None:
+    return None if a is None else np.ascontiguousarray(a, dtype=np.float64).tobytes()
+
+
+#: The white-balance gains and colour matrices computed, by settings and the facts' colour (:func:`_colour`).
+_COLOUR_CACHE: dict = {}
+_COLOUR_CACHE_SIZE = 64
+
+
+def _colour(facts, settings: IspSettings) -> tuple:
+    """(white-balance gains (3,), colour matrix (3, 3) or None, what the matrix's camera → XYZ is): the numbers of
+    :func:`white_balance_gains` and :func:`camsim.isp.stages.srgb_matrix`, kept (read-only) per settings and the
+    facts' colour — the neutral, the illuminant, the QE and its grid, ColorMatrix1 — since a pair batch reuses a
+    few cameras and illuminants."""
+    key = (settings.white_balance, settings.matrix, facts.illuminant, _bytes(facts.as_shot_neutral),
+           _bytes(facts.qe), _bytes(facts.wavelengths_nm), _bytes(facts.color_matrix1))
+    found = _COLOUR_CACHE.get(key)
+    if found is None:
+        gains = np.asarray(white_balance_gains(facts, settings.white_balance), dtype=np.float64)
+        m, to_xyz = (_srgb_matrix(facts, settings.white_balance, settings.matrix) if settings.matrix != "none"
+                     else (None, None))
+        for a in (gains, m):
+            if a is not None:
+                a.setflags(write=False)
+        if len(_COLOUR_CACHE) >= _COLOUR_CACHE_SIZE:
+            _COLOUR_CACHE.clear()
+        found = _COLOUR_CACHE[key] = (gains, m, to_xyz)
+    return found
+
+
 def _plan(facts, settings: IspSettings) -> _Plan:
     import camsim
 
-    gains = white_balance_gains(facts, settings.white_balance)
-    matrix, to_xyz = (_srgb_matrix(facts, settings.white_balance, settings.matrix) if settings.matrix != "none"
-                      else (None, None))
+    gains, matrix, to_xyz = _colour(facts, settings)
     if settings.gain == "auto":
         if facts.intensity_factor is None:
             raise CamsimError("gain 'auto' (1 / F) needs the frame's intensity factor F, which only its sidecar "
@@ -156,7 +188,8 @@ def _plan(facts, settings: IspSettings) -> _Plan:
                               "formula": "gain_c = neutral_G / neutral_c (neutral: the camera's response to the "
                                          "perfect white under the white-balance illuminant)"},
             "demosaic": ({"method": settings.demosaic,
-                          "library": f"colour-demosaicing {_version('colour-demosaicing')}"}
+                          "library": (DEMOSAIC_SOURCES[settings.demosaic] if settings.demosaic in PER_CHANNEL_LINEAR
+                                      else f"colour-demosaicing {_version('colour-demosaicing')}")}
                          if facts.cfa_pattern is not None else None),
             "matrix": {"name": settings.matrix,
                        "matrix": None if matrix is None else matrix.tolist(),
@@ -193,6 +226,75 @@ def _run(raw, facts, settings: IspSettings, plan: _Plan, keep: dict | None) -> n
     return stage("toned", tone_curve(x, settings.tone))
 
 
+def _linear_after_demosaic(facts, settings: IspSettings) -> bool:
+    """Whether the white balance, the colour matrix and the gain can be one 3 × 3 matrix after demosaicing: a
+    three-chip frame, or a demosaicing that is linear per channel (:data:`camsim.isp.stages.PER_CHANNEL_LINEAR`)."""
+    return facts.cfa_pattern is None or settings.demosaic in PER_CHANNEL_LINEAR
+
+
+def _fused_matrix(plan: _Plan) -> np.ndarray:
+    """gain · M · diag(white-balance gains), float64 (3, 3): the three linear stages in one."""
+    m = np.eye(3) if plan.matrix is None else np.asarray(plan.matrix, dtype=np.float64)
+    return plan.gain * (m * np.asarray(plan.gains, dtype=np.float64)[None, :])
+
+
+def _run_fused(raw, facts, settings: IspSettings, plan: _Plan, out: np.ndarray | None = None) -> np.ndarray:
+    """:func:`_run` where :func:`_linear_after_demosaic`: normalise → demosaic (without the white balance) → one
+    3 × 3 matrix (:func:`_fused_matrix`) → tone curve, in float32; the result in ``out`` ((3, H, W) float32,
+    C-contiguous) if given. Exact in exact arithmetic (per-channel gains before a per-channel linear demosaicing
+    equal the same gains after it; the gain and the matrix commute with both); in float32 it differs from the
+    stage-by-stage result by rounding alone."""
+    cfa = facts.cfa_pattern
+    raw = np.asarray(raw)
+    if cfa is not None and raw.ndim == 3 and raw.shape[0] == 1:
+        raw = raw[0]
+    black = facts.black_dn if settings.black else np.zeros(3)
+    if cfa is None:
+        x = _normalise_into(raw, facts, black, _workspace("develop.normalised", raw.shape))
+    elif raw.ndim == 2 and min(raw.shape) > DEMOSAIC_PAD:
+        height, width = raw.shape
+        padded = _workspace("bilinear.padded", (height + 2, width + 2))
+        _normalise_into(raw, facts, black, padded[1:-1, 1:-1])
+        x = _bilinear_padded(padded, cfa, _workspace("develop.demosaiced", (3, height, width)))
+    else:  # a small mosaic (colour-demosaicing's border rules), or a wrong shape (normalise says so)
+        x = _bilinear(normalise(raw, dataclasses.replace(facts, black_dn=black)), cfa)
+    if out is None:
+        out = np.empty(x.shape, dtype=np.float32)
+    elif not (out.shape == x.shape and out.dtype == np.float32 and out.flags.c_contiguous):
+        raise CamsimError(f"the ISP's output must be a C-contiguous float32 array of shape {x.shape}")
+    a = _fused_matrix(plan)
+    if np.array_equal(a, np.eye(3)):
+        np.copyto(out, x)
+    else:
+        np.matmul(a.astype(np.float32), x.reshape(3, -1), out=out.reshape(3, -1))
+    if settings.tone == "srgb":
+        return _srgb(out, out=out, scratch=x)
+    np.copyto(out, tone_curve(out, settings.tone))
+    return out
+
+
+def _develop(raw, facts, settings: IspSettings, plan: _Plan, out: np.ndarray | None = None) -> np.ndarray:
+    if _linear_after_demosaic(facts, settings):
+        return _run_fused(raw, facts, settings, plan, out)
+    image = _run(raw, facts, settings, plan, None)
+    if out is None:
+        return image
+    np.copyto(out, image)
+    return out
+
+
+def _develop_pair_into(noisy, clean, facts, settings: IspSettings, out_noisy, out_clean) -> dict:
+    """:func:`develop_pair` with the images written into ``out_noisy`` and ``out_clean`` ((3, H, W) float32,
+    C-contiguous: e.g. a batch's slots); returns the record."""
+    noisy, clean = np.asarray(noisy), np.asarray(clean)
+    if noisy.shape != clean.shape:
+        raise CamsimError(f"noisy and clean frames differ in shape: {noisy.shape} and {clean.shape}")
+    plan = _plan(facts, settings)
+    _develop(noisy, facts, settings, plan, out_noisy)
+    _develop(clean, facts, settings, plan, out_clean)
+    return plan.record
+
+
 def develop(raw, facts, settings: IspSettings = IspSettings()) -> Developed:
     """Develop a frame's numbers into an sRGB image.
 
@@ -212,17 +314,22 @@ def develop(raw, facts, settings: IspSettings = IspSettings()) -> Developed:
     Stages: :func:`camsim.isp.normalise` → :func:`camsim.isp.apply_white_balance` (gains of
     :func:`camsim.isp.white_balance_gains`) → :func:`camsim.isp.demosaic` (Bayer frames) →
     :func:`camsim.isp.apply_matrix` (:func:`camsim.isp.srgb_matrix`) → :func:`camsim.isp.apply_gain` →
-    :func:`camsim.isp.tone_curve` (which clips to [0, 1]).
+    :func:`camsim.isp.tone_curve` (which clips to [0, 1]). With a demosaicing that is linear per channel
+    (bilinear; :data:`camsim.isp.stages.PER_CHANNEL_LINEAR`) or a three-chip frame, the white balance, the matrix
+    and the gain are one 3 × 3 matrix, gain · M · diag(gains), applied after demosaicing: the same in exact
+    arithmetic (per-channel gains commute with such a demosaicing), the same but for float32 rounding here.
     """
     plan = _plan(facts, settings)
-    return Developed(_run(raw, facts, settings, plan, None), plan.record)
+    return Developed(_develop(raw, facts, settings, plan), plan.record)
 
 
 def develop_stages(raw, facts, settings: IspSettings = IspSettings()) -> dict[str, np.ndarray]:
     """The image after each stage of :func:`develop`, keyed :data:`STAGE_NAMES`: ``"raw"`` (the input),
     ``"normalised"``, ``"white_balanced"`` (a mosaic stays (H, W) until ``"demosaiced"``), ``"demosaiced"``
-    (3, H, W), ``"srgb_linear"``, ``"gained"``, ``"toned"`` (= ``develop(...).image``). A stage switched off
-    gives its input. For the noise analysis."""
+    (3, H, W), ``"srgb_linear"``, ``"gained"``, ``"toned"`` (``develop(...).image``: the same numbers with Malvar
+    2004 or Menon 2007; with bilinear demosaicing or a three-chip frame, where :func:`develop` applies the white
+    balance, the matrix and the gain as one matrix, the same but for float32 rounding). A stage switched off gives
+    its input. For the noise analysis."""
     keep: dict[str, np.ndarray] = {}
     _run(raw, facts, settings, _plan(facts, settings), keep)
     return keep
@@ -236,5 +343,5 @@ def develop_pair(noisy, clean, facts, settings: IspSettings = IspSettings()) -> 
     if noisy.shape != clean.shape:
         raise CamsimError(f"noisy and clean frames differ in shape: {noisy.shape} and {clean.shape}")
     plan = _plan(facts, settings)
-    return (Developed(_run(noisy, facts, settings, plan, None), plan.record),
-            Developed(_run(clean, facts, settings, plan, None), plan.record))
+    return (Developed(_develop(noisy, facts, settings, plan), plan.record),
+            Developed(_develop(clean, facts, settings, plan), plan.record))

@@ -8,15 +8,16 @@ Arrays follow camsim's convention: planes first, float32. A three-chip image is 
 from __future__ import annotations
 
 import functools
+import threading
 
 import numpy as np
 
 from camsim.core.errors import CamsimError
 from camsim.sensor.cfa import CFA_PATTERNS, cfa_sites
 
-__all__ = ["DEMOSAIC_METHODS", "TONE_CURVES", "WHITE_BALANCE_MODES", "MATRICES", "CHROMATIC_ADAPTATION",
-           "normalise", "white_balance_gains", "apply_white_balance", "demosaic", "srgb_matrix", "apply_matrix",
-           "apply_gain", "tone_curve", "camera_to_xyz", "illuminant_neutral"]
+__all__ = ["DEMOSAIC_METHODS", "PER_CHANNEL_LINEAR", "TONE_CURVES", "WHITE_BALANCE_MODES", "MATRICES",
+           "CHROMATIC_ADAPTATION", "normalise", "white_balance_gains", "apply_white_balance", "demosaic",
+           "srgb_matrix", "apply_matrix", "apply_gain", "tone_curve", "camera_to_xyz", "illuminant_neutral"]
 
 #: White balance modes besides an illuminant's name.
 WHITE_BALANCE_MODES = ("as-shot", "none")
@@ -95,6 +96,27 @@ def _normalise(raw, cfa_pattern, black, scale):
     out = np.empty(raw.shape, dtype=np.float32)
     for dy, dx, c in cfa_sites(cfa_pattern):
         out[dy::2, dx::2] = op(raw[dy::2, dx::2].astype(np.float32, copy=False), c)
+    return out
+
+
+def _normalise_into(raw, facts, black, out) -> np.ndarray:
+    """:func:`normalise` with ``black`` (3,) DN in place of ``facts.black_dn``, written into ``out`` (float32, the
+    shape of ``raw`` after its checks; e.g. the interior of a padded buffer): the same float32 operations, so the
+    same numbers."""
+    black = np.asarray(black, dtype=np.float64)
+    scale = 1.0 / (facts.white_dn - black)
+    if facts.cfa_pattern is None:
+        raw = _check_image(raw, "raw")
+        sites = [(Ellipsis, c, c) for c in range(3)]
+        take = [(c,) for c in range(3)]
+    else:
+        raw = _check_mosaic(raw, facts.cfa_pattern)
+        sites = [(dy, dx, c) for dy, dx, c in cfa_sites(facts.cfa_pattern)]
+        take = [(slice(dy, None, 2), slice(dx, None, 2)) for dy, dx, _ in sites]
+    for index, (*_, c) in zip(take, sites):
+        target = out[index]
+        np.multiply(raw[index].astype(np.float32, copy=False), np.float32(scale[c]), out=target)
+        target -= np.float32(black[c] * scale[c])
     return out
 
 
@@ -191,12 +213,131 @@ def _colour_demosaicing(function_name):
     return method
 
 
-#: Demosaicing methods by name: ``f(mosaic (H, W) float, pattern) -> (3, H, W) float32`` (colour-demosaicing's).
+def _bilinear(mosaic, cfa_pattern, out=None) -> np.ndarray:
+    """Bilinear demosaicing by slicing, in float32: at each site the missing colours are the mean of the nearest
+    sites of that colour (the 2 beside it, the 2 above and below, or the 4 on the diagonals; green: the 4 beside,
+    above and below), with the ISP's border rule (:data:`DEMOSAIC_PAD`: the mosaic mirrored without its edge row,
+    which keeps the Bayer phase). Equal to colour-demosaicing's ``demosaicing_CFA_Bayer_bilinear`` on the padded
+    mosaic within float32 rounding: its 2-site means are the same numbers (float64 sums of two float32 values,
+    rounded once), its 4-site means differ by less than one unit in the last place of the largest of the four
+    (three float32 roundings instead of one). Mosaics of 4 pixels or fewer on a side go to colour-demosaicing
+    (:data:`DEMOSAIC_PAD`'s rules for them).
+
+    Parameters
+    ----------
+    mosaic : numpy.ndarray, shape (H, W)
+    cfa_pattern : str
+    out : numpy.ndarray, shape (3, H, W), float32, optional
+        Where to write the result.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, H, W), float32
+    """
+    mosaic = np.asarray(mosaic)
+    height, width = mosaic.shape
+    if min(height, width) <= DEMOSAIC_PAD:
+        rgb = _colour_demosaicing("demosaicing_CFA_Bayer_bilinear")(mosaic, cfa_pattern)
+        if out is None:
+            return rgb
+        out[...] = rgb
+        return out
+    padded = _workspace("bilinear.padded", (height + 2, width + 2))
+    padded[1:-1, 1:-1] = mosaic
+    return _bilinear_padded(padded, cfa_pattern, out)
+
+
+def _mirror_edges(padded) -> np.ndarray:
+    """Fill the 1-pixel border of ``padded`` (H + 2, W + 2) from its interior as ``np.pad(mode="reflect")`` does
+    (the mirror without the edge row, which keeps the Bayer phase)."""
+    padded[0, 1:-1] = padded[2, 1:-1]
+    padded[-1, 1:-1] = padded[-3, 1:-1]
+    padded[:, 0] = padded[:, 2]
+    padded[:, -1] = padded[:, -3]
+    return padded
+
+
+def _bilinear_padded(padded, cfa_pattern, out=None) -> np.ndarray:
+    """:func:`_bilinear` of the mosaic in the interior of ``padded`` (H + 2, W + 2) float32, its border not yet
+    filled (:func:`_mirror_edges` fills it): a 1-pixel mirror gives the 3 × 3 neighbourhoods that
+    :data:`DEMOSAIC_PAD`'s 4-pixel mirror gives the interior."""
+    p = _mirror_edges(padded)
+    height, width = p.shape[0] - 2, p.shape[1] - 2
+    if out is None:
+        out = np.empty((3, height, width), dtype=np.float32)
+    vertical_full = np.add(p[:-2], p[2:], out=_workspace("bilinear.vertical", (height, width + 2)))  # above + below
+    vertical = vertical_full[:, 1:-1]
+    horizontal = np.add(p[1:-1, :-2], p[1:-1, 2:], out=_workspace("bilinear.horizontal", (height, width)))
+    diagonal = np.add(vertical_full[:, :-2], vertical_full[:, 2:],  # the 4 diagonal neighbours
+                      out=_workspace("bilinear.diagonal", (height, width)))
+    cross = np.add(horizontal, vertical, out=_workspace("bilinear.cross", (height, width)))  # beside, above, below
+    m = p[1:-1, 1:-1]
+    half, quarter = np.float32(0.5), np.float32(0.25)
+    where = {"RGB".index(letter): (i // 2, i % 2) for i, letter in enumerate(cfa_pattern) if letter != "G"}
+    for dy, dx, own in cfa_sites(cfa_pattern):
+        site = (slice(dy, None, 2), slice(dx, None, 2))
+        for c in range(3):
+            target = out[(c,) + site]
+            if c == own:
+                target[...] = m[site]
+            elif c == 1:  # green at a red or blue site
+                np.multiply(cross[site], quarter, out=target)
+            else:
+                cy, cx = where[c]
+                if cy == dy:  # the colour is beside this site
+                    np.multiply(horizontal[site], half, out=target)
+                elif cx == dx:  # above and below
+                    np.multiply(vertical[site], half, out=target)
+                else:
+                    np.multiply(diagonal[site], quarter, out=target)
+    return out
+
+
+#: Images of at most this many values get their temporaries from a per-thread workspace (:func:`_workspace`).
+WORKSPACE_MAX_VALUES = 1 << 20
+_WORKSPACE = threading.local()
+
+
+def _workspace(name: str, shape) -> np.ndarray:
+    """A float32 buffer of ``shape`` kept per thread under ``name`` and reused by the next call with the same
+    shape, for an ISP's temporaries: fresh memory costs page faults that, on a 256 × 256 pair, take as long as the
+    arithmetic of a stage. Larger than :data:`WORKSPACE_MAX_VALUES`: a new array (nothing kept). The caller owns
+    the buffer until its next call with the same name; it never leaves the ISP."""
+    shape = tuple(int(n) for n in shape)
+    if int(np.prod(shape)) > WORKSPACE_MAX_VALUES:
+        return np.empty(shape, dtype=np.float32)
+    buffers = getattr(_WORKSPACE, "buffers", None)
+    if buffers is None:
+        buffers = _WORKSPACE.buffers = {}
+    found = buffers.get(name)
+    if found is None or found.shape != shape:
+        found = buffers[name] = np.empty(shape, dtype=np.float32)
+    return found
+
+
+def _bilinear_method(mosaic, cfa_pattern):
+    """camsim's bilinear demosaicing by slicing (:func:`_bilinear`), equal to colour-demosaicing's
+    ``demosaicing_CFA_Bayer_bilinear`` within float32 rounding."""
+    return _bilinear(mosaic, cfa_pattern)
+
+
+#: Demosaicing methods by name: ``f(mosaic (H, W) float, pattern) -> (3, H, W) float32``: bilinear by slicing
+#: (:func:`_bilinear`, colour-demosaicing's within float32 rounding), the others colour-demosaicing's.
 DEMOSAIC_METHODS = {
-    "bilinear": _colour_demosaicing("demosaicing_CFA_Bayer_bilinear"),
+    "bilinear": _bilinear_method,
     "malvar2004": _colour_demosaicing("demosaicing_CFA_Bayer_Malvar2004"),
     "menon2007": _colour_demosaicing("demosaicing_CFA_Bayer_Menon2007"),
 }
+#: The demosaicing methods that are linear and per channel — each output colour a weighted sum of that colour's
+#: sites only — so that white-balance gains (or any per-channel gains) before them equal the same gains after
+#: them, and the white balance, the colour matrix and the digital gain become one 3 × 3 matrix after demosaicing
+#: (:func:`camsim.isp.develop`). Bilinear is; Malvar 2004 mixes channels (its corrections add the other colours'
+#: Laplacians) and Menon 2007 is not linear.
+PER_CHANNEL_LINEAR = frozenset({"bilinear"})
+#: Where each demosaicing method comes from (for the developed image's record).
+DEMOSAIC_SOURCES = {"bilinear": "camsim (slicing; colour-demosaicing's demosaicing_CFA_Bayer_bilinear within "
+                                "float32 rounding)",
+                    "malvar2004": "colour-demosaicing", "menon2007": "colour-demosaicing"}
 
 
 def demosaic(mosaic, cfa_pattern: str, method: str = "malvar2004") -> np.ndarray:
@@ -210,7 +351,8 @@ def demosaic(mosaic, cfa_pattern: str, method: str = "malvar2004") -> np.ndarray
     method : str
         A key of :data:`DEMOSAIC_METHODS`: ``"bilinear"``, ``"malvar2004"`` (Malvar, He and Cutler 2004,
         gradient-corrected linear interpolation), ``"menon2007"`` (Menon, Andriani and Calvagno 2007, directional
-        filtering with a posteriori decision), all colour-demosaicing's.
+        filtering with a posteriori decision), the last two colour-demosaicing's; ``"bilinear"`` is camsim's own
+        in float32, colour-demosaicing's bilinear within float32 rounding (:func:`_bilinear`).
 
     Returns
     -------
@@ -384,16 +526,29 @@ def apply_gain(x, gain: float) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------------------------ tone curves
-def _srgb(x):
+def _srgb(x, out=None, scratch=None):
     """IEC 61966-2-1 (sRGB) transfer function, on values clipped to [0, 1]: 12.92 x for x ≤ 0.0031308, else
-    1.055 x^(1/2.4) − 0.055."""
-    x = np.clip(np.asarray(x, dtype=np.float32), np.float32(0.0), np.float32(1.0))
-    low = x <= np.float32(0.0031308)
-    out = np.power(x, np.float32(1 / 2.4))
-    out *= np.float32(1.055)
-    out -= np.float32(0.055)
-    np.multiply(x, np.float32(12.92), out=out, where=low)
-    return out
+    1.055 x^(1/2.4) − 0.055. float32. ``out`` (float32, the shape of ``x``; it may be ``x`` itself) receives the
+    result; ``scratch`` (the same) is a buffer it may overwrite.
+
+    The same numbers as the formula taken branch by branch in float32 (checked on every float32 in [0, 1]),
+    without its slow parts: the power is taken of max(x, 0.0031308) (numpy's power is slow on zeros), and the
+    branch is chosen without a masked select (``where=``, which costs three times the power itself on noisy
+    images): the power branch is divided by x > 0.0031308 (a boolean: ÷ 1 keeps it, ÷ 0 makes it +∞ at and below
+    the threshold) and the smaller of it and 12.92 x kept — above the threshold the power branch is below 12.92 x
+    for every float32 (the curve's slope there, about 12.7, is below 12.92)."""
+    x = np.clip(np.asarray(x, dtype=np.float32), np.float32(0.0), np.float32(1.0), out=out)
+    y = np.maximum(x, _SRGB_THRESHOLD, out=None if out is None else _workspace("srgb.power", x.shape))
+    np.power(y, np.float32(1 / 2.4), out=y)
+    y *= np.float32(1.055)
+    y -= np.float32(0.055)
+    with np.errstate(divide="ignore"):
+        np.divide(y, x > _SRGB_THRESHOLD, out=y)  # +∞ at and below the threshold (y > 0 there)
+    low = np.multiply(x, np.float32(12.92), out=scratch)
+    return np.minimum(y, low, out=y if out is None else x)
+
+
+_SRGB_THRESHOLD = np.float32(0.0031308)
 
 
 def _filmic(x):
