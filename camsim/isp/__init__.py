@@ -2,7 +2,8 @@
 
 An application (layer 9). Stages, each a pure array function (:mod:`camsim.isp.stages`): black level and white
 level (:func:`normalise`), white balance (:func:`white_balance_gains`, :func:`apply_white_balance`), demosaicing
-(:func:`demosaic`, :data:`DEMOSAIC_METHODS`: colour-demosaicing's), camera → linear sRGB (:func:`srgb_matrix`,
+(:func:`demosaic`, :data:`DEMOSAIC_METHODS`: bilinear in camsim's own float32 code, equal to colour-demosaicing's
+within float32 rounding; Malvar 2004 and Menon 2007 colour-demosaicing's), camera → linear sRGB (:func:`srgb_matrix`,
 :func:`apply_matrix`), a digital gain (:func:`apply_gain`) and a tone curve (:func:`tone_curve`,
 :data:`TONE_CURVES`). :func:`develop` runs them with :class:`IspSettings` on the numbers of a frame described by
 :class:`IspFacts` (:func:`facts_of`, :func:`facts_from_meta`, :func:`facts_from_info`);
