@@ -444,14 +444,16 @@ class PairSource:
 
     def _develop(self, noisy: np.ndarray, clean: np.ndarray, facts, out_noisy, out_clean) -> dict:
         """``srgb`` on the CPU: a pair's (planes, H, W) DN developed into ``out_noisy`` and ``out_clean`` (the
-        batch's (3, H, W) slots) as :meth:`_to_domain` develops it; returns the record."""
-        from camsim.isp.develop import _develop_pair_into
+        batch's (3, H, W) slots) as :meth:`_to_domain` develops it, by the ISP's compiled kernel where it applies
+        (bilinear demosaicing or three chips, numba present: :mod:`camsim.isp.fused`), else by the numpy stages;
+        returns the record, with ``path`` saying which made the pair."""
+        from camsim.isp.fused import develop_pair_into
 
         if facts.cfa_pattern is not None:
             noisy, clean = noisy[0], clean[0]
-        record = _develop_pair_into(noisy, clean, facts, self.isp or pair_isp(self.scene.exposure), out_noisy,
-                                    out_clean)
-        return {"domain": "srgb", **record}
+        record, path = develop_pair_into(noisy, clean, facts, self.isp or pair_isp(self.scene.exposure), out_noisy,
+                                         out_clean)
+        return {"domain": "srgb", "path": path, **record}
 
     def _render_pair(self, xp, rng, p: dict, sensor):
         """One pair's (noisy, clean, digital) planes."""
