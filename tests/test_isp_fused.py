@@ -1,0 +1,192 @@
+"""The ISP's compiled kernel (:mod:`camsim.isp.fused`, issue 26 "Speed") against independent references.
+
+- the kernel's development against the stages written out here in float64 (normalise → white balance →
+  colour-demosaicing's bilinear on the mirrored mosaic → matrix → gain → clip → the sRGB formula), on all four Bayer
+  patterns, odd crop offsets, the borders and three chips, and against the numpy path (``develop_pair``);
+- its power against numpy's in float64;
+- ``srgb`` pairs: made by the kernel (the record says so), within the bound of the numpy path's pairs, the same seed
+  giving the same batch bit for bit.
+
+The bound: both paths normalise and demosaic in float32 (the same operations in the same order: the same numbers),
+so they differ only where the numpy path rounds its matrix product and its curve to float32 (the kernel takes both in
+float64 from the float32 demosaiced values): a few float32 units of the linear value Σ_j |A_cj x_j|, through the
+curve's slope of at most 12.92. Against float64 the float32 normalisation's rounding (about 6e-8 of |raw · s| + |b ·
+s| per value) adds, times Σ_j |A_cj| and the slope. On the frames here (gains up to 30, values near black) both come to
+below 5e-6 (the bound of tests/test_isp_fast_paths.py for the numpy path).
+"""
+
+import numpy as np
+import pytest
+
+import camsim.isp as isp
+from camsim.sensor.cfa import CFA_PATTERNS
+
+fused = pytest.importorskip("camsim.isp.fused")
+pytest.importorskip("numba")
+
+BOUND = 5e-6
+
+
+def _facts(pattern="RGGB", illuminant="D65", neutral=(0.5, 1.0, 0.8)):
+    """A made-up camera: Gaussian QE bumps at 600, 540, 460 nm on a 400–700 nm grid."""
+    wl = np.arange(400.0, 701.0, 10.0)
+    qe = np.stack([np.exp(-0.5 * ((wl - c) / 40.0) ** 2) for c in (600.0, 540.0, 460.0)])
+    return isp.IspFacts(cfa_pattern=pattern, black_dn=np.array([60.0, 64.0, 70.0]), white_dn=1023.0,
+                        as_shot_neutral=np.array(neutral), intensity_factor=0.05, illuminant=illuminant,
+                        wavelengths_nm=wl, qe=qe)
+
+
+def _reference(raw, facts, record, tone="srgb"):
+    """The ISP written out in float64 from the record's numbers: normalise, white balance, colour-demosaicing's
+    bilinear on the mosaic mirrored by 4 pixels without its edge row, matrix, gain, clip, the curve's formula."""
+    import colour_demosaicing
+
+    stages = record["stages"]
+    black, gains = np.asarray(stages["black"]["black_dn"]), np.asarray(stages["white_balance"]["gains"])
+    matrix, gain = stages["matrix"]["matrix"], stages["gain"]["value"]
+    raw = np.asarray(raw, dtype=np.float64)
+    if facts.cfa_pattern is None:
+        x = gains[:, None, None] * (raw - black[:, None, None]) / (facts.white_dn - black[:, None, None])
+    else:
+        site_black, site_gain = np.empty(raw.shape), np.empty(raw.shape)
+        for i, letter in enumerate(facts.cfa_pattern):
+            c = "RGB".index(letter)
+            site_black[i // 2::2, i % 2::2], site_gain[i // 2::2, i % 2::2] = black[c], gains[c]
+        mosaic = site_gain * (raw - site_black) / (facts.white_dn - site_black)
+        padded = np.pad(mosaic, 4, mode="reflect")
+        x = np.moveaxis(colour_demosaicing.demosaicing_CFA_Bayer_bilinear(padded, facts.cfa_pattern)[4:-4, 4:-4],
+                        -1, 0)
+    if matrix is not None:
+        x = np.einsum("cj,jhw->chw", np.asarray(matrix), x)
+    v = gain * x
+    if tone == "filmic":
+        v = np.maximum(v, 0.0)
+        v = v * (2.51 * v + 0.03) / (v * (2.43 * v + 0.59) + 0.14)
+    v = np.clip(v, 0.0, 1.0)
+    if tone == "linear":
+        return v
+    return np.where(v <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055)
+
+
+def _kernel(raw, facts, settings):
+    from camsim.isp.develop import _plan
+
+    assert fused.fused_applies(facts, settings, np.shape(raw)) and fused.fused_kernels() is not None
+    plan = _plan(facts, settings)
+    out = np.empty((3, *np.shape(raw)[-2:]), dtype=np.float32)
+    fused.develop_into(np.asarray(raw), facts, settings, plan, out)
+    return out, plan.record
+
+
+@pytest.mark.parametrize("pattern", [None, *CFA_PATTERNS])
+@pytest.mark.parametrize("settings", [isp.IspSettings(demosaic="bilinear", gain="auto"),
+                                      isp.IspSettings(demosaic="bilinear", gain=3.0, white_balance="A"),
+                                      isp.IspSettings(demosaic="bilinear", matrix="none", white_balance="none"),
+                                      isp.IspSettings(demosaic="bilinear", black=False, gain=30.0),
+                                      isp.IspSettings(demosaic="bilinear", gain=2.0, tone="linear"),
+                                      isp.IspSettings(demosaic="bilinear", gain=4.0, tone="filmic")])
+def test_kernel_is_the_stages_in_float64_and_the_numpy_path(pattern, settings):
+    """Noisy frames near black, odd sizes (borders on every side, both parities), gains up to 30: within BOUND of
+    the float64 stages and of develop's numpy path."""
+    facts = _facts(pattern)
+    rng = np.random.default_rng(11)
+    shape = (3, 23, 30) if pattern is None else (23, 31)
+    raw = (64.0 + rng.normal(0.0, 3.0, shape) + rng.random(shape) * 150.0).astype(np.float32)
+    out, record = _kernel(raw, facts, settings)
+    assert np.max(np.abs(out - _reference(raw, facts, record, settings.tone))) < BOUND
+    assert np.max(np.abs(out - isp.develop(raw, facts, settings).image)) < BOUND
+    assert out.min() >= 0.0 and out.max() <= 1.0
+
+
+def _shifted(pattern, dy, dx):
+    """The 2 × 2 pattern seen from a crop at (dy, dx)."""
+    cells = [[pattern[0], pattern[1]], [pattern[2], pattern[3]]]
+    return "".join(cells[(dy + i) % 2][(dx + j) % 2] for i in range(2) for j in range(2))
+
+
+@pytest.mark.parametrize("pattern", CFA_PATTERNS)
+@pytest.mark.parametrize("offset", [(1, 0), (0, 1), (1, 1), (3, 5)])
+def test_kernel_at_odd_crop_offsets(pattern, offset):
+    """A crop of a mosaic at an odd offset is a mosaic of the pattern seen from there: the kernel with that pattern
+    is the float64 stages with it, over the whole range up to clipping."""
+    dy, dx = offset
+    rng = np.random.default_rng(dy * 7 + dx)
+    whole = (64.0 + rng.random((40, 44)) * 900.0).astype(np.float32)
+    crop = whole[dy:dy + 30, dx:dx + 32]
+    facts = _facts(_shifted(pattern, dy, dx))
+    settings = isp.IspSettings(demosaic="bilinear", gain=1.5)
+    out, record = _kernel(crop, facts, settings)
+    assert np.max(np.abs(out - _reference(crop, facts, record))) < BOUND
+
+
+def test_power_against_numpy_in_float64():
+    """The kernel's x^(5/12) (through the sRGB curve on [threshold, 1]) against 1.055 x^(1/2.4) − 0.055 in
+    float64: within a float32 rounding (6e-8) of it on a million values and at the ends."""
+    import dataclasses
+
+    facts = dataclasses.replace(_facts(None), black_dn=np.zeros(3), white_dn=1.0)  # normalise: x · 1 − 0
+    settings = isp.IspSettings(white_balance="none", matrix="none", demosaic="bilinear")
+    x = np.concatenate([np.geomspace(0.0031309, 1.0, 999_990), [0.0031308, 0.0031309, 0.5, 2 ** -0.5, 1.0, 0.0,
+                                                                1e-5, 0.003, 0.7, 0.25]])
+    x = x[: (x.size // 3) * 3].astype(np.float32).reshape(3, 1, -1)
+    out, _ = _kernel(x, facts, settings)
+    v = x.astype(np.float64)
+    expected = np.where(v <= np.float32(0.0031308), 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055)
+    assert np.max(np.abs(out - expected)) <= 6e-8
+
+
+def _sources(**extra):
+    from pathlib import Path
+
+    from camsim.pairs import PairSource
+
+    images = Path(__file__).resolve().parents[1] / "camsim" / "scenes" / "images"
+    common = {"crop": (40, 32), "batch_size": 3, "cameras": ("sony-a7s2",), "intensity": (1e-3, 0.1), "seed": 4}
+    return (PairSource.from_scene("macbeth_26", images, domain="dn", **common | extra),
+            PairSource.from_scene("macbeth_26", images, domain="srgb", **common | extra))
+
+
+@pytest.mark.parametrize("camera", ["sony-a7s2", "sony-imx174"])
+def test_srgb_pairs_by_the_kernel(camera):
+    """A Bayer and a three-chip camera's srgb pairs come from the kernel (the record says so), within BOUND of
+    develop_pair's (at the pairs' gains, 1 / F up to 1000, the bound of the numpy path against float64 grows with
+    the gain; the two paths' difference, matrix and curve rounding only, stays below it); the same seed gives the
+    same batch, bit for bit."""
+    from camsim.pairs import pair_isp
+    from camsim.sensor.presets import sensor_preset
+
+    dn, srgb = _sources(cameras=(camera,))
+    dn_batch, batch = dn.batch(1), srgb.batch(1)
+    again = _sources(cameras=(camera,))[1].batch(1)
+    assert np.array_equal(batch.noisy, again.noisy) and np.array_equal(batch.clean, again.clean)
+    for i, p in enumerate(dn_batch.params):
+        facts = srgb._facts(p, sensor_preset(p["preset"], p["iso"]))
+        planes = (lambda a: a[0]) if facts.cfa_pattern else (lambda a: a)
+        noisy, clean = isp.develop_pair(planes(dn_batch.noisy[i]), planes(dn_batch.clean[i]), facts, pair_isp())
+        assert batch.isp[i] == {"domain": "srgb", "path": fused.FUSED_PATH, **noisy.record}
+        assert np.max(np.abs(batch.noisy[i] - noisy.image)) < BOUND
+        assert np.max(np.abs(batch.clean[i] - clean.image)) < BOUND
+
+
+def test_without_numba_the_pairs_take_the_numpy_stages(monkeypatch):
+    """Where numba cannot be imported the pairs are develop_pair's, bit for bit, and say so."""
+    from camsim.pairs import pair_isp
+    from camsim.sensor.presets import sensor_preset
+
+    monkeypatch.setattr(fused, "_STATE", {"kernels": None, "why": "no numba (test)"})
+    dn, srgb = _sources()
+    dn_batch, batch = dn.batch(0), srgb.batch(0)
+    for i, p in enumerate(dn_batch.params):
+        facts = srgb._facts(p, sensor_preset(p["preset"], p["iso"]))
+        noisy, _ = isp.develop_pair(dn_batch.noisy[i, 0], dn_batch.clean[i, 0], facts, pair_isp())
+        assert batch.isp[i]["path"] == fused.STAGES_PATH
+        assert np.array_equal(batch.noisy[i], noisy.image)
+
+
+def test_malvar_pairs_take_the_stages():
+    from camsim.pairs import pair_isp  # noqa: F401
+
+    facts = _facts("RGGB")
+    assert not fused.fused_applies(facts, isp.IspSettings(demosaic="malvar2004"), (32, 32))
+    assert not fused.fused_applies(facts, isp.IspSettings(demosaic="bilinear"), (4, 32))
+    assert fused.fused_applies(_facts(None), isp.IspSettings(demosaic="malvar2004"), (3, 4, 4))
