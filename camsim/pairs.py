@@ -34,9 +34,11 @@ The arrays of a batch are in one of :data:`PAIR_DOMAINS`, the source's ``domain`
   F = 1; 1 for a scene whose exposure is ``auto``) and bilinear demosaicing (:data:`PAIR_DEMOSAIC`: the
   cheapest; ``tools/bench_pair_domains.py`` measures what the ISP costs beside the raw domain).
 
-Each batch says its ``domain`` and, per pair, how its arrays were made (``isp``: the ISP's record in ``srgb``, the
-black and white levels and packing in ``raw``). The conversion works on the host: on a GPU, a pair's planes are
-copied to the host for it and back.
+Each batch says its ``domain`` and, per pair, how its arrays were made (``isp``: the ISP's record in ``srgb``, with
+``path``: the ISP's compiled kernel or its numpy stages; the black and white levels and packing in ``raw``). The
+conversion works on the host: on the CPU, ``srgb`` pairs with bilinear demosaicing (or three chips) are developed by
+one compiled pass per image straight into the batch (:mod:`camsim.isp.fused`, numba; compiled once per process), the
+others by the ISP's numpy stages; on a GPU, a pair's planes are copied to the host for the stages and back.
 
 :class:`WrittenPairs` reads the pairs of a dataset written by ``camsim dataset`` (files or a Zarr store) in the same
 domains, one frame at a time as numpy arrays (:func:`camsim.pairs_torch.written_pairs` wraps it as a torch
@@ -438,9 +440,12 @@ class PairSource:
                 noisy, clean = pack_rggb(noisy, cfa), pack_rggb(clean, cfa)
             return noisy, clean, {"domain": "raw", "black_dn": facts.black_dn.tolist(), "white_dn": facts.white_dn,
                                   "packed": None if cfa is None else ["R", "G1", "G2", "B"]}
+        from camsim.isp.fused import STAGES_PATH
+
         settings = self.isp or pair_isp(self.scene.exposure)
         developed_noisy, developed_clean = develop_pair(noisy, clean, facts, settings)
-        return developed_noisy.image, developed_clean.image, {"domain": "srgb", **developed_noisy.record}
+        return (developed_noisy.image, developed_clean.image,
+                {"domain": "srgb", "path": STAGES_PATH, **developed_noisy.record})
 
     def _develop(self, noisy: np.ndarray, clean: np.ndarray, facts, out_noisy, out_clean) -> dict:
         """``srgb`` on the CPU: a pair's (planes, H, W) DN developed into ``out_noisy`` and ``out_clean`` (the
