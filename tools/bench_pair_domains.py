@@ -1,14 +1,16 @@
 """Training pairs per second in each domain of :mod:`camsim.pairs` on the CPU: ``dn`` (as rendered), ``raw``
 (normalised, packed R, G1, G2, B) and ``srgb`` (developed through the ISP), side by side in one run, with the
-ratio srgb / raw (issue 26's target: at least 0.8).
+ratio srgb / raw (issue 26's target: at least 0.8), and which path developed the srgb pairs (the ISP's compiled
+kernel, :mod:`camsim.isp.fused`, or its numpy stages).
 
 Every domain renders the same batches (the same seed: the same images, crops, cameras, F and noise), so the
 difference is what the domain's conversion costs. The domains are timed in turn, round after round (``--repeats``
 rounds of ``--batches`` batches each), and each rate is the domain's best round (the figure least moved by other
 work on a shared machine, and the domains see the same changes of load), after a warm-up round (which pays for the
 photographs' recovery, the lit scenes of every illuminant and colour-science's imports). ``--profile`` also times
-the ISP's stages on one image of the batch, one by one, and the whole pair as the srgb domain develops it (to see
-where the sRGB time goes).
+the ISP's stages on one image of the batch, one by one, the pair through the numpy stages, one image through the
+compiled kernel, and the pair as the srgb domain develops it (to see where the sRGB time goes). The warm-up round's
+times are printed too: the srgb domain's includes numba's compilation of the kernel (once per process).
 
     python tools/bench_pair_domains.py [--crop 256x256] [--batch-size 8] [--batches 4] [--repeats 5]
                                        [--camera sony-a7s2] [--demosaic bilinear] [--profile]
@@ -27,9 +29,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 
-def rates(sources: dict, batches: int, repeats: int) -> dict:
+def rates(sources: dict, batches: int, repeats: int, seconds: dict | None = None) -> dict:
     """Pairs per second of each source: its best of ``repeats`` rounds of batches 0 … batches − 1, the sources
-    timed in turn in each round."""
+    timed in turn in each round (``seconds``, if given, receives each source's best round in seconds)."""
     best = dict.fromkeys(sources, float("inf"))
     for _ in range(repeats):
         for name, source in sources.items():
@@ -37,7 +39,9 @@ def rates(sources: dict, batches: int, repeats: int) -> dict:
             for index in range(batches):
                 source.batch(index)
             best[name] = min(best[name], time.perf_counter() - start)
-    return {name: batches * sources[name].batch_size / seconds for name, seconds in best.items()}
+    if seconds is not None:
+        seconds.update(best)
+    return {name: batches * sources[name].batch_size / t for name, t in best.items()}
 
 
 def profile(source_srgb) -> list[tuple[str, float]]:
@@ -96,7 +100,13 @@ def profile(source_srgb) -> list[tuple[str, float]]:
     assert np.all(np.isfinite(x))
     shape = (3, *raw.shape[-2:])
     out_noisy, out_clean = np.empty(shape, dtype=np.float32), np.empty(shape, dtype=np.float32)
-    timed("the pair (as camsim.pairs)", lambda: _develop_pair_into(raw, clean, facts, settings, out_noisy, out_clean))
+    timed("the pair (numpy stages)", lambda: _develop_pair_into(raw, clean, facts, settings, out_noisy, out_clean))
+    from camsim.isp import fused
+
+    if fused.fused_applies(facts, settings, raw.shape) and fused.fused_kernels() is not None:
+        timed("one image (compiled kernel)", lambda: fused.develop_into(raw, facts, settings, plan, out_noisy))
+    timed("the pair (as camsim.pairs)",
+          lambda: fused.develop_pair_into(raw, clean, facts, settings, out_noisy, out_clean))
     return steps
 
 
@@ -122,8 +132,10 @@ def main(argv=None) -> int:
     sources = {domain: PairSource.from_scene("macbeth_26", images, domain=domain, **common,
                                              **({"isp": isp} if domain == "srgb" else {}))
                for domain in PAIR_DOMAINS}
-    rates(sources, args.batches, 1)  # warm-up: recovery, lit scenes (every illuminant drawn), imports
+    warm_up: dict = {}
+    rates(sources, args.batches, 1, warm_up)  # warm-up: recovery, lit scenes (every illuminant), imports, numba
     measured = rates(sources, args.batches, args.repeats)
+    path = sources["srgb"].batch(0).isp[0]["path"]
     print(f"camsim.pairs on the CPU ({platform.processor() or platform.machine()}, {os.cpu_count()} cores, load "
           f"{os.getloadavg()[0]:.1f}), camera {args.camera}, crop {width}x{height}, batch {args.batch_size}, best of "
           f"{args.repeats} rounds of {args.batches} batches; srgb: demosaic {isp.demosaic}, gain {isp.gain}, "
@@ -133,6 +145,9 @@ def main(argv=None) -> int:
         print(f"{name:<10}{value:>10.2f}{value * width * height / 1e6:>9.2f}")
     print(f"srgb / raw = {measured['srgb'] / measured['raw']:.3f} (target >= 0.8); raw / dn = "
           f"{measured['raw'] / measured['dn']:.3f}")
+    print(f"srgb path: {path}")
+    print("warm-up round (first in this process; srgb's includes compiling the ISP kernel, once per process): "
+          + ", ".join(f"{name} {value:.2f} s" for name, value in warm_up.items()))
     if args.profile:
         print("ISP stages on one image, one by one, and on the pair (best of 5):")
         for name, seconds in profile(sources["srgb"]):
