@@ -14,7 +14,8 @@ more than all the rest; this form vectorises): x is brought into [2^(−1/2), 1]
 and an inexact one by √2 (each undone by its factor 2^(−5k/12) afterwards), and m^(5/12) there is a degree-8
 polynomial, the Chebyshev interpolant of the power on that interval (:data:`POWER_DEGREE`), whose largest error on a
 grid of 2 million points is 7.3e-12 (:data:`POWER_ERROR`; checked by the tests against numpy's power in float64): far
-below a float32 unit in the last place. Below the threshold the curve is 12.92 x.
+below a float32 unit in the last place. Below the threshold the curve is 12.92 x. Unlike the numpy path, a NaN
+becomes 0 (the clip), never an index or a NaN in the output.
 
 The kernels are compiled by numba on first use, once per process (numba is imported then, not with camsim); numba's
 on-disk cache is not used (it writes its files beside the package, which an installed camsim may not allow). Without
@@ -172,7 +173,7 @@ def _build():
                 lin[2, x] = a[2, 0] * r + a[2, 1] * g + a[2, 2] * b
             tone_row(lin, tone, out, y)
 
-    return {"bayer": bayer, "three_chip": three_chip, "numba": numba.__version__}
+    return {"bayer": bayer, "three_chip": three_chip, "power": power, "numba": numba.__version__}
 
 
 def fused_kernels() -> dict | None:
