@@ -6,16 +6,18 @@ numpy passes, one operation over the whole image at a time. Here one compiled lo
 normalisation (black off, ÷ white − black, in float32 as :func:`camsim.isp.normalise`), the bilinear demosaicing
 (the same float32 sums, in the same order, with the same border rule as camsim's bilinear: the mosaic mirrored
 without its edge row), the fused matrix A = gain · M · diag(white-balance gains), the clip to [0, 1] and the tone
-curve, writing straight into the output (a batch's slot). The matrix and the curve are computed in float64 from the
-float32 demosaiced values, the result rounded once to float32.
+curve, writing straight into the output (a batch's slot). The matrix is computed in float64 from the float32
+demosaiced values and rounded once to float32; the curve is taken in float32.
 
 The sRGB curve's power x^(1/2.4) is computed without a call to a power function (a scalar call per value would cost
-more than all the rest; this form vectorises): x is brought into [2^(−1/2), 1] by exact scalings by 2^8, 2^4, 2^2, 2
-and an inexact one by √2 (each undone by its factor 2^(−5k/12) afterwards), and m^(5/12) there is a degree-8
-polynomial, the Chebyshev interpolant of the power on that interval (:data:`POWER_DEGREE`), whose largest error on a
-grid of 2 million points is 7.3e-12 (:data:`POWER_ERROR`; checked by the tests against numpy's power in float64): far
-below a float32 unit in the last place. Below the threshold the curve is 12.92 x. Unlike the numpy path, a NaN
-becomes 0 (the clip), never an index or a NaN in the output.
+more than all the rest; this form vectorises, eight float32 values at a time): x is brought into [2^(−1/2), 1] by
+exact scalings by 2^8, 2^4, 2^2, 2 and an inexact one by √2 (each undone by its factor 2^(−5k/12) afterwards), and
+m^(5/12) there is a degree-8 polynomial (:data:`POWER_DEGREE`), the Chebyshev interpolant of the power on that
+interval (within 7.3e-12 of it in exact arithmetic), evaluated in float32. Checked once on every float32 in
+[0.0031308, 1] (70 439 397 values, 2026-11-26): the power within 1.03e-7 of x^(5/12) (:data:`POWER_ERROR`), the curve
+1.055 x^(1/2.4) − 0.055 within 1.87e-7 of the formula in float64 (:data:`CURVE_ERROR`: about three float32 units in
+the last place near 1); the tests check a part of them. Below the threshold the curve is 12.92 x. Unlike the numpy
+path, a NaN becomes 0 (the clip), never an index or a NaN in the output.
 
 The kernels are compiled by numba on first use, once per process (numba is imported then, not with camsim); numba's
 on-disk cache is not used (it writes its files beside the package, which an installed camsim may not allow). Without
@@ -34,15 +36,17 @@ from camsim.core.errors import CamsimError
 from camsim.isp.stages import DEMOSAIC_PAD, _workspace
 from camsim.sensor.cfa import cfa_sites
 
-__all__ = ["FUSED_PATH", "STAGES_PATH", "POWER_DEGREE", "POWER_ERROR", "fused_applies", "fused_kernels",
+__all__ = ["FUSED_PATH", "STAGES_PATH", "POWER_DEGREE", "POWER_ERROR", "CURVE_ERROR", "fused_applies", "fused_kernels",
            "develop_pair_into", "develop_into"]
 
 #: What a pair's record says (its ``path``) when the compiled kernel developed it, or the numpy stages.
 FUSED_PATH = "fused (numba: normalise, bilinear, matrix, clip, tone curve in one pass)"
 STAGES_PATH = "stages (numpy, one pass per operation)"
-#: The degree of the polynomial for m^(5/12) on [2^(−1/2), 1], and a bound on its error there (module docstring).
+#: The degree of the polynomial for m^(5/12) on [2^(−1/2), 1]; the largest error of the kernel's float32 power
+#: x^(5/12) and of its sRGB curve over every float32 in [0.0031308, 1] (module docstring).
 POWER_DEGREE = 8
-POWER_ERROR = 1e-11
+POWER_ERROR = 1.1e-7
+CURVE_ERROR = 1.9e-7
 _SRGB_THRESHOLD = 0.0031308
 _LOW = 2.0 ** -0.5
 #: The tone curves the kernel knows, by code.
@@ -68,55 +72,65 @@ def _build():
     import numba
 
     jit = numba.njit(cache=False, nogil=True, fastmath=False, error_model="numpy")
-    threshold32 = np.float64(np.float32(_SRGB_THRESHOLD))
-    c0, c1, c2, c3, c4, c5, c6, c7, c8 = _power_coefficients()
-    centre, inverse_radius = (_LOW + 1.0) / 2.0, 2.0 / (1.0 - _LOW)
-    root2, f8, f4, f2, f1, fh = (math.sqrt(2.0), 2.0 ** (-40 / 12), 2.0 ** (-20 / 12), 2.0 ** (-10 / 12),
-                                 2.0 ** (-5 / 12), 2.0 ** (-5 / 24))
+    f32 = np.float32
+    threshold = f32(_SRGB_THRESHOLD)
+    c0, c1, c2, c3, c4, c5, c6, c7, c8 = (f32(c) for c in _power_coefficients())
+    centre, inverse_radius = f32((_LOW + 1.0) / 2.0), f32(2.0 / (1.0 - _LOW))
+    low8, low4, low2, low1, low_half = f32(2.0 ** -8), f32(2.0 ** -4), f32(0.25), f32(0.5), f32(_LOW)
+    up8, up4, up2, up1, up_half = f32(256.0), f32(16.0), f32(4.0), f32(2.0), f32(math.sqrt(2.0))
+    f8, f4, f2, f1, fh = (f32(2.0 ** (-40 / 12)), f32(2.0 ** (-20 / 12)), f32(2.0 ** (-10 / 12)), f32(2.0 ** (-5 / 12)),
+                          f32(2.0 ** (-5 / 24)))
+    zero, one, slope, scale, offset = f32(0.0), f32(1.0), f32(12.92), f32(1.055), f32(0.055)
+    fa, fb, fc, fd, fe = f32(2.51), f32(0.03), f32(2.43), f32(0.59), f32(0.14)
 
     @jit
     def power(x):
-        """x^(5/12) for x in [2^−15, 1] (module docstring)."""
-        factor = 1.0
-        low = x < 2.0 ** -8
-        x, factor = (x * 256.0, factor * f8) if low else (x, factor)
-        low = x < 2.0 ** -4
-        x, factor = (x * 16.0, factor * f4) if low else (x, factor)
-        low = x < 0.25
-        x, factor = (x * 4.0, factor * f2) if low else (x, factor)
-        low = x < 0.5
-        x, factor = (x * 2.0, factor * f1) if low else (x, factor)
-        low = x < _LOW
-        x, factor = (x * root2, factor * fh) if low else (x, factor)
+        """x^(5/12) for float32 x in [2^−15, 1], in float32 (module docstring)."""
+        factor = one
+        low = x < low8
+        x = x * up8 if low else x
+        factor = factor * f8 if low else factor
+        low = x < low4
+        x = x * up4 if low else x
+        factor = factor * f4 if low else factor
+        low = x < low2
+        x = x * up2 if low else x
+        factor = factor * f2 if low else factor
+        low = x < low1
+        x = x * up1 if low else x
+        factor = factor * f1 if low else factor
+        low = x < low_half
+        x = x * up_half if low else x
+        factor = factor * fh if low else factor
         t = (x - centre) * inverse_radius
         p = ((((((((c8 * t + c7) * t + c6) * t + c5) * t + c4) * t + c3) * t + c2) * t + c1) * t + c0)
         return factor * p
 
     @jit
     def tone_row(lin, tone, out, y):
-        """``out[:, y, :]`` = the curve of ``lin`` (3, W) float64, clipped to [0, 1] (NaN → 0); branch-free per
-        value, so that the loop vectorises."""
+        """``out[:, y, :]`` = the curve of ``lin`` (3, W) float32, clipped to [0, 1] (NaN → 0); float32 and
+        branch-free per value, so that the loop vectorises."""
         width = lin.shape[1]
-        if tone == 2:  # filmic: Narkowicz 2015 on max(x, 0), then sRGB's
+        if tone == 2:  # filmic: Narkowicz 2015 on max(x, 0), then sRGB's (float32, as the numpy path)
             for c in range(3):
                 for x in range(width):
                     v = lin[c, x]
-                    v = v if v > 0.0 else 0.0
-                    lin[c, x] = v * (2.51 * v + 0.03) / (v * (2.43 * v + 0.59) + 0.14)
+                    v = v if v > zero else zero
+                    lin[c, x] = v * (fa * v + fb) / (v * (fc * v + fd) + fe)
         for c in range(3):
             row, target = lin[c], out[c, y]
             if tone == 0:
                 for x in range(width):
                     v = row[x]
-                    v = v if v > 0.0 else 0.0
-                    target[x] = v if v < 1.0 else 1.0
+                    v = v if v > zero else zero
+                    target[x] = v if v < one else one
             else:
                 for x in range(width):
                     v = row[x]
-                    v = v if v > 0.0 else 0.0
-                    v = v if v < 1.0 else 1.0
-                    high = 1.055 * power(v if v > threshold32 else threshold32) - 0.055
-                    target[x] = 12.92 * v if v <= threshold32 else high
+                    v = v if v > zero else zero
+                    v = v if v < one else one
+                    high = scale * power(v if v > threshold else threshold) - offset
+                    target[x] = slope * v if v <= threshold else high
 
     @jit
     def three_chip(raw, scale, offset, a, tone, lin, out):
@@ -235,7 +249,7 @@ def develop_into(raw, facts, settings, plan, out) -> None:
     if raw.dtype not in (np.float32, np.float64):
         raw = raw.astype(np.float32)
     if facts.cfa_pattern is None:
-        lin = np.empty((3, raw.shape[-1]), dtype=np.float64)
+        lin = np.empty((3, raw.shape[-1]), dtype=np.float32)
         kernels["three_chip"](raw, scale.astype(np.float32), (black * scale).astype(np.float32), a, tone, lin,
                               out)
         return
@@ -245,7 +259,7 @@ def develop_into(raw, facts, settings, plan, out) -> None:
     height, width = raw.shape
     padded = _workspace("fused.padded", (height + 2, width + 2))
     q, rgb = np.empty((5, width), dtype=np.float32), np.empty((3, width), dtype=np.float32)
-    lin = np.empty((3, width), dtype=np.float64)
+    lin = np.empty((3, width), dtype=np.float32)
     kernels["bayer"](raw, scale[channel].astype(np.float32), (black * scale)[channel].astype(np.float32),
                      _site_quantities(facts.cfa_pattern), a, tone, padded, q, rgb, lin, out)
 
