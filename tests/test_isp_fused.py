@@ -3,14 +3,14 @@
 - the kernel's development against the stages written out here in float64 (normalise → white balance →
   colour-demosaicing's bilinear on the mirrored mosaic → matrix → gain → clip → the sRGB formula), on all four Bayer
   patterns, odd crop offsets, the borders and three chips, and against the numpy path (``develop_pair``);
-- its power against numpy's in float64;
+- its power and its sRGB curve against numpy's in float64;
 - ``srgb`` pairs: made by the kernel (the record says so), within the bound of the numpy path's pairs, the same seed
   giving the same batch bit for bit.
 
 The bound: both paths normalise and demosaic in float32 (the same operations in the same order: the same numbers),
-so they differ only where the numpy path rounds its matrix product and its curve to float32 (the kernel takes both in
-float64 from the float32 demosaiced values): a few float32 units of the linear value Σ_j |A_cj x_j|, through the
-curve's slope of at most 12.92. Against float64 the float32 normalisation's rounding (about 6e-8 of |raw · s| + |b ·
+so they differ only in the matrix product (the numpy path's float32 sums, the kernel's float64 sum rounded once: a few
+float32 units of the linear value Σ_j |A_cj x_j|, through the curve's slope of at most 12.92) and the curve (each
+within a few float32 units of the formula: the kernel's within CURVE_ERROR). Against float64 the float32 normalisation's rounding (about 6e-8 of |raw · s| + |b ·
 s| per value) adds, times Σ_j |A_cj| and the slope. On the frames here (gains up to 30, values near black) both come to
 below 5e-6 (the bound of tests/test_isp_fast_paths.py for the numpy path).
 """
