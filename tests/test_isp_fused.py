@@ -10,10 +10,10 @@
 The bound: both paths normalise and demosaic in float32 (the same operations in the same order: the same numbers),
 so they differ only in the matrix product (the numpy path's float32 sums, the kernel's float64 sum rounded once: a few
 float32 units of the linear value Σ_j |A_cj x_j|, through the curve's slope of at most 12.92) and the curve (each
-within a few float32 units of the formula: the kernel's within CURVE_ERROR). Against float64 the float32 normalisation's rounding (about 6e-8 of |raw · s| + |b ·
-s| per value) adds, times Σ_j |A_cj| and the slope. On the frames here (gains up to 30, values near black) both come to
-below 5e-6 (the bound of tests/test_isp_fast_paths.py for the numpy path).
-"""
+within a few float32 units of the formula: the kernel's within CURVE_ERROR). Against float64 the float32
+normalisation's rounding (about 6e-8 of |raw · s| + |b · s| per value) adds, times Σ_j |A_cj| and the slope. On the
+frames here (gains up to 30, values near black) both come to below 5e-6 (the bound of tests/test_isp_fast_paths.py
+for the numpy path)."""
 
 import numpy as np
 import pytest
@@ -206,8 +206,8 @@ def test_without_numba_the_pairs_take_the_numpy_stages(monkeypatch):
 
 
 def test_malvar_pairs_take_the_stages():
-    from camsim.pairs import pair_isp  # noqa: F401
-
+    """Malvar 2004 on a mosaic, and a mosaic too small for the ISP's mirrored border, take the numpy stages; a
+    three-chip frame takes the kernel whatever the demosaicing setting (it has none to do)."""
     facts = _facts("RGGB")
     assert not fused.fused_applies(facts, isp.IspSettings(demosaic="malvar2004"), (32, 32))
     assert not fused.fused_applies(facts, isp.IspSettings(demosaic="bilinear"), (4, 32))
