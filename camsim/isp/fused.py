@@ -16,8 +16,8 @@ m^(5/12) there is a degree-8 polynomial (:data:`POWER_DEGREE`), the Chebyshev in
 interval (within 7.3e-12 of it on a grid of 2 million points, in float64), evaluated in float32. Checked once on
 every float32 in [0.0031308, 1] (70 439 397 values, 2026-11-26): the power within 1.03e-7 of x^(5/12)
 (:data:`POWER_ERROR`), the curve 1.055 x^(1/2.4) − 0.055 within 1.87e-7 of the formula in float64
-(:data:`CURVE_ERROR`: about three float32 units in the last place near 1); the tests check a part of them. Below the threshold the curve is 12.92 x. Unlike the numpy
-path, a NaN becomes 0 (the clip), not a NaN in the output.
+(:data:`CURVE_ERROR`: about three float32 units in the last place near 1); the tests check a part of them. Below
+the threshold the curve is 12.92 x. Unlike the numpy path, a NaN becomes 0 (the clip), not a NaN in the output.
 
 The kernels are compiled by numba on first use, once per process (numba is imported then, not with camsim); numba's
 on-disk cache is not used (it writes its files beside the package, which an installed camsim may not allow). Without
