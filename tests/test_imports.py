@@ -51,7 +51,7 @@ def test_the_backend_a_program_chose_is_kept():
 #: ``tools/bench_startup.py`` times it).
 HEAVY = ("scipy", "colour", "colour_demosaicing", "OpenEXR", "OpenImageIO", "rawpy", "skimage", "matplotlib",
          "dask", "distributed", "zarr", "xarray", "tifffile", "imageio", "PIL", "pywt", "bm3d", "emva1288", "tqdm",
-         "torch", "cupy")
+         "torch", "cupy", "numba", "llvmlite")
 
 #: Runs ``camsim ARGS`` through its entry point in this interpreter, then prints the heavy modules it imported.
 RUN_CLI = """
