@@ -16,28 +16,12 @@ import pytest
 
 import camsim.isp as isp
 from camsim.sensor.cfa import CFA_PATTERNS
+from tests.isp_reference import colour_demosaicing_bilinear as _colour_demosaicing_bilinear
+from tests.isp_reference import made_up_facts as _facts
+from tests.isp_reference import reference_development as _reference_development
 
 EPS32 = float(np.finfo(np.float32).eps)
 THRESHOLD = np.float32(0.0031308)
-
-
-def _facts(pattern="RGGB", illuminant="D65", neutral=(0.5, 1.0, 0.8)):
-    """A made-up camera: Gaussian QE bumps at 600, 540, 460 nm on a 400–700 nm grid."""
-    wl = np.arange(400.0, 701.0, 10.0)
-    qe = np.stack([np.exp(-0.5 * ((wl - c) / 40.0) ** 2) for c in (600.0, 540.0, 460.0)])
-    return isp.IspFacts(cfa_pattern=pattern, black_dn=np.array([60.0, 64.0, 70.0]), white_dn=1023.0,
-                        as_shot_neutral=np.array(neutral), intensity_factor=0.05, illuminant=illuminant,
-                        wavelengths_nm=wl, qe=qe)
-
-
-def _colour_demosaicing_bilinear(mosaic, pattern):
-    """colour-demosaicing's bilinear (float64) on the mosaic mirrored by 4 pixels without its edge row (the ISP's
-    border rule), cut back: (3, H, W)."""
-    import colour_demosaicing
-
-    padded = np.pad(np.asarray(mosaic, dtype=np.float64), 4, mode="reflect")
-    rgb = colour_demosaicing.demosaicing_CFA_Bayer_bilinear(padded, pattern)[4:-4, 4:-4]
-    return np.moveaxis(rgb, -1, 0)
 
 
 @pytest.mark.parametrize("shape", [(5, 5), (5, 8), (7, 6), (9, 11), (16, 20), (33, 17), (64, 96)])
@@ -97,30 +81,6 @@ def test_srgb_curve_is_the_branchwise_formula_bit_for_bit():
     v = np.clip(spread.astype(np.float64), 0.0, 1.0)
     formula = np.where(v <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055)
     assert np.max(np.abs(isp.tone_curve(spread, "srgb") - formula)) < 2e-6
-
-
-def _reference_development(raw, facts, record):
-    """The ISP written out in float64 from the record: normalise, white balance, colour-demosaicing's bilinear,
-    matrix, gain, the sRGB formula."""
-    stages = record["stages"]
-    black = np.asarray(stages["black"]["black_dn"])
-    gains = np.asarray(stages["white_balance"]["gains"])
-    matrix = stages["matrix"]["matrix"]
-    gain = stages["gain"]["value"]
-    raw = np.asarray(raw, dtype=np.float64)
-    if facts.cfa_pattern is None:
-        x = gains[:, None, None] * (raw - black[:, None, None]) / (facts.white_dn - black[:, None, None])
-    else:
-        site_black, site_gain = np.empty(raw.shape), np.empty(raw.shape)
-        for i, letter in enumerate(facts.cfa_pattern):
-            c = "RGB".index(letter)
-            site_black[i // 2::2, i % 2::2], site_gain[i // 2::2, i % 2::2] = black[c], gains[c]
-        x = _colour_demosaicing_bilinear(site_gain * (raw - site_black) / (facts.white_dn - site_black),
-                                         facts.cfa_pattern)
-    if matrix is not None:
-        x = np.einsum("cj,jhw->chw", np.asarray(matrix), x)
-    v = np.clip(gain * x, 0.0, 1.0)
-    return np.where(v <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055)
 
 
 @pytest.mark.parametrize("pattern", [None, *CFA_PATTERNS])
