@@ -621,7 +621,11 @@ def make_case(seeds: Seeds, kind: str, ops, choice=0, label="") -> Case:
                 "D65", "--intensity", "1", *RENDER]
         return Case(kind, {"preset.toml": to_toml(doc)}, argv, label)
     if kind == "dng":
-        return Case(kind, _frame_files(seeds, dng=apply_dng_ops(seeds.frame["dng"], ops)), ANALYZE, label)
+        body = apply_dng_ops(seeds.frame["dng"], ops)
+        if choice % 2:  # camsim develop on the DNG alone: no sidecar, so its own tags are read (tifffile)
+            dng = f"frames/{seeds.frame['stem']}.dng"
+            return Case(kind, {dng: body}, ["develop", "{IN}/" + dng, "--out", "{OUT}", "-q"], label)
+        return Case(kind, _frame_files(seeds, dng=body), ANALYZE, label)
     if kind == "exr":
         body = apply_exr_ops(seeds.frame["exr"], ops, seeds.exr_attributes)
         argv = ANALYZE + ["--source", "exr"] if choice % 2 == 0 else \

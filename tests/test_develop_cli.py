@@ -203,3 +203,21 @@ def test_a_full_disk_is_one_line_and_leaves_nothing(rendered, tmp_path, capsys, 
     _one_line_error(capsys, ["develop", str(rendered / "bayer"), str(rendered / "chip3"), "--out", str(out),
                              "--jpeg-quality", "90"], "No space left on device")
     assert not out.exists() or not any(out.rglob("*"))
+
+
+def test_a_dng_tag_with_a_zero_denominator_is_one_line_without_warnings(rendered, tmp_path, capsys):
+    """A damaged DNG alone (no sidecar: its own tags are read) whose AsShotNeutral has a zero denominator: one
+    error line, no numpy warning on stderr (found by tools/fuzz_cli.py --kinds dng: the division warned)."""
+    import tifffile
+
+    source = rendered / "bayer" / "macbeth_26_D65_F0.5.dng"
+    with tifffile.TiffFile(source) as tif:
+        tag = next(t for p in tif.pages for t in p.tags.values() if t.code == 50728)  # AsShotNeutral
+        offset = tag.valueoffset
+    body = bytearray(source.read_bytes())
+    body[offset + 4:offset + 8] = bytes(4)  # the first rational's denominator
+    damaged = tmp_path / "in" / "damaged.dng"
+    damaged.parent.mkdir()
+    damaged.write_bytes(bytes(body))
+    _one_line_error(capsys, ["develop", str(damaged), "--out", str(tmp_path / "o"), "-q"], "damaged.dng")
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())

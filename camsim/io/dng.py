@@ -532,7 +532,8 @@ def _floats(rationals: Any) -> list[float] | None:
     if rationals is None:
         return None
     vals = np.atleast_1d(np.asarray(rationals, dtype=np.float64)).ravel()
-    return (vals[0::2] / vals[1::2]).tolist()
+    with np.errstate(divide="ignore", invalid="ignore"):  # a zero denominator (a damaged file): inf or NaN, which
+        return (vals[0::2] / vals[1::2]).tolist()           # the readers' checks then refuse on one line
 
 
 def _pairs(values: Any) -> list[list[float]] | None:

@@ -55,7 +55,11 @@ def read_frame_to_develop(path) -> FrameToDevelop:
         from camsim.io.dng import read_dng
 
         raw, tags = read_dng(path)
-        return FrameToDevelop(path, raw, facts_from_dng_tags(tags), "dng-tags")
+        try:
+            facts = facts_from_dng_tags(tags)
+        except CamsimError as exc:  # a tag out of range: say which file
+            raise CamsimError(f"{path}: {exc}") from None
+        return FrameToDevelop(path, raw, facts, "dng-tags")
     loaded = load_frame(path)
     return FrameToDevelop(path, loaded.pixels_dn, facts_of(loaded), "sidecar")
 
