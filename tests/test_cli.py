@@ -181,3 +181,16 @@ def test_truncated_cube(tmp_path, capsys):
     (tmp_path / "cube.npy").write_bytes(data[: len(data) // 2])
     assert main(["render", scene, "--out", str(tmp_path / "o")]) == 2
     assert "cannot read cube file" in capsys.readouterr().err
+
+
+def test_an_error_message_with_line_breaks_is_printed_on_one_line(monkeypatch, capsys):
+    """Whatever a message holds (a value's repr across lines, a library's text), the error is one line."""
+    from camsim import cli
+    from camsim.core.errors import CamsimError
+
+    def fail(args):
+        raise CamsimError("a value:\n   [1, 2,\n    3]\n")
+
+    monkeypatch.setattr(cli.COMMANDS["list"], "run", fail)
+    assert cli.main(["list"]) == 2
+    assert capsys.readouterr().err == "camsim: error: a value: [1, 2, 3]\n"

@@ -213,3 +213,12 @@ def test_fuzz_png_bytes(case):
 @given(case=cases("cube", "bytes"))
 def test_fuzz_cube_bytes(case):
     check(case)
+
+
+@pytest.mark.slow
+def test_develop_on_a_dng_whose_as_shot_neutral_has_255_values_is_refused_on_one_line(tmp_path):
+    """Found by CI's run of the suite: the DNG alone through camsim develop, its AsShotNeutral's count set to 255;
+    the error printed numpy's repr of 255 values over many lines."""
+    case = fuzz.make_case(seeds(), "dng", [("tag", (310, 50728), "count", 255)], choice=1)
+    result = fuzz.run_case(case, tmp_path / "case", time_limit=TIME_LIMIT, memory_limit_mb=MEMORY_LIMIT_MB)
+    assert result.outcome == "refused", f"{case!r}: {result.summary()}"

@@ -14,6 +14,7 @@ share) may import every layer below it, the applications included; only ``camsim
 from __future__ import annotations
 
 import argparse
+import re
 import signal
 import sys
 import warnings
@@ -89,13 +90,18 @@ EXIT_INTERRUPTED, EXIT_TERMINATED = 128 + signal.SIGINT, 128 + signal.SIGTERM
 _STOPPED = "what was complete is kept, nothing half-written is left"
 
 
+def _one_line(message) -> str:
+    """An error message on one line: line breaks (a value's repr across lines, a library's text) become spaces."""
+    return re.sub(r"\s*\n\s*", " ", str(message)).strip()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 2 error, 130 interrupted, 143 terminated)."""
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
     except _UsageError as exc:
-        print(f"camsim: error: {exc}", file=sys.stderr)
+        print(f"camsim: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     if args.command is None:
         parser.print_help()
@@ -106,10 +112,10 @@ def main(argv: list[str] | None = None) -> int:
                 warnings.filterwarnings("ignore", module=QUIET_MODULES)
             return COMMANDS[args.command].run(args)
     except CamsimError as exc:
-        print(f"camsim: error: {exc}", file=sys.stderr)
+        print(f"camsim: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except OSError as exc:  # the environment's: a file or folder that cannot be read or written
-        print(f"camsim: error: {_os_error_text(exc)}", file=sys.stderr)
+        print(f"camsim: error: {_one_line(_os_error_text(exc))}", file=sys.stderr)
         return 2
     except MemoryError:
         print("camsim: error: out of memory (try a smaller --size, or fewer --workers)", file=sys.stderr)

@@ -14,6 +14,16 @@ from camsim.sensor.cfa import CFA_PATTERNS
 __all__ = ["IspFacts", "facts_from_meta", "facts_of", "facts_from_info", "facts_from_dng_tags", "float_white_dn"]
 
 
+
+def _shown(value, most: int = 6) -> str:
+    """A value for an error message, on one line: at most ``most`` numbers of an array (then how many in all)."""
+    try:
+        flat = np.asarray(value, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        return repr(value)[:80]
+    shown = ", ".join(f"{v:.6g}" for v in flat[:most])
+    return f"[{shown}{f', … ({flat.size} values)' if flat.size > most else ''}]"
+
 @dataclass(frozen=True, eq=False)
 class IspFacts:
     """What the ISP needs to know about a frame besides its numbers.
@@ -72,17 +82,21 @@ class IspFacts:
             black = np.repeat(black, 3)
         neutral = np.asarray(self.as_shot_neutral, dtype=np.float64).reshape(-1)
         if black.shape != (3,) or not np.all(np.isfinite(black)):
-            raise CamsimError(f"black level must be 3 finite numbers (R, G, B), got {self.black_dn!r}")
-        if not (np.isfinite(self.white_dn) and self.white_dn > np.max(black)):
-            raise CamsimError(f"white level {self.white_dn!r} must be finite and above the black level "
+            raise CamsimError(f"black level must be 3 finite numbers (R, G, B), got {_shown(self.black_dn)}")
+        try:
+            white = np.asarray(self.white_dn, dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError):
+            white = np.array([np.nan, np.nan])
+        if not (white.size == 1 and np.isfinite(white[0]) and white[0] > np.max(black)):
+            raise CamsimError(f"white level {_shown(self.white_dn)} must be one finite number above the black level "
                               f"{black.tolist()}")
         if neutral.shape != (3,) or not (np.all(np.isfinite(neutral)) and np.all(neutral > 0)):
-            raise CamsimError(f"as-shot neutral must be 3 positive numbers, got {self.as_shot_neutral!r}")
+            raise CamsimError(f"as-shot neutral must be 3 positive numbers, got {_shown(self.as_shot_neutral)}")
         if self.intensity_factor is not None and not (np.isfinite(self.intensity_factor)
                                                       and self.intensity_factor > 0):
-            raise CamsimError(f"intensity factor must be positive, got {self.intensity_factor!r}")
+            raise CamsimError(f"intensity factor must be positive, got {_shown(self.intensity_factor)}")
         object.__setattr__(self, "black_dn", black)
-        object.__setattr__(self, "white_dn", float(self.white_dn))
+        object.__setattr__(self, "white_dn", float(white[0]))
         object.__setattr__(self, "as_shot_neutral", neutral)
         if self.qe is not None:
             qe = np.asarray(self.qe, dtype=np.float64)
@@ -92,13 +106,16 @@ class IspFacts:
             object.__setattr__(self, "qe", qe)
             object.__setattr__(self, "wavelengths_nm", wl)
         if self.color_matrix1 is not None:
-            cm = np.asarray(self.color_matrix1, dtype=np.float64).reshape(3, 3)
+            cm = np.asarray(self.color_matrix1, dtype=np.float64)
+            if cm.size != 9 or not np.all(np.isfinite(cm)):
+                raise CamsimError(f"ColorMatrix1 must be 9 finite numbers, got {_shown(self.color_matrix1)}")
+            cm = cm.reshape(3, 3)
             object.__setattr__(self, "color_matrix1", cm)
         if self.white_signal_dn is not None:
             white = np.asarray(self.white_signal_dn, dtype=np.float64).reshape(-1)
             if white.shape != (3,) or not (np.all(np.isfinite(white)) and np.all(white > 0)):
                 raise CamsimError(f"the perfect white's signal must be 3 positive numbers, got "
-                                  f"{self.white_signal_dn!r}")
+                                  f"{_shown(self.white_signal_dn)}")
             object.__setattr__(self, "white_signal_dn", white)
         if self.qe is None and self.color_matrix1 is None:
             raise CamsimError("the ISP needs the camera's spectral sensitivities (a sidecar's qe) or a "
@@ -196,5 +213,5 @@ def facts_from_dng_tags(tags: dict) -> IspFacts:
         raise CamsimError(f"the DNG lacks the tags the ISP needs without a sidecar: {', '.join(missing)}")
     black = tags.get("black_level_exact") or tags.get("black_level") or [0.0, 0.0, 0.0]
     return IspFacts(cfa_pattern=tags.get("cfa_pattern"), black_dn=np.asarray(black, dtype=np.float64),
-                    white_dn=float(tags["white_level"]), as_shot_neutral=np.asarray(tags["as_shot_neutral"]),
+                    white_dn=tags["white_level"], as_shot_neutral=np.asarray(tags["as_shot_neutral"]),
                     color_matrix1=np.asarray(tags["color_matrix1"], dtype=np.float64))
