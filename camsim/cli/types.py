@@ -17,6 +17,20 @@ def positive_float(text: str) -> float:
     return value
 
 
+def positive_float_or(names, message: str):
+    """An argparse type: one of ``names`` (returned as given) or a finite number > 0; anything else is refused with
+    ``message`` and the text given (e.g. a gain: ``"auto"``, ``"white"`` or a number)."""
+    def parse(text: str):
+        if text in names:
+            return text
+        try:
+            return positive_float(text)
+        except argparse.ArgumentTypeError:
+            raise argparse.ArgumentTypeError(f"{message}, got {text!r}") from None
+
+    return parse
+
+
 def _integer(text: str) -> int:
     try:
         return int(text)

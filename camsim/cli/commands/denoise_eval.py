@@ -12,7 +12,7 @@ import sys
 import textwrap
 from pathlib import Path
 
-from camsim.cli.types import non_negative_int, positive_float
+from camsim.cli.types import non_negative_int, positive_float, positive_float_or
 from camsim.cli.commands import DEFAULT_OUT, writing_to
 from camsim.core.errors import CamsimError
 
@@ -119,7 +119,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="what your denoisers (MODULE:FUNCTION, cmd:) get for a Bayer frame: 'packed' (default) "
                              "the normalised planes R, G1, G2, B as a (H/2, W/2, 4) array, 'mosaic' the normalised "
                              "(H, W) mosaic; the built-ins always get the packed planes")
-    parser.add_argument("--isp-gain", metavar="white|auto|X", type=_isp_gain, default="white",
+    parser.add_argument("--isp-gain", metavar="white|auto|X", default="white",
+                        type=positive_float_or(("white", "auto"), "expected white, auto or a positive number"),
                         help="the gain with which Bayer frames are developed for the scores after the ISP: 'white' "
                              "(default) maps the perfect white under the frame's light at its F to 1 (exposed for "
                              "its light), 'auto' is 1/F (as at F = 1: clips wherever F = 1 would pass the white "
@@ -128,16 +129,6 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="time limit per frame for a 'cmd:' denoiser (default none)")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no colour-science warnings")
     return parser
-
-
-def _isp_gain(text: str):
-    """--isp-gain: 'white', 'auto' or a positive number."""
-    if text in ("white", "auto"):
-        return text
-    try:
-        return positive_float(text)
-    except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(f"expected white, auto or a positive number, got {text!r}") from None
 
 
 def _unique_names(denoisers):

@@ -11,6 +11,7 @@ import textwrap
 from pathlib import Path
 
 from camsim.cli.commands import DEFAULT_OUT, writing_to
+from camsim.cli.types import positive_float_or
 
 DESCRIPTION = (
     "Develop camsim frames into sRGB pictures through a camera ISP: black level off and normalised to the white "
@@ -33,18 +34,6 @@ examples:
   camsim develop frames/ --out developed --demosaic menon2007 --tone filmic --jpeg-quality 92
   camsim develop outputs/macbeth_26/macbeth_26_D65_F0.01.dng --out developed --gain white --noise-report
 """
-
-
-def _gain(text: str):
-    if text in ("auto", "white"):
-        return text
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"gain must be a positive number, 'auto' or 'white', got {text!r}") from None
-    if not (value > 0 and value < float("inf")):
-        raise argparse.ArgumentTypeError(f"gain must be a positive number, 'auto' or 'white', got {text!r}")
-    return value
 
 
 def _quality(text: str) -> int:
@@ -81,7 +70,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="'camera' (default: camera → linear sRGB from the camera's spectral sensitivities and "
                              "the white-balance illuminant), 'dng' (from the DNG's ColorMatrix1, as raw converters "
                              "do) or 'none'")
-    parser.add_argument("--gain", metavar="X|auto|white", type=_gain, default=1.0,
+    parser.add_argument("--gain", metavar="X|auto|white", default=1.0,
+                        type=positive_float_or(("auto", "white"),
+                                               "gain must be a positive number, 'auto' or 'white'"),
                         help="digital gain on the linear values (default 1: the white level is 1), 'auto' = 1 / F, "
                              "F the frame's intensity factor (the SID/ELD exposure ratio), or 'white': the perfect "
                              "white under the frame's light at its F is 1")
