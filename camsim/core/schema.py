@@ -163,11 +163,20 @@ class Param:
         return {self.name: list(value) if isinstance(value, tuple) else value}
 
 
+#: The most values of an array :func:`shown` writes out.
+SHOWN_VALUES = 6
+
+
 def shown(value) -> str:
     """``repr(value)`` for a message, but an integer of more than 24 digits as its size (``an integer of 401
-    digits``): a message stays one short line."""
+    digits``) and a numpy array as its first :data:`SHOWN_VALUES` values and their count (``[1, 2, 3, …
+    (255 values)]``): a message stays one short line."""
     if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 80:
         return f"an integer of about {math.ceil(value.bit_length() * math.log10(2))} digits"
+    if getattr(value, "ndim", 0) >= 1 and hasattr(value, "tolist"):  # a numpy array (no numpy import here)
+        flat = value.reshape(-1).tolist()
+        head = ", ".join(f"{v:.6g}" if isinstance(v, float) else repr(v) for v in flat[:SHOWN_VALUES])
+        return f"[{head}{f', … ({len(flat)} values)' if len(flat) > SHOWN_VALUES else ''}]"
     return repr(value)
 
 

@@ -9,20 +9,12 @@ from pathlib import Path
 import numpy as np
 
 from camsim.core.errors import CamsimError
+from camsim.core.schema import shown
 from camsim.sensor.cfa import CFA_PATTERNS
 
 __all__ = ["IspFacts", "facts_from_meta", "facts_of", "facts_from_info", "facts_from_dng_tags", "float_white_dn"]
 
 
-
-def _shown(value, most: int = 6) -> str:
-    """A value for an error message, on one line: at most ``most`` numbers of an array (then how many in all)."""
-    try:
-        flat = np.asarray(value, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        return repr(value)[:80]
-    shown = ", ".join(f"{v:.6g}" for v in flat[:most])
-    return f"[{shown}{f', … ({flat.size} values)' if flat.size > most else ''}]"
 
 @dataclass(frozen=True, eq=False)
 class IspFacts:
@@ -82,19 +74,20 @@ class IspFacts:
             black = np.repeat(black, 3)
         neutral = np.asarray(self.as_shot_neutral, dtype=np.float64).reshape(-1)
         if black.shape != (3,) or not np.all(np.isfinite(black)):
-            raise CamsimError(f"black level must be 3 finite numbers (R, G, B), got {_shown(self.black_dn)}")
+            raise CamsimError(f"black level must be 3 finite numbers (R, G, B), got {shown(black)}")
         try:
             white = np.asarray(self.white_dn, dtype=np.float64).reshape(-1)
         except (TypeError, ValueError):
-            white = np.array([np.nan, np.nan])
-        if not (white.size == 1 and np.isfinite(white[0]) and white[0] > np.max(black)):
-            raise CamsimError(f"white level {_shown(self.white_dn)} must be one finite number above the black level "
+            white = None
+        if white is None or not (white.size == 1 and np.isfinite(white[0]) and white[0] > np.max(black)):
+            raise CamsimError(f"white level {shown(self.white_dn if white is None else white)} must be one finite "
+                              "number above the black level "
                               f"{black.tolist()}")
         if neutral.shape != (3,) or not (np.all(np.isfinite(neutral)) and np.all(neutral > 0)):
-            raise CamsimError(f"as-shot neutral must be 3 positive numbers, got {_shown(self.as_shot_neutral)}")
+            raise CamsimError(f"as-shot neutral must be 3 positive numbers, got {shown(neutral)}")
         if self.intensity_factor is not None and not (np.isfinite(self.intensity_factor)
                                                       and self.intensity_factor > 0):
-            raise CamsimError(f"intensity factor must be positive, got {_shown(self.intensity_factor)}")
+            raise CamsimError(f"intensity factor must be positive, got {shown(self.intensity_factor)}")
         object.__setattr__(self, "black_dn", black)
         object.__setattr__(self, "white_dn", float(white[0]))
         object.__setattr__(self, "as_shot_neutral", neutral)
@@ -108,15 +101,14 @@ class IspFacts:
         if self.color_matrix1 is not None:
             cm = np.asarray(self.color_matrix1, dtype=np.float64)
             if cm.size != 9 or not np.all(np.isfinite(cm)):
-                raise CamsimError(f"ColorMatrix1 must be 9 finite numbers, got {_shown(self.color_matrix1)}")
+                raise CamsimError(f"ColorMatrix1 must be 9 finite numbers, got {shown(cm)}")
             cm = cm.reshape(3, 3)
             object.__setattr__(self, "color_matrix1", cm)
         if self.white_signal_dn is not None:
-            white = np.asarray(self.white_signal_dn, dtype=np.float64).reshape(-1)
-            if white.shape != (3,) or not (np.all(np.isfinite(white)) and np.all(white > 0)):
-                raise CamsimError(f"the perfect white's signal must be 3 positive numbers, got "
-                                  f"{_shown(self.white_signal_dn)}")
-            object.__setattr__(self, "white_signal_dn", white)
+            signal = np.asarray(self.white_signal_dn, dtype=np.float64).reshape(-1)
+            if signal.shape != (3,) or not (np.all(np.isfinite(signal)) and np.all(signal > 0)):
+                raise CamsimError(f"the perfect white's signal must be 3 positive numbers, got {shown(signal)}")
+            object.__setattr__(self, "white_signal_dn", signal)
         if self.qe is None and self.color_matrix1 is None:
             raise CamsimError("the ISP needs the camera's spectral sensitivities (a sidecar's qe) or a "
                               "ColorMatrix1 for its colour matrix")
