@@ -116,6 +116,24 @@ def render(scene, sensor=None, factor=1.0, statistics="pixel", method="poisson",
     return frame, lit.radiance
 
 
+def full_disk(monkeypatch, only_suffix: str | None = None):
+    """Every atomic write (all of camsim's writers go through one) fails with ENOSPC when it flushes its file,
+    as a full disk does; with ``only_suffix``, only files of that suffix."""
+    import errno
+    import os
+
+    import camsim.io.atomic as atomic
+
+    real = atomic.fsync_path
+
+    def fsync(path, *, directory=False):
+        if not directory and (only_suffix is None or path.name.split(".")[-3] == only_suffix):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return real(path, directory=directory)
+
+    monkeypatch.setattr(atomic, "fsync_path", fsync)
+
+
 class FullDiskExrFile:
     """A stand-in for ``OpenEXR.File`` whose ``write`` meets a full disk as OpenEXR's does: it leaves part of the
     file and raises ``RuntimeError`` naming the reason. Patch it over ``camsim.io.exr.OpenEXR.File``."""

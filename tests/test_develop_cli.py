@@ -10,6 +10,7 @@ import pytest
 
 from camsim.cli import main
 from camsim.isp import read_png_record
+from tests.helpers import full_disk
 
 
 @pytest.fixture(scope="module")
@@ -187,18 +188,7 @@ def test_a_bad_frame_after_good_ones_leaves_nothing_written(rendered, tmp_path, 
 def test_a_full_disk_is_one_line_and_leaves_nothing(rendered, tmp_path, capsys, monkeypatch, suffix):
     """Every write fails with ENOSPC when it flushes its file (or only the JSON records, the last written, or the
     JPEGs): one line naming the folder, and none of the run's files are left."""
-    import errno
-
-    from camsim.io import atomic
-
-    real = atomic.fsync_path
-
-    def fsync(path, *, directory=False):
-        if not directory and (suffix is None or path.name.split(".")[-3] == suffix):
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        return real(path, directory=directory)
-
-    monkeypatch.setattr(atomic, "fsync_path", fsync)
+    full_disk(monkeypatch, only_suffix=suffix)
     out = tmp_path / "out"
     _one_line_error(capsys, ["develop", str(rendered / "bayer"), str(rendered / "chip3"), "--out", str(out),
                              "--jpeg-quality", "90"], "No space left on device")

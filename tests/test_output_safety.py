@@ -22,7 +22,7 @@ from camsim.render.frame_manifest import MANIFEST_NAME
 from camsim.io.atomic import atomic_path, undo_on_failure, write_text_atomic
 from camsim.io.output_folder import FolderBusyError, output_folder
 
-from tests.helpers import ROOT, FullDiskExrFile
+from tests.helpers import ROOT, FullDiskExrFile, full_disk
 
 SMALL = ["--size", "64x48", "--illuminant", "D65", "-q"]
 SPEC = f"""
@@ -116,24 +116,11 @@ def test_output_under_a_file_fails_before_any_work(name, frames, tmp_path, capsy
     assert blocker.read_text() == "not a folder"
 
 
-def _full_disk(monkeypatch, only_suffix: str | None = None):
-    """Every atomic write (all of camsim's writers go through one) fails with ENOSPC when it flushes its file,
-    as a full disk does; with ``only_suffix``, only files of that suffix."""
-    real = atomic.fsync_path
-
-    def fsync(path, *, directory=False):
-        if not directory and (only_suffix is None or path.name.split(".")[-3] == only_suffix):
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        return real(path, directory=directory)
-
-    monkeypatch.setattr(atomic, "fsync_path", fsync)
-
-
 @pytest.mark.parametrize("name", COMMANDS)
 def test_full_disk_gives_one_line_and_leaves_nothing(name, frames, tmp_path, capsys, monkeypatch):
     out = tmp_path / "out"
     argv = command_argv(name, out, frames, tmp_path)
-    _full_disk(monkeypatch)
+    full_disk(monkeypatch)
     assert main(argv) == 2
     line = one_error_line(capsys)
     assert "No space left on device" in line and str(out) in line
@@ -145,7 +132,7 @@ def test_full_disk_at_the_sidecar_leaves_no_dng_without_it(tmp_path, capsys, mon
     out = tmp_path / "out"
     assert main(["render", "macbeth_26", *SMALL, "--intensity", "1", "--out", str(out)]) == 0
     earlier = {name: (out / name).read_bytes() for name in files_in(out)}
-    _full_disk(monkeypatch, only_suffix="json")
+    full_disk(monkeypatch, only_suffix="json")
     assert main(["render", "macbeth_26", *SMALL, "--intensity", "0.5", "--out", str(out)]) == 2
     assert "No space left on device" in one_error_line(capsys)
     assert {name: (out / name).read_bytes() for name in files_in(out)} == earlier  # the F = 1 frame is intact
