@@ -1,0 +1,297 @@
+"""The per-pixel renderer of raw sources: a real camera's raw electrons made into a target sensor's frame.
+
+The source gives each CFA site its electrons s (:mod:`camsim.sensor.raw_laws`); a photon law draws the target's
+charge from f · s (f = F · T / T_src), and every later stage is the target sensor's, by the stage functions of
+:mod:`camsim.sensor.stages` in the order :func:`camsim.render.frame.render_frame` runs them: the charge (with the
+dark current, PRNU and the dark-current DSNU), the offset DSNU, the full well, the read noise (its model and Tukey
+λ), the gain, the row noise and the ADC with its pedestal. The block scheduler is render_frame's: row blocks
+(:func:`camsim.render.frame.block_rows`), block *b* drawing from child *b* of the frame's seed
+(:func:`camsim.core.seeding.block_generators`), on a pool of threads, so a seed gives the same bits whatever the
+number of workers.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from camsim.core.errors import CamsimError
+from camsim.core.seeding import block_generators
+from camsim.render.frame import block_rows, default_workers
+from camsim.sensor.cfa import CFA_PATTERNS, cfa_sites
+from camsim.sensor.expected import clean_charge_e
+from camsim.sensor.fixed_pattern import FixedPattern, fixed_pattern
+from camsim.sensor.params import SensorParams
+from camsim.sensor.raw_laws import PHOTON_LAWS, add_photons_e, check_thin_fraction, source_count_e, thin_photons_e
+from camsim.sensor.stages import (
+    add_offset_e,
+    add_read_noise_e,
+    add_row_noise,
+    draw_read_noise_e,
+    dn_dtype,
+    electrons_to_dn,
+    quantise_dn,
+    saturate_e,
+    saturation_level_e,
+)
+
+
+@dataclass(frozen=True)
+class RawDraw:
+    """One frame drawn from a raw source.
+
+    Attributes
+    ----------
+    noisy_dn : numpy.ndarray, shape (1, H, W), float32
+        k · (f_sat(charge + o) + read noise) + row noise: the DN before quantisation (as
+        :attr:`camsim.render.frame.Frame.noisy_dn` of a CFA frame). Unit: DN.
+    digital_dn : numpy.ndarray or None, shape (1, H, W), uint8 (nb ≤ 8) or uint16
+        The quantised DN, with the pedestal; None when quantisation is off. Unit: DN.
+    clean_dn : numpy.ndarray, shape (H, W), float32
+        The law's expected DN before quantisation at each site, k · E[min(charge + o, full well)] (the fixed-pattern
+        maps' shifts included, as :func:`camsim.render.frame.clean_dn`): see :func:`render_raw_frame` for where it
+        is exact. Unit: DN.
+    maps : FixedPattern or None
+        The target sensor's DSNU (offset, dark-current) and PRNU maps, shape (3, H, W) each (a site uses its
+        channel's plane), or None when all are off.
+    """
+
+    noisy_dn: np.ndarray
+    digital_dn: np.ndarray | None
+    clean_dn: np.ndarray
+    maps: FixedPattern | None
+
+
+@dataclass(frozen=True)
+class _RawJob:
+    """What every block of a raw frame needs (read-only but the outputs)."""
+
+    source: np.ndarray  # (H, W) float32, e⁻
+    sensor: SensorParams
+    fraction: float
+    law: str
+    maps: FixedPattern | None
+    dark_cell: np.ndarray  # (2, 2) float64: D̄ of each site of the CFA cell, e⁻
+    noisy: np.ndarray  # (1, H, W) float32 output
+    digital: np.ndarray | None  # (1, H, W) output
+    clean: np.ndarray  # (H, W) float32 output
+
+
+class _Scratch:
+    """A thread's reusable buffers, (rows, W) each (Box–Muller's ``work``: half of that)."""
+
+    def __init__(self, rows: int, width: int):
+        self.rows, self.width = rows, width
+        self.mean = np.empty((rows, width), dtype=np.float64)
+        self.noise = np.empty((rows, width), dtype=np.float32)
+        self.work = np.empty(rows * width // 2 + 1, dtype=np.float32)
+        self.dark = None  # (rows, W) float64 tiling of the dark cell, made on first use
+        self.maps = {}  # name -> (rows, W) float32 buffer of a mosaicked map
+
+    def map_rows(self, name: str, planes: np.ndarray, cfa: str, r0: int, r1: int) -> np.ndarray:
+        """Rows r0:r1 of a (3, H, W) map mosaicked by the CFA: each site takes its channel's plane."""
+        buffer = self.maps.get(name)
+        if buffer is None:
+            buffer = self.maps[name] = np.empty((self.rows, self.width), dtype=np.float32)
+        out = buffer[: r1 - r0]
+        for dy, dx, c in cfa_sites(cfa):
+            out[dy::2, dx::2] = planes[c, r0 + dy : r1 : 2, dx::2]
+        return out
+
+
+def _check(source_e, sensor: SensorParams, fraction: float, law: str) -> np.ndarray:
+    """The source as a 2-D float32 array, or a CamsimError with the reason."""
+    if law not in PHOTON_LAWS:
+        raise CamsimError(f"unknown photon law {law!r}; photon laws: {', '.join(PHOTON_LAWS)}")
+    if sensor.cfa not in CFA_PATTERNS:
+        raise CamsimError("a raw source needs a sensor with a Bayer colour filter array (sensor.cfa), got none")
+    try:
+        value = float(fraction)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0):
+        raise CamsimError(f"the fraction F·T/T_source must be a finite number ≥ 0, got {fraction!r}")
+    source = np.asarray(source_e)
+    if source.ndim != 2 or source.size == 0:
+        raise CamsimError(f"a raw source is one (H, W) plane of electrons, got an array of shape {source.shape}")
+    if not np.issubdtype(source.dtype, np.floating) and not np.issubdtype(source.dtype, np.integer):
+        raise CamsimError(f"a raw source holds numbers, got dtype {source.dtype}")
+    source = source.astype(np.float32, copy=False)
+    if not np.isfinite(source).all():
+        raise CamsimError("the raw source has non-finite electron values (NaN or infinite)")
+    if law == "thin":
+        check_thin_fraction(float(fraction))
+    return source
+
+
+def render_raw_frame(source_e, sensor: SensorParams, fraction: float, *, law: str = "add",
+                     rng: np.random.Generator | np.random.SeedSequence | int | None = None,
+                     workers: int | None = None) -> RawDraw:
+    """Draw one frame of the target ``sensor`` from a raw source's electrons, by a photon law.
+
+    Per pixel (site of channel c; g, d, o the PRNU gain, dark-current factor and DSNU offset of the sensor's maps,
+    D̄_c = σ²_dark,c · T), the charge X is ``add``'s Poisson(f · max(s, 0) · g + D̄_c d) or ``thin``'s
+    Binomial(round(max(s, 0)), f · g) + Poisson(D̄_c d) (:mod:`camsim.sensor.raw_laws`), and the frame's value is
+    k · (min(X + o, full well) + read noise) + row noise, then the ADC: the stages of :mod:`camsim.sensor.stages`,
+    each on or off as ``sensor`` says (photon noise off: the signal's mean exactly, the dark charge still drawn).
+
+    Parameters
+    ----------
+    source_e : numpy.ndarray, shape (H, W)
+        The source's electrons s = (DN − black) / K_src at each site (may be negative: read noise; the laws clip
+        at 0). H and W even. Unit: e⁻.
+    sensor : SensorParams
+        The target sensor, ``cfa`` set to the source's pattern (of the top-left cell).
+    fraction : float
+        f = F · T / T_src: the frame expects f · max(s, 0) signal electrons. ``thin`` needs f ≤ 1 (and f · g ≤ 1).
+    law : {'add', 'thin'}
+    rng : numpy.random.Generator, numpy.random.SeedSequence or int, optional
+        Seed of the frame; row block *b* draws from its child *b*.
+    workers : int, optional
+        Threads (default: the machine's cores). The output does not depend on it.
+
+    Returns
+    -------
+    RawDraw
+        ``clean_dn`` is k · E[min(X + o, full well)]: exact for ``add`` (X Poisson; photon noise off: the signal
+        plus a Poisson dark charge) by :func:`camsim.sensor.expected.clean_charge_e` wherever a pixel can reach the
+        full well and k · (E X + o) elsewhere; exact for ``thin`` away from the full well, and at it when f · g = 1
+        or photon noise is off (X is then a constant plus a Poisson dark charge). ``thin`` near the full well with
+        f · g < 1 is approximated there by a Poisson X of the same mean (its binomial part has the smaller
+        variance n p (1 − p)).
+
+    Raises
+    ------
+    CamsimError
+        An unknown law, a sensor without a CFA, an odd frame size, a source that is not a finite (H, W) plane, a
+        negative or non-finite fraction; ``thin`` with f > 1 or f · g > 1.
+    """
+    source = _check(source_e, sensor, fraction, law)
+    fraction = float(fraction)
+    height, width = source.shape
+    rows = block_rows(source.shape, sensor.cfa)  # refuses an odd size
+    starts = list(range(0, height, rows))
+    generators = block_generators(rng, len(starts))
+    maps = fixed_pattern(sensor, source.shape)
+    if law == "thin" and maps is not None and maps.gain is not None:
+        check_thin_fraction(fraction, float(maps.gain.max()))
+    dark_cell = np.empty((2, 2))
+    for dy, dx, c in cfa_sites(sensor.cfa):
+        dark_cell[dy, dx] = sensor.dark_mean_e[c]
+    noisy = np.empty((1, height, width), dtype=np.float32)
+    digital = np.empty((1, height, width), dtype=dn_dtype(sensor.bits)) if sensor.quantisation else None
+    clean = np.empty((height, width), dtype=np.float32)
+    job = _RawJob(source, sensor, fraction, law, maps, dark_cell, noisy, digital, clean)
+    per_thread = threading.local()
+
+    def run_block(index: int) -> None:
+        if getattr(per_thread, "scratch", None) is None:
+            per_thread.scratch = _Scratch(rows, width)
+        r0 = starts[index]
+        _draw_block(job, r0, min(height, r0 + rows), generators[index], per_thread.scratch)
+
+    workers = default_workers() if workers is None else max(1, int(workers))
+    if workers == 1 or len(starts) == 1:
+        for index in range(len(starts)):
+            run_block(index)
+    else:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            list(pool.map(run_block, range(len(starts))))
+    return RawDraw(noisy, digital, clean, maps)
+
+
+def _can_saturate(poisson_mean_e: np.ndarray, base_e, full_well_e: float) -> bool:
+    """Whether some pixel, base + Poisson(mean), may reach the full well with a probability that shows in a float64
+    mean: :func:`camsim.sensor.expected.poisson_min_e`'s test (⌊c − base⌋ − 1 ≤ λ + 40 √λ + 40), on the rows'
+    largest mean and base (so never false where a pixel's own test is true)."""
+    top = float(poisson_mean_e.max())
+    top_base = 0.0 if base_e is None else float(np.max(base_e))
+    return math.floor(full_well_e - top_base) - 1 <= top + 40 * math.sqrt(max(top, 0.0)) + 40
+
+
+def _draw_block(job: _RawJob, r0: int, r1: int, rng: np.random.Generator, scratch: _Scratch) -> None:
+    """Rows ``r0:r1`` (r0 even) of a raw frame: the charge by the law, then the target's stages, and the clean
+    layer."""
+    sensor, cfa, h = job.sensor, job.sensor.cfa, r1 - r0
+    k = sensor.dn_per_electron
+    maps = job.maps
+    offset = gain = dark_gain = None
+    if maps is not None:
+        offset = None if maps.offset_e is None else scratch.map_rows("offset", maps.offset_e, cfa, r0, r1)
+        gain = None if maps.gain is None else scratch.map_rows("gain", maps.gain, cfa, r0, r1)
+        dark_gain = None if maps.dark_gain is None else scratch.map_rows("dark_gain", maps.dark_gain, cfa, r0, r1)
+    has_dark = bool(np.any(job.dark_cell > 0))
+    if has_dark and scratch.dark is None:
+        scratch.dark = np.tile(job.dark_cell, (scratch.rows // 2, scratch.width // 2))
+    dark = 0.0 if not has_dark else scratch.dark[:h] if dark_gain is None else scratch.dark[:h] * dark_gain
+    level = saturation_level_e(sensor.full_well_e, offset) if sensor.saturation else None
+    source = job.source[r0:r1]
+    mean = scratch.mean[:h]  # float64: the Poisson means
+    clean = job.clean[r0:r1]
+
+    if job.law == "add":
+        np.maximum(source, 0.0, out=mean)
+        mean *= job.fraction
+        if gain is not None:
+            mean *= gain
+        if sensor.photon_noise:  # Poisson(f max(s, 0) g + D̄ d): the mean built in place, one draw
+            if has_dark:
+                mean += dark
+            charge = add_photons_e(rng, mean, saturation_e=level)
+            poisson_mean, base = mean, offset
+        else:  # the signal exactly, plus Poisson(D̄ d)
+            charge = add_photons_e(rng, mean, dark, photon_noise=False, saturation_e=level)
+            poisson_mean, base = dark, (mean if offset is None else mean + offset)
+    else:
+        count = source_count_e(source)
+        charge = thin_photons_e(rng, count, job.fraction, dark, gain=gain, photon_noise=sensor.photon_noise,
+                                saturation_e=level)
+        signal = count * (job.fraction if gain is None else job.fraction * gain.astype(np.float64))
+        if sensor.photon_noise and gain is None and job.fraction == 1.0:  # n kept whole: n + Poisson(D̄ d)
+            poisson_mean, base = dark, count + (0.0 if offset is None else offset)
+        elif sensor.photon_noise:  # mean f g n + D̄ d (Poisson stand-in near the full well)
+            poisson_mean, base = signal + dark, offset
+        else:
+            poisson_mean, base = dark, (signal if offset is None else signal + offset)
+
+    # the clean layer: k E[min(X + o, full well)], X = Poisson(poisson_mean) + (base − o)
+    _clean_rows(clean, poisson_mean, base, sensor, k)
+
+    # the target's stages, in the order render_frame runs them (float32 in the output; float64 with offsets)
+    view = job.noisy[0, r0:r1]
+    if offset is not None:
+        value = add_offset_e(charge, offset)  # a new float array
+    else:
+        np.copyto(view, charge, casting="unsafe")  # counts: exact in float32 up to 2^24 e⁻
+        value = view
+    if sensor.saturation:
+        saturate_e(value, sensor.full_well_e, out=value)
+    if sensor.read_noise and sensor.read_noise_e > 0:
+        noise = scratch.noise[:h]
+        draw_read_noise_e(rng, noise, sensor.read_noise_e, sensor.read_noise_model, sensor.tukey_lambda,
+                          scratch.work)
+        add_read_noise_e(value, noise, out=view)
+    elif value is not view:
+        np.copyto(view, value, casting="unsafe")
+    electrons_to_dn(view, k, out=view)
+    if sensor.row_noise_e > 0:
+        add_row_noise(view, sensor.row_noise_e * k, rng)
+    if job.digital is not None:
+        quantise_dn(view, sensor.bits, out=job.digital[0, r0:r1], pedestal_dn=sensor.pedestal_dn)
+
+
+def _clean_rows(clean: np.ndarray, poisson_mean, base, sensor: SensorParams, k: float) -> None:
+    """Write k · E[min(base + Poisson(poisson_mean), full well)] into ``clean`` (h, W) float32 (without saturation,
+    or where no pixel of the rows can reach the full well: k · (poisson_mean + base))."""
+    lam = np.broadcast_to(np.asarray(poisson_mean, dtype=np.float64), clean.shape)
+    if sensor.saturation and _can_saturate(lam, base, sensor.full_well_e):
+        value = clean_charge_e(lam, sensor, 0.0 if base is None else np.asarray(base, dtype=np.float64))
+        np.multiply(value, k, out=clean, casting="unsafe")
+        return
+    np.multiply(lam, k, out=clean, casting="unsafe")
+    if base is not None:
+        clean += np.float32(k) * np.asarray(base, dtype=np.float32)
