@@ -15,9 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.core.errors import CamsimError
+from camsim.io.raw_capture import camera_name, libraw_cfa, tiff_shot
 
-#: LibRaw's colour letters beyond R, G, B: a second green (``RGBG``) is G.
-_LETTER = {"R": "R", "G": "G", "B": "B"}
+#: What ``camsim calibrate`` reads, for the messages refusing other mosaics.
+_ACCEPTS = "camsim calibrate reads 2x2 Bayer, 3-colour stacked and monochrome raws"
 
 
 @dataclass(frozen=True)
@@ -119,44 +120,14 @@ class RawFrame:
     exposure_s: float | None = None
 
 
-def _cfa_pattern(raw, name: str) -> str:
-    colours = raw.raw_colors_visible
-    desc = raw.color_desc.decode("ascii", "replace")
-    cell = raw.raw_pattern
-    if cell is None or np.shape(cell) != (2, 2) or colours.shape[0] < 2 or colours.shape[1] < 2:
-        shape = None if cell is None else np.shape(cell)
-        raise CamsimError(f"cannot calibrate from {name}: its colour filter array (pattern {shape}) is not a 2x2 "
-                          "Bayer mosaic; camsim calibrate reads 2x2 Bayer, 3-colour stacked and monochrome raws")
-    letters = "".join(_LETTER.get(desc[int(i)], "?") if int(i) < len(desc) else "?" for i in colours[:2, :2].ravel())
-    if sorted(letters) != ["B", "G", "G", "R"]:
-        raise CamsimError(f"cannot calibrate from {name}: its 2x2 colour filter array {letters!r} is not an RGB "
-                          "Bayer pattern")
-    return letters
-
-
 def _tiff_metadata(name: str) -> dict:
-    """``model`` (UniqueCameraModel, else Make + Model), ``iso`` and ``exposure_s`` (s) of a TIFF-based raw (DNG,
-    NEF, CR2, ARW, ...) from its first IFD and EXIF IFD; None for what it lacks, all None for other containers."""
-    import tifffile
-
-    from camsim.io.dng import shot_metadata
-
-    try:
-        with tifffile.TiffFile(name) as tif:
-            page = tif.pages.first
-            tags = page.tags
-            unique = tags.get(50708)
-            if unique is not None and str(unique.value).strip():
-                model = str(unique.value).strip()
-            else:
-                make, model_tag = tags.get(271), tags.get(272)
-                parts = [str(t.value).strip() for t in (make, model_tag) if t is not None and str(t.value).strip()]
-                if len(parts) == 2 and parts[1].startswith(parts[0]):
-                    parts = parts[1:]
-                model = " ".join(parts) or None
-            return {"model": model, **shot_metadata(page)}
-    except Exception:  # not a TIFF container (CR3, RAF, ...): the model is then unknown
+    """``model`` (UniqueCameraModel, else Make + Model: :func:`camsim.io.raw_capture.camera_name`), ``iso`` and
+    ``exposure_s`` (s) of a TIFF-based raw (DNG, NEF, CR2, ARW, ...) from its first IFD and EXIF IFD; None for what
+    it lacks, all None for other containers."""
+    shot = tiff_shot(name)
+    if shot is None:  # not a TIFF container (CR3, RAF, ...): the model is then unknown
         return {"model": None, "iso": None, "exposure_s": None}
+    return {"model": camera_name(shot), "iso": shot.iso, "exposure_s": shot.exposure_s}
 
 
 def _finite_number(value) -> float | None:
@@ -236,7 +207,7 @@ def read_raw(path, *, metadata: bool = False) -> RawFrame:
                 layout_kind, cfa = "mono", None
                 image = np.array(image, dtype=np.uint16, copy=True)
             else:
-                layout_kind, cfa = "bayer", _cfa_pattern(raw, name)
+                layout_kind, cfa = "bayer", libraw_cfa(raw, f"cannot calibrate from {name}", _ACCEPTS)
                 image = np.array(image, dtype=np.uint16, copy=True)
             white = int(raw.white_level)
             iso = float(raw.other.iso_speed) if raw.other.iso_speed and raw.other.iso_speed > 0 else None

@@ -91,6 +91,7 @@ MIN_SIZE = 22  # LibRaw refuses raw images narrower or shorter than this (measur
 _DNG_VERSION, _DNG_BACKWARD_VERSION, _UNIQUE_CAMERA_MODEL = 50706, 50707, 50708
 _BLACK_LEVEL_REPEAT_DIM, _BLACK_LEVEL, _WHITE_LEVEL = 50713, 50714, 50717
 _COLOR_MATRIX1, _AS_SHOT_NEUTRAL, _CALIBRATION_ILLUMINANT1 = 50721, 50728, 50778
+_COLOR_MATRIX2, _CALIBRATION_ILLUMINANT2 = 50722, 50779
 _MAKE, _MODEL, _ORIENTATION = 271, 272, 274
 _CFA_REPEAT_PATTERN_DIM, _CFA_PATTERN, _CFA_PLANE_COLOR, _CFA_LAYOUT = 33421, 33422, 50710, 50711
 _NOISE_PROFILE = 51041  # DNG 1.3: DOUBLE, (S, O) per colour plane
@@ -261,7 +262,8 @@ def _append_exif_ifd(path: str | os.PathLike[str], entries: list[tuple[int, int,
 def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_camera_model: str, color_matrix1: Any,
               as_shot_neutral: Any, calibration_illuminant1: int, make: str, model: str | None,
               pattern: str | None = None, noise_profile: Any = None, iso: Any = None,
-              exposure_s: Any = None) -> list[tuple]:
+              exposure_s: Any = None, color_matrix2: Any = None, calibration_illuminant2: Any = None,
+              orientation: Any = 1) -> list[tuple]:
     """Validate the metadata shared by both writers and return tifffile ``extratags`` for the DNG tags.
 
     ``pattern`` None gives the tags of a 3-sample LinearRaw DNG (one BlackLevel and WhiteLevel per sample); a
@@ -269,6 +271,8 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
     one WhiteLevel, and the per-colour black levels mapped onto the 2x2 CFA positions. ``noise_profile`` (pairs
     (S, O), see :func:`_noise_profile`) adds the NoiseProfile tag; None omits it; ``iso`` or ``exposure_s``
     add the ExifIFD pointer's stand-in (:func:`_append_exif_ifd` makes it the pointer after the write).
+    ``color_matrix2`` with ``calibration_illuminant2`` (both or neither) add ColorMatrix2 and
+    CalibrationIlluminant2; ``orientation`` is the TIFF Orientation (1..8).
     """
     black = _per_sample(black_level_dn, "black_level_dn")
     white = _per_sample(white_level, "white_level")
@@ -284,6 +288,22 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
         raise CamsimError(f"as_shot_neutral must be 3 positive values, got {neutral.tolist()}")
     if not (isinstance(calibration_illuminant1, (int, np.integer)) and 0 <= calibration_illuminant1 <= 65535):
         raise CamsimError(f"calibration_illuminant1 must be an EXIF LightSource code, got {calibration_illuminant1!r}")
+    second: list[tuple] = []
+    if color_matrix2 is not None or calibration_illuminant2 is not None:
+        cm2 = np.asarray(color_matrix2 if color_matrix2 is not None else np.nan, dtype=np.float64)
+        if color_matrix2 is None or calibration_illuminant2 is None or cm2.shape != (3, 3):
+            raise CamsimError("color_matrix2 (3x3) and calibration_illuminant2 go together, got "
+                              f"{'no matrix' if color_matrix2 is None else f'shape {cm2.shape}'} and "
+                              f"{calibration_illuminant2!r}")
+        if not (isinstance(calibration_illuminant2, (int, np.integer)) and not isinstance(calibration_illuminant2, bool)
+                and 0 <= calibration_illuminant2 <= 65535):
+            raise CamsimError(f"calibration_illuminant2 must be an EXIF LightSource code, got "
+                              f"{calibration_illuminant2!r}")
+        second = [(_COLOR_MATRIX2, "2i", 9, _rationals(cm2, "color_matrix2", signed=True), True),
+                  (_CALIBRATION_ILLUMINANT2, "H", 1, int(calibration_illuminant2), True)]
+    if not (isinstance(orientation, (int, np.integer)) and not isinstance(orientation, bool)
+            and 1 <= orientation <= 8):
+        raise CamsimError(f"orientation must be a TIFF Orientation, 1 to 8, got {orientation!r}")
     ucm = _ascii(unique_camera_model, "unique_camera_model")
     profile = _noise_profile(noise_profile)
     profile_tags = [] if profile is None else [(_NOISE_PROFILE, "d", len(profile), profile, True)]
@@ -312,7 +332,7 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
     return [  # (code, dtype, count, value, write-once); tifffile sorts tags by code
         (_MAKE, "s", 0, _ascii(make, "make"), True),
         (_MODEL, "s", 0, _ascii(ucm if model is None else model, "model"), True),
-        (_ORIENTATION, "H", 1, 1, True),
+        (_ORIENTATION, "H", 1, int(orientation), True),
         *layout_tags,
         (_DNG_VERSION, "B", 4, (1, 4, 0, 0), True),
         (_DNG_BACKWARD_VERSION, "B", 4, (1, 1, 0, 0), True),
@@ -323,6 +343,7 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
         (_COLOR_MATRIX1, "2i", 9, _rationals(cm, "color_matrix1", signed=True), True),
         (_AS_SHOT_NEUTRAL, "2I", 3, _rationals(neutral, "as_shot_neutral", signed=False), True),
         (_CALIBRATION_ILLUMINANT1, "H", 1, int(calibration_illuminant1), True),
+        *second,
         *profile_tags,
         *([(_EXIF_IFD_STAND_IN, "I", 1, 0, True)] if iso is not None or exposure_s is not None else []),
     ]
@@ -331,7 +352,8 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
 def _write(path: str | os.PathLike[str], frame: Any, cfa: bool, pattern: Any, black_level_dn: Any, white_level: Any,
            unique_camera_model: str, color_matrix1: Any, as_shot_neutral: Any, calibration_illuminant1: int,
            make: str, model: str | None, software: str | None, noise_profile: Any = None, iso: Any = None,
-           exposure_s: Any = None) -> None:
+           exposure_s: Any = None, color_matrix2: Any = None, calibration_illuminant2: Any = None,
+           orientation: Any = 1) -> None:
     """Validate everything, then write a three-chip (``cfa`` False, ``pattern`` None) or CFA DNG atomically."""
     name = os.fspath(path)
     try:
@@ -342,7 +364,7 @@ def _write(path: str | os.PathLike[str], frame: Any, cfa: bool, pattern: Any, bl
         exif = _exif_entries(iso, exposure_s)
         extratags = _dng_tags(frame.dtype, black_level_dn, white_level, unique_camera_model, color_matrix1,
                               as_shot_neutral, calibration_illuminant1, make, model, pattern, noise_profile, iso,
-                              exposure_s)
+                              exposure_s, color_matrix2, calibration_illuminant2, orientation)
         software_tag = _ascii(software, "software") if software is not None else False
     except (TypeError, ValueError) as exc:  # CamsimError is a ValueError; so are numpy's failed conversions
         raise CamsimError(f"cannot write DNG {name}: {exc}") from None
@@ -420,7 +442,8 @@ def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: 
                   white_level: int, unique_camera_model: str, color_matrix1: Any, as_shot_neutral: Any,
                   calibration_illuminant1: int = 21, make: str = "camsim", model: str | None = None,
                   software: str | None = None, noise_profile: Any = None, iso: float | None = None,
-                  exposure_s: float | None = None) -> None:
+                  exposure_s: float | None = None, color_matrix2: Any = None,
+                  calibration_illuminant2: int | None = None, orientation: int = 1) -> None:
     """Write an uncompressed Bayer (CFA) DNG, atomically and byte-deterministically.
 
     Parameters
@@ -444,6 +467,13 @@ def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: 
         As for :func:`write_dng`; ``color_matrix1`` maps XYZ to the camera's R, G, B (CFAPlaneColor order).
     noise_profile : array_like, shape (3, 2) or (1, 2), optional
         As for :func:`write_dng`, per colour plane in CFAPlaneColor order (R, G, B); None (default): no tag.
+    color_matrix2 : array_like, shape (3, 3), optional
+        A second XYZ -> camera matrix (DNG ColorMatrix2), for ``calibration_illuminant2``; both or neither (None,
+        the default: no tags), so that a file made from a camera's raw keeps both of its matrices.
+    calibration_illuminant2 : int, optional
+        EXIF LightSource code of ``color_matrix2``'s illuminant (DNG CalibrationIlluminant2).
+    orientation : int, optional
+        TIFF Orientation, 1 (default: as stored) to 8, how a reader turns the stored image to show it.
 
     Raises
     ------
@@ -456,7 +486,8 @@ def write_dng_cfa(path: str | os.PathLike[str], mosaic: np.ndarray, *, pattern: 
     The file has no date/time or other varying content: the same inputs give byte-identical files.
     """
     _write(path, mosaic, True, pattern, black_level_dn, white_level, unique_camera_model, color_matrix1,
-           as_shot_neutral, calibration_illuminant1, make, model, software, noise_profile, iso, exposure_s)
+           as_shot_neutral, calibration_illuminant1, make, model, software, noise_profile, iso, exposure_s,
+           color_matrix2, calibration_illuminant2, orientation)
 
 
 #: darktable's sidecar of ``NAME.dng``: ``NAME.dng.xmp`` (its default naming, read on import and by darktable-cli).
@@ -675,7 +706,9 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
         files), ``black_level_exact`` (list of 3 float, the BlackLevel tag; for a CFA file per colour R, G, B),
         ``white_level`` (int [DN], LibRaw), ``unique_camera_model``, ``make``, ``model`` (str or None),
         ``as_shot_neutral`` (list of 3 float), ``color_matrix1`` (3x3 nested list, XYZ -> camera) and
-        ``calibration_illuminant1`` (int or None), ``noise_profile`` (list of [S, O] pairs, per sample or CFA
+        ``calibration_illuminant1`` (int or None), ``color_matrix2`` and ``calibration_illuminant2`` (None where
+        the file has no second matrix), ``orientation`` (int, the TIFF Orientation, 1 where absent),
+        ``noise_profile`` (list of [S, O] pairs, per sample or CFA
         plane colour, or None), ``iso`` (float or None) and ``exposure_s`` (float [s] or None), from the DNG tags
         (:func:`shot_metadata`).
 
@@ -713,6 +746,7 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
             _check_storage(page, name)
             _check_complete(page, tif.filehandle.size, name)
             cm = _floats(_tag(page, _COLOR_MATRIX1))
+            cm2 = _floats(_tag(page, _COLOR_MATRIX2))
             info: dict[str, Any] = {
                 "cfa_pattern": pattern,
                 "unique_camera_model": _tag(page, _UNIQUE_CAMERA_MODEL),
@@ -722,6 +756,9 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
                 "as_shot_neutral": _floats(_tag(page, _AS_SHOT_NEUTRAL)),
                 "color_matrix1": None if cm is None else np.reshape(cm, (3, 3)).tolist(),
                 "calibration_illuminant1": _tag(page, _CALIBRATION_ILLUMINANT1),
+                "color_matrix2": None if cm2 is None else np.reshape(cm2, (3, 3)).tolist(),
+                "calibration_illuminant2": _tag(page, _CALIBRATION_ILLUMINANT2),
+                "orientation": int(_tag(page, _ORIENTATION) or 1),
                 "noise_profile": _pairs(_tag(page, _NOISE_PROFILE)),
                 **shot_metadata(page),
             }
