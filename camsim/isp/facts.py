@@ -150,8 +150,11 @@ def facts_from_meta(meta: dict, quantised: bool) -> IspFacts:
             as_shot_neutral=np.asarray(meta["as_shot_neutral"], dtype=np.float64),
             intensity_factor=float(meta["intensity_factor"]),
             illuminant=meta.get("illuminant"),
-            wavelengths_nm=np.asarray(meta["wavelengths_nm"], dtype=np.float64),
-            qe=np.asarray(meta["qe_e_m2_sr_per_photon"], dtype=np.float64),
+            # a raw scene's frame has no curves: its colour is its ColorMatrix1
+            wavelengths_nm=(np.asarray(meta["wavelengths_nm"], dtype=np.float64)
+                            if meta.get("wavelengths_nm") is not None else None),
+            qe=(np.asarray(meta["qe_e_m2_sr_per_photon"], dtype=np.float64)
+                if meta.get("qe_e_m2_sr_per_photon") is not None else None),
             color_matrix1=(np.asarray(meta["color_matrix1_xyz_to_camera"], dtype=np.float64)
                            if meta.get("color_matrix1_xyz_to_camera") is not None else None),
             white_signal_dn=(np.asarray(meta["white_signal_e"], dtype=np.float64) * float(meta["dn_per_electron"])

@@ -260,21 +260,7 @@ def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo
         )
         if "xmp" in files:  # darktable reads no BlackLevel of a three-chip DNG: its own sidecar holds it
             write_text_atomic(out_dir / files["xmp"], darktable_xmp(sensor.black_level_tag_dn, sensor.max_dn))
-    header = {
-        "camsim:scene": info.scene,
-        "camsim:illuminant": info.illuminant,
-        "camsim:intensity_factor": repr(info.intensity_factor),
-        "camsim:seed": str(info.seed),
-        "camsim:photon_statistics": info.photon_statistics,
-        "camsim:method": info.method,
-        "camsim:camera": info.camera,
-        "camsim:dn_per_electron": repr(sensor.dn_per_electron),
-        "camsim:black_level_dn": json.dumps(sensor.black_level_dn.tolist()),
-        "camsim:dark_level_dn": json.dumps(sensor.dark_level_dn.tolist()),  # the mean of these values in the dark
-        "camsim:white_level_dn": str(sensor.max_dn),
-        "camsim:units": "DN (layers noisy and clean; R, G, B: see camsim:view)",
-        EXR_METADATA_KEY: json.dumps(meta, ensure_ascii=False),
-    }
+    header = exr_header(meta, sensor)
     view, view_header = exr_view(frame, info)
     header.update(view_header)
     write_exr(out_dir / files["exr"], frame.noisy_dn, frame.clean_dn(), header, exr_compression, view=view)
@@ -282,6 +268,26 @@ def _write_pixel_files(out_dir: Path, files: dict, frame: Frame, info: FrameInfo
         from camsim.render.preview import preview_srgb, write_preview_png
 
         write_preview_png(out_dir / files["png"], preview_srgb(frame, info))
+
+
+def exr_header(meta: dict, sensor) -> dict:
+    """The EXR header attributes of a frame with sidecar ``meta`` and sensor ``sensor`` (besides its view's): the
+    keys that tell frames apart, the levels, and the whole sidecar under :data:`EXR_METADATA_KEY`."""
+    return {
+        "camsim:scene": meta["scene"],
+        "camsim:illuminant": meta["illuminant"],
+        "camsim:intensity_factor": repr(meta["intensity_factor"]),
+        "camsim:seed": str(meta["seed"]),
+        "camsim:photon_statistics": meta["photon_statistics"],
+        "camsim:method": meta["method"],
+        "camsim:camera": meta["camera"],
+        "camsim:dn_per_electron": repr(sensor.dn_per_electron),
+        "camsim:black_level_dn": json.dumps(sensor.black_level_dn.tolist()),
+        "camsim:dark_level_dn": json.dumps(sensor.dark_level_dn.tolist()),  # the mean of these values in the dark
+        "camsim:white_level_dn": str(sensor.max_dn),
+        "camsim:units": "DN (layers noisy and clean; R, G, B: see camsim:view)",
+        EXR_METADATA_KEY: json.dumps(meta, ensure_ascii=False),
+    }
 
 
 #: What the EXR's ``R, G, B`` hold, by the matrix that made them (the header's ``camsim:view``).
@@ -328,17 +334,22 @@ def exr_view(frame: Frame, info: FrameInfo) -> tuple[np.ndarray, dict[str, str]]
         if np.all(np.isfinite(transform)):
             return (linear_srgb(frame, info, matrix=matrix, transform=transform),
                     {"camsim:view": VIEW_DESCRIPTIONS[matrix], "camsim:view_matrix": json.dumps(transform.tolist())})
-    sensor = frame.sensor
+    return camera_view(frame.noisy_dn, frame.sensor)
+
+
+def camera_view(noisy_dn: np.ndarray, sensor) -> tuple[np.ndarray, dict[str, str]]:
+    """The ``camera`` picture of :func:`exr_view` (:data:`VIEW_DESCRIPTIONS`) of values ``noisy_dn`` (3, H, W) or a
+    mosaic (1, H, W), and its header attributes: (DN − dark level) / (white level − dark level), a mosaic as grey."""
     black = np.minimum(sensor.dark_level_dn, sensor.max_dn - 1.0)  # below the white level: a positive scale
-    view = np.empty((3, *frame.noisy_dn.shape[1:]), dtype=np.float32)
+    view = np.empty((3, *noisy_dn.shape[1:]), dtype=np.float32)
     if sensor.cfa is None:
         for c in range(3):
-            view[c] = (frame.noisy_dn[c].astype(np.float64) - black[c]) / (sensor.max_dn - black[c])
+            view[c] = (noisy_dn[c].astype(np.float64) - black[c]) / (sensor.max_dn - black[c])
     else:
         from camsim.sensor.cfa import cfa_sites
 
         for dy, dx, c in cfa_sites(sensor.cfa):
-            view[0, dy::2, dx::2] = ((frame.noisy_dn[0, dy::2, dx::2].astype(np.float64) - black[c])
+            view[0, dy::2, dx::2] = ((noisy_dn[0, dy::2, dx::2].astype(np.float64) - black[c])
                                      / (sensor.max_dn - black[c]))
         view[1:] = view[0]
     return view, {"camsim:view": VIEW_DESCRIPTIONS["camera"], "camsim:view_black_dn": json.dumps(black.tolist())}
@@ -348,22 +359,18 @@ def camera_identity(info: FrameInfo) -> dict:
     """The DNG's ``make``, ``model`` and ``unique_camera_model`` (ASCII) for a frame.
 
     With a camera preset at one of its ISO settings (the sidecar's ``iso``; a gain set on top of the preset, as
-    a virtual camera's, is no setting of that camera), the camera's: Make is the first word of the preset's
-    title, Model the model code in its parentheses where it has one without spaces (``"Sony A7S2 (ILCE-7SM2)"`` →
-    Sony, ILCE-7SM2), else the title up to a parenthesis or comma (``"Nikon D850"``), UniqueCameraModel Make and
-    Model (``"Sony ILCE-7SM2"``; once where Model starts with Make). Otherwise camsim's own: Make ``camsim``,
+    a virtual camera's, is no setting of that camera), the camera's, from the preset's title
+    (:func:`camsim.sensor.presets.model.camera_identity_of_title`: ``"Sony A7S2 (ILCE-7SM2)"`` → Sony, ILCE-7SM2,
+    ``"Sony ILCE-7SM2"``). Otherwise camsim's own: Make ``camsim``,
     Model the spectral curves' name, UniqueCameraModel ``"camsim " + curves``. A calibration of the files names
     its preset after the UniqueCameraModel (``camsim calibrate``).
     """
     title = (info.preset or {}).get("preset_title")
     if not title or (info.preset or {}).get("iso") is None:
         return {"make": "camsim", "model": info.camera, "unique_camera_model": f"camsim {info.camera}"}
-    title = " ".join(title.encode("ascii", "replace").decode("ascii").split())
-    make = title.split(" ")[0]
-    code = re.search(r"\(([^()\s,]+)\)", title)
-    model = code.group(1) if code else re.split(r"[(,]", title)[0].strip()
-    unique = model if model.lower().startswith(make.lower()) else f"{make} {model}"
-    return {"make": make, "model": model, "unique_camera_model": unique}
+    from camsim.sensor.presets.model import camera_identity_of_title
+
+    return camera_identity_of_title(title)
 
 
 # --- reading ----------------------------------------------------------------------------------------------

@@ -121,5 +121,10 @@ class FrameManifest:
     def commit(self, info: FrameInfo, files: dict) -> None:
         """Add (or replace in place) the frame ``info`` that has just committed with ``files``, and write the
         manifest."""
-        self.entries[files["json"]] = {**{key: getattr(info, key) for key in _ENTRY_KEYS}, "files": files}
+        self.commit_entry({**{key: getattr(info, key) for key in _ENTRY_KEYS}, "files": files})
+
+    def commit_entry(self, entry: dict) -> None:
+        """Add (or replace in place) a frame's entry (:func:`manifest_entry` of its sidecar) that has just
+        committed, and write the manifest."""
+        self.entries[entry["files"]["json"]] = entry
         self.write()

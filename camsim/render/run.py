@@ -21,7 +21,12 @@ from camsim.light.spectra import illuminant_spd
 
 def check_scene(scene: Scene) -> None:
     """Fail early, before any frame is written, on names that do not resolve (or make unsafe file names:
-    :mod:`camsim.core.names`) and sizes that cannot be written."""
+    :mod:`camsim.core.names`) and sizes that cannot be written. A raw scene is checked by
+    :func:`camsim.render.raw_render.check_raw_scene`."""
+    if scene.source.table == "raw":
+        from camsim.render.raw_render import check_raw_scene
+
+        return check_raw_scene(scene)
     get_method(scene.method)
     for name in scene.illuminants:
         illuminant_spd(name, scene.grid)
@@ -60,6 +65,13 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
     dict
         The manifest: per frame of the folder, scene, illuminant, F, seed and file paths relative to ``out_dir``.
     """
+    if scene.source.table == "raw":  # drawn from the file's electrons, not from spectra
+        from camsim.render.raw_render import render_raw_scene
+
+        if preview or device != "cpu":
+            raise CamsimError("a raw scene's frames are drawn on the CPU and have no preview (develop them with "
+                              "camsim develop)")
+        return render_raw_scene(scene, out_dir, workers=workers, progress=progress, exr_compression=exr_compression)
     check_scene(scene)
     check_exr_compression(exr_compression)
     if device != "cpu":

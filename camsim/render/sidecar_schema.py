@@ -21,6 +21,9 @@ from camsim.core.errors import CamsimError
 REQUIRED = ("illuminant", "intensity_factor", "photon_statistics", "dn_per_electron", "black_level_dn",
             "wavelengths_nm", "qe_e_m2_sr_per_photon", "patches", "stages", "bits", "white_level_dn", "width_px",
             "height_px", "full_well_e", "read_noise_e", "exposure_s")
+#: Keys of :data:`REQUIRED` a raw scene's frame (``"scene_source": "raw"``) does without: a real camera's raw has
+#: no spectral curves in camsim (its colour is its ColorMatrix1).
+RAW_OPTIONAL = ("wavelengths_nm", "qe_e_m2_sr_per_photon")
 #: Most wavelength samples a sidecar may hold (camsim's finest grid is 1 nm over 360–830 nm: 471).
 MAX_WAVELENGTHS = 100_000
 _SHOWN = 60  # characters of a bad value shown in a message
@@ -133,6 +136,7 @@ def _noise_profile(value):
 FRAME_KEYS = {
     "camsim_version": _string,
     "scene": _string,
+    "scene_source": lambda v: _string(v, ("raw",)),
     "illuminant": _string,
     "intensity_factor": lambda v: _number(v, above=0),
     "seed": _optional(lambda v: _integer(v, low=0)),
@@ -256,7 +260,9 @@ def check_sidecar(meta, where) -> dict:
         raise CamsimError(f"{where}: metadata is not a JSON object")
     if _too_deep(meta):
         raise CamsimError(f"{where}: metadata nests lists and objects more than {MAX_DEPTH} deep (not a camsim frame)")
-    missing = [key for key in REQUIRED if key not in meta]
+    # a raw scene's frame (scene_source "raw") has no spectral curves: its camera is a real one, known by its matrix
+    raw = meta.get("scene_source") == "raw"
+    missing = [key for key in REQUIRED if key not in meta and not (raw and key in RAW_OPTIONAL)]
     if missing:
         raise CamsimError(f"{where}: metadata lacks {', '.join(missing)} (not a camsim frame?)")
     try:
@@ -291,7 +297,8 @@ def check_sidecar(meta, where) -> dict:
                 _number(meta["tukey_lambda"], above=-0.5, below=1)
             except _Bad as exc:
                 raise _Bad(str(exc), "tukey_lambda", meta["tukey_lambda"]) from None
-        _check_curves(meta)
+        if not raw or "wavelengths_nm" in meta or "qe_e_m2_sr_per_photon" in meta:
+            _check_curves(meta)
         if not isinstance(meta["patches"], list):
             raise _Bad("a list of patches", "patches", meta["patches"])
         for index, patch in enumerate(meta["patches"]):

@@ -24,12 +24,14 @@ from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
 from camsim.scene.regions import Region, check_regions, parse_regions
 from camsim.core.names import safe_component
 from camsim.core.schema import Param, check_frame_size, finite_float, param, params_of, read_toml, typed, validate
-from camsim.sensor.presets import sensor_preset
+from camsim.sensor.presets import camera_preset, sensor_preset
 from camsim.sensor.params import SENSOR_PARAMS, SensorParams
 from camsim.scene.sources import SOURCES, ChartSource, SceneSource
 from camsim.light.spectra import WavelengthGrid
 
 STATISTICS = ("pixel", "paper")
+#: A raw scene's frames are under its own light, as shot (:mod:`camsim.scene.sources.raw`).
+RAW_SCENE_ILLUMINANTS = ("as-shot",)
 EXPOSURE_MODES = ("fixed", "auto")
 NORMALISATIONS = ("chart", "per-spectrum")
 
@@ -173,6 +175,27 @@ def _table(doc: dict, key: str, allowed: set, where: str) -> dict:
 
 
 
+def _raw_scene_defaults(source, light: dict, sensor_table: dict, given: str | None, iso: float | None, where: str):
+    """A raw scene's source, illuminants, preset and ISO, and its sensor's defaults (set in ``sensor_table``).
+
+    The light is the file's: no illuminants (:data:`RAW_SCENE_ILLUMINANTS`). The source camera's preset is resolved
+    now (``[raw] preset``, else the file's Make and Model, else ``[sensor] preset``) and kept in the source, so that
+    a preset given later for the frames (``--preset``) changes the frames' sensor, not the source's gain. The frames'
+    sensor is the source camera's unless ``[sensor] preset`` names another, at the file's ISO unless ``[sensor] iso``
+    says, exposed as long as the source unless ``[sensor] exposure_s`` says, with the file's colour filter array."""
+    if "illuminants" in light:
+        raise CamsimError(f"{where}: a raw scene is lit by its own light: [light] illuminants does not apply")
+    source = dataclasses.replace(source, preset=source.source_preset(given))
+    preset_name = given if given is not None else source.preset
+    if iso is None and camera_preset(preset_name, source.base_dir) is not None:
+        iso = source.source_iso
+    sensor_table.setdefault("exposure_s", source.source_exposure_s)
+    if sensor_table.setdefault("cfa", source.cfa) != source.cfa:
+        raise CamsimError(f"{where}: a raw scene's colour filter array is its file's ({source.cfa}), got [sensor] "
+                          f"cfa = {sensor_table['cfa']!r}")
+    return source, list(RAW_SCENE_ILLUMINANTS), preset_name, iso
+
+
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene file, given by its path or by a built-in scene's name (``macbeth_26``).
 
@@ -236,6 +259,9 @@ def load_scene(path: str | Path) -> Scene:
     iso = _FRAME_PARAMS["iso"].coerce(sensor_table.pop("iso", None), f"{where} [sensor]")
     sensor_table = {p.name: p.coerce(sensor_table[p.name], f"{where} [sensor]")
                     for p in SENSOR_PARAMS if p.name in sensor_table}
+    if source.table == "raw":
+        given = doc.get("sensor", {}).get("preset")  # (checked above to be a name)
+        source, illuminants, preset_name, iso = _raw_scene_defaults(source, light, sensor_table, given, iso, where)
 
     regions = parse_regions(doc["region"], where) if "region" in doc else ()
     if regions and not source.has_own_size:  # an image's or a cube's size is checked when it is read

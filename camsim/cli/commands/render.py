@@ -183,7 +183,7 @@ def run(args) -> int:
 
 
 #: The kinds of file a frame can have, in the order the summary names them.
-FILE_KINDS = {"dng": "DNG", "xmp": "darktable XMP", "exr": "EXR", "json": "JSON", "png": "PNG"}
+FILE_KINDS = {"dng": "DNG", "xmp": "darktable XMP", "exr": "EXR", "json": "JSON", "png": "PNG", "mask": "mask PNG"}
 
 
 def _frames(n: int) -> str:

@@ -53,6 +53,16 @@ def camera_preset(name: str, base_dir: str | Path | None = None) -> CameraPreset
     raise CamsimError(f"unknown preset {name!r}; presets: {', '.join(preset_names())}, or a preset file PATH.toml")
 
 
+def preset_for_camera(make: str | None, model: str | None, unique_camera_model: str | None = None) -> str | None:
+    """The name of the first built-in camera preset whose camera a raw file's Make and Model (or UniqueCameraModel)
+    name (:meth:`CameraPreset.matches`), or None. Where two presets describe one camera (``sony-a7s2`` and
+    ``sony-a7s2-eld``) the first listed wins; only presets of Bayer sensors are candidates."""
+    for name, camera in CAMERA_PRESETS.items():
+        if camera.cfa is not None and camera.matches(make, model, unique_camera_model):
+            return name
+    return None
+
+
 def sensor_preset(name: str, iso: float | None = None, base_dir: str | Path | None = None,
                   **overrides) -> SensorParams:
     """The sensor of preset ``name`` at ``iso``, with sensor parameters ``overrides`` applied last.
@@ -70,4 +80,4 @@ def sensor_preset(name: str, iso: float | None = None, base_dir: str | Path | No
 
 
 __all__ = ["CAMERA_PRESETS", "CameraPreset", "IsoPoint", "NoiseFit", "camera_preset", "is_preset_file",
-           "preset_names", "read_preset_file", "sensor_preset"]
+           "preset_for_camera", "preset_names", "read_preset_file", "sensor_preset"]

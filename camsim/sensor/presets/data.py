@@ -9,6 +9,8 @@ colour-science's ``Nikon 5100 (NPL)`` by default).
 
 from __future__ import annotations
 
+import dataclasses
+
 import math
 
 from camsim.sensor.presets.model import CameraPreset, IsoPoint, NoiseFit
@@ -181,7 +183,7 @@ def _imx363() -> CameraPreset:
     return CameraPreset(name="sony-imx363", title="Sony IMX363 (Google Pixel 4a), ISETCam model",
                         source="ISETCam sensor/models/sensorIMX363.m (MIT licence)", iso_points=points, bits=10,
                         pedestal_dn=64, full_well_e=6000.0, conversion_gain_v_per_e=conversion,
-                        read_noise_model="gaussian", notes=notes)
+                        read_noise_model="gaussian", notes=notes, raw_models=(("Google", "Pixel 4a"),))
 
 
 def _single(name: str, title: str, source: str, bits: int, k: float, full_well: float, read_e: float,
@@ -205,8 +207,10 @@ def build_presets() -> dict:
                     ELD_TUKEY_SHAPES["Canon EOS 5D Mark IV"]),
         _eld_preset("canon-eos-70d", "Canon EOS 70D", ELD.format(file="CanonEOS70D"), 2048,
                     ELD_TUKEY_SHAPES["Canon EOS 70D"]),
-        _eld_preset("canon-eos-700d", "Canon EOS 700D", ELD.format(file="CanonEOS700D"), 2048,
-                    ELD_TUKEY_SHAPES["Canon EOS 700D"]),
+        dataclasses.replace(
+            _eld_preset("canon-eos-700d", "Canon EOS 700D", ELD.format(file="CanonEOS700D"), 2048,
+                        ELD_TUKEY_SHAPES["Canon EOS 700D"]),
+            raw_models=(("Canon", "Canon EOS REBEL T5i"), ("Canon", "Canon EOS Kiss X7i"))),
         _a7m4(),
         _imx363(),
         _single("sony-imx174", "Sony IMX174 machine-vision camera (EMVA 1288)",

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -154,6 +155,9 @@ class CameraPreset:
         The published Tukey shapes (ELD: one per calibrated ISO step), drawn from by virtual cameras.
     notes : tuple of str
         What the preset assumes beyond its source (levels, the ISO of K_min, the curves).
+    raw_models : tuple of (str, str)
+        (Make, Model) as the camera writes them into its raw files, where they differ from :meth:`identity`'s
+        (a ``[raw]`` scene's file is matched against both: :meth:`matches`).
     """
 
     name: str
@@ -172,6 +176,7 @@ class CameraPreset:
     k_range_dn_per_e: tuple | None = None
     tukey_shapes: tuple = ()
     notes: tuple = ()
+    raw_models: tuple = ()
 
     def __post_init__(self):
         if not self.iso_points:
@@ -191,6 +196,22 @@ class CameraPreset:
             object.__setattr__(self, "full_well_e", float(well))
         if self.conversion_gain_v_per_e is None:  # nominal: 1 V at the full well (only K reaches the numbers)
             object.__setattr__(self, "conversion_gain_v_per_e", 1.0 / self.full_well_e)
+
+    def identity(self) -> dict:
+        """The camera's ``make``, ``model`` and ``unique_camera_model`` (ASCII), from its title
+        (:func:`camera_identity_of_title`): what camsim's DNGs of this camera say."""
+        return camera_identity_of_title(self.title)
+
+    def matches(self, make: str | None, model: str | None, unique_camera_model: str | None = None) -> bool:
+        """Whether a raw file's Make and Model (or its DNG UniqueCameraModel) name this camera: compared by
+        :func:`camera_key` with :meth:`identity` and :attr:`raw_models`."""
+        ident = self.identity()
+        mine = {camera_key(ident["make"], ident["model"])} | {camera_key(*m) for m in self.raw_models}
+        theirs = {camera_key(make, model)} if make and model else set()
+        if unique_camera_model:
+            first, _, rest = unique_camera_model.strip().partition(" ")
+            theirs.add(camera_key(first, rest or first))
+        return bool(mine & theirs)
 
     @property
     def iso_range(self) -> tuple:
@@ -283,3 +304,29 @@ class CameraPreset:
             axis = f"one setting (ISO {lo:g}), K {k_lo:.4g} DN/e⁻"
         return (f"{self.name}: {self.title}; {axis}, {self.bits}-bit, black {self.pedestal_dn} DN; "
                 f"source: {self.source}")
+
+
+def camera_identity_of_title(title: str) -> dict:
+    """``make``, ``model`` and ``unique_camera_model`` (ASCII) of a camera preset's title.
+
+    Make is the title's first word, Model the model code in its parentheses where it has one without spaces
+    (``"Sony A7S2 (ILCE-7SM2)"`` → Sony, ILCE-7SM2), else the title up to a parenthesis or comma (``"Nikon D850"``),
+    UniqueCameraModel Make and Model (``"Sony ILCE-7SM2"``; once where Model starts with Make).
+    """
+    title = " ".join(title.encode("ascii", "replace").decode("ascii").split())
+    make = title.split(" ")[0]
+    code = re.search(r"\(([^()\s,]+)\)", title)
+    model = code.group(1) if code else re.split(r"[(,]", title)[0].strip()
+    unique = model if model.lower().startswith(make.lower()) else f"{make} {model}"
+    return {"make": make, "model": model, "unique_camera_model": unique}
+
+
+def camera_key(make: str, model: str) -> str:
+    """A camera's name for matching: the first word of Make and the Model without it, lower case, letters and
+    digits only (``("NIKON CORPORATION", "NIKON D850")`` and ``("Nikon", "D850")`` → ``nikond850``)."""
+    def squeeze(text: str) -> str:
+        return re.sub(r"[^a-z0-9]", "", str(text).lower())
+
+    brand = squeeze(str(make).split(" ")[0]) if str(make).split() else ""
+    name = squeeze(model)
+    return brand + (name[len(brand):] if brand and name.startswith(brand) else name)
