@@ -55,7 +55,7 @@ OUTCOMES = ("hang", "crash", "memory", "traceback", "outside", "partial", "multi
 #: The outcomes that meet the issue's standard: exit 0, or exit 2 with one ``camsim: error:`` line.
 GOOD = ("ok", "refused")
 #: Every kind of case, in the order the totals list them.
-KINDS = ("scene", "spec", "sidecar", "preset", "dng", "exr", "png", "cube")
+KINDS = ("scene", "spec", "sidecar", "preset", "dng", "exr", "png", "cube", "raw")
 
 #: Size of the seed frames (pixels) and of the frames the mutated scenes render.
 SEED_SIZE = (48, 32)
@@ -470,6 +470,8 @@ class Seeds:
     png: bytes
     cube_body: bytes
     dng_entries: list = dataclasses.field(default_factory=list)
+    raw_dng: bytes = b""  # a Bayer DNG of a camera preset (Sony ILCE-7SM2): a [raw] scene's file
+    raw_entries: list = dataclasses.field(default_factory=list)
     exr_attributes: dict = dataclasses.field(default_factory=dict)
     _bomb: bytes | None = None
 
@@ -508,6 +510,12 @@ def build_seeds(folder: Path) -> Seeds:
     (dng,) = frames.glob("*.dng")
     frame = {"stem": dng.stem, "dng": dng.read_bytes(), "exr": dng.with_suffix(".exr").read_bytes(),
              "json": dng.with_suffix(".json").read_bytes()}
+    raws = folder / "raws"
+    if not (raws / "manifest.json").exists():
+        _quiet_main(["render", "macbeth_26", "--size", "x".join(map(str, SEED_SIZE)), "--illuminant", "D65",
+                     "--intensity", "1", "--preset", "sony-a7s2", "--iso", "100", "-q", "--workers", "1",
+                     "--out", str(raws)])
+    (raw_dng,) = raws.glob("*.dng")
     scenes = {}
     for path in sorted(SCENES.glob("*.toml")):
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
@@ -525,6 +533,8 @@ def build_seeds(folder: Path) -> Seeds:
     seeds = Seeds(folder=folder, scenes=scenes, spec=spec, preset=PRESET_FILE, frame=frame,
                   sidecar=json.loads(frame["json"]), png=png_bytes(*SEED_SIZE), cube_body=cube.tobytes())
     seeds.dng_entries = tiff_entries(frame["dng"])
+    seeds.raw_dng = raw_dng.read_bytes()
+    seeds.raw_entries = tiff_entries(seeds.raw_dng)
     seeds.exr_attributes = exr_attributes(frame["exr"])
     _warm_up(seeds)
     return seeds
@@ -641,7 +651,18 @@ def make_case(seeds: Seeds, kind: str, ops, choice=0, label="") -> Case:
         scene = {"name": "cube", "cube": {"path": "c.npy"}, "light": {"illuminants": ["D65"]}}
         return Case(kind, {"c.npy": apply_npy_ops(seeds.cube_body, ops), "scene.toml": to_toml(scene)},
                     scene_argv(), label)
+    if kind == "raw":  # a [raw] scene: its file's bytes mutated, or its table's values
+        if choice % 2 == 0:
+            return Case(kind, {"src.dng": apply_dng_ops(seeds.raw_dng, ops), "scene.toml": to_toml(RAW_SCENE)},
+                        scene_argv(), label)
+        return Case(kind, {"src.dng": seeds.raw_dng, "scene.toml": to_toml(apply_tree_ops(RAW_SCENE, ops))},
+                    scene_argv(), label)
     raise ValueError(kind)
+
+
+#: The seed scene of the ``raw`` kind: a crop of the seed camera DNG, two frames darker than it.
+RAW_SCENE = {"name": "raw", "raw": {"path": "src.dng", "crop": [2, 2, 44, 28], "photon_law": "thin"},
+             "light": {"intensity_factors": [0.1, 0.01]}, "sensor": {"iso": 3200}}
 
 
 #: Keys whose value becomes part of a file name (issue 24, point 1).
@@ -660,12 +681,15 @@ FAMILIES = {
     "exr": ("bytes",),
     "png": ("bytes",),
     "cube": ("bytes",),
+    "raw": ("bytes", "values"),
 }
 
 
 def _ops_for(seeds: Seeds, kind: str, family: str, doc=None):
     if kind == "dng":
         return dng_ops(seeds.dng_entries)
+    if kind == "raw" and family == "bytes":
+        return dng_ops(seeds.raw_entries)
     if kind == "exr":
         return exr_ops(seeds.exr_attributes)
     if kind == "png":
@@ -690,6 +714,8 @@ def case_strategy(draw, seeds: Seeds, kind: str, family: str | None = None) -> C
     if kind == "scene":
         choice = draw(st.integers(0, len(seeds.scenes) - 1))
         doc = seeds.scenes[sorted(seeds.scenes)[choice]]
+    elif kind == "raw":  # choice 0 mutates the file's bytes, 1 the [raw] scene's values
+        choice, doc = (0, None) if family == "bytes" else (1, RAW_SCENE)
     else:
         choice = draw(st.integers(0, 1))
         doc = {"spec": seeds.spec, "sidecar": seeds.sidecar, "preset": seeds.preset}.get(kind)

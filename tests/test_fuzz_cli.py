@@ -216,6 +216,20 @@ def test_fuzz_cube_bytes(case):
 
 
 @pytest.mark.slow
+@fuzz_settings()
+@given(case=cases("raw", "bytes"))
+def test_fuzz_raw_bytes(case):
+    check(case)
+
+
+@pytest.mark.slow
+@fuzz_settings()
+@given(case=cases("raw", "values"))
+def test_fuzz_raw_values(case):
+    check(case)
+
+
+@pytest.mark.slow
 def test_develop_on_a_dng_whose_as_shot_neutral_has_255_values_is_refused_on_one_line(tmp_path):
     """Found by CI's run of the suite: the DNG alone through camsim develop, its AsShotNeutral's count set to 255;
     the error printed numpy's repr of 255 values over many lines."""
