@@ -144,6 +144,13 @@ def check_raw_scene(scene) -> None:
                           f"got {', '.join(scene.illuminants)}")
     if scene.regions:
         raise CamsimError("[[region]] does not apply to raw scenes yet")
+    if scene.exposure != "fixed":
+        raise CamsimError("auto exposure meters a perfect white, which a raw scene has not: give the exposure time "
+                          "(--exposure SECONDS, [sensor] exposure_s; default the source's)")
+    if scene.statistics != "pixel" or scene.method != "poisson":
+        raise CamsimError(f"a raw scene's frames are drawn by its photon law ([raw] photon_law = "
+                          f"{scene.source.photon_law!r}), per pixel: statistics {scene.statistics!r} and method "
+                          f"{scene.method!r} do not apply (leave them at pixel and poisson)")
     for factor in scene.intensity_factors:
         frame_stem(scene.name, RAW_ILLUMINANT, factor)
     width, height = scene.source.own_size()
