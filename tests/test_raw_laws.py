@@ -18,7 +18,8 @@ from camsim.sensor.raw_laws import PHOTON_LAWS, add_photons_e, thin_photons_e
 #: The target sensor of the moment tests: 14 bits, a pedestal, k = 1.7 DN/e⁻ (not an integer: the ADC's rounding
 #: shows), read noise 2.5 e⁻, dark current per channel (D̄ = 1.95, 2.3, 2.18 e⁻ at T = 0.01 s).
 SENSOR = SensorParams(cfa="GRBG", bits=14, pedestal_dn=512, analog_gain_dn_per_v=8500.0, conversion_gain_v_per_e=0.0002,
-                      read_noise_e=2.5, full_well_e=20000.0, exposure_s=0.01, dark_current_e_per_s=(195.0, 230.0, 218.0))
+                      read_noise_e=2.5, full_well_e=20000.0, exposure_s=0.01,
+                      dark_current_e_per_s=(195.0, 230.0, 218.0))
 
 #: The source's electrons at the four sites of the 2 × 2 cell (row by row): the ratio-1 frame holds them whole.
 CELL_E = np.array([[6000.4, 3000.0], [1499.6, 5999.0]])
@@ -60,7 +61,8 @@ def _dn_moments(values, pmf, sensor: SensorParams):
 
 
 def _assert_moments(sample: np.ndarray, mean: float, var: float, m4: float, what: str):
-    """Sample mean and variance within 5 standard errors of the exact ones (the variance's: √((μ4 − σ⁴ (n−3)/(n−1)) / n))."""
+    """Sample mean and variance within 5 standard errors of the exact ones (the variance's:
+    √((μ4 − σ⁴ (n−3)/(n−1)) / n))."""
     n = sample.size
     x = sample.astype(np.float64)
     m, v = x.mean(), x.var(ddof=1)
@@ -216,15 +218,32 @@ def test_fixed_pattern_maps_belong_to_the_sensor():
     assert np.array_equal(a.clean_dn, c.clean_dn) and not np.array_equal(a.noisy_dn, c.noisy_dn)
     quiet = sensor.with_stages(photon_noise=False, dark_current=False, read_noise=False, quantisation=False)
     quiet = SensorParams(**{**quiet.__dict__, "row_noise_e": 0.0})
-    draw = render_raw_frame(source, quiet, 0.25, rng=5)
     k = quiet.dn_per_electron
-    for dy, dx, ch in cfa_sites(quiet.cfa):
-        s = source[dy::2, dx::2].astype(np.float64)
-        g = a.maps.gain[ch, dy::2, dx::2].astype(np.float64)
-        o = a.maps.offset_e[ch, dy::2, dx::2].astype(np.float64)
-        expected = k * np.minimum(0.25 * s * g + o, quiet.full_well_e)
-        np.testing.assert_allclose(draw.noisy_dn[0, dy::2, dx::2], expected, rtol=2e-6, atol=1e-5)
-        np.testing.assert_allclose(draw.clean_dn[dy::2, dx::2], expected, rtol=2e-6, atol=1e-5)
+    for law in PHOTON_LAWS:
+        draw = render_raw_frame(source, quiet, 0.25, law=law, rng=5)
+        for dy, dx, ch in cfa_sites(quiet.cfa):
+            s = source[dy::2, dx::2].astype(np.float64)
+            s = s if law == "add" else np.rint(s)  # thin keeps a count
+            g = a.maps.gain[ch, dy::2, dx::2].astype(np.float64)
+            o = a.maps.offset_e[ch, dy::2, dx::2].astype(np.float64)
+            expected = k * np.minimum(0.25 * s * g + o, quiet.full_well_e)
+            np.testing.assert_allclose(draw.noisy_dn[0, dy::2, dx::2], expected, rtol=2e-6, atol=1e-5)
+            np.testing.assert_allclose(draw.clean_dn[dy::2, dx::2], expected, rtol=2e-6, atol=1e-5)
+
+
+def test_a_negative_prnu_gain_collects_nothing():
+    """At a PRNU of 29 % some gains of the Gaussian map are below 0: those pixels collect no charge (add and thin),
+    instead of a failed Poisson draw."""
+    sensor = SensorParams(cfa="RGGB", prnu_percent=29.0).with_stages(dark_current=False, read_noise=False,
+                                                                       quantisation=False)
+    source = np.full((400, 400), 100.0, dtype=np.float32)
+    for law in PHOTON_LAWS:
+        draw = render_raw_frame(source, sensor, 0.3, law=law, rng=0)  # 0.3 × the largest gain, 2.3, < 1
+        mosaic = np.empty(source.shape, dtype=np.float32)
+        for dy, dx, c in cfa_sites(sensor.cfa):
+            mosaic[dy::2, dx::2] = draw.maps.gain[c, dy::2, dx::2]
+        assert np.any(mosaic < 0)
+        assert np.all(draw.noisy_dn[0][mosaic < 0] == 0) and np.all(draw.clean_dn[mosaic < 0] == 0)
 
 
 def test_add_law_function_is_one_poisson_draw():

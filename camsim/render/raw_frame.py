@@ -26,7 +26,14 @@ from camsim.sensor.cfa import CFA_PATTERNS, cfa_sites
 from camsim.sensor.expected import clean_charge_e
 from camsim.sensor.fixed_pattern import FixedPattern, fixed_pattern
 from camsim.sensor.params import SensorParams
-from camsim.sensor.raw_laws import PHOTON_LAWS, add_photons_e, check_thin_fraction, source_count_e, thin_photons_e
+from camsim.sensor.raw_laws import (
+    PHOTON_LAWS,
+    add_photons_e,
+    check_thin_fraction,
+    keep_probability,
+    source_count_e,
+    thin_photons_e,
+)
 from camsim.sensor.stages import (
     add_offset_e,
     add_read_noise_e,
@@ -137,7 +144,9 @@ def render_raw_frame(source_e, sensor: SensorParams, fraction: float, *, law: st
     D̄_c = σ²_dark,c · T), the charge X is ``add``'s Poisson(f · max(s, 0) · g + D̄_c d) or ``thin``'s
     Binomial(round(max(s, 0)), f · g) + Poisson(D̄_c d) (:mod:`camsim.sensor.raw_laws`), and the frame's value is
     k · (min(X + o, full well) + read noise) + row noise, then the ADC: the stages of :mod:`camsim.sensor.stages`,
-    each on or off as ``sensor`` says (photon noise off: the signal's mean exactly, the dark charge still drawn).
+    each on or off as ``sensor`` says (photon noise off: the signal's mean exactly, the dark charge still drawn). A
+    PRNU gain below 0 (the Gaussian map's far tail, at a PRNU of 20 % and more) is taken as 0: the pixel collects
+    no signal.
 
     Parameters
     ----------
@@ -177,8 +186,9 @@ def render_raw_frame(source_e, sensor: SensorParams, fraction: float, *, law: st
     starts = list(range(0, height, rows))
     generators = block_generators(rng, len(starts))
     maps = fixed_pattern(sensor, source.shape)
-    if law == "thin" and maps is not None and maps.gain is not None:
-        check_thin_fraction(fraction, float(maps.gain.max()))
+    if law == "thin" and maps is not None and maps.gain is not None:  # the largest gain of a site's own channel
+        sites = cfa_sites(sensor.cfa)
+        check_thin_fraction(fraction, max(float(maps.gain[c, dy::2, dx::2].max()) for dy, dx, c in sites))
     dark_cell = np.empty((2, 2))
     for dy, dx, c in cfa_sites(sensor.cfa):
         dark_cell[dy, dx] = sensor.dark_mean_e[c]
@@ -238,6 +248,7 @@ def _draw_block(job: _RawJob, r0: int, r1: int, rng: np.random.Generator, scratc
         mean *= job.fraction
         if gain is not None:
             mean *= gain
+            np.maximum(mean, 0.0, out=mean)  # a gain below 0 (the PRNU map's far tail) collects nothing
         if sensor.photon_noise:  # Poisson(f max(s, 0) g + D̄ d): the mean built in place, one draw
             if has_dark:
                 mean += dark
@@ -250,7 +261,7 @@ def _draw_block(job: _RawJob, r0: int, r1: int, rng: np.random.Generator, scratc
         count = source_count_e(source)
         charge = thin_photons_e(rng, count, job.fraction, dark, gain=gain, photon_noise=sensor.photon_noise,
                                 saturation_e=level)
-        signal = count * (job.fraction if gain is None else job.fraction * gain.astype(np.float64))
+        signal = count * keep_probability(job.fraction, gain)  # the binomial's mean
         if sensor.photon_noise and gain is None and job.fraction == 1.0:  # n kept whole: n + Poisson(D̄ d)
             poisson_mean, base = dark, count + (0.0 if offset is None else offset)
         elif sensor.photon_noise:  # mean f g n + D̄ d (Poisson stand-in near the full well)

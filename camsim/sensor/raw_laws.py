@@ -115,6 +115,12 @@ def check_thin_fraction(fraction: float, gain_max: float = 1.0) -> None:
                           f"photon_law = 'add'")
 
 
+def keep_probability(fraction: float, gain=None):
+    """p = max(f · g, 0): the probability that ``thin`` keeps one of the source's electrons (f the fraction, g the
+    PRNU gain per pixel or None; a gain below 0, the Gaussian map's far tail, keeps none). Float or float64 array."""
+    return fraction if gain is None else np.maximum(fraction * np.asarray(gain, dtype=np.float64), 0.0)
+
+
 def thin_photons_e(rng: np.random.Generator, source_count_e, fraction: float, dark_e=0.0, *, gain=None,
                    dark_gain=None, photon_noise: bool = True, saturation_e=None) -> np.ndarray:
     """The ``thin`` law: charge ~ Binomial(n, f · g) + Poisson(D̄ · d), n the source's electron count.
@@ -152,7 +158,7 @@ def thin_photons_e(rng: np.random.Generator, source_count_e, fraction: float, da
     """
     g_max = 1.0 if gain is None else float(np.max(gain, initial=0.0))
     check_thin_fraction(fraction, g_max)
-    p = fraction if gain is None else np.maximum(fraction * np.asarray(gain, dtype=np.float64), 0.0)
+    p = keep_probability(fraction, gain)
     if photon_noise:
         charge = rng.binomial(source_count_e, p)
     else:
