@@ -9,11 +9,13 @@ Tukey λ read noise, which the bare draws do not have: for information).
 The floor ("bare"): what a user writes with numpy for the same per-pixel law, on the same threads by the same
 row blocks, one ``numpy.random.Generator`` per block (``SeedSequence.spawn``): mean = f · max(s, 0) + D̄_c (the
 site's channel's dark mean), ``Generator.poisson`` of it, plus ``standard_normal`` (float32) · σ_read, times k,
-plus the pedestal, rounded and clipped to 14 bits. ``render_raw_frame`` also keeps the float32 DN before the ADC and
+plus the pedestal, rounded and clipped to 14 bits; "bare thin" the same with ``thin``'s draws,
+Binomial(round(max(s, 0)), f) + Poisson(D̄_c) (numpy's binomial sampler is about twice as slow as its Poisson, and
+the law needs a second draw for the dark charge). ``render_raw_frame`` also keeps the float32 DN before the ADC and
 the clean layer, clips at the full well, and (``thin``) draws a binomial instead of the Poisson.
 
 Prints the best of ``--repeat`` runs (interleaved) of each, in seconds, and the ratio to the floor. Target
-(issue 27): ``add`` ≤ 1.5× the floor on two threads.
+(issue 27): ``add`` ≤ 1.5× the floor on two threads (``thin`` is shown against both floors).
 
     PYTHONPATH=. python tools/bench_raw.py [--threads 2] [--repeat 3] [--ratio 100] [--busy]
 """
@@ -53,8 +55,10 @@ def make_sensor(busy: bool) -> SensorParams:
     return SensorParams(**values)
 
 
-def bare(source: np.ndarray, sensor: SensorParams, fraction: float, threads: int, seed: int) -> np.ndarray:
-    """The per-pixel law with plain numpy draws, on ``threads`` threads by row blocks: the floor."""
+def bare(source: np.ndarray, sensor: SensorParams, fraction: float, threads: int, seed: int,
+         law: str = "add") -> np.ndarray:
+    """The per-pixel law with plain numpy draws, on ``threads`` threads by row blocks: the floor (``thin``:
+    Binomial(round(max(s, 0)), f) + Poisson(D̄_c) in place of the one Poisson draw)."""
     height, width = source.shape
     rows = max(2, BLOCK_PIXELS // width // 2 * 2)
     starts = list(range(0, height, rows))
@@ -69,10 +73,16 @@ def bare(source: np.ndarray, sensor: SensorParams, fraction: float, threads: int
         r0 = starts[index]
         r1 = min(height, r0 + rows)
         rng = generators[index]
-        mean = np.maximum(source[r0:r1], np.float32(0.0))
-        mean *= np.float32(fraction)
-        mean += dark[: r1 - r0]
-        x = rng.poisson(mean).astype(np.float32)
+        if law == "add":
+            mean = np.maximum(source[r0:r1], np.float32(0.0))
+            mean *= np.float32(fraction)
+            mean += dark[: r1 - r0]
+            x = rng.poisson(mean).astype(np.float32)
+        else:
+            count = np.rint(np.maximum(source[r0:r1], np.float32(0.0))).astype(np.int64)
+            x = rng.binomial(count, fraction)
+            x += rng.poisson(dark[: r1 - r0])
+            x = x.astype(np.float32)
         x += rng.standard_normal(x.shape, dtype=np.float32) * np.float32(sigma)
         x *= np.float32(k)
         x += np.float32(pedestal)
@@ -104,6 +114,7 @@ def main() -> None:
     source, sensor, fraction = make_source(), make_sensor(args.busy), 1.0 / args.ratio
     runs = {"bare": lambda: bare(source, sensor, fraction, args.threads, 1),
             "add": lambda: render_raw_frame(source, sensor, fraction, law="add", rng=1, workers=args.threads),
+            "bare thin": lambda: bare(source, sensor, fraction, args.threads, 1, law="thin"),
             "thin": lambda: render_raw_frame(source, sensor, fraction, law="thin", rng=1, workers=args.threads)}
     for run in runs.values():  # warm-up: the maps, the thread pool, first-touch pages
         run()
@@ -113,9 +124,10 @@ def main() -> None:
             best[name] = min(best[name], best_of(run, 1))
     print(f"24 MP ({WIDTH}x{HEIGHT}) raw, f = 1/{args.ratio:g}, {args.threads} threads, best of {args.repeat}"
           f"{', busy sensor' if args.busy else ''}")
-    print(f"{'':6s} {'seconds':>8s} {'× bare':>7s}")
+    print(f"{'':10s} {'seconds':>8s} {'× bare':>7s} {'× bare thin':>12s}")
     for name in runs:
-        print(f"{name:6s} {best[name]:8.3f} {best[name] / best['bare']:7.2f}")
+        print(f"{name:10s} {best[name]:8.3f} {best[name] / best['bare']:7.2f} "
+              f"{best[name] / best['bare thin']:12.2f}")
 
 
 if __name__ == "__main__":

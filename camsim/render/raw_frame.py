@@ -168,8 +168,8 @@ def render_raw_frame(source_e, sensor: SensorParams, fraction: float, *, law: st
     RawDraw
         ``clean_dn`` is k · E[min(X + o, full well)]: exact for ``add`` (X Poisson; photon noise off: the signal
         plus a Poisson dark charge) by :func:`camsim.sensor.expected.clean_charge_e` wherever a pixel can reach the
-        full well and k · (E X + o) elsewhere; exact for ``thin`` away from the full well, and at it when f · g = 1
-        or photon noise is off (X is then a constant plus a Poisson dark charge). ``thin`` near the full well with
+        full well and k · (E X + o) elsewhere; exact for ``thin`` away from the full well, and at it when f = 1
+        without PRNU or photon noise is off (X is then a constant plus a Poisson dark charge). ``thin`` near the full well with
         f · g < 1 is approximated there by a Poisson X of the same mean (its binomial part has the smaller
         variance n p (1 − p)).
 
