@@ -256,3 +256,30 @@ def test_add_law_function_is_one_poisson_draw():
     lam = 12.0 * 1.5 + 0.75 * 2.0
     assert abs(x.mean() - lam) < 5 * np.sqrt(lam / n)
     assert abs(x.var() - lam) < 5 * lam * np.sqrt(2.0 / n) * 1.05
+
+
+def test_tukey_read_noise_and_row_noise_add_their_variance():
+    """Tukey λ read noise (σ = 3 e⁻) and row noise (1 e⁻): a site's DN before the ADC has mean k (f s + D̄_c) and
+    variance k² (f s + D̄_c + σ_read² + σ_row²) (the Tukey law scaled to σ_read); 8 bits give uint8 digital DN."""
+    sensor = SensorParams(cfa="BGGR", bits=8, read_noise_model="tukey-lambda", read_noise_e=3.0, row_noise_e=1.0,
+                          exposure_s=0.01, analog_gain_dn_per_v=2500.0, conversion_gain_v_per_e=0.0002)
+    source = np.full((512, 512), 200.0, dtype=np.float32)
+    draw = render_raw_frame(source, sensor, 0.1, rng=8, workers=2)
+    assert draw.digital_dn.dtype == np.uint8
+    k = sensor.dn_per_electron
+    rows = source.shape[0] // 2
+    for dy, dx, c in cfa_sites(sensor.cfa):
+        lam = 20.0 + float(sensor.dark_mean_e[c])
+        site = draw.noisy_dn[0, dy::2, dx::2].astype(np.float64)
+        var = k * k * (lam + 9.0 + 1.0)
+        se_mean = np.sqrt(var / site.size + (k * 1.0) ** 2 / rows)  # the row noise is shared along a row
+        assert abs(site.mean() - k * lam) < 5 * se_mean
+        se_var = var * np.sqrt(2.0 / site.size) * 2 + (k * 1.0) ** 2 * np.sqrt(2.0 / rows)
+        assert abs(site.var(ddof=1) - var) < 5 * se_var
+
+
+def test_quantisation_off_gives_no_digital_dn():
+    sensor = SENSOR.with_stages(quantisation=False)
+    draw = render_raw_frame(np.full((8, 8), 50.0, dtype=np.float32), sensor, 0.5, rng=1)
+    assert draw.digital_dn is None and draw.noisy_dn.shape == (1, 8, 8) and draw.noisy_dn.dtype == np.float32
+    assert draw.clean_dn.shape == (8, 8) and draw.clean_dn.dtype == np.float32 and draw.maps is None
