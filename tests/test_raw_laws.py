@@ -13,7 +13,7 @@ from camsim.core.errors import CamsimError
 from camsim.render.raw_frame import render_raw_frame
 from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.params import SensorParams
-from camsim.sensor.raw_laws import PHOTON_LAWS, add_photons_e, thin_photons_e
+from camsim.sensor.raw_laws import PHOTON_LAWS, add_photons_e, check_thin_exposure, thin_photons_e
 
 #: The target sensor of the moment tests: 14 bits, a pedestal, k = 1.7 DN/e⁻ (not an integer: the ADC's rounding
 #: shows), read noise 2.5 e⁻, dark current per channel (D̄ = 1.95, 2.3, 2.18 e⁻ at T = 0.01 s).
@@ -166,6 +166,9 @@ def test_thin_refuses_to_brighten():
     render_raw_frame(source, SENSOR, 1.5, law="add", rng=0)  # add may brighten
     with pytest.raises(CamsimError, match="thin cannot brighten"):
         thin_photons_e(np.random.default_rng(0), np.full(3, 10), 0.5, gain=np.array([1.0, 2.5, 1.0]))
+    with pytest.raises(CamsimError, match=r"F·T = 0.2 s > the source's exposure 0.1 s; use photon_law = 'add'"):
+        check_thin_exposure(2.0, 0.1, 0.1)
+    check_thin_exposure(1.0, 0.1, 0.1)
 
 
 def test_bad_inputs_are_refused():

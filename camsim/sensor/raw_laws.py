@@ -60,6 +60,13 @@ from camsim.sensor.stages import cap_mean_e, collect_charge_e
 #: of the source's electron count).
 PHOTON_LAWS = ("add", "thin")
 
+#: Each law's charge, as a sidecar records it (s the source's electrons, f = F·T/T_source, g the PRNU gain, D̄ the
+#: mean dark charge, d its DSNU factor).
+PHOTON_LAW_FORMULAS = {
+    "add": "Poisson(f·max(s, 0)·g + D̄·d): the source as noise-free (ELD/PMN)",
+    "thin": "Binomial(round(max(s, 0)), f·g) + Poisson(D̄·d): binomial thinning of the source's electron count",
+}
+
 
 def add_photons_e(rng: np.random.Generator, expected_e, dark_e=0.0, *, gain=None, dark_gain=None,
                   photon_noise: bool = True, saturation_e=None) -> np.ndarray:
@@ -119,6 +126,19 @@ def keep_probability(fraction: float, gain=None):
     """p = max(f · g, 0): the probability that ``thin`` keeps one of the source's electrons (f the fraction, g the
     PRNU gain per pixel or None; a gain below 0, the Gaussian map's far tail, keeps none). Float or float64 array."""
     return fraction if gain is None else np.maximum(fraction * np.asarray(gain, dtype=np.float64), 0.0)
+
+
+def check_thin_exposure(intensity_factor: float, exposure_s: float, source_exposure_s: float) -> None:
+    """Refuse ``thin`` for a frame brighter than its source: F · T > T_source (F the intensity factor, T the frame's
+    exposure, T_source the source's; seconds).
+
+    Raises
+    ------
+    CamsimError
+    """
+    if intensity_factor * exposure_s > source_exposure_s:
+        raise CamsimError(f"thin cannot brighten: F·T = {intensity_factor * exposure_s:g} s > the source's exposure "
+                          f"{source_exposure_s:g} s; use photon_law = 'add'")
 
 
 def thin_photons_e(rng: np.random.Generator, source_count_e, fraction: float, dark_e=0.0, *, gain=None,
