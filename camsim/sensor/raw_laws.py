@@ -12,8 +12,9 @@ D̄ its mean dark charge σ²_dark · T, d its dark-current DSNU factor):
 
 one Poisson draw (:func:`camsim.sensor.stages.collect_charge_e` under ``pixel`` statistics). The source's own
 photon and read noise stay in its value and the target's Poisson noise is added on top: the frame's variance is
-f g S̄ + D̄ d (the target's) plus f² g² Var s (the source's, scaled), so the source's noise is negligible only
-for f ≪ 1 (at f = 1/100 it adds 1 % of the photon variance).
+f g E[s] + D̄ d (the target's) plus f² g² Var s (the source's, scaled). For a source limited by its photon noise
+(Var s ≈ E s) the second is f times the first's photon part: negligible only for f ≪ 1 (1 % at f = 1/100; at
+f = 1 the variance doubles).
 
 ``thin``: the source is taken as a photon count n = round(max(s, 0)), and each of its electrons is kept with
 probability p = f · g,
