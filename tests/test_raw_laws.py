@@ -155,6 +155,22 @@ def test_clean_layer_at_the_full_well():
                 assert exact < k * (cell[dy, dx] + sensor.dark_mean_e[c]) * (1 - 1e-4)  # the clip shows
 
 
+@pytest.mark.parametrize("fraction", [0.1, 0.5, 0.9, 0.99])
+def test_thin_clean_layer_near_the_full_well_is_close(fraction):
+    """``thin`` at p < 1 near the full well: the clean layer's shifted Poisson (same mean and variance) is within
+    1e-4 of k E[min(Binomial(n, p) + Poisson(D̄), FW)] summed here exactly, n around FW / p."""
+    sensor = SensorParams(cfa="RGGB", full_well_e=1000.0, read_noise_e=2.0, exposure_s=0.01).with_stages(
+        quantisation=False)
+    n0 = int(1000 / fraction)
+    cell = np.array([[n0 - 40, n0], [n0 + 40, n0 - 10]], dtype=float)
+    draw = render_raw_frame(np.tile(cell, (4, 4)).astype(np.float32), sensor, fraction, law="thin", rng=1)
+    k = sensor.dn_per_electron
+    for dy, dx, c in cfa_sites(sensor.cfa):
+        values, pmf = _charge_pmf("thin", cell[dy, dx], fraction, float(sensor.dark_mean_e[c]))
+        exact = k * float(pmf @ np.minimum(values, sensor.full_well_e))
+        np.testing.assert_allclose(draw.clean_dn[dy::2, dx::2], exact, rtol=1e-4)
+
+
 def test_thin_refuses_to_brighten():
     source = np.full((4, 4), 100.0, dtype=np.float32)
     with pytest.raises(CamsimError, match="thin cannot brighten"):
