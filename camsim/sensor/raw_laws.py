@@ -12,8 +12,9 @@ D̄ its mean dark charge σ²_dark · T, d its dark-current DSNU factor):
 
 one Poisson draw (:func:`camsim.sensor.stages.collect_charge_e` under ``pixel`` statistics). The source's own
 photon and read noise stay in its value and the target's Poisson noise is added on top: the frame's variance is
-f g S̄ + D̄ d (the target's) plus f² g² Var s (the source's, scaled), so the source's noise is negligible only
-for f ≪ 1 (at f = 1/100 it adds 1 % of the photon variance).
+f g E[s] + D̄ d (the target's) plus f² g² Var s (the source's, scaled). For a source limited by its photon noise
+(Var s ≈ E s) the second is f times the first's photon part: negligible only for f ≪ 1 (1 % at f = 1/100; at
+f = 1 the variance doubles).
 
 ``thin``: the source is taken as a photon count n = round(max(s, 0)), and each of its electrons is kept with
 probability p = f · g,
@@ -59,6 +60,13 @@ from camsim.sensor.stages import cap_mean_e, collect_charge_e
 #: The photon laws: ``add`` (Poisson of the scaled source, the ELD/PMN convention) and ``thin`` (binomial thinning
 #: of the source's electron count).
 PHOTON_LAWS = ("add", "thin")
+
+#: Each law's charge, as a sidecar records it (s the source's electrons, f = F·T/T_source, g the PRNU gain, D̄ the
+#: mean dark charge, d its DSNU factor).
+PHOTON_LAW_FORMULAS = {
+    "add": "Poisson(f·max(s, 0)·g + D̄·d): the source as noise-free (ELD/PMN)",
+    "thin": "Binomial(round(max(s, 0)), f·g) + Poisson(D̄·d): binomial thinning of the source's electron count",
+}
 
 
 def add_photons_e(rng: np.random.Generator, expected_e, dark_e=0.0, *, gain=None, dark_gain=None,
@@ -115,6 +123,25 @@ def check_thin_fraction(fraction: float, gain_max: float = 1.0) -> None:
                           f"photon_law = 'add'")
 
 
+def keep_probability(fraction: float, gain=None):
+    """p = max(f · g, 0): the probability that ``thin`` keeps one of the source's electrons (f the fraction, g the
+    PRNU gain per pixel or None; a gain below 0, the Gaussian map's far tail, keeps none). Float or float64 array."""
+    return fraction if gain is None else np.maximum(fraction * np.asarray(gain, dtype=np.float64), 0.0)
+
+
+def check_thin_exposure(intensity_factor: float, exposure_s: float, source_exposure_s: float) -> None:
+    """Refuse ``thin`` for a frame brighter than its source: F · T > T_source (F the intensity factor, T the frame's
+    exposure, T_source the source's; seconds).
+
+    Raises
+    ------
+    CamsimError
+    """
+    if intensity_factor * exposure_s > source_exposure_s:
+        raise CamsimError(f"thin cannot brighten: F·T = {intensity_factor * exposure_s:g} s > the source's exposure "
+                          f"{source_exposure_s:g} s; use photon_law = 'add'")
+
+
 def thin_photons_e(rng: np.random.Generator, source_count_e, fraction: float, dark_e=0.0, *, gain=None,
                    dark_gain=None, photon_noise: bool = True, saturation_e=None) -> np.ndarray:
     """The ``thin`` law: charge ~ Binomial(n, f · g) + Poisson(D̄ · d), n the source's electron count.
@@ -152,7 +179,7 @@ def thin_photons_e(rng: np.random.Generator, source_count_e, fraction: float, da
     """
     g_max = 1.0 if gain is None else float(np.max(gain, initial=0.0))
     check_thin_fraction(fraction, g_max)
-    p = fraction if gain is None else np.maximum(fraction * np.asarray(gain, dtype=np.float64), 0.0)
+    p = keep_probability(fraction, gain)
     if photon_noise:
         charge = rng.binomial(source_count_e, p)
     else:
