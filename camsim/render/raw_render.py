@@ -38,6 +38,7 @@ from camsim.render.frame_manifest import MANIFEST_NAME, FrameManifest, manifest_
 from camsim.render.raw_frame import RawDraw, render_raw_frame
 from camsim.sensor.noise_profile import dng_noise_profile
 from camsim.sensor.params import SensorParams
+from camsim.sensor.raw_laws import PHOTON_LAW_FORMULAS, check_thin_exposure
 
 #: The illuminant a raw scene's frames are under: the source's own light, as shot.
 RAW_ILLUMINANT = "as-shot"
@@ -92,6 +93,7 @@ class LoadedRaw:
             "preset": self.preset,
             "k_dn_per_e": self.k_dn_per_e,
             "photon_law": photon_law,
+            "photon_law_formula": PHOTON_LAW_FORMULAS[photon_law],
             "fraction": fraction,
             "masked_px": masked,
             "masked_fraction": masked / self.masked.size,
@@ -168,10 +170,7 @@ def check_raw_scene(scene) -> None:
     scene.source.source_preset(scene.preset_name)  # a camera to take K from
     scene.source.source_iso
     if scene.source.photon_law == "thin":
-        brightest = max(scene.intensity_factors) * sensor.exposure_s
-        if brightest > source_exposure * (1 + 1e-12):
-            raise CamsimError(f"photon_law 'thin' cannot brighten: F·T = {brightest:g} s is more than the source's "
-                              f"exposure {source_exposure:g} s; lower F or T, or use photon_law = 'add'")
+        check_thin_exposure(max(scene.intensity_factors), sensor.exposure_s, source_exposure)
 
 
 def raw_frame_warnings(scene) -> list[str]:
