@@ -109,3 +109,20 @@ def test_paper_preset_has_no_fixed_pattern():
     sensor = preset("paper-table1")
     assert sensor.dsnu_e == sensor.prnu_percent == sensor.row_noise_e == 0
     assert sensor.read_noise_model == "gaussian" and not sensor.fixed_pattern
+
+
+def test_a_prnu_beyond_20_percent_clips_its_gains_at_zero_and_renders(scene):
+    """At a PRNU of 29 % the Gaussian map's tail below −1/0.29 σ would be a negative gain (a failed Poisson draw
+    before): those pixels have gain 0 and collect nothing; every other gain is 1 + 0.29 z."""
+    from camsim.sensor.fixed_pattern import fixed_pattern
+
+    sensor = preset("paper-table1", prnu_percent=29.0, **(OFF | {"photon_noise": True}))
+    frame, _ = render(scene, sensor, factor=1.0, seed=1)  # raised numpy's "lam < 0" before
+    gain = fixed_pattern(sensor, frame.labels.shape).gain
+    assert gain.min() == 0 and np.count_nonzero(gain == 0) > 0
+    zero = gain[0] == 0
+    assert np.all(frame.noisy_dn[0][zero] == 0) and np.all(frame.clean_dn()[0][zero] == 0)
+    # the clipped share is the normal's tail below −1/0.29 (3.45 σ: 2.8e-4), within 5 binomial σ
+    share, n = np.mean(gain == 0), gain.size
+    tail = stats.norm.cdf(-1 / 0.29)
+    assert abs(share - tail) < 5 * np.sqrt(tail * (1 - tail) / n) + 1 / n

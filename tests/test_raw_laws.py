@@ -250,9 +250,9 @@ def test_fixed_pattern_maps_belong_to_the_sensor():
             np.testing.assert_allclose(draw.clean_dn[dy::2, dx::2], expected, rtol=2e-6, atol=1e-5)
 
 
-def test_a_negative_prnu_gain_collects_nothing():
-    """At a PRNU of 29 % some gains of the Gaussian map are below 0: those pixels collect no charge (add and thin),
-    instead of a failed Poisson draw."""
+def test_a_prnu_gain_clipped_at_zero_collects_nothing():
+    """At a PRNU of 29 % the Gaussian map's far tail is below 0, clipped to a gain of 0 (fixed_pattern.prnu_gain):
+    those pixels collect no charge (add and thin), instead of a failed Poisson draw."""
     sensor = SensorParams(cfa="RGGB", prnu_percent=29.0).with_stages(dark_current=False, read_noise=False,
                                                                        quantisation=False)
     source = np.full((400, 400), 100.0, dtype=np.float32)
@@ -261,8 +261,8 @@ def test_a_negative_prnu_gain_collects_nothing():
         mosaic = np.empty(source.shape, dtype=np.float32)
         for dy, dx, c in cfa_sites(sensor.cfa):
             mosaic[dy::2, dx::2] = draw.maps.gain[c, dy::2, dx::2]
-        assert np.any(mosaic < 0)
-        assert np.all(draw.noisy_dn[0][mosaic < 0] == 0) and np.all(draw.clean_dn[mosaic < 0] == 0)
+        assert mosaic.min() == 0 and np.any(mosaic == 0)
+        assert np.all(draw.noisy_dn[0][mosaic == 0] == 0) and np.all(draw.clean_dn[mosaic == 0] == 0)
 
 
 def test_add_law_function_is_one_poisson_draw():

@@ -144,9 +144,8 @@ def render_raw_frame(source_e, sensor: SensorParams, fraction: float, *, law: st
     D̄_c = σ²_dark,c · T), the charge X is ``add``'s Poisson(f · max(s, 0) · g + D̄_c d) or ``thin``'s
     Binomial(round(max(s, 0)), f · g) + Poisson(D̄_c d) (:mod:`camsim.sensor.raw_laws`), and the frame's value is
     k · (min(X + o, full well) + read noise) + row noise, then the ADC: the stages of :mod:`camsim.sensor.stages`,
-    each on or off as ``sensor`` says (photon noise off: the signal's mean exactly, the dark charge still drawn). A
-    PRNU gain below 0 (the Gaussian map's far tail, at a PRNU of 20 % and more) is taken as 0: the pixel collects
-    no signal.
+    each on or off as ``sensor`` says (photon noise off: the signal's mean exactly, the dark charge still drawn). The
+    PRNU gains are ≥ 0 (:func:`camsim.sensor.fixed_pattern.prnu_gain`).
 
     Parameters
     ----------
@@ -250,7 +249,6 @@ def _draw_block(job: _RawJob, r0: int, r1: int, rng: np.random.Generator, scratc
         mean *= job.fraction
         if gain is not None:
             mean *= gain
-            np.maximum(mean, 0.0, out=mean)  # a gain below 0 (the PRNU map's far tail) collects nothing
         if sensor.photon_noise:  # Poisson(f max(s, 0) g + D̄ d): the mean built in place, one draw
             if has_dark:
                 mean += dark

@@ -72,6 +72,13 @@ def _unit_maps(sensor_seed: int, shape: tuple) -> tuple:
     return offset, gain
 
 
+def prnu_gain(xp, unit_gain, prnu_percent: float):
+    """The PRNU gain map g = max(1 + z σ, 0) of unit normals ``z`` (σ = ``prnu_percent`` / 100), float32 on ``xp``'s
+    device: a pixel collects no negative charge, so the normal's far tail below 0 (z < −100 / ``prnu_percent``: at a
+    PRNU of 20 % and more) is a pixel that collects nothing. Unitless."""
+    return xp.maximum(1 + unit_gain * np.float32(prnu_percent / 100), np.float32(0))
+
+
 @lru_cache(maxsize=1)
 def _scaled_maps(sensor_seed: int, shape: tuple, dsnu_e: float, prnu_percent: float) -> tuple:
     """The offset DSNU map o (e⁻), the PRNU gain map g and g − 1 (unitless), float32, read-only (None where
@@ -79,7 +86,7 @@ def _scaled_maps(sensor_seed: int, shape: tuple, dsnu_e: float, prnu_percent: fl
     entry: a spec whose frames draw their own DSNU or PRNU scales them per frame, as before)."""
     unit_offset, unit_gain = _unit_maps(sensor_seed, shape)
     offset = unit_offset * np.float32(dsnu_e) if dsnu_e > 0 else None
-    gain = 1 + unit_gain * np.float32(prnu_percent / 100) if prnu_percent > 0 else None
+    gain = prnu_gain(np, unit_gain, prnu_percent) if prnu_percent > 0 else None
     excess = None if gain is None else gain - 1
     for array in (offset, gain, excess):
         if array is not None:

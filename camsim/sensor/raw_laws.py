@@ -124,9 +124,9 @@ def check_thin_fraction(fraction: float, gain_max: float = 1.0) -> None:
 
 
 def keep_probability(fraction: float, gain=None):
-    """p = max(f · g, 0): the probability that ``thin`` keeps one of the source's electrons (f the fraction, g the
-    PRNU gain per pixel or None; a gain below 0, the Gaussian map's far tail, keeps none). Float or float64 array."""
-    return fraction if gain is None else np.maximum(fraction * np.asarray(gain, dtype=np.float64), 0.0)
+    """p = f · g: the probability that ``thin`` keeps one of the source's electrons (f the fraction, g the PRNU gain
+    per pixel, ≥ 0: :func:`camsim.sensor.fixed_pattern.prnu_gain`, or None). Float or float64 array."""
+    return fraction if gain is None else fraction * np.asarray(gain, dtype=np.float64)
 
 
 def check_thin_exposure(intensity_factor: float, exposure_s: float, source_exposure_s: float) -> None:

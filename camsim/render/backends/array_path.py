@@ -32,7 +32,7 @@ import numpy as np
 from camsim.render.backends import device_generator, device_method
 from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.expected import ExpectedSignal
-from camsim.sensor.fixed_pattern import FixedPattern, _dark_gain_map, _unit_maps, fixed_pattern
+from camsim.sensor.fixed_pattern import FixedPattern, _dark_gain_map, _unit_maps, fixed_pattern, prnu_gain
 from camsim.render.frame import Frame, block_rows, check_frame_values
 from camsim.sensor.params import SensorParams
 from camsim.sensor.stages import (
@@ -182,7 +182,7 @@ def device_maps(xp, sensor: SensorParams, shape) -> FixedPattern | None:
     if sensor.dsnu_e > 0 or sensor.prnu_percent > 0:
         unit_offset, unit_gain = _device_unit_maps(xp, sensor.sensor_seed, shape)
         offset = unit_offset * np.float32(sensor.dsnu_e) if sensor.dsnu_e > 0 else None
-        gain = 1 + unit_gain * np.float32(sensor.prnu_percent / 100) if sensor.prnu_percent > 0 else None
+        gain = prnu_gain(xp, unit_gain, sensor.prnu_percent) if sensor.prnu_percent > 0 else None
     p = sensor.dsnu_dark_current_percent
     dark_gain = _device_dark_gain(xp, sensor.sensor_seed, shape, p / 100) if p > 0 else None
     return FixedPattern(offset, gain, dark_gain)
