@@ -304,13 +304,14 @@ def patch_raw_size(path, width, height):
 
 
 @pytest.mark.parametrize("case", ["missing", "directory", "text", "png", "truncated", "truncated header",
-                                  "three-chip", "huge", "black deltas", "empty"])
+                                  "three-chip", "mono", "not bayer", "huge", "black deltas", "empty"])
 def test_errors(tmp_path, case):
     path = tmp_path / "bad.dng"
     expect = {"missing": "no such file", "directory": "not a file", "text": "not a raw file LibRaw reads",
               "png": "not a raw file LibRaw reads", "truncated": "truncated", "truncated header": "cannot read",
               "three-chip": "no 2x2 colour filter array", "huge": "over camsim's limit",
-              "black deltas": "BlackLevelDeltaH", "empty": "not a raw file LibRaw reads"}[case]
+              "black deltas": "BlackLevelDeltaH", "empty": "the file is empty",
+              "mono": "no 2x2 colour filter array: a monochrome image", "not bayer": "unsupported CFA layout"}[case]
     if case == "directory":
         path.mkdir()
     elif case == "text":
@@ -325,6 +326,16 @@ def test_errors(tmp_path, case):
     elif case == "three-chip":
         write_dng(path, np.zeros((3, 24, 24), np.uint8), black_level_dn=16, white_level=255,
                   unique_camera_model="cam", color_matrix1=CM1, as_shot_neutral=NEUTRAL)
+    elif case == "mono":  # a LinearRaw DNG of one sample per pixel (tifffile writes it as BlackIsZero: patched)
+        tifffile.imwrite(path, np.zeros((24, 24), np.uint16), photometric="minisblack", metadata=None,
+                         extratags=[(50706, "B", 4, (1, 4, 0, 0), True)])
+        with tifffile.TiffFile(path) as tif:
+            at = tif.pages.first.tags[262].valueoffset
+        with open(path, "r+b") as fh:
+            fh.seek(at)
+            fh.write(struct.pack("<H", 34892))
+    elif case == "not bayer":
+        phone(path, pattern="RRGB")
     elif case == "huge":
         phone(path)
         patch_raw_size(path, 20000, 20000)
@@ -374,3 +385,16 @@ def test_numpy_integer_crop(tmp_path):
     path = phone(tmp_path / "p.dng", m=m)
     cap = read_raw_capture(path, crop=tuple(np.array([3, 1, 6, 4])))
     np.testing.assert_array_equal(cap.mosaic, m[1:5, 3:9])
+
+
+def test_colour_matrix_from_libraw_where_the_dng_has_none(tmp_path):
+    """A DNG without ColorMatrix1 from a camera LibRaw knows gets LibRaw's matrix: Adobe's D65 matrix of the Canon
+    EOS 5D Mark IV as dcraw's table lists it (6446, -366, -864, -4436, 12204, 2513, -952, 2496, 6348, / 10000),
+    CalibrationIlluminant 21; no AsShotNeutral and no LibRaw white balance: None."""
+    path = phone(tmp_path / "p.dng", make="Canon", model="EOS 5D Mark IV", color_matrix1=None, color_matrix2=None,
+                 as_shot_neutral=None)
+    cap = read_raw_capture(path)
+    adobe = np.array([6446, -366, -864, -4436, 12204, 2513, -952, 2496, 6348]).reshape(3, 3) / 10000
+    np.testing.assert_allclose(cap.color_matrix1, adobe, atol=1e-7)
+    assert cap.calibration_illuminant1 == 21 and cap.color_matrix2 is None and cap.as_shot_neutral is None
+    assert (cap.make, cap.model, cap.unique_camera_model) == ("Canon", "EOS 5D Mark IV", "Canon EOS 5D Mark IV")

@@ -158,18 +158,18 @@ def libraw_cfa(raw: Any, prefix: str, accepts: str) -> str:
                           f"{accepts}")
     desc = raw.color_desc.decode("ascii", "replace")
     letters = "".join(_LETTER.get(desc[int(i)], "?") if int(i) < len(desc) else "?" for i in colours[:2, :2].ravel())
-    if sorted(letters) != ["B", "G", "G", "R"]:
+    if letters not in CFA_PATTERNS:  # R, G, G, B with the greens on a diagonal
         raise CamsimError(f"{prefix}: its 2x2 colour filter array {letters!r} is not an RGB Bayer pattern")
     return letters
 
 
 def libraw_orientation(flip: int) -> int:
-    """TIFF Orientation (1..8) of LibRaw's ``sizes.flip`` (0 → 1, 3 → 3, 5 → 8, 6 → 6; the mirrored ones too)."""
+    """TIFF Orientation (1..8) of LibRaw's ``sizes.flip``: 0 → 1, 3 → 3, 5 → 8, 6 → 6, and the mirrored ones."""
     return _FLIP_TO_ORIENTATION.get(int(flip), 1)
 
 
 def _shift(cell: np.ndarray, dy: int, dx: int) -> np.ndarray:
-    """The 2 × 2 cell seen from an origin moved by (dy, dx) pixels: ``out[i, j] = cell[(i + dy) % 2, (j + dx) % 2]``."""
+    """The 2 × 2 cell seen from an origin moved by (dy, dx): ``out[i, j] = cell[(i + dy) % 2, (j + dx) % 2]``."""
     return np.roll(np.asarray(cell), (-(dy % 2), -(dx % 2)), axis=(0, 1))
 
 
@@ -400,8 +400,8 @@ def _dng_raw(tif: Any, ifd0: Any, name: str) -> _DngRaw:
     check_pixel_count(page.imagewidth, page.imagelength, f"raw file {name}")
     if int(page.photometric) != _PHOTOMETRIC_CFA or page.samplesperpixel != 1:
         what = ("a monochrome image" if page.samplesperpixel == 1 else
-                f"a {page.samplesperpixel}-sample LinearRaw image (a three-chip or demosaiced raw)")
-        raise CamsimError(f"cannot read raw file {name}: it has no 2x2 colour filter array ({what}); camsim "
+                f"a {page.samplesperpixel}-sample LinearRaw image, a three-chip or demosaiced raw")
+        raise CamsimError(f"cannot read raw file {name}: it has no 2x2 colour filter array: {what}; camsim "
                           "reads RGB Bayer raws")
     pattern = _dng._cfa_pattern(page, name)
     black = _dng_black(page, name)
@@ -434,9 +434,8 @@ def _libraw(name: str):
             with library_stderr() as chatter:
                 raw.open_file(name)
         except Exception as exc:  # rawpy.LibRawFileUnsupportedError, LibRawIOError, ...
-            reason = chatter.reason() or str(exc) or type(exc).__name__
-            raise CamsimError(f"cannot read raw file {name}: not a raw file LibRaw reads ({type(exc).__name__}: "
-                              f"{reason})") from None
+            raise CamsimError(f"cannot read raw file {name}: not a raw file LibRaw reads ({_reason(chatter, exc)})"
+                              ) from None
         sizes = raw.sizes
         check_pixel_count(int(sizes.raw_width), int(sizes.raw_height), f"raw file {name}")
         if int(sizes.width) < 2 or int(sizes.height) < 2:
@@ -451,6 +450,14 @@ def _libraw(name: str):
         raw.close()
 
 
+def _reason(chatter: Any, exc: Exception) -> str:
+    """LibRaw's complaint: what it printed, else the exception's text (rawpy's are ``b'...'`` byte strings)."""
+    reason = chatter.reason() or str(exc) or type(exc).__name__
+    if len(reason) > 3 and reason[:2] in ("b'", 'b"') and reason[-1] == reason[1]:
+        reason = reason[2:-1]
+    return reason
+
+
 def _unpack(raw: Any, name: str) -> None:
     from camsim.io.library_stderr import library_stderr
 
@@ -458,9 +465,8 @@ def _unpack(raw: Any, name: str) -> None:
         with library_stderr() as chatter:
             raw.unpack()
     except Exception as exc:  # truncated or damaged pixel data
-        reason = chatter.reason() or str(exc) or type(exc).__name__
-        raise CamsimError(f"cannot read raw file {name}: LibRaw cannot decode its pixels ({type(exc).__name__}: "
-                          f"{reason})") from None
+        raise CamsimError(f"cannot read raw file {name}: LibRaw cannot decode its pixels ({_reason(chatter, exc)})"
+                          ) from None
 
 
 def _check_name(path: Any) -> str:
@@ -469,10 +475,12 @@ def _check_name(path: Any) -> str:
     except TypeError:
         raise CamsimError(f"a raw file's path must be a string or path, got {type(path).__name__}") from None
     if not os.path.isfile(name):
-        raise CamsimError(f"cannot read raw file {name}: {'no such file' if not os.path.exists(name) else 'not a file'}")
+        what = "no such file" if not os.path.exists(name) else "not a file"
+        raise CamsimError(f"cannot read raw file {name}: {what}")
     try:
-        with open(name, "rb"):
-            pass
+        with open(name, "rb") as fh:
+            if not fh.read(1):
+                raise CamsimError(f"cannot read raw file {name}: the file is empty")
     except OSError as exc:
         raise CamsimError(f"cannot read raw file {name}: {exc.strerror or exc}") from None
     return name
@@ -557,8 +565,8 @@ def _check_crop(crop: Any, size: tuple, name: str) -> tuple:
         raise CamsimError(f"cannot read raw file {name}: crop ({x}, {y}, {w}, {h}) must have an even width and height "
                           "above 0 (whole 2x2 cells)")
     if x < 0 or y < 0 or x + w > width or y + h > height:
-        raise CamsimError(f"cannot read raw file {name}: crop ({x}, {y}, {w}, {h}) is off the frame of {width}x{height} "
-                          "pixels (x + w <= width, y + h <= height, x, y >= 0)")
+        raise CamsimError(f"cannot read raw file {name}: crop ({x}, {y}, {w}, {h}) is off the frame of "
+                          f"{width}x{height} pixels (x + w <= width, y + h <= height, x, y >= 0)")
     return x, y, w, h
 
 
