@@ -398,3 +398,26 @@ def test_colour_matrix_from_libraw_where_the_dng_has_none(tmp_path):
     np.testing.assert_allclose(cap.color_matrix1, adobe, atol=1e-7)
     assert cap.calibration_illuminant1 == 21 and cap.color_matrix2 is None and cap.as_shot_neutral is None
     assert (cap.make, cap.model, cap.unique_camera_model) == ("Canon", "EOS 5D Mark IV", "Canon EOS 5D Mark IV")
+
+
+def test_threads_read_as_one(tmp_path):
+    """Reads from a thread pool (LibRaw decodes without the GIL) give what serial reads give; errors too."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    m = mosaic(12)
+    good = phone(tmp_path / "p.dng", "BGGR", m)
+    bad = tmp_path / "bad.dng"
+    bad.write_text("not a raw\n")
+    crops = [(x, y, 10, 8) for x in range(0, 8) for y in range(0, 4)]
+
+    def read(crop):
+        cap = read_raw_capture(good, crop=crop)
+        with pytest.raises(CamsimError):
+            read_raw_capture(bad)
+        return cap.mosaic, cap.cfa
+
+    with ThreadPoolExecutor(4) as pool:
+        results = list(pool.map(read, crops))
+    for (x, y, w, h), (got, cfa) in zip(crops, results):
+        np.testing.assert_array_equal(got, m[y:y + h, x:x + w])
+        assert cfa == "".join(tiled("BGGR", H, W)[y:y + 2, x:x + 2].ravel())

@@ -32,7 +32,12 @@ column and per row black offsets) are refused: the black level is one value per 
 Limits of what rawpy exposes: a non-DNG camera's black-level pattern larger than 2 × 2 (LibRaw's ``cblack[6:]``
 beyond a 2 × 2 cell) is not visible through ``black_level_per_channel``, which then holds its per-colour part only;
 and a raw outside a TIFF container (CR3, RAF, RW2, ORF, ...) has no Make or Model here (rawpy does not expose
-LibRaw's ``idata.make``/``model``), so a preset must be named for it.
+LibRaw's ``idata.make``/``model``), so a preset must be named for it. A DNG's AsShotWhiteXY is not read (LibRaw does
+not read it either): ``as_shot_neutral`` is then None.
+
+Threads: a DNG, checked with tifffile first, is decoded in parallel with other threads (rawpy releases the GIL); any
+other file is read with LibRaw's stderr captured (it prints data errors there; camsim's errors are one line), which
+redirects the process's descriptor 2, so those reads take turns.
 
 The size is checked against :data:`camsim.core.pixel_limit.MAX_PIXELS` from the header alone, before any pixel is
 decoded: the DNG raw IFD's dimensions (tifffile), then LibRaw's (``open_file`` parses the header only; rawpy
@@ -44,6 +49,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -420,18 +426,37 @@ def _dng_raw(tif: Any, ifd0: Any, name: str) -> _DngRaw:
 _ACCEPTS = "camsim reads raws of a 2x2 RGB Bayer mosaic"
 
 
-@contextlib.contextmanager
-def _libraw(name: str):
-    """The file opened by LibRaw (header parsed, nothing decoded), its size checked; LibRaw's errors (and what it
-    prints on stderr) as one CamsimError line naming the file."""
-    import rawpy
+#: :func:`camsim.io.library_stderr.library_stderr` redirects the process's descriptor 2: one such call at a time
+_STDERR_LOCK = threading.Lock()
 
+
+@contextlib.contextmanager
+def _stderr_of(capture: bool):
+    """What LibRaw prints on stderr during the block (a CapturedStderr), where ``capture``; else None.
+
+    LibRaw prints a data error ("Unexpected end of file") on stderr besides failing; camsim's errors are one line.
+    A DNG is checked (complete, its tags read) before LibRaw sees it and is read without the capture, in parallel
+    with other threads (rawpy releases the GIL while it decodes); other files are read under the capture, one at a
+    time."""
+    if not capture:
+        yield None
+        return
     from camsim.io.library_stderr import library_stderr
+
+    with _STDERR_LOCK, library_stderr() as chatter:
+        yield chatter
+
+
+@contextlib.contextmanager
+def _libraw(name: str, capture: bool):
+    """The file opened by LibRaw (header parsed, nothing decoded), its size checked; LibRaw's errors (and what it
+    prints on stderr, with ``capture``) as one CamsimError line naming the file."""
+    import rawpy
 
     raw = rawpy.RawPy()
     try:
         try:
-            with library_stderr() as chatter:
+            with _stderr_of(capture) as chatter:
                 raw.open_file(name)
         except Exception as exc:  # rawpy.LibRawFileUnsupportedError, LibRawIOError, ...
             raise CamsimError(f"cannot read raw file {name}: not a raw file LibRaw reads ({_reason(chatter, exc)})"
@@ -452,17 +477,15 @@ def _libraw(name: str):
 
 def _reason(chatter: Any, exc: Exception) -> str:
     """LibRaw's complaint: what it printed, else the exception's text (rawpy's are ``b'...'`` byte strings)."""
-    reason = chatter.reason() or str(exc) or type(exc).__name__
+    reason = (chatter.reason() if chatter is not None else "") or str(exc) or type(exc).__name__
     if len(reason) > 3 and reason[:2] in ("b'", 'b"') and reason[-1] == reason[1]:
         reason = reason[2:-1]
     return reason
 
 
-def _unpack(raw: Any, name: str) -> None:
-    from camsim.io.library_stderr import library_stderr
-
+def _unpack(raw: Any, name: str, capture: bool) -> None:
     try:
-        with library_stderr() as chatter:
+        with _stderr_of(capture) as chatter:
             raw.unpack()
     except Exception as exc:  # truncated or damaged pixel data
         raise CamsimError(f"cannot read raw file {name}: LibRaw cannot decode its pixels ({_reason(chatter, exc)})"
@@ -534,17 +557,17 @@ def raw_header(path) -> RawHeader:
     """
     name = _check_name(path)
     shot, dng = _read_tiff(name)
-    with _libraw(name) as raw:
+    with _libraw(name, dng is None) as raw:
         sizes = raw.sizes
         if dng is not None:
             dy, dx = _dng_origin(raw, dng, name)
             cfa = _pattern_shift(dng.cfa, dy, dx)
             values = _shot_values(shot, None)
             if values["iso"] is None or values["exposure_s"] is None:
-                _unpack(raw, name)
+                _unpack(raw, name, False)
                 values = _shot_values(shot, raw)
         else:
-            _unpack(raw, name)  # rawpy gives the pattern (and ``other``) only after unpack
+            _unpack(raw, name, True)  # rawpy gives the pattern (and ``other``) only after unpack
             cfa = libraw_cfa(raw, f"cannot read raw file {name}", _ACCEPTS)
             values = _shot_values(shot, raw)
         return RawHeader(path=name, size=(int(sizes.width), int(sizes.height)), cfa=cfa, **values)
@@ -595,12 +618,12 @@ def read_raw_capture(path, crop=None) -> RawCapture:
     """
     name = _check_name(path)
     shot, dng = _read_tiff(name)
-    with _libraw(name) as raw:
+    with _libraw(name, dng is None) as raw:
         sizes = raw.sizes
         full = (int(sizes.width), int(sizes.height))
         box = _check_crop(crop, full, name) if crop is not None else None
         origin = _dng_origin(raw, dng, name) if dng is not None else (0, 0)
-        _unpack(raw, name)
+        _unpack(raw, name, dng is None)
         libraw_pattern = libraw_cfa(raw, f"cannot read raw file {name}", _ACCEPTS)
         cell_index = np.asarray(raw.raw_colors_visible[:2, :2], dtype=np.intp)
         per_channel = np.asarray(raw.black_level_per_channel, dtype=np.float64)
