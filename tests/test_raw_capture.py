@@ -421,3 +421,47 @@ def test_threads_read_as_one(tmp_path):
     for (x, y, w, h), (got, cfa) in zip(crops, results):
         np.testing.assert_array_equal(got, m[y:y + h, x:x + w])
         assert cfa == "".join(tiled("BGGR", H, W)[y:y + 2, x:x + 2].ravel())
+
+
+def test_size_checked_from_libraws_header_before_decoding(tmp_path, monkeypatch):
+    """For a file that is not a DNG (here a DNG whose tags are hidden from the reader), LibRaw's header size is
+    checked against the pixel limit before anything is unpacked."""
+    import camsim.core.pixel_limit as pixel_limit
+    import camsim.io.raw_capture as raw_capture
+
+    path = phone(tmp_path / "p.dng")
+    unpacked = []
+    real_unpack = raw_capture._unpack
+    monkeypatch.setattr(raw_capture, "_unpack", lambda *a: (unpacked.append(a), real_unpack(*a)))
+    monkeypatch.setattr(raw_capture, "_read_tiff", lambda name: (None, None))
+    assert read_raw_capture(path).full_size == (W, H) and len(unpacked) == 1  # the route works as a non-DNG
+    unpacked.clear()
+    monkeypatch.setattr(pixel_limit, "MAX_PIXELS", W * H - 1)
+    for read in (read_raw_capture, raw_header):
+        with pytest.raises(CamsimError) as exc:
+            read(path)
+        assert f"{W} × {H} pixels, over camsim's limit" in one_line_error(exc, path)
+    assert unpacked == []
+
+
+@pytest.mark.parametrize("pattern", CFA_PATTERNS)
+def test_libraw_route_fields(tmp_path, monkeypatch, pattern):
+    """The route of raws that are not DNGs (every value from LibRaw), taken by a phone DNG whose tags are hidden
+    from the reader: the mosaic, the pattern, the black levels truncated as LibRaw does (65.5 -> 65), the white
+    level, ISO and exposure from the EXIF IFD as LibRaw reads it, the as-shot neutral back from LibRaw's
+    multipliers (G / multiplier), the orientation from LibRaw's flip, no camera name."""
+    import camsim.io.raw_capture as raw_capture
+
+    m = mosaic(13)
+    path = phone(tmp_path / "p.dng", pattern, m, orientation=8)
+    monkeypatch.setattr(raw_capture, "_read_tiff", lambda name: (None, None))
+    cap = read_raw_capture(path, crop=(1, 1, 12, 10))
+    np.testing.assert_array_equal(cap.mosaic, m[1:11, 1:13])
+    assert cap.cfa == "".join(tiled(pattern, H, W)[1:3, 1:3].ravel())
+    np.testing.assert_array_equal(cap.black_dn, np.floor(tiled(BLACK, H, W)[1:3, 1:3]))
+    assert cap.white_dn == 1023 and cap.iso == 640 and cap.exposure_s == pytest.approx(1 / 120, rel=1e-6)
+    np.testing.assert_allclose(cap.as_shot_neutral, NEUTRAL, rtol=1e-6)
+    assert cap.orientation == 8
+    assert (cap.make, cap.model, cap.unique_camera_model) == (None, None, None)
+    header = raw_header(path)
+    assert header.cfa == pattern and header.size == (W, H) and header.iso == 640
