@@ -112,8 +112,8 @@ def check_fields(cap, m, pattern, *, iso=640, exposure_s=1 / 120, orientation=1,
 
 
 @pytest.mark.parametrize("pattern", CFA_PATTERNS)
-@pytest.mark.parametrize("layout", [dict(), dict(thumbnail=False, exif_ifd=False), dict(big_endian=True)],
-                         ids=["subifd+exif", "ifd0", "big-endian"])
+@pytest.mark.parametrize("layout", [dict(), dict(thumbnail=False, exif_ifd=False), dict(big_endian=True),
+                                    dict(tile=(16, 32))], ids=["subifd+exif", "ifd0", "big-endian", "tiled"])
 def test_phone_dng_fields(tmp_path, pattern, layout):
     m = mosaic(sum(map(ord, pattern)))
     path = phone(tmp_path / "p.dng", pattern, m, **layout)
