@@ -6,20 +6,20 @@ Any file LibRaw (``rawpy``) reads — DNG, ARW, NEF, CR2, CR3, RAF, ... — whos
 What else the file says is read from its tags where the container is TIFF (DNG, NEF, CR2, ARW, ...), with tifffile,
 else from LibRaw:
 
-========================  ==========================================  =============================================
-field                      DNG (tags; the raw image's IFD for levels)  other raws (LibRaw; ISO, exposure, Make, Model
-                                                                       and Orientation from TIFF tags where TIFF)
-========================  ==========================================  =============================================
-``cfa``                    CFARepeatPatternDim / CFAPattern            ``raw_colors_visible``, ``color_desc``
-``black_dn``               BlackLevelRepeatDim / BlackLevel            ``black_level_per_channel`` by site colour
-``white_dn``               WhiteLevel (default 2^bits − 1)             ``white_level``
-``iso``, ``exposure_s``    ISOSpeedRatings (ISOSpeed above 65535),     ``other.iso_speed``, ``other.shutter_speed``
-                           ExposureTime, in IFD0 or its EXIF IFD
-``make``, ``model``        Make, Model, UniqueCameraModel              None (rawpy does not expose LibRaw's names)
-``color_matrix1/2``        ColorMatrix1/2, CalibrationIlluminant1/2    ``rgb_xyz_matrix`` (Adobe's D65 matrix: 21)
-``as_shot_neutral``        AsShotNeutral                               G / ``camera_whitebalance`` (as-shot WB)
-``orientation``            Orientation                                 ``sizes.flip`` (dcraw's code, mapped back)
-========================  ==========================================  =============================================
+=============================  ===================================  ==========================================
+field                          DNG (tags; levels from the raw IFD)  other raws (LibRaw)
+=============================  ===================================  ==========================================
+``cfa``                        CFARepeatPatternDim, CFAPattern      ``raw_colors_visible``, ``color_desc``
+``black_dn``                   BlackLevelRepeatDim, BlackLevel      ``black_level_per_channel`` by site colour
+``white_dn``                   WhiteLevel (default 2^bits − 1)      ``white_level``
+``iso``                        ISOSpeedRatings (ISOSpeed > 65535)   TIFF tags, else ``other.iso_speed``
+``exposure_s``                 ExposureTime (IFD0 or EXIF IFD)      TIFF tags, else ``other.shutter_speed``
+``make``, ``model``            Make, Model, UniqueCameraModel       TIFF tags, else None
+``color_matrix1/2``            ColorMatrix1/2                       ``rgb_xyz_matrix`` (Adobe's, D65)
+``calibration_illuminant1/2``  CalibrationIlluminant1/2             21 (D65) for that matrix
+``as_shot_neutral``            AsShotNeutral                        G / ``camera_whitebalance``
+``orientation``                Orientation                          TIFF tag, else ``sizes.flip`` mapped
+=============================  ===================================  ==========================================
 
 A DNG's levels and pattern are checked against LibRaw's reading of the same file (one line naming both when they
 disagree): the pattern exactly, the white level exactly, the black level of each site to within 1 DN (LibRaw
