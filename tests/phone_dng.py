@@ -105,7 +105,8 @@ def write_phone_dng(path, mosaic: np.ndarray, *, pattern: str, black_per_site, w
     Parameters
     ----------
     pattern : str
-        The 2 × 2 CFA cell at the top-left of the active area, e.g. ``"GRBG"``.
+        The 2 × 2 CFA cell at the top-left of the active area, e.g. ``"GRBG"`` (36 letters: a 6 × 6 cell, as
+        Fujifilm's X-Trans).
     black_per_site : array_like, shape (2, 2)
         BlackLevel of each site of that cell (BlackLevelRepeatDim 2 × 2): LONG when all are integers, else
         RATIONAL. Unit: DN.
@@ -160,8 +161,8 @@ def write_phone_dng(path, mosaic: np.ndarray, *, pattern: str, black_per_site, w
         if iso is not None:
             shot.append((ISO_SPEED_RATINGS, SHORT, 1, int(iso), True))
     raw_tags = [
-        (CFA_REPEAT_PATTERN_DIM, SHORT, 2, (2, 2), True),
-        (CFA_PATTERN, "B", 4, tuple(COLOUR_CODE[c] for c in pattern), True),
+        (CFA_REPEAT_PATTERN_DIM, SHORT, 2, (2, 2) if len(pattern) == 4 else (6, 6), True),
+        (CFA_PATTERN, "B", len(pattern), tuple(COLOUR_CODE[c] for c in pattern), True),
         (CFA_PLANE_COLOR, "B", 3, (0, 1, 2), True),
         (CFA_LAYOUT, SHORT, 1, 1, True),
         (BLACK_LEVEL_REPEAT_DIM, SHORT, 2, (2, 2), True),

@@ -304,14 +304,15 @@ def patch_raw_size(path, width, height):
 
 
 @pytest.mark.parametrize("case", ["missing", "directory", "text", "png", "truncated", "truncated header",
-                                  "three-chip", "mono", "not bayer", "huge", "black deltas", "empty"])
+                                  "three-chip", "mono", "not bayer", "x-trans", "huge", "black deltas", "empty"])
 def test_errors(tmp_path, case):
     path = tmp_path / "bad.dng"
     expect = {"missing": "no such file", "directory": "not a file", "text": "not a raw file LibRaw reads",
               "png": "not a raw file LibRaw reads", "truncated": "truncated", "truncated header": "cannot read",
               "three-chip": "no 2x2 colour filter array", "huge": "over camsim's limit",
               "black deltas": "BlackLevelDeltaH", "empty": "the file is empty",
-              "mono": "no 2x2 colour filter array: a monochrome image", "not bayer": "unsupported CFA layout"}[case]
+              "mono": "no 2x2 colour filter array: a monochrome image", "not bayer": "unsupported CFA layout",
+              "x-trans": "unsupported CFA layout (CFARepeatPatternDim (6, 6)"}[case]
     if case == "directory":
         path.mkdir()
     elif case == "text":
@@ -336,6 +337,8 @@ def test_errors(tmp_path, case):
             fh.write(struct.pack("<H", 34892))
     elif case == "not bayer":
         phone(path, pattern="RRGB")
+    elif case == "x-trans":  # Fujifilm's 6 x 6 cell
+        phone(path, pattern="GGRGGBGGBGGRBRGRBGGGBGGRGGRGGBRBGBRG", m=mosaic(1, 36, 36))
     elif case == "huge":
         phone(path)
         patch_raw_size(path, 20000, 20000)
