@@ -468,3 +468,15 @@ def test_libraw_route_fields(tmp_path, monkeypatch, pattern):
     assert (cap.make, cap.model, cap.unique_camera_model) == (None, None, None)
     header = raw_header(path)
     assert header.cfa == pattern and header.size == (W, H) and header.iso == 640
+
+
+def test_libraw_route_refuses_x_trans(tmp_path, monkeypatch):
+    """An X-Trans mosaic as LibRaw decodes it (the non-DNG route): refused on one line by its 6 x 6 pattern."""
+    import camsim.io.raw_capture as raw_capture
+
+    path = phone(tmp_path / "x.dng", pattern="GGRGGBGGBGGRBRGRBGGGBGGRGGRGGBRBGBRG", m=mosaic(1, 36, 36))
+    monkeypatch.setattr(raw_capture, "_read_tiff", lambda name: (None, None))
+    for read in (read_raw_capture, raw_header):
+        with pytest.raises(CamsimError) as exc:
+            read(path)
+        assert "(pattern (6, 6)) is not a 2x2 Bayer mosaic" in one_line_error(exc, path)
