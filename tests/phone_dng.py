@@ -99,13 +99,14 @@ def write_phone_dng(path, mosaic: np.ndarray, *, pattern: str, black_per_site, w
                     unique_camera_model: str | None = None, color_matrix1=None, color_matrix2=None,
                     illuminants=(17, 21), as_shot_neutral=None, orientation: int = 1, exif_ifd: bool = True,
                     thumbnail: bool = True, active_area=None, big_endian: bool = False,
-                    extra_raw_tags=()) -> str:
+                    extra_raw_tags=(), tile=None) -> str:
     """Write ``mosaic`` (H, W) uint16 as a phone-style CFA DNG; returns the path.
 
     Parameters
     ----------
     pattern : str
-        The 2 × 2 CFA cell at the top-left of the active area, e.g. ``"GRBG"``.
+        The 2 × 2 CFA cell at the top-left of the active area, e.g. ``"GRBG"`` (36 letters: a 6 × 6 cell, as
+        Fujifilm's X-Trans).
     black_per_site : array_like, shape (2, 2)
         BlackLevel of each site of that cell (BlackLevelRepeatDim 2 × 2): LONG when all are integers, else
         RATIONAL. Unit: DN.
@@ -122,6 +123,8 @@ def write_phone_dng(path, mosaic: np.ndarray, *, pattern: str, black_per_site, w
         The DNG ActiveArea (the pattern and the black levels start at its top-left corner).
     extra_raw_tags : sequence of tifffile extratags
         More tags for the raw image's IFD (e.g. BlackLevelDeltaH).
+    tile : (rows, columns) or None
+        The raw image in tiles of this size (multiples of 16), as Adobe DNG Converter writes it; None: one strip.
     """
     mosaic = np.asarray(mosaic)
     assert mosaic.ndim == 2 and mosaic.dtype == np.uint16
@@ -158,8 +161,8 @@ def write_phone_dng(path, mosaic: np.ndarray, *, pattern: str, black_per_site, w
         if iso is not None:
             shot.append((ISO_SPEED_RATINGS, SHORT, 1, int(iso), True))
     raw_tags = [
-        (CFA_REPEAT_PATTERN_DIM, SHORT, 2, (2, 2), True),
-        (CFA_PATTERN, "B", 4, tuple(COLOUR_CODE[c] for c in pattern), True),
+        (CFA_REPEAT_PATTERN_DIM, SHORT, 2, (2, 2) if len(pattern) == 4 else (6, 6), True),
+        (CFA_PATTERN, "B", len(pattern), tuple(COLOUR_CODE[c] for c in pattern), True),
         (CFA_PLANE_COLOR, "B", 3, (0, 1, 2), True),
         (CFA_LAYOUT, SHORT, 1, 1, True),
         (BLACK_LEVEL_REPEAT_DIM, SHORT, 2, (2, 2), True),
@@ -170,6 +173,7 @@ def write_phone_dng(path, mosaic: np.ndarray, *, pattern: str, black_per_site, w
     if active_area is not None:
         raw_tags.append((ACTIVE_AREA, LONG, 4, tuple(int(v) for v in active_area), True))
     name = os.fspath(path)
+    layout = dict(tile=tuple(tile)) if tile is not None else dict(rowsperstrip=mosaic.shape[0])
     with tifffile.TiffWriter(name, byteorder=order) as tw:
         if thumbnail:
             thumb = np.zeros((16, 24, 3), np.uint8)
@@ -177,11 +181,10 @@ def write_phone_dng(path, mosaic: np.ndarray, *, pattern: str, black_per_site, w
             tw.write(thumb, photometric="rgb", subfiletype=1, subifds=1, extratags=common + shot,
                      metadata=None, software=False, datetime=False)
             tw.write(mosaic, photometric=PHOTOMETRIC_CFA, subfiletype=0, extratags=raw_tags, metadata=None,
-                     software=False, datetime=False, compression=None, rowsperstrip=mosaic.shape[0])
+                     software=False, datetime=False, compression=None, **layout)
         else:
             tw.write(mosaic, photometric=PHOTOMETRIC_CFA, subfiletype=0, extratags=common + shot + raw_tags,
-                     metadata=None, software=False, datetime=False, compression=None,
-                     rowsperstrip=mosaic.shape[0])
+                     metadata=None, software=False, datetime=False, compression=None, **layout)
     if exif_ifd and (iso is not None or exposure_s is not None):
         _exif_ifd(name, order, iso, exposure_s)
     return name

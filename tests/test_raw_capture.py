@@ -112,8 +112,8 @@ def check_fields(cap, m, pattern, *, iso=640, exposure_s=1 / 120, orientation=1,
 
 
 @pytest.mark.parametrize("pattern", CFA_PATTERNS)
-@pytest.mark.parametrize("layout", [dict(), dict(thumbnail=False, exif_ifd=False), dict(big_endian=True)],
-                         ids=["subifd+exif", "ifd0", "big-endian"])
+@pytest.mark.parametrize("layout", [dict(), dict(thumbnail=False, exif_ifd=False), dict(big_endian=True),
+                                    dict(tile=(16, 32))], ids=["subifd+exif", "ifd0", "big-endian", "tiled"])
 def test_phone_dng_fields(tmp_path, pattern, layout):
     m = mosaic(sum(map(ord, pattern)))
     path = phone(tmp_path / "p.dng", pattern, m, **layout)
@@ -304,13 +304,15 @@ def patch_raw_size(path, width, height):
 
 
 @pytest.mark.parametrize("case", ["missing", "directory", "text", "png", "truncated", "truncated header",
-                                  "three-chip", "huge", "black deltas", "empty"])
+                                  "three-chip", "mono", "not bayer", "x-trans", "huge", "black deltas", "empty"])
 def test_errors(tmp_path, case):
     path = tmp_path / "bad.dng"
     expect = {"missing": "no such file", "directory": "not a file", "text": "not a raw file LibRaw reads",
               "png": "not a raw file LibRaw reads", "truncated": "truncated", "truncated header": "cannot read",
               "three-chip": "no 2x2 colour filter array", "huge": "over camsim's limit",
-              "black deltas": "BlackLevelDeltaH", "empty": "not a raw file LibRaw reads"}[case]
+              "black deltas": "BlackLevelDeltaH", "empty": "the file is empty",
+              "mono": "no 2x2 colour filter array: a monochrome image", "not bayer": "unsupported CFA layout",
+              "x-trans": "unsupported CFA layout (CFARepeatPatternDim (6, 6)"}[case]
     if case == "directory":
         path.mkdir()
     elif case == "text":
@@ -325,6 +327,18 @@ def test_errors(tmp_path, case):
     elif case == "three-chip":
         write_dng(path, np.zeros((3, 24, 24), np.uint8), black_level_dn=16, white_level=255,
                   unique_camera_model="cam", color_matrix1=CM1, as_shot_neutral=NEUTRAL)
+    elif case == "mono":  # a LinearRaw DNG of one sample per pixel (tifffile writes it as BlackIsZero: patched)
+        tifffile.imwrite(path, np.zeros((24, 24), np.uint16), photometric="minisblack", metadata=None,
+                         extratags=[(50706, "B", 4, (1, 4, 0, 0), True)])
+        with tifffile.TiffFile(path) as tif:
+            at = tif.pages.first.tags[262].valueoffset
+        with open(path, "r+b") as fh:
+            fh.seek(at)
+            fh.write(struct.pack("<H", 34892))
+    elif case == "not bayer":
+        phone(path, pattern="RRGB")
+    elif case == "x-trans":  # Fujifilm's 6 x 6 cell
+        phone(path, pattern="GGRGGBGGBGGRBRGRBGGGBGGRGGRGGBRBGBRG", m=mosaic(1, 36, 36))
     elif case == "huge":
         phone(path)
         patch_raw_size(path, 20000, 20000)
@@ -374,3 +388,95 @@ def test_numpy_integer_crop(tmp_path):
     path = phone(tmp_path / "p.dng", m=m)
     cap = read_raw_capture(path, crop=tuple(np.array([3, 1, 6, 4])))
     np.testing.assert_array_equal(cap.mosaic, m[1:5, 3:9])
+
+
+def test_colour_matrix_from_libraw_where_the_dng_has_none(tmp_path):
+    """A DNG without ColorMatrix1 from a camera LibRaw knows gets LibRaw's matrix: Adobe's D65 matrix of the Canon
+    EOS 5D Mark IV as dcraw's table lists it (6446, -366, -864, -4436, 12204, 2513, -952, 2496, 6348, / 10000),
+    CalibrationIlluminant 21; no AsShotNeutral and no LibRaw white balance: None."""
+    path = phone(tmp_path / "p.dng", make="Canon", model="EOS 5D Mark IV", color_matrix1=None, color_matrix2=None,
+                 as_shot_neutral=None)
+    cap = read_raw_capture(path)
+    adobe = np.array([6446, -366, -864, -4436, 12204, 2513, -952, 2496, 6348]).reshape(3, 3) / 10000
+    np.testing.assert_allclose(cap.color_matrix1, adobe, atol=1e-7)
+    assert cap.calibration_illuminant1 == 21 and cap.color_matrix2 is None and cap.as_shot_neutral is None
+    assert (cap.make, cap.model, cap.unique_camera_model) == ("Canon", "EOS 5D Mark IV", "Canon EOS 5D Mark IV")
+
+
+def test_threads_read_as_one(tmp_path):
+    """Reads from a thread pool (LibRaw decodes without the GIL) give what serial reads give; errors too."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    m = mosaic(12)
+    good = phone(tmp_path / "p.dng", "BGGR", m)
+    bad = tmp_path / "bad.dng"
+    bad.write_text("not a raw\n")
+    crops = [(x, y, 10, 8) for x in range(0, 8) for y in range(0, 4)]
+
+    def read(crop):
+        cap = read_raw_capture(good, crop=crop)
+        with pytest.raises(CamsimError):
+            read_raw_capture(bad)
+        return cap.mosaic, cap.cfa
+
+    with ThreadPoolExecutor(4) as pool:
+        results = list(pool.map(read, crops))
+    for (x, y, w, h), (got, cfa) in zip(crops, results):
+        np.testing.assert_array_equal(got, m[y:y + h, x:x + w])
+        assert cfa == "".join(tiled("BGGR", H, W)[y:y + 2, x:x + 2].ravel())
+
+
+def test_size_checked_from_libraws_header_before_decoding(tmp_path, monkeypatch):
+    """For a file that is not a DNG (here a DNG whose tags are hidden from the reader), LibRaw's header size is
+    checked against the pixel limit before anything is unpacked."""
+    import camsim.core.pixel_limit as pixel_limit
+    import camsim.io.raw_capture as raw_capture
+
+    path = phone(tmp_path / "p.dng")
+    unpacked = []
+    real_unpack = raw_capture._unpack
+    monkeypatch.setattr(raw_capture, "_unpack", lambda *a: (unpacked.append(a), real_unpack(*a)))
+    monkeypatch.setattr(raw_capture, "_read_tiff", lambda name: (None, None))
+    assert read_raw_capture(path).full_size == (W, H) and len(unpacked) == 1  # the route works as a non-DNG
+    unpacked.clear()
+    monkeypatch.setattr(pixel_limit, "MAX_PIXELS", W * H - 1)
+    for read in (read_raw_capture, raw_header):
+        with pytest.raises(CamsimError) as exc:
+            read(path)
+        assert f"{W} × {H} pixels, over camsim's limit" in one_line_error(exc, path)
+    assert unpacked == []
+
+
+@pytest.mark.parametrize("pattern", CFA_PATTERNS)
+def test_libraw_route_fields(tmp_path, monkeypatch, pattern):
+    """The route of raws that are not DNGs (every value from LibRaw), taken by a phone DNG whose tags are hidden
+    from the reader: the mosaic, the pattern, the black levels truncated as LibRaw does (65.5 -> 65), the white
+    level, ISO and exposure from the EXIF IFD as LibRaw reads it, the as-shot neutral back from LibRaw's
+    multipliers (G / multiplier), the orientation from LibRaw's flip, no camera name."""
+    import camsim.io.raw_capture as raw_capture
+
+    m = mosaic(13)
+    path = phone(tmp_path / "p.dng", pattern, m, orientation=8)
+    monkeypatch.setattr(raw_capture, "_read_tiff", lambda name: (None, None))
+    cap = read_raw_capture(path, crop=(1, 1, 12, 10))
+    np.testing.assert_array_equal(cap.mosaic, m[1:11, 1:13])
+    assert cap.cfa == "".join(tiled(pattern, H, W)[1:3, 1:3].ravel())
+    np.testing.assert_array_equal(cap.black_dn, np.floor(tiled(BLACK, H, W)[1:3, 1:3]))
+    assert cap.white_dn == 1023 and cap.iso == 640 and cap.exposure_s == pytest.approx(1 / 120, rel=1e-6)
+    np.testing.assert_allclose(cap.as_shot_neutral, NEUTRAL, rtol=1e-6)
+    assert cap.orientation == 8
+    assert (cap.make, cap.model, cap.unique_camera_model) == (None, None, None)
+    header = raw_header(path)
+    assert header.cfa == pattern and header.size == (W, H) and header.iso == 640
+
+
+def test_libraw_route_refuses_x_trans(tmp_path, monkeypatch):
+    """An X-Trans mosaic as LibRaw decodes it (the non-DNG route): refused on one line by its 6 x 6 pattern."""
+    import camsim.io.raw_capture as raw_capture
+
+    path = phone(tmp_path / "x.dng", pattern="GGRGGBGGBGGRBRGRBGGGBGGRGGRGGBRBGBRG", m=mosaic(1, 36, 36))
+    monkeypatch.setattr(raw_capture, "_read_tiff", lambda name: (None, None))
+    for read in (read_raw_capture, raw_header):
+        with pytest.raises(CamsimError) as exc:
+            read(path)
+        assert "(pattern (6, 6)) is not a 2x2 Bayer mosaic" in one_line_error(exc, path)

@@ -295,8 +295,8 @@ def _dng_tags(dtype: np.dtype, black_level_dn: Any, white_level: Any, unique_cam
             raise CamsimError("color_matrix2 (3x3) and calibration_illuminant2 go together, got "
                               f"{'no matrix' if color_matrix2 is None else f'shape {cm2.shape}'} and "
                               f"{calibration_illuminant2!r}")
-        if not (isinstance(calibration_illuminant2, (int, np.integer)) and not isinstance(calibration_illuminant2, bool)
-                and 0 <= calibration_illuminant2 <= 65535):
+        if (isinstance(calibration_illuminant2, bool) or not isinstance(calibration_illuminant2, (int, np.integer))
+                or not 0 <= calibration_illuminant2 <= 65535):
             raise CamsimError(f"calibration_illuminant2 must be an EXIF LightSource code, got "
                               f"{calibration_illuminant2!r}")
         second = [(_COLOR_MATRIX2, "2i", 9, _rationals(cm2, "color_matrix2", signed=True), True),

@@ -6,20 +6,20 @@ Any file LibRaw (``rawpy``) reads — DNG, ARW, NEF, CR2, CR3, RAF, ... — whos
 What else the file says is read from its tags where the container is TIFF (DNG, NEF, CR2, ARW, ...), with tifffile,
 else from LibRaw:
 
-========================  ==========================================  =============================================
-field                      DNG (tags; the raw image's IFD for levels)  other raws (LibRaw; ISO, exposure, Make, Model
-                                                                       and Orientation from TIFF tags where TIFF)
-========================  ==========================================  =============================================
-``cfa``                    CFARepeatPatternDim / CFAPattern            ``raw_colors_visible``, ``color_desc``
-``black_dn``               BlackLevelRepeatDim / BlackLevel            ``black_level_per_channel`` by site colour
-``white_dn``               WhiteLevel (default 2^bits − 1)             ``white_level``
-``iso``, ``exposure_s``    ISOSpeedRatings (ISOSpeed above 65535),     ``other.iso_speed``, ``other.shutter_speed``
-                           ExposureTime, in IFD0 or its EXIF IFD
-``make``, ``model``        Make, Model, UniqueCameraModel              None (rawpy does not expose LibRaw's names)
-``color_matrix1/2``        ColorMatrix1/2, CalibrationIlluminant1/2    ``rgb_xyz_matrix`` (Adobe's D65 matrix: 21)
-``as_shot_neutral``        AsShotNeutral                               G / ``camera_whitebalance`` (as-shot WB)
-``orientation``            Orientation                                 ``sizes.flip`` (dcraw's code, mapped back)
-========================  ==========================================  =============================================
+=============================  ===================================  ==========================================
+field                          DNG (tags; levels from the raw IFD)  other raws (LibRaw)
+=============================  ===================================  ==========================================
+``cfa``                        CFARepeatPatternDim, CFAPattern      ``raw_colors_visible``, ``color_desc``
+``black_dn``                   BlackLevelRepeatDim, BlackLevel      ``black_level_per_channel`` by site colour
+``white_dn``                   WhiteLevel (default 2^bits − 1)      ``white_level``
+``iso``                        ISOSpeedRatings (ISOSpeed > 65535)   TIFF tags, else ``other.iso_speed``
+``exposure_s``                 ExposureTime (IFD0 or EXIF IFD)      TIFF tags, else ``other.shutter_speed``
+``make``, ``model``            Make, Model, UniqueCameraModel       TIFF tags, else None
+``color_matrix1/2``            ColorMatrix1/2                       ``rgb_xyz_matrix`` (Adobe's, D65)
+``calibration_illuminant1/2``  CalibrationIlluminant1/2             21 (D65) for that matrix
+``as_shot_neutral``            AsShotNeutral                        G / ``camera_whitebalance``
+``orientation``                Orientation                          TIFF tag, else ``sizes.flip`` mapped
+=============================  ===================================  ==========================================
 
 A DNG's levels and pattern are checked against LibRaw's reading of the same file (one line naming both when they
 disagree): the pattern exactly, the white level exactly, the black level of each site to within 1 DN (LibRaw
@@ -32,7 +32,12 @@ column and per row black offsets) are refused: the black level is one value per 
 Limits of what rawpy exposes: a non-DNG camera's black-level pattern larger than 2 × 2 (LibRaw's ``cblack[6:]``
 beyond a 2 × 2 cell) is not visible through ``black_level_per_channel``, which then holds its per-colour part only;
 and a raw outside a TIFF container (CR3, RAF, RW2, ORF, ...) has no Make or Model here (rawpy does not expose
-LibRaw's ``idata.make``/``model``), so a preset must be named for it.
+LibRaw's ``idata.make``/``model``), so a preset must be named for it. A DNG's AsShotWhiteXY is not read (LibRaw does
+not read it either): ``as_shot_neutral`` is then None.
+
+Threads: a DNG, checked with tifffile first, is decoded in parallel with other threads (rawpy releases the GIL); any
+other file is read with LibRaw's stderr captured (it prints data errors there; camsim's errors are one line), which
+redirects the process's descriptor 2, so those reads take turns.
 
 The size is checked against :data:`camsim.core.pixel_limit.MAX_PIXELS` from the header alone, before any pixel is
 decoded: the DNG raw IFD's dimensions (tifffile), then LibRaw's (``open_file`` parses the header only; rawpy
@@ -44,6 +49,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -158,18 +164,18 @@ def libraw_cfa(raw: Any, prefix: str, accepts: str) -> str:
                           f"{accepts}")
     desc = raw.color_desc.decode("ascii", "replace")
     letters = "".join(_LETTER.get(desc[int(i)], "?") if int(i) < len(desc) else "?" for i in colours[:2, :2].ravel())
-    if sorted(letters) != ["B", "G", "G", "R"]:
+    if letters not in CFA_PATTERNS:  # R, G, G, B with the greens on a diagonal
         raise CamsimError(f"{prefix}: its 2x2 colour filter array {letters!r} is not an RGB Bayer pattern")
     return letters
 
 
 def libraw_orientation(flip: int) -> int:
-    """TIFF Orientation (1..8) of LibRaw's ``sizes.flip`` (0 → 1, 3 → 3, 5 → 8, 6 → 6; the mirrored ones too)."""
+    """TIFF Orientation (1..8) of LibRaw's ``sizes.flip``: 0 → 1, 3 → 3, 5 → 8, 6 → 6, and the mirrored ones."""
     return _FLIP_TO_ORIENTATION.get(int(flip), 1)
 
 
 def _shift(cell: np.ndarray, dy: int, dx: int) -> np.ndarray:
-    """The 2 × 2 cell seen from an origin moved by (dy, dx) pixels: ``out[i, j] = cell[(i + dy) % 2, (j + dx) % 2]``."""
+    """The 2 × 2 cell seen from an origin moved by (dy, dx): ``out[i, j] = cell[(i + dy) % 2, (j + dx) % 2]``."""
     return np.roll(np.asarray(cell), (-(dy % 2), -(dx % 2)), axis=(0, 1))
 
 
@@ -400,8 +406,8 @@ def _dng_raw(tif: Any, ifd0: Any, name: str) -> _DngRaw:
     check_pixel_count(page.imagewidth, page.imagelength, f"raw file {name}")
     if int(page.photometric) != _PHOTOMETRIC_CFA or page.samplesperpixel != 1:
         what = ("a monochrome image" if page.samplesperpixel == 1 else
-                f"a {page.samplesperpixel}-sample LinearRaw image (a three-chip or demosaiced raw)")
-        raise CamsimError(f"cannot read raw file {name}: it has no 2x2 colour filter array ({what}); camsim "
+                f"a {page.samplesperpixel}-sample LinearRaw image, a three-chip or demosaiced raw")
+        raise CamsimError(f"cannot read raw file {name}: it has no 2x2 colour filter array: {what}; camsim "
                           "reads RGB Bayer raws")
     pattern = _dng._cfa_pattern(page, name)
     black = _dng_black(page, name)
@@ -420,23 +426,41 @@ def _dng_raw(tif: Any, ifd0: Any, name: str) -> _DngRaw:
 _ACCEPTS = "camsim reads raws of a 2x2 RGB Bayer mosaic"
 
 
-@contextlib.contextmanager
-def _libraw(name: str):
-    """The file opened by LibRaw (header parsed, nothing decoded), its size checked; LibRaw's errors (and what it
-    prints on stderr) as one CamsimError line naming the file."""
-    import rawpy
+#: :func:`camsim.io.library_stderr.library_stderr` redirects the process's descriptor 2: one such call at a time
+_STDERR_LOCK = threading.Lock()
 
+
+@contextlib.contextmanager
+def _stderr_of(capture: bool):
+    """What LibRaw prints on stderr during the block (a CapturedStderr), where ``capture``; else None.
+
+    LibRaw prints a data error ("Unexpected end of file") on stderr besides failing; camsim's errors are one line.
+    A DNG is checked (complete, its tags read) before LibRaw sees it and is read without the capture, in parallel
+    with other threads (rawpy releases the GIL while it decodes); other files are read under the capture, one at a
+    time."""
+    if not capture:
+        yield None
+        return
     from camsim.io.library_stderr import library_stderr
+
+    with _STDERR_LOCK, library_stderr() as chatter:
+        yield chatter
+
+
+@contextlib.contextmanager
+def _libraw(name: str, capture: bool):
+    """The file opened by LibRaw (header parsed, nothing decoded), its size checked; LibRaw's errors (and what it
+    prints on stderr, with ``capture``) as one CamsimError line naming the file."""
+    import rawpy
 
     raw = rawpy.RawPy()
     try:
         try:
-            with library_stderr() as chatter:
+            with _stderr_of(capture) as chatter:
                 raw.open_file(name)
         except Exception as exc:  # rawpy.LibRawFileUnsupportedError, LibRawIOError, ...
-            reason = chatter.reason() or str(exc) or type(exc).__name__
-            raise CamsimError(f"cannot read raw file {name}: not a raw file LibRaw reads ({type(exc).__name__}: "
-                              f"{reason})") from None
+            raise CamsimError(f"cannot read raw file {name}: not a raw file LibRaw reads ({_reason(chatter, exc)})"
+                              ) from None
         sizes = raw.sizes
         check_pixel_count(int(sizes.raw_width), int(sizes.raw_height), f"raw file {name}")
         if int(sizes.width) < 2 or int(sizes.height) < 2:
@@ -451,16 +475,21 @@ def _libraw(name: str):
         raw.close()
 
 
-def _unpack(raw: Any, name: str) -> None:
-    from camsim.io.library_stderr import library_stderr
+def _reason(chatter: Any, exc: Exception) -> str:
+    """LibRaw's complaint: what it printed, else the exception's text (rawpy's are ``b'...'`` byte strings)."""
+    reason = (chatter.reason() if chatter is not None else "") or str(exc) or type(exc).__name__
+    if len(reason) > 3 and reason[:2] in ("b'", 'b"') and reason[-1] == reason[1]:
+        reason = reason[2:-1]
+    return reason
 
+
+def _unpack(raw: Any, name: str, capture: bool) -> None:
     try:
-        with library_stderr() as chatter:
+        with _stderr_of(capture) as chatter:
             raw.unpack()
     except Exception as exc:  # truncated or damaged pixel data
-        reason = chatter.reason() or str(exc) or type(exc).__name__
-        raise CamsimError(f"cannot read raw file {name}: LibRaw cannot decode its pixels ({type(exc).__name__}: "
-                          f"{reason})") from None
+        raise CamsimError(f"cannot read raw file {name}: LibRaw cannot decode its pixels ({_reason(chatter, exc)})"
+                          ) from None
 
 
 def _check_name(path: Any) -> str:
@@ -469,10 +498,12 @@ def _check_name(path: Any) -> str:
     except TypeError:
         raise CamsimError(f"a raw file's path must be a string or path, got {type(path).__name__}") from None
     if not os.path.isfile(name):
-        raise CamsimError(f"cannot read raw file {name}: {'no such file' if not os.path.exists(name) else 'not a file'}")
+        what = "no such file" if not os.path.exists(name) else "not a file"
+        raise CamsimError(f"cannot read raw file {name}: {what}")
     try:
-        with open(name, "rb"):
-            pass
+        with open(name, "rb") as fh:
+            if not fh.read(1):
+                raise CamsimError(f"cannot read raw file {name}: the file is empty")
     except OSError as exc:
         raise CamsimError(f"cannot read raw file {name}: {exc.strerror or exc}") from None
     return name
@@ -526,17 +557,17 @@ def raw_header(path) -> RawHeader:
     """
     name = _check_name(path)
     shot, dng = _read_tiff(name)
-    with _libraw(name) as raw:
+    with _libraw(name, dng is None) as raw:
         sizes = raw.sizes
         if dng is not None:
             dy, dx = _dng_origin(raw, dng, name)
             cfa = _pattern_shift(dng.cfa, dy, dx)
             values = _shot_values(shot, None)
             if values["iso"] is None or values["exposure_s"] is None:
-                _unpack(raw, name)
+                _unpack(raw, name, False)
                 values = _shot_values(shot, raw)
         else:
-            _unpack(raw, name)  # rawpy gives the pattern (and ``other``) only after unpack
+            _unpack(raw, name, True)  # rawpy gives the pattern (and ``other``) only after unpack
             cfa = libraw_cfa(raw, f"cannot read raw file {name}", _ACCEPTS)
             values = _shot_values(shot, raw)
         return RawHeader(path=name, size=(int(sizes.width), int(sizes.height)), cfa=cfa, **values)
@@ -557,8 +588,8 @@ def _check_crop(crop: Any, size: tuple, name: str) -> tuple:
         raise CamsimError(f"cannot read raw file {name}: crop ({x}, {y}, {w}, {h}) must have an even width and height "
                           "above 0 (whole 2x2 cells)")
     if x < 0 or y < 0 or x + w > width or y + h > height:
-        raise CamsimError(f"cannot read raw file {name}: crop ({x}, {y}, {w}, {h}) is off the frame of {width}x{height} "
-                          "pixels (x + w <= width, y + h <= height, x, y >= 0)")
+        raise CamsimError(f"cannot read raw file {name}: crop ({x}, {y}, {w}, {h}) is off the frame of "
+                          f"{width}x{height} pixels (x + w <= width, y + h <= height, x, y >= 0)")
     return x, y, w, h
 
 
@@ -587,12 +618,12 @@ def read_raw_capture(path, crop=None) -> RawCapture:
     """
     name = _check_name(path)
     shot, dng = _read_tiff(name)
-    with _libraw(name) as raw:
+    with _libraw(name, dng is None) as raw:
         sizes = raw.sizes
         full = (int(sizes.width), int(sizes.height))
         box = _check_crop(crop, full, name) if crop is not None else None
         origin = _dng_origin(raw, dng, name) if dng is not None else (0, 0)
-        _unpack(raw, name)
+        _unpack(raw, name, dng is None)
         libraw_pattern = libraw_cfa(raw, f"cannot read raw file {name}", _ACCEPTS)
         cell_index = np.asarray(raw.raw_colors_visible[:2, :2], dtype=np.intp)
         per_channel = np.asarray(raw.black_level_per_channel, dtype=np.float64)
