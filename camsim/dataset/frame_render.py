@@ -69,6 +69,8 @@ def render_files(frame: FrameSpec, directory: Path, threads: int = 1,
     """Render one frame (:func:`render_frame`) and write ``<id>.dng`` (if quantised), ``<id>.exr`` (with
     ``exr_compression``) and ``<id>.json`` into ``directory``; with ``srgb`` (``png``, ``png16``) also
     ``<id>_srgb_noisy.png`` and ``<id>_srgb_clean.png`` (:mod:`camsim.dataset.srgb`), each written atomically.
+    A frame of a ``[raws]`` spec is a raw scene's (:func:`camsim.dataset.raws.render_raw_files`: its DNG, EXR,
+    sidecar and, where the source has saturated sites, ``<id>_mask.png``).
 
     Returns
     -------
@@ -77,6 +79,10 @@ def render_files(frame: FrameSpec, directory: Path, threads: int = 1,
     srgb_record : dict or None
         What the sRGB files hold (:func:`camsim.dataset.srgb.develop_frame`), None without them.
     """
+    if frame.raw is not None:  # a crop of a raw file of a [raws] folder (srgb refused when the spec was read)
+        from camsim.dataset.raws import render_raw_files
+
+        return render_raw_files(frame, Path(directory), threads, exr_compression), None
     rendered, info = render_frame(frame, threads)
     names = write_frame(Path(directory), frame.id, rendered, info, exr_compression=exr_compression)
     if srgb == "none":
