@@ -56,6 +56,11 @@ files, in name order), the crop's offset (x, y uniform over every position insid
 name relative to the folder, its SHA-256, ``crop_x``, ``crop_y``, ``flip_horizontal``, ``flip_vertical``), so that
 the id changes with the image's bytes. A crop is of the file as stored; a flip mirrors the cropped frame.
 
+Scenes may also be crops of a folder of a real camera's raw files (a ``[raws]`` table: ``folder``, ``pattern``,
+``crop``, ``flips``, ``photon_law``, ``preset``), which need no ``scene`` file: the light and colour are each file's
+own, and the frames' parameters include ``ratio`` and ``photon_law`` (:data:`RAWS_PARAMS`). :mod:`camsim.dataset.raws`
+describes them.
+
 Frame order: scene, the scene's inherited axes, the ``[grid]`` keys in file order, the random draw, the repeat.
 Each frame gets an id ``<index>-<hash>`` (the hash covers every resolved parameter, the scene file's bytes and the
 seed) and its own seed, a function of the spec seed and the id alone, so that a frame's content does not depend
