@@ -294,3 +294,20 @@ def test_ratio_is_refused_outside_raws_specs(tmp_path, capsys):
     spec = tmp_path / "s.toml"
     spec.write_text('scene = "macbeth_26"\n[fixed]\nratio = 10.0\n')
     _refused(tmp_path, capsys, spec, "ratio applies to the frames of a [raws] spec")
+
+
+def test_virtual_cameras_and_thin_frames_plan_and_render(tmp_path):
+    spec = make_spec(tmp_path, count=3, grid="ratio = [4.0]", raws_extra='photon_law = "thin"',
+                     fixed_extra="").read_text()
+    spec = spec.replace('row_noise_e = 0.0\nread_noise_model = "gaussian"\nread_noise_e = 3.0\n', "")
+    spec += '\n[virtual_camera]\ncameras = ["sony-a7s2", "nikon-d850"]\n'
+    path = tmp_path / "spec.toml"
+    path.write_text(spec)
+    records = render(path, tmp_path / "out")
+    assert len(records) == 3
+    for record in records:
+        assert record["preset"] in ("sony-a7s2", "nikon-d850") and "iso" not in record  # the virtual camera's
+        assert record["photon_law"] == "thin" and record["exposure_s"] == pytest.approx(T_SOURCE / 4)
+        sidecar = json.loads((tmp_path / "out" / record["files"]["json"]["name"]).read_text())
+        assert sidecar["method"] == "raw-thin" and sidecar["raw_source"]["fraction"] == pytest.approx(0.25)
+        assert sidecar["dn_per_electron"] == pytest.approx(record["dn_per_electron"])
