@@ -311,3 +311,21 @@ def test_virtual_cameras_and_thin_frames_plan_and_render(tmp_path):
         sidecar = json.loads((tmp_path / "out" / record["files"]["json"]["name"]).read_text())
         assert sidecar["method"] == "raw-thin" and sidecar["raw_source"]["fraction"] == pytest.approx(0.25)
         assert sidecar["dn_per_electron"] == pytest.approx(record["dn_per_electron"])
+
+
+def test_srgb_outputs_develop_every_ratio_as_bright_as_its_source(tmp_path):
+    from camsim.pairs import WrittenPairs
+
+    spec = make_spec(tmp_path, files=(("a.dng", 96, 80, "RGGB"),), flips="false", count=1,
+                     grid="ratio = [10.0, 300.0]")
+    out = tmp_path / "out"
+    assert main(["dataset", str(spec), "--out", str(out), "--workers", "1", "--quiet", "--srgb", "png16"]) == 0
+    pairs = WrittenPairs(out, domain="srgb")
+    assert len(pairs) == 2
+    cleans = [pairs[i][1] for i in range(2)]
+    assert cleans[0].shape == (3, 32, 32)
+    # the flat source's clean frame, developed with gain = ratio: the same picture at both ratios
+    np.testing.assert_allclose(cleans[0].mean(axis=(1, 2)), cleans[1].mean(axis=(1, 2)), atol=2e-3)
+    assert 0.05 < float(cleans[0].mean()) < 0.95
+    noisy = [pairs[i][0] for i in range(2)]
+    assert float(noisy[1].std()) > float(noisy[0].std())  # ratio 300 is the noisier once developed

@@ -59,8 +59,10 @@ Make/Model and orientation), ``ID.exr`` (the noisy mosaic ``noisy.CFA`` and the 
 site: the SID-style pair of a dark noisy input and its clean target), ``ID.json`` (``raw_source``: the file, crop,
 flips, fraction, masked sites) and ``ID_mask.png`` where the crop has saturated source sites. Each worker process
 reads a raw file once and keeps it (a few files at a time) for the crops that follow.
-The file layout only: a Zarr store (``--format zarr``) and developed sRGB (``srgb``) are refused for ``[raws]``
-specs.
+With ``srgb`` (``png``, ``png16``), the noisy and clean mosaics are developed through one ISP
+(:func:`camsim.dataset.srgb.develop_raw_frame`: the source's colour matrix and as-shot neutral, gain
+1 / (F · T / T_source), the exposure ratio). The file layout only: a Zarr store (``--format zarr``) is refused for
+``[raws]`` specs.
 """
 
 from __future__ import annotations
@@ -360,8 +362,7 @@ def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeat
     Raises
     ------
     CamsimError
-        A key that does not apply (``scene``, ``[frame]``, ``[images]``, ``illuminant`` …), ``srgb`` other than
-        none, a bad ``[raws]`` table or file (:func:`_raws`), ``ratio`` with ``exposure_s``, or more than
+        A key that does not apply (``scene``, ``[frame]``, ``[images]``, ``illuminant`` …), a bad ``[raws]`` table or file (:func:`_raws`), ``ratio`` with ``exposure_s``, or more than
         :data:`camsim.dataset.spec.MAX_FRAMES` frames.
     """
     where = str(path)
@@ -370,9 +371,6 @@ def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeat
                      ("images", "a spec draws from [images] or from [raws], not both")):
         if key in doc:
             raise CamsimError(f"{where}: {'[' + key + ']' if key != 'scene' else key} does not apply: {why}")
-    if srgb not in (None, "none"):
-        raise CamsimError(f"{where}: srgb = {srgb!r}: developed sRGB outputs are not made for [raws] frames yet "
-                          "(the DNG develops as the source camera's raw)")
     raws = _raws(doc["raws"], base, where)
     axes, fixed, grid, random_table, random_names, count = _parameter_tables(doc, where)
     for param in _NOT_FOR_RAWS:
@@ -608,14 +606,16 @@ def render_raw(frame: FrameSpec, threads: int = 1):
     return draw, meta, source, scene
 
 
-def render_raw_files(frame: FrameSpec, directory: Path, threads: int = 1, exr_compression: str | None = None) -> dict:
+def render_raw_files(frame: FrameSpec, directory: Path, threads: int = 1,
+                     exr_compression: str | None = None) -> tuple[dict, tuple]:
     """Render one frame of a ``[raws]`` spec (:func:`render_raw`) and write its files into ``directory``
     (:func:`camsim.render.raw_render.write_raw_frame`: ``ID.dng``, ``ID.exr``, ``ID_mask.png`` where masked, and
-    ``ID.json`` last). Returns the file names by kind."""
+    ``ID.json`` last). Returns the file names by kind, and the draw and its sidecar (for the sRGB outputs)."""
     from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION
     from camsim.render.raw_render import write_raw_frame
 
     draw, meta, source, scene = render_raw(frame, threads)
-    return write_raw_frame(Path(directory), frame.id, draw, meta, source, scene.sensor,
-                           exr_compression or DEFAULT_EXR_COMPRESSION)
+    names = write_raw_frame(Path(directory), frame.id, draw, meta, source, scene.sensor,
+                            exr_compression or DEFAULT_EXR_COMPRESSION)
+    return names, (draw, meta)
 

@@ -111,9 +111,9 @@ def run_dataset(
     if output == "zarr" and not (srgb or spec.srgb):
         srgb = zarr_store.held_srgb(out_dir)  # a store keeps its sRGB arrays when a re-run does not name them
     srgb = check_srgb(srgb or spec.srgb or "none")
-    if spec.frames and spec.frames[0].raw is not None and (output != "files" or srgb != "none"):
+    if spec.frames and spec.frames[0].raw is not None and output != "files":
         raise CamsimError(f"{spec.name}: a [raws] dataset is written as files (a raw scene's DNG, EXR and sidecar "
-                          "per frame): --format zarr and --srgb are not made for it yet")
+                          "per frame): --format zarr is not made for it yet")
     if output == "files":
         exr_compression = check_exr_compression(exr_compression or spec.exr_compression or DEFAULT_EXR_COMPRESSION)
     records_dir = FRAMES_DIR if output == "files" else zarr_store.RECORDS_DIR
