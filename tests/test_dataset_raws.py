@@ -224,7 +224,8 @@ def test_the_same_seed_gives_byte_identical_files(rendered, tmp_path):
     assert [r["id"] for r in again] == [r["id"] for r in records]
     for first, second in zip(records, again):
         for kind, entry in first["files"].items():
-            assert (out / entry["name"]).read_bytes() == (tmp_path / "again" / second["files"][kind]["name"]).read_bytes()
+            again_file = tmp_path / "again" / second["files"][kind]["name"]
+            assert (out / entry["name"]).read_bytes() == again_file.read_bytes()
 
 
 def test_written_pairs_and_denoise_eval_read_the_dataset(rendered, tmp_path):

@@ -362,7 +362,8 @@ def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeat
     Raises
     ------
     CamsimError
-        A key that does not apply (``scene``, ``[frame]``, ``[images]``, ``illuminant`` …), a bad ``[raws]`` table or file (:func:`_raws`), ``ratio`` with ``exposure_s``, or more than
+        A key that does not apply (``scene``, ``[frame]``, ``[images]``, ``illuminant`` …), a bad ``[raws]`` table
+        or file (:func:`_raws`), ``ratio`` with ``exposure_s``, or more than
         :data:`camsim.dataset.spec.MAX_FRAMES` frames.
     """
     where = str(path)

@@ -93,14 +93,13 @@ from camsim.render.run import check_scene
 from camsim.io.dng import MIN_SIZE
 from camsim.io.exr_compression import check_exr_compression
 from camsim.core.names import safe_component
-from camsim.core.schema import INT64_MAX, check_frame_size
+from camsim.core.schema import INT64_MAX, Param, check_frame_size
 from camsim.scene.scene_file import FRAME_PARAMS, RENDER_PARAMS, Scene, check_intensity_factor, load_scene, read_toml
 from camsim.core.seeding import dataset_frame_seeds, dataset_parameter_generator
 from camsim.sensor.params import SENSOR_PARAMS, with_checked_values
 from camsim.scene.sources.image import ImageSource
 from camsim.sensor.presets.virtual import VIRTUAL_KEYS
 from camsim.sensor.raw_laws import PHOTON_LAWS
-from camsim.core.schema import Param
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT = 256, 192
 MAX_FRAMES = 1_000_000

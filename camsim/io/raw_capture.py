@@ -663,4 +663,5 @@ def crop_capture(capture: RawCapture, crop) -> RawCapture:
                           f"({x0}, {y0}, {w0}, {h0}) read")
     dy, dx = y - y0, x - x0
     return dataclasses.replace(capture, mosaic=capture.mosaic[dy: dy + h, dx: dx + w],
-                               cfa=_pattern_shift(capture.cfa, dy, dx), black_dn=_shift(capture.black_dn, dy, dx).astype(np.float64), crop=(x, y, w, h))
+                               cfa=_pattern_shift(capture.cfa, dy, dx),
+                               black_dn=_shift(capture.black_dn, dy, dx).astype(np.float64), crop=(x, y, w, h))
