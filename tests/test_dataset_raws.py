@@ -120,6 +120,9 @@ def test_plan_ids_are_deterministic_and_crops_aligned_inside_the_files(tmp_path)
         assert record["cfa"] == {"a.dng": "RGGB", "b.dng": "GRBG"}[record["raw_file"]]
         assert record["raw_sha256"] == hashlib.sha256((tmp_path / "raws" / record["raw_file"]).read_bytes()).hexdigest()
         assert record["exposure_s"] == pytest.approx(T_SOURCE / record["ratio"])
+        assert frame.sensor_overrides == {"cfa": record["cfa"], "exposure_s": record["exposure_s"],
+                                          "row_noise_e": 0.0, "read_noise_model": "gaussian", "read_noise_e": 3.0,
+                                          "dark_current": False}
         seen.add((record["raw_file"], flip_h, flip_v))
     assert len(seen) == 8  # both files, every flip
 

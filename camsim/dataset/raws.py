@@ -351,7 +351,8 @@ class _RawJob:
 
     @property
     def sensor_keys(self) -> tuple:
-        return self.value_keys[_FACTOR + 1:len(self.value_keys) - len(RAW_KEYS)]
+        """The own values that are sensor parameters (:attr:`camsim.dataset.spec.FrameGroup.sensor_keys`)."""
+        return self.value_keys[_FACTOR + 1:len(self.value_keys) - len(RAW_KEYS) - ("ratio" in self.value_keys)]
 
 
 def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeats: int, exr_compression,
@@ -391,12 +392,16 @@ def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeat
         axes.update(dict.fromkeys(VIRTUAL_KEYS, "virtual_camera"))
     axes.setdefault("intensity_factor", "default")
     varied = {p for p, how in axes.items() if how in ("grid", "random", "virtual_camera")}
-    own_sensor = tuple(p.name for p in SENSOR_PARAMS if p.name in varied and p.name in OWN_VALUE_PARAMS)
+    # a varied ratio is a frame's own value, and so is the exposure it sets (T_source / ratio): the frames of a file
+    # that differ only in it share a group
+    own_ratio = ("ratio",) if "ratio" in varied else ()
+    own_sensor = tuple(p.name for p in SENSOR_PARAMS
+                       if (p.name in varied or (own_ratio and p.name == "exposure_s")) and p.name in OWN_VALUE_PARAMS)
     shown = ("raw_file", "crop_x", "crop_y") + (("flip_horizontal", "flip_vertical") if raws.flips else ())
     axes.update(dict.fromkeys(shown, "raws"))
     job = _RawJob(where=where, base=base, name=name, seed=seed, repeats=repeats, count=count, raws=raws,
                   fixed=fixed, grid=grid, random_values=random_values, virtual=virtual,
-                  value_keys=("repeat", "intensity_factor", *own_sensor, *RAW_KEYS),
+                  value_keys=("repeat", "intensity_factor", *own_sensor, *own_ratio, *RAW_KEYS),
                   id_digits=max(ID_DIGITS, len(str(points * repeats - 1))),
                   raw_values=_raw_draws(raws, points, seed))
     return SpecPlan(name=name, path=path, seed=seed, width=raws.width, height=raws.height, axes=axes,
@@ -421,9 +426,11 @@ def _raw_frame_values(job: _RawJob) -> Iterator[tuple]:
     of one file that differ only in their own values share a group."""
     groups: dict = {}
     own_sensor = job.sensor_keys
+    own_ratio = "ratio" in job.value_keys
+    own_names = OWN_VALUE_PARAMS | ({"ratio"} if own_ratio else set())
     names = tuple(job.grid)
-    shared_grid = [i for i, n in enumerate(names) if n not in OWN_VALUE_PARAMS]
-    shared_random = [p for p in job.random_values if p not in OWN_VALUE_PARAMS]
+    shared_grid = [i for i, n in enumerate(names) if n not in own_names]
+    shared_random = [p for p in job.random_values if p not in own_names]
     point = index = 0
     for combo in itertools.product(*(range(len(v)) for v in job.grid.values())):
         combo_params = {**job.fixed, **{n: job.grid[n][i] for n, i in zip(names, combo)}}
@@ -433,6 +440,8 @@ def _raw_frame_values(job: _RawJob) -> Iterator[tuple]:
             params.update({p: values[point] for p, values in job.random_values.items()})
             params.setdefault("intensity_factor", 1.0)
             file_index, raw = job.raw_values[point]
+            if own_ratio:  # the frame's exposure, an own value
+                params["exposure_s"] = job.raws.files[file_index].source_exposure_s / float(params["ratio"])
             key = (file_index, combo_key, *(_canonical(params[p]) for p in shared_random))
             point += 1
             try:
@@ -448,8 +457,9 @@ def _raw_frame_values(job: _RawJob) -> Iterator[tuple]:
             except CamsimError as exc:
                 label = f"{job.where}: frame {index} ({raw[0]}, {', '.join(f'{k}={v!r}' for k, v in params.items())})"
                 raise CamsimError(f"{label}: {exc}") from None
+            ratio = (params["ratio"],) if own_ratio else ()
             for repeat in range(job.repeats):
-                yield index, (repeat, factor, *own, *raw), group
+                yield index, (repeat, factor, *own, *ratio, *raw), group
                 index += 1
 
 

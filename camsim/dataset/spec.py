@@ -215,8 +215,9 @@ class FrameGroup:
     @property
     def sensor_keys(self) -> tuple:
         """The names of the own values that are sensor parameters."""
-        end = len(self.value_keys) - (len(IMAGE_KEYS) if self.image_folder is not None else 0) \
-            - (len(RAW_KEYS) if self.raws is not None else 0)
+        end = len(self.value_keys) - (len(IMAGE_KEYS) if self.image_folder is not None else 0)
+        if self.raws is not None:  # a [raws] frame's own values end with its varied ratio, if any, and RAW_KEYS
+            end -= len(RAW_KEYS) + ("ratio" in self.value_keys)
         return self.value_keys[_FACTOR + 1:end]
 
     def canonical(self, values: tuple) -> str:
