@@ -333,3 +333,13 @@ def test_srgb_outputs_develop_every_ratio_as_bright_as_its_source(tmp_path):
     assert 0.05 < float(cleans[0].mean()) < 0.95
     noisy = [pairs[i][0] for i in range(2)]
     assert float(noisy[1].std()) > float(noisy[0].std())  # ratio 300 is the noisier once developed
+
+
+def test_a_zarr_store_is_refused_by_the_run_and_the_dry_run(tmp_path, capsys):
+    spec = make_spec(tmp_path, count=1)
+    out = tmp_path / "out"
+    for extra in ([], ["--dry-run"]):
+        assert main(["dataset", str(spec), "--out", str(out), "--format", "zarr", "--quiet", *extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "--format zarr is not made for it" in err and len(err.splitlines()) == 1
+    assert not out.exists()

@@ -390,7 +390,7 @@ def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeat
         drawn = _virtual_cameras(doc["virtual_camera"], points, seed, axes, where)
         random_values.update({key: [d[key] for d in drawn] for key in VIRTUAL_KEYS})
         axes.update(dict.fromkeys(VIRTUAL_KEYS, "virtual_camera"))
-    axes.setdefault("intensity_factor", "default")
+    axes.setdefault("intensity_factor", "fixed")  # F = 1 unless the spec says
     varied = {p for p, how in axes.items() if how in ("grid", "random", "virtual_camera")}
     # a varied ratio is a frame's own value, and so is the exposure it sets (T_source / ratio): the frames of a file
     # that differ only in it share a group
