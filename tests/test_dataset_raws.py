@@ -343,3 +343,29 @@ def test_a_zarr_store_is_refused_by_the_run_and_the_dry_run(tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert "--format zarr is not made for it" in err and len(err.splitlines()) == 1
     assert not out.exists()
+
+
+def test_saturated_source_sites_are_masked_and_counted(tmp_path, capsys):
+    import imageio.v3 as iio
+
+    spec = make_spec(tmp_path, files=(("a.dng", 96, 80, "RGGB"),), count=6, grid="ratio = [10.0]")
+    mosaic = flat_mosaic(96, 80)
+    mosaic[:, :40] = 16383  # the file's white level: the left columns saturated
+    write_source(tmp_path / "raws" / "a.dng", 96, 80, "RGGB", mosaic)
+    out = tmp_path / "out"
+    records = render(spec, out)
+    for record in records:
+        x, flipped = record["crop_x"], record["flip_horizontal"]
+        window = np.zeros((32, 32), bool)
+        window[:, :max(0, min(32, 40 - x))] = True  # the saturated columns of the window, before any mirror
+        expected = window[:, ::-1] if flipped else window
+        sidecar = json.loads((out / record["files"]["json"]["name"]).read_text())
+        assert sidecar["raw_source"]["masked_px"] == int(expected.sum())
+        if expected.any():
+            mask = iio.imread(out / record["files"]["mask"]["name"])[..., 0] == 255
+            np.testing.assert_array_equal(mask, expected)
+        else:
+            assert "mask" not in record["files"]
+    assert any("mask" in r["files"] for r in records)
+    render(spec, out)  # a rerun verifies every file, the masks too, and renders nothing
+    assert "rendered 0 frames" in capsys.readouterr().out
