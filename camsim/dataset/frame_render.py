@@ -69,6 +69,8 @@ def render_files(frame: FrameSpec, directory: Path, threads: int = 1,
     """Render one frame (:func:`render_frame`) and write ``<id>.dng`` (if quantised), ``<id>.exr`` (with
     ``exr_compression``) and ``<id>.json`` into ``directory``; with ``srgb`` (``png``, ``png16``) also
     ``<id>_srgb_noisy.png`` and ``<id>_srgb_clean.png`` (:mod:`camsim.dataset.srgb`), each written atomically.
+    A frame of a ``[raws]`` spec is a raw scene's (:func:`camsim.dataset.raws.render_raw_files`: its DNG, EXR,
+    sidecar and, where the source has saturated sites, ``<id>_mask.png``).
 
     Returns
     -------
@@ -77,16 +79,32 @@ def render_files(frame: FrameSpec, directory: Path, threads: int = 1,
     srgb_record : dict or None
         What the sRGB files hold (:func:`camsim.dataset.srgb.develop_frame`), None without them.
     """
+    if frame.raw is not None:  # a crop of a raw file of a [raws] folder
+        from camsim.dataset.raws import render_raw_files
+
+        names, (draw, meta) = render_raw_files(frame, Path(directory), threads, exr_compression)
+        if srgb == "none":
+            return names, None
+        from camsim.dataset.srgb import develop_raw_frame
+
+        images, record = develop_raw_frame(draw, meta, srgb)
+        return _write_srgb(frame, Path(directory), names, images, record), record
     rendered, info = render_frame(frame, threads)
     names = write_frame(Path(directory), frame.id, rendered, info, exr_compression=exr_compression)
     if srgb == "none":
         return names, None
     from camsim.dataset.srgb import develop_frame
-    from camsim.isp import write_png
 
     images, record = develop_frame(rendered, info, srgb)
+    return _write_srgb(frame, Path(directory), names, images, record), record
+
+
+def _write_srgb(frame: FrameSpec, directory: Path, names: dict, images: dict, record: dict) -> dict:
+    """Write the developed ``images`` (by layer) as ``<id>_<layer>.png``; ``names`` with them."""
+    from camsim.isp import write_png
+
     for layer, image in images.items():
         names[layer] = f"{frame.id}_{layer}.png"
         write_png(Path(directory) / names[layer], image, bits=record["bits"],
                   record={"layer": layer, "frame": frame.id, **record})
-    return names, record
+    return names

@@ -41,7 +41,7 @@ from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION, check_exr_compres
 from camsim.io.output_folder import output_folder
 from camsim.render.frame import default_workers
 
-__all__ = ["run_dataset", "check_settings", "FORMATS"]
+__all__ = ["run_dataset", "check_settings", "check_output_of", "FORMATS"]
 
 #: Output formats: ``files`` (a DNG, an EXR and a JSON sidecar per frame) or ``zarr`` (one Zarr store).
 FORMATS = ("files", "zarr")
@@ -111,6 +111,7 @@ def run_dataset(
     if output == "zarr" and not (srgb or spec.srgb):
         srgb = zarr_store.held_srgb(out_dir)  # a store keeps its sRGB arrays when a re-run does not name them
     srgb = check_srgb(srgb or spec.srgb or "none")
+    check_output_of(spec, output)
     if output == "files":
         exr_compression = check_exr_compression(exr_compression or spec.exr_compression or DEFAULT_EXR_COMPRESSION)
     records_dir = FRAMES_DIR if output == "files" else zarr_store.RECORDS_DIR
@@ -234,6 +235,14 @@ def check_settings(*, workers: int | None = None, threads: int = 1, scheduler: s
         check_exr_compression(exr_compression)
     if srgb is not None:
         check_srgb(srgb)
+
+
+def check_output_of(spec, output: str) -> None:
+    """Refuse an output format a spec's frames cannot be written in (``spec``: a :class:`DatasetSpec` or its
+    plan): a ``[raws]`` spec's frames are raw scenes' files, not a Zarr store's arrays (yet)."""
+    if output != "files" and spec.axes.get("raw_file") == "raws":
+        raise CamsimError(f"{spec.name}: a [raws] dataset is written as files (a raw scene's DNG, EXR and sidecar "
+                          "per frame): --format zarr is not made for it yet")
 
 
 def _check_format(out_dir: Path, output: str) -> None:

@@ -56,6 +56,11 @@ files, in name order), the crop's offset (x, y uniform over every position insid
 name relative to the folder, its SHA-256, ``crop_x``, ``crop_y``, ``flip_horizontal``, ``flip_vertical``), so that
 the id changes with the image's bytes. A crop is of the file as stored; a flip mirrors the cropped frame.
 
+Scenes may also be crops of a folder of a real camera's raw files (a ``[raws]`` table: ``folder``, ``pattern``,
+``crop``, ``flips``, ``photon_law``, ``preset``), which need no ``scene`` file: the light and colour are each file's
+own, and the frames' parameters include ``ratio`` and ``photon_law`` (:data:`RAWS_PARAMS`). :mod:`camsim.dataset.raws`
+describes them.
+
 Frame order: scene, the scene's inherited axes, the ``[grid]`` keys in file order, the random draw, the repeat.
 Each frame gets an id ``<index>-<hash>`` (the hash covers every resolved parameter, the scene file's bytes and the
 seed) and its own seed, a function of the spec seed and the id alone, so that a frame's content does not depend
@@ -88,18 +93,30 @@ from camsim.render.run import check_scene
 from camsim.io.dng import MIN_SIZE
 from camsim.io.exr_compression import check_exr_compression
 from camsim.core.names import safe_component
-from camsim.core.schema import INT64_MAX, check_frame_size
+from camsim.core.schema import INT64_MAX, Param, check_frame_size
 from camsim.scene.scene_file import FRAME_PARAMS, RENDER_PARAMS, Scene, check_intensity_factor, load_scene, read_toml
 from camsim.core.seeding import dataset_frame_seeds, dataset_parameter_generator
 from camsim.sensor.params import SENSOR_PARAMS, with_checked_values
 from camsim.scene.sources.image import ImageSource
 from camsim.sensor.presets.virtual import VIRTUAL_KEYS
+from camsim.sensor.raw_laws import PHOTON_LAWS
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT = 256, 192
 MAX_FRAMES = 1_000_000
 
-#: Every parameter a spec may set, by name: the frame's choices, the render settings and the sensor's (the schema).
-PARAMETERS = {p.name: p for p in (*FRAME_PARAMS, *RENDER_PARAMS, *SENSOR_PARAMS) if p.name != "seed"}
+#: The parameters of the frames of a ``[raws]`` spec only (:mod:`camsim.dataset.raws`): what a frame draws from its
+#: raw source.
+RAWS_PARAMS = (
+    Param("ratio", "float", None, "[raws] only: the exposure ratio of the SID convention, the frame's exposure "
+          "T = T_source / ratio (with intensity_factor 1: the frame expects 1/ratio of the source's electrons); "
+          "none: T is exposure_s (default the source's)", above=0, optional=True),
+    Param("photon_law", "str", "add", "[raws] only: how a frame's electrons are drawn from the source's: 'add' = "
+          "Poisson of the expectation (the source noise-free), 'thin' = binomial thinning of the source's count "
+          "(cannot brighten); default the [raws] table's", choices=PHOTON_LAWS),
+)
+#: Every parameter a spec may set, by name: the frame's choices, the render settings and the sensor's (the schema),
+#: and those of ``[raws]`` frames (:data:`RAWS_PARAMS`).
+PARAMETERS = {p.name: p for p in (*FRAME_PARAMS, *RENDER_PARAMS, *SENSOR_PARAMS, *RAWS_PARAMS) if p.name != "seed"}
 #: The render settings of :class:`camsim.scene.scene_file.Scene` a frame takes from its spec (all but the seed: a frame has
 #: its own).
 RENDER_KEYS = tuple(p.name for p in RENDER_PARAMS if p.name != "seed")
@@ -107,7 +124,7 @@ RENDER_KEYS = tuple(p.name for p in RENDER_PARAMS if p.name != "seed")
 GRID_ALIASES = {"illuminants": "illuminant", "intensity_factors": "intensity_factor"}
 DISTRIBUTIONS = ("uniform", "log_uniform", "integers", "choice")
 _TOP_KEYS = {"name", "description", "scene", "seed", "repeats", "frame", "fixed", "grid", "random", "images",
-             "virtual_camera", "exr_compression", "srgb"}
+             "raws", "virtual_camera", "exr_compression", "srgb"}
 #: What a spec's ``srgb`` (and ``camsim dataset --srgb``) may be: ``none``, or each frame's noisy and clean layers
 #: developed through one camera ISP (:mod:`camsim.dataset.srgb`) as 8-bit (``png``) or 16-bit (``png16``) sRGB:
 #: PNG files in the file layout, uint8 or uint16 arrays in a Zarr store.
@@ -120,6 +137,15 @@ IMAGES_TABLE_KEYS = ("folder", "pattern", "crop", "flips")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr")
 #: A frame's own values when its scene is a crop of an image of an ``[images]`` folder (after the others).
 IMAGE_KEYS = ("image_file", "image_sha256", "crop_x", "crop_y", "flip_horizontal", "flip_vertical")
+#: Keys of a ``[raws]`` table (:mod:`camsim.dataset.raws`).
+RAWS_TABLE_KEYS = ("folder", "pattern", "crop", "flips", "photon_law", "preset")
+#: File name suffixes a ``[raws]`` folder is searched for without a ``pattern`` (any case): the raw formats LibRaw
+#: reads.
+RAW_SUFFIXES = (".dng", ".arw", ".srf", ".sr2", ".nef", ".nrw", ".cr2", ".cr3", ".crw", ".raf", ".orf", ".rw2",
+                ".pef", ".srw", ".raw", ".rwl", ".3fr", ".fff", ".iiq", ".mos", ".mef", ".mrw", ".erf", ".kdc",
+                ".dcr", ".x3f", ".gpr")
+#: A frame's own values when its scene is a crop of a raw file of a ``[raws]`` folder (after the others).
+RAW_KEYS = ("raw_file", "raw_sha256", "crop_x", "crop_y", "flip_horizontal", "flip_vertical")
 #: Digits of a frame id's index at least (more where a spec has more than 10**ID_DIGITS frames).
 ID_DIGITS = 5
 
@@ -168,6 +194,9 @@ class FrameGroup:
     image_folder : str or None
         Absolute path of the ``[images]`` folder whose crops the frames are (their last own values are then
         :data:`IMAGE_KEYS`), or None.
+    raws : object or None
+        What the frames of a ``[raws]`` spec share (:class:`camsim.dataset.raws.RawGroup`: the folder, the source's
+        camera, the target's preset and ISO, the photon law); their last own values are then :data:`RAW_KEYS`.
     """
 
     scene_path: str
@@ -181,11 +210,14 @@ class FrameGroup:
     canonical_parts: tuple
     canonical_slots: tuple
     image_folder: str | None = None
+    raws: object = None
 
     @property
     def sensor_keys(self) -> tuple:
         """The names of the own values that are sensor parameters."""
         end = len(self.value_keys) - (len(IMAGE_KEYS) if self.image_folder is not None else 0)
+        if self.raws is not None:  # a [raws] frame's own values end with its varied ratio, if any, and RAW_KEYS
+            end -= len(RAW_KEYS) + ("ratio" in self.value_keys)
         return self.value_keys[_FACTOR + 1:end]
 
     def canonical(self, values: tuple) -> str:
@@ -314,6 +346,18 @@ class FrameSpec:
         name, _, x, y, flip_h, flip_v = self.values[-len(IMAGE_KEYS):]
         return ImageCrop(path=str(Path(folder) / name), x=x, y=y, width=self.width, height=self.height,
                          flip_horizontal=flip_h, flip_vertical=flip_v)
+
+    @property
+    def raw(self):
+        """The crop of a raw file of a ``[raws]`` folder that is the frame's source
+        (:class:`camsim.dataset.raws.RawCrop`), or None."""
+        if self.group.raws is None:
+            return None
+        from camsim.dataset.raws import RawCrop
+
+        name, digest, x, y, flip_h, flip_v = self.values[-len(RAW_KEYS):]
+        return RawCrop(path=str(Path(self.group.raws.folder) / name), x=x, y=y, width=self.width,
+                       height=self.height, flip_horizontal=flip_h, flip_vertical=flip_v)
 
     @property
     def record(self) -> dict:
@@ -624,61 +668,9 @@ def _checked_key(doc: dict, key: str, check, where: str):
     return value
 
 
-def plan_spec(path: str | Path) -> SpecPlan:
-    """Read and check a dataset spec (a file, or a built-in spec's name), its scenes (files relative to the spec,
-    or built-in scenes' names) and its random draws; the frames are made by :meth:`SpecPlan.frames`, one by one
-    (each validated as it is made).
-
-    Raises
-    ------
-    CamsimError
-        A missing or malformed file, an unknown key, a value of the wrong type, a name that does not resolve
-        (scene) or more than :data:`MAX_FRAMES` frames.
-    """
-    path = resolve_spec_file(path)
-    where = str(path)
-    doc = read_toml(path, "dataset spec")
-    unknown = set(doc) - _TOP_KEYS
-    if unknown:
-        raise CamsimError(f"{where}: unknown top-level key(s): {', '.join(sorted(unknown))}; "
-                          f"known: {', '.join(sorted(_TOP_KEYS))}")
-    base = path.resolve().parent
-
-    name = safe_component(doc.get("name", path.stem), f"{where}: name")  # it names the default output folder
-    if not isinstance(doc.get("description", ""), str):
-        raise CamsimError(f"{where}: description must be a string")
-    seed = doc.get("seed", 0)
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= INT64_MAX:
-        raise CamsimError(f"{where}: seed must be an integer from 0 to 2⁶³ − 1, got {seed!r}")
-    repeats = doc.get("repeats", 1)
-    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
-        raise CamsimError(f"{where}: repeats must be an integer ≥ 1, got {repeats!r}")
-    exr_compression = _checked_key(doc, "exr_compression", check_exr_compression, where)
-    srgb = _checked_key(doc, "srgb", check_srgb, where)
-    scene_files = doc.get("scene")
-    if scene_files is None:
-        raise CamsimError(f"{where}: needs scene = \"SCENE.toml\" (or a list of scene files)")
-    scene_files = scene_files if isinstance(scene_files, list) else [scene_files]
-    if not scene_files or not all(isinstance(s, str) for s in scene_files):
-        raise CamsimError(f"{where}: scene must be a scene file name or a non-empty list of them")
-    if len(set(scene_files)) != len(scene_files):
-        raise CamsimError(f"{where}: scene lists a file twice")
-
-    frame = _table(doc, "frame", where)
-    unknown = set(frame) - {"width", "height"}
-    if unknown:
-        raise CamsimError(f"{where}: unknown key(s) in [frame]: {', '.join(sorted(unknown))}; known: width, height")
-    width, height = frame.get("width", DEFAULT_WIDTH), frame.get("height", DEFAULT_HEIGHT)
-    check_frame_size(width, height, f"{where}: [frame]")
-
-    images = None
-    if "images" in doc:
-        if "frame" in doc:
-            raise CamsimError(f"{where}: [frame] sets a size, but the frames are [images] crops, whose size is "
-                              "[images] crop = [width, height]")
-        images = _images(doc["images"], base, where)
-        width, height = images.width, images.height
-
+def _parameter_tables(doc: dict, where: str) -> tuple:
+    """The spec's ``[fixed]``, ``[grid]`` and ``[random]`` tables, checked: (axes, fixed, grid, random table,
+    random names, count), ``axes`` saying where each parameter is set."""
     fixed_table = _table(doc, "fixed", where)
     grid_table = _table(doc, "grid", where)
     random_table = _table(doc, "random", where)
@@ -710,6 +702,80 @@ def plan_spec(path: str | Path) -> SpecPlan:
         if isinstance(count, bool) or not isinstance(count, int) or count < 1:
             raise CamsimError(f"{where}: [random] needs count = N (frames per grid point, an integer ≥ 1), "
                               f"got {count!r}")
+
+    return axes, fixed, grid, random_table, random_names, count
+
+
+def _refuse_raws_params(axes: dict, where: str) -> None:
+    """Refuse the parameters of ``[raws]`` frames (:data:`RAWS_PARAMS`) in a spec without ``[raws]``."""
+    for p in RAWS_PARAMS:
+        if p.name in axes:
+            raise CamsimError(f"{where}: [{axes[p.name]}] {p.name} applies to the frames of a [raws] spec (crops of "
+                              "raw files) only")
+
+
+def plan_spec(path: str | Path) -> SpecPlan:
+    """Read and check a dataset spec (a file, or a built-in spec's name), its scenes (files relative to the spec,
+    or built-in scenes' names) and its random draws; the frames are made by :meth:`SpecPlan.frames`, one by one
+    (each validated as it is made).
+
+    Raises
+    ------
+    CamsimError
+        A missing or malformed file, an unknown key, a value of the wrong type, a name that does not resolve
+        (scene) or more than :data:`MAX_FRAMES` frames.
+    """
+    path = resolve_spec_file(path)
+    where = str(path)
+    doc = read_toml(path, "dataset spec")
+    unknown = set(doc) - _TOP_KEYS
+    if unknown:
+        raise CamsimError(f"{where}: unknown top-level key(s): {', '.join(sorted(unknown))}; "
+                          f"known: {', '.join(sorted(_TOP_KEYS))}")
+    base = path.resolve().parent
+
+    name = safe_component(doc.get("name", path.stem), f"{where}: name")  # it names the default output folder
+    if not isinstance(doc.get("description", ""), str):
+        raise CamsimError(f"{where}: description must be a string")
+    seed = doc.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= INT64_MAX:
+        raise CamsimError(f"{where}: seed must be an integer from 0 to 2⁶³ − 1, got {seed!r}")
+    repeats = doc.get("repeats", 1)
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise CamsimError(f"{where}: repeats must be an integer ≥ 1, got {repeats!r}")
+    exr_compression = _checked_key(doc, "exr_compression", check_exr_compression, where)
+    srgb = _checked_key(doc, "srgb", check_srgb, where)
+    if "raws" in doc:  # crops of a folder of raw files: their own camera and light
+        from camsim.dataset.raws import plan_raws
+
+        return plan_raws(doc, path, base, name=name, seed=seed, repeats=repeats, exr_compression=exr_compression,
+                         srgb=srgb)
+    scene_files = doc.get("scene")
+    if scene_files is None:
+        raise CamsimError(f"{where}: needs scene = \"SCENE.toml\" (or a list of scene files)")
+    scene_files = scene_files if isinstance(scene_files, list) else [scene_files]
+    if not scene_files or not all(isinstance(s, str) for s in scene_files):
+        raise CamsimError(f"{where}: scene must be a scene file name or a non-empty list of them")
+    if len(set(scene_files)) != len(scene_files):
+        raise CamsimError(f"{where}: scene lists a file twice")
+
+    frame = _table(doc, "frame", where)
+    unknown = set(frame) - {"width", "height"}
+    if unknown:
+        raise CamsimError(f"{where}: unknown key(s) in [frame]: {', '.join(sorted(unknown))}; known: width, height")
+    width, height = frame.get("width", DEFAULT_WIDTH), frame.get("height", DEFAULT_HEIGHT)
+    check_frame_size(width, height, f"{where}: [frame]")
+
+    images = None
+    if "images" in doc:
+        if "frame" in doc:
+            raise CamsimError(f"{where}: [frame] sets a size, but the frames are [images] crops, whose size is "
+                              "[images] crop = [width, height]")
+        images = _images(doc["images"], base, where)
+        width, height = images.width, images.height
+
+    axes, fixed, grid, random_table, random_names, count = _parameter_tables(doc, where)
+    _refuse_raws_params(axes, where)
 
     scenes = []
     for scene_file in scene_files:

@@ -24,7 +24,8 @@ import numpy as np
 
 from camsim.core.errors import CamsimError
 
-__all__ = ["SRGB_LAYERS", "dataset_isp", "srgb_bits", "srgb_dtype", "develop_frame", "quantise", "mosaic_clean"]
+__all__ = ["SRGB_LAYERS", "dataset_isp", "srgb_bits", "srgb_dtype", "develop_frame", "develop_raw_frame", "quantise",
+           "mosaic_clean"]
 
 #: The developed layers, as the file layout names its PNGs (``ID_<layer>.png``) and a Zarr store its arrays.
 SRGB_LAYERS = ("srgb_noisy", "srgb_clean")
@@ -88,11 +89,8 @@ def develop_frame(rendered, info, output: str, settings=None) -> tuple[dict, dic
         ``output``, ``bits`` and ``isp``: the ISP's record of the noisy frame's development (the clean one's is the
         same: one set of gains, one matrix).
     """
-    from camsim.isp import develop_pair, facts_from_info
+    from camsim.isp import facts_from_info
 
-    bits = srgb_bits(output)
-    if bits is None:
-        raise CamsimError("no sRGB output asked for (srgb = none)")
     if settings is None:
         settings = dataset_isp((info.exposure or {}).get("exposure", "fixed"))
     facts = facts_from_info(rendered, info, quantised=False)  # noisy_dn and clean_dn: the level before the ADC
@@ -101,6 +99,29 @@ def develop_frame(rendered, info, output: str, settings=None) -> tuple[dict, dic
     if facts.cfa_pattern is not None:
         noisy = noisy[0]
         clean = mosaic_clean(clean, facts.cfa_pattern)
+    return _develop(noisy, clean, facts, output, settings)
+
+
+def develop_raw_frame(draw, meta: dict, output: str) -> tuple[dict, dict]:
+    """Develop a frame of a raw source (:class:`camsim.render.raw_frame.RawDraw` and its sidecar ``meta``, a
+    ``[raws]`` dataset's) as :func:`develop_frame` does: the noisy mosaic and the clean one (each site's expectation)
+    before the ADC, through one ISP whose colour is the source's (its ColorMatrix1 and as-shot neutral) and whose
+    gain is 1 / (F · T / T_source), the exposure ratio, so that a frame is as bright developed as its source.
+    Returns what :func:`develop_frame` returns."""
+    from camsim.isp import IspSettings, facts_from_meta
+
+    facts = facts_from_meta(meta, quantised=False)
+    settings = IspSettings(gain=1.0 / float(meta["raw_source"]["fraction"]))
+    return _develop(draw.noisy_dn[0], draw.clean_dn, facts, output, settings)
+
+
+def _develop(noisy: np.ndarray, clean: np.ndarray, facts, output: str, settings) -> tuple[dict, dict]:
+    """The noisy and clean images (a mosaic, or (3, H, W)) developed through one ISP, and the output's record."""
+    from camsim.isp import develop_pair
+
+    bits = srgb_bits(output)
+    if bits is None:
+        raise CamsimError("no sRGB output asked for (srgb = none)")
     developed_noisy, developed_clean = develop_pair(noisy, clean, facts, settings)
     images = {"srgb_noisy": developed_noisy.image, "srgb_clean": developed_clean.image}
     return images, {"output": output, "bits": bits, "isp": developed_noisy.record}

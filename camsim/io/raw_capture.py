@@ -48,6 +48,7 @@ known to rawpy only after ``unpack`` (LibRaw's ``filters`` and ``other`` are beh
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import threading
 from dataclasses import dataclass
@@ -60,7 +61,7 @@ from camsim.core.pixel_limit import check_pixel_count
 from camsim.io import dng as _dng
 from camsim.sensor.cfa import CFA_PATTERNS
 
-__all__ = ["RawCapture", "RawHeader", "raw_header", "read_raw_capture", "TiffShot", "tiff_shot", "camera_name",
+__all__ = ["RawCapture", "RawHeader", "raw_header", "read_raw_capture", "crop_capture", "TiffShot", "tiff_shot", "camera_name",
            "libraw_cfa", "libraw_orientation"]
 
 #: LibRaw's (dcraw's) ``flip`` → TIFF Orientation: dcraw reads Orientation o as flip ``"50132467"[o % 8]``.
@@ -667,3 +668,31 @@ def read_raw_capture(path, crop=None) -> RawCapture:
     return RawCapture(
         path=name, mosaic=mosaic, cfa=_pattern_shift(cfa0, y, x), black_dn=_shift(black0, y, x).astype(np.float64),
         white_dn=float(white), orientation=int(orientation), full_size=full, crop=box, **values, **colour)
+
+
+def crop_capture(capture: RawCapture, crop) -> RawCapture:
+    """A window of a capture read before (without a crop, or with one that holds the window): what
+    :func:`read_raw_capture` with ``crop`` gives, without decoding the file again (a dataset's crops of one file).
+
+    Parameters
+    ----------
+    capture : RawCapture
+    crop : (x, y, w, h)
+        In pixels of the visible image (as :func:`read_raw_capture`'s): x, y any (an odd offset shifts the pattern),
+        w, h even and > 0, inside the capture's own window.
+
+    Raises
+    ------
+    CamsimError
+        A crop of odd size or off the capture's window, naming the file.
+    """
+    x0, y0 = (0, 0) if capture.crop is None else capture.crop[:2]
+    h0, w0 = capture.mosaic.shape
+    x, y, w, h = _check_crop(crop, capture.full_size, capture.path)
+    if x < x0 or y < y0 or x + w > x0 + w0 or y + h > y0 + h0:
+        raise CamsimError(f"cannot crop raw file {capture.path}: crop ({x}, {y}, {w}, {h}) is off the window "
+                          f"({x0}, {y0}, {w0}, {h0}) read")
+    dy, dx = y - y0, x - x0
+    return dataclasses.replace(capture, mosaic=capture.mosaic[dy: dy + h, dx: dx + w],
+                               cfa=_pattern_shift(capture.cfa, dy, dx),
+                               black_dn=_shift(capture.black_dn, dy, dx).astype(np.float64), crop=(x, y, w, h))

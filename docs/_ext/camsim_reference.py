@@ -521,6 +521,7 @@ def dataset_key_nodes() -> list[nodes.Node]:
     sec += para("A dataset spec may have these top-level keys and tables (any other is an error): ")
     sec += _key_list(spec._TOP_KEYS)
     rows = [[[literal("[images]")], [_key_list(spec.IMAGES_TABLE_KEYS)]],
+            [[literal("[raws]")], [_key_list(spec.RAWS_TABLE_KEYS)]],
             [[literal("[virtual_camera]")], [_key_list(spec.VIRTUAL_CAMERA_TABLE_KEYS)]],
             [[literal("[random]")], [para(literal("count"), nodes.Text(" (draws per grid point), and per parameter "
                                                                        "one distribution, "),

@@ -70,13 +70,15 @@ def run(args) -> int:
     if args.scheduler is None and args.workers != 1 and not args.dry_run:
         start_fork_server(zarr=args.format == "zarr")  # the pool's fork server imports camsim meanwhile
 
-    from camsim.dataset.runner import check_settings, run_dataset
+    from camsim.dataset.runner import check_output_of, check_settings, run_dataset
     from camsim.dataset.spec import load_spec, plan_spec
 
     if args.dry_run:  # what the run checks before its first frame: the settings, then the spec and every frame
         check_settings(workers=args.workers, threads=args.threads, scheduler=args.scheduler, verify=args.verify,
                        exr_compression=args.exr_compression, output=args.format, srgb=args.srgb)
-        print_plan(plan_spec(args.spec))
+        plan = plan_spec(args.spec)
+        check_output_of(plan, args.format)
+        print_plan(plan)
         return 0
     spec = load_spec(args.spec)
     out = args.out if args.out is not None else DEFAULT_OUT / spec.name
