@@ -264,6 +264,9 @@ def _bad_sources(folder: Path) -> dict:
                       "is off the 64x64 image"),
         "thin_brighter": (write_scene(folder, "thin_brighter", "ok.dng", [2.0], 'photon_law = "thin"'),
                           "cannot brighten"),
+        # F · T = T_source, but PRNU gains above 1 would keep more than all of the source's electrons
+        "thin_prnu": (write_scene(folder, "thin_prnu", "ok.dng", [1.0], 'photon_law = "thin"\n[sensor]\n'
+                                  'prnu_percent = 1'), "times the largest PRNU gain"),
     }
 
 
@@ -273,7 +276,7 @@ def bad_sources(tmp_path_factory):
 
 
 @pytest.mark.parametrize("case", ["unreadable", "missing", "no_cfa", "unknown", "saturated", "off_frame",
-                                  "thin_brighter"])
+                                  "thin_brighter", "thin_prnu"])
 def test_bad_raws_give_one_line_and_write_nothing(bad_sources, case, tmp_path, capsys):
     scene, words = bad_sources[case]
     out = tmp_path / "out"
