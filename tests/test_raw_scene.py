@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rawpy
+import tifffile
 from scipy import stats
 
 from camsim.cli import main
@@ -144,6 +145,9 @@ def test_the_dng_stays_that_cameras(frames):
         assert raw.sizes.flip == LIBRAW_FLIP[6]
         wb = np.array(raw.camera_whitebalance[:3])
         assert wb / wb[1] == pytest.approx(NEUTRAL[1] / np.array(NEUTRAL), rel=1e-4)  # LibRaw: 1 / AsShotNeutral
+    with tifffile.TiffFile(stem + ".dng") as tif:  # Make and Model, which rawpy does not expose
+        tags = tif.pages[0].tags
+        assert (tags["Make"].value, tags["Model"].value, tags["Orientation"].value) == ("SONY", "ILCE-7SM2", 6)
     if shutil.which("exiftool") is None:
         pytest.skip("exiftool is not installed")
     tags = ["Make", "Model", "UniqueCameraModel", "Orientation", "ColorMatrix1", "ColorMatrix2",
@@ -311,3 +315,18 @@ def test_iso_and_preset_given_for_the_frames_change_their_sensor_not_the_sources
                 var = point.k_dn_per_e ** 2 * mu_e + point.gaussian_sigma_dn ** 2 + point.row_sigma_dn ** 2
                 tol = SIGMAS * np.sqrt(var / 64 ** 2 + point.row_sigma_dn ** 2 / 64)  # 64 rows of 64 sites
                 assert image[dy::2, dx::2].mean() == pytest.approx(mean, abs=tol), (preset, dy, dx)
+
+
+def test_a_camsim_frame_is_a_raw_scenes_source(tmp_path):
+    """The guide's first raw scene: a ColorChecker rendered by the ``sony-a7s2`` preset at ISO 100 (its DNG names the
+    camera ``Sony`` ``ILCE-7SM2``) made a hundred times darker at ISO 3200 by the same camera."""
+    assert main(["render", "macbeth_26", "--preset", "sony-a7s2", "--iso", "100", "--illuminant", "D65", "-F", "1",
+                 "--size", "96x64", "-q", "--out", str(tmp_path / "clean")]) == 0
+    scene = write_scene(tmp_path, "dark_chart", "clean/macbeth_26_D65_F1.dng", [0.01], "[sensor]\niso = 3200")
+    assert render(scene, tmp_path / "dark") == 0
+    meta = json.loads(Path(stem_of(tmp_path / "dark", "dark_chart", 0.01) + ".json").read_text(encoding="utf-8"))
+    record = meta["raw_source"]
+    assert (record["make"], record["model"], record["preset"]) == ("Sony", "ILCE-7SM2", "sony-a7s2")
+    assert record["k_dn_per_e"] == pytest.approx(camera_preset("sony-a7s2").point_at(100).k_dn_per_e)
+    assert record["iso"] == 100 and meta["iso"] == 3200 and record["fraction"] == pytest.approx(0.01)
+    assert meta["dn_per_electron"] == pytest.approx(camera_preset("sony-a7s2").point_at(3200).k_dn_per_e)
