@@ -330,3 +330,11 @@ def test_a_camsim_frame_is_a_raw_scenes_source(tmp_path):
     assert record["k_dn_per_e"] == pytest.approx(camera_preset("sony-a7s2").point_at(100).k_dn_per_e)
     assert record["iso"] == 100 and meta["iso"] == 3200 and record["fraction"] == pytest.approx(0.01)
     assert meta["dn_per_electron"] == pytest.approx(camera_preset("sony-a7s2").point_at(3200).k_dn_per_e)
+
+
+def test_size_is_refused_with_a_pointer_to_the_crop(tmp_path, capsys):
+    write_source(tmp_path / "src.dng", 64, 64)
+    scene = write_scene(tmp_path, "sized", "src.dng", [0.1])
+    assert render(scene, tmp_path / "out", "--size", "32x32") == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "[raw] crop = [x, y, width, height]" in err and not (tmp_path / "out").exists()

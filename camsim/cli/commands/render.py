@@ -123,8 +123,9 @@ def apply_overrides(scene, args):
         changes["iso"] = args.iso
     if args.size:
         if scene.source.has_own_size:
-            raise CamsimError("--size applies to chart and target scenes; a cube or image scene has a size of its own "
-                              "(an image's can be set with [image] size = [width, height])")
+            raise CamsimError("--size applies to chart and target scenes; a cube, image or raw scene has a size of its "
+                              "own (an image's can be set with [image] size = [width, height], a raw's with [raw] "
+                              "crop = [x, y, width, height])")
         changes["width"], changes["height"] = parse_size(args.size)
     scene = scene.replace(**changes)
     overrides = sensor_overrides(args)
