@@ -250,6 +250,30 @@ def test_every_built_in_bayer_camera_has_its_raws_make_and_model_listed():
     assert bayer - {preset for _, _, preset in CAMERAS} == {"sony-a7s2-eld"}
 
 
+def tiff_dng(path: Path, photometric: int, extratags=()) -> Path:
+    """A bare 64 × 64 DNG written with tifffile alone (Make Acme, Model X1, black 64, white 4095), its
+    PhotometricInterpretation patched to ``photometric`` (tifffile refuses a one-sample LinearRaw)."""
+    import struct
+
+    tags = [(254, "I", 1, 0, True), (271, "s", 0, "Acme", True), (272, "s", 0, "X1", True),
+            (50706, "B", 4, (1, 4, 0, 0), True), (50708, "s", 0, "Acme X1", True), (50714, "I", 1, 64, True),
+            (50717, "I", 1, 4095, True), *extratags]
+    tifffile.imwrite(path, np.full((64, 64), 1000, np.uint16), photometric="minisblack", extratags=tags,
+                     metadata=None)
+    with tifffile.TiffFile(path) as tif:
+        offset = tif.pages[0].tags[262].valueoffset
+    with open(path, "r+b") as fh:
+        fh.seek(offset)
+        fh.write(struct.pack("<H", photometric))
+    return path
+
+
+def cfa_tags(repeat, pattern, plane_colours=(0, 1, 2)):
+    """CFARepeatPatternDim, CFAPattern and CFAPlaneColor (colour codes 0 R, 1 G, 2 B, 3 C, 4 M, 5 Y)."""
+    return [(33421, "H", 2, tuple(repeat), True), (33422, "B", len(pattern), tuple(pattern), True),
+            (50710, "B", len(plane_colours), tuple(plane_colours), True)]
+
+
 def _bad_sources(folder: Path) -> dict:
     """Scene files that must be refused, each with the words its one-line error must hold."""
     write_source(folder / "ok.dng", 64, 64)
@@ -258,10 +282,20 @@ def _bad_sources(folder: Path) -> dict:
     (folder / "garbage.dng").write_bytes(b"not a raw file at all " * 20)
     assert main(["render", "macbeth_26", "-F", "1", "--illuminant", "D65", "--size", "64x48", "-q", "--out",
                  str(folder / "tc")]) == 0  # a camsim three-chip (LinearRaw) DNG
+    xtrans = (1, 1, 0, 1, 1, 2, 1, 1, 2, 1, 1, 0, 2, 0, 1, 0, 2, 1, 1, 1, 2, 1, 1, 0, 1, 1, 0, 1, 1, 2, 0, 2, 1, 2, 0, 1)
+    tiff_dng(folder / "mono.dng", 34892)  # LinearRaw, one sample
+    tiff_dng(folder / "xtrans.dng", 32803, cfa_tags((6, 6), xtrans))
+    tiff_dng(folder / "cygm.dng", 32803, cfa_tags((2, 2), (3, 4, 1, 5), (3, 4, 1, 5)))
+    tiff_dng(folder / "rggb.dng", 32803, cfa_tags((2, 2), (0, 1, 1, 2)))  # the same writer's Bayer file reads
+    assert load_scene(write_scene(folder, "rggb", "rggb.dng", [0.1], 'preset = "sony-a7s2"\niso = 800\n'
+                                  "exposure_s = 0.1")).source.cfa == "RGGB"
     return {
         "unreadable": (write_scene(folder, "unreadable", "garbage.dng", [0.1]), "not a raw file"),
         "missing": (write_scene(folder, "missing", "nothere.dng", [0.1]), "no such file"),
         "no_cfa": (write_scene(folder, "no_cfa", "tc/macbeth_26_D65_F1.dng", [0.1]), "no 2x2 colour filter array"),
+        "mono": (write_scene(folder, "mono", "mono.dng", [0.1]), "no 2x2 colour filter array (a monochrome image)"),
+        "xtrans": (write_scene(folder, "xtrans", "xtrans.dng", [0.1]), "unsupported CFA layout"),
+        "cygm": (write_scene(folder, "cygm", "cygm.dng", [0.1]), "unsupported CFA layout"),
         "unknown": (write_scene(folder, "unknown", "acme.dng", [0.1]), "unknown camera (Acme X1) and no preset given"),
         "saturated": (write_scene(folder, "saturated", "sat.dng", [0.1]), "every pixel is saturated"),
         "off_frame": (write_scene(folder, "off_frame", "ok.dng", [0.1], "crop = [10, 0, 64, 64]"),
@@ -279,8 +313,8 @@ def bad_sources(tmp_path_factory):
     return _bad_sources(tmp_path_factory.mktemp("bad_raws"))
 
 
-@pytest.mark.parametrize("case", ["unreadable", "missing", "no_cfa", "unknown", "saturated", "off_frame",
-                                  "thin_brighter", "thin_prnu"])
+@pytest.mark.parametrize("case", ["unreadable", "missing", "no_cfa", "mono", "xtrans", "cygm", "unknown",
+                                  "saturated", "off_frame", "thin_brighter", "thin_prnu"])
 def test_bad_raws_give_one_line_and_write_nothing(bad_sources, case, tmp_path, capsys):
     scene, words = bad_sources[case]
     out = tmp_path / "out"
