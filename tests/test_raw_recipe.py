@@ -51,6 +51,7 @@ from tests.helpers import ROOT
 GUIDE = ROOT / "docs" / "guides" / "real-raws.md"
 #: The files the recipe's scene reads, relative to its folder.
 CLEAN = "cam/clean/flat_D65_F0.5.dng"
+CHART = "cam/clean/macbeth_26_D65_F1.dng"
 RATIOS = (100, 300)
 SIGMAS = 4.0
 
@@ -82,28 +83,70 @@ def estimate(record: dict, key: str) -> tuple[float, float]:
     return record[key]["value"], record[key]["standard_error"]
 
 
+class ClosedForm:
+    """The hidden camera's darker exposure at ISO 3200, from ``hidden.toml``'s numbers (module docstring), and the
+    tolerances of the comparison, from the calibrations' standard errors."""
+
+    def __init__(self, hidden: dict, cal: dict, cal_preset: dict):
+        points = {int(p["iso"]): p for p in hidden["iso"]}
+        self.pedestal = hidden["preset"]["pedestal_dn"]
+        self.k_src, self.k_dst = points[100]["k_dn_per_e"], points[3200]["k_dn_per_e"]
+        self.read_dn, self.row_dn = points[3200]["gaussian_sigma_dn"], points[3200]["row_sigma_dn"]
+        self.src_readout_e2 = (points[100]["gaussian_sigma_dn"] ** 2 + points[100]["row_sigma_dn"] ** 2) \
+            / self.k_src ** 2
+        self.rel_k = [estimate(cal[iso], "k_dn_per_e")[1] / estimate(cal[iso], "k_dn_per_e")[0] for iso in (100, 3200)]
+        self.read_cal, self.read_se = estimate(cal[3200], "read_noise_dn")
+        self.cal_preset = cal_preset
+
+    def moments(self, src: np.ndarray, law: str, fraction: float, rows: int) -> tuple[float, float, float]:
+        """μ (e⁻), the mean (DN) and the variance (DN²) of a frame's sites whose source sites are ``src``."""
+        mu_e = fraction * (src.mean() - self.pedestal) / self.k_src
+        mean = self.pedestal + self.k_dst * mu_e
+        var = self.k_dst ** 2 * mu_e + self.read_dn ** 2 + self.row_dn ** 2 * (1 - 1 / rows) + 1 / 12
+        if law == "add":  # the source's own noise, scaled
+            var += self.k_dst ** 2 * fraction ** 2 * src.var() / self.k_src ** 2
+        else:  # what the source's readout leaves behind
+            var += self.k_dst ** 2 * fraction ** 2 * (self.src_readout_e2 + 1 / 12 + 1 / (12 * self.k_src ** 2))
+        return mu_e, mean, var
+
+    def tolerances(self, mean: float, var: float, n: int) -> tuple[float, float]:
+        """Relative tolerances of the mean above black and of the variance (four standard errors)."""
+        rel_src, rel_dst = self.rel_k
+        tol_mean = SIGMAS * np.sqrt(rel_src ** 2 + rel_dst ** 2 + var / n / (mean - self.pedestal) ** 2)
+        spurious = self.cal_preset["dsnu_dn"] ** 2 + (self.cal_preset["prnu_percent"] / 100
+                                                      * (mean - self.pedestal)) ** 2
+        tol_var = SIGMAS * np.sqrt((2 * rel_dst) ** 2 + rel_src ** 2 + (2 * self.read_cal * self.read_se / var) ** 2
+                                   + 2 / (n - 1)) + spurious / var
+        return tol_mean, tol_var
+
+
+def frame_files(folder: Path, name: str, factor: str) -> tuple[dict, np.ndarray]:
+    stem = f"{folder}/{name}_as-shot_F{factor}"
+    meta = json.loads(Path(stem + ".json").read_text(encoding="utf-8"))
+    with tifffile.TiffFile(stem + ".dng") as tif:
+        tags = tif.pages[0].tags
+        assert (tags["Make"].value, tags["Model"].value) == ("Acme", "LX-1")
+    return meta, rawpy.imread(stem + ".dng").raw_image.astype(np.float64)
+
+
 @pytest.mark.slow
 def test_the_recipe_gives_back_the_hidden_cameras_noise(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     hidden_text = recipe_block("hidden.toml", "toml")
     (tmp_path / "hidden.toml").write_text(hidden_text, encoding="utf-8")
-    (tmp_path / "acme_dark.toml").write_text(recipe_block("acme_dark.toml", "toml"), encoding="utf-8")
+    for scene in ("acme_dark.toml", "acme_chart.toml"):
+        (tmp_path / scene).write_text(recipe_block(scene, "toml"), encoding="utf-8")
     lines = [line for line in recipe_block("commands", "sh").splitlines() if line.strip()]
-    assert [shlex.split(line)[:2] for line in lines] == [["camsim", "render"]] * 7 + [["camsim", "calibrate"]] * 2 \
-        + [["camsim", "render"]]
-    assert all("hidden.toml" in line for line in lines[:7]) and not any("hidden" in line for line in lines[7:])
+    assert [shlex.split(line)[:2] for line in lines] == [["camsim", "render"]] * 8 + [["camsim", "calibrate"]] * 2 \
+        + [["camsim", "render"]] * 2
+    assert all("hidden.toml" in line for line in lines[:8]) and not any("hidden" in line for line in lines[8:])
 
     hidden = tomllib.loads(hidden_text)
-    points = {int(p["iso"]): p for p in hidden["iso"]}
-    pedestal = hidden["preset"]["pedestal_dn"]
-    for p in points.values():  # the file's Tukey scale is its stated standard deviation
+    for p in hidden["iso"]:  # the file's Tukey scale is its stated standard deviation
         assert p["tukey_scale_dn"] * stats.tukeylambda(p["tukey_lambda"]).std() == pytest.approx(
             p["gaussian_sigma_dn"], rel=1e-5)
-    k_src, k_dst = points[100]["k_dn_per_e"], points[3200]["k_dn_per_e"]
-    read_dn, row_dn = points[3200]["gaussian_sigma_dn"], points[3200]["row_sigma_dn"]
-    src_readout_e2 = (points[100]["gaussian_sigma_dn"] ** 2 + points[100]["row_sigma_dn"] ** 2) / k_src ** 2
 
-    run_recipe_lines(lines[:9])
+    run_recipe_lines(lines[:10])
     # the clean raw is a camera nothing knows: without [raw] preset the scene is refused
     with tifffile.TiffFile(tmp_path / CLEAN) as tif:
         tags = tif.pages[0].tags
@@ -114,7 +157,7 @@ def test_the_recipe_gives_back_the_hidden_cameras_noise(tmp_path, monkeypatch):
     with pytest.raises(CamsimError, match=r"unknown camera \(Acme LX-1\) and no preset given"):
         load_scene(tmp_path / "bare.toml")
 
-    run_recipe_lines(lines[9:])
+    run_recipe_lines(lines[10:])
     thin = (tmp_path / "acme_dark.toml").read_text(encoding="utf-8").replace('photon_law = "add"',
                                                                              'photon_law = "thin"')
     assert 'photon_law = "thin"' in thin
@@ -125,46 +168,67 @@ def test_the_recipe_gives_back_the_hidden_cameras_noise(tmp_path, monkeypatch):
     cal = {iso: json.loads((tmp_path / f"cal{iso}" / "calibration.json").read_text(encoding="utf-8"))
            for iso in (100, 3200)}
     cal_preset = tomllib.loads((tmp_path / "cal3200" / "preset.toml").read_text(encoding="utf-8"))["iso"][0]
-    rel_k = [estimate(cal[iso], "k_dn_per_e")[1] / estimate(cal[iso], "k_dn_per_e")[0] for iso in (100, 3200)]
-    read_cal, read_se = estimate(cal[3200], "read_noise_dn")
-    source = rawpy.imread(str(tmp_path / CLEAN)).raw_image.copy()
+    form = ClosedForm(hidden, cal, cal_preset)
     factors = {100: "0.01", 300: "0.00333333"}
+
+    # the flat field: each whole site plane
+    source = rawpy.imread(str(tmp_path / CLEAN)).raw_image.astype(np.float64)
     checked = 0
     for law, folder, name in (("add", "dark", "acme_dark"), ("thin", "thin", "acme_thin")):
         for ratio in RATIOS:
-            stem = f"{tmp_path / folder}/{name}_as-shot_F{factors[ratio]}"
-            meta = json.loads(Path(stem + ".json").read_text(encoding="utf-8"))
+            meta, frame = frame_files(tmp_path / folder, name, factors[ratio])
             fraction = float(factors[ratio])
             record = meta["raw_source"]
             assert record["photon_law"] == law and record["preset"] == "cal100/preset.toml"
             assert record["k_dn_per_e"] == pytest.approx(estimate(cal[100], "k_dn_per_e")[0], rel=1e-5)
-            assert record["fraction"] == pytest.approx(fraction) and record["iso"] == 100 == meta["raw_source"]["iso"]
+            assert record["fraction"] == pytest.approx(fraction) and record["iso"] == 100
             assert meta["iso"] == 3200 and meta["preset"] == "cal3200/preset.toml"
-            with tifffile.TiffFile(stem + ".dng") as tif:
-                tags = tif.pages[0].tags
-                assert (tags["Make"].value, tags["Model"].value) == ("Acme", "LX-1")
-            frame = rawpy.imread(stem + ".dng").raw_image.copy()
             for dy in (0, 1):
                 for dx in (0, 1):
                     src, out = plane(source, dy, dx), plane(frame, dy, dx)
-                    n, rows = out.size, out.shape[0]
-                    signal_e = (src.mean() - pedestal) / k_src
-                    mu_e = fraction * signal_e
-                    mean = pedestal + k_dst * mu_e
-                    var = k_dst ** 2 * mu_e + read_dn ** 2 + row_dn ** 2 * (1 - 1 / rows) + 1 / 12
-                    if law == "add":
-                        var += k_dst ** 2 * fraction ** 2 * src.var() / k_src ** 2
-                    else:
-                        var += k_dst ** 2 * fraction ** 2 * (src_readout_e2 + 1 / 12 + 1 / (12 * k_src ** 2))
-                    tol_mean = SIGMAS * np.sqrt(rel_k[0] ** 2 + rel_k[1] ** 2 + var / n / (mean - pedestal) ** 2)
-                    spurious = cal_preset["dsnu_dn"] ** 2 + (cal_preset["prnu_percent"] / 100 * (mean - pedestal)) ** 2
-                    tol_var = SIGMAS * np.sqrt((2 * rel_k[1]) ** 2 + rel_k[0] ** 2 + (2 * read_cal * read_se / var) ** 2
-                                               + 2 / (n - 1)) + spurious / var
+                    mu_e, mean, var = form.moments(src, law, fraction, out.shape[0])
+                    tol_mean, tol_var = form.tolerances(mean, var, out.size)
                     assert tol_mean < 0.04 and tol_var < 0.08, (tol_mean, tol_var)
-                    where = f"{law} 1/{ratio} site ({dy}, {dx}): {mu_e:.1f} e⁻"
-                    assert (out.mean() - pedestal) / (mean - pedestal) - 1 == pytest.approx(0, abs=tol_mean), where
+                    where = f"flat, {law} 1/{ratio} site ({dy}, {dx}): {mu_e:.1f} e⁻"
+                    assert (out.mean() - form.pedestal) / (mean - form.pedestal) - 1 == pytest.approx(
+                        0, abs=tol_mean), where
                     assert out.var() / var - 1 == pytest.approx(0, abs=tol_var), where
                     checked += 1
                     print(f"{where}: mean {out.mean():.2f} DN (closed form {mean:.2f}, tolerance {tol_mean:.2%}), "
                           f"variance {out.var():.1f} DN² ({var:.1f}, {tol_var:.2%})")
     assert checked == 16
+
+    # the chart: each patch's inner 60 % (its rectangle from the clean raw's sidecar), each site, 5 to 300 e⁻
+    chart_meta = json.loads((tmp_path / CHART).with_suffix(".json").read_text(encoding="utf-8"))
+    chart = rawpy.imread(str(tmp_path / CHART)).raw_image.astype(np.float64)
+    for ratio in RATIOS:
+        _, frame = frame_files(tmp_path / "dark_chart", "acme_chart", factors[ratio])
+        fraction = float(factors[ratio])
+        measured, expected, sampling, worst = [], [], [], []
+        for patch in chart_meta["patches"]:
+            x, y, w, h = patch["rect_xywh"]
+            x0, y0 = x + w // 5 + (x + w // 5) % 2, y + h // 5 + (y + h // 5) % 2  # a whole cell first
+            x1, y1 = x + w - w // 5, y + h - h // 5
+            for dy in (0, 1):
+                for dx in (0, 1):
+                    src = chart[y0 + dy:y1:2, x0 + dx:x1:2]
+                    out = frame[y0 + dy:y1:2, x0 + dx:x1:2]
+                    mu_e, mean, var = form.moments(src, "add", fraction, out.shape[0])
+                    tol_mean, tol_var = form.tolerances(mean, var, out.size)
+                    where = f"chart, add 1/{ratio}, {patch['name']}, site ({dy}, {dx}): {mu_e:.1f} e⁻"
+                    assert (out.mean() - form.pedestal) / (mean - form.pedestal) - 1 == pytest.approx(
+                        0, abs=tol_mean), where
+                    assert out.var() / var - 1 == pytest.approx(0, abs=tol_var), where
+                    measured.append(out.var())
+                    expected.append(var)
+                    sampling.append(var * np.sqrt(2 / (out.size - 1)))
+                    worst.append((abs(out.var() / var - 1), where))
+        # all patches together: the variances' sum against the closed form's, its sampling error √N times smaller
+        pooled = sum(measured) / sum(expected) - 1
+        rel_src, rel_dst = form.rel_k
+        tol = SIGMAS * np.sqrt((2 * rel_dst) ** 2 + rel_src ** 2 + (np.sqrt(np.sum(np.square(sampling)))
+                                                                   / sum(expected)) ** 2)
+        assert abs(pooled) < tol, (ratio, pooled, tol)
+        print(f"chart, add 1/{ratio}: {len(measured)} patch sites, {min(expected):.0f}–{max(expected):.0f} DN²: "
+              f"variances together {pooled:+.2%} (tolerance {tol:.2%}); the farthest {max(worst)[0]:.1%} "
+              f"({max(worst)[1]})")
