@@ -48,17 +48,18 @@ NEUTRAL = [0.5, 1.0, 0.7]
 LIBRAW_FLIP = {1: 0, 3: 3, 6: 6, 8: 5}
 
 
-def source_mosaic(height: int, width: int, k_dn_per_e: float) -> np.ndarray:
-    """The constant-per-site RGGB mosaic of :data:`SITE_E` at gain ``k_dn_per_e`` (uint16 DN)."""
-    cell = np.rint(BLACK + SITE_E * k_dn_per_e).astype(np.uint16)
+def source_mosaic(height: int, width: int, k_dn_per_e: float, black=BLACK) -> np.ndarray:
+    """The constant-per-site RGGB mosaic of :data:`SITE_E` at gain ``k_dn_per_e`` over ``black`` (one level, or
+    one per site of the 2 × 2 cell) (uint16 DN)."""
+    cell = np.rint(np.asarray(black, dtype=np.float64) + SITE_E * k_dn_per_e).astype(np.uint16)
     return np.tile(cell, (height // 2, width // 2))
 
 
 def write_source(path: Path, height: int = 512, width: int = 512, *, make="SONY", model="ILCE-7SM2",
-                 unique=None, orientation: int = 6, mosaic=None) -> Path:
+                 unique=None, orientation: int = 6, mosaic=None, black=((BLACK, BLACK), (BLACK, BLACK))) -> Path:
     k = camera_preset("sony-a7s2").point_at(ISO).k_dn_per_e
-    write_phone_dng(path, source_mosaic(height, width, k) if mosaic is None else mosaic, pattern="RGGB",
-                    black_per_site=[[BLACK] * 2] * 2, white=WHITE, iso=ISO, exposure_s=EXPOSURE_S, make=make,
+    write_phone_dng(path, source_mosaic(height, width, k, black) if mosaic is None else mosaic, pattern="RGGB",
+                    black_per_site=black, white=WHITE, iso=ISO, exposure_s=EXPOSURE_S, make=make,
                     model=model, unique_camera_model=unique, color_matrix1=MATRIX1, color_matrix2=MATRIX2,
                     illuminants=(17, 21), as_shot_neutral=NEUTRAL, orientation=orientation)
     return path
@@ -195,12 +196,15 @@ def test_raw_developers_develop_it_as_that_cameras_raw(frames, reader):
 @pytest.mark.parametrize(("x", "y", "pattern"), [(0, 0, "RGGB"), (1, 0, "GRBG"), (0, 1, "GBRG"), (1, 1, "BGGR")])
 def test_a_crop_keeps_the_pixels_and_shifts_the_pattern(tmp_path, x, y, pattern):
     """A crop at an odd offset starts on another site: the frame's pattern is that site's cell, and each site of the
-    frame carries its own source value (the means at F = 1, within 5 standard errors)."""
-    write_source(tmp_path / "src.dng", 64, 96)
+    frame carries its own source value less its own black level (four different ones, 88 DN or more apart: the
+    means at F = 1, within 5 standard errors, about 17 DN)."""
+    black = ((400, 512), (600, 700))
+    write_source(tmp_path / "src.dng", 64, 96, black=black)
     scene = write_scene(tmp_path, "crop", "src.dng", [1.0], f"crop = [{x}, {y}, 48, 32]")
     assert render(scene, tmp_path / "out") == 0
     meta = json.loads(Path(stem_of(tmp_path / "out", "crop", 1.0) + ".json").read_text(encoding="utf-8"))
     assert meta["raw_source"]["crop_xywh"] == [x, y, 48, 32] and meta["raw_source"]["cfa_pattern"] == pattern
+    assert meta["raw_source"]["black_dn"] == [[black[(dy + y) % 2][(dx + x) % 2] for dx in (0, 1)] for dy in (0, 1)]
     point = camera_preset("sony-a7s2").point_at(ISO)
     with rawpy.imread(stem_of(tmp_path / "out", "crop", 1.0) + ".dng") as raw:
         assert raw.raw_image.shape == (32, 48)
