@@ -376,3 +376,59 @@ def test_size_is_refused_with_a_pointer_to_the_crop(tmp_path, capsys):
     assert render(scene, tmp_path / "out", "--size", "32x32") == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "[raw] crop = [x, y, width, height]" in err and not (tmp_path / "out").exists()
+
+
+def test_the_exr_clean_layer_is_the_scaled_source(frames):
+    """The EXR's clean layer holds each site's expectation above black, K · F · s, in its own colour exactly, and
+    in the two others the bilinear interpolation of the neighbouring sites': away from the border, at an R site, G is
+    the mean of its four G neighbours (two Gr, two Gb) and B of its four diagonal B neighbours."""
+    from camsim.io.exr import read_exr
+
+    folder, factors = frames
+    k = camera_preset("sony-a7s2").point_at(ISO).k_dn_per_e
+    source_e = (np.rint(BLACK + SITE_E * k) - BLACK) / k
+    for factor in factors:
+        noisy, clean, _ = read_exr(stem_of(folder / "out", "a7", factor) + ".exr")
+        assert noisy.shape == (1, 512, 512) and clean.shape == (3, 512, 512)
+        expect = k * factor * source_e  # (2, 2): R, Gr / Gb, B
+        r, gr, gb, b = expect[0, 0], expect[0, 1], expect[1, 0], expect[1, 1]
+        assert clean[0, 0::2, 0::2] == pytest.approx(r, rel=1e-6)
+        assert clean[1, 0::2, 1::2] == pytest.approx(gr, rel=1e-6)
+        assert clean[1, 1::2, 0::2] == pytest.approx(gb, rel=1e-6)
+        assert clean[2, 1::2, 1::2] == pytest.approx(b, rel=1e-6)
+        inner = (slice(2, -2), slice(2, -2))
+        at_r = clean[:, 2:-2:2, 2:-2:2]
+        assert at_r[1] == pytest.approx((gr + gb) / 2, rel=1e-6) and at_r[2] == pytest.approx(b, rel=1e-6)
+        assert clean[0][inner][1::2, 1::2] == pytest.approx(r, rel=1e-6)  # R at B sites
+
+
+def test_saturated_sites_are_masked_counted_and_drawn_from_their_lower_bound(tmp_path):
+    """Sites at the white level are counted in ``raw_source.masked_px``, marked 255 in ``STEM_mask.png`` (0
+    elsewhere), and drawn from (white − black) / K, their electrons' lower bound: at F = 0.1 their mean is
+    P + K · 0.1 · (white − black) / K_source, within 5 standard errors."""
+    import imageio.v3 as iio
+
+    k = camera_preset("sony-a7s2").point_at(ISO).k_dn_per_e
+    mosaic = source_mosaic(64, 64, k)
+    saturated = np.zeros(mosaic.shape, bool)
+    saturated[10:20, 20:36] = True  # 160 sites, 40 of each colour
+    saturated[[3, 40, 41], [7, 50, 50]] = True
+    mosaic[saturated] = WHITE
+    write_source(tmp_path / "sat.dng", mosaic=mosaic)
+    scene = write_scene(tmp_path, "sat", "sat.dng", [0.1])
+    assert render(scene, tmp_path / "out") == 0
+    stem = stem_of(tmp_path / "out", "sat", 0.1)
+    meta = json.loads(Path(stem + ".json").read_text(encoding="utf-8"))
+    assert meta["raw_source"]["masked_px"] == 163 and meta["raw_source"]["masked_fraction"] == pytest.approx(
+        163 / 4096)
+    assert meta["files"]["mask"] == Path(stem).name + "_mask.png"
+    mask = iio.imread(stem + "_mask.png")
+    assert mask.shape[:2] == (64, 64) and set(np.unique(mask)) == {0, 255}
+    assert np.array_equal(mask.reshape(64, 64, -1)[..., 0] == 255, saturated)
+    point = camera_preset("sony-a7s2").point_at(ISO)
+    with rawpy.imread(stem + ".dng") as raw:
+        block = raw.raw_image[10:20, 20:36].astype(np.float64)
+    mu_e = 0.1 * (WHITE - BLACK) / k
+    mean = camera_preset("sony-a7s2").pedestal_dn + point.k_dn_per_e * mu_e
+    var = point.k_dn_per_e ** 2 * mu_e + point.gaussian_sigma_dn ** 2  # and the row offsets, shared by 16 sites
+    assert block.mean() == pytest.approx(mean, abs=SIGMAS * np.sqrt(var / block.size + point.row_sigma_dn ** 2 / 10))
