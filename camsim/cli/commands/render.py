@@ -124,7 +124,8 @@ def apply_overrides(scene, args):
     if args.size:
         if scene.source.has_own_size:
             raise CamsimError("--size applies to chart and target scenes; a cube, image or raw scene has a size of its "
-                              "own (an image's can be set with [image] size = [width, height], a raw's [raw] crop)")
+                              "own (an image's can be set with [image] size = [width, height], a raw's with [raw] "
+                              "crop = [x, y, width, height])")
         changes["width"], changes["height"] = parse_size(args.size)
     scene = scene.replace(**changes)
     overrides = sensor_overrides(args)
