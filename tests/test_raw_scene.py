@@ -134,7 +134,8 @@ def test_the_sidecar_records_the_source(frames):
             "black_dn": [[512.0, 512.0], [512.0, 512.0]], "white_dn": 16383.0, "iso": ISO,
             "exposure_s": pytest.approx(EXPOSURE_S), "make": "SONY", "model": "ILCE-7SM2",
             "unique_camera_model": "SONY ILCE-7SM2", "preset": "sony-a7s2", "k_dn_per_e": pytest.approx(k),
-            "photon_law": "add", "fraction": pytest.approx(factor), "masked_px": 0, "masked_fraction": 0.0}
+            "photon_law": "add", "photon_law_formula": "Poisson(f·max(s, 0)·g + D̄·d): the source as noise-free (ELD/PMN)",
+            "fraction": pytest.approx(factor), "masked_px": 0, "masked_fraction": 0.0}
 
 
 def test_the_dng_stays_that_cameras(frames):
@@ -297,7 +298,7 @@ def _bad_sources(folder: Path) -> dict:
         "unreadable": (write_scene(folder, "unreadable", "garbage.dng", [0.1]), "not a raw file"),
         "missing": (write_scene(folder, "missing", "nothere.dng", [0.1]), "no such file"),
         "no_cfa": (write_scene(folder, "no_cfa", "tc/macbeth_26_D65_F1.dng", [0.1]), "no 2x2 colour filter array"),
-        "mono": (write_scene(folder, "mono", "mono.dng", [0.1]), "no 2x2 colour filter array (a monochrome image)"),
+        "mono": (write_scene(folder, "mono", "mono.dng", [0.1]), "no 2x2 colour filter array: a monochrome image"),
         "xtrans": (write_scene(folder, "xtrans", "xtrans.dng", [0.1]), "unsupported CFA layout"),
         "cygm": (write_scene(folder, "cygm", "cygm.dng", [0.1]), "unsupported CFA layout"),
         "unknown": (write_scene(folder, "unknown", "acme.dng", [0.1]), "unknown camera (Acme X1) and no preset given"),
