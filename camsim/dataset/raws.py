@@ -280,6 +280,8 @@ def _raws(table, base: Path, where: str) -> _RawFolder:
     for path in paths:
         try:
             source = RawSource(path=path, preset=preset, base_dir=base)
+            source = replace(source, preset=source.source_preset(None))
+            source.source_gain_dn_per_e()  # the source camera has a gain at the file's ISO: refused now, not mid-run
             file_width, file_height = source.header.size
             cell_width, cell_height = file_width - file_width % 2, file_height - file_height % 2
             if cell_width < width or cell_height < height or file_width < width + spare \
@@ -289,7 +291,7 @@ def _raws(table, base: Path, where: str) -> _RawFolder:
                                   f"{width}x{height}{more}")
             files.append(_RawFile(
                 name=path.relative_to(folder).as_posix(), width=file_width, height=file_height,
-                sha256=_sha256(path), cfa=source.header.cfa, source_preset=source.source_preset(None),
+                sha256=_sha256(path), cfa=source.header.cfa, source_preset=source.preset,
                 source_iso=source.source_iso, source_exposure_s=source.source_exposure_s))
         except CamsimError as exc:
             raise CamsimError(f"{at}: {exc}") from None
@@ -563,14 +565,6 @@ def _full_capture(path: str):
     return read_raw_capture(path)
 
 
-@lru_cache(maxsize=16)
-def _source_gain(preset: str, iso: float, base_dir: str) -> float:
-    """The source camera's gain K at its ISO. Unit: DN/e⁻."""
-    from camsim.sensor.presets import camera_preset
-
-    return float(camera_preset(preset, base_dir).point_at(iso).k_dn_per_e)
-
-
 def flip_capture(capture, horizontal: bool, vertical: bool):
     """``capture`` (:class:`camsim.io.raw_capture.RawCapture`) with its mosaic mirrored left-right and/or
     upside-down: the pattern and the black level of each site of the top-left cell mirrored with it (the mosaic's
@@ -589,12 +583,13 @@ def load_crop(frame: FrameSpec):
     :func:`_full_capture`), mirrored as the frame is, in electrons of the source camera."""
     from camsim.io.raw_capture import crop_capture
     from camsim.render.raw_render import LoadedRaw, source_electrons
+    from camsim.scene.sources.raw import source_gain_dn_per_e
 
     raws = frame.group.raws
     crop = frame.raw
     capture = flip_capture(crop_capture(_full_capture(crop.path), crop.window), crop.flip_horizontal,
                            crop.flip_vertical)
-    k = _source_gain(raws.source_preset, raws.source_iso, raws.base_dir)
+    k = source_gain_dn_per_e(raws.source_preset, raws.source_iso, raws.base_dir)
     electrons, masked = source_electrons(capture, k)
     return LoadedRaw(capture, electrons, masked, raws.source_preset, k, raws.source_iso, raws.source_exposure_s)
 

@@ -117,12 +117,9 @@ def source_electrons(capture, k_dn_per_e: float) -> tuple[np.ndarray, np.ndarray
 
 def read_source(scene) -> LoadedRaw:
     """The raw scene's source: its capture, the source camera's gain at its ISO, its electrons and mask."""
-    from camsim.sensor.presets import camera_preset
-
     src = scene.source
     preset = src.source_preset(scene.preset_name)
-    iso, exposure = src.source_iso, src.source_exposure_s
-    k = float(camera_preset(preset, src.base_dir).point_at(iso).k_dn_per_e)
+    iso, exposure, k = src.source_iso, src.source_exposure_s, src.source_gain_dn_per_e()
     capture = src.capture()
     electrons, masked = source_electrons(capture, k)
     if masked.all():

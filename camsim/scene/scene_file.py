@@ -175,7 +175,8 @@ def _table(doc: dict, key: str, allowed: set, where: str) -> dict:
 
 
 
-def _raw_scene_defaults(source, light: dict, sensor_table: dict, given: str | None, iso: float | None, where: str):
+def _raw_scene_defaults(source, light: dict, frame: dict, sensor_table: dict, given: str | None, iso: float | None,
+                        where: str):
     """A raw scene's source, illuminants, preset and ISO, and its sensor's defaults (set in ``sensor_table``).
 
     The light is the file's: no illuminants (:data:`RAW_SCENE_ILLUMINANTS`). The source camera's preset is resolved
@@ -185,7 +186,10 @@ def _raw_scene_defaults(source, light: dict, sensor_table: dict, given: str | No
     says, exposed as long as the source unless ``[sensor] exposure_s`` says, with the file's colour filter array."""
     if "illuminants" in light:
         raise CamsimError(f"{where}: a raw scene is lit by its own light: [light] illuminants does not apply")
+    if frame:
+        raise CamsimError(f"{where}: a raw scene's frame is its file's (or [raw] crop's): [frame] does not apply")
     source = dataclasses.replace(source, preset=source.source_preset(given))
+    source.source_gain_dn_per_e()  # the source camera has a gain at the raw's ISO
     preset_name = given if given is not None else source.preset
     if iso is None and camera_preset(preset_name, source.base_dir) is not None:
         iso = source.source_iso
@@ -261,7 +265,8 @@ def load_scene(path: str | Path) -> Scene:
                     for p in SENSOR_PARAMS if p.name in sensor_table}
     if source.table == "raw":
         given = doc.get("sensor", {}).get("preset")  # (checked above to be a name)
-        source, illuminants, preset_name, iso = _raw_scene_defaults(source, light, sensor_table, given, iso, where)
+        source, illuminants, preset_name, iso = _raw_scene_defaults(source, light, frame, sensor_table, given,
+                                                                    iso, where)
 
     regions = parse_regions(doc["region"], where) if "region" in doc else ()
     if regions and not source.has_own_size:  # an image's or a cube's size is checked when it is read

@@ -156,6 +156,12 @@ class RawSource(SceneSource):
         raise CamsimError(f"{self.path}: unknown camera ({said}) and no preset given: set [raw] preset to a camera "
                           "preset (camsim list) or to the preset.toml camsim calibrate writes for this camera")
 
+    def source_gain_dn_per_e(self) -> float:
+        """K_source: the source camera's gain at the source's ISO (:func:`source_gain_dn_per_e` of
+        :meth:`source_preset`, which must be resolved: ``preset`` set, as :func:`camsim.scene.scene_file.load_scene`
+        leaves it). Unit: DN/e⁻."""
+        return source_gain_dn_per_e(self.source_preset(), self.source_iso, self.base_dir)
+
     def record(self) -> dict:
         """What the sidecar says of the source besides the numbers drawn from it."""
         return {"file": self.path.name, "crop_xywh": None if self.crop is None else list(self.crop),
@@ -164,3 +170,15 @@ class RawSource(SceneSource):
     def spectra(self, grid, width: int, height: int):
         raise CamsimError("a raw scene has no spectra: its frames are drawn from the file's electrons "
                           "(camsim.render.raw_render)")
+
+
+def source_gain_dn_per_e(preset: str, iso: float, base_dir=None) -> float:
+    """K_source: the gain of camera preset ``preset`` (a name, or a preset file relative to ``base_dir``) at a raw
+    source's ``iso``; an ISO outside the preset's range is a :class:`CamsimError` that says it is the source's.
+    Unit: DN/e⁻."""
+    from camsim.sensor.presets import camera_preset
+
+    try:
+        return float(camera_preset(preset, base_dir).point_at(iso).k_dn_per_e)
+    except CamsimError as exc:
+        raise CamsimError(f"the source camera ({preset}, [raw] preset) at the raw's ISO {iso:g}: {exc}") from None
