@@ -287,7 +287,7 @@ def test_an_unknown_camera_without_a_preset_is_refused(tmp_path, capsys):
     (dict(raws_extra='photon_law = "thin"', grid="ratio = [0.5]"), "thin' cannot brighten"),
     (dict(grid='illuminant = ["D65"]'), "illuminant does not apply"),
     (dict(crop="31, 32"), "even positive integers"),
-    (dict(raws_extra='cropp = 1'), "unknown key(s) cropp"),
+    (dict(raws_extra='cropp = 1'), "unknown key(s) in [raws]: cropp"),
 ])
 def test_bad_raws_specs_are_one_line_errors(tmp_path, capsys, change, message):
     spec = make_spec(tmp_path, **change)

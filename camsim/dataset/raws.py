@@ -74,7 +74,7 @@ import math
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from functools import lru_cache, partial
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 
 import numpy as np
 
@@ -99,8 +99,8 @@ from camsim.dataset.spec import (
     _parameter_tables,
     _seeded,
     _virtual_cameras,
+    folder_table,
 )
-from camsim.core.schema import check_frame_size
 from camsim.io.dng import MAX_EXPOSURE_S, MIN_SIZE
 from camsim.sensor.params import SENSOR_PARAMS, with_checked_values
 from camsim.sensor.presets.virtual import VIRTUAL_KEYS
@@ -227,33 +227,12 @@ def _raws(table, base: Path, where: str) -> _RawFolder:
     from camsim.scene.sources.raw import RawSource
 
     at = f"{where}: [raws]"
-    if not isinstance(table, dict):
-        raise CamsimError(f"{at} must be a table")
-    unknown = set(table) - set(RAWS_TABLE_KEYS)
-    if unknown:
-        raise CamsimError(f"{at}: unknown key(s) {', '.join(sorted(unknown))}; known: {', '.join(RAWS_TABLE_KEYS)}")
-    text = table.get("folder")
-    if not isinstance(text, str) or not text:
-        raise CamsimError(f"{at} needs folder = \"FOLDER\" (of raw files, relative to the spec)")
-    pattern = table.get("pattern")
-    if pattern is not None and (not isinstance(pattern, str) or not pattern):
-        raise CamsimError(f"{at} pattern must be a glob pattern such as \"*.dng\", got {pattern!r}")
-    if pattern is not None and (PurePosixPath(pattern).is_absolute() or ".." in PurePosixPath(pattern).parts):
-        raise CamsimError(f"{at} pattern {pattern!r} must stay inside the folder: a glob relative to it "
-                          "(\"*.dng\", \"**/*.ARW\"), without '..'; another folder is folder = \"...\"")
-    crop = table.get("crop")
-    if (not isinstance(crop, list) or len(crop) != 2
-            or any(isinstance(v, bool) or not isinstance(v, int) or v < 2 or v % 2 for v in crop)):
-        raise CamsimError(f"{at} needs crop = [width, height] (the frame size in pixels: even positive integers, "
-                          f"whole 2x2 cells of the colour filter array), got {crop!r}")
-    width, height = crop
-    check_frame_size(width, height, f"{at} crop")
+    checked = folder_table(table, base, where, "raws", RAWS_TABLE_KEYS, RAW_SUFFIXES, "raw", ".dng", even=True)
+    folder, paths, width, height, flips, text = (checked.folder, checked.paths, checked.width, checked.height,
+                                                 checked.flips, checked.text)
     if min(width, height) < MIN_SIZE:
         raise CamsimError(f"{at} crop {width}x{height} is smaller than {MIN_SIZE}x{MIN_SIZE} pixels, which raw "
                           "readers (LibRaw) refuse")
-    flips = table.get("flips", False)
-    if not isinstance(flips, bool):
-        raise CamsimError(f"{at} flips must be true or false, got {flips!r}")
     law = table.get("photon_law", "add")
     if law not in PHOTON_LAWS:
         raise CamsimError(f"{at} photon_law must be one of {', '.join(PHOTON_LAWS)}, got {law!r}")
@@ -261,20 +240,6 @@ def _raws(table, base: Path, where: str) -> _RawFolder:
     if preset is not None and (not isinstance(preset, str) or not preset):
         raise CamsimError(f"{at} preset must be the source camera's preset (camsim list) or a camsim calibrate "
                           f"preset file, got {preset!r}")
-    folder = (base / text).resolve()
-    if not folder.is_dir():
-        raise CamsimError(f"{at} folder {text!r} is not a folder ({folder})")
-    if pattern is None:
-        paths = [p for p in folder.iterdir() if p.suffix.lower() in RAW_SUFFIXES and not p.name.startswith(".")]
-    else:
-        try:
-            paths = list(folder.glob(pattern))
-        except (ValueError, NotImplementedError) as exc:
-            raise CamsimError(f"{at} pattern {pattern!r} is not a glob pattern: {exc}") from None
-    paths = sorted((p for p in paths if p.is_file()), key=lambda p: p.relative_to(folder).as_posix())
-    if not paths:
-        wanted = f"matching {pattern!r}" if pattern is not None else "(" + ", ".join(RAW_SUFFIXES) + ", any case)"
-        raise CamsimError(f"{at} folder {folder} holds no raw files {wanted}")
     spare = 1 if flips else 0  # a flipped window is one column (row) further in
     files = []
     for path in paths:

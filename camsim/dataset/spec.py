@@ -560,8 +560,78 @@ class _ImageFolder:
     flips: bool
 
 
+@dataclass(frozen=True)
+class FolderTable:
+    """The checks an ``[images]`` or a ``[raws]`` table shares: its folder (as the spec gives it, ``text``, and
+    absolute), the files in it (sorted by their name relative to the folder), the crop size and the flips."""
+
+    text: str
+    folder: Path
+    paths: tuple
+    width: int
+    height: int
+    flips: bool
+
+
+def folder_table(table, base: Path, where: str, name: str, keys: tuple, suffixes: tuple, what: str,
+                 example: str, even: bool = False) -> FolderTable:
+    """Check the keys a folder table (``[name]``: ``[images]``, ``[raws]``) shares and list its files.
+
+    ``keys`` are the table's keys, ``suffixes`` the file suffixes searched for without a ``pattern``, ``what`` the
+    files' kind in messages ("image", "raw"), ``example`` a suffix for the messages' globs; ``even``: the crop is whole
+    2 × 2 cells. A pattern is a glob relative to the folder and never leaves it.
+
+    Raises
+    ------
+    CamsimError
+        An unknown key, a value of the wrong type, a missing folder or one without such files.
+    """
+    at = f"{where}: [{name}]"
+    if not isinstance(table, dict):
+        raise CamsimError(f"{at} must be a table")
+    unknown = set(table) - set(keys)
+    if unknown:
+        raise CamsimError(f"{where}: unknown key(s) in [{name}]: {', '.join(sorted(unknown))}; known: {', '.join(keys)}")
+    text = table.get("folder")
+    if not isinstance(text, str) or not text:
+        raise CamsimError(f"{at} needs folder = \"FOLDER\" (of {what} files, relative to the spec)")
+    pattern = table.get("pattern")
+    if pattern is not None and (not isinstance(pattern, str) or not pattern):
+        raise CamsimError(f"{at} pattern must be a glob pattern such as \"*{example}\", got {pattern!r}")
+    if pattern is not None and (PurePosixPath(pattern).is_absolute() or ".." in PurePosixPath(pattern).parts):
+        raise CamsimError(f"{at} pattern {pattern!r} must stay inside the folder: a glob relative to it "
+                          f"(\"*{example}\", \"**/*{example}\"), without '..'; another folder is folder = \"...\"")
+    crop = table.get("crop")
+    low = 2 if even else 1
+    if (not isinstance(crop, list) or len(crop) != 2
+            or any(isinstance(v, bool) or not isinstance(v, int) or v < low or (even and v % 2) for v in crop)):
+        kind = ("even positive integers in pixels: whole 2x2 cells of the colour filter array" if even
+                else "positive integers in pixels")
+        raise CamsimError(f"{at} needs crop = [width, height] (the frame size, {kind}), got {crop!r}")
+    width, height = crop
+    check_frame_size(width, height, f"{at} crop")
+    flips = table.get("flips", False)
+    if not isinstance(flips, bool):
+        raise CamsimError(f"{at} flips must be true or false, got {flips!r}")
+    folder = (base / text).resolve()
+    if not folder.is_dir():
+        raise CamsimError(f"{at} folder {text!r} is not a folder ({folder})")
+    if pattern is None:
+        paths = [p for p in folder.iterdir() if p.suffix.lower() in suffixes and not p.name.startswith(".")]
+    else:
+        try:
+            paths = list(folder.glob(pattern))
+        except (ValueError, NotImplementedError) as exc:  # e.g. "**" inside a component
+            raise CamsimError(f"{at} pattern {pattern!r} is not a glob pattern: {exc}") from None
+    paths = sorted((p for p in paths if p.is_file()), key=lambda p: p.relative_to(folder).as_posix())
+    if not paths:
+        wanted = f"matching {pattern!r}" if pattern is not None else f"({', '.join(suffixes)}, any case)"
+        raise CamsimError(f"{at} folder {folder} holds no {what} files {wanted}")
+    return FolderTable(text, folder, tuple(paths), width, height, flips)
+
+
 def _images(table, base: Path, where: str) -> _ImageFolder:
-    """Read and check an ``[images]`` table: its folder, the images in it and the crop size.
+    """Read and check an ``[images]`` table (:func:`folder_table`): its folder, the images in it and the crop size.
 
     Raises
     ------
@@ -569,45 +639,9 @@ def _images(table, base: Path, where: str) -> _ImageFolder:
         An unknown key, a value of the wrong type, a missing or empty folder, a file that is not an image camsim
         reads, or an image smaller than the crop (naming the file).
     """
-    if not isinstance(table, dict):
-        raise CamsimError(f"{where}: [images] must be a table")
-    unknown = set(table) - set(IMAGES_TABLE_KEYS)
-    if unknown:
-        raise CamsimError(f"{where}: unknown key(s) in [images]: {', '.join(sorted(unknown))}; "
-                          f"known: {', '.join(IMAGES_TABLE_KEYS)}")
-    text = table.get("folder")
-    if not isinstance(text, str) or not text:
-        raise CamsimError(f"{where}: [images] needs folder = \"FOLDER\" (of image files, relative to the spec)")
-    pattern = table.get("pattern")
-    if pattern is not None and (not isinstance(pattern, str) or not pattern):
-        raise CamsimError(f"{where}: [images] pattern must be a glob pattern such as \"*.png\", got {pattern!r}")
-    if pattern is not None and (PurePosixPath(pattern).is_absolute() or ".." in PurePosixPath(pattern).parts):
-        raise CamsimError(f"{where}: [images] pattern {pattern!r} must stay inside the folder: a glob relative to it "
-                          "(\"*.png\", \"**/*.png\"), without '..'; another folder is folder = \"...\"")
-    crop = table.get("crop")
-    if (not isinstance(crop, list) or len(crop) != 2
-            or any(isinstance(v, bool) or not isinstance(v, int) or v < 1 for v in crop)):
-        raise CamsimError(f"{where}: [images] needs crop = [width, height] (the frame size, positive integers "
-                          f"in pixels), got {crop!r}")
-    width, height = crop
-    check_frame_size(width, height, f"{where}: [images] crop")
-    flips = table.get("flips", False)
-    if not isinstance(flips, bool):
-        raise CamsimError(f"{where}: [images] flips must be true or false, got {flips!r}")
-    folder = (base / text).resolve()
-    if not folder.is_dir():
-        raise CamsimError(f"{where}: [images] folder {text!r} is not a folder ({folder})")
-    if pattern is None:
-        paths = [p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")]
-    else:
-        try:
-            paths = list(folder.glob(pattern))
-        except (ValueError, NotImplementedError) as exc:  # e.g. "**" inside a component
-            raise CamsimError(f"{where}: [images] pattern {pattern!r} is not a glob pattern: {exc}") from None
-    paths = sorted((p for p in paths if p.is_file()), key=lambda p: p.relative_to(folder).as_posix())
-    if not paths:
-        wanted = f"matching {pattern!r}" if pattern is not None else f"({', '.join(IMAGE_SUFFIXES)})"
-        raise CamsimError(f"{where}: [images] folder {folder} holds no image files {wanted}")
+    checked = folder_table(table, base, where, "images", IMAGES_TABLE_KEYS, IMAGE_SUFFIXES, "image", ".png")
+    folder, paths, width, height, flips, text = (checked.folder, checked.paths, checked.width, checked.height,
+                                                 checked.flips, checked.text)
     files = []
     for path in paths:
         name = path.relative_to(folder).as_posix()

@@ -278,8 +278,6 @@ def render_frame(
     check_frame_values(expected, sensor)
     height, width = labels.shape
     rows = block_rows(labels.shape, sensor.cfa)
-    starts = list(range(0, height, rows))
-    generators = block_generators(rng, len(starts))
     maps = fixed_pattern(sensor, labels.shape)
     if maps is not None and maps.gain is not None and not impl.per_pixel_mean:
         raise CamsimError(f"PRNU needs a per-pixel mean: use method poisson, gaussian or auto, not {method}")
@@ -288,14 +286,27 @@ def render_frame(
     noisy = np.empty((planes, height, width), dtype=np.float32)
     digital = np.empty((planes, height, width), dtype=dn_dtype(sensor.bits)) if sensor.quantisation else None
     job = FrameJob(labels, expected, sensor, statistics, plan, maps, noisy, digital)
+    run_blocks(height, rows, rng, workers,
+               lambda: _Scratch(np.empty((rows, width), dtype=np.float32),
+                                np.empty(rows * width // 2 + 1, dtype=np.float32)),
+               lambda r0, r1, block_rng, scratch: impl.draw_block(job, r0, r1, block_rng, scratch))
+    return Frame(noisy, digital, labels, expected, sensor, plan, maps)
+
+
+def run_blocks(height: int, rows: int, rng, workers: int | None, make_scratch, draw_rows) -> None:
+    """The block scheduler: rows 0 … ``height`` in blocks of ``rows``, block *b* drawn by
+    ``draw_rows(r0, r1, generator_b, scratch)`` with generator *b* of ``rng``
+    (:func:`camsim.core.seeding.block_generators`), on ``workers`` threads (default: every core), each thread with
+    its own ``make_scratch()``. The blocks write disjoint rows, so the output does not depend on ``workers``."""
+    starts = list(range(0, height, rows))
+    generators = block_generators(rng, len(starts))
     per_thread = threading.local()
 
     def run_block(index: int) -> None:
         if getattr(per_thread, "scratch", None) is None:
-            per_thread.scratch = _Scratch(np.empty((rows, width), dtype=np.float32),
-                                          np.empty(rows * width // 2 + 1, dtype=np.float32))
+            per_thread.scratch = make_scratch()
         r0 = starts[index]
-        impl.draw_block(job, r0, min(height, r0 + rows), generators[index], per_thread.scratch)
+        draw_rows(r0, min(height, r0 + rows), generators[index], per_thread.scratch)
 
     workers = default_workers() if workers is None else max(1, int(workers))
     if workers == 1 or len(starts) == 1:
@@ -304,4 +315,3 @@ def render_frame(
     else:
         with ThreadPoolExecutor(max_workers=workers) as pool:
             list(pool.map(run_block, range(len(starts))))
-    return Frame(noisy, digital, labels, expected, sensor, plan, maps)

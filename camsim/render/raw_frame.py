@@ -4,24 +4,20 @@ The source gives each CFA site its electrons s (:mod:`camsim.sensor.raw_laws`); 
 charge from f · s (f = F · T / T_src), and every later stage is the target sensor's, by the stage functions of
 :mod:`camsim.sensor.stages` in the order :func:`camsim.render.frame.render_frame` runs them: the charge (with the
 dark current, PRNU and the dark-current DSNU), the offset DSNU, the full well, the read noise (its model and Tukey
-λ), the gain, the row noise and the ADC with its pedestal. The block scheduler is render_frame's: row blocks
-(:func:`camsim.render.frame.block_rows`), block *b* drawing from child *b* of the frame's seed
-(:func:`camsim.core.seeding.block_generators`), on a pool of threads, so a seed gives the same bits whatever the
-number of workers.
+λ), the gain, the row noise and the ADC with its pedestal. The block scheduler is render_frame's
+(:func:`camsim.render.frame.run_blocks`): row blocks (:func:`camsim.render.frame.block_rows`), block *b* drawing from
+child *b* of the frame's seed, on a pool of threads, so a seed gives the same bits whatever the number of workers.
 """
 
 from __future__ import annotations
 
 import math
-import threading
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.core.seeding import block_generators
-from camsim.render.frame import block_rows, default_workers
+from camsim.render.frame import block_rows, run_blocks
 from camsim.sensor.cfa import CFA_PATTERNS, cfa_sites
 from camsim.sensor.expected import clean_charge_e
 from camsim.sensor.fixed_pattern import FixedPattern, fixed_pattern
@@ -184,8 +180,6 @@ def render_raw_frame(source_e, sensor: SensorParams, fraction: float, *, law: st
     fraction = float(fraction)
     height, width = source.shape
     rows = block_rows(source.shape, sensor.cfa)  # refuses an odd size
-    starts = list(range(0, height, rows))
-    generators = block_generators(rng, len(starts))
     maps = fixed_pattern(sensor, source.shape)
     if law == "thin" and maps is not None and maps.gain is not None:  # the largest gain of a site's own channel
         sites = cfa_sites(sensor.cfa)
@@ -197,21 +191,8 @@ def render_raw_frame(source_e, sensor: SensorParams, fraction: float, *, law: st
     digital = np.empty((1, height, width), dtype=dn_dtype(sensor.bits)) if sensor.quantisation else None
     clean = np.empty((height, width), dtype=np.float32)
     job = _RawJob(source, sensor, fraction, law, maps, dark_cell, noisy, digital, clean)
-    per_thread = threading.local()
-
-    def run_block(index: int) -> None:
-        if getattr(per_thread, "scratch", None) is None:
-            per_thread.scratch = _Scratch(rows, width)
-        r0 = starts[index]
-        _draw_block(job, r0, min(height, r0 + rows), generators[index], per_thread.scratch)
-
-    workers = default_workers() if workers is None else max(1, int(workers))
-    if workers == 1 or len(starts) == 1:
-        for index in range(len(starts)):
-            run_block(index)
-    else:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            list(pool.map(run_block, range(len(starts))))
+    run_blocks(height, rows, rng, workers, lambda: _Scratch(rows, width),
+               lambda r0, r1, block_rng, scratch: _draw_block(job, r0, r1, block_rng, scratch))
     return RawDraw(noisy, digital, clean, maps)
 
 
