@@ -81,7 +81,6 @@ import numpy as np
 from camsim.core.errors import CamsimError
 from camsim.core.seeding import dataset_parameter_generator
 from camsim.dataset.spec import (
-    _BATCH,
     _FACTOR,
     ID_DIGITS,
     MAX_FRAMES,
@@ -96,8 +95,8 @@ from camsim.dataset.spec import (
     SpecPlan,
     _canonical,
     _draw,
+    _frames,
     _parameter_tables,
-    _seeded,
     _virtual_cameras,
     folder_table,
 )
@@ -299,7 +298,7 @@ def _raw_draws(raws: _RawFolder, n: int, seed: int) -> list:
 
 @dataclass(frozen=True)
 class _RawJob:
-    """What :func:`_raw_frames` needs to make the frames of a ``[raws]`` spec."""
+    """What :func:`camsim.dataset.spec._frames` needs to make the frames of a ``[raws]`` spec."""
 
     where: str
     base: Path
@@ -372,20 +371,8 @@ def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeat
                   id_digits=max(ID_DIGITS, len(str(points * repeats - 1))),
                   raw_values=_raw_draws(raws, points, seed))
     return SpecPlan(name=name, path=path, seed=seed, width=raws.width, height=raws.height, axes=axes,
-                    count=points * repeats, sizes=((raws.width, raws.height),), make_frames=partial(_raw_frames, job),
+                    count=points * repeats, sizes=((raws.width, raws.height),), make_frames=partial(_frames, job, frame_values=_raw_frame_values),
                     exr_compression=exr_compression, srgb=srgb)
-
-
-def _raw_frames(job: _RawJob) -> Iterator[FrameSpec]:
-    """Make the frames of a ``[raws]`` spec, in order, a batch at a time (their seeds are computed together)."""
-    batch = []
-    for index, values, group in _raw_frame_values(job):
-        digest = hashlib.sha256(group.canonical(values).encode("ascii")).hexdigest()[:10]
-        batch.append((f"{index:0{job.id_digits}d}-{digest}", index, values, group))
-        if len(batch) == _BATCH:
-            yield from _seeded(batch, job.seed)
-            batch = []
-    yield from _seeded(batch, job.seed)
 
 
 def _raw_frame_values(job: _RawJob) -> Iterator[tuple]:

@@ -951,10 +951,12 @@ class _Job:
         return self.value_keys[_FACTOR + 1:len(self.value_keys) - (len(IMAGE_KEYS) if self.images else 0)]
 
 
-def _frames(job: _Job) -> Iterator[FrameSpec]:
-    """Make the frames of a spec, in order, a batch at a time (their seeds are computed together)."""
+def _frames(job, frame_values=None) -> Iterator[FrameSpec]:
+    """Make the frames of a spec, in order, a batch at a time (their seeds are computed together): those of
+    ``frame_values(job)`` (index, own values, group), by default :func:`_frame_values`' (a ``[raws]`` spec's:
+    :func:`camsim.dataset.raws._raw_frame_values`)."""
     batch = []
-    for index, values, group in _frame_values(job):
+    for index, values, group in (frame_values or _frame_values)(job):
         digest = hashlib.sha256(group.canonical(values).encode("ascii")).hexdigest()[:10]
         batch.append((f"{index:0{job.id_digits}d}-{digest}", index, values, group))
         if len(batch) == _BATCH:
