@@ -36,6 +36,7 @@ from camsim.io.output_folder import make_folder, output_folder
 from camsim.render.frame_files import SIDECAR_SUFFIX, camera_view, exr_header, frame_stem, uncommit_frame
 from camsim.render.frame_manifest import MANIFEST_NAME, FrameManifest, manifest_entry
 from camsim.render.raw_frame import RawDraw, render_raw_frame
+from camsim.scene.sources.raw import source_gain_dn_per_e
 from camsim.sensor.noise_profile import dng_noise_profile
 from camsim.sensor.params import SensorParams
 from camsim.sensor.raw_laws import PHOTON_LAW_FORMULAS, check_thin_exposure
@@ -119,7 +120,8 @@ def read_source(scene) -> LoadedRaw:
     """The raw scene's source: its capture, the source camera's gain at its ISO, its electrons and mask."""
     src = scene.source
     preset = src.source_preset(scene.preset_name)
-    iso, exposure, k = src.source_iso, src.source_exposure_s, src.source_gain_dn_per_e()
+    iso, exposure = src.source_iso, src.source_exposure_s
+    k = source_gain_dn_per_e(preset, iso, src.base_dir)
     capture = src.capture()
     electrons, masked = source_electrons(capture, k)
     if masked.all():
@@ -128,8 +130,8 @@ def read_source(scene) -> LoadedRaw:
     return LoadedRaw(capture, electrons, masked, preset, k, iso, exposure)
 
 
-def frame_fraction(scene, sensor: SensorParams, source: LoadedRaw, intensity_factor: float) -> float:
-    """F · T / T_source: the share of the source's electrons a frame expects."""
+def frame_fraction(sensor: SensorParams, source: LoadedRaw, intensity_factor: float) -> float:
+    """F · T / T_source (T the frame's sensor's exposure): the share of the source's electrons a frame expects."""
     return float(intensity_factor) * float(sensor.exposure_s) / source.exposure_s
 
 
@@ -163,11 +165,10 @@ def check_raw_scene(scene) -> None:
                           f"{sensor.cfa}")
     if sensor.quantisation and sensor.exposure_s > MAX_EXPOSURE_S:
         raise CamsimError(f"exposure T = {sensor.exposure_s:g} s is longer than a DNG records ({MAX_EXPOSURE_S} s)")
-    source_exposure = scene.source.source_exposure_s
-    scene.source.source_preset(scene.preset_name)  # a camera to take K from
-    scene.source.source_iso
+    source_gain_dn_per_e(scene.source.source_preset(scene.preset_name), scene.source.source_iso,
+                         scene.source.base_dir)  # a source camera with a gain at the raw's ISO
     if scene.source.photon_law == "thin":
-        check_thin_exposure(max(scene.intensity_factors), sensor.exposure_s, source_exposure)
+        check_thin_exposure(max(scene.intensity_factors), sensor.exposure_s, scene.source.source_exposure_s)
 
 
 def raw_frame_warnings(scene) -> list[str]:
@@ -187,7 +188,7 @@ def raw_scene_frame(scene, intensity_factor: float, *, source: LoadedRaw | None 
     source = read_source(scene) if source is None else source
     seed = scene.seed if seed is None else seed
     sensor = scene.sensor
-    fraction = frame_fraction(scene, sensor, source, intensity_factor)
+    fraction = frame_fraction(sensor, source, intensity_factor)
     draw = render_raw_frame(source.electrons_e, sensor, fraction, law=scene.source.photon_law,
                             rng=frame_seed_sequence(seed, RAW_ILLUMINANT, intensity_factor), workers=workers)
     return draw, source.record(scene.source.photon_law, fraction)
