@@ -17,7 +17,6 @@ from pathlib import Path
 
 from camsim.core.errors import CamsimError
 from camsim.scene.sources.base import SceneSource, typed
-from camsim.sensor.raw_laws import PHOTON_LAWS
 
 
 @dataclass(frozen=True)
@@ -58,6 +57,8 @@ class RawSource(SceneSource):
     base_dir: Path | None = None
 
     def __post_init__(self):
+        from camsim.sensor.raw_laws import PHOTON_LAWS  # (not at import: the command line's start-up)
+
         if self.photon_law not in PHOTON_LAWS:
             raise CamsimError(f"[raw] photon_law must be one of {', '.join(PHOTON_LAWS)}, got {self.photon_law!r}")
         if self.crop is not None:
