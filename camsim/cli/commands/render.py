@@ -29,7 +29,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "for emva-12bit, 10 to 16 for the camera presets (camsim list), or --sensor bits=N; no DNG when "
             "quantisation is off, e.g. --preset ideal), NAME.exr (float32 DN before "
             "quantisation, plus the expected 'clean' layer) and NAME.json (every parameter with its unit); "
-            "OUT/manifest.json lists them all."
+            "OUT/manifest.json lists them all. A scene file with a [raw] table renders a real camera's raw file "
+            "instead (its own light: one frame per intensity factor, NAME_as-shot_F…; the docs' guide 'Real raws "
+            "in')."
         ),
     )
     parser.add_argument("scene", metavar="SCENE.toml", help="scene file (see scenes/macbeth_26.toml) or the name of "
