@@ -98,6 +98,7 @@ from camsim.dataset.spec import (
     _frames,
     _parameter_tables,
     _virtual_cameras,
+    FileCrop,
     folder_table,
 )
 from camsim.io.dng import MAX_EXPOSURE_S, MIN_SIZE
@@ -115,34 +116,12 @@ _KEPT_FILES = 4
 
 
 @dataclass(frozen=True)
-class RawCrop:
-    """The source of a frame of a ``[raws]`` spec: a window of a raw file, perhaps mirrored.
+class RawCrop(FileCrop):
+    """The source of a frame of a ``[raws]`` spec: a window of a raw file, perhaps mirrored (:class:`FileCrop`).
 
-    Attributes
-    ----------
-    path : str
-        Absolute path of the raw file.
-    x, y : int
-        Offset of the window's top-left corner in the file's visible image (column, row): even, or odd along a
-        flipped axis. Unit: pixels.
-    width, height : int
-        The window's size: the frame's (even). Unit: pixels.
-    flip_horizontal, flip_vertical : bool
-        Whether the window is mirrored left-right, upside-down (the frame then has the file's pattern again).
+    Its ``x``, ``y`` are even, or odd along a flipped axis (the window one column or row further in, so that the
+    mirrored frame has the file's pattern); ``width``, ``height`` are even.
     """
-
-    path: str
-    x: int
-    y: int
-    width: int
-    height: int
-    flip_horizontal: bool
-    flip_vertical: bool
-
-    @property
-    def window(self) -> tuple:
-        """(x, y, width, height) of the window in the file."""
-        return (self.x, self.y, self.width, self.height)
 
 
 @dataclass(frozen=True)

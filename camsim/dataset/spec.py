@@ -230,19 +230,20 @@ class FrameGroup:
 
 
 @dataclass(frozen=True)
-class ImageCrop:
-    """The scene of a frame of an ``[images]`` spec: a crop of an image file, perhaps flipped.
+class FileCrop:
+    """A window of a file, perhaps mirrored: the scene of a frame of an ``[images]`` spec (:class:`ImageCrop`) or a
+    ``[raws]`` spec (:class:`camsim.dataset.raws.RawCrop`).
 
     Attributes
     ----------
     path : str
-        Absolute path of the image file.
+        Absolute path of the file.
     x, y : int
-        Offset of the crop's top-left corner in the file (column, row). Unit: pixels.
+        Offset of the window's top-left corner in the file (column, row). Unit: pixels.
     width, height : int
-        The crop's size: the frame's. Unit: pixels.
+        The window's size: the frame's. Unit: pixels.
     flip_horizontal, flip_vertical : bool
-        Whether the cropped frame is mirrored left-right, upside-down.
+        Whether the frame is the window mirrored left-right, upside-down.
     """
 
     path: str
@@ -253,9 +254,19 @@ class ImageCrop:
     flip_horizontal: bool
     flip_vertical: bool
 
+    @property
+    def window(self) -> tuple:
+        """(x, y, width, height) of the window in the file."""
+        return (self.x, self.y, self.width, self.height)
+
+
+@dataclass(frozen=True)
+class ImageCrop(FileCrop):
+    """The scene of a frame of an ``[images]`` spec: a crop of an image file, perhaps flipped (:class:`FileCrop`)."""
+
     def source(self) -> ImageSource:
         """The (unflipped) crop as a scene source: a reflectance image."""
-        return ImageSource(path=Path(self.path), crop=(self.x, self.y, self.width, self.height))
+        return ImageSource(path=Path(self.path), crop=self.window)
 
     def flip(self, labels):
         """``labels`` (H, W), mirrored as the frame is (a new contiguous array; the same one without flips)."""
