@@ -234,3 +234,20 @@ def test_analyze_measures_a_region_of_an_image_frame(tmp_path):
     xyz = _xyz(_radiance(_reflectance(COLOUR_A, grid), grid), grid)
     np.testing.assert_allclose(meta["patches"][0]["xyz_cd_m2"], xyz, rtol=1e-4)
     assert rows[0]["ellipse_status"] == "ok" and rows[0]["delta_e_status"] == "ok"
+
+
+def test_a_pedestals_frame_is_measured_about_its_own_black(tmp_path):
+    """With a pedestal P the DNG holds floor(x + ½) + P: the residual is measured about it (bias ~0, not P) and a
+    dark frame's pixels, whose clean value is within 5 σ of 0 but P above the ADC's floor, are not taken as clipped."""
+    picture = np.broadcast_to(COLOUR_A.astype(np.uint8), (80, 120, 3)).copy()
+    iio.imwrite(tmp_path / "flat.png", picture)
+    scene = small_scene(name="flat", source=ImageSource(path=tmp_path / "flat.png")).with_sensor(
+        pedestal_dn=64, dark_current=False, read_noise_e=40.0).replace(intensity_factors=(0.001,))  # σ 1.1 DN
+    render_scene(scene, tmp_path / "frames", progress=False)
+    assert main(["analyze", str(tmp_path / "frames"), "--out", str(tmp_path / "a"), "--source", "dng", "-q"]) == 0
+    result = json.loads((tmp_path / "a" / "analysis.json").read_text())["frames"][0]
+    for ch in result["frame_statistics"]:
+        assert ch["residual_status"] == "ok" and ch["n_residual"] == ch["n_pixels"], ch
+        assert abs(ch["residual_mean_dn"]) < 4 * ch["residual_mean_se_dn"], ch
+        assert abs(ch["residual_var_dn2"] / ch["predicted_var_dn2"] - 1) < 4 * ch["residual_var_se_dn2"] / ch[
+            "predicted_var_dn2"], ch

@@ -433,3 +433,29 @@ def test_saturated_sites_are_masked_counted_and_drawn_from_their_lower_bound(tmp
     mean = camera_preset("sony-a7s2").pedestal_dn + point.k_dn_per_e * mu_e
     var = point.k_dn_per_e ** 2 * mu_e + point.gaussian_sigma_dn ** 2  # and the row offsets, shared by 16 sites
     assert block.mean() == pytest.approx(mean, abs=SIGMAS * np.sqrt(var / block.size + point.row_sigma_dn ** 2 / 10))
+
+
+def test_analyze_and_develop_read_raw_frames(frames, tmp_path):
+    """camsim analyze measures each frame's residual noisy − clean (the DNG's numbers less the pedestal) against the
+    model: its mean within 5 standard errors of 0 and its variance's ratio to the prediction within 5 of its
+    standard errors of 1, at every ratio (F = 1/300 too, a few DN above the pedestal); camsim develop makes a
+    picture of the source's size."""
+    import csv
+
+    folder, factors = frames
+    assert main(["analyze", str(folder / "out"), "--out", str(tmp_path / "ana"), "-q"]) == 0
+    with open(tmp_path / "ana" / "frame_statistics.csv", newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 3 * len(factors)
+    for row in rows:
+        assert row["residual_status"] == "ok" and row["method"] == "raw-add"
+        ratio = float(row["residual_var_dn2"]) / float(row["predicted_var_dn2"])
+        se = float(row["residual_var_se_dn2"]) / float(row["predicted_var_dn2"])
+        assert abs(ratio - 1) < 5 * se + 0.02, row
+        assert abs(float(row["residual_mean_dn"])) < 5 * float(row["residual_mean_se_dn"]) + 0.05, row
+    stem = stem_of(folder / "out", "a7", factors[1])
+    assert main(["develop", stem + ".dng", "--out", str(tmp_path / "dev"), "-q"]) == 0
+    import imageio.v3 as iio
+
+    (png,) = (tmp_path / "dev").glob("*.png")
+    assert iio.imread(png).shape[:2] == (512, 512)

@@ -11,12 +11,13 @@ Per pixel, in DN²,
 (Poisson thinning: the charge's variance is its mean), Var(S + D) = D̄ without photon noise, q = 1/12 DN² for a
 DNG's quantised numbers (none for an EXR's). Where it is approximate:
 
-* pixels near a clip are left out of the residual: a DNG pixel whose clean value lies within 5 σ of 0 or of the
-  white level, and (saturation on) any pixel within 5 σ of the full well k · FW — there the clip shrinks the
-  variance and moves the mean (their count is ``n_near_clip``);
-* the quantised numbers floor (Eq. 11): the residual of a DNG is I + ½ − clean, and ½ and 1/12 DN² are the
-  floor's mean and variance for a noise much wider than 1 DN (their error is below 0.01 DN, resp. DN², for a
-  Gaussian noise of σ ≥ 0.45 DN: it decays as exp(−2π² σ²));
+* pixels near a clip are left out of the residual: a DNG pixel whose value in the file, clean + the ADC's offset a
+  (:func:`camsim.sensor.stages.adc_offset_dn`: P + ½ with a pedestal P, else 0), lies within 5 σ of 0 or of the white
+  level, and (saturation on) any pixel within 5 σ of the full well k · FW — there the clip shrinks the variance and
+  moves the mean (their count is ``n_near_clip``);
+* the quantised numbers floor (Eq. 11; with a pedestal, floor(x + ½) + P): the residual of a DNG is
+  I + ½ − a − clean, and ½ and 1/12 DN² are the floor's mean and variance for a noise much wider than 1 DN (their
+  error is below 0.01 DN, resp. DN², for a Gaussian noise of σ ≥ 0.45 DN: it decays as exp(−2π² σ²));
 * with a DSNU offset o the clean layer holds S̄ + D̄ + o, so each pixel's Var(S + D) is over- or under-stated by o;
   the offsets' mean over the frame is ~0, so the frame's mean prediction stands;
 * ``paper`` statistics (Var S = T² F Σ g Qe², not a function of the clean value): no prediction.
@@ -37,6 +38,7 @@ from camsim.core.errors import CamsimError
 from camsim.io.exr import read_exr_clean
 from camsim.render.frame_files import EXR_METADATA_KEY, LoadedFrame
 from camsim.core.optional_numbers import finite_or_none
+from camsim.sensor.stages import adc_offset_dn
 
 #: A pixel whose clean value lies within this many predicted σ of a clip (0, the white level, the full well) is
 #: left out of the residual.
@@ -131,6 +133,7 @@ def _channel_stats(frame: LoadedFrame, channel: int, black: float, clean, clean_
     """One channel's record (:func:`frame_statistics`), block of rows by block of rows."""
     meta = frame.meta
     k, white = float(meta["dn_per_electron"]), float(meta["white_level_dn"])
+    adc_offset = adc_offset_dn(int(meta.get("pedestal_dn") or 0))  # what the ADC adds before its floor
     clip_high = frame.quantised or bool(meta["stages"].get("quantisation"))  # an EXR: what the ADC would clip
     residual = clean is not None
     n = low = high = 0
@@ -157,12 +160,14 @@ def _channel_stats(frame: LoadedFrame, channel: int, black: float, clean, clean_
                 continue
             sigma = np.sqrt(var)
             keep = np.ones(block.shape, dtype=bool)
-            if frame.quantised:
-                keep &= (expected - CLIP_MARGIN_SIGMA * sigma >= 0) & (expected + CLIP_MARGIN_SIGMA * sigma <= white)
+            if frame.quantised:  # the file's value: clean + the ADC's offset, clipped to [0, white]
+                keep &= ((expected + adc_offset - CLIP_MARGIN_SIGMA * sigma >= 0)
+                         & (expected + adc_offset + CLIP_MARGIN_SIGMA * sigma <= white))
             if meta["stages"].get("saturation"):
                 keep &= expected + CLIP_MARGIN_SIGMA * sigma <= k * float(meta["full_well_e"])
             n_near += int(keep.size - np.count_nonzero(keep))
-            r = np.where(keep, block + (0.5 if frame.quantised else 0.0) - expected, 0.0)  # Eq. 11: E[floor x] ≈ x − ½
+            # Eq. 11: E[floor(x + a)] ≈ x + a − ½ (a the ADC's offset: P + ½ with a pedestal P)
+            r = np.where(keep, block + (0.5 - adc_offset if frame.quantised else 0.0) - expected, 0.0)
             row_sums.append(r.sum(axis=1))
             row_squares.append((r * r).sum(axis=1))
             row_counts.append(keep.sum(axis=1))
