@@ -111,7 +111,7 @@ FRAME_STATISTICS_COLUMNS = _FRAME | {
                        "exr-unreadable (there, but truncated or corrupt: a warning names it), exr-of-another-frame, paper-statistics (no prediction), no-pixel-clear-of-clipping",
     "n_residual": "pixels in the residual noisy − clean (those clear of clipping)",
     "n_near_clip": "pixels left out of the residual: clean value within 5 σ of 0, the white level or the full well",
-    "residual_mean_dn": "mean of noisy − clean (a DNG: I + ½ − clean), the bias, DN (~0 expected)",
+    "residual_mean_dn": "mean of noisy − clean (a DNG: I + ½ − clean; with a pedestal P: I − P − clean), the bias, DN (~0 expected)",
     "residual_mean_se_dn": "standard error of residual_mean_dn (over rows), DN",
     "residual_var_dn2": "variance of the residual, DN²",
     "residual_var_se_dn2": "standard error of residual_var_dn2, DN²",
