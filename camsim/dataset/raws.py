@@ -350,7 +350,8 @@ def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeat
                   id_digits=max(ID_DIGITS, len(str(points * repeats - 1))),
                   raw_values=_raw_draws(raws, points, seed))
     return SpecPlan(name=name, path=path, seed=seed, width=raws.width, height=raws.height, axes=axes,
-                    count=points * repeats, sizes=((raws.width, raws.height),), make_frames=partial(_frames, job, frame_values=_raw_frame_values),
+                    count=points * repeats, sizes=((raws.width, raws.height),),
+                    make_frames=partial(_frames, job, frame_values=_raw_frame_values),
                     exr_compression=exr_compression, srgb=srgb)
 
 

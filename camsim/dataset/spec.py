@@ -602,7 +602,8 @@ def folder_table(table, base: Path, where: str, name: str, keys: tuple, suffixes
         raise CamsimError(f"{at} must be a table")
     unknown = set(table) - set(keys)
     if unknown:
-        raise CamsimError(f"{where}: unknown key(s) in [{name}]: {', '.join(sorted(unknown))}; known: {', '.join(keys)}")
+        raise CamsimError(f"{where}: unknown key(s) in [{name}]: {', '.join(sorted(unknown))}; "
+                          f"known: {', '.join(keys)}")
     text = table.get("folder")
     if not isinstance(text, str) or not text:
         raise CamsimError(f"{at} needs folder = \"FOLDER\" (of {what} files, relative to the spec)")
