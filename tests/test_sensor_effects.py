@@ -272,13 +272,12 @@ def test_the_sidecar_records_the_frame_effects(tmp_path):
                  "--size", "48x32", "-q", "--out", str(out), "--sensor", "black_level_error_dn=2",
                  "--sensor", "temperature_c=31", "--sensor", "stuck_pixel_fraction=0.01",
                  "--sensor", "dark_shading_e=2"]) == 0
-    sidecar = next(out.rglob("*.json"))
-    meta = json.loads(sidecar.read_text())
+    exr = next(out.rglob("*.exr"))
+    meta = json.loads(exr.with_suffix(".json").read_text())
     assert len(meta["black_level_error_drawn_dn"]) == 3
     assert meta["dark_current_effective_e_per_s"] == pytest.approx(
         [2 * v for v in SensorParams().dark_current_e_per_s])
     assert set(meta["defect_counts"]) == {"hot", "dead", "stuck"} and meta["defect_counts"]["stuck"] > 0
-    exr = next(out.rglob("*.exr"))
     assert load_frame(exr).meta["black_level_error_drawn_dn"] == meta["black_level_error_drawn_dn"]
 
 
@@ -290,3 +289,13 @@ def test_the_effects_off_change_nothing():
     assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
     assert sensor.sidecar_record() == SensorParams(cfa="RGGB", dsnu_e=2.0, prnu_percent=1.0).sidecar_record()
     assert not {"temperature_c", "hot_pixel_fraction", "black_level_error_dn"} & set(sensor.sidecar_record())
+
+
+def test_a_scene_files_map_paths_are_relative_to_it(tmp_path):
+    from camsim.scene.scene_file import load_scene
+
+    (tmp_path / "maps").mkdir()
+    np.save(tmp_path / "maps" / "shading.npy", np.zeros((32, 48)))
+    scene = tmp_path / "s.toml"
+    scene.write_text('[chart]\n[sensor]\ndark_shading_map = "maps/shading.npy"\n')
+    assert load_scene(scene).sensor.dark_shading_map == str(tmp_path / "maps" / "shading.npy")
