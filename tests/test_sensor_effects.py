@@ -299,3 +299,17 @@ def test_a_scene_files_map_paths_are_relative_to_it(tmp_path):
     scene = tmp_path / "s.toml"
     scene.write_text('[chart]\n[sensor]\ndark_shading_map = "maps/shading.npy"\n')
     assert load_scene(scene).sensor.dark_shading_map == str(tmp_path / "maps" / "shading.npy")
+
+
+@pytest.mark.parametrize("method", ["poisson", "gaussian", "auto", "table"])
+def test_hot_pixels_clip_at_the_full_well_and_dead_pixels_stay_black_in_bright_light(method):
+    k = SensorParams().dn_per_electron
+    hot = SensorParams(read_noise=False, quantisation=False, hot_pixel_fraction=0.01, hot_pixel_dark_e_per_s=1e5,
+                       dark_shading_e=50.0, sensor_seed=3)
+    noisy = draw(hot, (64, 64), method=method, signal_e=100.0)[0]
+    assert noisy.max() <= np.float32(k * 9000.0) and np.sum(noisy >= np.float32(k * 9000.0)) > 0.5 * 0.01 * noisy.size
+    dead = SensorParams(read_noise=False, quantisation=False, dead_pixel_fraction=0.01, sensor_seed=3)
+    noisy, _, clean, maps, _ = draw(dead, (64, 64), method=method, signal_e=1e6)
+    is_dead = maps.gain == 0
+    assert np.all(noisy[is_dead] == 0) and np.all(clean[is_dead] == 0)
+    assert np.all(noisy[~is_dead] == np.float32(k * 9000.0))
