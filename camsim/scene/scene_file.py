@@ -263,9 +263,9 @@ def load_scene(path: str | Path) -> Scene:
     iso = _FRAME_PARAMS["iso"].coerce(sensor_table.pop("iso", None), f"{where} [sensor]")
     sensor_table = {p.name: p.coerce(sensor_table[p.name], f"{where} [sensor]")
                     for p in SENSOR_PARAMS if p.name in sensor_table}
-    for name in MAP_FILE_PARAMS:  # a map file named by the scene file: relative to it
-        if sensor_table.get(name) is not None:
-            sensor_table[name] = str(base_dir / Path(sensor_table[name]).expanduser())
+    for key in MAP_FILE_PARAMS:  # a map file named by the scene file: relative to it
+        if sensor_table.get(key) is not None:
+            sensor_table[key] = str(base_dir / Path(sensor_table[key]).expanduser())
     if source.table == "raw":
         given = doc.get("sensor", {}).get("preset")  # (checked above to be a name)
         source, illuminants, preset_name, iso = _raw_scene_defaults(source, light, frame, sensor_table, given,
