@@ -297,8 +297,10 @@ def test_a_scene_files_map_paths_are_relative_to_it(tmp_path):
     (tmp_path / "maps").mkdir()
     np.save(tmp_path / "maps" / "shading.npy", np.zeros((32, 48)))
     scene = tmp_path / "s.toml"
-    scene.write_text('[chart]\n[sensor]\ndark_shading_map = "maps/shading.npy"\n')
-    assert load_scene(scene).sensor.dark_shading_map == str(tmp_path / "maps" / "shading.npy")
+    scene.write_text('name = "mine"\n[chart]\n[sensor]\ndark_shading_map = "maps/shading.npy"\n')
+    loaded = load_scene(scene)
+    assert loaded.sensor.dark_shading_map == str(tmp_path / "maps" / "shading.npy")
+    assert loaded.name == "mine"
 
 
 @pytest.mark.parametrize("method", ["poisson", "gaussian", "auto", "table"])
