@@ -315,3 +315,16 @@ def test_hot_pixels_clip_at_the_full_well_and_dead_pixels_stay_black_in_bright_l
     is_dead = maps.gain == 0
     assert np.all(noisy[is_dead] == 0) and np.all(clean[is_dead] == 0)
     assert np.all(noisy[~is_dead] == np.float32(k * 9000.0))
+
+
+def test_black_level_includes_the_column_fpn():
+    # a dark level near the ADC's zero, where the clip makes the mean depend on the offsets' spread
+    sensor = SensorParams(**{**UNIT, "saturation": False}, dark_current_e_per_s=(0.5,) * 3, read_noise_e=1.0,
+                          column_fpn_e=3.0, sensor_seed=21)
+    digital = draw(sensor, (64, 4096), seed=2)[1].astype(np.float64)
+    column_means = digital.mean(axis=1)  # (3, W)
+    se = column_means.std(axis=1, ddof=1) / math.sqrt(column_means.shape[1])
+    level = sensor.black_level_dn
+    assert np.all(np.abs(column_means.mean(axis=1) - level) < 5 * se)
+    without = SensorParams(**{**UNIT, "saturation": False}, dark_current_e_per_s=(0.5,) * 3, read_noise_e=1.0)
+    assert np.all(level - without.black_level_dn > 0.5)  # the clip at 0 lifts the mean by about E[max(o, 0)]
