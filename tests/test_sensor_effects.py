@@ -60,7 +60,7 @@ def test_dark_current_doubles_per_doubling_temperature():
                               "read_noise_e", "quantisation", "dark_current_doubling_c",
                               "dark_current_reference_c")}}, temperature_c=temperature)
         noisy = draw(sensor, shape=(128, 128))[0]
-        truth = rates * t * 2.0 ** ((temperature - tref) / td)  # EMVA 1288's law, written out: D_ref · 2^(ΔT/T_d) · t
+        truth = rates * t * 2.0 ** ((temperature - tref) / td)  # EMVA 1288's law: D_ref · 2^(ΔT/T_d) · t
         n = noisy[0].size
         for c in range(3):
             se = math.sqrt((truth[c] + 2.0**2) / n)  # Poisson dark charge + read noise, over n pixels

@@ -34,10 +34,10 @@ Issue 28's fixed patterns, each from its own child of the sensor's fixed-pattern
   ``hot_pixel_dark_e_per_s`` (EMVA 1288 Release 4.0 shows the dark signal's non-uniformity as a histogram on a
   logarithmic axis, where hot pixels form a tail; its straight line there is the exponential law), at the reference
   temperature; ``hot_pixel_map`` (e⁻/s per pixel) adds a measured one. It joins the dark-current DSNU factor:
-  d' = d + h / σ²_dark,κ (σ²_dark,κ the channel's dark current at the reference temperature), so the pixel collects
-  Poisson(σ²_dark T d + h T) scaled by the temperature's factor like every dark electron — one implementation of
-  the dark charge, which needs a positive ``dark_current_e_per_s`` in every channel. A **dead** pixel has a PRNU gain
-  0 and a dark factor 0: it collects nothing, yet is read out (its offsets, read and row noise, the ADC's pedestal):
+  d' = d + h / σ²_dark,κ (σ²_dark,κ the channel's dark current at the reference temperature), so the pixel
+  collects Poisson(σ²_dark T d + h T) scaled by the temperature's factor like every dark electron — one
+  implementation of the dark charge, which needs a positive ``dark_current_e_per_s`` in every channel. A **dead**
+  pixel has a PRNU gain 0 and a dark factor 0: it collects nothing, yet is read out (its offsets, read and row noise, the ADC's pedestal):
   it reads black. A **stuck** pixel reads a fixed level, uniform on the integers 0 … 2^nb − 1 DN, in every frame,
   without noise: written over the frame's values (the float layer and the ADC's output) after every other stage.
 """
@@ -69,8 +69,8 @@ class FixedPattern:
     gain : numpy.ndarray or None
         PRNU: factor on the mean signal, around 1 (0 at a dead pixel). Unitless.
     dark_gain : numpy.ndarray or None
-        Dark-current DSNU: factor d on the mean dark charge σ²_dark · T, log-normal of mean 1 (plus h / σ²_dark at a
-        hot pixel, 0 at a dead one). Unitless.
+        Dark-current DSNU: factor d on the mean dark charge σ²_dark · T, log-normal of mean 1 (plus h / σ²_dark
+        at a hot pixel, 0 at a dead one). Unitless.
     gain_excess : numpy.ndarray or None
         ``gain - 1`` (float32, the same values), kept with the maps so that each frame's clean layer does not
         compute it again; None where ``gain`` is None or it was not kept. Unitless.

@@ -155,7 +155,8 @@ class SensorParams:
         if defects > 1:
             raise CamsimError(f"sensor parameters hot_pixel_fraction + dead_pixel_fraction + stuck_pixel_fraction "
                               f"must be at most 1 (disjoint populations), got {defects:g}")
-        if (self.hot_pixel_fraction > 0 or self.hot_pixel_map is not None) and np.min(np.asarray(self.dark_current_e_per_s, float)) <= 0:
+        hot = self.hot_pixel_fraction > 0 or self.hot_pixel_map is not None
+        if hot and np.min(np.asarray(self.dark_current_e_per_s, float)) <= 0:
             raise CamsimError("hot pixels (hot_pixel_fraction, hot_pixel_map) need dark_current_e_per_s > 0 in every "
                               "channel: they join its per-pixel dark-current factor")
         if self.pedestal_dn >= 2**self.bits - 1:
