@@ -28,18 +28,18 @@ Issue 28's fixed patterns, each from its own child of the sensor's fixed-pattern
   channel's); a three-chip sensor one per chip.
 * **column FPN** (``column_fpn_e`` = σ): one N(0, σ²) offset per column (per chip of a three-chip sensor), added like
   the dark shading.
-* **defects**: each pixel (each chip's pixel of a three-chip sensor) draws one uniform u; u < f_hot is hot,
-  f_hot ≤ u < f_hot + f_dead dead, f_hot + f_dead ≤ u < f_hot + f_dead + f_stuck stuck (disjoint populations; each
-  count binomial in the number of pixels). A **hot** pixel has an extra dark current h, exponential of mean
+* **defects**: each pixel (each chip's pixel of a three-chip sensor) draws one uniform u; u < f_hot is hot, f_hot ≤ u
+  < f_hot + f_dead dead, f_hot + f_dead ≤ u < f_hot + f_dead + f_stuck stuck (disjoint populations; each count
+  binomial in the number of pixels). A **hot** pixel has an extra dark current h, exponential of mean
   ``hot_pixel_dark_e_per_s`` (EMVA 1288 Release 4.0 shows the dark signal's non-uniformity as a histogram on a
   logarithmic axis, where hot pixels form a tail; its straight line there is the exponential law), at the reference
-  temperature; ``hot_pixel_map`` (e⁻/s per pixel) adds a measured one. It joins the dark-current DSNU factor:
-  d' = d + h / σ²_dark,κ (σ²_dark,κ the channel's dark current at the reference temperature), so the pixel
-  collects Poisson(σ²_dark T d + h T) scaled by the temperature's factor like every dark electron — one
-  implementation of the dark charge, which needs a positive ``dark_current_e_per_s`` in every channel. A **dead**
-  pixel has a PRNU gain 0 and a dark factor 0: it collects nothing, yet is read out (its offsets, read and row noise, the ADC's pedestal):
-  it reads black. A **stuck** pixel reads a fixed level, uniform on the integers 0 … 2^nb − 1 DN, in every frame,
-  without noise: written over the frame's values (the float layer and the ADC's output) after every other stage.
+  temperature; ``hot_pixel_map`` (e⁻/s per pixel) adds a measured one. It joins the dark-current DSNU factor: d' = d +
+  h / σ²_dark,κ (σ²_dark,κ the channel's dark current at the reference temperature), so the pixel collects
+  Poisson(σ²_dark T d + h T) scaled by the temperature's factor like every dark electron — one implementation of the
+  dark charge, which needs a positive ``dark_current_e_per_s`` in every channel. A **dead** pixel has a PRNU gain 0
+  and a dark factor 0: it collects nothing, yet is read out (its offsets, read and row noise, the ADC's pedestal): it
+  reads black. A **stuck** pixel reads a fixed level, uniform on the integers 0 … 2^nb − 1 DN, in every frame, without
+  noise: written over the frame's values (the float layer and the ADC's output) after every other stage.
 """
 
 from __future__ import annotations
