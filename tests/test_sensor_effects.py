@@ -328,3 +328,11 @@ def test_black_level_includes_the_column_fpn():
     assert np.all(np.abs(column_means.mean(axis=1) - level) < 5 * se)
     without = SensorParams(**{**UNIT, "saturation": False}, dark_current_e_per_s=(0.5,) * 3, read_noise_e=1.0)
     assert np.all(level - without.black_level_dn > 0.5)  # the clip at 0 lifts the mean by about E[max(o, 0)]
+
+
+def test_an_absurd_temperature_is_refused_in_one_line():
+    with pytest.raises(CamsimError, match="1000 doublings") as info:
+        SensorParams(temperature_c=1e300)
+    assert "\n" not in str(info.value)
+    with pytest.raises(CamsimError, match="temperature_c"):
+        SensorParams(temperature_c=-300.0)

@@ -151,6 +151,12 @@ class SensorParams:
             raise CamsimError(f"sensor parameters analog_gain_dn_per_v = {self.analog_gain_dn_per_v:g} and "
                               f"conversion_gain_v_per_e = {self.conversion_gain_v_per_e:g} give a gain of "
                               f"{self.dn_per_electron:g} DN/e⁻, outside float64's range")
+        if self.temperature_c is not None and (
+                self.temperature_c - self.dark_current_reference_c) / self.dark_current_doubling_c > 1000:
+            raise CamsimError(f"sensor parameter temperature_c = {self.temperature_c:g} °C is more than 1000 doublings "
+                              f"(dark_current_doubling_c = {self.dark_current_doubling_c:g} °C) above "
+                              f"dark_current_reference_c = {self.dark_current_reference_c:g} °C: the dark current "
+                              f"would overflow")
         defects = self.hot_pixel_fraction + self.dead_pixel_fraction + self.stuck_pixel_fraction
         if defects > 1:
             raise CamsimError(f"sensor parameters hot_pixel_fraction + dead_pixel_fraction + stuck_pixel_fraction "
