@@ -163,9 +163,18 @@ def test_spectral_refuses_dead_pixels_in_one_line():
     assert "\n" not in str(info.value)
 
 
-def test_hot_pixels_need_a_dark_current_and_fractions_at_most_one():
-    with pytest.raises(CamsimError, match="dark_current_e_per_s > 0"):
-        SensorParams(hot_pixel_fraction=0.01, dark_current_e_per_s=(0.0, 1.0, 1.0))
+def test_hot_pixels_on_a_sensor_without_dark_current_and_fractions_at_most_one():
+    # a camera preset that publishes no dark current: the hot pixels still collect h T, the others ~nothing
+    t = 2.0
+    sensor = SensorParams(**UNIT, dark_current_e_per_s=(0.0, 0.0, 0.0), exposure_s=t, read_noise=False,
+                          quantisation=False, hot_pixel_fraction=0.02, hot_pixel_dark_e_per_s=500.0, sensor_seed=8)
+    maps = fixed_pattern(sensor, (128, 128))
+    h = (maps.dark_gain.astype(np.float64) - 1) * 1e-3  # the extra rate over the floor of 0.001 e⁻/s
+    where = h > 1e-6
+    mean = np.mean([draw(sensor, (128, 128), seed=s)[0] for s in range(8)], axis=0)
+    z = (mean[where] - h[where] * t) / np.sqrt(h[where] * t / 8)
+    assert abs(z.mean()) < 4 / math.sqrt(z.size) and 0.8 < z.std() < 1.2
+    assert mean[~where].mean() < 0.01  # 0.001 e⁻/s · 2 s
     with pytest.raises(CamsimError, match="at most 1"):
         SensorParams(hot_pixel_fraction=0.5, dead_pixel_fraction=0.4, stuck_pixel_fraction=0.2)
 

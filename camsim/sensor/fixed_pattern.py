@@ -36,7 +36,8 @@ Issue 28's fixed patterns, each from its own child of the sensor's fixed-pattern
   temperature; ``hot_pixel_map`` (e⁻/s per pixel) adds a measured one. It joins the dark-current DSNU factor: d' = d +
   h / σ²_dark,κ (σ²_dark,κ the channel's dark current at the reference temperature), so the pixel collects
   Poisson(σ²_dark T d + h T) scaled by the temperature's factor like every dark electron — one implementation of the
-  dark charge, which needs a positive ``dark_current_e_per_s`` in every channel. A **dead** pixel has a PRNU gain 0
+  dark charge (a channel whose ``dark_current_e_per_s`` is 0 takes ``HOT_PIXEL_BASE_E_PER_S`` = 0.001 e⁻/s as its
+  ordinary rate: :attr:`SensorParams.dark_current_base_e_per_s`). A **dead** pixel has a PRNU gain 0
   and a dark factor 0: it collects nothing, yet is read out (its offsets, read and row noise, the ADC's pedestal): it
   reads black. A **stuck** pixel reads a fixed level, uniform on the integers 0 … 2^nb − 1 DN, in every frame, without
   noise: written over the frame's values (the float layer and the ADC's output) after every other stage.
@@ -324,7 +325,7 @@ def _effect_maps(sensor: SensorParams, shape: tuple) -> FixedPattern:
     if defects is not None:
         hot, dead, stuck_index, stuck_level, counts = defects
         if counts["hot"]:
-            rate = np.asarray(sensor.dark_current_e_per_s, dtype=np.float64).reshape(3, 1, 1)
+            rate = np.asarray(sensor.dark_current_base_e_per_s, dtype=np.float64).reshape(3, 1, 1)
             base = np.ones(full) if dark_gain is None else dark_gain.astype(np.float64)
             dark_gain = (base + hot / rate).astype(np.float32)
         if dead is not None and counts["dead"]:

@@ -18,6 +18,10 @@ from camsim.core.errors import CamsimError
 from camsim.core.schema import param, params_of, record, validate
 
 READ_NOISE_MODELS = ("gaussian", "tukey-lambda")
+#: The least dark current of the ordinary pixels where hot pixels are on (:attr:`SensorParams.dark_current_base_e_per_s`):
+#: a channel whose ``dark_current_e_per_s`` is 0 takes this (one electron per 1000 pixel-seconds: nothing a frame
+#: shows), so that the hot pixels' factor on it has something to scale. Unit: e⁻/s.
+HOT_PIXEL_BASE_E_PER_S = 1e-3
 
 
 def _layout_record(sensor) -> dict:
@@ -161,10 +165,6 @@ class SensorParams:
         if defects > 1:
             raise CamsimError(f"sensor parameters hot_pixel_fraction + dead_pixel_fraction + stuck_pixel_fraction "
                               f"must be at most 1 (disjoint populations), got {defects:g}")
-        hot = self.hot_pixel_fraction > 0 or self.hot_pixel_map is not None
-        if hot and np.min(np.asarray(self.dark_current_e_per_s, float)) <= 0:
-            raise CamsimError("hot pixels (hot_pixel_fraction, hot_pixel_map) need dark_current_e_per_s > 0 in every "
-                              "channel: they join its per-pixel dark-current factor")
         if self.pedestal_dn >= 2**self.bits - 1:
             raise CamsimError(f"sensor parameter pedestal_dn must be below the white level {2**self.bits - 1} DN "
                               f"of a {self.bits}-bit ADC, got {self.pedestal_dn}")
@@ -196,10 +196,19 @@ class SensorParams:
         return 2.0 ** ((self.temperature_c - self.dark_current_reference_c) / self.dark_current_doubling_c)
 
     @property
+    def dark_current_base_e_per_s(self) -> np.ndarray:
+        """The ordinary pixels' dark current at the reference temperature, per channel, shape (3,):
+        ``dark_current_e_per_s``, but with hot pixels on, at least :data:`HOT_PIXEL_BASE_E_PER_S` (a hot pixel's
+        extra dark current is a factor on this rate, :mod:`camsim.sensor.fixed_pattern`, so it must not be 0: a
+        camera preset that publishes no dark current still takes hot pixels). Unit: e⁻/s."""
+        rate = np.asarray(self.dark_current_e_per_s)
+        return np.maximum(rate, HOT_PIXEL_BASE_E_PER_S) if self.hot_pixels else rate
+
+    @property
     def dark_current_effective_e_per_s(self) -> np.ndarray:
-        """The dark current at the sensor's temperature, per channel, shape (3,): ``dark_current_e_per_s`` ·
-        :attr:`temperature_factor` (EMVA 1288's D(T) = D_ref · 2^((T − T_ref)/T_d)). Unit: e⁻/s."""
-        return np.asarray(self.dark_current_e_per_s) * self.temperature_factor
+        """The dark current at the sensor's temperature, per channel, shape (3,): :attr:`dark_current_base_e_per_s`
+        · :attr:`temperature_factor` (EMVA 1288's D(T) = D_ref · 2^((T − T_ref)/T_d)). Unit: e⁻/s."""
+        return self.dark_current_base_e_per_s * self.temperature_factor
 
     @property
     def gaussian_read_noise(self) -> bool:
@@ -223,7 +232,7 @@ class SensorParams:
         dark mean (the draws, the clean layer, the black level, the DNG's NoiseProfile) follows. Unit: e⁻."""
         if not self.dark_current:
             return np.zeros(3)
-        if self.temperature_c is None:  # (today's numbers, bit for bit)
+        if self.temperature_c is None and not self.hot_pixels:  # (today's numbers, bit for bit)
             return np.asarray(self.dark_current_e_per_s) * self.exposure_s
         return self.dark_current_effective_e_per_s * self.exposure_s
 
