@@ -19,9 +19,8 @@ from camsim.core.errors import CamsimError
 from camsim.sensor.expected import ExpectedSignal
 from camsim.sensor.fixed_pattern import FixedPattern, dark_gain_at, fixed_pattern
 from camsim.methods import get_method
-from camsim.core.seeding import block_generators
+from camsim.core.seeding import block_generators, frame_effect_generator
 from camsim.sensor.params import SensorParams
-from camsim.core.seeding import frame_effect_generator
 from camsim.sensor.stages import (
     dn_dtype,
     draw_black_level_error_dn,

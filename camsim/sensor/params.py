@@ -18,9 +18,10 @@ from camsim.core.errors import CamsimError
 from camsim.core.schema import param, params_of, record, validate
 
 READ_NOISE_MODELS = ("gaussian", "tukey-lambda")
-#: The least dark current of the ordinary pixels where hot pixels are on (:attr:`SensorParams.dark_current_base_e_per_s`):
-#: a channel whose ``dark_current_e_per_s`` is 0 takes this (one electron per 1000 pixel-seconds: nothing a frame
-#: shows), so that the hot pixels' factor on it has something to scale. Unit: e⁻/s.
+#: The least dark current of the ordinary pixels where hot pixels are on
+#: (:attr:`SensorParams.dark_current_base_e_per_s`): a channel whose ``dark_current_e_per_s`` is 0 takes this (one
+#: electron per 1000 pixel-seconds: nothing a frame shows), so that the hot pixels' factor on it has something to
+#: scale. Unit: e⁻/s.
 HOT_PIXEL_BASE_E_PER_S = 1e-3
 
 
@@ -110,11 +111,12 @@ class SensorParams:
         "D(T) = D_ref · 2^((T − T_ref)/T_d); about 6 °C for silicon near room temperature)", "°C", above=0,
         omit_default=True)
     hot_pixel_fraction: float = param(
-        0.0, "float", "share of pixels (per channel plane) with an extra dark current, exponential of mean "
-        "hot_pixel_dark_e_per_s (EMVA 1288's exponential tail of the dark-signal histogram), a fixed population "
-        "from sensor_seed; 0 = off", "", low=0, below=1, omit_default=True)
+        0.0, "float", "share of pixels (of each chip on a three-chip sensor) with an extra dark current, "
+        "exponential of mean hot_pixel_dark_e_per_s (EMVA 1288's exponential tail of the dark-signal histogram), a "
+        "fixed population from sensor_seed; 0 = off", "", low=0, below=1, omit_default=True)
     hot_pixel_dark_e_per_s: float = param(
-        2000.0, "float", "mean extra dark current of a hot pixel at dark_current_reference_c (exponential law)",
+        2000.0, "float", "mean extra dark current of a hot pixel at dark_current_reference_c (exponential law; "
+        "the default, ten times Table I's dark current, is a choice, not a measurement)",
         "e⁻/s", above=0, omit_default=True)
     dead_pixel_fraction: float = param(
         0.0, "float", "share of pixels that collect nothing (no signal, no dark charge: PRNU gain and dark factor "
