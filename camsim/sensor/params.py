@@ -93,6 +93,51 @@ class SensorParams:
                                 "tails than the Gaussian)", above=-0.5, below=1, sidecar=_tukey_record)
     sensor_seed: int = param(0, "int", "seed of the fixed-pattern maps: frames of one sensor share them, while "
                              "their temporal noise changes", low=0)
+    # issue 28: the effects a denoiser meets in real low-light raws; each off by default (and then not recorded)
+    temperature_c: float | None = param(
+        None, "float", "the sensor's temperature: the dark current (and its DSNU, hot pixels included) is "
+        "dark_current_e_per_s · 2^((T − dark_current_reference_c) / dark_current_doubling_c); none: as given",
+        "°C", low=-273.15, optional=True, omit_default=True)
+    dark_current_reference_c: float = param(
+        25.0, "float", "the temperature at which dark_current_e_per_s (and hot_pixel_dark_e_per_s) holds", "°C",
+        low=-273.15, omit_default=True)
+    dark_current_doubling_c: float = param(
+        6.0, "float", "doubling temperature T_d of the dark current (EMVA 1288 Release 4.0's law "
+        "D(T) = D_ref · 2^((T − T_ref)/T_d); about 6 °C for silicon near room temperature)", "°C", above=0,
+        omit_default=True)
+    hot_pixel_fraction: float = param(
+        0.0, "float", "share of pixels (per channel plane) with an extra dark current, exponential of mean "
+        "hot_pixel_dark_e_per_s (EMVA 1288's exponential tail of the dark-signal histogram), a fixed population "
+        "from sensor_seed; 0 = off", "", low=0, below=1, omit_default=True)
+    hot_pixel_dark_e_per_s: float = param(
+        2000.0, "float", "mean extra dark current of a hot pixel at dark_current_reference_c (exponential law)",
+        "e⁻/s", above=0, omit_default=True)
+    dead_pixel_fraction: float = param(
+        0.0, "float", "share of pixels that collect nothing (no signal, no dark charge: PRNU gain and dark factor "
+        "0) yet are read out (offset, read and row noise, black level): they read black; a fixed population from "
+        "sensor_seed; 0 = off", "", low=0, below=1, omit_default=True)
+    stuck_pixel_fraction: float = param(
+        0.0, "float", "share of pixels stuck at a fixed level, uniform on [0, 2^nb − 1] DN (an integer), the same "
+        "in every frame and without noise, written over the frame's values (float layer and ADC output); a "
+        "fixed population from sensor_seed; 0 = off", "", low=0, below=1, omit_default=True)
+    black_level_error_dn: float = param(
+        0.0, "float", "σ of a per-frame, per-channel offset N(0, σ²) added to the DN before the ADC (ELD's colour "
+        "bias), drawn from the frame's seed on a stream of its own; 0 = off", "DN", low=0, omit_default=True)
+    dark_shading_e: float = param(
+        0.0, "float", "RMS of a fixed pattern of the dark level (a row profile, a column profile and a smooth 2-D "
+        "shading, from sensor_seed) added to each pixel's charge like the offset DSNU; 0 = off", "e⁻", low=0,
+        omit_default=True)
+    dark_shading_map: str | None = param(
+        None, "str", "a .npy file of the dark-shading pattern per pixel (e⁻; (H, W), or (3, H, W) for a three-chip "
+        "sensor), e.g. from camsim calibrate; added to dark_shading_e's pattern; none = off", "e⁻", optional=True,
+        omit_default=True)
+    column_fpn_e: float = param(
+        0.0, "float", "σ of a fixed per-column offset (column fixed-pattern noise, from sensor_seed) added to the "
+        "charge like the offset DSNU; 0 = off", "e⁻", low=0, omit_default=True)
+    hot_pixel_map: str | None = param(
+        None, "str", "a .npy file of the extra dark current per pixel at dark_current_reference_c (e⁻/s; 0 where "
+        "not hot; (H, W), or (3, H, W) for a three-chip sensor), e.g. from camsim calibrate; added to "
+        "hot_pixel_fraction's; none = off", "e⁻/s", optional=True, omit_default=True)
 
     def __post_init__(self):
         validate(self, "sensor parameter")
@@ -112,8 +157,35 @@ class SensorParams:
 
     @property
     def fixed_pattern(self) -> bool:
-        """Whether a fixed-pattern map (DSNU offset, dark-current DSNU or PRNU) is on."""
-        return self.dsnu_e > 0 or self.prnu_percent > 0 or self.dsnu_dark_current_percent > 0
+        """Whether a fixed-pattern map (DSNU offset, dark-current DSNU, PRNU, dark shading, column FPN, hot, dead
+        or stuck pixels) is on."""
+        return (self.dsnu_e > 0 or self.prnu_percent > 0 or self.dsnu_dark_current_percent > 0
+                or self.dark_offsets or self.hot_pixels or self.dead_pixel_fraction > 0
+                or self.stuck_pixel_fraction > 0)
+
+    @property
+    def dark_offsets(self) -> bool:
+        """Whether a fixed dark-level pattern beyond the offset DSNU (dark shading, column FPN) is on."""
+        return self.dark_shading_e > 0 or self.column_fpn_e > 0 or self.dark_shading_map is not None
+
+    @property
+    def hot_pixels(self) -> bool:
+        """Whether hot pixels (drawn or from a map file) are on."""
+        return self.hot_pixel_fraction > 0 or self.hot_pixel_map is not None
+
+    @property
+    def temperature_factor(self) -> float:
+        """2^((T − T_ref) / T_d): the dark current's factor at :attr:`temperature_c` (1 where it is none).
+        Unitless."""
+        if self.temperature_c is None:
+            return 1.0
+        return 2.0 ** ((self.temperature_c - self.dark_current_reference_c) / self.dark_current_doubling_c)
+
+    @property
+    def dark_current_effective_e_per_s(self) -> np.ndarray:
+        """The dark current at the sensor's temperature, per channel, shape (3,): ``dark_current_e_per_s`` ·
+        :attr:`temperature_factor` (EMVA 1288's D(T) = D_ref · 2^((T − T_ref)/T_d)). Unit: e⁻/s."""
+        return np.asarray(self.dark_current_e_per_s) * self.temperature_factor
 
     @property
     def gaussian_read_noise(self) -> bool:
@@ -132,10 +204,14 @@ class SensorParams:
 
     @property
     def dark_mean_e(self) -> np.ndarray:
-        """Mean dark electrons per pixel in the exposure, per channel, shape (3,). Unit: e⁻."""
+        """Mean dark electrons per pixel in the exposure, per channel, shape (3,): σ²_dark · T at the sensor's
+        temperature (:attr:`dark_current_effective_e_per_s`), the one place the temperature acts: every user of the
+        dark mean (the draws, the clean layer, the black level, the DNG's NoiseProfile) follows. Unit: e⁻."""
         if not self.dark_current:
             return np.zeros(3)
-        return np.asarray(self.dark_current_e_per_s) * self.exposure_s
+        if self.temperature_c is None:  # (today's numbers, bit for bit)
+            return np.asarray(self.dark_current_e_per_s) * self.exposure_s
+        return self.dark_current_effective_e_per_s * self.exposure_s
 
     def _unlit_mean_dn(self, quantisation: bool) -> np.ndarray:
         from camsim.sensor.black_level import unlit_mean_dn  # imports scipy: here, so that the command line starts without
