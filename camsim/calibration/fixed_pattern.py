@@ -141,16 +141,34 @@ def map_standard_error(variance_dn2: np.ndarray, frames: int) -> float:
     return math.sqrt(float(np.mean(variance_dn2)) / frames)
 
 
-def fixed_pattern_rms(map_dn: np.ndarray, variance_dn2: float, frames: int) -> Estimate:
-    """The RMS of the fixed pattern the map holds, its temporal noise removed: √(s²(map) − σ̄²_pixel / n), with the
-    standard error of s² (2 s⁴ / N). Unit: DN."""
+def fixed_pattern_variance(map_dn: np.ndarray, variance_dn2: float, frames: int) -> Estimate:
+    """The variance of the fixed pattern the map holds, its temporal noise removed: s²(map) − σ̄²_pixel / n, with
+    the standard error of s² (√(2/N) s², a Gaussian's). Unit: DN²."""
     s2 = float(np.var(map_dn, ddof=1))
-    return sqrt_estimate(Estimate(s2 - variance_dn2 / frames, s2 * math.sqrt(2.0 / map_dn.size)))
+    return Estimate(s2 - variance_dn2 / frames, s2 * math.sqrt(2.0 / map_dn.size))
+
+
+def fixed_pattern_rms(map_dn: np.ndarray, variance_dn2: float, frames: int) -> Estimate:
+    """√ of :func:`fixed_pattern_variance` (0 where it is negative). Unit: DN."""
+    return sqrt_estimate(fixed_pattern_variance(map_dn, variance_dn2, frames))
+
+
+def mean_of_squares(estimates) -> Estimate:
+    """The mean of independent estimates of squares (variances of several planes or chips), its standard error
+    √(Σ SE²) / count. Unit: that of the squares."""
+    estimates = list(estimates)
+    value = float(np.mean([e.value for e in estimates]))
+    return Estimate(value, math.sqrt(sum(e.standard_error**2 for e in estimates)) / len(estimates))
 
 
 def column_fpn(map_dn: np.ndarray, degree: int = COLUMN_TREND_DEGREE) -> Estimate:
-    """Column fixed-pattern noise σ_c of one chip's map (module docstring): the spread of the column means about a
-    smooth trend, less what the pixels' own variance leaves in a mean of H. Unit: DN.
+    """σ_c: √ of :func:`column_fpn_variance` (0 where that is negative). Unit: DN."""
+    return sqrt_estimate(column_fpn_variance(map_dn, degree))
+
+
+def column_fpn_variance(map_dn: np.ndarray, degree: int = COLUMN_TREND_DEGREE) -> Estimate:
+    """Column fixed-pattern noise σ_c² of one chip's map (module docstring): the spread of the column means about a
+    smooth trend, less what the pixels' own variance leaves in a mean of H. Unit: DN².
 
     Parameters
     ----------
@@ -163,7 +181,7 @@ def column_fpn(map_dn: np.ndarray, degree: int = COLUMN_TREND_DEGREE) -> Estimat
     Returns
     -------
     Estimate
-        σ_c (0 where the estimate of σ_c² is negative), its standard error from σ_c²'s, √(2/(W − d − 1)) · s²(C').
+        σ_c² (it may be negative), its standard error √(2/(W − d − 1)) · s²(C').
     """
     x = np.asarray(map_dn, np.float64)
     h, w = x.shape
@@ -179,7 +197,7 @@ def column_fpn(map_dn: np.ndarray, degree: int = COLUMN_TREND_DEGREE) -> Estimat
     else:
         resid, dof = cols - cols.mean(), w - 1
     s2 = float(np.sum(resid * resid)) / dof
-    return sqrt_estimate(Estimate(s2 - v_e / h, s2 * math.sqrt(2.0 / dof)))
+    return Estimate(s2 - v_e / h, s2 * math.sqrt(2.0 / dof))
 
 
 def black_level_error_variance(frame_means_dn: np.ndarray, pixel_variance_dn2, pixels, row_variance_dn2: float,
