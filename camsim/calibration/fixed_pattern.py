@@ -16,8 +16,9 @@ terms and divides the temporal ones' variance by n.
 
 Expectations used (derived here; the tests check them on arrays of known law):
 
-* the dark-shading map x̄ − B has, per pixel, the standard error √(σ²_pixel / n), σ²_pixel the pixel's temporal
-  variance over the frames (b and ρ included: they are averaged down with it);
+* the dark-shading map x̄ − B has, per pixel, the standard error √((σ_Y² + σ_row²) / n): the pixel's temporal
+  noise and the row noise, averaged over the n frames (the frames' offsets b average to b̄, which B, the plane's
+  mean over the same frames, holds too);
 * hot pixels: d = x̄ − med₅ₓ₅(x̄), the mean less the median of its plane's 5 × 5 neighbourhood (which follows a
   shading, a column or a row, and which a few hot pixels do not move); a pixel is hot where
   d > median(d) + m · max(1.4826 · MAD(d), √(σ̄²_pixel / n)), m = :data:`HOT_THRESHOLD_SIGMAS` = 5 — 5 σ of the
@@ -136,14 +137,16 @@ def shading_map(mean_dn: np.ndarray, black_dn: float, hot: HotPixels | None = No
     return out
 
 
-def map_standard_error(variance_dn2: np.ndarray, frames: int) -> float:
-    """The root mean square over pixels of the map's per-pixel standard error √(σ²_pixel / n). Unit: DN."""
-    return math.sqrt(float(np.mean(variance_dn2)) / frames)
+def map_standard_error(temporal_variance_dn2: float, frames: int) -> float:
+    """The map's per-pixel standard error √(σ² / n), σ² a pixel's temporal variance less the black-level error's
+    (which its plane's black level, a mean over the same frames, takes away): σ_Y² + σ_row². Unit: DN."""
+    return math.sqrt(max(temporal_variance_dn2, 0.0) / frames)
 
 
 def fixed_pattern_variance(map_dn: np.ndarray, variance_dn2: float, frames: int) -> Estimate:
-    """The variance of the fixed pattern the map holds, its temporal noise removed: s²(map) − σ̄²_pixel / n, with
-    the standard error of s² (√(2/N) s², a Gaussian's). Unit: DN²."""
+    """The variance of the fixed pattern the map holds, its temporal noise removed: s²(map) − σ² / n (σ² =
+    σ_Y² + σ_row², :func:`map_standard_error`), with the standard error of s² (√(2/N) s², a Gaussian's).
+    Unit: DN²."""
     s2 = float(np.var(map_dn, ddof=1))
     return Estimate(s2 - variance_dn2 / frames, s2 * math.sqrt(2.0 / map_dn.size))
 

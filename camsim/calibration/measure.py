@@ -491,11 +491,11 @@ def _dark_effects(layout, mean_planes, var_planes, hot, blacks, plane_rows, pixe
     """The effects of issue 28 in DN (:mod:`camsim.calibration.fixed_pattern`)."""
     maps = [fp.shading_map(m, b, h) for m, b, h in zip(mean_planes, blacks, hot)]
     shading = _image_of_planes(layout, maps)
-    normal = [v if not h.count else v[~h.mask] for v, h in zip(var_planes, hot)]
-    se = math.sqrt(float(np.mean([fp.map_standard_error(v, frames) ** 2 for v in normal])))
+    temporal = [v + row_all.value**2 for v in pixel_var]  # σ_Y² + σ_row²: the map's noise × n, per plane
+    se = math.sqrt(float(np.mean([fp.map_standard_error(v, frames) ** 2 for v in temporal])))
     rms = sqrt_estimate(fp.mean_of_squares(
-        fp.fixed_pattern_variance(mp if not h.count else mp[~h.mask], float(np.mean(v)), frames)
-        for mp, v, h in zip(maps, normal, hot)))
+        fp.fixed_pattern_variance(mp if not h.count else mp[~h.mask], v, frames)
+        for mp, v, h in zip(maps, temporal, hot)))
     chips = list(shading) if layout.kind == "stack" else [shading]
     column = sqrt_estimate(fp.mean_of_squares(fp.column_fpn_variance(c) for c in chips))
     excess = _image_of_planes(layout, [h.excess_dn for h in hot])
