@@ -85,6 +85,30 @@ def test_a_normal_plane_has_few_hot_pixels():
     assert count <= 3
 
 
+def test_a_one_frame_outlier_is_not_a_hot_pixel():
+    """A burst of 60 DN in one frame of 16 lifts a pixel's mean by 3.75 DN, beyond the 5 σ threshold (5 × 0.51 DN
+    here); the test in halves (each half's mean above half the threshold, 1.26 DN, where the half without the burst
+    has noise 2/√8 = 0.71 DN) drops it but with probability P(z > 1.78) = 3.7 % (≤ 4 of 40 allowed), while every hot
+    pixel of 20–60 DN stays."""
+    rng = np.random.default_rng(6)
+    x, truth = draw_darks(rng, frames=16, shape=(128, 256), shading=0.0, dsnu=0.0, hot=2e-3, hot_dn=(20.0, 60.0))
+    burst = np.zeros((128, 256), bool)
+    burst[rng.integers(0, 128, 40), rng.integers(0, 256, 40)] = True
+    burst &= truth["hot"] == 0
+    x[3][burst] += 60
+    mean, var = moments(x)
+    halves = (x[0::2].mean(axis=0), x[1::2].mean(axis=0))
+    alone = np.zeros(burst.shape, bool)
+    both = np.zeros(burst.shape, bool)
+    for (dy, dx), m, v, a, b in zip([(0, 0), (0, 1), (1, 0), (1, 1)], planes(mean), planes(var), planes(halves[0]),
+                                    planes(halves[1])):
+        alone[dy::2, dx::2] = fp.find_hot_pixels(m, v, 16).mask
+        both[dy::2, dx::2] = fp.find_hot_pixels(m, v, 16, (a, b)).mask
+    true = truth["hot"] > 0
+    assert np.array_equal(alone, true | burst) and burst.sum() > 30
+    assert np.all(both[true]) and np.count_nonzero(both & burst) <= 4
+
+
 def test_shading_map_and_its_standard_error():
     """The map (mean less the plane's black) correlates with the drawn shading above 0.95 at 16 darks (its noise
     σ/√n = 0.5 DN against a pattern of 3.4 DN RMS), and the RMS of map − truth is the stated standard error
