@@ -362,3 +362,71 @@ def test_round_trip_column_fpn(tmp_path, capsys, maps):
     assert iso["dsnu_dn"] == pytest.approx(0.5, rel=0.1)
     again = sensor_preset(str(out / "preset.toml"), 3200)
     assert again.column_fpn_e == pytest.approx(est["value"], rel=1e-5)
+
+
+# --- preset files that name the effects -----------------------------------------------------------------------------
+
+from camsim.core.errors import CamsimError  # noqa: E402
+from camsim.sensor.presets import read_preset_file  # noqa: E402
+
+HEAD = '[preset]\nname = "fx"\nsource = "test"\nbits = 12\npedestal_dn = 64\ncfa = "RGGB"\n'
+POINT = "[[iso]]\niso = {iso}\nk_dn_per_e = 2.0\ntukey_lambda = 0.14\ntukey_scale_dn = 1.0\ngaussian_sigma_dn = 2.0\n"
+
+
+def _preset(folder, *points, dark_current=True):
+    head = HEAD + ("dark_current_e_per_s = 0.001\n" if dark_current else "")
+    (folder / "p.toml").write_text(head + "\n".join(points), encoding="utf-8")
+    return folder / "p.toml"
+
+
+def test_a_preset_file_renders_its_maps(tmp_path):
+    """The map paths are relative to the preset file, made absolute; the effects hold at their ISO; a render with the
+    preset adds the map's pattern (its mean dark is the map × K + the pedestal, to the frames' noise)."""
+    (tmp_path / "maps").mkdir()
+    shading = np.random.default_rng(1).normal(0, 5, (32, 48)).astype(np.float32)
+    hot = np.zeros((32, 48), np.float32)
+    hot[3, 5] = 1000.0
+    np.save(tmp_path / "maps" / "s.npy", shading)
+    np.save(tmp_path / "maps" / "h.npy", hot)
+    path = _preset(tmp_path, POINT.format(iso=100) + 'dark_shading_map = "maps/s.npy"\nhot_pixel_map = "maps/h.npy"\n'
+                   "column_fpn_e = 0.25\nblack_level_error_dn = 0.5\n", POINT.format(iso=400))
+    camera = read_preset_file(path)
+    sensor = camera.sensor(100)
+    assert sensor.dark_shading_map == str((tmp_path / "maps" / "s.npy").resolve())
+    assert sensor.hot_pixel_map == str((tmp_path / "maps" / "h.npy").resolve())
+    assert (sensor.column_fpn_e, sensor.black_level_error_dn) == (0.25, 0.5)
+    plain = camera.sensor(400)  # the other point states none
+    assert (plain.dark_shading_map, plain.hot_pixel_map, plain.column_fpn_e, plain.black_level_error_dn) == (
+        None, None, 0.0, 0.0)
+    with pytest.raises(CamsimError, match="hold at ISO 100 only"):
+        camera.sensor(200)
+    sensor = sensor_preset(str(path), 100, column_fpn_e=0.0, black_level_error_dn=0.0)
+    frames = np.stack([render(sensor, (32, 48), [0.0, 0.0, 0.0], s).digital_dn[0] for s in range(16)])
+    mean = frames.mean(axis=0) - 64
+    # K = 2: the map is 10 DN RMS; the frames' noise (2 DN) / 4 and the ADC's ½-offset stay
+    assert np.corrcoef(mean[~(hot > 0)], shading[~(hot > 0)])[0, 1] > 0.99
+    assert mean[3, 5] == pytest.approx(2 * (1000 * 1.0 + shading[3, 5]), rel=0.05)  # 1000 e⁻/s × 1 s
+
+
+@pytest.mark.parametrize(("setup", "message"), [
+    ({"s.npy": np.zeros((32, 48)), "h.npy": np.zeros((32, 46))}, r"the maps' shapes differ"),
+    ({"s.npy": np.zeros((31, 48))}, r"dark_shading_map of a RGGB sensor must be a mosaic \(H, W\) of even sides"),
+    ({"h.npy": -np.ones((32, 48))}, r"holds a negative dark current"),
+    ({"s.npy": np.full((32, 48), np.nan)}, r"holds a NaN or an infinity"),
+    ({"s.npy": np.zeros((2, 32, 48))}, r"must hold numbers of shape \(H, W\) or \(3, H, W\)"),
+    ({}, r"dark_shading_map file not found"),
+])
+def test_bad_maps_are_refused(tmp_path, setup, message):
+    for name, array in setup.items():
+        np.save(tmp_path / name, array)
+    keys = ('dark_shading_map = "s.npy"\n' if "h.npy" not in setup or "s.npy" in setup else "") + (
+        'hot_pixel_map = "h.npy"\n' if "h.npy" in setup else "")
+    path = _preset(tmp_path, POINT.format(iso=100) + keys)
+    with pytest.raises(CamsimError, match=message):
+        read_preset_file(path)
+
+
+def test_bad_effect_values_are_refused(tmp_path):
+    path = _preset(tmp_path, POINT.format(iso=100) + "column_fpn_e = -1.0\n")
+    with pytest.raises(CamsimError, match=r"\[\[iso\]\] #1: .*column_fpn_e must be ≥ 0"):
+        read_preset_file(path)
