@@ -59,6 +59,10 @@ def _string(text: str) -> str:
 TOKEN_DARK_CURRENT_E_PER_S = 1e-6
 
 
+#: The dark-shading map is named where its pattern's variance lies more than this many standard errors above 0.
+MAP_MIN_Z = 5.0
+
+
 def _significant(e: Estimate) -> bool:
     """Whether a spread's 95 % interval excludes 0 (a standard deviation from :func:`sqrt_estimate`)."""
     return e.ci95 is not None and e.ci95[0] > 0
@@ -67,8 +71,10 @@ def _significant(e: Estimate) -> bool:
 def effect_values(cal: Calibration, maps: bool = True) -> dict:
     """The preset's values of the dark fixed pattern and the black-level error, with a comment each.
 
-    With ``maps`` the preset names ``dark_shading.npy`` where the map holds a fixed pattern (its RMS, the temporal
-    noise removed, has a 95 % interval clear of 0) and ``hot_pixels.npy`` where hot pixels were found. The map is the
+    With ``maps`` the preset names ``dark_shading.npy`` where the map holds a fixed pattern — its variance, the
+    temporal noise removed, more than :data:`MAP_MIN_Z` standard errors above 0, and its RMS above the map's own
+    per-pixel noise √(σ²/n), which a render with the map adds to the pattern (more darks lower it) — and
+    ``hot_pixels.npy`` where hot pixels were found. The map is the
     whole fixed offset of each pixel (DSNU, columns, rows, shading): where it is named, ``dsnu_dn`` and
     ``column_fpn_e`` are 0, so that nothing is counted twice. Without the map, ``dsnu_dn`` is the pixels' DSNU less
     the column FPN's share, √(DSNU² − σ_c²), and ``column_fpn_e`` the column FPN. ``column_fpn_e`` and
@@ -84,7 +90,9 @@ def effect_values(cal: Calibration, maps: bool = True) -> dict:
     fx = cal.effects
     out = {}
     column = ratio(fx.column_fpn_dn, cal.k_dn_per_e)
-    shading = maps and _significant(fx.shading_rms_e)
+    rms = fx.shading_rms_e
+    z = rms.value / (2 * rms.standard_error) if rms.standard_error else 0.0  # of the variance: v / (2 √v SE(√v))
+    shading = maps and z > MAP_MIN_Z and rms.value > fx.shading_se_e
     if shading:
         out["dark_shading_map"] = (FILES["dark_shading"], f"fixed dark pattern of RMS {fx.shading_rms_e.value:.4g} e⁻ "
                                    f"(± {fx.shading_se_e:.2g} e⁻ per pixel, from {len(cal.dark_files)} darks)")
