@@ -402,7 +402,9 @@ def frame_warnings(sensor: SensorParams) -> list[str]:
       the ADC, so every pixel reads the white level ("every" when k (D̄_cold − 6 σ) ≥ 2^nb − 1,
       σ² = D̄_cold + DSNU² + σ_read² + σ_row²) — a high gain does this before the well fills.
 
-    Both may put the black level (the mean digital number of an unlit pixel,
+    The offsets' σ includes issue 28's column FPN and dark shading (:attr:`SensorParams.offset_sigma_e`); with dead
+    pixels (which collect no dark charge) the warning says "most", never "every". Both may put the black level (the
+    mean digital number of an unlit pixel,
     :attr:`camsim.sensor.params.SensorParams.black_level_dn`) above the white level − 1; the DNG's BlackLevel is then
     written as the white level − 1 (:attr:`camsim.sensor.params.SensorParams.black_level_tag_dn`), which the warning says
     too, as it does when only that clip applies (the black level within 1 DN of the white level).
@@ -422,17 +424,18 @@ def frame_warnings(sensor: SensorParams) -> list[str]:
     read = sensor.read_noise_e if sensor.read_noise else 0.0
     # the coldest pixels' dark charge: the dark-current DSNU map's factor 6 σ below its normal's mean (1 when off)
     cold = dark * dark_gain_at(sensor, -EVERY_PIXEL_SIGMA)
+    dead = sensor.dead_pixel_fraction > 0  # dead pixels collect no dark charge: then "most", never "every"
     when = f"at T = {sensor.exposure_s:g} s"
     if sensor.saturation and np.any(dark >= full):
         hit = [c for c in range(3) if dark[c] >= full]
-        sigma = np.sqrt(cold + sensor.dsnu_e**2)
-        every = all(cold[c] - EVERY_PIXEL_SIGMA * sigma[c] >= full for c in hit)
+        sigma = np.sqrt(cold + sensor.offset_sigma_e**2)
+        every = all(cold[c] - EVERY_PIXEL_SIGMA * sigma[c] >= full for c in hit) and not dead
         return [f"dark current alone fills the well: σ²_dark·T = {_channels(dark, hit)} e⁻ ≥ full well {full:g} e⁻ "
                 f"{when}; {_pixels(every, hit)} saturate{'s' if every else ''}, whatever the light{tag}"]
     if sensor.quantisation and np.any(k * dark >= white):
         hit = [c for c in range(3) if k * dark[c] >= white]
-        sigma = np.sqrt(cold + sensor.dsnu_e**2 + read**2 + sensor.row_noise_e**2)
-        every = all(k * (cold[c] - EVERY_PIXEL_SIGMA * sigma[c]) >= white for c in hit)
+        sigma = np.sqrt(cold + sensor.offset_sigma_e**2 + read**2 + sensor.row_noise_e**2)
+        every = all(k * (cold[c] - EVERY_PIXEL_SIGMA * sigma[c]) >= white for c in hit) and not dead
         below = f"; the full well, {full:g} e⁻, is not reached" if sensor.saturation else ""
         return [f"dark current alone reaches the top of the ADC: k·σ²_dark·T = {_channels(k * dark, hit, '.4g')} DN ≥ "
                 f"white level {white} DN {when} (k = {k:.4g} DN/e⁻{below}); {_pixels(every, hit)} "

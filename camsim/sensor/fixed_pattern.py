@@ -28,18 +28,18 @@ Issue 28's fixed patterns, each from its own child of the sensor's fixed-pattern
   channel's); a three-chip sensor one per chip.
 * **column FPN** (``column_fpn_e`` = σ): one N(0, σ²) offset per column (per chip of a three-chip sensor), added like
   the dark shading.
-* **defects**: each pixel (each chip's pixel of a three-chip sensor) draws one uniform u; u < f_hot is hot,
-  f_hot ≤ u < f_hot + f_dead dead, f_hot + f_dead ≤ u < f_hot + f_dead + f_stuck stuck (disjoint populations; each
-  count binomial in the number of pixels). A **hot** pixel has an extra dark current h, exponential of mean
+* **defects**: each pixel (each chip's pixel of a three-chip sensor) draws one uniform u; u < f_hot is hot, f_hot ≤ u
+  < f_hot + f_dead dead, f_hot + f_dead ≤ u < f_hot + f_dead + f_stuck stuck (disjoint populations; each count
+  binomial in the number of pixels). A **hot** pixel has an extra dark current h, exponential of mean
   ``hot_pixel_dark_e_per_s`` (EMVA 1288 Release 4.0 shows the dark signal's non-uniformity as a histogram on a
   logarithmic axis, where hot pixels form a tail; its straight line there is the exponential law), at the reference
-  temperature; ``hot_pixel_map`` (e⁻/s per pixel) adds a measured one. It joins the dark-current DSNU factor:
-  d' = d + h / σ²_dark,κ (σ²_dark,κ the channel's dark current at the reference temperature), so the pixel collects
-  Poisson(σ²_dark T d + h T) scaled by the temperature's factor like every dark electron — one implementation of
-  the dark charge, which needs a positive ``dark_current_e_per_s`` in every channel. A **dead** pixel has a PRNU gain
-  0 and a dark factor 0: it collects nothing, yet is read out (its offsets, read and row noise, the ADC's pedestal):
-  it reads black. A **stuck** pixel reads a fixed level, uniform on the integers 0 … 2^nb − 1 DN, in every frame,
-  without noise: written over the frame's values (the float layer and the ADC's output) after every other stage.
+  temperature; ``hot_pixel_map`` (e⁻/s per pixel) adds a measured one. It joins the dark-current DSNU factor: d' = d +
+  h / σ²_dark,κ (σ²_dark,κ the channel's dark current at the reference temperature), so the pixel collects
+  Poisson(σ²_dark T d + h T) scaled by the temperature's factor like every dark electron — one implementation of the
+  dark charge, which needs a positive ``dark_current_e_per_s`` in every channel. A **dead** pixel has a PRNU gain 0
+  and a dark factor 0: it collects nothing, yet is read out (its offsets, read and row noise, the ADC's pedestal): it
+  reads black. A **stuck** pixel reads a fixed level, uniform on the integers 0 … 2^nb − 1 DN, in every frame, without
+  noise: written over the frame's values (the float layer and the ADC's output) after every other stage.
 """
 
 from __future__ import annotations
@@ -69,8 +69,8 @@ class FixedPattern:
     gain : numpy.ndarray or None
         PRNU: factor on the mean signal, around 1 (0 at a dead pixel). Unitless.
     dark_gain : numpy.ndarray or None
-        Dark-current DSNU: factor d on the mean dark charge σ²_dark · T, log-normal of mean 1 (plus h / σ²_dark at a
-        hot pixel, 0 at a dead one). Unitless.
+        Dark-current DSNU: factor d on the mean dark charge σ²_dark · T, log-normal of mean 1 (plus h / σ²_dark
+        at a hot pixel, 0 at a dead one). Unitless.
     gain_excess : numpy.ndarray or None
         ``gain - 1`` (float32, the same values), kept with the maps so that each frame's clean layer does not
         compute it again; None where ``gain`` is None or it was not kept. Unitless.
@@ -196,6 +196,16 @@ def _load_map(path: str, mtime_ns: int, what: str) -> np.ndarray:
         raise CamsimError(f"{what} {path} holds non-finite values")
     array.setflags(write=False)
     return array
+
+
+def map_file_extreme(path: str, what: str) -> float:
+    """The largest |value| of a map file (loaded once, as :func:`load_pixel_map` loads it). Unit: the map's."""
+    try:
+        mtime = Path(path).stat().st_mtime_ns
+    except OSError as exc:
+        raise CamsimError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    array = _load_map(str(path), mtime, what)
+    return float(np.max(np.abs(array), initial=0.0))
 
 
 def load_pixel_map(path: str, sensor: SensorParams, shape: tuple, what: str) -> np.ndarray:

@@ -155,7 +155,8 @@ class SensorParams:
         if defects > 1:
             raise CamsimError(f"sensor parameters hot_pixel_fraction + dead_pixel_fraction + stuck_pixel_fraction "
                               f"must be at most 1 (disjoint populations), got {defects:g}")
-        if (self.hot_pixel_fraction > 0 or self.hot_pixel_map is not None) and np.min(np.asarray(self.dark_current_e_per_s, float)) <= 0:
+        hot = self.hot_pixel_fraction > 0 or self.hot_pixel_map is not None
+        if hot and np.min(np.asarray(self.dark_current_e_per_s, float)) <= 0:
             raise CamsimError("hot pixels (hot_pixel_fraction, hot_pixel_map) need dark_current_e_per_s > 0 in every "
                               "channel: they join its per-pixel dark-current factor")
         if self.pedestal_dn >= 2**self.bits - 1:
@@ -225,14 +226,14 @@ class SensorParams:
 
         return unlit_mean_dn(
             self.dark_mean_e, dn_per_electron=self.dn_per_electron, bits=self.bits, quantisation=quantisation,
-            full_well_e=self.full_well_e if self.saturation else None, dsnu_e=self._offset_sigma_e,
+            full_well_e=self.full_well_e if self.saturation else None, dsnu_e=self.offset_sigma_e,
             dark_rate_rel_sigma=self.dsnu_dark_current_percent / 100 if self.dark_current else 0.0,
             read_noise_e=self.read_noise_e if self.read_noise else 0.0,
             read_noise_model=self.read_noise_model, tukey_lambda=self.tukey_lambda, row_noise_e=self.row_noise_e,
             pedestal_dn=self.pedestal_dn if quantisation else 0)
 
     @property
-    def _offset_sigma_e(self) -> float:
+    def offset_sigma_e(self) -> float:
         """The σ of a pixel's fixed offset for the black level: the offset DSNU's, with issue 28's column FPN (a
         normal too: exact) and dark shading (its population law taken as a normal of its RMS: an approximation, which
         moves the mean only through the ADC's floor and clip) in quadrature. Unit: e⁻."""
@@ -250,7 +251,7 @@ class SensorParams:
         (Table I: 5.025, 6.018, 5.683 DN against 5.525, 6.517, 6.177). Without quantisation it is :attr:`dark_level_dn`.
 
         Issue 28's effects: the temperature is in (through :attr:`dark_mean_e`); the column FPN and dark shading as
-        offsets of σ :attr:`_offset_sigma_e` (the shading's law as a normal); left out: a ``dark_shading_map``, hot,
+        offsets of σ :attr:`offset_sigma_e` (the shading's law as a normal); left out: a ``dark_shading_map``, hot,
         dead and stuck pixels (this is the level of the ordinary pixels, not the mean over a frame that has them)
         and the black-level error (a per-frame draw of mean 0: the level about which it scatters).
         """
@@ -301,6 +302,9 @@ class SensorParams:
 #: Sidecar keys of the sensor that change with the exposure time T alone: frames of one auto-exposed series
 #: (``exposure = "auto"``) differ in them and are still one measurement.
 EXPOSURE_KEYS = ("exposure_s", "black_level_dn", "dark_level_dn", "black_level_tag_dn")
+
+#: Parameters that name a map file (.npy): a scene or preset file's are relative to that file.
+MAP_FILE_PARAMS = ("dark_shading_map", "hot_pixel_map")
 
 #: The sensor's parameters (:class:`camsim.core.schema.Param`), in declaration order.
 SENSOR_PARAMS = params_of(SensorParams)
