@@ -108,6 +108,8 @@ def test_round_trip_recovers_the_rendered_sensor(tmp_path, capsys, seed):
     assert iso["column_fpn_e"] == 0 and iso["black_level_error_dn"] == 0
     assert record["dark_effects"]["hot_pixels"]["count"] <= 2e-5 * SIZE[0] * SIZE[1]
     assert np.load(out / "dark_shading.npy").shape == SIZE
+    assert not (out / "hot_pixels.npy").exists()  # these DNGs say no exposure: no map in e⁻/s
+    assert any("do not say their exposure" in w for w in record["warnings"])
     truth = {"k_dn_per_e": (k, 0.02, "k_dn_per_e"),
              "gaussian_sigma_dn": (sensor.read_noise_e * k, 0.03, "read_noise_dn"),
              "row_sigma_dn": (sensor.row_noise_e * k, 0.10, "row_noise_dn")}

@@ -123,7 +123,7 @@ class DarkEffects:
     ----------
     shading_e : numpy.ndarray, float32
         The dark-shading map: per pixel the mean of the darks less its plane's black level (hot pixels: their
-        neighbourhood's median), ÷ K; (H, W) for a mosaic or a monochrome sensor, (3, H, W) for a stack. Unit: e⁻.
+        neighbourhood's median, where :attr:`hot_e_per_s` holds their excess), ÷ K; (H, W) for a mosaic or a monochrome sensor, (3, H, W) for a stack. Unit: e⁻.
     shading_se_e : float
         The root mean square of its per-pixel standard error √(σ²_pixel / n) / K. Unit: e⁻.
     shading_rms_e : Estimate
@@ -530,8 +530,10 @@ def _effects_in_electrons(e: dict, k: Estimate, exposure_s: float | None) -> Dar
     """The maps ÷ K (and ÷ the exposure for the hot pixels' dark current)."""
     kv = k.value
     hot = None if not exposure_s else (e["hot_excess_dn"] / (kv * exposure_s)).astype(np.float32)
+    # without an exposure there is no hot-pixel map: the dark-shading map keeps their charge (at this exposure)
+    shading = e["shading_dn"] if hot is not None else e["shading_dn"] + e["hot_excess_dn"]
     return DarkEffects(
-        shading_e=(e["shading_dn"] / kv).astype(np.float32), shading_se_e=e["shading_se_dn"] / kv,
+        shading_e=(shading / kv).astype(np.float32), shading_se_e=e["shading_se_dn"] / kv,
         shading_rms_e=ratio(e["shading_rms_dn"], k), hot_e_per_s=hot, hot_count=e["hot_count"],
         hot_fraction=e["hot_fraction"], hot_threshold_dn=e["hot_threshold_dn"], column_fpn_dn=e["column_fpn_dn"],
         black_level_error_dn=e["black_level_error_dn"], exposure_s=exposure_s)
