@@ -123,7 +123,8 @@ class DarkEffects:
     ----------
     shading_e : numpy.ndarray, float32
         The dark-shading map: per pixel the mean of the darks less its plane's black level (hot pixels: their
-        neighbourhood's median, where :attr:`hot_e_per_s` holds their excess), ÷ K; (H, W) for a mosaic or a monochrome sensor, (3, H, W) for a stack. Unit: e⁻.
+        neighbourhood's median, where :attr:`hot_e_per_s` holds their excess), ÷ K; (H, W) for a mosaic or a
+        monochrome sensor, (3, H, W) for a stack. Unit: e⁻.
     shading_se_e : float
         The root mean square of its per-pixel standard error √(σ²_pixel / n) / K. Unit: e⁻.
     shading_rms_e : Estimate

@@ -108,7 +108,8 @@ def effect_values(cal: Calibration, maps: bool = True) -> dict:
                                f"σ of the column offsets (measured {column.value:.3g} ± {column.standard_error:.2g})")
     b = fx.black_level_error_dn
     out["black_level_error_dn"] = (b.value if _significant(b) else 0.0,
-                                   f"σ of the per-frame colour offset (measured {b.value:.3g} ± {b.standard_error:.2g})")
+                                   f"σ of the per-frame colour offset (measured {b.value:.3g} ± "
+                                   f"{b.standard_error:.2g})")
     return out
 
 
