@@ -126,7 +126,7 @@ class DarkEffects:
         neighbourhood's median, where :attr:`hot_e_per_s` holds their excess), ÷ K; (H, W) for a mosaic or a
         monochrome sensor, (3, H, W) for a stack. Unit: e⁻.
     shading_se_e : float
-        The root mean square of its per-pixel standard error √(σ²_pixel / n) / K. Unit: e⁻.
+        Its per-pixel standard error √((σ_Y² + σ_row²) / n) / K (the planes' root mean square). Unit: e⁻.
     shading_rms_e : Estimate
         The RMS of the fixed pattern the map holds, its temporal noise removed (the planes' RMS). Unit: e⁻.
     hot_e_per_s : numpy.ndarray or None
@@ -428,7 +428,7 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
     black_all = dark.black_level(mean_image, var_image, n, row_all.value**2)  # the planes' mean; rows shared
     if keep is not None:
         black_all = Estimate(float(np.mean(blacks)), black_all.standard_error)
-    effects_dn = _dark_effects(layout, mean_planes, var_planes, hot, blacks, plane_rows, pixel_var, row_all, n)
+    effects_dn = _dark_effects(layout, mean_planes, hot, blacks, plane_rows, pixel_var, row_all, n)
     del var_image, var_planes
 
     levels = _flat_levels(flat_files, first, blacks, progress)
@@ -494,7 +494,7 @@ def _image_of_planes(layout: Layout, planes, dtype=np.float64) -> np.ndarray:
     return out
 
 
-def _dark_effects(layout, mean_planes, var_planes, hot, blacks, plane_rows, pixel_var, row_all, frames) -> dict:
+def _dark_effects(layout, mean_planes, hot, blacks, plane_rows, pixel_var, row_all, frames) -> dict:
     """The effects of issue 28 in DN (:mod:`camsim.calibration.fixed_pattern`)."""
     maps = [fp.shading_map(m, b, h) for m, b, h in zip(mean_planes, blacks, hot)]
     shading = _image_of_planes(layout, maps)
