@@ -168,6 +168,16 @@ def _summary(result: EmvaResult) -> list:
     ]
 
 
+def _dark_current_text(s) -> str:
+    """The G channel's dark current as measured: at the sensor's temperature where it has one (EMVA 1288 states
+    the dark current at the temperature of the measurement)."""
+    rate = s.dark_current_e_per_s[CHANNEL]
+    if s.temperature_c is None:
+        return f"{rate:g} e⁻/s"
+    return (f"{s.dark_current_effective_e_per_s[CHANNEL]:g} e⁻/s at the sensor's {s.temperature_c:g} °C "
+            f"({rate:g} e⁻/s at {s.dark_current_reference_c:g} °C, doubling every {s.dark_current_doubling_c:g} °C)")
+
+
 def _dark_notes(result: EmvaResult) -> list:
     """Dark noise (quantisation), K and η (the quantisation offset of the PTC), the −½ DN, the black level."""
     s, d = result.measurement.sensor, result.details
@@ -303,7 +313,7 @@ def _method(result: EmvaResult) -> list:
         "",
         f"* **Sensor:** preset `{m.preset_name}`: K = {s.dn_per_electron:.4g} DN/e⁻ ({s.conversion_gain_v_per_e:g} "
         f"V/e⁻ × {s.analog_gain_dn_per_v:g} DN/V), {s.bits}-bit ADC, full well {s.full_well_e:g} e⁻, read noise "
-        f"{s.read_noise_e:g} e⁻, dark current {s.dark_current_e_per_s[CHANNEL]:g} e⁻/s (G), exposure "
+        f"{s.read_noise_e:g} e⁻, dark current {_dark_current_text(s)} (G), exposure "
         f"{s.exposure_s:g} s, DSNU {s.dsnu_e:g} e⁻{dark_dsnu}, PRNU {s.prnu_percent:g} %, row noise "
         f"{s.row_noise_e:g} e⁻, "
         f"{s.read_noise_model} read noise, sensor seed {s.sensor_seed}; stages {stages}.",
@@ -363,7 +373,8 @@ def _dsnu_exposures(result: EmvaResult) -> list:
         f"{t2 / t1:g}). Through the two points, the offset part is σ_o = {_fmt(rec['dsnu_offset_e'])} e⁻ (configured "
         f"{_fmt(offset)} e⁻) and the dark-current part c = {_fmt(rec['dsnu_dark_current_e_per_s'])} e⁻/s "
         f"(configured {_fmt(rate)} e⁻/s, i.e. {s.dsnu_dark_current_percent:g} % of "
-        f"{s.dark_current_e_per_s[CHANNEL] if s.dark_current else 0:g} e⁻/s)."
+        f"{s.dark_current_effective_e_per_s[CHANNEL] if s.dark_current else 0:g} e⁻/s, the dark current at the "
+        "sensor's temperature)."
         + (" — : the estimate of that part's square came out negative, i.e. the part is below the estimators' "
            "noise." if rec["dsnu_offset_e"] is None or rec["dsnu_dark_current_e_per_s"] is None else "")
         + (f" The maps actually drawn have {' and '.join(realised)} over the analysed pixels." if realised else ""),

@@ -410,7 +410,7 @@ def simulate(sensor: SensorParams, setup: EmvaSetup = EmvaSetup(), preset_name: 
         prnu = float(100 * np.std(_channel_map(maps.gain, sensor), dtype=np.float64))
     dark_dsnu = None
     if maps is not None and maps.dark_gain is not None and sensor.dark_current:
-        rate = sensor.dark_current_e_per_s[CHANNEL]
+        rate = sensor.dark_current_effective_e_per_s[CHANNEL]  # at the sensor's temperature
         dark_dsnu = float(rate * np.std(_channel_map(maps.dark_gain, sensor), dtype=np.float64))
     return Measurement(sensor, setup, preset_name, eta, photons, photons_spatial, sat_e, data, dsnu, prnu, frames,
                        camera.name, None if long_sensor is None else long_sensor.exposure_s, dark_long, dark_dsnu)
