@@ -3,8 +3,9 @@
 ``emva.json`` is an interface: ``{key: {"configured", "recovered", "relative_error"}}`` for the keys of
 :data:`camsim.emva.simulate.QUANTITIES` (K_dn_per_e, dark_noise_e, qe, saturation_e, dsnu_e, prnu_percent), then,
 where the dark stack was also taken at a second exposure time, of
-:data:`camsim.emva.simulate.SPLIT_QUANTITIES` (dsnu_offset_e, dsnu_dark_current_e_per_s), with null where a value
-is undefined (a relative error of a quantity configured as 0, a negative variance).
+:data:`camsim.emva.simulate.SPLIT_QUANTITIES` (dsnu_offset_e, dsnu_dark_current_e_per_s), then, where the dark
+current was measured at several temperatures, of :data:`camsim.emva.simulate.TEMPERATURE_QUANTITIES`
+(dark_current_doubling_c), with null where a value is undefined (a relative error of a quantity configured as 0, a negative variance).
 
 The plots are the reference implementation's own (``emva1288.process.plotting``) drawn headless, each with the
 configured camera overlaid.
@@ -43,6 +44,7 @@ _NAMES = {
     "prnu_percent": "PRNU₁₂₈₈",
     "dsnu_offset_e": "DSNU, offset part σ_o",
     "dsnu_dark_current_e_per_s": "DSNU, dark-current part c (∝ T)",
+    "dark_current_doubling_c": "Doubling temperature T_d of the dark current",
 }
 _CONFIGURED_AS = {
     "K_dn_per_e": "G · G_Ve⁻",
@@ -53,6 +55,7 @@ _CONFIGURED_AS = {
     "prnu_percent": "prnu_percent",
     "dsnu_offset_e": "dsnu_e",
     "dsnu_dark_current_e_per_s": "p/100 · σ²_dark (G)",
+    "dark_current_doubling_c": "dark_current_doubling_c",
 }
 #: The DSNU configured with both kinds on: the total at the measured exposure time T.
 _DSNU_BOTH = "√(dsnu_e² + (p/100 · σ²_dark · T)²)"
@@ -244,7 +247,14 @@ def _dark_current_note(result: EmvaResult) -> str:
         note += (f"a spatial non-uniformity of its own, {s.dsnu_dark_current_percent:g} % (each pixel's rate is "
                  "σ²_dark · d, d a fixed log-normal map of mean 1), whose DSNU grows ∝ T: see the DSNU at two "
                  "exposure times")
-    return note + "; EMVA's μ_I would be the same rate."
+    note += "; EMVA's μ_I would be the same rate"
+    if s.temperature_c is not None:
+        note += (f", at the sensor's {s.temperature_c:g} °C: {s.dark_current_effective_e_per_s[CHANNEL]:g} e⁻/s "
+                 f"(μ_I,ref · 2^((ϑ − ϑ_ref)/T_d) with {s.dark_current_e_per_s[CHANNEL]:g} e⁻/s at "
+                 f"{s.dark_current_reference_c:g} °C, T_d = {s.dark_current_doubling_c:g} °C)")
+    if result.measurement.dark_vs_temperature:
+        note += "; it is measured against the temperature below"
+    return note + "."
 
 
 def _saturation_and_pattern_notes(result: EmvaResult) -> list:
@@ -383,6 +393,38 @@ def _dsnu_exposures(result: EmvaResult) -> list:
     return lines
 
 
+def _dark_vs_temperature(result: EmvaResult) -> list:
+    """The dark current at several temperatures and its doubling temperature (when measured)."""
+    table = result.details.get("dark_current_vs_temperature")
+    if not table:
+        return []
+    m, s = result.measurement, result.measurement.sensor
+    t1, t2 = m.dark_vs_temperature[0]["exposures_s"]
+    lines = [
+        "## Dark current against the temperature",
+        "",
+        f"At each temperature (the sensor's `temperature_c` set to it) L = {m.setup.stack_frames} dark frames at "
+        f"{t1:g} s and L at {t2:g} s; the dark current is the slope of the mean dark value against the exposure "
+        "time, over the reference implementation's K (the offsets and the quantiser's half step cancel from the "
+        "slope; its standard error is the spread of the frame means). The model: μ_I(ϑ) = μ_I,ref · "
+        f"2^((ϑ − ϑ_ref)/T_d), μ_I,ref = {s.dark_current_e_per_s[CHANNEL]:g} e⁻/s at ϑ_ref = "
+        f"{s.dark_current_reference_c:g} °C (`dark_current_reference_c`), T_d = {s.dark_current_doubling_c:g} °C "
+        "(`dark_current_doubling_c`).",
+        "",
+        "| temperature | slope | dark current μ_I | configured μ_I |",
+        "|---|---|---|---|",
+    ]
+    lines += [f"| {r['temperature_c']:g} °C | {_fmt(r['slope_dn_per_s'])} ± {_fmt(r['slope_standard_error_dn_per_s'], 2)}"
+              f" DN/s | {_fmt(r['dark_current_e_per_s'])} e⁻/s | {_fmt(r['configured_e_per_s'])} e⁻/s |"
+              for r in table]
+    fit = result.recovered["dark_current_doubling_c"]
+    lines += ["", f"The straight line log₂ μ_I = a + ϑ / T_d through these points (weighted least squares) gives "
+              f"T_d = {_fmt(fit)} °C (configured {s.dark_current_doubling_c:g} °C)."
+              + (" Hot pixels add their own dark current to the mean, which the configured μ_I leaves out."
+                 if s.hot_pixels else ""), ""]
+    return lines
+
+
 def _other_results(result: EmvaResult) -> list:
     d = result.details
     return [
@@ -437,6 +479,7 @@ def markdown(result: EmvaResult, plots: dict) -> str:
     lines = _summary(result)
     lines += ["## Where camsim's model and the standard's assumptions meet", ""]
     lines += _dark_notes(result) + _saturation_and_pattern_notes(result) + [""] + _dsnu_exposures(result)
+    lines += _dark_vs_temperature(result)
     lines += _method(result) + _other_results(result) + _plot_section(plots)
     return "\n".join(lines)
 
