@@ -119,3 +119,17 @@ def test_optimise_caps_the_exposure_sooner_when_the_sensor_is_warmer():
         assert chosen[temperature].exposure_s == pytest.approx(result.exposures_s[np.flatnonzero(
             charge + 4 * sd <= limit)[-1]])
     assert chosen[40.0].exposure_s < chosen[25.0].exposure_s
+
+
+def test_the_clip_at_0_dn_biases_a_cold_slope_as_the_exact_model_says():
+    # 10 °C without a pedestal: 3.9 e⁻/s, 1.6 DN in the 1 s dark against 1.2 DN of read noise: pixels clip at 0
+    cold = run(sensor=preset("emva-12bit"), setup=EmvaSetup(**SMALL, temperatures=(10.0, 25.0)))
+    row = cold.details["dark_current_vs_temperature"][0]
+    measured = row["slope_dn_per_s"] / (K * dark_current(10.0)) - 1
+    assert row["clip_bias"] < -0.01  # the model's bias is large here
+    assert abs(measured - row["clip_bias"]) < 4 * row["slope_standard_error_dn_per_s"] / (K * dark_current(10.0))
+    # with a pedestal the dark level is clear of 0 and the slope is K · D(T)
+    clear = run(sensor=preset("emva-12bit", pedestal_dn=64), setup=EmvaSetup(**SMALL, temperatures=(10.0, 25.0)))
+    row = clear.details["dark_current_vs_temperature"][0]
+    assert abs(row["clip_bias"]) < 1e-4
+    assert abs(row["slope_dn_per_s"] - K * dark_current(10.0)) < 4 * row["slope_standard_error_dn_per_s"]

@@ -417,6 +417,12 @@ def _dark_vs_temperature(result: EmvaResult) -> list:
     lines += [f"| {r['temperature_c']:g} °C | {_fmt(r['slope_dn_per_s'])} ± {_fmt(r['slope_standard_error_dn_per_s'], 2)}"
               f" DN/s | {_fmt(r['dark_current_e_per_s'])} e⁻/s | {_fmt(r['configured_e_per_s'])} e⁻/s |"
               for r in table]
+    clipped = [r for r in table if r["clip_bias"] is not None and abs(r["clip_bias"]) > 1e-3]
+    if clipped:
+        lines += ["", "The ADC's clip at 0 DN biases the slope (camsim's exact dark model: "
+                  + ", ".join(f"{_percent(r['clip_bias'])} at {r['temperature_c']:g} °C" for r in clipped)
+                  + "): the dark level is near 0 DN there; a pedestal (`pedestal_dn`) or a longer exposure keeps it "
+                  "clear, as EMVA 1288 asks of the offset."]
     fit = result.recovered["dark_current_doubling_c"]
     lines += ["", f"The straight line log₂ μ_I = a + ϑ / T_d through these points (weighted least squares) gives "
               f"T_d = {_fmt(fit)} °C (configured {s.dark_current_doubling_c:g} °C)."

@@ -538,7 +538,12 @@ def _analyse(measurement: Measurement) -> EmvaResult:
         table = []
         for entry, (slope, error) in zip(measurement.dark_vs_temperature, rows):
             at = dataclasses.replace(measurement.sensor, temperature_c=entry["temperature_c"])
+            t1, t2 = entry["exposures_s"]
+            linear = at.dn_per_electron * (at.dark_mean_e[CHANNEL] / at.exposure_s)  # K · μ_I: the unclipped slope
+            means = [model_dark_temporal_dn(dataclasses.replace(at, exposure_s=t))[0] for t in (t1, t2)]
+            clip_bias = (means[1] - means[0]) / (t2 - t1) / linear - 1 if linear > 0 else None
             table.append({"temperature_c": entry["temperature_c"], "slope_dn_per_s": slope,
+                          "clip_bias": clip_bias,
                           "slope_standard_error_dn_per_s": error,
                           "dark_current_e_per_s": None if k is None else slope / k,
                           "configured_e_per_s": float(at.dark_current_effective_e_per_s[CHANNEL])
@@ -555,6 +560,10 @@ def dark_current_slope(entry: dict) -> tuple:
     """The slope of the mean dark value against the exposure time at one temperature, and its standard error.
 
     ``entry``: ``{"exposures_s": (T, T₂), "frame_means_dn": (2, L)}`` (:attr:`Measurement.dark_vs_temperature`).
+    Where the dark level is near 0 DN (no pedestal, a small dark current) the ADC's clip at 0 raises the shorter
+    exposure's mean more than the longer one's and the slope comes out low: the analysis gives the model's relative
+    bias of the slope (``clip_bias`` of ``details["dark_current_vs_temperature"]``, by
+    :func:`model_dark_temporal_dn`), and the report names the temperatures where it exceeds 0.1 %.
     The slope is (μ̄₂ − μ̄₁) / (T₂ − T), μ̄ the mean of a stack's frame means; its standard error
     √(s₁² / L + s₂² / L) / (T₂ − T), s the standard deviation of the frame means (ddof 1: the temporal noise, row
     noise included, of one frame's mean). Returns (DN/s, DN/s).
