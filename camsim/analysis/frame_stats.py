@@ -122,7 +122,9 @@ def predicted_var_dn2(meta: dict, clean_dn: np.ndarray, quantised: bool, channel
             return None
         charge_var = np.maximum(clean_dn.astype(np.float64), 0.0) / k
     else:
-        dark = np.asarray(meta.get("dark_current_e_per_s", [0, 0, 0]), dtype=np.float64) * meta["exposure_s"]
+        # the dark current at the sensor's temperature where the sidecar records one (issue 28), else as given
+        rate = meta.get("dark_current_effective_e_per_s", meta.get("dark_current_e_per_s", [0, 0, 0]))
+        dark = np.asarray(rate, dtype=np.float64) * meta["exposure_s"]
         charge_var = np.full(clean_dn.shape, dark[channel] if stages.get("dark_current") else 0.0)
     read = float(meta["read_noise_e"]) if stages.get("read_noise") else 0.0
     row = float(meta.get("row_noise_e") or 0.0)

@@ -14,6 +14,11 @@ a row block of a frame      child *b* of the frame's sequence (``spawn``)       
 a sensor's fixed pattern    ``SeedSequence(sensor_seed, spawn_key=(0x46504E,))``,        :func:`fixed_pattern_generators`
                             children 0 (DSNU offset), 1 (PRNU) and 2 (dark-current
                             DSNU)
+  (issue 28's maps)         children 3 (defect population), 4 (hot pixels' dark         :func:`fixed_pattern_generator`
+                            current), 5 (stuck levels), 6 (dark shading), 7 (column
+                            FPN)
+a frame's black-level       the frame's sequence extended by the word ``0xB1AC0``         :func:`frame_effect_generator`
+  error                     (its blocks are children 0, 1, … of the frame's sequence)
 a dataset frame's seed      ``SeedSequence(spec seed, spawn_key=sha256(id)[:16] as 4      :func:`dataset_frame_seed`
                             words)``, its first 64-bit word >> 11 (< 2^53)
 a dataset random parameter  ``SeedSequence(spec seed, spawn_key=(0xDA7A5E7, crc32(name)))`` :func:`dataset_parameter_generator`
@@ -80,6 +85,40 @@ def fixed_pattern_generators(sensor_seed: int) -> tuple[np.random.Generator, ...
     """
     children = np.random.SeedSequence(sensor_seed, spawn_key=(FIXED_PATTERN_KEY,)).spawn(3)
     return tuple(np.random.Generator(np.random.PCG64(child)) for child in children)
+
+
+def fixed_pattern_generator(sensor_seed: int, index: int) -> np.random.Generator:
+    """Child ``index`` of a sensor's fixed-pattern sequence (:func:`fixed_pattern_generators` holds 0 to 2): 3 the
+    defect population, 4 the hot pixels' dark current, 5 the stuck pixels' levels, 6 the dark shading, 7 the column
+    FPN. Child *i* depends on *i* alone, so each map leaves the others as they were."""
+    child = np.random.SeedSequence(sensor_seed, spawn_key=(FIXED_PATTERN_KEY,)).spawn(index + 1)[index]
+    return np.random.Generator(np.random.PCG64(child))
+
+
+#: Spawn-key word of a frame's per-frame effects (the black-level error), after the frame's own key.
+FRAME_EFFECT_KEY = 0xB1AC0
+
+
+def frame_effect_generator(rng) -> np.random.Generator:
+    """A generator of a frame's per-frame effects (the black-level error), derived from the frame's seed ``rng``
+    (a ``SeedSequence``, an int, or a numpy ``Generator`` seeded from one) without drawing from it or spawning
+    it: the frame's other draws (its row blocks, children 0, 1, … of its sequence) stay as they were. Its key is
+    the frame's key extended by :data:`FRAME_EFFECT_KEY`, far above any block index.
+
+    Raises
+    ------
+    ValueError
+        ``rng`` is None or a generator without a seed sequence (a CuPy generator): no seed to derive from.
+    """
+    if isinstance(rng, np.random.Generator):
+        rng = getattr(rng.bit_generator, "seed_seq", None)
+    elif isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
+        rng = np.random.SeedSequence(int(rng))
+    if not isinstance(rng, np.random.SeedSequence):
+        raise ValueError("a per-frame effect needs the frame's seed (a SeedSequence, an int or a numpy Generator)")
+    sequence = np.random.SeedSequence(rng.entropy, spawn_key=tuple(rng.spawn_key) + (FRAME_EFFECT_KEY,),
+                                      pool_size=rng.pool_size)
+    return np.random.Generator(np.random.PCG64(sequence))
 
 
 def dataset_frame_seed(spec_seed: int, frame_id: str) -> int:

@@ -150,7 +150,8 @@ def model_noise_sigma(meta: dict, image: np.ndarray, black_dn, channel_of=(0, 1,
     if stages.get("photon_noise", True):
         var_e += signal_e
     if stages.get("dark_current", True):
-        dark = np.broadcast_to(np.asarray(meta.get("dark_current_e_per_s", 0.0), dtype=np.float64), (3,))
+        rate = meta.get("dark_current_effective_e_per_s", meta.get("dark_current_e_per_s", 0.0))  # at temperature_c
+        dark = np.broadcast_to(np.asarray(rate, dtype=np.float64), (3,))
         var_e += dark[list(channel_of)] * float(meta["exposure_s"])
     if stages.get("read_noise", True):
         var_e += float(meta.get("read_noise_e") or 0.0) ** 2 + float(meta.get("row_noise_e") or 0.0) ** 2

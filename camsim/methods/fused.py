@@ -22,6 +22,7 @@ from camsim.methods.spectral import draw_bins
 from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.params import SensorParams
 from camsim.sensor.stages import (
+    add_black_level_error_dn,
     add_offset_e,
     add_read_noise_e,
     add_row_noise,
@@ -210,5 +211,7 @@ def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None
                          None if bins is None else bins[p], runs)
         if sensor.row_noise_e > 0:  # a physical row shares its offset, whatever the colour of its pixels
             add_row_noise(block[p], row_noise_dn, rng)
+        if job.black_level_error_dn is not None:
+            add_black_level_error_dn(block[p], job.black_level_error_dn, sensor.cfa, p)
         if job.digital is not None:
             quantise_dn(block[p], sensor.bits, out=job.digital[p, r0:r1], pedestal_dn=sensor.pedestal_dn)

@@ -19,6 +19,7 @@ from camsim.sensor.kernels import label_runs, poisson
 from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.params import SensorParams
 from camsim.sensor.stages import (
+    add_black_level_error_dn,
     add_read_noise_e,
     add_row_noise,
     cap_mean_e,
@@ -152,5 +153,7 @@ def draw_block(job, r0: int, r1: int, rng: np.random.Generator, scratch) -> None
         if sensor.row_noise_e > 0:
             add_row_noise(e, sensor.row_noise_e, rng)
         electrons_to_dn(e, sensor.dn_per_electron, out=e)
+        if job.black_level_error_dn is not None:
+            add_black_level_error_dn(e, job.black_level_error_dn, sensor.cfa, p)
         if job.digital is not None:
             quantise_dn(e, sensor.bits, out=job.digital[p, r0:r1], pedestal_dn=sensor.pedestal_dn)

@@ -21,7 +21,15 @@ from camsim.sensor.fixed_pattern import FixedPattern, dark_gain_at, fixed_patter
 from camsim.methods import get_method
 from camsim.core.seeding import block_generators
 from camsim.sensor.params import SensorParams
-from camsim.sensor.stages import dn_dtype, saturating_mean_e, saturation_level_e
+from camsim.core.seeding import frame_effect_generator
+from camsim.sensor.stages import (
+    dn_dtype,
+    draw_black_level_error_dn,
+    saturating_mean_e,
+    saturation_level_e,
+    set_stuck_dn,
+    stuck_float_dn,
+)
 from camsim.core.xp import namespace_of
 
 if TYPE_CHECKING:  # the plan's module imports scipy: only its type is needed here
@@ -55,6 +63,7 @@ class Frame:
     sensor: SensorParams
     plan: DrawPlan | None = None  # how each spectrum and channel was drawn (None for spectral)
     maps: FixedPattern | None = None  # the sensor's DSNU (offset, dark-current) and PRNU maps, if any
+    black_level_error_dn: np.ndarray | None = None  # the frame's drawn black-level error (3,), DN, if on
 
     def clean_dn(self) -> np.ndarray:
         """Expected value of ``noisy_dn`` per pixel: G · G_Ve⁻ · E[f_sat(S + D)], shape (3, H, W), float32.
@@ -72,7 +81,11 @@ def clean_dn(labels, expected: ExpectedSignal, sensor: SensorParams, maps: Fixed
     and its offset o — is added to its spectrum's value and the sum clipped at the full well: exact below
     saturation, and for spectra whose every pixel is saturated (their mean, with the smallest PRNU gain, the
     smallest dark-current factor and the most negative DSNU offset, at or above the saturation cap of
-    :func:`camsim.sensor.stages.saturating_mean_e`) the full well itself; an approximation in between.
+    :func:`camsim.sensor.stages.saturating_mean_e`) the full well itself; an approximation in between. The maps
+    carry issue 28's fixed patterns (dark shading, column FPN, hot and dead pixels: their offsets and factors), so
+    the clean layer has them; a stuck pixel's clean value is its level (on each plane of a Bayer pixel). The
+    black-level error is not in it: it is a per-frame draw, noise about the black level (ELD subtracts it as a
+    bias), recorded in the sidecar.
     """
     xp = namespace_of(labels)
     k = sensor.dn_per_electron
@@ -98,6 +111,13 @@ def clean_dn(labels, expected: ExpectedSignal, sensor: SensorParams, maps: Fixed
             xp.minimum(out[c], np.float32(k * sensor.full_well_e), out=out[c])
             if np.any(full[:, c]):
                 out[c][xp.asarray(full[:, c])[labels]] = np.float32(k * sensor.full_well_e)
+    if maps is not None and maps.stuck_index is not None:
+        level = stuck_float_dn(maps.stuck_level_dn, sensor.pedestal_dn)
+        if sensor.cfa is None:
+            set_stuck_dn(out, maps.stuck_index, level)
+        else:  # a Bayer pixel's three planes
+            for c in range(3):
+                set_stuck_dn(out[c:c + 1], maps.stuck_index, level)
     return out
 
 
@@ -123,7 +143,7 @@ def saturated_spectra(expected: ExpectedSignal, sensor: SensorParams, maps: Fixe
 FRAME_VALUE_MAX = 1e36
 
 
-def check_frame_values(expected: ExpectedSignal, sensor: SensorParams) -> None:
+def check_frame_values(expected: ExpectedSignal, sensor: SensorParams, maps: FixedPattern | None = None) -> None:
     """Refuse a frame whose values would not fit its float32 pixels, with the reason.
 
     The largest value a pixel can take, in electrons: with saturation on, the full well plus ten σ of the read and
@@ -132,7 +152,10 @@ def check_frame_values(expected: ExpectedSignal, sensor: SensorParams) -> None:
     In DN it is G · G_Ve⁻ times that. Both must stay below :data:`FRAME_VALUE_MAX`: only a light or an exposure
     astronomically beyond any camera's with saturation off (nothing then bounds the charge), or a full well or noise
     of that size, reach it. Means that overflow float64 are refused before, by
-    :func:`camsim.sensor.expected.expected_signal`.
+    :func:`camsim.sensor.expected.expected_signal`. Issue 28's effects: with ``maps`` (the frame's fixed pattern)
+    the largest dark factor (hot pixels) and offset (dark shading, column FPN) are the maps' own; without them, ten
+    σ of the column FPN and ten RMS of the dark shading; the black-level error adds ten σ in DN; stuck pixels are
+    within the ADC's range.
 
     Raises
     ------
@@ -144,15 +167,23 @@ def check_frame_values(expected: ExpectedSignal, sensor: SensorParams) -> None:
         peak_e = sensor.full_well_e + readout
     else:
         gain = 1 + 10 * sensor.prnu_percent / 100
-        if sensor.dsnu_dark_current_percent > 0:
+        if maps is not None and maps.dark_gain is not None and (sensor.hot_pixels or sensor.dead_pixel_fraction):
+            dark = expected.dark_e * max(float(np.max(maps.dark_gain)), dark_gain_at(sensor, 10.0))
+            mean = expected.signal_e * gain + dark
+            peak_e = float(np.max(mean + 10 * np.sqrt((expected.signal_var_e2 + dark) * gain), initial=0.0))
+        elif sensor.dsnu_dark_current_percent > 0:
             dark = expected.dark_e * dark_gain_at(sensor, 10.0)
             mean = expected.signal_e * gain + dark
             peak_e = float(np.max(mean + 10 * np.sqrt((expected.signal_var_e2 + dark) * gain), initial=0.0))
         else:
             mean = expected.signal_e * gain + expected.dark_e
             peak_e = float(np.max(mean + 10 * np.sqrt(expected.total_var_e2 * gain), initial=0.0))
-        peak_e += 10 * sensor.dsnu_e + readout
-    if max(peak_e, k * peak_e) <= FRAME_VALUE_MAX:
+        if sensor.dark_offsets and maps is not None and maps.offset_e is not None:
+            peak_e += max(float(np.max(np.abs(maps.offset_e))), 10 * sensor.dsnu_e) + readout
+        else:
+            peak_e += 10 * (sensor.dsnu_e + sensor.dark_shading_e + sensor.column_fpn_e) + readout
+    peak_dn = k * peak_e + 10 * sensor.black_level_error_dn
+    if max(peak_e, peak_dn) <= FRAME_VALUE_MAX:
         return
     limit = (f"beyond {FRAME_VALUE_MAX:.0e}, the largest value a frame holds (its pixels are float32, which end at "
              f"{float(np.finfo(np.float32).max):.2g})")
@@ -201,6 +232,7 @@ class FrameJob:
     maps: FixedPattern | None
     noisy: np.ndarray
     digital: np.ndarray | None
+    black_level_error_dn: np.ndarray | None = None  # the frame's (3,), DN: added before the ADC
 
     def maps_rows(self, r0: int, r1: int):
         """(DSNU offset, PRNU gain, dark-current DSNU factor) of rows ``r0:r1``, shape (3, r1 − r0, W) each, or None
@@ -279,18 +311,48 @@ def render_frame(
     height, width = labels.shape
     rows = block_rows(labels.shape, sensor.cfa)
     maps = fixed_pattern(sensor, labels.shape)
+    if sensor.hot_pixels or sensor.dark_offsets:
+        check_frame_values(expected, sensor, maps)  # with the maps' own largest factor and offset
     if maps is not None and maps.gain is not None and not impl.per_pixel_mean:
-        raise CamsimError(f"PRNU needs a per-pixel mean: use method poisson, gaussian or auto, not {method}")
+        what = "PRNU" if sensor.prnu_percent > 0 else "dead pixels (a signal gain of 0)"
+        raise CamsimError(f"{what} need{'s' if what == 'PRNU' else ''} a per-pixel mean: use method poisson, "
+                          f"gaussian or auto, not {method}")
     plan = impl.plan(expected, sensor, statistics, tolerance)
     planes = 3 if sensor.cfa is None else 1  # a colour filter array keeps one value per pixel
     noisy = np.empty((planes, height, width), dtype=np.float32)
     digital = np.empty((planes, height, width), dtype=dn_dtype(sensor.bits)) if sensor.quantisation else None
-    job = FrameJob(labels, expected, sensor, statistics, plan, maps, noisy, digital)
+    error = black_level_error(sensor, rng)
+    job = FrameJob(labels, expected, sensor, statistics, plan, maps, noisy, digital, error)
     run_blocks(height, rows, rng, workers,
                lambda: _Scratch(np.empty((rows, width), dtype=np.float32),
                                 np.empty(rows * width // 2 + 1, dtype=np.float32)),
                lambda r0, r1, block_rng, scratch: impl.draw_block(job, r0, r1, block_rng, scratch))
-    return Frame(noisy, digital, labels, expected, sensor, plan, maps)
+    write_stuck(maps, sensor, noisy, digital)
+    return Frame(noisy, digital, labels, expected, sensor, plan, maps, error)
+
+
+def black_level_error(sensor: SensorParams, rng) -> np.ndarray | None:
+    """The frame's black-level error (3,) in DN (:func:`camsim.sensor.stages.draw_black_level_error_dn`), drawn on the
+    frame's own stream (:func:`camsim.core.seeding.frame_effect_generator` of its seed ``rng``: its other draws stay
+    as they were; a fresh stream where ``rng`` is None); None where ``black_level_error_dn`` is 0."""
+    if not sensor.black_level_error_dn > 0:
+        return None
+    try:
+        stream = np.random.default_rng() if rng is None else frame_effect_generator(rng)
+    except ValueError:
+        raise CamsimError("black_level_error_dn needs the frame's seed (a seed sequence or an integer), not a "
+                          "device generator") from None
+    return draw_black_level_error_dn(stream, sensor.black_level_error_dn)
+
+
+def write_stuck(maps: FixedPattern | None, sensor: SensorParams, noisy, digital) -> None:
+    """Stuck pixels: their levels over a frame's float layer ``noisy`` (:func:`camsim.sensor.stages.stuck_float_dn`)
+    and ADC output ``digital`` (None: none), in place, on their device; nothing where there are none."""
+    if maps is None or maps.stuck_index is None:
+        return
+    set_stuck_dn(noisy, maps.stuck_index, stuck_float_dn(maps.stuck_level_dn, sensor.pedestal_dn))
+    if digital is not None:
+        set_stuck_dn(digital, maps.stuck_index, maps.stuck_level_dn)
 
 
 def run_blocks(height: int, rows: int, rng, workers: int | None, make_scratch, draw_rows) -> None:

@@ -92,6 +92,21 @@ def frame_stem(scene: str, illuminant: str, intensity_factor: float) -> str:
     return safe_component(f"{scene}_{slug}_F{intensity_factor:g}", "frame name", MAX_STEM_BYTES)
 
 
+def effects_record(sensor, maps, black_level_error_dn) -> dict:
+    """A frame's records of issue 28's effects, each only where its effect is on (so that every other frame's
+    sidecar stays byte for byte as it was): ``dark_current_effective_e_per_s`` (R, G, B, e⁻/s: the dark current at
+    ``temperature_c``), ``defect_counts`` (``{"hot", "dead", "stuck"}``: the frame's pixels of each population) and
+    ``black_level_error_drawn_dn`` (R, G, B, DN: the frame's drawn black-level error)."""
+    out = {}
+    if sensor.temperature_c is not None:
+        out["dark_current_effective_e_per_s"] = [float(v) for v in sensor.dark_current_effective_e_per_s]
+    if maps is not None and maps.defect_counts is not None:
+        out["defect_counts"] = dict(maps.defect_counts)
+    if black_level_error_dn is not None:
+        out["black_level_error_drawn_dn"] = [float(v) for v in black_level_error_dn]
+    return out
+
+
 def sidecar(frame: Frame, info: FrameInfo, files: dict | None, exr_compression: str | None = None) -> dict:
     """The JSON sidecar of a frame: every parameter with its unit, and per patch the model's expectations.
 
@@ -141,6 +156,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict | None, exr_compression: 
         "height_px": height,
         "channels": ["R", "G", "B"],
         **sensor.sidecar_record(),
+        **effects_record(sensor, frame.maps, frame.black_level_error_dn),
         **(info.preset or {}),
         # the DNG's NoiseProfile: per channel (S, O), the temporal variance of the normalised value is S x + O
         "noise_profile": None if profile is None else profile.tolist(),

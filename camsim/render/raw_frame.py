@@ -4,7 +4,8 @@ The source gives each CFA site its electrons s (:mod:`camsim.sensor.raw_laws`); 
 charge from f · s (f = F · T / T_src), and every later stage is the target sensor's, by the stage functions of
 :mod:`camsim.sensor.stages` in the order :func:`camsim.render.frame.render_frame` runs them: the charge (with the
 dark current, PRNU and the dark-current DSNU), the offset DSNU, the full well, the read noise (its model and Tukey
-λ), the gain, the row noise and the ADC with its pedestal. The block scheduler is render_frame's
+λ), the gain, the row noise, the black-level error and the ADC with its pedestal, then the stuck pixels' levels
+(issue 28's dark shading, column FPN, hot and dead pixels are in the maps). The block scheduler is render_frame's
 (:func:`camsim.render.frame.run_blocks`): row blocks (:func:`camsim.render.frame.block_rows`), block *b* drawing from
 child *b* of the frame's seed, on a pool of threads, so a seed gives the same bits whatever the number of workers.
 """
@@ -17,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.render.frame import block_rows, run_blocks
+from camsim.render.frame import black_level_error, block_rows, run_blocks, write_stuck
 from camsim.sensor.cfa import CFA_PATTERNS, cfa_sites
 from camsim.sensor.expected import clean_charge_e
 from camsim.sensor.fixed_pattern import FixedPattern, fixed_pattern
@@ -31,6 +32,7 @@ from camsim.sensor.raw_laws import (
     thin_photons_e,
 )
 from camsim.sensor.stages import (
+    add_black_level_error_dn,
     add_offset_e,
     add_read_noise_e,
     add_row_noise,
@@ -40,6 +42,8 @@ from camsim.sensor.stages import (
     quantise_dn,
     saturate_e,
     saturation_level_e,
+    set_stuck_dn,
+    stuck_float_dn,
 )
 
 
@@ -56,8 +60,8 @@ class RawDraw:
         The quantised DN, with the pedestal; None when quantisation is off. Unit: DN.
     clean_dn : numpy.ndarray, shape (H, W), float32
         The law's expected DN before quantisation at each site, k · E[min(charge + o, full well)] (the fixed-pattern
-        maps' shifts included, as :func:`camsim.render.frame.clean_dn`): see :func:`render_raw_frame` for where it
-        is exact. Unit: DN.
+        maps' shifts included, as :func:`camsim.render.frame.clean_dn`; a stuck pixel's level; not the black-level
+        error): see :func:`render_raw_frame` for where it is exact. Unit: DN.
     maps : FixedPattern or None
         The target sensor's DSNU (offset, dark-current) and PRNU maps, shape (3, H, W) each (a site uses its
         channel's plane), or None when all are off.
@@ -67,6 +71,7 @@ class RawDraw:
     digital_dn: np.ndarray | None
     clean_dn: np.ndarray
     maps: FixedPattern | None
+    black_level_error_dn: np.ndarray | None = None  # the frame's drawn black-level error (3,), DN, if on
 
 
 @dataclass(frozen=True)
@@ -82,6 +87,7 @@ class _RawJob:
     noisy: np.ndarray  # (1, H, W) float32 output
     digital: np.ndarray | None  # (1, H, W) output
     clean: np.ndarray  # (H, W) float32 output
+    black_level_error_dn: np.ndarray | None = None  # (3,) DN: added before the ADC
 
 
 class _Scratch:
@@ -190,10 +196,14 @@ def render_raw_frame(source_e, sensor: SensorParams, fraction: float, *, law: st
     noisy = np.empty((1, height, width), dtype=np.float32)
     digital = np.empty((1, height, width), dtype=dn_dtype(sensor.bits)) if sensor.quantisation else None
     clean = np.empty((height, width), dtype=np.float32)
-    job = _RawJob(source, sensor, fraction, law, maps, dark_cell, noisy, digital, clean)
+    error = black_level_error(sensor, rng)
+    job = _RawJob(source, sensor, fraction, law, maps, dark_cell, noisy, digital, clean, error)
     run_blocks(height, rows, rng, workers, lambda: _Scratch(rows, width),
                lambda r0, r1, block_rng, scratch: _draw_block(job, r0, r1, block_rng, scratch))
-    return RawDraw(noisy, digital, clean, maps)
+    write_stuck(maps, sensor, noisy, digital)
+    if maps is not None and maps.stuck_index is not None:
+        set_stuck_dn(clean[None], maps.stuck_index, stuck_float_dn(maps.stuck_level_dn, sensor.pedestal_dn))
+    return RawDraw(noisy, digital, clean, maps, error)
 
 
 def _can_saturate(poisson_mean_e: np.ndarray, base_e, full_well_e: float) -> bool:
@@ -275,6 +285,8 @@ def _draw_block(job: _RawJob, r0: int, r1: int, rng: np.random.Generator, scratc
     electrons_to_dn(view, k, out=view)
     if sensor.row_noise_e > 0:
         add_row_noise(view, sensor.row_noise_e * k, rng)
+    if job.black_level_error_dn is not None:
+        add_black_level_error_dn(view, job.black_level_error_dn, cfa)
     if job.digital is not None:
         quantise_dn(view, sensor.bits, out=job.digital[0, r0:r1], pedestal_dn=sensor.pedestal_dn)
 

@@ -33,7 +33,7 @@ from camsim.io.atomic import undo_on_failure, write_json_atomic
 from camsim.io.dng import MAX_EXPOSURE_S, MIN_SIZE, write_dng_cfa
 from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression, write_exr
 from camsim.io.output_folder import make_folder, output_folder
-from camsim.render.frame_files import SIDECAR_SUFFIX, camera_view, exr_header, frame_stem, uncommit_frame
+from camsim.render.frame_files import SIDECAR_SUFFIX, camera_view, effects_record, exr_header, frame_stem, uncommit_frame
 from camsim.render.frame_manifest import MANIFEST_NAME, FrameManifest, manifest_entry
 from camsim.render.raw_frame import RawDraw, render_raw_frame
 from camsim.scene.sources.raw import source_gain_dn_per_e
@@ -254,6 +254,7 @@ def raw_sidecar(scene, draw: RawDraw, record: dict, source: LoadedRaw, intensity
         "height_px": height,
         "channels": ["R", "G", "B"],
         **sensor.sidecar_record(),
+        **effects_record(sensor, draw.maps, draw.black_level_error_dn),
         **scene_preset_record(scene),
         "noise_profile": None if profile is None else profile.tolist(),
         "color_matrix1_xyz_to_camera": matrix.tolist(),

@@ -165,7 +165,20 @@ FRAME_KEYS = {
     "surround": _surround,
     "white_signal_e": _optional(_rgb(low=0)),
     "iso": _optional(lambda v: _number(v, above=0)),
+    # issue 28's per-frame records (present only where their effect is on)
+    "black_level_error_drawn_dn": _rgb(),
+    "dark_current_effective_e_per_s": _rgb(low=0),
+    "defect_counts": lambda v: _defect_counts(v),
 }
+
+
+def _defect_counts(value) -> dict:
+    """``{"hot": n, "dead": n, "stuck": n}``, counts ≥ 0."""
+    if not isinstance(value, dict) or set(value) != {"hot", "dead", "stuck"}:
+        raise _Bad("an object with hot, dead and stuck counts")
+    for count in value.values():
+        _integer(count, low=0)
+    return value
 
 
 def _check_curves(meta: dict) -> None:

@@ -156,7 +156,7 @@ def _overflow_reason(photon_radiance, qe, sensor: SensorParams, intensity_factor
     T, F = sensor.exposure_s, intensity_factor
     g = np.asarray(photon_radiance, dtype=np.float64)
     with np.errstate(over="ignore"):
-        dark = np.asarray(sensor.dark_current_e_per_s) * T if sensor.dark_current else np.zeros(3)
+        dark = sensor.dark_mean_e
     if not np.all(np.isfinite(g)) or not np.all(np.isfinite(qe)):
         return "the scene's photon rates or the camera's Qe are not finite"
     if not np.all(np.isfinite(dark)):

@@ -151,6 +151,13 @@ class SensorParams:
             raise CamsimError(f"sensor parameters analog_gain_dn_per_v = {self.analog_gain_dn_per_v:g} and "
                               f"conversion_gain_v_per_e = {self.conversion_gain_v_per_e:g} give a gain of "
                               f"{self.dn_per_electron:g} DN/e⁻, outside float64's range")
+        defects = self.hot_pixel_fraction + self.dead_pixel_fraction + self.stuck_pixel_fraction
+        if defects > 1:
+            raise CamsimError(f"sensor parameters hot_pixel_fraction + dead_pixel_fraction + stuck_pixel_fraction "
+                              f"must be at most 1 (disjoint populations), got {defects:g}")
+        if (self.hot_pixel_fraction > 0 or self.hot_pixel_map is not None) and np.min(np.asarray(self.dark_current_e_per_s, float)) <= 0:
+            raise CamsimError("hot pixels (hot_pixel_fraction, hot_pixel_map) need dark_current_e_per_s > 0 in every "
+                              "channel: they join its per-pixel dark-current factor")
         if self.pedestal_dn >= 2**self.bits - 1:
             raise CamsimError(f"sensor parameter pedestal_dn must be below the white level {2**self.bits - 1} DN "
                               f"of a {self.bits}-bit ADC, got {self.pedestal_dn}")
@@ -218,11 +225,20 @@ class SensorParams:
 
         return unlit_mean_dn(
             self.dark_mean_e, dn_per_electron=self.dn_per_electron, bits=self.bits, quantisation=quantisation,
-            full_well_e=self.full_well_e if self.saturation else None, dsnu_e=self.dsnu_e,
+            full_well_e=self.full_well_e if self.saturation else None, dsnu_e=self._offset_sigma_e,
             dark_rate_rel_sigma=self.dsnu_dark_current_percent / 100 if self.dark_current else 0.0,
             read_noise_e=self.read_noise_e if self.read_noise else 0.0,
             read_noise_model=self.read_noise_model, tukey_lambda=self.tukey_lambda, row_noise_e=self.row_noise_e,
             pedestal_dn=self.pedestal_dn if quantisation else 0)
+
+    @property
+    def _offset_sigma_e(self) -> float:
+        """The σ of a pixel's fixed offset for the black level: the offset DSNU's, with issue 28's column FPN (a
+        normal too: exact) and dark shading (its population law taken as a normal of its RMS: an approximation, which
+        moves the mean only through the ADC's floor and clip) in quadrature. Unit: e⁻."""
+        if not (self.column_fpn_e > 0 or self.dark_shading_e > 0):
+            return self.dsnu_e
+        return math.sqrt(self.dsnu_e**2 + self.column_fpn_e**2 + self.dark_shading_e**2)
 
     @property
     def black_level_dn(self) -> np.ndarray:
@@ -232,6 +248,11 @@ class SensorParams:
         fixed-pattern maps' law (:func:`camsim.sensor.black_level.unlit_mean_dn`): what a dark frame's mean converges to,
         and so what a raw reader must subtract. Eq. 11's floor puts it about ½ DN below :attr:`dark_level_dn`
         (Table I: 5.025, 6.018, 5.683 DN against 5.525, 6.517, 6.177). Without quantisation it is :attr:`dark_level_dn`.
+
+        Issue 28's effects: the temperature is in (through :attr:`dark_mean_e`); the column FPN and dark shading as
+        offsets of σ :attr:`_offset_sigma_e` (the shading's law as a normal); left out: a ``dark_shading_map``, hot,
+        dead and stuck pixels (this is the level of the ordinary pixels, not the mean over a frame that has them)
+        and the black-level error (a per-frame draw of mean 0: the level about which it scatters).
         """
         return self._unlit_mean_dn(self.quantisation)
 

@@ -26,14 +26,22 @@ read noise (Eqs. 7, 10)        :func:`draw_read_noise_e`,            e⁻
                                :func:`add_read_noise_e`
 row noise                      :func:`add_row_noise`                 any
 gain G · G_Ve⁻ (Eq. 11)        :func:`electrons_to_dn`               e⁻ → DN
+black-level error (per frame)  :func:`draw_black_level_error_dn`,    DN
+                               :func:`add_black_level_error_dn`
 ADC, nb bits (Eq. 11)          :func:`quantise_dn`                   DN
+stuck pixels (after the ADC)   :func:`set_stuck_dn`                  DN
 =============================  ====================================  ===========
+
+Issue 28's fixed patterns need no stage of their own: the dark shading and column FPN are offsets (the offset
+map of :func:`add_offset_e`), hot and dead pixels factors of the charge's means (``gain``, ``dark_gain`` of
+:func:`collect_charge_e`); :mod:`camsim.sensor.fixed_pattern` folds them into those maps.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.kernels import poisson, poisson_run, standard_normal_f32, tukey_lambda
 from camsim.core.xp import namespace_of
 
@@ -230,6 +238,49 @@ def electrons_to_dn(electrons: np.ndarray, dn_per_electron: float, out: np.ndarr
     if not np.issubdtype(electrons.dtype, np.floating):
         electrons = electrons.astype(np.float64)
     return namespace_of(electrons).multiply(electrons, electrons.dtype.type(dn_per_electron), out=out)
+
+
+def draw_black_level_error_dn(rng: np.random.Generator, sigma_dn: float) -> np.ndarray:
+    """A frame's black-level error: one N(0, σ²) offset per channel R, G, B (ELD's colour bias), shape (3,) float64,
+    drawn from ``rng`` (the frame's own stream, :func:`camsim.core.seeding.frame_effect_generator`). Unit: DN."""
+    return rng.normal(0.0, float(sigma_dn), 3)
+
+
+def add_black_level_error_dn(values, error_dn, cfa: str | None = None, channel: int = 0):
+    """Add a frame's black-level error to DN before the ADC (after the gain and the row noise), in place.
+
+    Parameters
+    ----------
+    values : array, shape (h, w), float
+        One plane of a block or frame: channel ``channel``'s of a three-chip sensor, or (``cfa`` given) a Bayer
+        mosaic whose first row is an even row of the frame, each site taking its channel's offset. Unit: DN.
+    error_dn : sequence of 3 floats
+        The offsets of R, G and B (:func:`draw_black_level_error_dn`). Unit: DN.
+    """
+    if cfa is None:
+        values += values.dtype.type(error_dn[channel])
+        return values
+    for dy, dx, c in cfa_sites(cfa):
+        values[dy::2, dx::2] += values.dtype.type(error_dn[c])
+    return values
+
+
+def stuck_float_dn(level_dn, pedestal_dn: int):
+    """The value before the ADC that a stuck pixel's float layer holds for its ADC level L: L − the ADC's offset
+    (:func:`adc_offset_dn`), which the ADC maps to L exactly. Unit: DN."""
+    return level_dn - np.float32(adc_offset_dn(pedestal_dn))
+
+
+def set_stuck_dn(values, index, level_dn):
+    """Stuck pixels: write each one's fixed level over a frame's values, in place (no noise, every frame alike).
+
+    ``values`` (planes, H, W), C-contiguous: the float layer (with :func:`stuck_float_dn`'s levels) or the ADC's
+    output (with the levels themselves); ``index`` flat indices into it (numpy or on ``values``' device); ``level_dn``
+    one level per index. Unit: DN."""
+    xp = namespace_of(values)
+    flat = values.reshape(-1)
+    flat[xp.asarray(index)] = xp.asarray(level_dn).astype(values.dtype)
+    return values
 
 
 def adc_offset_dn(pedestal_dn: int) -> float:

@@ -11,9 +11,12 @@ draws the exact law of ``pixel`` statistics per pixel and plane:
     charge  = min(charge, full well)            saturate_e
     value   = charge + read noise               draw_read_noise_e (Gaussian or Tukey λ), add_read_noise_e
     noisy   = k · value (+ row noise)           electrons_to_dn, add_row_noise        (float32, DN)
+    noisy  += black-level error (per frame)     add_black_level_error_dn
     digital = clip(⌊noisy + ½⌋ + P, 0, 2^nb − 1)    quantise_dn (⌊noisy⌋ without a pedestal)
+    stuck pixels: their levels over both        set_stuck_dn
 
-with g, d, o the sensor's fixed-pattern maps (PRNU, dark-current DSNU, offset DSNU; drawn on the CPU from
+with g, d, o the sensor's fixed-pattern maps (PRNU, dark-current DSNU, offset DSNU, with issue 28's dark shading,
+column FPN, hot and dead pixels folded in; drawn on the CPU from
 ``sensor_seed`` as for every frame, and copied to the device once). A Bayer sensor draws one plane, each site its own
 channel. The law is the CPU's (:func:`camsim.render.frame.render_frame`): the two agree in distribution, not in bits (the
 CPU draws in row blocks, each from its own generator, with its own fast kernels).
@@ -33,9 +36,10 @@ from camsim.render.backends import device_generator, device_method
 from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.expected import ExpectedSignal
 from camsim.sensor.fixed_pattern import FixedPattern, _dark_gain_map, _unit_maps, fixed_pattern, prnu_gain
-from camsim.render.frame import Frame, block_rows, check_frame_values
+from camsim.render.frame import Frame, black_level_error, block_rows, check_frame_values, write_stuck
 from camsim.sensor.params import SensorParams
 from camsim.sensor.stages import (
+    add_black_level_error_dn,
     add_offset_e,
     add_read_noise_e,
     add_row_noise,
@@ -69,14 +73,16 @@ class DeviceFrame:
     digital_dn: object
     labels: object
     maps: FixedPattern | None = None
+    black_level_error_dn: np.ndarray | None = None  # the frame's drawn black-level error (3,), DN, if on
 
     def to_frame(self, labels: np.ndarray, expected: ExpectedSignal, sensor: SensorParams) -> Frame:
         """The host :class:`~camsim.render.frame.Frame` (its pixels copied from the device), for the usual writers."""
         return Frame(to_host(self.noisy_dn), to_host(self.digital_dn), labels, expected, sensor, None,
-                     fixed_pattern(sensor, labels.shape))
+                     fixed_pattern(sensor, labels.shape), self.black_level_error_dn)
 
 
-def draw_planes(rng, mean_e, sensor: SensorParams, *, dark_e=0.0, gain=None, dark_gain=None, offset_e=None):
+def draw_planes(rng, mean_e, sensor: SensorParams, *, dark_e=0.0, gain=None, dark_gain=None, offset_e=None,
+                black_level_error_dn=None):
     """One frame's planes from per-pixel means, by the exact law of ``pixel`` statistics, on ``rng``'s device.
 
     Parameters
@@ -89,6 +95,9 @@ def draw_planes(rng, mean_e, sensor: SensorParams, *, dark_e=0.0, gain=None, dar
         D̄ where it is not in ``mean_e``. Unit: e⁻.
     gain, dark_gain, offset_e : array like ``mean_e``, optional
         PRNU gain on S̄, dark-current DSNU factor on D̄, offset DSNU (e⁻), per pixel.
+    black_level_error_dn : sequence of 3 floats, optional
+        The frame's black-level error (R, G, B), added after the gain and row noise, before the ADC (each plane its
+        channel's; a Bayer mosaic, one plane, each site its channel's). Unit: DN.
 
     Returns
     -------
@@ -113,6 +122,9 @@ def draw_planes(rng, mean_e, sensor: SensorParams, *, dark_e=0.0, gain=None, dar
     electrons_to_dn(noisy, sensor.dn_per_electron, out=noisy)
     if sensor.row_noise_e > 0:  # one offset per row of each plane (a Bayer mosaic's rows whatever their colours)
         add_row_noise(noisy, sensor.row_noise_e * sensor.dn_per_electron, rng)
+    if black_level_error_dn is not None:
+        for p in range(noisy.shape[0]):
+            add_black_level_error_dn(noisy[p], black_level_error_dn, sensor.cfa, p)
     digital = quantise_dn(noisy, sensor.bits, pedestal_dn=sensor.pedestal_dn) if sensor.quantisation else None
     return noisy, digital
 
@@ -171,6 +183,23 @@ def _device_dark_gain(xp, sensor_seed: int, shape: tuple, relative_sigma: float)
     return xp.asarray(_dark_gain_map(sensor_seed, shape, relative_sigma))
 
 
+def _device_effect_maps(xp, maps: FixedPattern) -> FixedPattern:
+    """Issue 28's maps (:func:`camsim.sensor.fixed_pattern.fixed_pattern`, cached on the host) copied to ``xp``'s
+    device, once per host maps (the last one kept)."""
+    cached = _DEVICE_EFFECT.get(xp)
+    if cached is not None and cached[0] is maps:
+        return cached[1]
+    on = {name: None if getattr(maps, name) is None else xp.asarray(getattr(maps, name))
+          for name in ("offset_e", "gain", "dark_gain", "gain_excess", "stuck_index", "stuck_level_dn")}
+    device = FixedPattern(**on, defect_counts=maps.defect_counts)
+    _DEVICE_EFFECT[xp] = (maps, device)
+    return device
+
+
+#: xp -> (host maps, their device copy): issue 28's maps on each device.
+_DEVICE_EFFECT: dict = {}
+
+
 def device_maps(xp, sensor: SensorParams, shape) -> FixedPattern | None:
     """The sensor's fixed-pattern maps on ``xp``'s device: :func:`camsim.sensor.fixed_pattern.fixed_pattern`'s values (the
     same float32 arithmetic on the same unit maps, which are copied to the device once per sensor seed and size:
@@ -178,6 +207,8 @@ def device_maps(xp, sensor: SensorParams, shape) -> FixedPattern | None:
     if not sensor.fixed_pattern:
         return None
     shape = tuple(shape)
+    if sensor.dark_offsets or sensor.hot_pixels or sensor.dead_pixel_fraction > 0 or sensor.stuck_pixel_fraction > 0:
+        return _device_effect_maps(xp, fixed_pattern(sensor, shape))
     offset = gain = None
     if sensor.dsnu_e > 0 or sensor.prnu_percent > 0:
         unit_offset, unit_gain = _device_unit_maps(xp, sensor.sensor_seed, shape)
@@ -215,13 +246,16 @@ def render_frame_xp(xp, labels, expected: ExpectedSignal, sensor: SensorParams, 
     device_method(method, statistics)
     check_frame_values(expected, sensor)
     block_rows(labels.shape, sensor.cfa)  # a Bayer pattern needs an even size
+    error = black_level_error(sensor, rng)  # on its own stream of the frame's seed, on the host
     rng = device_generator(xp, rng)
     if namespace_of(rng) is not xp:
         raise ValueError("render_frame_xp: the generator draws on another device than xp")
     labels_d = xp.asarray(labels)
     maps = device_maps(xp, sensor, labels.shape)
-    noisy, digital = draw_planes(rng, sensor=sensor, **plane_inputs(xp, labels_d, expected, sensor, maps))
-    return DeviceFrame(noisy, digital, labels_d, maps)
+    noisy, digital = draw_planes(rng, sensor=sensor, black_level_error_dn=error,
+                                 **plane_inputs(xp, labels_d, expected, sensor, maps))
+    write_stuck(maps, sensor, noisy, digital)
+    return DeviceFrame(noisy, digital, labels_d, maps, error)
 
 
 __all__ = ["DeviceFrame", "device_maps", "draw_planes", "mosaic", "plane_inputs", "render_frame_xp"]
