@@ -132,11 +132,17 @@ def read_noise(residual_squares_dn2: float, count: int, frames: int, row_pixels:
     return sqrt_estimate(Estimate(var_read, var_y * math.sqrt(2.0 / dof))), var_y
 
 
-def row_noise(row_means_dn: np.ndarray, pixel_variance_dn2: float, row_pixels: int) -> Estimate:
+def row_noise(row_means_dn: np.ndarray, pixel_variance_dn2: float, row_pixels: int,
+              groups: np.ndarray | None = None) -> Estimate:
     """The row noise's standard deviation σ_row (DN) from the row means of the dark residuals.
 
     Each frame's row means m (of residuals about each pixel's mean: they sum to 0 over the frames) vary as
     σ_row² + σ²/W; so σ_row² = Σ m² / ((n − 1) R) − σ²/W over R rows.
+
+    With ``groups``, each frame's row means first lose their mean over the rows of each group (the rows of one
+    colour pattern — a Bayer mosaic's even and odd rows — or of one chip): that removes a per-frame offset of the
+    frame's colours (the black-level error, :mod:`camsim.calibration.fixed_pattern`), which every row of a group
+    shares; the degrees of freedom become (n − 1)(R − G) for G groups.
 
     Parameters
     ----------
@@ -146,15 +152,26 @@ def row_noise(row_means_dn: np.ndarray, pixel_variance_dn2: float, row_pixels: i
         σ², the pixels' temporal variance without the row noise (quantisation included). Unit: DN².
     row_pixels : int
         W, the pixels of each row mean.
+    groups : numpy.ndarray of int, shape (R,), optional
+        Each row's group (None: no per-frame mean is removed).
 
     Returns
     -------
     Estimate
         σ_row, 0 where the estimate of its square is negative. Unit: DN.
     """
-    frames, rows = row_means_dn.shape
-    dof = (frames - 1) * rows
-    v_m = float(np.sum(np.square(row_means_dn))) / dof
+    m = np.asarray(row_means_dn, np.float64)
+    frames, rows = m.shape
+    lost = 0
+    if groups is not None:
+        groups = np.asarray(groups)
+        m = m.copy()
+        for g in np.unique(groups):
+            at = groups == g
+            m[:, at] -= m[:, at].mean(axis=1, keepdims=True)
+            lost += 1
+    dof = (frames - 1) * (rows - lost)
+    v_m = float(np.sum(np.square(m))) / dof
     return sqrt_estimate(Estimate(v_m - pixel_variance_dn2 / row_pixels, v_m * math.sqrt(2.0 / dof)))
 
 

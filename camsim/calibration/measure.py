@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from camsim.calibration import dark, flats, ptc, tukey
+from camsim.calibration import fixed_pattern as fp
 from camsim.calibration.estimate import Estimate, ratio, sqrt_estimate
 from camsim.calibration.rawfiles import Layout, check_same_exposure, check_same_layout, read_raw
 from camsim.core.errors import CamsimError
@@ -115,6 +116,47 @@ class PlaneResult:
 
 
 @dataclass(frozen=True)
+class DarkEffects:
+    """What the darks say of the effects of issue 28 (:mod:`camsim.calibration.fixed_pattern`).
+
+    Attributes
+    ----------
+    shading_e : numpy.ndarray, float32
+        The dark-shading map: per pixel the mean of the darks less its plane's black level (hot pixels: their
+        neighbourhood's median), ÷ K; (H, W) for a mosaic or a monochrome sensor, (3, H, W) for a stack. Unit: e⁻.
+    shading_se_e : float
+        The root mean square of its per-pixel standard error √(σ²_pixel / n) / K. Unit: e⁻.
+    shading_rms_e : Estimate
+        The RMS of the fixed pattern the map holds, its temporal noise removed (the planes' RMS). Unit: e⁻.
+    hot_e_per_s : numpy.ndarray or None
+        Per pixel the hot pixels' extra dark current (excess ÷ K ÷ exposure; 0 where not hot), the layout of
+        :attr:`shading_e`; None where the darks' exposure is unknown. Unit: e⁻/s.
+    hot_count : int
+    hot_fraction : Estimate
+        The share of hot pixels, binomial standard error.
+    hot_threshold_dn : tuple of float
+        Per plane: the excess over the local level beyond which a pixel is hot. Unit: DN.
+    column_fpn_dn : Estimate
+        σ of the fixed per-column offset (per chip, the chips' RMS). Unit: DN.
+    black_level_error_dn : Estimate
+        σ of the per-frame, per-colour offset. Unit: DN.
+    exposure_s : float or None
+        The darks' exposure. Unit: s.
+    """
+
+    shading_e: np.ndarray
+    shading_se_e: float
+    shading_rms_e: Estimate
+    hot_e_per_s: np.ndarray | None
+    hot_count: int
+    hot_fraction: Estimate
+    hot_threshold_dn: tuple
+    column_fpn_dn: Estimate
+    black_level_error_dn: Estimate
+    exposure_s: float | None
+
+
+@dataclass(frozen=True)
 class Calibration:
     """Everything ``camsim calibrate`` measured, per plane and combined into the preset's values.
 
@@ -142,6 +184,7 @@ class Calibration:
     read_noise_model: str
     row_spectrum: tuple
     row_white_level_dn2: float
+    effects: DarkEffects | None = None
     warnings: tuple = field(default=())
 
     @property
@@ -234,9 +277,10 @@ def _dark_pass(dark_files, progress):
     return first, total, squares
 
 
-def _dark_residuals(dark_files, layout: Layout, mean_image, progress):
+def _dark_residuals(dark_files, layout: Layout, mean_image, progress, keep=None):
     """Second pass: per plane Σ(r − m)², its count, the plane-row means, the samples for the PPCC; the physical
-    rows' means."""
+    rows' means. ``keep`` (bool, the image's shape): the pixels that count — a hot pixel's residual is set to 0
+    and left out of the sums and samples (its shot noise is the hot-pixel map's, not the read noise)."""
     n_planes = len(layout.plane_names)
     sq = np.zeros(n_planes)
     count = np.zeros(n_planes, np.int64)
@@ -244,19 +288,28 @@ def _dark_residuals(dark_files, layout: Layout, mean_image, progress):
     rows = []
     samples = [[] for _ in range(n_planes)]
     kept = np.zeros(n_planes, np.int64)
+    keep_planes = None if keep is None else layout.planes(keep)
     for name in _bar(dark_files, "dark frames (2/2)", progress):
         frame = read_raw(name)
         r = frame.image.astype(np.float64) - mean_image
+        if keep is not None:
+            r[~keep] = 0.0
         rows.append(layout.rows(r).mean(axis=1))
         for p, plane in enumerate(layout.planes(r)):
             m = plane.mean(axis=1)
             plane_rows[p].append(m)
             s = plane - m[:, None]
-            sq[p] += float(np.sum(s * s))
-            count[p] += s.size
             room = MAX_PPCC_SAMPLES - kept[p]
-            if room > 0:
+            if keep_planes is None:
+                sq[p] += float(np.sum(s * s))
+                count[p] += s.size
                 take = s if s.size <= room else s[: max(1, room // s.shape[1])]
+            else:
+                s = s[keep_planes[p]]
+                sq[p] += float(np.sum(s * s))
+                count[p] += s.size
+                take = s[: max(room, 0)]
+            if room > 0:
                 samples[p].append(take.ravel().copy())
                 kept[p] += take.size
     return sq, count, [np.array(m) for m in plane_rows], np.array(rows), [np.concatenate(s) for s in samples]
@@ -334,30 +387,45 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
     layout = first.layout
     mean_image, var_image = dark.pixel_moments(total, squares, n)
     del total, squares
-    sq, count, plane_rows, rows, samples = _dark_residuals(dark_files, layout, mean_image, progress)
     mean_planes = [np.ascontiguousarray(p) for p in layout.planes(mean_image)]
     var_planes = layout.planes(var_image)
+    hot = [fp.find_hot_pixels(m, float(np.median(v)), n) for m, v in zip(mean_planes, var_planes)]
+    keep = None
+    if any(h.count for h in hot):
+        keep = np.ones(mean_image.shape, bool)
+        for plane, h in zip(layout.planes(keep), hot):
+            plane[h.mask] = False
+    sq, count, plane_rows, rows, samples = _dark_residuals(dark_files, layout, mean_image, progress, keep)
     plane_w = layout.plane_shape[1]
 
-    dark_var = [dark.temporal_variance(v, n) for v in var_planes]
+    dark_var = [dark.temporal_variance(v if not h.count else v[~h.mask], n) for v, h in zip(var_planes, hot)]
+    # the photon transfer's σ²_dark: every pixel, as the flat pairs' var(A − B)/2 takes them
+    flat_dark_var = [dark.temporal_variance(v, n).value for v in var_planes] if keep is not None else None
     for pname, dv in zip(layout.plane_names, dark_var):
         if not dv.value > 0:
             raise CamsimError(f"the dark frames do not vary from one to the next (plane {pname}): are they copies "
                               "of one frame? Temporal noise needs separate exposures")
     read = [dark.read_noise(sq[p], int(count[p]), n, plane_w) for p in range(len(mean_planes))]
     pixel_var = [r[1] for r in read]  # σ_Y², per plane
-    row_planes = [dark.row_noise(plane_rows[p], pixel_var[p], plane_w) for p in range(len(mean_planes))]
-    blacks_est = [dark.black_level(m, v, n, row.value**2) for m, v, row in zip(mean_planes, var_planes, row_planes)]
+    # row noise: each frame's row means less their mean (per plane; per row pattern or chip for whole rows), so that
+    # a per-frame offset of a colour (the black-level error) is not taken for row noise
+    row_planes = [dark.row_noise(plane_rows[p], pixel_var[p], plane_w, np.zeros(plane_rows[p].shape[1], int))
+                  for p in range(len(mean_planes))]
+    blacks_est = [_black(m, v, n, row.value**2, h) for m, v, row, h in zip(mean_planes, var_planes, row_planes, hot)]
     blacks = np.array([b.value for b in blacks_est])
-    dsnu = [dark.dsnu(m, dv, n, row.value**2) for m, dv, row in zip(mean_planes, dark_var, row_planes)]
+    dsnu = [dark.dsnu(m if not h.count else m[~h.mask], dv, n, row.value**2)
+            for m, dv, row, h in zip(mean_planes, dark_var, row_planes, hot)]
     row_pixels = layout.shape[1]  # a physical row: both colours of a Bayer row; one chip's row of a stack
-    row_all = dark.row_noise(rows, float(np.mean(pixel_var)), row_pixels)
+    row_all = dark.row_noise(rows, float(np.mean(pixel_var)), row_pixels, _row_groups(layout))
     spectrum = dark.row_power_spectrum(rows)
     black_all = dark.black_level(mean_image, var_image, n, row_all.value**2)  # the planes' mean; rows shared
+    if keep is not None:
+        black_all = Estimate(float(np.mean(blacks)), black_all.standard_error)
+    effects_dn = _dark_effects(layout, mean_planes, var_planes, hot, blacks, plane_rows, pixel_var, row_all, n)
     del var_image, var_planes
 
     levels = _flat_levels(flat_files, first, blacks, progress)
-    dark_frames_var = [d.value for d in dark_var]
+    dark_frames_var = flat_dark_var if flat_dark_var is not None else [d.value for d in dark_var]
     pairs = _flat_pairs(flat_files, levels, layout, blacks, mean_planes, dark_frames_var, n, row_all.value**2,
                         progress)
     full_scale = layout.white_level_dn - blacks
@@ -385,7 +453,82 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
         dsnu_dn=_rms([pl.dsnu_dn for pl in planes]), prnu_percent=_rms([pl.prnu_percent for pl in planes]),
         tukey_lambda=lam, tukey_scale_dn=scale, read_noise_model=model, row_spectrum=spectrum,
         row_white_level_dn2=(1 - 1 / n) * (row_all.value**2 + float(np.mean(pixel_var)) / row_pixels),
-        warnings=tuple(_warnings(planes, read_all, k, len(levels), n)))
+        effects=_effects_in_electrons(effects_dn, k, first.exposure_s),
+        warnings=tuple(_warnings(planes, read_all, k, len(levels), n)
+                       + ([] if first.exposure_s else ["the dark frames do not say their exposure: no hot-pixel "
+                                                       "map (its unit is e⁻/s)"])))
+
+
+def _black(mean_dn, variance_dn2, frames, row_variance_dn2, hot) -> Estimate:
+    """A plane's black level (:func:`camsim.calibration.dark.black_level`), its value the mean of the pixels that
+    are not hot."""
+    est = dark.black_level(mean_dn, variance_dn2, frames, row_variance_dn2)
+    return est if not hot.count else Estimate(float(np.mean(mean_dn[~hot.mask])), est.standard_error)
+
+
+def _row_groups(layout: Layout) -> np.ndarray:
+    """Each physical row's group (:func:`camsim.calibration.dark.row_noise`): a Bayer mosaic's row parity (the
+    two row patterns hold different colours), a stack's chip, else one group."""
+    h = layout.shape[0]
+    if layout.kind == "bayer":
+        return np.arange(h) % 2
+    if layout.kind == "stack":
+        return np.repeat(np.arange(3), h)
+    return np.zeros(h, int)
+
+
+def _image_of_planes(layout: Layout, planes, dtype=np.float64) -> np.ndarray:
+    """The planes put back into one array: (H, W) for a mosaic or monochrome, (3, H, W) for a stack."""
+    if layout.kind == "stack":
+        return np.stack(planes).astype(dtype)
+    out = np.zeros(layout.shape, dtype)
+    for view, plane in zip(layout.planes(out), planes):
+        view[...] = plane
+    return out
+
+
+def _dark_effects(layout, mean_planes, var_planes, hot, blacks, plane_rows, pixel_var, row_all, frames) -> dict:
+    """The effects of issue 28 in DN (:mod:`camsim.calibration.fixed_pattern`)."""
+    maps = [fp.shading_map(m, b, h) for m, b, h in zip(mean_planes, blacks, hot)]
+    shading = _image_of_planes(layout, maps)
+    normal = [v if not h.count else v[~h.mask] for v, h in zip(var_planes, hot)]
+    se = math.sqrt(float(np.mean([fp.map_standard_error(v, frames) ** 2 for v in normal])))
+    rms = sqrt_estimate(fp.mean_of_squares(
+        fp.fixed_pattern_variance(mp if not h.count else mp[~h.mask], float(np.mean(v)), frames)
+        for mp, v, h in zip(maps, normal, hot)))
+    chips = list(shading) if layout.kind == "stack" else [shading]
+    column = sqrt_estimate(fp.mean_of_squares(fp.column_fpn_variance(c) for c in chips))
+    excess = _image_of_planes(layout, [h.excess_dn for h in hot])
+    # the black-level error: per frame, the mean of each colour's planes (of the residuals: less a constant)
+    colours = sorted(set(layout.plane_colours), key="RGBY".index)
+    h = layout.shape[0]
+    means, pixels, rows, var_y = [], [], [], []
+    for c in colours:
+        ps = [p for p, pc in enumerate(layout.plane_colours) if pc == c]
+        means.append(np.mean([plane_rows[p].mean(axis=1) for p in ps], axis=0))
+        pixels.append(sum(mean_planes[p].size - hot[p].count for p in ps))
+        var_y.append(float(np.mean([pixel_var[p] for p in ps])))
+        if layout.kind == "bayer":
+            rows.append(len({p // 2 for p in ps}) * h // 2)  # a site's row pattern: p // 2 is its row in the cell
+        else:
+            rows.append(h)
+    offset = fp.black_level_error(np.stack(means, axis=1), var_y, pixels, row_all.value**2, rows)
+    count = sum(x.count for x in hot)
+    return {"shading_dn": shading, "shading_se_dn": se, "shading_rms_dn": rms, "hot_excess_dn": excess,
+            "hot_count": count, "hot_fraction": fp.hot_fraction(count, shading.size),
+            "hot_threshold_dn": tuple(float(x.threshold_dn) for x in hot), "column_fpn_dn": column,
+            "black_level_error_dn": offset}
+
+
+def _effects_in_electrons(e: dict, k: Estimate, exposure_s: float | None) -> DarkEffects:
+    """The maps ÷ K (and ÷ the exposure for the hot pixels' dark current)."""
+    kv = k.value
+    hot = None if not exposure_s else (e["hot_excess_dn"] / (kv * exposure_s)).astype(np.float32)
+    return DarkEffects(
+        shading_e=(e["shading_dn"] / kv).astype(np.float32), shading_se_e=e["shading_se_dn"] / kv,
+        shading_rms_e=ratio(e["shading_rms_dn"], k), hot_e_per_s=hot, hot_count=e["hot_count"],
+        hot_fraction=e["hot_fraction"], hot_threshold_dn=e["hot_threshold_dn"], column_fpn_dn=e["column_fpn_dn"],
+        black_level_error_dn=e["black_level_error_dn"], exposure_s=exposure_s)
 
 
 def _plane_result(p, layout, pairs, full_scale_dn, black, dark_var, read, row, dsnu, samples, pixels, frames,

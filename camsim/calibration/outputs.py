@@ -6,7 +6,9 @@
   monochrome sensor), ``read_noise_model`` (``"gaussian"`` or ``"tukey-lambda"``);
 * one ``[[iso]]`` table: ``iso``, ``k_dn_per_e``, ``tukey_lambda``, ``tukey_scale_dn`` (the Tukey scale, not the
   standard deviation), ``gaussian_sigma_dn`` (the read noise's standard deviation), ``row_sigma_dn``, ``dsnu_dn``,
-  ``prnu_percent``.
+  ``prnu_percent``; and the effects of issue 28 (:func:`effect_values`): ``column_fpn_e``,
+  ``black_level_error_dn``, and where they apply ``dark_shading_map`` and ``hot_pixel_map``, the files
+  ``dark_shading.npy`` (e⁻) and ``hot_pixels.npy`` (e⁻/s) written beside it (paths relative to the preset file).
 
 Every file is written atomically (:mod:`camsim.io.atomic`); the plots need matplotlib, imported when they are drawn
 (:mod:`camsim.io.figures`: no pyplot, no backend change).
@@ -15,6 +17,7 @@ Every file is written atomically (:mod:`camsim.io.atomic`); the plots need matpl
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -23,11 +26,13 @@ from camsim.calibration.estimate import Estimate, ratio
 from camsim.calibration.measure import GAUSSIAN_LAMBDA_TOLERANCE, Calibration
 from camsim.calibration.ptc import FIT_FRACTION
 from camsim.calibration.tukey import GAUSSIAN_LAMBDA
-from camsim.io.atomic import write_json_atomic, write_text_atomic
+from camsim.io.atomic import atomic_path, write_json_atomic, write_text_atomic
 from camsim.core.optional_numbers import finite_or_none
 
 FILES = {
     "preset": "preset.toml",
+    "dark_shading": "dark_shading.npy",
+    "hot_pixels": "hot_pixels.npy",
     "json": "calibration.json",
     "report": "report.md",
     "ptc": "ptc.png",
@@ -47,8 +52,53 @@ def _string(text: str) -> str:
     return json.dumps(str(text), ensure_ascii=False)
 
 
-def preset_toml(cal: Calibration) -> str:
-    """The text of ``preset.toml``."""
+def _significant(e: Estimate) -> bool:
+    """Whether a spread's 95 % interval excludes 0 (a standard deviation from :func:`sqrt_estimate`)."""
+    return e.ci95 is not None and e.ci95[0] > 0
+
+
+def effect_values(cal: Calibration, maps: bool = True) -> dict:
+    """The preset's values of the dark fixed pattern and the black-level error, with a comment each.
+
+    With ``maps`` the preset names ``dark_shading.npy`` where the map holds a fixed pattern (its RMS, the temporal
+    noise removed, has a 95 % interval clear of 0) and ``hot_pixels.npy`` where hot pixels were found. The map is the
+    whole fixed offset of each pixel (DSNU, columns, rows, shading): where it is named, ``dsnu_dn`` and
+    ``column_fpn_e`` are 0, so that nothing is counted twice. Without the map, ``dsnu_dn`` is the pixels' DSNU less
+    the column FPN's share, √(DSNU² − σ_c²), and ``column_fpn_e`` the column FPN. ``column_fpn_e`` and
+    ``black_level_error_dn`` are 0 where their 95 % interval holds 0 (an estimate of a spread is biased upwards
+    there).
+
+    Returns
+    -------
+    dict
+        ``{key: (value, comment)}``, keys ``dsnu_dn``, ``column_fpn_e``, ``black_level_error_dn`` and, where they
+        apply, ``dark_shading_map``, ``hot_pixel_map`` (file names, relative to the preset).
+    """
+    fx = cal.effects
+    out = {}
+    column = ratio(fx.column_fpn_dn, cal.k_dn_per_e)
+    shading = maps and _significant(fx.shading_rms_e)
+    if shading:
+        out["dark_shading_map"] = (FILES["dark_shading"], f"fixed dark pattern of RMS {fx.shading_rms_e.value:.4g} e⁻ "
+                                   f"(± {fx.shading_se_e:.2g} e⁻ per pixel, from {len(cal.dark_files)} darks)")
+    if maps and fx.hot_e_per_s is not None and fx.hot_count:
+        out["hot_pixel_map"] = (FILES["hot_pixels"], f"{fx.hot_count} hot pixels ({100 * fx.hot_fraction.value:.3g} %)")
+    if shading:
+        out["dsnu_dn"] = (0.0, f"in dark_shading_map (measured {cal.dsnu_dn.value:.4g} DN)")
+        out["column_fpn_e"] = (0.0, f"in dark_shading_map (measured {column.value:.4g} e⁻)")
+    else:
+        dsnu = math.sqrt(max(cal.dsnu_dn.value**2 - (fx.column_fpn_dn.value**2 if _significant(column) else 0), 0))
+        out["dsnu_dn"] = (dsnu, "the pixels' DSNU, column FPN apart")
+        out["column_fpn_e"] = (column.value if _significant(column) else 0.0,
+                               f"σ of the column offsets (measured {column.value:.3g} ± {column.standard_error:.2g})")
+    b = fx.black_level_error_dn
+    out["black_level_error_dn"] = (b.value if _significant(b) else 0.0,
+                                   f"σ of the per-frame colour offset (measured {b.value:.3g} ± {b.standard_error:.2g})")
+    return out
+
+
+def preset_toml(cal: Calibration, maps: bool = True) -> str:
+    """The text of ``preset.toml`` (``maps``: :func:`effect_values`)."""
     lines = [
         "# A camera preset measured by camsim calibrate (see calibration.json and report.md beside it).",
         "[preset]",
@@ -59,6 +109,14 @@ def preset_toml(cal: Calibration) -> str:
     ]
     if cal.layout.cfa:
         lines.append(f"cfa = {_string(cal.layout.cfa)}")
+    dsnu = [f"dsnu_dn = {_number(cal.dsnu_dn.value)}"]
+    effects = []
+    if cal.effects is not None:
+        values = effect_values(cal, maps)
+        dsnu = []
+        for key, (value, comment) in values.items():
+            text = _string(value) if isinstance(value, str) else _number(value)
+            effects.append(f"{key} = {text}   # {comment}")
     lines += [
         f"read_noise_model = {_string(cal.read_noise_model)}   # \"gaussian\" when λ is within "
         f"{GAUSSIAN_LAMBDA_TOLERANCE} of {GAUSSIAN_LAMBDA}",
@@ -70,11 +128,39 @@ def preset_toml(cal: Calibration) -> str:
         f"tukey_scale_dn = {_number(cal.tukey_scale_dn.value)}   # the Tukey scale (not the standard deviation)",
         f"gaussian_sigma_dn = {_number(cal.read_dn.value)}   # the read noise's standard deviation",
         f"row_sigma_dn = {_number(cal.row_dn.value)}",
-        f"dsnu_dn = {_number(cal.dsnu_dn.value)}",
+        *dsnu,
         f"prnu_percent = {_number(cal.prnu_percent.value)}",
+        *effects,
         "",
     ]
     return "\n".join(lines)
+
+
+def _effects_record(cal: Calibration, maps: bool) -> dict:
+    """``calibration.json``'s ``dark_effects``: the figures of :mod:`camsim.calibration.fixed_pattern`."""
+    from camsim.calibration import fixed_pattern as fp
+
+    fx = cal.effects
+    named = effect_values(cal, maps)
+    k = cal.k_dn_per_e
+    return {
+        "dark_shading": {"file": FILES["dark_shading"], "in_preset": "dark_shading_map" in named,
+                         "unit": "e-", "shape": list(fx.shading_e.shape),
+                         "fixed_pattern_rms_e": fx.shading_rms_e.record(),
+                         "per_pixel_standard_error_e": float(f"{fx.shading_se_e:.6g}"),
+                         "how": "mean of the darks less each plane's black level (hot pixels: the 5x5 median), / K"},
+        "hot_pixels": {"file": FILES["hot_pixels"] if fx.hot_e_per_s is not None else None,
+                       "in_preset": "hot_pixel_map" in named, "unit": "e-/s", "count": fx.hot_count,
+                       "fraction": fx.hot_fraction.record(), "exposure_s": fx.exposure_s,
+                       "threshold_dn": [float(f"{t:.6g}") for t in fx.hot_threshold_dn],
+                       "threshold_sigmas": fp.HOT_THRESHOLD_SIGMAS, "window": fp.LOCAL_WINDOW,
+                       "how": "mean dark above its 5x5 median by more than m robust sigma (1.4826 MAD, at least the "
+                              "mean's temporal noise); extra dark current = excess / K / exposure"},
+        "column_fpn_dn": fx.column_fpn_dn.record(),
+        "column_fpn_e": ratio(fx.column_fpn_dn, k).record(),
+        "black_level_error_dn": fx.black_level_error_dn.record(),
+        "preset_values": {key: value for key, (value, _) in named.items()},
+    }
 
 
 def _fit_record(fit) -> dict:
@@ -83,7 +169,7 @@ def _fit_record(fit) -> dict:
             "samples": fit.samples}
 
 
-def calibration_record(cal: Calibration) -> dict:
+def calibration_record(cal: Calibration, maps: bool = True) -> dict:
     """The content of ``calibration.json``: every estimate with its standard error and 95 % interval, combined and
     per plane, the photon transfer points and the files."""
     planes = {}
@@ -138,6 +224,7 @@ def calibration_record(cal: Calibration) -> dict:
         "prnu_percent": cal.prnu_percent.record(),
         "planes": planes,
         "flat_pairs": pairs,
+        **({"dark_effects": _effects_record(cal, maps)} if cal.effects is not None else {}),
         "warnings": list(cal.warnings),
     }
 
@@ -218,7 +305,30 @@ def report_markdown(cal: Calibration) -> str:
               "![row-mean power spectrum](row_spectrum.png)", "",
               f"White row noise is flat at (1 − 1/n)(σ_row² + σ²/W) = {cal.row_white_level_dn2:.4g} DN²; a peak is a "
               "periodic row pattern (banding).", ""]
+    if cal.effects is not None:
+        lines += _report_effects(cal)
     return "\n".join(lines)
+
+
+def _report_effects(cal: Calibration) -> list:
+    """The report's section on the dark fixed pattern and the black-level error."""
+    fx = cal.effects
+    column_e = ratio(fx.column_fpn_dn, cal.k_dn_per_e)
+    hot = ("no exposure in the files: no map" if fx.hot_e_per_s is None else
+           f"{fx.hot_count} pixels ({100 * fx.hot_fraction.value:.3g} ± {100 * fx.hot_fraction.standard_error:.2g} %)"
+           + (f", extra dark current median {float(np.median(fx.hot_e_per_s[fx.hot_e_per_s > 0])):.4g} e⁻/s"
+              if fx.hot_count else ""))
+    return ["## Dark fixed pattern and black-level error", "",
+            "| quantity | value ± standard error | how |", "|---|---|---|",
+            f"| dark-shading map RMS (e⁻) | {_fmt(fx.shading_rms_e)} | the mean of the darks less each plane's black "
+            f"level, ÷ K (`dark_shading.npy`), its temporal noise removed; per pixel ± {fx.shading_se_e:.3g} e⁻ |",
+            f"| hot pixels | {hot} | mean dark above its 5 × 5 median by more than 5 robust σ "
+            "(`hot_pixels.npy`, e⁻/s) |",
+            f"| column FPN σ (DN) | {_fmt(fx.column_fpn_dn)} | column means of the map about a cubic trend, less the "
+            "pixels' share / H |",
+            f"| column FPN σ (e⁻) | {_fmt(column_e)} | ÷ K |",
+            f"| black-level error σ (DN) | {_fmt(fx.black_level_error_dn)} | per-frame colour means' spread, less "
+            "σ²/N and σ²_row/R |", ""]
 
 
 def _plot_ptc(cal: Calibration, path: Path) -> None:
@@ -296,16 +406,33 @@ def _plot_rows(cal: Calibration, path: Path) -> None:
     save_png(fig, path)
 
 
-def write_outputs(cal: Calibration, out) -> dict:
-    """Write ``preset.toml``, ``calibration.json``, ``report.md`` and the plots into ``out`` (which must exist),
-    each atomically; returns {key: path}. The preset is written last: the other files explain it."""
+def _write_npy_atomic(path: Path, array: np.ndarray) -> None:
+    """``numpy.save`` through :func:`camsim.io.atomic.atomic_path` (no pickle)."""
+    with atomic_path(path) as partial:
+        with open(partial, "wb") as handle:
+            np.save(handle, np.ascontiguousarray(array), allow_pickle=False)
+
+
+def write_outputs(cal: Calibration, out, maps: bool = True) -> dict:
+    """Write ``preset.toml``, ``calibration.json``, ``report.md``, the plots and the maps (``dark_shading.npy``,
+    ``hot_pixels.npy``) into ``out`` (which must exist), each atomically; returns {key: path}. The preset is written
+    last: the other files explain it. ``maps``: whether the preset names the maps (:func:`effect_values`)."""
     out = Path(out)
     paths = {key: out / name for key, name in FILES.items()}
     _plot_ptc(cal, paths["ptc"])
     _plot_probability(cal, paths["probability"])
     _plot_rows(cal, paths["rows"])
-    write_json_atomic(paths["json"], calibration_record(cal))
+    if cal.effects is not None:
+        _write_npy_atomic(paths["dark_shading"], cal.effects.shading_e)
+        if cal.effects.hot_e_per_s is not None:
+            _write_npy_atomic(paths["hot_pixels"], cal.effects.hot_e_per_s)
+        else:
+            paths.pop("hot_pixels")
+    else:
+        paths.pop("dark_shading")
+        paths.pop("hot_pixels")
+    write_json_atomic(paths["json"], calibration_record(cal, maps))
     write_text_atomic(paths["report"], report_markdown(cal))
-    write_text_atomic(paths["preset"], preset_toml(cal))
+    write_text_atomic(paths["preset"], preset_toml(cal, maps))
     return paths
 

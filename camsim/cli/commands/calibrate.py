@@ -22,7 +22,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "Shoot at least 2 (better 8–16) dark frames with the lens capped and pairs of flat frames of equal "
             "exposure at 3 or more levels (better 5–8, from about 5 % to 70 % of the white level), all at one "
             "ISO. Writes OUT/preset.toml (for --preset PATH.toml), OUT/calibration.json (every estimate with its "
-            "standard error), OUT/report.md and the plots ptc.png, probability_plot.png and row_spectrum.png."
+            "standard error), OUT/report.md, the plots ptc.png, probability_plot.png and row_spectrum.png, and the "
+            "dark fixed pattern's maps dark_shading.npy (e⁻) and hot_pixels.npy (e⁻/s), which preset.toml names "
+            "where they hold a pattern (--no-maps: never)."
         ),
     )
     parser.add_argument("--dark", metavar="FILE", nargs="+", action="extend", required=True,
@@ -37,6 +39,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="the preset's name (default: the camera model in the files, else 'calibrated'): a "
                              "safe file name, as every name camsim reads (no / or \\, no leading '.', printable, at "
                              "most 128 bytes)")
+    parser.add_argument("--no-maps", dest="maps", action="store_false",
+                        help="write dark_shading.npy and hot_pixels.npy but do not name them in preset.toml: a "
+                             "preset that names them renders frames of the calibrated size only; without them it "
+                             "renders the DSNU and column FPN as drawn patterns of the measured σ, and no hot pixels")
     parser.add_argument("--quiet", "-q", action="store_true",
                         help="no progress bars, no summary, no colour-science warnings")
     return parser
@@ -49,7 +55,7 @@ def run(args) -> int:
     out = args.out if args.out is not None else DEFAULT_OUT / "calibration"
     with writing_to(out):
         cal = calibrate(args.dark, args.flat, iso=args.iso, name=args.name, progress=not args.quiet)
-        paths = write_outputs(cal, out)
+        paths = write_outputs(cal, out, maps=args.maps)
     for warning in cal.warnings:
         print(f"camsim: warning: {warning}", file=sys.stderr)
     if not args.quiet:
@@ -60,5 +66,9 @@ def run(args) -> int:
               f"({cal.read_noise_model})")
         print(f"  row noise    {cal.row_dn.value:.4g} DN   DSNU {cal.dsnu_dn.value:.4g} DN   "
               f"PRNU {cal.prnu_percent.value:.3g} %")
+        fx = cal.effects
+        if fx is not None:
+            print(f"  dark shading {fx.shading_rms_e.value:.4g} e⁻ RMS   hot pixels {fx.hot_count}   column FPN "
+                  f"{fx.column_fpn_dn.value:.3g} DN   black-level error {fx.black_level_error_dn.value:.3g} DN")
     print(f"calibrated {cal.name} at ISO {cal.iso:g}: {paths['preset']}, {paths['report']}")
     return 0
