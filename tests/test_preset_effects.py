@@ -37,7 +37,7 @@ def _rows(name):
 
 
 def _not_published(camera, key):
-    return camera.effects[key].startswith(NOT_PUBLISHED)
+    return camera.published_effects[key].startswith(NOT_PUBLISHED)
 
 
 def test_every_preset_states_every_effect_in_its_notes_and_in_camsim_list(capsys):
@@ -46,8 +46,8 @@ def test_every_preset_states_every_effect_in_its_notes_and_in_camsim_list(capsys
     assert main(["list"]) == 0
     listed = capsys.readouterr().out
     for camera in CAMERA_PRESETS.values():
-        assert set(camera.effects) == set(EFFECTS), camera.name
-        for key, text in camera.effects.items():
+        assert set(camera.published_effects) == set(EFFECTS), camera.name
+        for key, text in camera.published_effects.items():
             assert f"{EFFECTS[key]}: {text}" in camera.notes  # the notes end with them
             # camsim list: a published effect in full, the others named on the "not published" line
             after = listed.split(f"\n  {camera.name}: ", 1)[1].split("\n")[1:]
@@ -85,10 +85,10 @@ def test_datasheet_presets_carry_the_published_dark_current_dsnu_and_temperature
             rate = float(row["dark_current_e_per_s"])
             assert camera.dark_current_e_per_s == rate
             assert np.all(np.asarray(sensor.dark_current_e_per_s) == rate)
-            assert f"{rate:g} e⁻/s" in camera.effects["dark_current"]
+            assert f"{rate:g} e⁻/s" in camera.published_effects["dark_current"]
         else:
             assert camera.dark_current_e_per_s == 0 and not any(sensor.dark_current_e_per_s)
-            assert NOT_PUBLISHED in camera.effects["dark_current"]
+            assert NOT_PUBLISHED in camera.published_effects["dark_current"]
         if stated:
             reference = float(stated.group(1))
             assert camera.dark_current_reference_c == reference == sensor.dark_current_reference_c
@@ -97,10 +97,10 @@ def test_datasheet_presets_carry_the_published_dark_current_dsnu_and_temperature
             assert camera.dark_current_reference_c is None and _not_published(camera, "temperature")
         if row["dsnu_e"]:
             assert sensor.dsnu_e == float(row["dsnu_e"])
-            assert f"DSNU {float(row['dsnu_e']):g} e⁻" in camera.effects["dark_current"]
+            assert f"DSNU {float(row['dsnu_e']):g} e⁻" in camera.published_effects["dark_current"]
         else:
-            assert sensor.dsnu_e == 0 and "DSNU" in camera.effects["dark_current"] \
-                and NOT_PUBLISHED in camera.effects["dark_current"]
+            assert sensor.dsnu_e == 0 and "DSNU" in camera.published_effects["dark_current"] \
+                and NOT_PUBLISHED in camera.published_effects["dark_current"]
     assert seen == set(DATASHEET_PRESETS.values())
 
 
@@ -110,13 +110,13 @@ def test_eld_and_led_presets_say_their_colour_bias_is_not_in_camsims_sources():
     assert "colour-bias" in readme and "not included" in readme  # what the shared data say of ELD's tables
     for camera in {row["camera"] for row in _rows("eld_noise_fits.csv")}:
         preset = CAMERA_PRESETS[FIT_PRESETS[camera]]
-        assert _not_published(preset, "black_level_error") and "bias" in preset.effects["black_level_error"].lower()
+        assert _not_published(preset, "black_level_error") and "bias" in preset.published_effects["black_level_error"].lower()
         assert sensor_preset(preset.name).black_level_error_dn == 0
 
 
 def test_the_pmn_a7s2_says_its_dark_shading_is_published_as_files_not_numbers():
     camera = CAMERA_PRESETS["sony-a7s2"]
-    text = camera.effects["dark_shading"]
+    text = camera.published_effects["dark_shading"]
     assert not text.startswith(NOT_PUBLISHED) and "files, not as numbers" in text and "darkshading" in text
     sensor = sensor_preset("sony-a7s2", 3200)
     assert sensor.dark_shading_e == 0 and sensor.dark_shading_map is None  # camsim ships no map

@@ -32,7 +32,7 @@ ELD_ISO_NOTE = ("ISO axis: ELD gives K over [K_min, K_max] only; its ranges span
 WELL_NOTE = "full well: not published; the charge that fills the raw at ISO 100, (white − black) / K"
 NO_DARK_NOTE = "dark current: not published (ELD's model folds it into the read noise); 0 e⁻/s"
 
-# What each source publishes for the sensor effects of real low-light raws (issue 28; CameraPreset.effects). A
+# What each source publishes for the sensor effects of real low-light raws (issue 28; CameraPreset.published_effects). A
 # figure stated here is the preset's sensor parameter; where a source gives none, the effect stays off.
 NO_TEMPERATURE = (f"{NOT_PUBLISHED}: no temperature for the figures and no doubling temperature; "
                   "dark_current_reference_c and dark_current_doubling_c keep camsim's defaults")
@@ -146,7 +146,7 @@ def _eld_preset(name: str, camera: str, source: str, black: int, shapes: tuple, 
              CURVES_NOTE)
     return CameraPreset(name=name, title=title or camera, source=source, iso_points=tuple(points), bits=14, pedestal_dn=black,
                         fits=fits, k_range_dn_per_e=(k_min, k_max), tukey_shapes=tuple(shapes), notes=notes,
-                        effects=ELD_EFFECTS)
+                        published_effects=ELD_EFFECTS)
 
 
 def _a7s2_pmn() -> CameraPreset:
@@ -163,7 +163,7 @@ def _a7s2_pmn() -> CameraPreset:
                "defects": NO_DEFECTS, "black_level_error": PMN_BLE, "dark_shading": PMN_DARK_SHADING}
     return CameraPreset(name="sony-a7s2", title="Sony A7S2 (ILCE-7SM2)", source=PMN, iso_points=points, bits=14,
                         pedestal_dn=512, dual_gain_iso=2000.0, fits=_fits("Sony A7S2"), k_range_dn_per_e=(k_min, k_max),
-                        tukey_shapes=ELD_TUKEY_SHAPES["Sony A7S2"], notes=notes, effects=effects)
+                        tukey_shapes=ELD_TUKEY_SHAPES["Sony A7S2"], notes=notes, published_effects=effects)
 
 
 def _a7m4() -> CameraPreset:
@@ -179,7 +179,7 @@ def _a7m4() -> CameraPreset:
     return CameraPreset(name="sony-a7m4", title="Sony A7M4 (ILCE-7M4)", source=LED, iso_points=points, bits=14,
                         pedestal_dn=512, fits=fits, k_range_dn_per_e=(k_min, k_max),
                         tukey_shapes=(-0.28, -0.10), notes=notes,
-                        effects={**ELD_EFFECTS, "black_level_error": LED_COLOUR_BIAS})
+                        published_effects={**ELD_EFFECTS, "black_level_error": LED_COLOUR_BIAS})
 
 
 def _datasheet_point(k: float, read_e: float, iso: float = 100.0, prnu_percent: float = 0.0) -> IsoPoint:
@@ -215,7 +215,7 @@ def _imx363() -> CameraPreset:
                         source="ISETCam sensor/models/sensorIMX363.m (MIT licence)", iso_points=points, bits=10,
                         pedestal_dn=64, full_well_e=6000.0, conversion_gain_v_per_e=conversion,
                         read_noise_model="gaussian", notes=notes, raw_models=(("Google", "Pixel 4a"),),
-                        effects=effects)
+                        published_effects=effects)
 
 
 def _single(name: str, title: str, source: str, bits: int, k: float, full_well: float, read_e: float,
@@ -237,7 +237,7 @@ def _single(name: str, title: str, source: str, bits: int, k: float, full_well: 
                "black_level_error": NO_BLACK_ERROR, "dark_shading": NO_SHADING}
     return CameraPreset(name=name, title=title, source=source, iso_points=(_datasheet_point(k, read_e),), bits=bits,
                         pedestal_dn=0, cfa=None, full_well_e=full_well, dark_current_e_per_s=dark,
-                        dark_current_reference_c=dark_reference_c, read_noise_model="gaussian", effects=effects,
+                        dark_current_reference_c=dark_reference_c, read_noise_model="gaussian", published_effects=effects,
                         notes=notes + ("one published setting, called ISO 100; no black offset published: 0 DN "
                                        "(set pedestal_dn to add one)", "monochrome: modelled with R, G and B at every "
                                        "pixel (use one channel)", CURVES_NOTE))
@@ -281,5 +281,5 @@ def build_presets() -> dict:
                  "0.080 · 2^(T / dark_current_doubling_c) e⁻/s)",),
                 dark=0.080, dark_reference_c=0.0),
     ]
-    # every preset's notes end with what its source publishes for each sensor effect (CameraPreset.effects)
+    # every preset's notes end with what its source publishes for each sensor effect (CameraPreset.published_effects)
     return {p.name: dataclasses.replace(p, notes=p.notes + tuple(p.describe_effects())) for p in presets}

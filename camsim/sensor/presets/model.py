@@ -111,7 +111,7 @@ class NoiseFit:
 
 
 #: The sensor effects of real low-light raws (issue 28) for which every built-in preset says what its source
-#: publishes: key → the effect in words (:attr:`CameraPreset.effects`).
+#: publishes: key → the effect in words (:attr:`CameraPreset.published_effects`).
 EFFECTS = {
     "temperature": "temperature",
     "dark_current": "dark current and DSNU",
@@ -174,7 +174,7 @@ class CameraPreset:
     raw_models : tuple of (str, str)
         (Make, Model) as the camera writes them into its raw files, where they differ from :meth:`identity`'s
         (a ``[raw]`` scene's file is matched against both: :meth:`matches`).
-    effects : dict
+    published_effects : dict
         What the source publishes for each sensor effect of real low-light raws, :data:`EFFECTS`' key → a
         statement in words (the figure and where it is, or :data:`NOT_PUBLISHED`); the figures it states are the
         preset's sensor parameters. Empty for a preset file (``camsim calibrate`` measures them).
@@ -198,7 +198,7 @@ class CameraPreset:
     tukey_shapes: tuple = ()
     notes: tuple = ()
     raw_models: tuple = ()
-    effects: dict = dataclasses.field(default_factory=dict)
+    published_effects: dict = dataclasses.field(default_factory=dict)
 
     def __post_init__(self):
         if not self.iso_points:
@@ -211,7 +211,7 @@ class CameraPreset:
         for name in _SENSOR_FIELDS:  # the sensor's own ranges (the schema): a zero conversion gain, a 99-bit ADC …
             if getattr(self, name) is not None:
                 _SENSOR[name].coerce(getattr(self, name), f"camera preset {self.name!r}")
-        unknown = set(self.effects) - set(EFFECTS)
+        unknown = set(self.published_effects) - set(EFFECTS)
         if unknown:
             raise CamsimError(f"camera preset {self.name!r}: unknown effect(s) {', '.join(sorted(unknown))}; "
                               f"effects: {', '.join(EFFECTS)}")
@@ -339,9 +339,9 @@ class CameraPreset:
         them). ``compact`` (``camsim list``): the effects with a figure or a file, a line each, then one line naming
         those :data:`NOT_PUBLISHED` (the notes say more)."""
         if not compact:
-            return [f"{EFFECTS[key]}: {text}" for key, text in self.effects.items()]
-        lines = [f"{EFFECTS[key]}: {text}" for key, text in self.effects.items() if not text.startswith(NOT_PUBLISHED)]
-        missing = [EFFECTS[key] for key, text in self.effects.items() if text.startswith(NOT_PUBLISHED)]
+            return [f"{EFFECTS[key]}: {text}" for key, text in self.published_effects.items()]
+        lines = [f"{EFFECTS[key]}: {text}" for key, text in self.published_effects.items() if not text.startswith(NOT_PUBLISHED)]
+        missing = [EFFECTS[key] for key, text in self.published_effects.items() if text.startswith(NOT_PUBLISHED)]
         return lines + ([f"{NOT_PUBLISHED}: {'; '.join(missing)}"] if missing else [])
 
 
