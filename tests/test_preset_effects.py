@@ -17,7 +17,8 @@ DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "cameras
 needs_data = pytest.mark.skipif(not DATA.is_dir(), reason="../shared/data/cameras is absent")
 
 #: sensor_datasheets.csv's rows (sensor, the start of camera_or_model) → the preset built from each.
-DATASHEET_PRESETS = {("Sony IMX363", "Google Pixel 4a"): "sony-imx363", ("Sony IMX174", "machine-vision"): "sony-imx174",
+DATASHEET_PRESETS = {("Sony IMX363", "Google Pixel 4a"): "sony-imx363",
+                     ("Sony IMX174", "machine-vision"): "sony-imx174",
                      ("Sony ICX625 (CCD)", "Basler"): "sony-icx625-basler",
                      ("Sony ICX625 (CCD)", "Point Grey"): "sony-icx625-pointgrey",
                      ("Kodak KAF-3200ME (CCD)", "QSI 532"): "kodak-kaf3200me"}
@@ -110,7 +111,8 @@ def test_eld_and_led_presets_say_their_colour_bias_is_not_in_camsims_sources():
     assert "colour-bias" in readme and "not included" in readme  # what the shared data say of ELD's tables
     for camera in {row["camera"] for row in _rows("eld_noise_fits.csv")}:
         preset = CAMERA_PRESETS[FIT_PRESETS[camera]]
-        assert _not_published(preset, "black_level_error") and "bias" in preset.published_effects["black_level_error"].lower()
+        statement = preset.published_effects["black_level_error"]
+        assert _not_published(preset, "black_level_error") and "bias" in statement.lower()
         assert sensor_preset(preset.name).black_level_error_dn == 0
 
 

@@ -5,7 +5,8 @@
 where the dark stack was also taken at a second exposure time, of
 :data:`camsim.emva.simulate.SPLIT_QUANTITIES` (dsnu_offset_e, dsnu_dark_current_e_per_s), then, where the dark
 current was measured at several temperatures, of :data:`camsim.emva.simulate.TEMPERATURE_QUANTITIES`
-(dark_current_doubling_c), with null where a value is undefined (a relative error of a quantity configured as 0, a negative variance).
+(dark_current_doubling_c), with null where a value is undefined (a relative error of a quantity configured as 0, a
+negative variance).
 
 The plots are the reference implementation's own (``emva1288.process.plotting``) drawn headless, each with the
 configured camera overlaid.
@@ -414,8 +415,8 @@ def _dark_vs_temperature(result: EmvaResult) -> list:
         "| temperature | slope | dark current μ_I | configured μ_I |",
         "|---|---|---|---|",
     ]
-    lines += [f"| {r['temperature_c']:g} °C | {_fmt(r['slope_dn_per_s'])} ± {_fmt(r['slope_standard_error_dn_per_s'], 2)}"
-              f" DN/s | {_fmt(r['dark_current_e_per_s'])} e⁻/s | {_fmt(r['configured_e_per_s'])} e⁻/s |"
+    lines += [f"| {r['temperature_c']:g} °C | {_fmt(r['slope_dn_per_s'])} ± "
+              f"{_fmt(r['slope_standard_error_dn_per_s'], 2)} DN/s | {_fmt(r['dark_current_e_per_s'])} e⁻/s | {_fmt(r['configured_e_per_s'])} e⁻/s |"
               for r in table]
     clipped = [r for r in table if r["clip_bias"] is not None and abs(r["clip_bias"]) > 1e-3]
     if clipped:

@@ -237,7 +237,8 @@ def _single(name: str, title: str, source: str, bits: int, k: float, full_well: 
                "black_level_error": NO_BLACK_ERROR, "dark_shading": NO_SHADING}
     return CameraPreset(name=name, title=title, source=source, iso_points=(_datasheet_point(k, read_e),), bits=bits,
                         pedestal_dn=0, cfa=None, full_well_e=full_well, dark_current_e_per_s=dark,
-                        dark_current_reference_c=dark_reference_c, read_noise_model="gaussian", published_effects=effects,
+                        dark_current_reference_c=dark_reference_c, read_noise_model="gaussian",
+                        published_effects=effects,
                         notes=notes + ("one published setting, called ISO 100; no black offset published: 0 DN "
                                        "(set pedestal_dn to add one)", "monochrome: modelled with R, G and B at every "
                                        "pixel (use one channel)", CURVES_NOTE))

@@ -340,8 +340,9 @@ class CameraPreset:
         those :data:`NOT_PUBLISHED` (the notes say more)."""
         if not compact:
             return [f"{EFFECTS[key]}: {text}" for key, text in self.published_effects.items()]
-        lines = [f"{EFFECTS[key]}: {text}" for key, text in self.published_effects.items() if not text.startswith(NOT_PUBLISHED)]
-        missing = [EFFECTS[key] for key, text in self.published_effects.items() if text.startswith(NOT_PUBLISHED)]
+        effects = self.published_effects.items()
+        lines = [f"{EFFECTS[key]}: {text}" for key, text in effects if not text.startswith(NOT_PUBLISHED)]
+        missing = [EFFECTS[key] for key, text in effects if text.startswith(NOT_PUBLISHED)]
         return lines + ([f"{NOT_PUBLISHED}: {'; '.join(missing)}"] if missing else [])
 
 
