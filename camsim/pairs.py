@@ -491,15 +491,24 @@ class PairSource:
             poisson_mean, base = dark_mean, signal_mean
         if offset is not None:
             base = base + offset
+        # issue 28's black-level error: one offset per channel and pair, from the pair's noise stream (only when on)
+        error = None if not sensor.black_level_error_dn > 0 else [
+            float(v) * sensor.black_level_error_dn for v in to_host(rng.standard_normal(3))]
         if gain is None and dark_gain is None:
-            noisy, digital = draw_planes(rng, signal + dark_planes, sensor, offset_e=offset)
+            noisy, digital = draw_planes(rng, signal + dark_planes, sensor, offset_e=offset,
+                                         black_level_error_dn=error)
         else:
             noisy, digital = draw_planes(rng, signal, sensor, dark_e=dark_planes, gain=gain, dark_gain=dark_gain,
-                                         offset_e=offset)
+                                         offset_e=offset, black_level_error_dn=error)
         from camsim.sensor.expected import clean_charge_e
 
-        clean = clean_charge_e(poisson_mean, sensor, base) * sensor.dn_per_electron
-        return noisy, clean.astype(xp.float32), digital
+        clean = (clean_charge_e(poisson_mean, sensor, base) * sensor.dn_per_electron).astype(xp.float32)
+        if maps is not None and maps.stuck_index is not None:  # the crop's stuck pixels, target and input alike
+            from camsim.render.frame import write_stuck
+
+            write_stuck(maps, sensor, noisy, digital)
+            write_stuck(maps, sensor, clean, None)
+        return noisy, clean, digital
 
 
 def adc_white_dn(sensor) -> float:

@@ -25,8 +25,8 @@ OTHER = {"float": lambda p: (p.low if p.low is not None else 0) + 0.25 if p.defa
 
 def other_value(p: Param):
     """A valid value of ``p`` other than its default, as a TOML literal and as the value SensorParams holds."""
-    if p.kind == "str" and p.choices is None:  # a file name (issue 28's maps): taken as written here
-        return '"map.npy"', "map.npy"
+    if p.kind == "str" and p.choices is None:  # a file name (issue 28's maps): absolute, so taken as written
+        return '"/maps/map.npy"', "/maps/map.npy"
     if p.default is None and p.kind == "float":  # an optional number (temperature_c)
         return "20.0", 20.0
     if p.kind == "str":

@@ -272,13 +272,12 @@ def test_the_sidecar_records_the_frame_effects(tmp_path):
                  "--size", "48x32", "-q", "--out", str(out), "--sensor", "black_level_error_dn=2",
                  "--sensor", "temperature_c=31", "--sensor", "stuck_pixel_fraction=0.01",
                  "--sensor", "dark_shading_e=2"]) == 0
-    sidecar = next(out.rglob("*.json"))
-    meta = json.loads(sidecar.read_text())
+    exr = next(out.rglob("*.exr"))
+    meta = json.loads(exr.with_suffix(".json").read_text())
     assert len(meta["black_level_error_drawn_dn"]) == 3
     assert meta["dark_current_effective_e_per_s"] == pytest.approx(
         [2 * v for v in SensorParams().dark_current_e_per_s])
     assert set(meta["defect_counts"]) == {"hot", "dead", "stuck"} and meta["defect_counts"]["stuck"] > 0
-    exr = next(out.rglob("*.exr"))
     assert load_frame(exr).meta["black_level_error_drawn_dn"] == meta["black_level_error_drawn_dn"]
 
 
@@ -290,3 +289,29 @@ def test_the_effects_off_change_nothing():
     assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
     assert sensor.sidecar_record() == SensorParams(cfa="RGGB", dsnu_e=2.0, prnu_percent=1.0).sidecar_record()
     assert not {"temperature_c", "hot_pixel_fraction", "black_level_error_dn"} & set(sensor.sidecar_record())
+
+
+def test_a_scene_files_map_paths_are_relative_to_it(tmp_path):
+    from camsim.scene.scene_file import load_scene
+
+    (tmp_path / "maps").mkdir()
+    np.save(tmp_path / "maps" / "shading.npy", np.zeros((32, 48)))
+    scene = tmp_path / "s.toml"
+    scene.write_text('name = "mine"\n[chart]\n[sensor]\ndark_shading_map = "maps/shading.npy"\n')
+    loaded = load_scene(scene)
+    assert loaded.sensor.dark_shading_map == str(tmp_path / "maps" / "shading.npy")
+    assert loaded.name == "mine"
+
+
+@pytest.mark.parametrize("method", ["poisson", "gaussian", "auto", "table"])
+def test_hot_pixels_clip_at_the_full_well_and_dead_pixels_stay_black_in_bright_light(method):
+    k = SensorParams().dn_per_electron
+    hot = SensorParams(read_noise=False, quantisation=False, hot_pixel_fraction=0.01, hot_pixel_dark_e_per_s=1e5,
+                       dark_shading_e=50.0, sensor_seed=3)
+    noisy = draw(hot, (64, 64), method=method, signal_e=100.0)[0]
+    assert noisy.max() <= np.float32(k * 9000.0) and np.sum(noisy >= np.float32(k * 9000.0)) > 0.5 * 0.01 * noisy.size
+    dead = SensorParams(read_noise=False, quantisation=False, dead_pixel_fraction=0.01, sensor_seed=3)
+    noisy, _, clean, maps, _ = draw(dead, (64, 64), method=method, signal_e=1e6)
+    is_dead = maps.gain == 0
+    assert np.all(noisy[is_dead] == 0) and np.all(clean[is_dead] == 0)
+    assert np.all(noisy[~is_dead] == np.float32(k * 9000.0))

@@ -37,7 +37,7 @@ from scipy import special, stats
 
 from camsim.sensor.expected import ExpectedSignal
 from camsim.light.rates import FactoredSpectra
-from camsim.sensor.fixed_pattern import dark_gain_at
+from camsim.sensor.fixed_pattern import dark_gain_at, map_file_extreme
 from camsim.methods import DEFAULT_TOLERANCE
 from camsim.sensor.params import SensorParams
 
@@ -298,9 +298,13 @@ def plan_methods(expected: ExpectedSignal, sensor: SensorParams, statistics: str
         hot = expected.dark_e * (dark_gain_at(sensor, 6.0) - 1)
         spread = spread + hot + SATURATION_MARGIN_SIGMA * (np.sqrt(var_charge + hot) - np.sqrt(var_charge))
         cold = expected.dark_e * (1 - dark_gain_at(sensor, -6.0))
+    hot, offsets = effect_margins_e(expected, sensor)
+    if sensor.hot_pixels or sensor.dark_offsets:  # issue 28's maps: their largest shifts of a pixel's mean
+        spread = spread + offsets + hot + SATURATION_MARGIN_SIGMA * (np.sqrt(var_charge + hot) - np.sqrt(var_charge))
     if sensor.saturation:
         below = lam + spread <= sensor.full_well_e
-        above = lam - spread >= sensor.full_well_e
+        # a dead pixel collects nothing: no spectrum is drawn as saturated wholesale when there are dead pixels
+        above = (lam - spread >= sensor.full_well_e) & (not sensor.dead_pixel_fraction > 0)
     else:
         below, above = np.ones(lam.shape, bool), np.zeros(lam.shape, bool)
     ks = np.zeros(lam.shape)
@@ -343,4 +347,31 @@ def _needs_clip(expected: ExpectedSignal, sensor: SensorParams, lam, var_charge)
     if sensor.dsnu_dark_current_percent > 0:  # the dark map's hot pixels, within 10 σ of its normal
         hot = expected.dark_e * (dark_gain_at(sensor, 10.0) - 1)
         fpn = fpn + hot + 10 * (np.sqrt(var_charge + hot) - np.sqrt(var_charge))
+    if sensor.hot_pixels or sensor.dark_offsets:
+        hot, offsets = effect_margins_e(expected, sensor)
+        fpn = fpn + offsets + hot + 10 * (np.sqrt(var_charge + hot) - np.sqrt(var_charge))
     return lam + 10 * np.sqrt(var_charge) + 10 + fpn >= sensor.full_well_e
+
+
+#: A hot pixel's extra dark current is below this many times its mean but with probability e⁻⁵⁰ = 2e-22
+#: (exponential law).
+HOT_MARGIN_MEANS = 50.0
+#: The dark shading's and column FPN's largest offsets are taken as this many times their RMS or σ (the shading is a
+#: normalised sum of three unit-RMS parts, each within a few times its RMS).
+OFFSET_MARGIN = 10.0
+
+
+def effect_margins_e(expected: ExpectedSignal, sensor: SensorParams):
+    """The largest extra mean charge of a hot pixel, per channel (3,) (0 where the channel has no dark charge: the
+    dark factor then does nothing), and the largest |offset| of the dark shading and column FPN, for the plan's
+    margins (issue 28). A map file counts with its largest value. Unit: e⁻."""
+    rate = 0.0
+    if sensor.hot_pixel_fraction > 0:
+        rate += HOT_MARGIN_MEANS * sensor.hot_pixel_dark_e_per_s
+    if sensor.hot_pixel_map is not None:
+        rate += map_file_extreme(sensor.hot_pixel_map, "hot_pixel_map")
+    hot = np.where(expected.dark_e > 0, rate * sensor.temperature_factor * sensor.exposure_s, 0.0)
+    offsets = OFFSET_MARGIN * (sensor.dark_shading_e + sensor.column_fpn_e)
+    if sensor.dark_shading_map is not None:
+        offsets += map_file_extreme(sensor.dark_shading_map, "dark_shading_map")
+    return hot, offsets

@@ -107,6 +107,10 @@ def clean_dn(labels, expected: ExpectedSignal, sensor: SensorParams, maps: Fixed
             out[c] += np.float32(k * dark) * (maps.dark_gain[c] - np.float32(1))
         if maps is not None and maps.offset_e is not None:
             out[c] += np.float32(k) * maps.offset_e[c]
+        if maps is not None and sensor.dead_pixel_fraction > 0 and maps.gain is not None and \
+                maps.dark_gain is not None:  # a dead pixel holds its offset alone, exactly (not the shifted mean)
+            dead = (maps.gain[c] == 0) & (maps.dark_gain[c] == 0)
+            out[c][dead] = 0 if maps.offset_e is None else np.float32(k) * maps.offset_e[c][dead]
         if maps is not None and sensor.saturation:
             xp.minimum(out[c], np.float32(k * sensor.full_well_e), out=out[c])
             if np.any(full[:, c]):

@@ -25,7 +25,7 @@ from camsim.scene.regions import Region, check_regions, parse_regions
 from camsim.core.names import safe_component
 from camsim.core.schema import Param, check_frame_size, finite_float, param, params_of, read_toml, typed, validate
 from camsim.sensor.presets import camera_preset, sensor_preset
-from camsim.sensor.params import SENSOR_PARAMS, SensorParams
+from camsim.sensor.params import MAP_FILE_PARAMS, SENSOR_PARAMS, SensorParams
 from camsim.scene.sources import SOURCES, ChartSource, SceneSource
 from camsim.light.spectra import WavelengthGrid
 
@@ -263,6 +263,9 @@ def load_scene(path: str | Path) -> Scene:
     iso = _FRAME_PARAMS["iso"].coerce(sensor_table.pop("iso", None), f"{where} [sensor]")
     sensor_table = {p.name: p.coerce(sensor_table[p.name], f"{where} [sensor]")
                     for p in SENSOR_PARAMS if p.name in sensor_table}
+    for key in MAP_FILE_PARAMS:  # a map file named by the scene file: relative to it
+        if sensor_table.get(key) is not None:
+            sensor_table[key] = str(base_dir / Path(sensor_table[key]).expanduser())
     if source.table == "raw":
         given = doc.get("sensor", {}).get("preset")  # (checked above to be a name)
         source, illuminants, preset_name, iso = _raw_scene_defaults(source, light, frame, sensor_table, given,

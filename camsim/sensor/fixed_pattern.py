@@ -198,6 +198,16 @@ def _load_map(path: str, mtime_ns: int, what: str) -> np.ndarray:
     return array
 
 
+def map_file_extreme(path: str, what: str) -> float:
+    """The largest |value| of a map file (loaded once, as :func:`load_pixel_map` loads it). Unit: the map's."""
+    try:
+        mtime = Path(path).stat().st_mtime_ns
+    except OSError as exc:
+        raise CamsimError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    array = _load_map(str(path), mtime, what)
+    return float(np.max(np.abs(array), initial=0.0))
+
+
 def load_pixel_map(path: str, sensor: SensorParams, shape: tuple, what: str) -> np.ndarray:
     """A per-pixel map file (.npy) as (planes, H, W) float64: (H, W) for a Bayer sensor (one plane), (H, W) or
     (3, H, W) for a three-chip one (3 planes; an (H, W) map serves the three chips). Loaded once per file

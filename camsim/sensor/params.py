@@ -302,6 +302,9 @@ class SensorParams:
 #: (``exposure = "auto"``) differ in them and are still one measurement.
 EXPOSURE_KEYS = ("exposure_s", "black_level_dn", "dark_level_dn", "black_level_tag_dn")
 
+#: Parameters that name a map file (.npy): a scene or preset file's are relative to that file.
+MAP_FILE_PARAMS = ("dark_shading_map", "hot_pixel_map")
+
 #: The sensor's parameters (:class:`camsim.core.schema.Param`), in declaration order.
 SENSOR_PARAMS = params_of(SensorParams)
 #: Names of the stage switches.
