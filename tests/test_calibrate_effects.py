@@ -85,6 +85,30 @@ def test_a_normal_plane_has_few_hot_pixels():
     assert count <= 3
 
 
+def test_a_one_frame_outlier_is_not_a_hot_pixel():
+    """A burst of 60 DN in one frame of 16 lifts a pixel's mean by 3.75 DN, beyond the 5 σ threshold (5 × 0.51 DN
+    here); the test in halves (each half's mean above half the threshold, 1.26 DN, where the half without the burst
+    has noise 2/√8 = 0.71 DN) drops it but with probability P(z > 1.78) = 3.7 % (≤ 4 of 40 allowed), while every hot
+    pixel of 20–60 DN stays."""
+    rng = np.random.default_rng(6)
+    x, truth = draw_darks(rng, frames=16, shape=(128, 256), shading=0.0, dsnu=0.0, hot=2e-3, hot_dn=(20.0, 60.0))
+    burst = np.zeros((128, 256), bool)
+    burst[rng.integers(0, 128, 40), rng.integers(0, 256, 40)] = True
+    burst &= truth["hot"] == 0
+    x[3][burst] += 60
+    mean, var = moments(x)
+    halves = (x[0::2].mean(axis=0), x[1::2].mean(axis=0))
+    alone = np.zeros(burst.shape, bool)
+    both = np.zeros(burst.shape, bool)
+    for (dy, dx), m, v, a, b in zip([(0, 0), (0, 1), (1, 0), (1, 1)], planes(mean), planes(var), planes(halves[0]),
+                                    planes(halves[1])):
+        alone[dy::2, dx::2] = fp.find_hot_pixels(m, v, 16).mask
+        both[dy::2, dx::2] = fp.find_hot_pixels(m, v, 16, (a, b)).mask
+    true = truth["hot"] > 0
+    assert np.array_equal(alone, true | burst) and burst.sum() > 30
+    assert np.all(both[true]) and np.count_nonzero(both & burst) <= 4
+
+
 def test_shading_map_and_its_standard_error():
     """The map (mean less the plane's black) correlates with the drawn shading above 0.95 at 16 darks (its noise
     σ/√n = 0.5 DN against a pattern of 3.4 DN RMS), and the RMS of map − truth is the stated standard error
@@ -101,7 +125,7 @@ def test_shading_map_and_its_standard_error():
     assert np.corrcoef(full.ravel(), s.ravel())[0, 1] > 0.95
     normal = truth["hot"] == 0
     err = (full - s)[normal]
-    se = fp.map_standard_error(var[normal], 16)
+    se = fp.map_standard_error(float(np.mean(var[normal])), 16)  # no row noise, no frame offsets here
     assert se == pytest.approx(np.sqrt((4 + 1 / 12) / 16), rel=0.03)
     assert np.sqrt(np.mean((err - err.mean()) ** 2)) == pytest.approx(se, rel=0.03)
     rms = fp.fixed_pattern_rms(full[normal], float(np.mean(var)), 16)
@@ -158,3 +182,183 @@ def test_black_level_error(offset, row):
 def test_hot_fraction_standard_error():
     est = fp.hot_fraction(100, 100_000)
     assert est.value == 1e-3 and est.standard_error == pytest.approx(np.sqrt(1e-3 * 0.999 / 1e5))
+
+
+# --- the round trip: camsim's renderer with issue 28's effects on, camsim calibrate, the calibrated preset --------
+
+import json  # noqa: E402
+import tomllib  # noqa: E402
+
+from camsim.cli import main  # noqa: E402
+from camsim.io.dng import write_dng_cfa  # noqa: E402
+from camsim.light.spectra import WavelengthGrid  # noqa: E402
+from camsim.render.pipeline import LitScene, make_frame  # noqa: E402
+from camsim.sensor.fixed_pattern import column_fpn_pattern, fixed_pattern  # noqa: E402
+from camsim.sensor.params import SensorParams  # noqa: E402
+from camsim.sensor.presets import sensor_preset  # noqa: E402
+
+GRID = WavelengthGrid(500.0, 600.0, 50.0)  # three bins; with an identity Qe each feeds one channel
+DARKS = 16
+SITES = np.array([[0, 1], [1, 2]])  # RGGB: the channel of each site of the 2 × 2 cell
+
+
+def fx_sensor(**effects) -> SensorParams:
+    """A 14-bit RGGB sensor, K = 1 DN/e⁻, read noise 1.5 e⁻, row noise 0.2 e⁻, DSNU 0.5 e⁻, PRNU 0.5 %, dark
+    current 0.5 e⁻/s over 2 s (hot pixels need one > 0), with ``effects`` on."""
+    return SensorParams(cfa="RGGB", bits=14, conversion_gain_v_per_e=1e-4, analog_gain_dn_per_v=1e4,
+                        dark_current_e_per_s=(0.5, 0.5, 0.5), exposure_s=2.0, full_well_e=20000.0, read_noise_e=1.5,
+                        read_noise_model="gaussian", row_noise_e=0.2, dsnu_e=0.5, prnu_percent=0.5, pedestal_dn=512,
+                        sensor_seed=7, **effects)
+
+
+def render(sensor, shape, electrons, seed):
+    """One frame of a uniform field of ``electrons`` (R, G, B) per pixel."""
+    lit = LitScene(np.zeros(shape, np.uint8), np.array([electrons], float), np.eye(3), GRID)
+    return make_frame(lit, sensor, 1.0, rng=seed, workers=1)
+
+
+def shoot_fx(sensor, folder, shape, levels=(0.05, 0.15, 0.3)):
+    """16 darks and a flat pair at each level (share of the range above the pedestal) as DNGs with their exposure;
+    returns (dark paths, flat paths, the darks' drawn black-level errors (n, 3))."""
+    seeds = iter(np.random.SeedSequence(28).spawn(DARKS + 2 * len(levels)))
+    drawn = []
+
+    def shot(name, electrons):
+        frame = render(sensor, shape, electrons, next(seeds))
+        if not any(electrons):
+            drawn.append(frame.black_level_error_dn if frame.black_level_error_dn is not None else np.zeros(3))
+        write_dng_cfa(folder / name, frame.digital_dn[0], pattern="RGGB", white_level=sensor.max_dn,
+                      black_level_dn=sensor.black_level_tag_dn, unique_camera_model="camsim effects test",
+                      color_matrix1=np.eye(3), as_shot_neutral=[1, 1, 1], exposure_s=sensor.exposure_s, iso=3200)
+        return str(folder / name)
+
+    darks = [shot(f"dark_{i:02d}.dng", [0.0, 0.0, 0.0]) for i in range(DARKS)]
+    span = (sensor.max_dn - sensor.pedestal_dn) / sensor.dn_per_electron
+    flats = [shot(f"flat_{j}_{i}.dng", [f * span] * 3) for j, f in enumerate(levels) for i in range(2)]
+    return darks, flats, np.array(drawn)
+
+
+def mosaic_of(maps3):
+    """The (H, W) mosaic of a (3, H, W) map: each RGGB site its channel's value."""
+    h, w = maps3.shape[1:]
+    y, x = np.mgrid[0:h, 0:w]
+    return maps3[SITES[y % 2, x % 2], y, x]
+
+
+def calibrate(capsys, darks, flats, out, *extra):
+    code = main(["calibrate", "--dark", *darks, "--flat", *flats, "--out", str(out), "-q", *extra])
+    assert code == 0, capsys.readouterr().err
+    return (tomllib.loads((out / "preset.toml").read_text(encoding="utf-8")),
+            json.loads((out / "calibration.json").read_text(encoding="utf-8")))
+
+
+def mean_less_black(frames):
+    """The mean of dark frames (n, H, W) less each RGGB plane's mean (DN)."""
+    m = np.mean(frames, axis=0, dtype=np.float64)
+    for dy in (0, 1):
+        for dx in (0, 1):
+            m[dy::2, dx::2] -= m[dy::2, dx::2].mean()
+    return m
+
+
+@pytest.mark.slow
+def test_round_trip_dark_shading_hot_pixels_and_black_level_error(tmp_path, capsys):
+    """Darks of 256 × 512 with a dark shading of RMS 3 e⁻, hot pixels (share 10⁻³, exponential of mean 1000 e⁻/s over
+    2 s) and a black-level error of σ 1 DN, calibrated and rendered again with the calibrated preset.
+
+    Expected, K = 1 DN/e⁻: the fixed offset (shading and DSNU) σ_p = √(3² + 0.5²) = 3.04 e⁻; a pixel's temporal
+    variance σ_t² = 1.5² + 0.5 · 2 + 1/12 = 3.33 e⁻², so the map of 16 darks has noise √(σ_t²/16) = 0.46 e⁻ and
+    correlates with the truth as σ_p / √(σ_p² + σ_t²/16) = 0.989; the mean of 16 darks of the calibrated preset adds
+    as much noise again: 0.978 (both required above 0.95). Hot pixels: the threshold (5 robust σ of the mean less its
+    5 × 5 median, ~15 DN with the shading's row and column profiles) misses an exponential extra of mean 2000 e⁻ with
+    probability 1 − exp(−15/2000) < 1 %; a normal pixel passes it with the Gaussian tail's 3 × 10⁻⁷: recall and
+    precision ≥ 0.95 of ~131 hot pixels. The black-level error: σ_b from 16 frames × 3 colours has a standard error
+    of about σ_b / √(2 · 3 · 15) = 0.11 DN (4 of them allowed), and it is the drawn offsets' own spread within 0.05 DN
+    (the colour means' noise, √(σ_t²/N + σ_row²/R) ≈ 0.02 DN, is what differs)."""
+    shape = (256, 512)
+    truth_sensor = fx_sensor(dark_shading_e=3.0, hot_pixel_fraction=1e-3, hot_pixel_dark_e_per_s=1000.0,
+                             black_level_error_dn=1.0)
+    darks, flats, drawn = shoot_fx(truth_sensor, tmp_path, shape)
+    out = tmp_path / "cal"
+    preset, record = calibrate(capsys, darks, flats, out)
+    iso = preset["iso"][0]
+    assert iso["dark_shading_map"] == "dark_shading.npy" and iso["hot_pixel_map"] == "hot_pixels.npy"
+    assert iso["dsnu_dn"] == 0 and iso["column_fpn_e"] == 0  # the map holds them
+    fx = record["dark_effects"]
+
+    truth = fixed_pattern(truth_sensor, shape)
+    offset = mosaic_of(np.asarray(truth.offset_e, np.float64))
+    offset -= offset.mean()
+    rate = truth_sensor.dark_current_e_per_s[0]
+    extra_e = (np.asarray(truth.dark_gain[0], np.float64) - 1) * rate * truth_sensor.exposure_s  # the hot charge
+    is_hot = extra_e > 0
+    # the map
+    shading = np.load(out / "dark_shading.npy")
+    assert shading.shape == shape and shading.dtype == np.float32
+    normal = ~is_hot
+    rho = np.corrcoef(shading[normal], offset[normal])[0, 1]
+    sigma_t2 = 1.5**2 + 0.5 * 2 + 1 / 12
+    expected = offset[normal].std() / np.sqrt(offset[normal].var() + sigma_t2 / DARKS)
+    assert rho > 0.95 and rho == pytest.approx(expected, abs=0.005)
+    # its stated error: the pixels' and the rows' temporal noise over 16 frames (the frames' offsets cancel)
+    assert fx["dark_shading"]["per_pixel_standard_error_e"] == pytest.approx(np.sqrt((sigma_t2 + 0.2**2) / DARKS),
+                                                                             rel=0.03)
+    # hot pixels
+    hot = np.load(out / "hot_pixels.npy")
+    found = hot > 0
+    recall = np.count_nonzero(found & is_hot) / np.count_nonzero(is_hot)
+    precision = np.count_nonzero(found & is_hot) / np.count_nonzero(found)
+    assert np.count_nonzero(is_hot) > 90 and recall >= 0.95 and precision >= 0.95
+    both = found & is_hot
+    rel = hot[both] * truth_sensor.exposure_s / extra_e[both] - 1
+    assert abs(np.median(rel)) < 0.02  # the extra dark current (e⁻/s): the 5 × 5 median's level is the shading's
+    assert fx["hot_pixels"]["fraction"]["value"] == pytest.approx(1e-3, abs=4 * fx["hot_pixels"]["fraction"][
+        "standard_error"])
+    # the black-level error
+    b = fx["black_level_error_dn"]
+    assert abs(b["value"] - 1.0) < 4 * b["standard_error"]
+    assert b["value"] == pytest.approx(np.sqrt(np.mean(np.var(drawn, axis=0, ddof=1))), abs=0.05)
+    assert iso["black_level_error_dn"] == pytest.approx(b["value"], rel=1e-5)
+
+    # rendered again with the calibrated preset: its mean dark is the truth's pattern, its hot pixels those found
+    again = sensor_preset(str(out / "preset.toml"), 3200)
+    assert again.black_level_error_dn == pytest.approx(b["value"], rel=1e-5) and again.hot_pixel_map is not None
+    seeds = np.random.SeedSequence(99).spawn(DARKS)
+    frames = np.stack([render(again, shape, [0.0, 0.0, 0.0], s).digital_dn[0] for s in seeds])
+    mean = mean_less_black(frames)
+    rho = np.corrcoef(mean[normal], offset[normal])[0, 1]
+    assert rho > 0.95 and rho == pytest.approx(offset[normal].std() / np.sqrt(offset[normal].var()
+                                                                            + 2 * sigma_t2 / DARKS), abs=0.005)
+    assert fixed_pattern(again, shape).defect_counts["hot"] == np.count_nonzero(found)
+    assert np.corrcoef(mean[both], extra_e[both])[0, 1] > 0.999
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("maps", [True, False])
+def test_round_trip_column_fpn(tmp_path, capsys, maps):
+    """Column FPN of σ 1 e⁻ (256 columns), DSNU 0.5 e⁻: σ_c within 4 standard errors of the drawn columns' own
+    detrended spread (√(2/252) ≈ 9 % of σ_c² is the estimator's, from 256 column means of noise v_e/H =
+    (0.5² + 3.33/16)/128 e⁻², negligible); the preset renders it through the map (``column_fpn_e`` = 0 there), or
+    with ``--no-maps`` as ``column_fpn_e`` (and the DSNU without the columns' share), which renders that σ again."""
+    shape = (128, 256)
+    truth_sensor = fx_sensor(column_fpn_e=1.0)
+    darks, flats, _ = shoot_fx(truth_sensor, tmp_path, shape)
+    out = tmp_path / "cal"
+    preset, record = calibrate(capsys, darks, flats, out, *([] if maps else ["--no-maps"]))
+    iso = preset["iso"][0]
+    c = column_fpn_pattern(truth_sensor.sensor_seed, 1, shape[1])[0, 0]
+    t = np.linspace(-1, 1, c.size)
+    basis = np.polynomial.legendre.legvander(t, fp.COLUMN_TREND_DEGREE)
+    resid = c - basis @ np.linalg.lstsq(basis, c, rcond=None)[0]
+    drawn = np.sqrt(np.sum(resid**2) / (c.size - fp.COLUMN_TREND_DEGREE - 1))
+    est = record["dark_effects"]["column_fpn_e"]
+    assert abs(est["value"] - drawn) < 4 * est["standard_error"] and est["standard_error"] < 0.06
+    assert record["dark_effects"]["black_level_error_dn"]["ci95"][0] == 0 and iso["black_level_error_dn"] == 0
+    if maps:
+        assert iso["column_fpn_e"] == 0 and iso["dark_shading_map"] == "dark_shading.npy"
+        return
+    assert "dark_shading_map" not in iso and "hot_pixel_map" not in iso
+    assert iso["column_fpn_e"] == pytest.approx(est["value"], rel=1e-5)
+    assert iso["dsnu_dn"] == pytest.approx(0.5, rel=0.1)
+    again = sensor_preset(str(out / "preset.toml"), 3200)
+    assert again.column_fpn_e == pytest.approx(est["value"], rel=1e-5)

@@ -16,14 +16,16 @@ terms and divides the temporal ones' variance by n.
 
 Expectations used (derived here; the tests check them on arrays of known law):
 
-* the dark-shading map x̄ − B has, per pixel, the standard error √(σ²_pixel / n), σ²_pixel the pixel's temporal
-  variance over the frames (b and ρ included: they are averaged down with it);
+* the dark-shading map x̄ − B has, per pixel, the standard error √((σ_Y² + σ_row²) / n): the pixel's temporal
+  noise and the row noise, averaged over the n frames (the frames' offsets b average to b̄, which B, the plane's
+  mean over the same frames, holds too);
 * hot pixels: d = x̄ − med₅ₓ₅(x̄), the mean less the median of its plane's 5 × 5 neighbourhood (which follows a
-  shading, a column or a row, and which a few hot pixels do not move); a pixel is hot where
+  smooth shading, and which a few hot pixels do not move); a pixel is hot where
   d > median(d) + m · max(1.4826 · MAD(d), √(σ̄²_pixel / n)), m = :data:`HOT_THRESHOLD_SIGMAS` = 5 — 5 σ of the
-  spread of d (DSNU and the mean's temporal noise) and never below 5 σ of the mean's temporal noise alone: a
-  normal pixel's d exceeds it with probability 2.9 × 10⁻⁷ where d is Gaussian; its extra dark current is
-  d / (K T) (e⁻/s, T the exposure);
+  spread of d (DSNU, fixed rows and columns, the mean's temporal noise) and never below 5 σ of the mean's temporal
+  noise alone: a normal pixel's d exceeds it with probability 2.9 × 10⁻⁷ where d is Gaussian — and, in each half
+  of the frames, half of it (a heavy-tailed read noise's one-frame outlier is in one half only); its extra dark
+  current is d / (K T) (e⁻/s, T the exposure);
 * column FPN, on the map of one chip (H × W, hot pixels replaced by their neighbourhood's median): the column means
   C_j vary as σ_c² + v_e / H, v_e the variance of what is neither row nor column (pixel DSNU and the temporal
   noise / n), with E[Σᵢⱼ e²] = v_e (H − 1)(W − 1) for e the map less its row and column means; C is first freed of
@@ -95,7 +97,7 @@ class HotPixels:
         return int(np.count_nonzero(self.mask))
 
 
-def find_hot_pixels(mean_dn: np.ndarray, temporal_variance_dn2: float, frames: int,
+def find_hot_pixels(mean_dn: np.ndarray, variance_dn2, frames: int, halves: tuple | None = None,
                     sigmas: float = HOT_THRESHOLD_SIGMAS, size: int = LOCAL_WINDOW) -> HotPixels:
     """The hot pixels of one plane: mean dark far above the neighbourhood's (module docstring).
 
@@ -103,10 +105,18 @@ def find_hot_pixels(mean_dn: np.ndarray, temporal_variance_dn2: float, frames: i
     ----------
     mean_dn : numpy.ndarray, shape (H, W)
         The plane's mean over the dark frames. Unit: DN.
-    temporal_variance_dn2 : float
-        σ̄²_pixel, the pixels' mean temporal variance over the frames. Unit: DN².
+    variance_dn2 : numpy.ndarray, shape (H, W), or float
+        The pixels' temporal variance over the frames (ddof 1); of an array, the mean over the pixels that a first
+        threshold (on the robust spread alone) leaves, so that the hot pixels' own shot noise does not count.
+        Unit: DN².
     frames : int
         n.
+    halves : tuple of numpy.ndarray, optional
+        The plane's means over two halves of the frames (e.g. the even and the odd ones). Then a hot pixel must also
+        lie more than half the threshold above its local level in each half: a fixed extra charge is in every
+        frame, one frame's outlier of a heavy-tailed read noise in one half only. For a hot pixel right at the
+        threshold this costs at most 4 % (z = 2.5/√2 in a half of at most √2 times the mean's noise); it removes 96 %
+        of one-frame outliers.
     sigmas : float
         m, the threshold in robust standard deviations.
     size : int
@@ -121,9 +131,17 @@ def find_hot_pixels(mean_dn: np.ndarray, temporal_variance_dn2: float, frames: i
     d = mean_dn - local
     centre = float(np.median(d))
     mad = MAD_TO_SIGMA * float(np.median(np.abs(d - centre)))
-    spread = max(mad, math.sqrt(max(temporal_variance_dn2, 0.0) / frames))
+    if np.ndim(variance_dn2):
+        first = d > centre + sigmas * mad
+        variance = float(np.mean(np.asarray(variance_dn2)[~first])) if not first.all() else 0.0
+    else:
+        variance = float(variance_dn2)
+    spread = max(mad, math.sqrt(max(variance, 0.0) / frames))
     threshold = centre + sigmas * spread
     mask = d > threshold
+    if halves is not None:
+        for half in halves:
+            mask &= np.asarray(half, np.float64) - local > centre + 0.5 * sigmas * spread
     return HotPixels(mask, np.where(mask, d, 0.0), local, threshold, spread)
 
 
@@ -136,14 +154,16 @@ def shading_map(mean_dn: np.ndarray, black_dn: float, hot: HotPixels | None = No
     return out
 
 
-def map_standard_error(variance_dn2: np.ndarray, frames: int) -> float:
-    """The root mean square over pixels of the map's per-pixel standard error √(σ²_pixel / n). Unit: DN."""
-    return math.sqrt(float(np.mean(variance_dn2)) / frames)
+def map_standard_error(temporal_variance_dn2: float, frames: int) -> float:
+    """The map's per-pixel standard error √(σ² / n), σ² a pixel's temporal variance less the black-level error's
+    (which its plane's black level, a mean over the same frames, takes away): σ_Y² + σ_row². Unit: DN."""
+    return math.sqrt(max(temporal_variance_dn2, 0.0) / frames)
 
 
 def fixed_pattern_variance(map_dn: np.ndarray, variance_dn2: float, frames: int) -> Estimate:
-    """The variance of the fixed pattern the map holds, its temporal noise removed: s²(map) − σ̄²_pixel / n, with
-    the standard error of s² (√(2/N) s², a Gaussian's). Unit: DN²."""
+    """The variance of the fixed pattern the map holds, its temporal noise removed: s²(map) − σ² / n (σ² =
+    σ_Y² + σ_row², :func:`map_standard_error`), with the standard error of s² (√(2/N) s², a Gaussian's).
+    Unit: DN²."""
     s2 = float(np.var(map_dn, ddof=1))
     return Estimate(s2 - variance_dn2 / frames, s2 * math.sqrt(2.0 / map_dn.size))
 

@@ -259,22 +259,26 @@ def _check_inputs(dark_files, flat_files) -> None:
 
 
 def _dark_pass(dark_files, progress):
-    """First pass over the darks: exact per-pixel sums, the layout, the metadata of the first file."""
+    """First pass over the darks: exact per-pixel sums (and the sum of the even-numbered frames, for the hot pixels'
+    test in halves), the layout, the metadata of the first file."""
     first = None
-    total = squares = None
-    for name in _bar(dark_files, "dark frames (1/2)", progress):
+    total = squares = even = None
+    for i, name in enumerate(_bar(dark_files, "dark frames (1/2)", progress)):
         frame = read_raw(name, metadata=first is None)
         if first is None:
             first = frame
             total = np.zeros(frame.image.shape, np.int64)
             squares = np.zeros(frame.image.shape, np.int64)
+            even = np.zeros(frame.image.shape, np.int64)
         else:
             check_same_layout(first, frame)
             check_same_exposure(first, frame, "dark frames")
         x = frame.image.astype(np.int64)
         total += x
         squares += x * x
-    return first, total, squares
+        if i % 2 == 0:
+            even += x
+    return first, total, squares, even
 
 
 def _dark_residuals(dark_files, layout: Layout, mean_image, progress, keep=None):
@@ -383,13 +387,15 @@ def calibrate(dark_files, flat_files, *, iso: float | None = None, name: str | N
     flat_files = tuple(str(os.fspath(f)) for f in flat_files)
     _check_inputs(dark_files, flat_files)
     n = len(dark_files)
-    first, total, squares = _dark_pass(dark_files, progress)
+    first, total, squares, even = _dark_pass(dark_files, progress)
     layout = first.layout
     mean_image, var_image = dark.pixel_moments(total, squares, n)
-    del total, squares
+    del squares
     mean_planes = [np.ascontiguousarray(p) for p in layout.planes(mean_image)]
     var_planes = layout.planes(var_image)
-    hot = [fp.find_hot_pixels(m, float(np.median(v)), n) for m, v in zip(mean_planes, var_planes)]
+    halves = (layout.planes(even / ((n + 1) // 2)), layout.planes((total - even) / (n // 2)))
+    hot = [fp.find_hot_pixels(m, v, n, (a, b)) for m, v, a, b in zip(mean_planes, var_planes, *halves)]
+    del even, total, halves
     keep = None
     if any(h.count for h in hot):
         keep = np.ones(mean_image.shape, bool)
@@ -491,11 +497,11 @@ def _dark_effects(layout, mean_planes, var_planes, hot, blacks, plane_rows, pixe
     """The effects of issue 28 in DN (:mod:`camsim.calibration.fixed_pattern`)."""
     maps = [fp.shading_map(m, b, h) for m, b, h in zip(mean_planes, blacks, hot)]
     shading = _image_of_planes(layout, maps)
-    normal = [v if not h.count else v[~h.mask] for v, h in zip(var_planes, hot)]
-    se = math.sqrt(float(np.mean([fp.map_standard_error(v, frames) ** 2 for v in normal])))
+    temporal = [v + row_all.value**2 for v in pixel_var]  # σ_Y² + σ_row²: the map's noise × n, per plane
+    se = math.sqrt(float(np.mean([fp.map_standard_error(v, frames) ** 2 for v in temporal])))
     rms = sqrt_estimate(fp.mean_of_squares(
-        fp.fixed_pattern_variance(mp if not h.count else mp[~h.mask], float(np.mean(v)), frames)
-        for mp, v, h in zip(maps, normal, hot)))
+        fp.fixed_pattern_variance(mp if not h.count else mp[~h.mask], v, frames)
+        for mp, v, h in zip(maps, temporal, hot)))
     chips = list(shading) if layout.kind == "stack" else [shading]
     column = sqrt_estimate(fp.mean_of_squares(fp.column_fpn_variance(c) for c in chips))
     excess = _image_of_planes(layout, [h.excess_dn for h in hot])
