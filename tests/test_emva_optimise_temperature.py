@@ -77,7 +77,7 @@ def test_the_doubling_fit_is_the_closed_form_for_two_points_and_refuses_no_growt
     assert doubling_temperature_fit([20.0, 30.0], [5.0, 0.0]) is None
 
 
-@pytest.mark.parametrize("temperatures", [(20.0,), (20.0, 20.0), (20.0, float("nan")), (20.0, -300.0)])
+@pytest.mark.parametrize("temperatures", [(20.0,), (20.0, 20.0), (20.0, float("nan")), (20.0, -300.0), 20.0])
 def test_a_bad_temperature_list_is_refused(temperatures):
     with pytest.raises(CamsimError, match="two distinct temperatures"):
         EmvaSetup(temperatures=temperatures)
@@ -133,3 +133,13 @@ def test_the_clip_at_0_dn_biases_a_cold_slope_as_the_exact_model_says():
     row = clear.details["dark_current_vs_temperature"][0]
     assert abs(row["clip_bias"]) < 1e-4
     assert abs(row["slope_dn_per_s"] - K * dark_current(10.0)) < 4 * row["slope_standard_error_dn_per_s"]
+
+
+def test_a_temperature_whose_dark_signal_saturates_is_refused():
+    # emva-12bit at 4 s (25 e⁻/s · 4 s = 100 e⁻ at 25 °C): its 10 000 e⁻ well fills with dark charge above
+    # 25 + 6 log2(10000 / 100) ≈ 65 °C
+    with pytest.raises(CamsimError, match="saturates this sensor at 70 °C"):
+        run("emva-12bit", EmvaSetup(size=16, steps=10, low_steps=0, stack_frames=2, temperatures=(20.0, 70.0)))
+    with pytest.raises(CamsimError, match="dark-current stage on"):
+        run(sensor=preset("emva-12bit", dark_current=False),
+            setup=EmvaSetup(size=16, steps=10, low_steps=0, stack_frames=2, temperatures=(20.0, 30.0)))

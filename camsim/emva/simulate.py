@@ -210,7 +210,7 @@ class EmvaSetup:
                                        and math.isfinite(factor) and 1.0 < factor <= 100.0):
             raise CamsimError(f"dsnu_exposure_factor (the DSNU's second exposure time over the first) must be > 1 "
                               f"and ≤ 100, got {factor!r}")
-        temps = tuple(self.temperatures)
+        temps = tuple(self.temperatures) if isinstance(self.temperatures, (tuple, list)) else (self.temperatures,)
         if temps and not (len(set(temps)) == len(temps) >= 2
                           and all(isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t)
                                   and t > -273.15 for t in temps)):
@@ -402,6 +402,14 @@ def simulate(sensor: SensorParams, setup: EmvaSetup = EmvaSetup(), preset_name: 
 
     temperatures = setup.temperatures
     temperature_factor = factor or DEFAULT_DSNU_EXPOSURE_FACTOR
+    if temperatures and not sensor.dark_current:
+        raise CamsimError("the dark current against the temperature needs the dark-current stage on")
+    for temperature in temperatures:  # the longer dark exposure at the warmest temperature must not saturate
+        hot = dataclasses.replace(sensor, temperature_c=temperature, exposure_s=sensor.exposure_s * temperature_factor)
+        if not predicted_saturation_e(hot) > 0:
+            raise CamsimError(f"the dark signal alone saturates this sensor at {temperature:g} °C and "
+                              f"{hot.exposure_s:g} s: measure at lower temperatures or a smaller "
+                              "dsnu_exposure_factor")
     frames = 2 * (len(photons) + 1) + 2 * setup.stack_frames + (0 if long_sensor is None else setup.stack_frames)
     frames += 2 * len(temperatures) * setup.stack_frames
     bar = None
