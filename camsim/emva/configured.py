@@ -31,7 +31,8 @@ def configured_values(sensor: SensorParams, eta: float) -> dict:
 
     * K: G · G_Ve⁻ (DN/e⁻).
     * dark noise: the temporal dark noise EMVA's σ_d measures at this exposure, √(σ²_read + μ_dark + σ²_row) in
-      e⁻: read noise, the shot noise of the dark electrons and the row noise (0 in the presets).
+      e⁻: read noise, the shot noise of the dark electrons and the row noise (0 in the presets). μ_dark is
+      ``SensorParams.dark_mean_e``: the dark current at the sensor's ``temperature_c`` times the exposure.
     * QE: η of the analysed channel at the test wavelength (e⁻ per photon; EMVA reports it in %).
     * saturation: the full well (e⁻). EMVA's μ_e,sat is the photo-electrons at the step where the temporal
       variance peaks, a little below it: see :func:`predicted_saturation_e` and the report.
@@ -57,9 +58,10 @@ def configured_split(sensor: SensorParams) -> dict:
 
     * ``dsnu_offset_e``: the offset DSNU, ``dsnu_e`` (e⁻, the same at every T);
     * ``dsnu_dark_current_e_per_s``: the spatial σ of the analysed channel's dark-current rate, p/100 · σ²_dark
-      (e⁻/s; 0 with the dark-current stage off), so that its DSNU at T is that times T.
+      (e⁻/s; 0 with the dark-current stage off), so that its DSNU at T is that times T. σ²_dark is the rate at
+      the sensor's temperature (``SensorParams.dark_current_effective_e_per_s``: D_ref · 2^((T − T_ref)/T_d)).
     """
-    rate = sensor.dark_current_e_per_s[CHANNEL] if sensor.dark_current else 0.0
+    rate = sensor.dark_current_effective_e_per_s[CHANNEL] if sensor.dark_current else 0.0
     return {"dsnu_offset_e": float(sensor.dsnu_e),
             "dsnu_dark_current_e_per_s": sensor.dsnu_dark_current_percent / 100 * rate}
 

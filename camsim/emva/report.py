@@ -3,8 +3,10 @@
 ``emva.json`` is an interface: ``{key: {"configured", "recovered", "relative_error"}}`` for the keys of
 :data:`camsim.emva.simulate.QUANTITIES` (K_dn_per_e, dark_noise_e, qe, saturation_e, dsnu_e, prnu_percent), then,
 where the dark stack was also taken at a second exposure time, of
-:data:`camsim.emva.simulate.SPLIT_QUANTITIES` (dsnu_offset_e, dsnu_dark_current_e_per_s), with null where a value
-is undefined (a relative error of a quantity configured as 0, a negative variance).
+:data:`camsim.emva.simulate.SPLIT_QUANTITIES` (dsnu_offset_e, dsnu_dark_current_e_per_s), then, where the dark
+current was measured at several temperatures, of :data:`camsim.emva.simulate.TEMPERATURE_QUANTITIES`
+(dark_current_doubling_c), with null where a value is undefined (a relative error of a quantity configured as 0, a
+negative variance).
 
 The plots are the reference implementation's own (``emva1288.process.plotting``) drawn headless, each with the
 configured camera overlaid.
@@ -43,6 +45,7 @@ _NAMES = {
     "prnu_percent": "PRNU₁₂₈₈",
     "dsnu_offset_e": "DSNU, offset part σ_o",
     "dsnu_dark_current_e_per_s": "DSNU, dark-current part c (∝ T)",
+    "dark_current_doubling_c": "Doubling temperature T_d of the dark current",
 }
 _CONFIGURED_AS = {
     "K_dn_per_e": "G · G_Ve⁻",
@@ -53,6 +56,7 @@ _CONFIGURED_AS = {
     "prnu_percent": "prnu_percent",
     "dsnu_offset_e": "dsnu_e",
     "dsnu_dark_current_e_per_s": "p/100 · σ²_dark (G)",
+    "dark_current_doubling_c": "dark_current_doubling_c",
 }
 #: The DSNU configured with both kinds on: the total at the measured exposure time T.
 _DSNU_BOTH = "√(dsnu_e² + (p/100 · σ²_dark · T)²)"
@@ -168,6 +172,16 @@ def _summary(result: EmvaResult) -> list:
     ]
 
 
+def _dark_current_text(s) -> str:
+    """The G channel's dark current as measured: at the sensor's temperature where it has one (EMVA 1288 states
+    the dark current at the temperature of the measurement)."""
+    rate = s.dark_current_e_per_s[CHANNEL]
+    if s.temperature_c is None:
+        return f"{rate:g} e⁻/s"
+    return (f"{s.dark_current_effective_e_per_s[CHANNEL]:g} e⁻/s at the sensor's {s.temperature_c:g} °C "
+            f"({rate:g} e⁻/s at {s.dark_current_reference_c:g} °C, doubling every {s.dark_current_doubling_c:g} °C)")
+
+
 def _dark_notes(result: EmvaResult) -> list:
     """Dark noise (quantisation), K and η (the quantisation offset of the PTC), the −½ DN, the black level."""
     s, d = result.measurement.sensor, result.details
@@ -234,7 +248,14 @@ def _dark_current_note(result: EmvaResult) -> str:
         note += (f"a spatial non-uniformity of its own, {s.dsnu_dark_current_percent:g} % (each pixel's rate is "
                  "σ²_dark · d, d a fixed log-normal map of mean 1), whose DSNU grows ∝ T: see the DSNU at two "
                  "exposure times")
-    return note + "; EMVA's μ_I would be the same rate."
+    note += "; EMVA's μ_I would be the same rate"
+    if s.temperature_c is not None:
+        note += (f", at the sensor's {s.temperature_c:g} °C: {s.dark_current_effective_e_per_s[CHANNEL]:g} e⁻/s "
+                 f"(μ_I,ref · 2^((ϑ − ϑ_ref)/T_d) with {s.dark_current_e_per_s[CHANNEL]:g} e⁻/s at "
+                 f"{s.dark_current_reference_c:g} °C, T_d = {s.dark_current_doubling_c:g} °C)")
+    if result.measurement.dark_vs_temperature:
+        note += "; it is measured against the temperature below"
+    return note + "."
 
 
 def _saturation_and_pattern_notes(result: EmvaResult) -> list:
@@ -303,7 +324,7 @@ def _method(result: EmvaResult) -> list:
         "",
         f"* **Sensor:** preset `{m.preset_name}`: K = {s.dn_per_electron:.4g} DN/e⁻ ({s.conversion_gain_v_per_e:g} "
         f"V/e⁻ × {s.analog_gain_dn_per_v:g} DN/V), {s.bits}-bit ADC, full well {s.full_well_e:g} e⁻, read noise "
-        f"{s.read_noise_e:g} e⁻, dark current {s.dark_current_e_per_s[CHANNEL]:g} e⁻/s (G), exposure "
+        f"{s.read_noise_e:g} e⁻, dark current {_dark_current_text(s)} (G), exposure "
         f"{s.exposure_s:g} s, DSNU {s.dsnu_e:g} e⁻{dark_dsnu}, PRNU {s.prnu_percent:g} %, row noise "
         f"{s.row_noise_e:g} e⁻, "
         f"{s.read_noise_model} read noise, sensor seed {s.sensor_seed}; stages {stages}.",
@@ -363,12 +384,51 @@ def _dsnu_exposures(result: EmvaResult) -> list:
         f"{t2 / t1:g}). Through the two points, the offset part is σ_o = {_fmt(rec['dsnu_offset_e'])} e⁻ (configured "
         f"{_fmt(offset)} e⁻) and the dark-current part c = {_fmt(rec['dsnu_dark_current_e_per_s'])} e⁻/s "
         f"(configured {_fmt(rate)} e⁻/s, i.e. {s.dsnu_dark_current_percent:g} % of "
-        f"{s.dark_current_e_per_s[CHANNEL] if s.dark_current else 0:g} e⁻/s)."
+        f"{s.dark_current_effective_e_per_s[CHANNEL] if s.dark_current else 0:g} e⁻/s, the dark current at the "
+        "sensor's temperature)."
         + (" — : the estimate of that part's square came out negative, i.e. the part is below the estimators' "
            "noise." if rec["dsnu_offset_e"] is None or rec["dsnu_dark_current_e_per_s"] is None else "")
         + (f" The maps actually drawn have {' and '.join(realised)} over the analysed pixels." if realised else ""),
         "",
     ]
+    return lines
+
+
+def _dark_vs_temperature(result: EmvaResult) -> list:
+    """The dark current at several temperatures and its doubling temperature (when measured)."""
+    table = result.details.get("dark_current_vs_temperature")
+    if not table:
+        return []
+    m, s = result.measurement, result.measurement.sensor
+    t1, t2 = m.dark_vs_temperature[0]["exposures_s"]
+    lines = [
+        "## Dark current against the temperature",
+        "",
+        f"At each temperature (the sensor's `temperature_c` set to it) L = {m.setup.stack_frames} dark frames at "
+        f"{t1:g} s and L at {t2:g} s; the dark current is the slope of the mean dark value against the exposure "
+        "time, over the reference implementation's K (the offsets and the quantiser's half step cancel from the "
+        "slope; its standard error is the spread of the frame means). The model: μ_I(ϑ) = μ_I,ref · "
+        f"2^((ϑ − ϑ_ref)/T_d), μ_I,ref = {s.dark_current_e_per_s[CHANNEL]:g} e⁻/s at ϑ_ref = "
+        f"{s.dark_current_reference_c:g} °C (`dark_current_reference_c`), T_d = {s.dark_current_doubling_c:g} °C "
+        "(`dark_current_doubling_c`).",
+        "",
+        "| temperature | slope | dark current μ_I | configured μ_I |",
+        "|---|---|---|---|",
+    ]
+    lines += [f"| {r['temperature_c']:g} °C | {_fmt(r['slope_dn_per_s'])} ± "
+              f"{_fmt(r['slope_standard_error_dn_per_s'], 2)} DN/s | {_fmt(r['dark_current_e_per_s'])} e⁻/s | {_fmt(r['configured_e_per_s'])} e⁻/s |"
+              for r in table]
+    clipped = [r for r in table if r["clip_bias"] is not None and abs(r["clip_bias"]) > 1e-3]
+    if clipped:
+        lines += ["", "The ADC's clip at 0 DN biases the slope (camsim's exact dark model: "
+                  + ", ".join(f"{_percent(r['clip_bias'])} at {r['temperature_c']:g} °C" for r in clipped)
+                  + "): the dark level is near 0 DN there; a pedestal (`pedestal_dn`) or a longer exposure keeps it "
+                  "clear, as EMVA 1288 asks of the offset."]
+    fit = result.recovered["dark_current_doubling_c"]
+    lines += ["", f"The straight line log₂ μ_I = a + ϑ / T_d through these points (weighted least squares) gives "
+              f"T_d = {_fmt(fit)} °C (configured {s.dark_current_doubling_c:g} °C)."
+              + (" Hot pixels add their own dark current to the mean, which the configured μ_I leaves out."
+                 if s.hot_pixels else ""), ""]
     return lines
 
 
@@ -426,6 +486,7 @@ def markdown(result: EmvaResult, plots: dict) -> str:
     lines = _summary(result)
     lines += ["## Where camsim's model and the standard's assumptions meet", ""]
     lines += _dark_notes(result) + _saturation_and_pattern_notes(result) + [""] + _dsnu_exposures(result)
+    lines += _dark_vs_temperature(result)
     lines += _method(result) + _other_results(result) + _plot_section(plots)
     return "\n".join(lines)
 

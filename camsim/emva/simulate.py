@@ -14,7 +14,18 @@ as a test bench would take it from a real camera:
   more dark frames at a second, longer exposure time T₂: the DSNU at two exposure times, split into its offset
   part (the same at every T) and its dark-current part (∝ T), DSNU²(T) = σ_o² + (c T)². The standard's spatial
   data take one exposure time, so the DSNU at T₂ is the standard's own formula (:func:`dark_spatial_variance_dn2`)
-  on that stack, with the reference implementation's K.
+  on that stack, with the reference implementation's K;
+* where asked (:attr:`EmvaSetup.temperatures`), the dark current against the temperature: at each temperature
+  (the sensor's ``temperature_c`` set to it) ``L`` dark frames at T and ``L`` at T₂; the dark current is the slope of
+  the mean dark value against the exposure time, (μ_y.dark(T₂) − μ_y.dark(T)) / (T₂ − T) / K (DN/s over the
+  reference implementation's K: e⁻/s), and the doubling temperature T_d the inverse slope of the straight line
+  log₂ μ_I = a + ϑ / T_d through those points (:func:`doubling_temperature_fit`; EMVA 1288's law
+  μ_I(ϑ) = μ_I,ref · 2^((ϑ − ϑ_ref)/T_d)). The offsets (black level, DSNU) are the same at both exposure times and
+  cancel from the slope, as does the quantiser's half step.
+
+The measurement itself is taken at the sensor's own ``temperature_c`` (none: the dark current as given): every dark
+figure it configures and reports (σ_d's dark shot noise, the DSNU's dark-current part, the saturation less the dark
+electrons) is the dark current there (``SensorParams.dark_mean_e``).
 
 Every frame comes from the same sensor (one ``sensor_seed``: the same DSNU / PRNU maps) with its own temporal
 noise (``SeedSequence(seed, spawn_key=(kind, step, frame))``). The G channel is analysed (a monochrome EMVA
@@ -77,6 +88,13 @@ SPLIT_QUANTITIES = {
 }
 #: T₂ / T of the second dark stack of a sensor with a dark-current DSNU, when the setup names none.
 DEFAULT_DSNU_EXPOSURE_FACTOR = 4.0
+#: The doubling temperature, in ``emva.json`` after the others when the dark current was measured at several
+#: temperatures (:attr:`EmvaSetup.temperatures`). Target: see the tests.
+TEMPERATURE_QUANTITIES = {
+    "dark_current_doubling_c": ("°C", 0.05),
+}
+#: The measurement kind of the dark stacks at several temperatures (their frames' seeds: kind, 2 · i + e, frame).
+TEMPERATURE_KIND = 3
 
 
 def _asfarray(a, dtype=float):
@@ -150,6 +168,10 @@ class EmvaSetup:
     dsnu_exposure_factor : float or None
         T₂ / T: also take ``stack_frames`` dark frames at T₂, for the DSNU at two exposure times. None: only for a
         sensor with a dark-current DSNU (``dsnu_dark_current_percent`` > 0), at :data:`DEFAULT_DSNU_EXPOSURE_FACTOR`.
+    temperatures : tuple of float
+        Sensor temperatures at which to measure the dark current (at T and at T₂, T₂ / T the
+        ``dsnu_exposure_factor`` or :data:`DEFAULT_DSNU_EXPOSURE_FACTOR`), for the doubling temperature; empty: none.
+        At least two distinct ones. Unit: °C.
     """
 
     size: int = 256
@@ -163,6 +185,7 @@ class EmvaSetup:
     camera: str = DEFAULT_CAMERA
     workers: int = 2
     dsnu_exposure_factor: float | None = None
+    temperatures: tuple = ()
 
     def __post_init__(self):
         if not (isinstance(self.size, int) and 16 <= self.size <= 4096):
@@ -187,6 +210,13 @@ class EmvaSetup:
                                        and math.isfinite(factor) and 1.0 < factor <= 100.0):
             raise CamsimError(f"dsnu_exposure_factor (the DSNU's second exposure time over the first) must be > 1 "
                               f"and ≤ 100, got {factor!r}")
+        temps = tuple(self.temperatures) if isinstance(self.temperatures, (tuple, list)) else (self.temperatures,)
+        if temps and not (len(set(temps)) == len(temps) >= 2
+                          and all(isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t)
+                                  and t > -273.15 for t in temps)):
+            raise CamsimError(f"the dark current against the temperature needs at least two distinct temperatures "
+                              f"above −273.15 °C, got {list(temps)!r}")
+        object.__setattr__(self, "temperatures", tuple(float(t) for t in temps))
         wl = GRID.wavelengths_nm
         if not np.any(np.isclose(wl, self.wavelength_nm)):
             raise CamsimError(f"test wavelength {self.wavelength_nm} nm is not a centre of the {GRID.step_nm:g} nm "
@@ -225,6 +255,9 @@ class Measurement:
     realised_dark_dsnu_e_per_s : float or None
         Standard deviation over the analysed pixels of the actual dark-current rates σ²_dark,G · d (None when the
         dark-current DSNU is off). Unit: e⁻/s.
+    dark_vs_temperature : list of dict
+        Per temperature of :attr:`EmvaSetup.temperatures`: ``temperature_c``, ``exposures_s`` (T, T₂) and
+        ``frame_means_dn`` (the mean over the analysed pixels of each dark frame, (2, L)).
     """
 
     sensor: SensorParams
@@ -242,6 +275,7 @@ class Measurement:
     dsnu_exposure_s: float | None = None
     dark_stack_long: dict | None = None
     realised_dark_dsnu_e_per_s: float | None = None
+    dark_vs_temperature: list = field(default_factory=list)
 
 
 @dataclass
@@ -257,9 +291,12 @@ class EmvaResult:
     @property
     def quantities(self) -> dict:
         """:data:`QUANTITIES`, then :data:`SPLIT_QUANTITIES` where the second dark stack was taken."""
-        if self.measurement.dark_stack_long is None:
-            return QUANTITIES
-        return {**QUANTITIES, **SPLIT_QUANTITIES}
+        out = dict(QUANTITIES)
+        if self.measurement.dark_stack_long is not None:
+            out.update(SPLIT_QUANTITIES)
+        if self.measurement.dark_vs_temperature:
+            out.update(TEMPERATURE_QUANTITIES)
+        return out
 
     def comparison(self) -> dict:
         """``{key: {"configured", "recovered", "relative_error"}}`` for :attr:`quantities` (None = undefined)."""
@@ -363,24 +400,38 @@ def simulate(sensor: SensorParams, setup: EmvaSetup = EmvaSetup(), preset_name: 
         raise CamsimError(f"the dark signal alone saturates this sensor at the DSNU's second exposure time, "
                           f"{long_sensor.exposure_s:g} s: choose a smaller dsnu_exposure_factor")
 
+    temperatures = setup.temperatures
+    temperature_factor = factor or DEFAULT_DSNU_EXPOSURE_FACTOR
+    if temperatures and not sensor.dark_current:
+        raise CamsimError("the dark current against the temperature needs the dark-current stage on")
+    for temperature in temperatures:  # the longer dark exposure at the warmest temperature must not saturate
+        hot = dataclasses.replace(sensor, temperature_c=temperature, exposure_s=sensor.exposure_s * temperature_factor)
+        if not predicted_saturation_e(hot) > 0:
+            raise CamsimError(f"the dark signal alone saturates this sensor at {temperature:g} °C and "
+                              f"{hot.exposure_s:g} s: measure at lower temperatures or a smaller "
+                              "dsnu_exposure_factor")
     frames = 2 * (len(photons) + 1) + 2 * setup.stack_frames + (0 if long_sensor is None else setup.stack_frames)
+    frames += 2 * len(temperatures) * setup.stack_frames
     bar = None
     if progress:
         from tqdm import tqdm
 
         bar = tqdm(total=frames, desc="EMVA 1288 frames", unit="frame", leave=False)
 
+    def frame_at(mu_p: float, key: tuple, j: int, camera_sensor: SensorParams) -> np.ndarray:
+        """Frame ``j`` of measurement ``key`` at μ_p: its digital numbers."""
+        ss = emva_frame_seed_sequence(setup.seed, *key, j)
+        frame = make_frame(field_at(mu_p), camera_sensor, 1.0, statistics="pixel", method="poisson", rng=ss,
+                           workers=setup.workers)
+        if bar is not None:
+            bar.update()
+        return frame.digital_dn
+
     def shoot(mu_p: float, key: tuple, count: int, camera_sensor: SensorParams = sensor) -> dict:
         """``count`` frames at μ_p, reduced as emva1288's ``routines.get_int_imgs`` does, without keeping them."""
-        light = field_at(mu_p)
         stack = IntStack()
         for j in range(count):
-            ss = emva_frame_seed_sequence(setup.seed, *key, j)
-            frame = make_frame(light, camera_sensor, 1.0, statistics="pixel", method="poisson", rng=ss,
-                               workers=setup.workers)
-            stack.add(channel_image(frame.digital_dn, sensor))
-            if bar is not None:
-                bar.update()
+            stack.add(channel_image(frame_at(mu_p, key, j, camera_sensor), sensor))
         return stack.result()
 
     def temporal_entry(imgs):  # as emva1288's LoadImageData keeps a temporal pair: totals only
@@ -396,6 +447,16 @@ def simulate(sensor: SensorParams, setup: EmvaSetup = EmvaSetup(), preset_name: 
             photons_spatial: shoot(photons_spatial, (2, 1), setup.stack_frames),
         }
         dark_long = None if long_sensor is None else shoot(0.0, (2, 2), setup.stack_frames, long_sensor)
+        dark_vs_temperature = []
+        for i, temperature in enumerate(temperatures):
+            at = dataclasses.replace(sensor, temperature_c=temperature)
+            exposures = (sensor.exposure_s, sensor.exposure_s * temperature_factor)
+            means = [[float(np.mean(channel_image(frame_at(0.0, (TEMPERATURE_KIND, 2 * i + e), j,
+                                                           dataclasses.replace(at, exposure_s=t)), sensor),
+                                    dtype=np.float64)) for j in range(setup.stack_frames)]
+                     for e, t in enumerate(exposures)]
+            dark_vs_temperature.append({"temperature_c": temperature, "exposures_s": exposures,
+                                        "frame_means_dn": np.asarray(means)})
     finally:
         if bar is not None:
             bar.close()
@@ -410,10 +471,11 @@ def simulate(sensor: SensorParams, setup: EmvaSetup = EmvaSetup(), preset_name: 
         prnu = float(100 * np.std(_channel_map(maps.gain, sensor), dtype=np.float64))
     dark_dsnu = None
     if maps is not None and maps.dark_gain is not None and sensor.dark_current:
-        rate = sensor.dark_current_e_per_s[CHANNEL]
+        rate = sensor.dark_current_effective_e_per_s[CHANNEL]  # at the sensor's temperature
         dark_dsnu = float(rate * np.std(_channel_map(maps.dark_gain, sensor), dtype=np.float64))
     return Measurement(sensor, setup, preset_name, eta, photons, photons_spatial, sat_e, data, dsnu, prnu, frames,
-                       camera.name, None if long_sensor is None else long_sensor.exposure_s, dark_long, dark_dsnu)
+                       camera.name, None if long_sensor is None else long_sensor.exposure_s, dark_long, dark_dsnu,
+                       dark_vs_temperature)
 
 
 def analyse(measurement: Measurement) -> EmvaResult:
@@ -478,7 +540,65 @@ def _analyse(measurement: Measurement) -> EmvaResult:
         configured.update(configured_split(measurement.sensor))
         details.update({"dsnu_exposures_s": (t1, t2), "s2_ydark_long_dn2": s2_long, "dsnu_long_e": dsnu_long,
                         "dsnu_long_dn": None if dsnu_long is None else dsnu_long * res.K})
+    if measurement.dark_vs_temperature:  # the dark current against the temperature, and its doubling temperature
+        rows = [dark_current_slope(entry) for entry in measurement.dark_vs_temperature]
+        k = finite_or_none(res.K)
+        table = []
+        for entry, (slope, error) in zip(measurement.dark_vs_temperature, rows):
+            at = dataclasses.replace(measurement.sensor, temperature_c=entry["temperature_c"])
+            t1, t2 = entry["exposures_s"]
+            linear = at.dn_per_electron * (at.dark_mean_e[CHANNEL] / at.exposure_s)  # K · μ_I: the unclipped slope
+            means = [model_dark_temporal_dn(dataclasses.replace(at, exposure_s=t))[0] for t in (t1, t2)]
+            clip_bias = (means[1] - means[0]) / (t2 - t1) / linear - 1 if linear > 0 else None
+            table.append({"temperature_c": entry["temperature_c"], "slope_dn_per_s": slope,
+                          "clip_bias": clip_bias,
+                          "slope_standard_error_dn_per_s": error,
+                          "dark_current_e_per_s": None if k is None else slope / k,
+                          "configured_e_per_s": float(at.dark_current_effective_e_per_s[CHANNEL])
+                          if at.dark_current else 0.0})
+        fit = doubling_temperature_fit([r["temperature_c"] for r in table], [s for s, _ in rows],
+                                       [e for _, e in rows])
+        recovered["dark_current_doubling_c"] = fit
+        configured["dark_current_doubling_c"] = float(measurement.sensor.dark_current_doubling_c)
+        details["dark_current_vs_temperature"] = table
     return EmvaResult(measurement, res, configured, recovered, details)
+
+
+def dark_current_slope(entry: dict) -> tuple:
+    """The slope of the mean dark value against the exposure time at one temperature, and its standard error.
+
+    ``entry``: ``{"exposures_s": (T, T₂), "frame_means_dn": (2, L)}`` (:attr:`Measurement.dark_vs_temperature`).
+    Where the dark level is near 0 DN (no pedestal, a small dark current) the ADC's clip at 0 raises the shorter
+    exposure's mean more than the longer one's and the slope comes out low: the analysis gives the model's relative
+    bias of the slope (``clip_bias`` of ``details["dark_current_vs_temperature"]``, by
+    :func:`model_dark_temporal_dn`), and the report names the temperatures where it exceeds 0.1 %.
+    The slope is (μ̄₂ − μ̄₁) / (T₂ − T), μ̄ the mean of a stack's frame means; its standard error
+    √(s₁² / L + s₂² / L) / (T₂ − T), s the standard deviation of the frame means (ddof 1: the temporal noise, row
+    noise included, of one frame's mean). Returns (DN/s, DN/s).
+    """
+    t1, t2 = entry["exposures_s"]
+    means = np.asarray(entry["frame_means_dn"], dtype=np.float64)
+    frames = means.shape[1]
+    slope = float((means[1].mean() - means[0].mean()) / (t2 - t1))
+    error = float(math.sqrt(means[0].var(ddof=1) / frames + means[1].var(ddof=1) / frames) / (t2 - t1))
+    return slope, error
+
+
+def doubling_temperature_fit(temperatures_c, rates, errors=None) -> float | None:
+    """The doubling temperature T_d of rates measured at several temperatures: the inverse slope of the straight
+    line log₂ rate = a + ϑ / T_d, fitted by weighted least squares (weights 1 / σ²(log₂ rate), σ(log₂ r) =
+    σ_r / (r ln 2); equal weights without ``errors``). Two temperatures: T_d = (ϑ₂ − ϑ₁) / log₂(r₂ / r₁) exactly.
+    Any unit of the rates (only their ratios count). Unit: °C. None where a rate is not positive or the rates do not
+    grow with the temperature (no finite positive T_d)."""
+    t = np.asarray(temperatures_c, dtype=np.float64)
+    r = np.asarray(rates, dtype=np.float64)
+    if np.any(~np.isfinite(r)) or np.any(r <= 0):
+        return None
+    y = np.log2(r)
+    w = np.ones_like(t) if errors is None else (r * math.log(2) / np.maximum(np.asarray(errors, float), 1e-300)) ** 2
+    tm, ym = np.average(t, weights=w), np.average(y, weights=w)
+    slope = float(np.sum(w * (t - tm) * (y - ym)) / np.sum(w * (t - tm) ** 2))
+    return 1.0 / slope if slope > 0 else None
 
 
 def dark_spatial_variance_dn2(stack: dict) -> float:

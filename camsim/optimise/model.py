@@ -1,7 +1,8 @@
 """The closed-form moments the exposure/ISO search scores settings with (no rendering in the search).
 
 A patch's channel at exposure T and ISO collects S = r · F · T signal electrons (r its rate at F = 1, e⁻/s) and
-D = d · T dark electrons; its black-subtracted value, in electrons, has mean S and variance
+D = d · T dark electrons (d the dark current at the sensor's ``temperature_c``, D_ref · 2^((T − T_ref)/T_d):
+``--sensor temperature_c=40`` moves it); its black-subtracted value, in electrons, has mean S and variance
 
     S (shot) + D (dark shot) + σ_read² + σ_row² + 1 / (12 k²) (the quantiser, Sheppard: its steps are 1 / k e⁻),
 
@@ -34,7 +35,7 @@ class SensorAtIso:
     dn_per_electron: float
     read_noise_e: float
     row_noise_e: float
-    dark_current_e_per_s: np.ndarray  # (3,)
+    dark_current_e_per_s: np.ndarray  # (3,) at the sensor's temperature_c (SensorParams.dark_current_effective_e_per_s)
     full_well_e: float | None
     adc_range_e: float  # (white − P − ½) / k (P > 0; white / k without a pedestal): the charge at the ADC's top
     quantisation: bool
@@ -44,7 +45,7 @@ class SensorAtIso:
         k = sensor.dn_per_electron
         return cls(iso=iso, dn_per_electron=k, read_noise_e=sensor.read_noise_e if sensor.read_noise else 0.0,
                    row_noise_e=sensor.row_noise_e,
-                   dark_current_e_per_s=np.asarray(sensor.dark_current_e_per_s) if sensor.dark_current
+                   dark_current_e_per_s=np.asarray(sensor.dark_current_effective_e_per_s) if sensor.dark_current
                    else np.zeros(3),
                    full_well_e=sensor.full_well_e if sensor.saturation else None,
                    adc_range_e=(sensor.max_dn - adc_offset_dn(sensor.pedestal_dn)) / k if sensor.quantisation else np.inf,

@@ -38,6 +38,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="also take the dark stack at F times the exposure time (F > 1 and ≤ 100), for the DSNU at "
                              "two exposure times split into its offset part and its dark-current part (∝ T); "
                              "default: only for a sensor with a dark-current DSNU, at F = 4")
+    parser.add_argument("--temperatures", metavar="C", type=float, nargs="+",
+                        help="also measure the dark current at these sensor temperatures (°C, at least two): the slope "
+                             "of the dark mean against the exposure time at each, and the doubling temperature "
+                             "through them (EMVA 1288's μ_I,ref · 2^((ϑ − ϑ_ref)/T_d))")
     parser.add_argument("--out", metavar="DIR", type=Path, help="output folder (default outputs/emva)")
     parser.add_argument("--size", metavar="N", type=ROI_SIDE_PX, default=256,
                         help="side of the square region of interest in pixels, 16 to 4096 (default 256)")
@@ -55,7 +59,8 @@ def run(args) -> int:
     from camsim.emva import run as measure
     from camsim.sensor.presets import camera_preset, sensor_preset
 
-    setup = EmvaSetup(size=args.size, seed=args.seed, dsnu_exposure_factor=args.dsnu_exposure_factor)
+    setup = EmvaSetup(size=args.size, seed=args.seed, dsnu_exposure_factor=args.dsnu_exposure_factor,
+                      temperatures=tuple(args.temperatures or ()))
     name, sensor = args.preset, None
     if name is not None:
         name = preset_argument(name)

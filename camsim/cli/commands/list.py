@@ -27,8 +27,11 @@ def run(args) -> int:
     print("presets:", ", ".join(PRESETS))
     from camsim.sensor.presets import CAMERA_PRESETS
 
-    print("camera presets (--preset NAME --iso N; figures in DN of the raw, converted to electrons):")
+    print("camera presets (--preset NAME --iso N; figures in DN of the raw, converted to electrons; then what each "
+          "source publishes for the sensor effects of low-light raws):")
     for camera in CAMERA_PRESETS.values():
         print("  " + camera.describe())
+        for line in camera.describe_effects(compact=True):
+            print("    " + line)
     print("sampling methods:", ", ".join(METHOD_NAMES))
     return 0

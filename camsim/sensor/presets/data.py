@@ -13,7 +13,7 @@ import dataclasses
 
 import math
 
-from camsim.sensor.presets.model import CameraPreset, IsoPoint, NoiseFit
+from camsim.sensor.presets.model import NOT_PUBLISHED, CameraPreset, IsoPoint, NoiseFit
 
 ELD = ("Wei et al., \"A Physics-based Noise Formation Model for Extreme Low-light Raw Denoising\", CVPR 2020; "
        "github.com/Vandermode/ELD camera_params/release/{file}_params.npy (Profile-1)")
@@ -31,6 +31,30 @@ ELD_ISO_NOTE = ("ISO axis: ELD gives K over [K_min, K_max] only; its ranges span
                 "calibrated ISO step, lowest first) are spread evenly in log ISO over the range")
 WELL_NOTE = "full well: not published; the charge that fills the raw at ISO 100, (white − black) / K"
 NO_DARK_NOTE = "dark current: not published (ELD's model folds it into the read noise); 0 e⁻/s"
+
+# What each source publishes for the sensor effects of real low-light raws (issue 28; CameraPreset.published_effects). A
+# figure stated here is the preset's sensor parameter; where a source gives none, the effect stays off.
+NO_TEMPERATURE = (f"{NOT_PUBLISHED}: no temperature for the figures and no doubling temperature; "
+                  "dark_current_reference_c and dark_current_doubling_c keep camsim's defaults")
+NO_DEFECTS = f"{NOT_PUBLISHED}: hot_pixel_fraction, dead_pixel_fraction and stuck_pixel_fraction 0"
+NO_SHADING = f"{NOT_PUBLISHED}: dark_shading_e and column_fpn_e 0, no dark_shading_map"
+NO_BLACK_ERROR = f"{NOT_PUBLISHED}: black_level_error_dn 0"
+ELD_COLOUR_BIAS = (f"{NOT_PUBLISHED}: ELD fits a per-ISO colour bias (a per-channel black-level error), but its "
+                   "colour-bias tables are not in camsim's copy of ELD's figures; black_level_error_dn 0")
+LED_COLOUR_BIAS = (f"{NOT_PUBLISHED}: LED's noise_g_SonyA7M4.yaml lists a ColorBias table (per calibrated ISO "
+                   "step, four channel values in DN), a per-ISO mean offset rather than the σ of a per-frame draw, "
+                   "and camsim's copy of LED's figures leaves it out; black_level_error_dn 0")
+PMN_DARK_SHADING = ("published as files, not as numbers: PMN's repository holds the A7S2's dark shading as per-pixel "
+                    "maps (resources/SonyA7S2/darkshading_{lowISO,highISO}_{k,b}, the map k · ISO + b + BLE(ISO), "
+                    "the low-ISO maps for ISO ≤ 1600; data_process/real_datasets.py, get_darkshading); camsim ships "
+                    "no map: dark_shading_e and column_fpn_e 0 (a map in e⁻ of the frame's shape, e.g. from "
+                    "camsim calibrate, can be named with dark_shading_map)")
+PMN_BLE = (f"{NOT_PUBLISHED} as a σ: PMN's per-ISO black-level error BLE(ISO) is a file (resources/SonyA7S2/"
+           "darkshading_BLE.pkl), a per-ISO mean offset that PMN adds to its dark shading, not the σ of a per-frame "
+           "draw; black_level_error_dn 0")
+ELD_EFFECTS = {"temperature": NO_TEMPERATURE, "dark_current": f"{NOT_PUBLISHED} (ELD's model folds the dark "
+               "current into the read noise): 0 e⁻/s, DSNU 0", "defects": NO_DEFECTS,
+               "black_level_error": ELD_COLOUR_BIAS, "dark_shading": NO_SHADING}
 
 
 def _levels_note(black: int, bits: int, published: bool) -> str:
@@ -121,7 +145,8 @@ def _eld_preset(name: str, camera: str, source: str, black: int, shapes: tuple, 
     notes = (ELD_ISO_NOTE.format(n=n), _levels_note(black, 14, black_published), WELL_NOTE, NO_DARK_NOTE,
              CURVES_NOTE)
     return CameraPreset(name=name, title=title or camera, source=source, iso_points=tuple(points), bits=14, pedestal_dn=black,
-                        fits=fits, k_range_dn_per_e=(k_min, k_max), tukey_shapes=tuple(shapes), notes=notes)
+                        fits=fits, k_range_dn_per_e=(k_min, k_max), tukey_shapes=tuple(shapes), notes=notes,
+                        published_effects=ELD_EFFECTS)
 
 
 def _a7s2_pmn() -> CameraPreset:
@@ -134,9 +159,11 @@ def _a7s2_pmn() -> CameraPreset:
              "DN between ISO 1600 and 2000), an ISO between 1600 and 2000 is the low-gain mode extended",
              _levels_note(512, 14, True), WELL_NOTE, NO_DARK_NOTE, CURVES_NOTE,
              "virtual cameras draw from ELD's A7S2 fits (sony-a7s2-eld)")
+    effects = {"temperature": NO_TEMPERATURE, "dark_current": f"{NOT_PUBLISHED}: 0 e⁻/s, DSNU 0",
+               "defects": NO_DEFECTS, "black_level_error": PMN_BLE, "dark_shading": PMN_DARK_SHADING}
     return CameraPreset(name="sony-a7s2", title="Sony A7S2 (ILCE-7SM2)", source=PMN, iso_points=points, bits=14,
                         pedestal_dn=512, dual_gain_iso=2000.0, fits=_fits("Sony A7S2"), k_range_dn_per_e=(k_min, k_max),
-                        tukey_shapes=ELD_TUKEY_SHAPES["Sony A7S2"], notes=notes)
+                        tukey_shapes=ELD_TUKEY_SHAPES["Sony A7S2"], notes=notes, published_effects=effects)
 
 
 def _a7m4() -> CameraPreset:
@@ -151,7 +178,8 @@ def _a7m4() -> CameraPreset:
              _levels_note(512, 14, False), WELL_NOTE, NO_DARK_NOTE, CURVES_NOTE)
     return CameraPreset(name="sony-a7m4", title="Sony A7M4 (ILCE-7M4)", source=LED, iso_points=points, bits=14,
                         pedestal_dn=512, fits=fits, k_range_dn_per_e=(k_min, k_max),
-                        tukey_shapes=(-0.28, -0.10), notes=notes)
+                        tukey_shapes=(-0.28, -0.10), notes=notes,
+                        published_effects={**ELD_EFFECTS, "black_level_error": LED_COLOUR_BIAS})
 
 
 def _datasheet_point(k: float, read_e: float, iso: float = 100.0, prnu_percent: float = 0.0) -> IsoPoint:
@@ -180,17 +208,37 @@ def _imx363() -> CameraPreset:
              "ISO 55); the range ISO 55–3520 (64× analog gain) is camsim's choice, read noise 5 e⁻ at every ISO",
              "read noise Gaussian (ISETCam's model); black 64 DN and white 1023 DN published", CURVES_NOTE,
              "CFA: RGGB (nominal)")
+    effects = {"temperature": NO_TEMPERATURE,
+               "dark_current": f"DSNU 0 e⁻ (ISETCam's model sets none); dark current {NOT_PUBLISHED}: 0 e⁻/s",
+               "defects": NO_DEFECTS, "black_level_error": NO_BLACK_ERROR, "dark_shading": NO_SHADING}
     return CameraPreset(name="sony-imx363", title="Sony IMX363 (Google Pixel 4a), ISETCam model",
                         source="ISETCam sensor/models/sensorIMX363.m (MIT licence)", iso_points=points, bits=10,
                         pedestal_dn=64, full_well_e=6000.0, conversion_gain_v_per_e=conversion,
-                        read_noise_model="gaussian", notes=notes, raw_models=(("Google", "Pixel 4a"),))
+                        read_noise_model="gaussian", notes=notes, raw_models=(("Google", "Pixel 4a"),),
+                        published_effects=effects)
 
 
 def _single(name: str, title: str, source: str, bits: int, k: float, full_well: float, read_e: float,
-            notes: tuple, dark: float = 0.0) -> CameraPreset:
+            notes: tuple, dark: float = 0.0, dark_reference_c: float | None = None) -> CameraPreset:
+    """A one-setting datasheet preset (EMVA 1288 figures). ``dark``: the published dark current (e⁻/s; 0 where
+    none), measured at ``dark_reference_c`` (°C; None where the source gives no temperature)."""
+    if dark > 0:
+        at = "" if dark_reference_c is None else f" at {dark_reference_c:g} °C"
+        dark_text = f"dark current {dark:g} e⁻/s{at} as published; DSNU {NOT_PUBLISHED}: 0"
+    else:
+        dark_text = f"{NOT_PUBLISHED} (the quoted EMVA 1288 figures give no dark current and no DSNU): 0 e⁻/s, DSNU 0"
+    if dark_reference_c is None:
+        temperature = NO_TEMPERATURE
+    else:
+        temperature = (f"the dark current's temperature, {dark_reference_c:g} °C, is published: "
+                       f"dark_current_reference_c = {dark_reference_c:g} °C; no doubling temperature published "
+                       "(camsim's default dark_current_doubling_c)")
+    effects = {"temperature": temperature, "dark_current": dark_text, "defects": NO_DEFECTS,
+               "black_level_error": NO_BLACK_ERROR, "dark_shading": NO_SHADING}
     return CameraPreset(name=name, title=title, source=source, iso_points=(_datasheet_point(k, read_e),), bits=bits,
                         pedestal_dn=0, cfa=None, full_well_e=full_well, dark_current_e_per_s=dark,
-                        read_noise_model="gaussian",
+                        dark_current_reference_c=dark_reference_c, read_noise_model="gaussian",
+                        published_effects=effects,
                         notes=notes + ("one published setting, called ISO 100; no black offset published: 0 DN "
                                        "(set pedestal_dn to add one)", "monochrome: modelled with R, G and B at every "
                                        "pixel (use one channel)", CURVES_NOTE))
@@ -229,7 +277,10 @@ def build_presets() -> dict:
                        "filling the ADC (K = 4095 / 5903 DN/e⁻) is camsim's choice",)),
         _single("kodak-kaf3200me", "QSI 532 (Kodak KAF-3200ME CCD), measured",
                 "measured by Christian Buil, astrosurf.com/buil/cameras (QSI 532)", 16, 1 / 1.413, 70000.0, 12.6,
-                ("well 70 000 e⁻, read noise 12.6 e⁻, 1.413 e⁻/DN, dark current 0.080 e⁻/s at 0 °C: measured",),
-                dark=0.080),
+                ("well 70 000 e⁻, read noise 12.6 e⁻, 1.413 e⁻/DN, dark current 0.080 e⁻/s at 0 °C: measured (so "
+                 "dark_current_reference_c = 0 °C: at temperature_c = T the dark current is "
+                 "0.080 · 2^(T / dark_current_doubling_c) e⁻/s)",),
+                dark=0.080, dark_reference_c=0.0),
     ]
-    return {p.name: p for p in presets}
+    # every preset's notes end with what its source publishes for each sensor effect (CameraPreset.published_effects)
+    return {p.name: dataclasses.replace(p, notes=p.notes + tuple(p.describe_effects())) for p in presets}

@@ -110,8 +110,21 @@ class NoiseFit:
         return np.exp(self.slope * np.log(k_dn_per_e) + self.bias)
 
 
+#: The sensor effects of real low-light raws (issue 28) for which every built-in preset says what its source
+#: publishes: key → the effect in words (:attr:`CameraPreset.published_effects`).
+EFFECTS = {
+    "temperature": "temperature",
+    "dark_current": "dark current and DSNU",
+    "defects": "hot, dead and stuck pixels",
+    "black_level_error": "black-level error (colour bias)",
+    "dark_shading": "dark shading and column FPN",
+}
+#: What a preset says of an effect its source gives no figure for.
+NOT_PUBLISHED = "not published in camsim's sources"
+
 #: The fields of a camera preset that are sensor parameters of the same name, checked by the sensor's schema.
-_SENSOR_FIELDS = ("bits", "pedestal_dn", "full_well_e", "conversion_gain_v_per_e", "dark_current_e_per_s")
+_SENSOR_FIELDS = ("bits", "pedestal_dn", "full_well_e", "conversion_gain_v_per_e", "dark_current_e_per_s",
+                  "dark_current_reference_c")
 _SENSOR = {p.name: p for p in SENSOR_PARAMS}
 
 
@@ -142,6 +155,9 @@ class CameraPreset:
         G_Ve⁻: ISO changes the analog gain K / G_Ve⁻ only. Unit: V/e⁻.
     dark_current_e_per_s : float
         Mean dark current. Unit: e⁻/s.
+    dark_current_reference_c : float or None
+        The temperature at which the source measured ``dark_current_e_per_s`` (None: the source states none; the
+        sensor's default ``dark_current_reference_c`` holds). Unit: °C.
     read_noise_model : str
         The read-noise law used unless the scene or the command line asks for the other.
     dual_gain_iso : float or None
@@ -158,6 +174,10 @@ class CameraPreset:
     raw_models : tuple of (str, str)
         (Make, Model) as the camera writes them into its raw files, where they differ from :meth:`identity`'s
         (a ``[raw]`` scene's file is matched against both: :meth:`matches`).
+    published_effects : dict
+        What the source publishes for each sensor effect of real low-light raws, :data:`EFFECTS`' key → a
+        statement in words (the figure and where it is, or :data:`NOT_PUBLISHED`); the figures it states are the
+        preset's sensor parameters. Empty for a preset file (``camsim calibrate`` measures them).
     """
 
     name: str
@@ -170,6 +190,7 @@ class CameraPreset:
     full_well_e: float | None = None
     conversion_gain_v_per_e: float | None = None
     dark_current_e_per_s: float = 0.0
+    dark_current_reference_c: float | None = None
     read_noise_model: str = "tukey-lambda"
     dual_gain_iso: float | None = None
     fits: dict | None = None
@@ -177,6 +198,7 @@ class CameraPreset:
     tukey_shapes: tuple = ()
     notes: tuple = ()
     raw_models: tuple = ()
+    published_effects: dict = dataclasses.field(default_factory=dict)
 
     def __post_init__(self):
         if not self.iso_points:
@@ -189,6 +211,10 @@ class CameraPreset:
         for name in _SENSOR_FIELDS:  # the sensor's own ranges (the schema): a zero conversion gain, a 99-bit ADC …
             if getattr(self, name) is not None:
                 _SENSOR[name].coerce(getattr(self, name), f"camera preset {self.name!r}")
+        unknown = set(self.published_effects) - set(EFFECTS)
+        if unknown:
+            raise CamsimError(f"camera preset {self.name!r}: unknown effect(s) {', '.join(sorted(unknown))}; "
+                              f"effects: {', '.join(EFFECTS)}")
         if self.dual_gain_iso is not None and not (math.isfinite(self.dual_gain_iso) and self.dual_gain_iso > 0):
             raise CamsimError(f"camera preset {self.name!r}: dual_gain_iso must be positive, got {self.dual_gain_iso!r}")
         if self.full_well_e is None:  # the charge that fills the raw at the default ISO: K · FW = white − black
@@ -286,6 +312,8 @@ class CameraPreset:
             conversion_gain_v_per_e=self.conversion_gain_v_per_e,
             analog_gain_dn_per_v=k / self.conversion_gain_v_per_e,
             dark_current_e_per_s=(self.dark_current_e_per_s,) * 3,
+            **({} if self.dark_current_reference_c is None
+               else {"dark_current_reference_c": self.dark_current_reference_c}),
             read_noise_e=p.read_sigma_dn(model) / k,
             read_noise_model=model,
             tukey_lambda=p.tukey_lambda,
@@ -304,6 +332,18 @@ class CameraPreset:
             axis = f"one setting (ISO {lo:g}), K {k_lo:.4g} DN/e⁻"
         return (f"{self.name}: {self.title}; {axis}, {self.bits}-bit, black {self.pedestal_dn} DN; "
                 f"source: {self.source}")
+
+
+    def describe_effects(self, compact: bool = False) -> list:
+        """Per sensor effect (:data:`EFFECTS`), what the source publishes, a line each (the preset's notes end with
+        them). ``compact`` (``camsim list``): the effects with a figure or a file, a line each, then one line naming
+        those :data:`NOT_PUBLISHED` (the notes say more)."""
+        if not compact:
+            return [f"{EFFECTS[key]}: {text}" for key, text in self.published_effects.items()]
+        effects = self.published_effects.items()
+        lines = [f"{EFFECTS[key]}: {text}" for key, text in effects if not text.startswith(NOT_PUBLISHED)]
+        missing = [EFFECTS[key] for key, text in effects if text.startswith(NOT_PUBLISHED)]
+        return lines + ([f"{NOT_PUBLISHED}: {'; '.join(missing)}"] if missing else [])
 
 
 def camera_identity_of_title(title: str) -> dict:
