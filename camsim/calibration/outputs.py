@@ -52,13 +52,6 @@ def _string(text: str) -> str:
     return json.dumps(str(text), ensure_ascii=False)
 
 
-#: The dark current a preset that names a hot-pixel map states (e⁻/s), not measured: camsim's hot pixels join the
-#: dark current's per-pixel factor, which needs a dark current > 0 (:mod:`camsim.sensor.fixed_pattern`); one
-#: exposure of darks cannot tell the dark current from the black level, so the preset states this token, whose mean
-#: charge (10⁻⁶ e⁻ per second) changes no DN.
-TOKEN_DARK_CURRENT_E_PER_S = 1e-6
-
-
 #: The dark-shading map is named where its pattern's variance lies more than this many standard errors above 0.
 MAP_MIN_Z = 5.0
 
@@ -133,9 +126,6 @@ def preset_toml(cal: Calibration, maps: bool = True) -> str:
         for key, (value, comment) in values.items():
             text = _string(value) if isinstance(value, str) else _number(value)
             effects.append(f"{key} = {text}   # {comment}")
-        if "hot_pixel_map" in values:
-            lines.append(f"dark_current_e_per_s = {_number(TOKEN_DARK_CURRENT_E_PER_S)}   # not measured: a token > 0, "
-                         "which camsim's hot pixels need (they scale the dark current's per-pixel factor)")
     lines += [
         f"read_noise_model = {_string(cal.read_noise_model)}   # \"gaussian\" when λ is within "
         f"{GAUSSIAN_LAMBDA_TOLERANCE} of {GAUSSIAN_LAMBDA}",

@@ -36,7 +36,7 @@ Issue 28's fixed patterns, each from its own child of the sensor's fixed-pattern
   temperature; ``hot_pixel_map`` (e⁻/s per pixel) adds a measured one. It joins the dark-current DSNU factor: d' = d +
   h / σ²_dark,κ (σ²_dark,κ the channel's dark current at the reference temperature), so the pixel collects
   Poisson(σ²_dark T d + h T) scaled by the temperature's factor like every dark electron — one implementation of the
-  dark charge (a channel whose ``dark_current_e_per_s`` is 0 takes ``HOT_PIXEL_BASE_E_PER_S`` = 0.001 e⁻/s as its
+  dark charge (a channel whose ``dark_current_e_per_s`` is 0 takes ``HOT_PIXEL_BASE_E_PER_S`` = 10⁻¹² e⁻/s as its
   ordinary rate: :attr:`SensorParams.dark_current_base_e_per_s`). A **dead** pixel has a PRNU gain 0
   and a dark factor 0: it collects nothing, yet is read out (its offsets, read and row noise, the ADC's pedestal): it
   reads black. A **stuck** pixel reads a fixed level, uniform on the integers 0 … 2^nb − 1 DN, in every frame, without

@@ -20,9 +20,9 @@ from camsim.core.schema import param, params_of, record, validate
 READ_NOISE_MODELS = ("gaussian", "tukey-lambda")
 #: The least dark current of the ordinary pixels where hot pixels are on
 #: (:attr:`SensorParams.dark_current_base_e_per_s`): a channel whose ``dark_current_e_per_s`` is 0 takes this (one
-#: electron per 1000 pixel-seconds: nothing a frame shows), so that the hot pixels' factor on it has something to
-#: scale. Unit: e⁻/s.
-HOT_PIXEL_BASE_E_PER_S = 1e-3
+#: electron per 10¹² pixel-seconds: one in 40 000 frames of 24 MP at 1 s), so that the hot pixels' factor on it has
+#: something to scale (a float32 factor holds h / 10⁻¹² for any h up to 10²⁶ e⁻/s). Unit: e⁻/s.
+HOT_PIXEL_BASE_E_PER_S = 1e-12
 
 
 def _layout_record(sensor) -> dict:
