@@ -345,3 +345,47 @@ def test_an_absurd_temperature_is_refused_in_one_line():
     assert "\n" not in str(info.value)
     with pytest.raises(CamsimError, match="temperature_c"):
         SensorParams(temperature_c=-300.0)
+
+
+def _header_only_npy(path, shape):
+    from numpy.lib import format as npy_format
+
+    with open(path, "wb") as file:
+        npy_format.write_array_header_1_0(file, {"descr": "<f4", "fortran_order": False, "shape": shape})
+        file.write(bytes(64))
+    return path
+
+
+@pytest.mark.parametrize("case", ["text", "huge", "short", "pickle"])
+def test_hostile_map_files_are_one_line_refusals_before_their_data_is_read(tmp_path, capsys, case):
+    """A map file is input: a file that is not a .npy, a header claiming 10¹⁰ values or more data than the file
+    holds, an object array — each one line, exit 2, nothing written (the header is checked before any data is read)."""
+    from camsim.cli import main
+
+    path = tmp_path / "map.npy"
+    if case == "text":
+        path.write_text("root:x:0:0:root:/root:/bin/bash\n")
+    elif case == "huge":
+        _header_only_npy(path, (100_000, 100_000))
+    elif case == "short":
+        _header_only_npy(path, (64, 96))
+    else:
+        np.save(path, np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    out = tmp_path / "out"
+    rc = main(["render", "macbeth_26", "--size", "96x64", "--illuminant", "D65", "-F", "1", "--out", str(out), "-q",
+               "--sensor", f"dark_shading_map={path}"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and err[0].startswith("camsim: error: "), err
+    words = {"text": "not a .npy file", "huge": "more than a frame", "short": "the file holds",
+             "pickle": "must hold a real number array"}[case]
+    assert words in err[0] and "pickle" not in err[0], err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_a_black_level_error_beyond_a_frames_range_is_named(capsys):
+    from camsim.cli import main
+
+    rc = main(["render", "macbeth_26", "--size", "96x64", "--illuminant", "D65", "-F", "1", "-q",
+               "--sensor", "black_level_error_dn=1e300", "--out", "/nonexistent-never-written"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "black-level error" in err and err.count("\n") == 1

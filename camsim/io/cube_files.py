@@ -40,9 +40,7 @@ Values must be finite and non-negative (checked block by block when the cube is 
 
 from __future__ import annotations
 
-import math
 import mmap
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -253,29 +251,12 @@ def read_npy(path: Path, *, variable: str | None = None) -> _Stored:
 
 def _check_npy_header(path: Path) -> None:
     """Check the (H, W) of a ``.npy`` file's header against :data:`camsim.core.pixel_limit.MAX_PIXELS` before the file is
-    mapped (a header may claim any shape); other problems are left to ``np.load``, which reports them."""
-    from numpy.lib import format as npy_format
+    mapped (a header may claim any shape: :func:`camsim.core.npy_header.npy_header`); other problems are left to
+    ``np.load``, which reports them."""
+    from camsim.core.npy_header import npy_header
 
-    try:
-        with open(path, "rb") as file:
-            version = npy_format.read_magic(file)
-            read = {(1, 0): npy_format.read_array_header_1_0, (2, 0): npy_format.read_array_header_2_0}.get(version)
-            if read is None:
-                return
-            shape, _, dtype = read(file)
-            data_bytes = os.fstat(file.fileno()).st_size - file.tell()
-    except (OSError, EOFError):
-        return  # np.load says what is wrong
-    except Exception as exc:  # numpy's header parser raises ValueError, SyntaxError or tokenize.TokenError
-        raise CamsimError(f"cannot read cube file {path}: its .npy header is malformed ({type(exc).__name__})") \
-            from None
-    if any(not isinstance(n, int) or n < 1 for n in shape):  # a negative length would reach mmap
-        raise CamsimError(f"cannot read cube file {path}: its header's shape {tuple(shape)} has a dimension below 1")
-    if len(shape) == 3:
-        _check_size(shape[1], shape[0], path)
-    if math.prod(shape) * dtype.itemsize > data_bytes:  # Python integers: no overflow
-        raise CamsimError(f"cannot read cube file {path}: its header's shape {tuple(shape)} of {dtype} needs "
-                          f"{math.prod(shape) * dtype.itemsize} bytes, the file holds {data_bytes}")
+    npy_header(path, "cube file",
+               check_shape=lambda shape: _check_size(shape[1], shape[0], path) if len(shape) == 3 else None)
 
 
 def _check_size(width, height, path: Path) -> None:

@@ -190,6 +190,8 @@ def check_frame_values(expected: ExpectedSignal, sensor: SensorParams, maps: Fix
         return
     limit = (f"beyond {FRAME_VALUE_MAX:.0e}, the largest value a frame holds (its pixels are float32, which end at "
              f"{float(np.finfo(np.float32).max):.2g})")
+    if 10 * sensor.black_level_error_dn > FRAME_VALUE_MAX / 2:
+        raise CamsimError(f"the black-level error (ten σ: {10 * sensor.black_level_error_dn:.3g} DN) is {limit}")
     if sensor.saturation and sensor.full_well_e >= readout:
         raise CamsimError(f"the full well of {sensor.full_well_e:.3g} e⁻ is {k * sensor.full_well_e:.3g} DN, {limit}")
     if sensor.saturation or float(np.max(mean)) < peak_e / 2:

@@ -186,6 +186,18 @@ def column_fpn_pattern(sensor_seed: int, planes: int, width: int) -> np.ndarray:
 
 @lru_cache(maxsize=8)
 def _load_map(path: str, mtime_ns: int, what: str) -> np.ndarray:
+    from camsim.core.npy_header import npy_header
+    from camsim.core.pixel_limit import MAX_PIXELS
+
+    def check_shape(shape):  # before the data is read: a header may claim any shape
+        if math.prod(shape) > 3 * MAX_PIXELS:
+            raise CamsimError(f"{what} {path} holds {math.prod(shape)} values, more than a frame of {MAX_PIXELS} "
+                              "pixels (three planes) has")
+
+    header = npy_header(path, what, check_shape)
+    if header is not None and (header[1].hasobject or not np.issubdtype(header[1], np.number)
+                               or np.issubdtype(header[1], np.complexfloating)):
+        raise CamsimError(f"{what} {path} must hold a real number array, its header says {header[1]}")
     try:
         array = np.load(path, allow_pickle=False)
     except (OSError, ValueError) as exc:
