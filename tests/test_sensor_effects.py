@@ -389,3 +389,20 @@ def test_a_black_level_error_beyond_a_frames_range_is_named(capsys):
                "--sensor", "black_level_error_dn=1e300", "--out", "/nonexistent-never-written"])
     err = capsys.readouterr().err
     assert rc == 2 and "black-level error" in err and err.count("\n") == 1
+
+
+def test_frames_drawn_one_after_another_from_one_generator_get_their_own_black_level_errors():
+    """A caller that draws frames from one numpy Generator (or SeedSequence) gets a new black-level error per frame,
+    as it gets new noise; a fresh seed gives the same error again."""
+    from camsim.render.frame import black_level_error
+    from camsim.core.seeding import block_generators
+
+    sensor = SensorParams(black_level_error_dn=2.0)
+    for make in (lambda: np.random.default_rng(5), lambda: np.random.SeedSequence(5)):
+        rng = make()
+        errors = []
+        for _ in range(3):
+            errors.append(black_level_error(sensor, rng))
+            block_generators(rng, 4)  # what drawing the frame's blocks does to rng
+        assert len({tuple(e) for e in errors}) == 3
+        np.testing.assert_array_equal(black_level_error(sensor, make()), errors[0])

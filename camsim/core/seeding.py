@@ -17,8 +17,9 @@ a sensor's fixed pattern    ``SeedSequence(sensor_seed, spawn_key=(0x46504E,))``
   (issue 28's maps)         children 3 (defect population), 4 (hot pixels' dark         :func:`fixed_pattern_generator`
                             current), 5 (stuck levels), 6 (dark shading), 7 (column
                             FPN)
-a frame's black-level       the frame's sequence extended by the word ``0xB1AC0``         :func:`frame_effect_generator`
-  error                     (its blocks are children 0, 1, … of the frame's sequence)
+a frame's black-level       the frame's sequence extended by the word ``0xB1AC0`` and     :func:`frame_effect_generator`
+  error                     the number of children it has spawned (its blocks are
+                            children 0, 1, … of the frame's sequence)
 a dataset frame's seed      ``SeedSequence(spec seed, spawn_key=sha256(id)[:16] as 4      :func:`dataset_frame_seed`
                             words)``, its first 64-bit word >> 11 (< 2^53)
 a dataset random parameter  ``SeedSequence(spec seed, spawn_key=(0xDA7A5E7, crc32(name)))`` :func:`dataset_parameter_generator`
@@ -103,7 +104,9 @@ def frame_effect_generator(rng) -> np.random.Generator:
     """A generator of a frame's per-frame effects (the black-level error), derived from the frame's seed ``rng``
     (a ``SeedSequence``, an int, or a numpy ``Generator`` seeded from one) without drawing from it or spawning
     it: the frame's other draws (its row blocks, children 0, 1, … of its sequence) stay as they were. Its key is
-    the frame's key extended by :data:`FRAME_EFFECT_KEY`, far above any block index.
+    the frame's key extended by :data:`FRAME_EFFECT_KEY`, far above any block index, and by the number of children
+    the sequence has spawned so far: frames drawn one after another from one generator or sequence (each frame
+    spawns its blocks from it) get effects of their own, as they get blocks of their own.
 
     Raises
     ------
@@ -116,8 +119,8 @@ def frame_effect_generator(rng) -> np.random.Generator:
         rng = np.random.SeedSequence(int(rng))
     if not isinstance(rng, np.random.SeedSequence):
         raise ValueError("a per-frame effect needs the frame's seed (a SeedSequence, an int or a numpy Generator)")
-    sequence = np.random.SeedSequence(rng.entropy, spawn_key=tuple(rng.spawn_key) + (FRAME_EFFECT_KEY,),
-                                      pool_size=rng.pool_size)
+    sequence = np.random.SeedSequence(rng.entropy, pool_size=rng.pool_size,
+                                      spawn_key=tuple(rng.spawn_key) + (FRAME_EFFECT_KEY, rng.n_children_spawned))
     return np.random.Generator(np.random.PCG64(sequence))
 
 
