@@ -60,3 +60,23 @@ def test_a_grid_of_temperatures_orders_the_dark_levels(tmp_path):
     # 14 °C = 2 doubling temperatures apart: each dark signal 2^2 = 4 times the last, within the noise
     assert means[1] / means[0] == pytest.approx(4.0, rel=0.05)
     assert means[2] / means[1] == pytest.approx(4.0, rel=0.02)
+
+
+def test_a_specs_map_file_is_relative_to_the_spec_not_the_working_folder(tmp_path, monkeypatch):
+    """dark_shading_map in a spec names a file beside the spec (as a scene file's or a preset file's maps do): the
+    frame's dark level follows the map whatever the working folder."""
+    folder = tmp_path / "spec"
+    folder.mkdir()
+    shading = np.zeros((48, 64))
+    shading[:, 32:] = 200.0  # e⁻ on the right half: 80 DN at 0.4 DN/e⁻
+    np.save(folder / "shading.npy", shading)
+    text = SPEC.replace("[random]\ncount = 5\ntemperature_c = { uniform = [5.0, 45.0] }\n",
+                        "dark_shading_map = \"shading.npy\"\n")
+    spec = write_text_file(folder, "map.toml", text)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    (frame_spec,) = list(plan_spec(spec).frames())
+    dn = render_frame(frame_spec)[0].digital_dn.astype(np.float64)
+    step = dn[:, :, 32:].mean() - dn[:, :, :32].mean()
+    assert abs(step - 80.0) < 2.0, step

@@ -100,6 +100,7 @@ from camsim.dataset.spec import (
     _virtual_cameras,
     FileCrop,
     folder_table,
+    frame_sensor_overrides,
 )
 from camsim.io.dng import MAX_EXPOSURE_S, MIN_SIZE
 from camsim.sensor.params import SENSOR_PARAMS, with_checked_values
@@ -425,7 +426,7 @@ def _resolve_raw(params: dict, file: _RawFile, job: _RawJob) -> tuple[FrameGroup
         iso = None  # a virtual camera's own point; a model preset has no ISO axis
     else:
         iso = file.source_iso
-    overrides = {p.name: params[p.name] for p in SENSOR_PARAMS if p.name in params}
+    overrides = frame_sensor_overrides(params, job.base)
     overrides["cfa"] = file.cfa
     ratio = params.get("ratio")
     if ratio is not None:

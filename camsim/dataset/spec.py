@@ -96,7 +96,7 @@ from camsim.core.names import safe_component
 from camsim.core.schema import INT64_MAX, Param, check_frame_size
 from camsim.scene.scene_file import FRAME_PARAMS, RENDER_PARAMS, Scene, check_intensity_factor, load_scene, read_toml
 from camsim.core.seeding import dataset_frame_seeds, dataset_parameter_generator
-from camsim.sensor.params import SENSOR_PARAMS, with_checked_values
+from camsim.sensor.params import MAP_FILE_PARAMS, SENSOR_PARAMS, with_checked_values
 from camsim.scene.sources.image import ImageSource
 from camsim.sensor.presets.virtual import VIRTUAL_KEYS
 from camsim.sensor.raw_laws import PHOTON_LAWS
@@ -1047,6 +1047,16 @@ class _FrameCheck:
             self.last = (own, factor)
 
 
+def frame_sensor_overrides(params: dict, base: Path) -> dict:
+    """The sensor parameters a frame's ``params`` set, map files (``dark_shading_map``, ``hot_pixel_map``) taken
+    relative to the spec's folder ``base``, as a scene file's are to it."""
+    overrides = {p.name: params[p.name] for p in SENSOR_PARAMS if p.name in params}
+    for key in MAP_FILE_PARAMS:
+        if overrides.get(key) is not None:
+            overrides[key] = str((base / Path(overrides[key]).expanduser()).resolve())
+    return overrides
+
+
 def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> tuple[FrameGroup, _FrameCheck]:
     """Resolve and validate the scene and sensor of a frame with ``params``: its group's, and the check of the
     group's frames."""
@@ -1062,7 +1072,7 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> tupl
         changes["preset_name"] = str((job.base / camera).resolve()) if camera.lower().endswith(".toml") else camera
     if params.get("iso") is not None:
         changes["iso"] = params["iso"]
-    overrides = {p.name: params[p.name] for p in SENSOR_PARAMS if p.name in params}
+    overrides = frame_sensor_overrides(params, job.base)
     scene = entry.scene
     frame_scene = scene.replace(intensity_factors=(params["intensity_factor"],), **changes)
     if overrides:
