@@ -119,6 +119,8 @@ def find_sequences(paths, source: str = "dng", warn=None) -> list[Sequence]:
     paths : iterable of Path
         Frame files (already found and checked, e.g. those ``camsim analyze`` measured).
     source : {'dng', 'exr'}
+        Unused: each file is measured as what it is (a frame's DNG and its EXR, both named, hold the same noise
+        and are never one sequence).
     warn : callable, optional
         Called with one line per frame left out: a second frame of the same seed (not independent), a sequence
         that moves.
@@ -134,7 +136,7 @@ def find_sequences(paths, source: str = "dng", warn=None) -> list[Sequence]:
             meta = read_frame_meta(path)
         except CamsimError:
             continue  # told by the frame analysis
-        key = sequence_key(meta, source)
+        key = sequence_key(meta, path.suffix.lower().lstrip("."))  # a DNG and an EXR are never one sequence
         groups.setdefault(key, Sequence(key)).paths.append(path)
         groups[key].metas.append(meta)
     sequences = []
