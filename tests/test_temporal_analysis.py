@@ -123,6 +123,19 @@ def test_temporal_and_spatial_variances_match_the_closed_forms(pattern_sequence)
         assert abs(_f(row, "spatial_var_dn2") - spatial_c) < 4 * _f(row, "spatial_var_se_dn2"), row
 
 
+def test_bayer_sites_of_one_colour(tmp_path):
+    """A Bayer sequence: each channel is its own sites (G: half the pixels), with the same closed forms."""
+    _render(_scene(tmp_path, cfa="RGGB", dsnu_e=DSNU_E, prnu_percent=100 * PRNU), tmp_path / "frames", range(N))
+    rows = _analyze(tmp_path / "frames", tmp_path / "analysis")
+    g = _row(rows, "frame", "G")
+    assert int(g["n_pixels"]) == 64 * 48 // 2 and int(_row(rows, "frame", "R")["n_pixels"]) == 64 * 48 // 4
+    temporal = K**2 * (S_G + D_G + READ_E**2 + ROW_E**2) + 1 / 12
+    spatial = K**2 * (DSNU_E**2 + (S_G * PRNU) ** 2)
+    assert abs(_f(g, "temporal_var_dn2") - temporal) < 4 * _f(g, "temporal_var_se_dn2"), g
+    assert abs(_f(g, "spatial_var_dn2") - spatial) < 4 * _f(g, "spatial_var_se_dn2"), g
+    assert abs(_f(g, "spatial_var_dn2") - _f(g, "spatial_clean_dn2")) < 3 * _f(g, "spatial_var_se_dn2"), g
+
+
 def test_spatial_variance_is_this_sensors_clean_pattern(pattern_sequence):
     """Against the realised pattern (the clean layer's variance) the spatial estimate is closer still."""
     _, rows = pattern_sequence

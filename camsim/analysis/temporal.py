@@ -355,7 +355,7 @@ def analyse_sequence(sequence: Sequence, border_px: int = 3, progress=None) -> l
     for index, name, rect, border, patch in regions:
         for c, channel in enumerate(CHANNELS):
             means = region_planes(stack.mean_dn, rect, border, pattern, c)
-            if not means:
+            if sum(b.size for b in means) < 2:  # no spread over fewer than two pixels
                 continue
             record = temporal_spatial(means, region_planes(stack.var_dn2, rect, border, pattern, c),
                                       stack.n_frames)
