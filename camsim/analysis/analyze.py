@@ -422,11 +422,14 @@ def frame_table(results) -> str:
     return "\n".join(lines)
 
 
-def write_outputs(results, settings, out_dir: Path, skipped=(), uncommitted=(), figures: bool = False):
+def write_outputs(results, settings, out_dir: Path, skipped=(), uncommitted=(), figures: bool = False,
+                  temporal=()):
     """Write ``out_dir/analysis.csv`` (per frame × patch × channel), ``out_dir/frame_statistics.csv`` (per frame ×
     channel, :func:`camsim.analysis.frame_stats.frame_statistics`), ``out_dir/analysis.json`` (:func:`summary`),
     ``out_dir/README.txt`` (every column, SNR, ΔE and the flags explained: :func:`camsim.analysis.columns.guide_text`)
-    and, with ``figures``, the PNG figures (:func:`camsim.experiments.figures.analysis_figures`).
+    and, with ``figures``, the PNG figures (:func:`camsim.experiments.figures.analysis_figures`). With ``temporal``
+    rows (:func:`camsim.analysis.temporal.analyse_sequences`), also ``out_dir/temporal.csv``, their records under
+    ``temporal`` in ``analysis.json`` and their columns in ``README.txt``; without, every file is as before.
 
     Returns
     -------
@@ -441,11 +444,17 @@ def write_outputs(results, settings, out_dir: Path, skipped=(), uncommitted=(), 
     csv_path, json_path = out_dir / CSV_NAME, out_dir / SUMMARY_NAME
     write_text_atomic(csv_path, csv_text(tidy_rows(results)))
     write_text_atomic(out_dir / FRAME_CSV_NAME, csv_text(frame_rows(results), FRAME_COLUMNS + FRAME_STAT_COLUMNS))
-    write_json_atomic(json_path, summary(results, settings, skipped, uncommitted))
+    document = summary(results, settings, skipped, uncommitted)
+    if temporal:
+        from camsim.analysis.temporal import TEMPORAL_COLUMNS, TEMPORAL_CSV_NAME
+
+        write_text_atomic(out_dir / TEMPORAL_CSV_NAME, csv_text(temporal, TEMPORAL_COLUMNS))
+        document["temporal"] = list(temporal)
+    write_json_atomic(json_path, document)
     names = []
     if figures:
         from camsim.experiments.figures import analysis_figures
 
         names = list(analysis_figures(results, out_dir).values())
-    write_text_atomic(out_dir / GUIDE_NAME, guide_text(names))
+    write_text_atomic(out_dir / GUIDE_NAME, guide_text(names, temporal=bool(temporal)))
     return csv_path, json_path, names

@@ -119,13 +119,65 @@ FRAME_STATISTICS_COLUMNS = _FRAME | {
     "residual_var_ratio": "residual_var_dn2 / predicted_var_dn2 (~1 expected)",
 }
 
+#: temporal.csv: one row per sequence × region × channel (:mod:`camsim.analysis.temporal`), written only when the
+#: frames analysed hold a sequence (two or more frames of one static scene and sensor, differing in their noise).
+TEMPORAL_COLUMNS = {
+    "sequence": "the sequence: its folder and its sidecars' sequence stem (else its first frame's stem)",
+    "scene": "scene name (sidecar)",
+    "illuminant": "illuminant name (sidecar)",
+    "intensity_factor": "F, the scene's light relative to the scene file's luminance (unitless)",
+    "sensor_seed": "the sensor's seed: its fixed-pattern maps, shared by the sequence's frames",
+    "n_frames": "N, the frames of the sequence (each its own seed or frame_index)",
+    "first_frame": "path of the sequence's first frame",
+    "source": "dng (the quantised digital numbers) or exr (the values before quantisation)",
+    "region": "patch name, or 'frame' for the whole frame",
+    "region_index": "patch number in the sidecar, from 0 (empty for the whole frame)",
+    "channel": "R, G or B (a Bayer frame: that colour's sites)",
+    "n_pixels": "pixels of this channel in the region (a patch less --border pixels along each edge)",
+    "mean_dn": "mean over the region of the mean image, less the sidecar's black level, DN",
+    "temporal_var_dn2": "EMVA 1288 temporal variance: the mean over the region's pixels of each pixel's unbiased "
+                        "variance over the N frames, DN²",
+    "temporal_var_se_dn2": "standard error of temporal_var_dn2 over rows (row noise makes a row's pixels vary "
+                           "together), DN²",
+    "temporal_model_dn2": "the model's temporal variance from the sidecar: k² (clean / k + σ_read² + σ_row²) "
+                          "(+ 1/12 DN² for a DNG, + black_level_error_dn²) averaged over the region, with the "
+                          "EXR's clean layer, else the patch's signal_e + dark_e; empty under paper statistics or "
+                          "for the whole frame without an EXR, DN²",
+    "temporal_ratio": "temporal_var_dn2 / temporal_model_dn2 (~1 expected)",
+    "mean_image_var_dn2": "s²_ȳ: the variance over the region's pixels of the mean image (ddof = 1), DN²",
+    "spatial_var_dn2": "EMVA 1288 spatial variance: mean_image_var_dn2 − temporal_var_dn2 / N (the temporal "
+                       "noise left in the mean image removed), DN²; the fixed pattern plus, for a region that is "
+                       "not uniform (the whole frame of a chart or an image), the scene's own structure",
+    "spatial_var_se_dn2": "standard error of spatial_var_dn2, pixels of the mean image taken as independent "
+                          "(right for DSNU and PRNU; a column pattern spreads more), DN²",
+    "spatial_model_dn2": "the model's spatial variance, the expectation over sensors: k² (dsnu_e² + column_fpn_e² "
+                         "+ (S̄ prnu_percent/100)² + (D̄ dsnu_dark_current_percent/100)² [+ dark_shading_e² for the "
+                         "whole frame of a flat target]), S̄, D̄ the region's mean signal and dark charge; empty "
+                         "where the region is not uniform, DN²",
+    "spatial_model_terms": "the sidecar keys whose patterns spatial_model_dn2 holds (those set)",
+    "spatial_not_modelled": "the keys set whose patterns it does not hold (hot, dead, stuck pixels, a dark-shading "
+                            "map, dark shading over a patch; scene-not-uniform: no prediction at all)",
+    "spatial_clean_dn2": "this sensor's spatial variance: the variance over the region of the EXR's clean layer "
+                         "(each pixel's expectation, every fixed pattern and the scene's structure in it), DN²",
+    "temporal_e2": "temporal_var_dn2 / k², e⁻²",
+    "spatial_e2": "spatial_var_dn2 / k², e⁻²",
+}
+
+#: What temporal.csv's analysis is, for the companion text.
+TEMPORAL_DEFINITION = (
+    "A sequence is two or more frames whose sidecars agree on the scene, light, camera, exposure and sensor "
+    "(sensor_seed included) and differ in their seed (or frame_index): one static scene, one sensor, independent "
+    "temporal noise. EMVA 1288 Release 4.0 separates its noise: temporal = the pixels' mean variance over the "
+    "frames; spatial = the mean image's variance over the pixels less temporal / N. Row noise is temporal (one "
+    "offset per row and frame): it is in temporal_var_dn2 and its standard error is taken over rows.")
+
 #: Each CSV file's name and its column explanations.
 CSV_COLUMNS = {"analysis.csv": ANALYSIS_COLUMNS, "frame_statistics.csv": FRAME_STATISTICS_COLUMNS}
 
 
-def guide_text(figures=()) -> str:
-    """The companion text of the CSVs (``OUT/README.txt``): SNR, ΔE, the flags, every column of each CSV and
-    the figures written (file names)."""
+def guide_text(figures=(), temporal: bool = False) -> str:
+    """The companion text of the CSVs (``OUT/README.txt``): SNR, ΔE, the flags, every column of each CSV (with
+    ``temporal``, also of ``temporal.csv``) and the figures written (file names)."""
     lines = ["camsim analyze: what the files hold", "",
              "SNR", "  " + SNR_DEFINITION, "",
              "ΔE at low light", "  " + DELTA_E_AT_LOW_LIGHT, "",
@@ -135,6 +187,9 @@ def guide_text(figures=()) -> str:
         what = "frame × patch × channel" if file == "analysis.csv" else "frame × channel (the whole frame)"
         lines += ["", f"{file} (one row per {what})"]
         lines += [f"  {name}: {text}" for name, text in columns.items()]
+    if temporal:
+        lines += ["", "temporal.csv (one row per sequence × region × channel)", "  " + TEMPORAL_DEFINITION]
+        lines += [f"  {name}: {text}" for name, text in TEMPORAL_COLUMNS.items()]
     if figures:
         lines += ["", "Figures (per scene, light and camera: *_xy.png the CIE 1931 xy diagram with pixel samples "
                       "and 1 σ noise ellipses at representative F and the camera black point (a star); "

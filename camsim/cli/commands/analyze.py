@@ -24,6 +24,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "clean, its bias and its variance against the model's. Writes OUT/analysis.csv (one row per frame × "
             "patch × channel), OUT/frame_statistics.csv (one row per frame × channel), OUT/analysis.json, "
             "OUT/README.txt (every column explained; SNR is signal² / variance, a power ratio) and PNG figures. "
+            "Frames of one static scene and sensor that differ only in their noise (seed or frame_index: a "
+            "sequence of N ≥ 2) also get their temporal and spatial noise separated (EMVA 1288: the pixels' variance over the frames, "
+            "the mean image's variance less temporal / N), per patch and for the whole frame, against the model's: "
+            "OUT/temporal.csv. "
             "Folders give their committed frames only (the sidecar, written last, names the file); other frame "
             "files there are ignored with one warning per folder, hidden files silently. A bad file (unreadable, "
             "truncated, foreign, a compressed DNG, a missing or mismatched sidecar, a sidecar value of the wrong "
@@ -73,6 +77,7 @@ def run(args) -> int:
     """Carry out ``camsim analyze``; returns the exit status (0)."""
     from camsim.analysis.analyze import FRAME_CSV_NAME, GUIDE_NAME, analyse, frame_table, table, write_outputs
     from camsim.analysis.patches import AnalysisSettings
+    from camsim.analysis.temporal import TEMPORAL_CSV_NAME, analyse_sequences, summary_lines
 
     black = "dark-frame" if args.dark is not None else ("sidecar" if args.subtract_black else "none")
     settings = AnalysisSettings(border_px=args.border, black=black, matrix=args.matrix)
@@ -81,16 +86,23 @@ def run(args) -> int:
         analysis = analyse(args.paths, settings, source=args.source, dark_frame=args.dark,
                            progress=not args.quiet, strict=args.strict, warn=_warn)
         results = analysis.results
+        temporal = analyse_sequences([r["frame_file"] for r in results], args.source, args.border, warn=_warn)
         csv_path, json_path, figures = write_outputs(results, settings, out, analysis.skipped, analysis.uncommitted,
-                                                     figures=not args.no_figures)
+                                                     figures=not args.no_figures, temporal=temporal)
     if not args.quiet:
         from camsim.analysis.columns import legend_text
 
         print(table(results))
         print(frame_table(results))
         print(legend_text())
+        for line in summary_lines(temporal):
+            print(line)
     ignored = f", ignored {len(analysis.uncommitted)} uncommitted file(s)" if analysis.uncommitted else ""
     print(f"analysed {len(results)} frames, skipped {len(analysis.skipped)} bad file(s){ignored}: {csv_path} "
           f"(one row per frame × patch × channel), {out / FRAME_CSV_NAME} (one row per frame × channel), {json_path}"
           f", {len(figures)} figure(s); columns explained in {out / GUIDE_NAME}")
+    if temporal:
+        sequences = len({row["sequence"] for row in temporal})
+        print(f"temporal and spatial noise of {sequences} sequence(s) (EMVA 1288): {out / TEMPORAL_CSV_NAME} (one row "
+              "per sequence × region × channel)")
     return 0
