@@ -148,6 +148,8 @@ def check_sequence_scene(scene) -> None:
     """Refuse, before any work, what a sequence cannot render (one line each)."""
     if scene.source.table == "raw":
         raise CamsimError("a [sequence] is not available for a raw scene yet")
+    if scene.exposure == "fixed":  # (auto: each frame's T is checked when it is known)
+        check_timing(scene.sequence, scene.sensor.exposure_s)
     if scene.statistics != "pixel":
         raise CamsimError("a [sequence] draws pixel statistics (its frames are drawn per pixel); set "
                           "statistics = 'pixel'")

@@ -162,7 +162,8 @@ FRAME_PARAMS = (
 
 
 _FRAME_PARAMS = {p.name: p for p in FRAME_PARAMS}
-_TOP_KEYS = {"name", "description", "spectral", "light", "frame", "camera", "sensor", "render", "region", "sequence", *SOURCES}
+_TOP_KEYS = {"name", "description", "spectral", "light", "frame", "camera", "sensor", "render", "region", "sequence",
+             *SOURCES}
 
 
 def _table(doc: dict, key: str, allowed: set, where: str) -> dict:

@@ -214,6 +214,11 @@ def written_summary(scene, manifest: dict, out: Path) -> str:
     from camsim.render.frame_files import frame_stem
 
     stems = {frame_stem(scene.name, ill, f) for ill in scene.illuminants for f in scene.intensity_factors}
+    if getattr(scene, "sequence", None) is not None:  # a sequence's frames STEM_fNNN (camsim.render.sequence)
+        from camsim.render.sequence import frame_digits
+
+        digits = frame_digits(scene.sequence.frames)
+        stems = {f"{stem}_f{i:0{digits}d}" for stem in stems for i in range(scene.sequence.frames)}
     kinds = set()
     for frame in manifest["frames"]:
         files = frame.get("files", {})
