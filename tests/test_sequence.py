@@ -202,3 +202,55 @@ def test_cli_files_and_one_line_errors(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "longer than frame_interval_s" in err, err
     assert not (tmp_path / "bad2").exists()  # refused before the folder is made
+
+
+@pytest.mark.parametrize("cfa", [None, "GRBG"])
+def test_per_pixel_draw_variance_matches_the_closed_form(cfa):
+    """A flat expectation S̄ per channel: each plane's (or site's) variance is k²(S̄ + D̄ + σ_read²) + σ_row² k²
+    and its mean k(S̄ + D̄) plus the frame's black-level error of its channel (quantisation off: no 1/12)."""
+    h, w = 128, 160
+    levels = np.array([200.0, 800.0, 450.0])
+    sensor = SensorParams(exposure_s=2.0, read_noise_e=4.0, row_noise_e=1.5, dark_current_e_per_s=(5.0, 20.0, 60.0),
+                          black_level_error_dn=30.0, quantisation=False, saturation=False, cfa=cfa)
+    planes = np.broadcast_to(levels[:, None, None], (3, h, w)).astype(np.float32)
+    from camsim.render.sequence import mosaic
+    from camsim.sensor.cfa import cfa_sites
+
+    source = planes if cfa is None else mosaic(planes, cfa)
+    draw = render_expectation_frame(source, sensor, rng=7, workers=2)
+    k = sensor.dn_per_electron
+    views = [(c, draw.noisy_dn[c]) for c in range(3)] if cfa is None else \
+        [(c, draw.noisy_dn[0, dy::2, dx::2]) for dy, dx, c in cfa_sites(cfa)]
+    for c, values in views:
+        dark = float(sensor.dark_mean_e[c])
+        var = k ** 2 * (levels[c] + dark + sensor.read_noise_e ** 2 + sensor.row_noise_e ** 2)
+        n, rows = values.size, values.shape[0]
+        row_var = k ** 2 * sensor.row_noise_e ** 2  # shared along a row: the mean's error has it once per row
+        error = draw.black_level_error_dn[c]  # the frame's one draw per channel, added to its pixels
+        assert abs(error) > 1  # (σ = 30 DN: the seed's draws are far from 0, so a wrong channel shows)
+        assert abs(values.mean() - error - k * (levels[c] + dark)) < 5 * np.sqrt((var - row_var) / n + row_var / rows)
+        assert values.var() == pytest.approx(var, rel=5 * (np.sqrt(2 / n) + np.sqrt(2 / rows) * row_var / var))
+
+
+def test_bayer_clean_layer_is_exact_at_the_sites():
+    from camsim.render.raw_frame import expectation_clean_dn
+    from camsim.render.sequence import mosaic
+
+    rng = np.random.default_rng(3)
+    planes = (rng.random((3, 32, 48)) * 9000).astype(np.float32)
+    sensor = SensorParams(exposure_s=1.0, cfa="RGGB", prnu_percent=1.0, dsnu_e=2.0, full_well_e=8000.0)
+    draw = render_expectation_frame(mosaic(planes, "RGGB"), sensor, rng=1)
+    clean = expectation_clean_dn(planes, sensor, draw.maps)
+    assert np.allclose(mosaic(clean, "RGGB")[0], draw.clean_dn[0], rtol=1e-6, atol=1e-4)
+    assert clean.max() <= sensor.dn_per_electron * sensor.full_well_e * (1 + 1e-6)  # the full well bounds E
+
+
+def test_sequence_files_read_back(tmp_path):
+    from camsim.render.frame_files import load_frame
+
+    path = tmp_path / "s.toml"
+    path.write_text(FLAT.format(w=64, h=48, sensor="", sequence="frames = 2\nframe_interval_s = 1.0\nshake_px = 1"))
+    assert main(["render", str(path), "--out", str(tmp_path / "out"), "-q"]) == 0
+    for name in ("flatseq_D65_F0.05_f001.exr", "flatseq_D65_F0.05_ref.exr", "flatseq_D65_F0.05_f000.dng"):
+        frame = load_frame(tmp_path / "out" / name)
+        assert frame is not None
