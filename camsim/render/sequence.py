@@ -59,7 +59,12 @@ def static_signal_e(labels: np.ndarray, signal_e: np.ndarray) -> np.ndarray:
     return out
 
 
-def warp_bilinear(pixels: np.ndarray, inverse: np.ndarray, out: np.ndarray, weight: float = 1.0) -> None:
+#: Rows of a warp block: a block's temporaries stay small (in cache, no fresh pages) and blocks run on threads.
+WARP_BLOCK_PIXELS = 2**16
+
+
+def warp_bilinear(pixels: np.ndarray, inverse: np.ndarray, out: np.ndarray, weight: float = 1.0,
+                  rows: tuple[int, int] | None = None) -> None:
     """``out += weight · pixels(H⁻¹ p)`` at every pixel p: bilinear between pixel centres, clamped at the edges.
 
     Parameters
@@ -69,15 +74,18 @@ def warp_bilinear(pixels: np.ndarray, inverse: np.ndarray, out: np.ndarray, weig
     inverse : numpy.ndarray, shape (3, 3)
         H⁻¹: sensor pixel (x, y, 1) → reference pixel (homogeneous); an affine one (last row 0, 0, 1) skips the
         division.
-    out : numpy.ndarray, shape (H, W, C), float32
+    out : numpy.ndarray, shape (H, W, C) (or (r1 − r0, W, C) with ``rows``), float32
         Accumulated in place.
+    rows : (r0, r1), optional
+        Only the sensor rows r0:r1 (``out`` holds just them).
 
     Coordinates are float32 (at 4000 px, steps of 2.4e-4 px).
     """
     height, width, channels = pixels.shape
+    r0, r1 = (0, height) if rows is None else rows
     inv = np.asarray(inverse, dtype=np.float64)
     x = np.arange(width, dtype=np.float32)[None, :]
-    y = np.arange(height, dtype=np.float32)[:, None]
+    y = np.arange(r0, r1, dtype=np.float32)[:, None]
     f32 = np.float32
     qx = f32(inv[0, 0]) * x + (f32(inv[0, 1]) * y + f32(inv[0, 2]))
     qy = f32(inv[1, 0]) * x + (f32(inv[1, 1]) * y + f32(inv[1, 2]))
@@ -115,19 +123,43 @@ def warp_bilinear(pixels: np.ndarray, inverse: np.ndarray, out: np.ndarray, weig
     acc += top
 
 
-def moving_expectation(signal_e: np.ndarray, motion: Motion, frame: int, exposure_s: float) -> np.ndarray:
+def moving_expectation(signal_e: np.ndarray, motion: Motion, frame: int, exposure_s: float,
+                       workers: int | None = None) -> np.ndarray:
     """Frame ``frame``'s expected signal electrons (3, H, W) float32: the mean of S̄(H(t)⁻¹ p) over the
     sub-sample times of its exposure (:meth:`camsim.scene.sequence.Motion.subsample_times`), bilinear, clamped at
-    the edges (:func:`warp_bilinear`). Unit: e⁻."""
+    the edges (:func:`warp_bilinear`), in row blocks on ``workers`` threads (default: every core; the result does
+    not depend on it: each block sums its sub-samples in order). Unit: e⁻."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from camsim.render.frame import default_workers
+
     times = motion.subsample_times(frame, exposure_s)
+    weight = 1 / len(times)
     pixels = np.ascontiguousarray(np.moveaxis(signal_e, 0, -1), dtype=np.float32)
     out = np.zeros_like(pixels)
+    inverses = []
     for t in times:
         h = motion.homography(float(t), frame)
-        if np.allclose(h, np.eye(3), rtol=0, atol=1e-12):
-            out += pixels * np.float32(1 / len(times))
-        else:
-            warp_bilinear(pixels, np.linalg.inv(h), out, 1 / len(times))
+        inverses.append(None if np.allclose(h, np.eye(3), rtol=0, atol=1e-12) else np.linalg.inv(h))
+    height, width = pixels.shape[:2]
+    rows = max(1, WARP_BLOCK_PIXELS // width)
+
+    def block(r0: int) -> None:
+        r1 = min(height, r0 + rows)
+        for inverse in inverses:
+            if inverse is None:
+                out[r0:r1] += pixels[r0:r1] * np.float32(weight)
+            else:
+                warp_bilinear(pixels, inverse, out[r0:r1], weight, rows=(r0, r1))
+
+    starts = range(0, height, rows)
+    workers = default_workers() if workers is None else max(1, int(workers))
+    if workers == 1:
+        for r0 in starts:
+            block(r0)
+    else:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            list(pool.map(block, starts))
     return np.ascontiguousarray(np.moveaxis(out, -1, 0))
 
 
@@ -175,7 +207,7 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
                                ref_clean), {
         "sequence_reference": True, "homography": np.eye(3).tolist(), "sequence": record}
     for i in range(seq.frames):
-        moving = moving_expectation(static, motion, i, sensor.exposure_s) if seq.moves else static
+        moving = moving_expectation(static, motion, i, sensor.exposure_s, workers) if seq.moves else static
         source = moving if sensor.cfa is None else mosaic(moving, sensor.cfa)
         rng = frame_seed_sequence(scene.seed, f"{lit.illuminant}/f{i}", intensity_factor)
         draw = render_expectation_frame(source, sensor, rng=rng, workers=workers)
