@@ -190,8 +190,9 @@ def test_cli_files_and_one_line_errors(tmp_path, capsys):
     assert meta["frame_index"] == 2 and meta["time_s"] == 2.0 and meta["exposure_s"] == 1.0
     assert np.allclose(meta["homography"], [[1, 0, 0.5 * 2.5], [0, 1, 0], [0, 0, 1]])  # the exposure's middle
     manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
-    listed = json.dumps(manifest)
-    assert all(f"{stem}_f{i:03d}.json" in listed for i in range(3))
+    entries = {e["files"]["json"]: e for e in manifest["frames"]}
+    assert [entries[f"{stem}_f{i:03d}.json"]["frame_index"] for i in range(3)] == [0, 1, 2]
+    assert entries[f"{stem}_ref.json"]["sequence_reference"] is True
     capsys.readouterr()
     path.write_text(FLAT.format(w=64, h=64, sensor="", sequence="frames = 2\nhomographies = [[[1, 0], [0, 1]]]"))
     assert main(["render", str(path), "--out", str(tmp_path / "bad"), "-q"]) == 2

@@ -46,10 +46,14 @@ def main(argv=None) -> None:
     lit = light_scene(scene, illuminant)
     sensor = frame_sensor(scene, lit, 1.0)
 
-    t0 = time.perf_counter()
-    frame, _ = scene_frame(scene, illuminant, 1.0, lit=lit, workers=args.workers)
-    frame.clean_dn()  # its EXR's clean layer, as render writes it
-    static_s = time.perf_counter() - t0
+    static_s = []
+    for _ in range(2):  # the faster of two (the first pays one-off set-up)
+        t0 = time.perf_counter()
+        frame, _ = scene_frame(scene, illuminant, 1.0, lit=lit, workers=args.workers)
+        frame.clean_dn()  # its EXR's clean layer, as render writes it
+        static_s.append(time.perf_counter() - t0)
+        del frame
+    static_s = min(static_s)
 
     parts = {"expectation": 0.0, "draw": 0.0, "clean": 0.0}
     wrapped = {}
@@ -83,7 +87,7 @@ def main(argv=None) -> None:
     print(f"{width}x{height} Bayer RGGB, shake {args.shake_px} px / {args.shake_deg} deg per interval, "
           f"T = {args.exposure} s, {args.frames} frames, sub-samples per exposure {np.mean(subsamples):.1f} "
           f"(min {min(subsamples)}, max {max(subsamples)})")
-    print(f"static frame (scene_frame + clean layer): {static_s:.2f} s")
+    print(f"static frame (scene_frame + clean layer, the faster of two): {static_s:.2f} s")
     print(f"sequence: reference {ref_s:.2f} s once; per frame {per_frame:.2f} s "
           f"(expectation along the path {parts['expectation'] / args.frames:.2f} s, draw "
           f"{parts['draw'] / args.frames:.2f} s, clean layer {parts['clean'] / args.frames:.2f} s)")

@@ -224,7 +224,8 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
 
 def render_sequence(scene, out_dir, *, workers=None, progress=True, exr_compression=None, warn=None) -> dict:
     """Render every illuminant × F of a scene with a ``[sequence]``: its reference and frames (module docstring),
-    each committed by its sidecar, the manifest listing the frames. :func:`camsim.render.run.render_scene`'s
+    each committed by its sidecar, the manifest listing them (a frame's entry with ``frame_index`` and ``time_s``,
+    the reference's with ``sequence_reference``). :func:`camsim.render.run.render_scene`'s
     contract."""
     from tqdm import tqdm
 
@@ -261,10 +262,8 @@ def render_sequence(scene, out_dir, *, workers=None, progress=True, exr_compress
                     extra = {**extra, "sequence": {**extra["sequence"], "stem": stem,
                                                    "reference": f"{stem}_ref.exr"}}
                     info = dataclasses.replace(base, sequence=extra)
-                    if index != "ref":
-                        manifest.withdraw(name)
+                    manifest.withdraw(name)
                     files = write_frame(out_dir, name, frame, info, exr_compression=exr_compression)
-                    if index != "ref":
-                        manifest.commit(info, files)
+                    manifest.commit(info, files)
                     bar.update()
     return manifest.as_dict()
