@@ -370,28 +370,36 @@ def render_expectation_frame(signal_e, sensor: SensorParams, *,
     return RawDraw(noisy, digital, clean, maps, error)
 
 
-def expectation_clean_dn(signal_e, sensor: SensorParams, maps: FixedPattern | None) -> np.ndarray:
+def expectation_clean_dn(signal_e, sensor: SensorParams, maps: FixedPattern | None,
+                         workers: int | None = None) -> np.ndarray:
     """The clean layer (3, H, W) float32 of every channel at every pixel from a per-pixel expectation
     ``signal_e`` (3, H, W) e⁻: k · E[min(X + o, full well)], X = Poisson(S̄_c g_c + D̄_c d_c) (photon noise off: the
     signal exactly plus Poisson(D̄_c d_c)), with channel c's maps (:func:`_clean_rows`: exact); a stuck pixel's
-    level on each plane. A CFA frame's EXR clean layer: its sites' own channel equals its draw's clean mosaic."""
+    level on each plane. A CFA frame's EXR clean layer: its sites' own channel equals its draw's clean mosaic. In
+    row blocks on ``workers`` threads (:func:`camsim.render.frame.run_blocks`; no random draws)."""
     k = sensor.dn_per_electron
+    height, width = np.shape(signal_e)[1:]
     out = np.empty(np.shape(signal_e), dtype=np.float32)
-    for c in range(3):
-        mean = np.maximum(np.asarray(signal_e[c], dtype=np.float64), 0.0)
-        gain = offset = dark_gain = None
-        if maps is not None:
-            gain = None if maps.gain is None else maps.gain[c]
-            offset = None if maps.offset_e is None else maps.offset_e[c]
-            dark_gain = None if maps.dark_gain is None else maps.dark_gain[c]
-        if gain is not None:
-            mean *= gain
-        dark = float(sensor.dark_mean_e[c])
-        dark = dark if dark_gain is None or dark == 0 else dark * dark_gain.astype(np.float64)
-        if sensor.photon_noise:
-            _clean_rows(out[c], mean + dark, offset, sensor, k)
-        else:
-            _clean_rows(out[c], dark, mean if offset is None else mean + offset, sensor, k)
+
+    def rows(r0: int, r1: int, _rng, _scratch) -> None:
+        for c in range(3):
+            mean = np.maximum(np.asarray(signal_e[c, r0:r1], dtype=np.float64), 0.0)
+            gain = offset = dark_gain = None
+            if maps is not None:
+                gain = None if maps.gain is None else maps.gain[c, r0:r1]
+                offset = None if maps.offset_e is None else maps.offset_e[c, r0:r1]
+                dark_gain = None if maps.dark_gain is None else maps.dark_gain[c, r0:r1]
+            if gain is not None:
+                mean *= gain
+            dark = float(sensor.dark_mean_e[c])
+            dark = dark if dark_gain is None or dark == 0 else dark * dark_gain.astype(np.float64)
+            if sensor.photon_noise:
+                mean += dark
+                _clean_rows(out[c, r0:r1], mean, offset, sensor, k)
+            else:
+                _clean_rows(out[c, r0:r1], dark, mean if offset is None else mean + offset, sensor, k)
+
+    run_blocks(height, max(1, (1 << 16) // max(width, 1)), 0, workers, lambda: None, rows)
     if maps is not None and maps.stuck_index is not None:
         level = stuck_float_dn(maps.stuck_level_dn, sensor.pedestal_dn)
         for c in range(3):

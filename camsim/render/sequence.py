@@ -201,7 +201,7 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
     from camsim.sensor.fixed_pattern import fixed_pattern
 
     maps = fixed_pattern(sensor, labels.shape)
-    ref_clean = expectation_clean_dn(static, sensor, maps)
+    ref_clean = expectation_clean_dn(static, sensor, maps, workers)
     ref_noisy = ref_clean if sensor.cfa is None else mosaic(ref_clean, sensor.cfa)
     yield "ref", SequenceFrame(np.ascontiguousarray(ref_noisy), None, labels, expected, sensor, None, maps, None,
                                ref_clean), {
@@ -211,7 +211,7 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
         source = moving if sensor.cfa is None else mosaic(moving, sensor.cfa)
         rng = frame_seed_sequence(scene.seed, f"{lit.illuminant}/f{i}", intensity_factor)
         draw = render_expectation_frame(source, sensor, rng=rng, workers=workers)
-        clean = draw.clean_dn if sensor.cfa is None else expectation_clean_dn(moving, sensor, draw.maps)
+        clean = draw.clean_dn if sensor.cfa is None else expectation_clean_dn(moving, sensor, draw.maps, workers)
         frame = SequenceFrame(draw.noisy_dn, draw.digital_dn, labels, expected, sensor, None, draw.maps,
                               draw.black_level_error_dn, clean)
         extra = {"frame_index": i, "time_s": motion.start_s(i),
