@@ -1,6 +1,6 @@
 """Benchmark: the rendering cost per frame of a sequence with camera shake against one static frame's (issue 29).
 
-Renders, in one process and on the same scene (the built-in dead-leaves target at ``--size``, a Bayer sensor), one
+Renders, in one process and on the same scene (``--scene``, default the dead-leaves target, at ``--size``, Bayer), one
 static frame as ``camsim render`` draws it (:func:`camsim.render.pipeline.scene_frame`, the scene lit beforehand)
 and then ``--frames`` frames of a ``[sequence]`` with shake (:func:`camsim.render.sequence.render_sequence_frames`:
 the per-pixel expectation along the path, the draw, the clean layer), and prints the seconds of each, the ratio
@@ -27,6 +27,8 @@ def main(argv=None) -> None:
     parser.add_argument("--exposure", type=float, default=0.01)
     parser.add_argument("--interval", type=float, default=1 / 30)
     parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--scene", default="dead_leaves", help="a built-in scene (camsim/scenes/NAME.toml): a "
+                        "chart or a target (their size is --size)")
     args = parser.parse_args(argv)
 
     import numpy as np
@@ -37,7 +39,7 @@ def main(argv=None) -> None:
     from camsim.scene.sequence import SequenceParams
 
     width, height = (int(v) for v in args.size.lower().split("x"))
-    scene = load_scene(ROOT / "camsim" / "scenes" / "dead_leaves.toml")
+    scene = load_scene(ROOT / "camsim" / "scenes" / f"{args.scene}.toml")
     scene = scene.replace(width=width, height=height, intensity_factors=(1.0,)).with_sensor(
         cfa="RGGB", exposure_s=args.exposure)
     scene = scene.replace(sequence=SequenceParams(frames=args.frames, frame_interval_s=args.interval,
@@ -84,7 +86,7 @@ def main(argv=None) -> None:
     for name, original in wrapped.items():
         setattr(seqmod, name, original)
     per_frame = frames_s / args.frames
-    print(f"{width}x{height} Bayer RGGB, shake {args.shake_px} px / {args.shake_deg} deg per interval, "
+    print(f"{args.scene} {width}x{height} Bayer RGGB, shake {args.shake_px} px / {args.shake_deg} deg per interval, "
           f"T = {args.exposure} s, {args.frames} frames, sub-samples per exposure {np.mean(subsamples):.1f} "
           f"(min {min(subsamples)}, max {max(subsamples)})")
     print(f"static frame (scene_frame + clean layer, the faster of two): {static_s:.2f} s")
