@@ -83,6 +83,8 @@ class FrameInfo:
     # the device that drew the frame, where not the CPU (camsim.render.backends.device_record): the sidecar's "device",
     # "device_name", "device_library" and, where a device draws another method, "method_requested"
     device: dict | None = None
+    # a sequence's frame (camsim.render.sequence): its keys frame_index, time_s, homography, sequence …, at the top
+    sequence: dict | None = None
 
 
 def frame_stem(scene: str, illuminant: str, intensity_factor: float) -> str:
@@ -173,6 +175,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict | None, exr_compression: 
         "surround": {"signal_e": ex.signal_e[len(patches)].tolist()} if patches and info.surround else None,
         **({"target": info.target} if info.target is not None else {}),
         **({"recovery": info.recovery} if info.recovery is not None else {}),
+        **(info.sequence or {}),
         # the perfect white (reflectance 1) under the frame's light at this F, in this exposure: the colour white
         **({"white_signal_e": (info.white_signal_e_per_s * info.intensity_factor * sensor.exposure_s).tolist()}
            if info.white_signal_e_per_s is not None else {}),

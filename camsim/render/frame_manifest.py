@@ -30,9 +30,15 @@ MANIFEST_NAME = "manifest.json"
 _ENTRY_KEYS = ("scene", "illuminant", "intensity_factor", "seed", "photon_statistics", "method")
 
 
+#: A sequence's keys (camsim.render.sequence), in an entry only where its sidecar has them.
+_SEQUENCE_ENTRY_KEYS = ("frame_index", "time_s", "sequence_reference")
+
+
 def manifest_entry(meta: dict) -> dict:
-    """A frame's manifest entry, from its sidecar: the keys that tell frames apart, and its files."""
-    return {**{key: meta.get(key) for key in _ENTRY_KEYS}, "files": meta["files"]}
+    """A frame's manifest entry, from its sidecar: the keys that tell frames apart (a sequence's frame: also its
+    ``frame_index`` and ``time_s``; its reference: ``sequence_reference``), and its files."""
+    return {**{key: meta.get(key) for key in _ENTRY_KEYS},
+            **{key: meta[key] for key in _SEQUENCE_ENTRY_KEYS if key in meta}, "files": meta["files"]}
 
 
 def _read_json(path: Path):
@@ -121,7 +127,8 @@ class FrameManifest:
     def commit(self, info: FrameInfo, files: dict) -> None:
         """Add (or replace in place) the frame ``info`` that has just committed with ``files``, and write the
         manifest."""
-        self.commit_entry({**{key: getattr(info, key) for key in _ENTRY_KEYS}, "files": files})
+        self.commit_entry(manifest_entry({**{key: getattr(info, key) for key in _ENTRY_KEYS}, **(info.sequence or {}),
+                                          "files": files}))
 
     def commit_entry(self, entry: dict) -> None:
         """Add (or replace in place) a frame's entry (:func:`manifest_entry` of its sidecar) that has just

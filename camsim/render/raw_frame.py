@@ -78,7 +78,7 @@ class RawDraw:
 class _RawJob:
     """What every block of a raw frame needs (read-only but the outputs)."""
 
-    source: np.ndarray  # (H, W) float32, e⁻
+    source: np.ndarray  # (planes, H, W) float32, e⁻: one plane (a CFA mosaic) or three (a three-chip sensor's)
     sensor: SensorParams
     fraction: float
     law: str
@@ -86,7 +86,7 @@ class _RawJob:
     dark_cell: np.ndarray  # (2, 2) float64: D̄ of each site of the CFA cell, e⁻
     noisy: np.ndarray  # (1, H, W) float32 output
     digital: np.ndarray | None  # (1, H, W) output
-    clean: np.ndarray  # (H, W) float32 output
+    clean: np.ndarray  # (planes, H, W) float32 output
     black_level_error_dn: np.ndarray | None = None  # (3,) DN: added before the ADC
 
 
@@ -101,8 +101,12 @@ class _Scratch:
         self.dark = None  # (rows, W) float64 tiling of the dark cell, made on first use
         self.maps = {}  # name -> (rows, W) float32 buffer of a mosaicked map
 
-    def map_rows(self, name: str, planes: np.ndarray, cfa: str, r0: int, r1: int) -> np.ndarray:
-        """Rows r0:r1 of a (3, H, W) map mosaicked by the CFA: each site takes its channel's plane."""
+    def map_rows(self, name: str, planes: np.ndarray, cfa: str | None, r0: int, r1: int,
+                 channel: int = 0) -> np.ndarray:
+        """Rows r0:r1 of a (3, H, W) map mosaicked by the CFA: each site takes its channel's plane (no CFA: the
+        plane ``channel``'s rows, a view)."""
+        if cfa is None:
+            return planes[channel, r0:r1]
         buffer = self.maps.get(name)
         if buffer is None:
             buffer = self.maps[name] = np.empty((self.rows, self.width), dtype=np.float32)
@@ -197,7 +201,7 @@ def render_raw_frame(source_e, sensor: SensorParams, fraction: float, *, law: st
     digital = np.empty((1, height, width), dtype=dn_dtype(sensor.bits)) if sensor.quantisation else None
     clean = np.empty((height, width), dtype=np.float32)
     error = black_level_error(sensor, rng)
-    job = _RawJob(source, sensor, fraction, law, maps, dark_cell, noisy, digital, clean, error)
+    job = _RawJob(source[None], sensor, fraction, law, maps, dark_cell, noisy, digital, clean[None], error)
     run_blocks(height, rows, rng, workers, lambda: _Scratch(rows, width),
                lambda r0, r1, block_rng, scratch: _draw_block(job, r0, r1, block_rng, scratch))
     write_stuck(maps, sensor, noisy, digital)
@@ -217,23 +221,35 @@ def _can_saturate(poisson_mean_e: np.ndarray, base_e, full_well_e: float) -> boo
 
 def _draw_block(job: _RawJob, r0: int, r1: int, rng: np.random.Generator, scratch: _Scratch) -> None:
     """Rows ``r0:r1`` (r0 even) of a raw frame: the charge by the law, then the target's stages, and the clean
-    layer."""
+    layer; plane after plane from the block's one generator (a CFA mosaic is one plane)."""
+    for plane in range(job.source.shape[0]):
+        _draw_plane(job, plane, r0, r1, rng, scratch)
+
+
+def _draw_plane(job: _RawJob, plane: int, r0: int, r1: int, rng: np.random.Generator, scratch: _Scratch) -> None:
+    """Rows ``r0:r1`` of plane ``plane`` (a CFA mosaic, or a three-chip sensor's channel ``plane``)."""
     sensor, cfa, h = job.sensor, job.sensor.cfa, r1 - r0
     k = sensor.dn_per_electron
     maps = job.maps
     offset = gain = dark_gain = None
     if maps is not None:
-        offset = None if maps.offset_e is None else scratch.map_rows("offset", maps.offset_e, cfa, r0, r1)
-        gain = None if maps.gain is None else scratch.map_rows("gain", maps.gain, cfa, r0, r1)
-        dark_gain = None if maps.dark_gain is None else scratch.map_rows("dark_gain", maps.dark_gain, cfa, r0, r1)
-    has_dark = bool(np.any(job.dark_cell > 0))
-    if has_dark and scratch.dark is None:
-        scratch.dark = np.tile(job.dark_cell, (scratch.rows // 2, scratch.width // 2))
-    dark = 0.0 if not has_dark else scratch.dark[:h] if dark_gain is None else scratch.dark[:h] * dark_gain
+        offset = None if maps.offset_e is None else scratch.map_rows("offset", maps.offset_e, cfa, r0, r1, plane)
+        gain = None if maps.gain is None else scratch.map_rows("gain", maps.gain, cfa, r0, r1, plane)
+        dark_gain = None if maps.dark_gain is None else scratch.map_rows("dark_gain", maps.dark_gain, cfa, r0, r1,
+                                                                         plane)
+    if cfa is None:  # a three-chip sensor's channel: one mean dark charge
+        has_dark = bool(job.dark_cell[plane] > 0)
+        dark = 0.0 if not has_dark else float(job.dark_cell[plane]) if dark_gain is None else \
+            float(job.dark_cell[plane]) * dark_gain.astype(np.float64)
+    else:
+        has_dark = bool(np.any(job.dark_cell > 0))
+        if has_dark and scratch.dark is None:
+            scratch.dark = np.tile(job.dark_cell, (scratch.rows // 2, scratch.width // 2))
+        dark = 0.0 if not has_dark else scratch.dark[:h] if dark_gain is None else scratch.dark[:h] * dark_gain
     level = saturation_level_e(sensor.full_well_e, offset) if sensor.saturation else None
-    source = job.source[r0:r1]
+    source = job.source[plane, r0:r1]
     mean = scratch.mean[:h]  # float64: the Poisson means
-    clean = job.clean[r0:r1]
+    clean = job.clean[plane, r0:r1]
 
     if job.law == "add":
         np.maximum(source, 0.0, out=mean)
@@ -267,7 +283,7 @@ def _draw_block(job: _RawJob, r0: int, r1: int, rng: np.random.Generator, scratc
     _clean_rows(clean, poisson_mean, base, sensor, k)
 
     # the target's stages, in the order render_frame runs them (float32 in the output; float64 with offsets)
-    view = job.noisy[0, r0:r1]
+    view = job.noisy[plane, r0:r1]
     if offset is not None:
         value = add_offset_e(charge, offset)  # a new float array
     else:
@@ -286,9 +302,9 @@ def _draw_block(job: _RawJob, r0: int, r1: int, rng: np.random.Generator, scratc
     if sensor.row_noise_e > 0:
         add_row_noise(view, sensor.row_noise_e * k, rng)
     if job.black_level_error_dn is not None:
-        add_black_level_error_dn(view, job.black_level_error_dn, cfa)
+        add_black_level_error_dn(view, job.black_level_error_dn, cfa, plane)
     if job.digital is not None:
-        quantise_dn(view, sensor.bits, out=job.digital[0, r0:r1], pedestal_dn=sensor.pedestal_dn)
+        quantise_dn(view, sensor.bits, out=job.digital[plane, r0:r1], pedestal_dn=sensor.pedestal_dn)
 
 
 def _clean_rows(clean: np.ndarray, poisson_mean, base, sensor: SensorParams, k: float) -> None:
@@ -302,3 +318,90 @@ def _clean_rows(clean: np.ndarray, poisson_mean, base, sensor: SensorParams, k: 
     np.multiply(lam, k, out=clean, casting="unsafe")
     if base is not None:
         clean += np.float32(k) * np.asarray(base, dtype=np.float32)
+
+
+def render_expectation_frame(signal_e, sensor: SensorParams, *,
+                             rng: np.random.Generator | np.random.SeedSequence | int | None = None,
+                             workers: int | None = None) -> RawDraw:
+    """Draw one frame from a per-pixel expectation of signal electrons, (planes, H, W): a moving scene's frame.
+
+    The ``add`` law of :func:`render_raw_frame` with f = 1 on a (1, H, W) CFA mosaic (each site its channel's
+    expectation) or a three-chip sensor's (3, H, W) planes: per pixel the charge is Poisson(S̄ · g + D̄ · d) and
+    every later stage is the sensor's, by the same stage functions, blocks and seeds (a three-chip block draws its
+    planes R, G, B one after another from the block's generator). It is how :mod:`camsim.render.sequence` draws a
+    frame whose expectation is no longer one value per spectrum.
+
+    Parameters
+    ----------
+    signal_e : numpy.ndarray, shape (1, H, W) (CFA) or (3, H, W) (three-chip)
+        S̄: the expected signal electrons at each pixel before PRNU, ≥ 0 (the dark charge is the sensor's).
+    sensor : SensorParams
+    rng, workers : as :func:`render_raw_frame`.
+
+    Returns
+    -------
+    RawDraw
+        ``noisy_dn`` and ``digital_dn`` of shape (planes, H, W); ``clean_dn`` (planes, H, W): k · E[min(X + o, full
+        well)] at each pixel's own plane (exact: :func:`camsim.sensor.expected.clean_charge_e`).
+    """
+    source = np.ascontiguousarray(signal_e, dtype=np.float32)
+    planes = 1 if sensor.cfa is not None else 3
+    if source.ndim != 3 or source.shape[0] != planes:
+        raise CamsimError(f"an expectation frame for this sensor has shape ({planes}, H, W), got {source.shape}")
+    height, width = source.shape[1:]
+    rows = block_rows((height, width), sensor.cfa)
+    maps = fixed_pattern(sensor, (height, width))
+    if sensor.cfa is None:
+        dark_cell = np.asarray(sensor.dark_mean_e, dtype=np.float64)
+    else:
+        dark_cell = np.empty((2, 2))
+        for dy, dx, c in cfa_sites(sensor.cfa):
+            dark_cell[dy, dx] = sensor.dark_mean_e[c]
+    noisy = np.empty((planes, height, width), dtype=np.float32)
+    digital = np.empty((planes, height, width), dtype=dn_dtype(sensor.bits)) if sensor.quantisation else None
+    clean = np.empty((planes, height, width), dtype=np.float32)
+    error = black_level_error(sensor, rng)
+    job = _RawJob(source, sensor, 1.0, "add", maps, dark_cell, noisy, digital, clean, error)
+    run_blocks(height, rows, rng, workers, lambda: _Scratch(rows, width),
+               lambda r0, r1, block_rng, scratch: _draw_block(job, r0, r1, block_rng, scratch))
+    write_stuck(maps, sensor, noisy, digital)
+    if maps is not None and maps.stuck_index is not None:
+        set_stuck_dn(clean, maps.stuck_index, stuck_float_dn(maps.stuck_level_dn, sensor.pedestal_dn))
+    return RawDraw(noisy, digital, clean, maps, error)
+
+
+def expectation_clean_dn(signal_e, sensor: SensorParams, maps: FixedPattern | None,
+                         workers: int | None = None) -> np.ndarray:
+    """The clean layer (3, H, W) float32 of every channel at every pixel from a per-pixel expectation
+    ``signal_e`` (3, H, W) e⁻: k · E[min(X + o, full well)], X = Poisson(S̄_c g_c + D̄_c d_c) (photon noise off: the
+    signal exactly plus Poisson(D̄_c d_c)), with channel c's maps (:func:`_clean_rows`: exact); a stuck pixel's
+    level on each plane. A CFA frame's EXR clean layer: its sites' own channel equals its draw's clean mosaic. In
+    row blocks on ``workers`` threads (:func:`camsim.render.frame.run_blocks`; no random draws)."""
+    k = sensor.dn_per_electron
+    height, width = np.shape(signal_e)[1:]
+    out = np.empty(np.shape(signal_e), dtype=np.float32)
+
+    def rows(r0: int, r1: int, _rng, _scratch) -> None:
+        for c in range(3):
+            mean = np.maximum(np.asarray(signal_e[c, r0:r1], dtype=np.float64), 0.0)
+            gain = offset = dark_gain = None
+            if maps is not None:
+                gain = None if maps.gain is None else maps.gain[c, r0:r1]
+                offset = None if maps.offset_e is None else maps.offset_e[c, r0:r1]
+                dark_gain = None if maps.dark_gain is None else maps.dark_gain[c, r0:r1]
+            if gain is not None:
+                mean *= gain
+            dark = float(sensor.dark_mean_e[c])
+            dark = dark if dark_gain is None or dark == 0 else dark * dark_gain.astype(np.float64)
+            if sensor.photon_noise:
+                mean += dark
+                _clean_rows(out[c, r0:r1], mean, offset, sensor, k)
+            else:
+                _clean_rows(out[c, r0:r1], dark, mean if offset is None else mean + offset, sensor, k)
+
+    run_blocks(height, max(1, (1 << 16) // max(width, 1)), 0, workers, lambda: None, rows)
+    if maps is not None and maps.stuck_index is not None:
+        level = stuck_float_dn(maps.stuck_level_dn, sensor.pedestal_dn)
+        for c in range(3):
+            set_stuck_dn(out[c:c + 1], maps.stuck_index, level)
+    return out

@@ -65,6 +65,14 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
     dict
         The manifest: per frame of the folder, scene, illuminant, F, seed and file paths relative to ``out_dir``.
     """
+    if scene.sequence is not None:  # frames with camera motion: camsim.render.sequence
+        from camsim.render.sequence import check_sequence_scene, render_sequence
+
+        check_sequence_scene(scene)
+        if preview or device != "cpu":
+            raise CamsimError("a sequence's frames are drawn per pixel on the CPU and have no preview")
+        check_scene(scene)
+        return render_sequence(scene, out_dir, workers=workers, progress=progress, exr_compression=exr_compression)
     if scene.source.table == "raw":  # drawn from the file's electrons, not from spectra
         from camsim.render.raw_render import render_raw_scene
 

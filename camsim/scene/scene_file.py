@@ -21,6 +21,7 @@ from camsim.scene.builtin_scenes import resolve_scene_file
 from camsim.sensor.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
 from camsim.core.errors import CamsimError
 from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
+from camsim.scene.sequence import SequenceParams, parse_sequence
 from camsim.scene.regions import Region, check_regions, parse_regions
 from camsim.core.names import safe_component
 from camsim.core.schema import Param, check_frame_size, finite_float, param, params_of, read_toml, typed, validate
@@ -93,6 +94,7 @@ class Scene:
                                          above=0, optional=True)
     base_dir: Path | None = None
     regions: tuple = ()
+    sequence: SequenceParams | None = None  # a [sequence] table: frames with camera motion (camsim.scene.sequence)
 
     def __post_init__(self):
         if not isinstance(self.source, SceneSource):
@@ -160,7 +162,8 @@ FRAME_PARAMS = (
 
 
 _FRAME_PARAMS = {p.name: p for p in FRAME_PARAMS}
-_TOP_KEYS = {"name", "description", "spectral", "light", "frame", "camera", "sensor", "render", "region", *SOURCES}
+_TOP_KEYS = {"name", "description", "spectral", "light", "frame", "camera", "sensor", "render", "region", "sequence",
+             *SOURCES}
 
 
 def _table(doc: dict, key: str, allowed: set, where: str) -> dict:
@@ -295,5 +298,6 @@ def load_scene(path: str | Path) -> Scene:
         sensor_overrides=_frozen(sensor_table),
         base_dir=base_dir,
         regions=regions,
+        sequence=parse_sequence(doc["sequence"]) if "sequence" in doc else None,
         **render,
     )

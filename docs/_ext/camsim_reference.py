@@ -499,6 +499,22 @@ def scene_key_nodes() -> list[nodes.Node]:
                     "each ", literal("[[region]]"), " has the keys ", *_joined(sorted(region_keys), "{}", " and ",
                                                                                code=True), ".")
         out.append(sec)
+
+    sequence_module = sys.modules.get("camsim.scene.sequence") or importlib.import_module("camsim.scene.sequence")
+    from camsim.core.schema import params_of
+
+    seq_cls = sequence_module.SequenceParams
+    sec = section("[sequence]", "sequence-table")
+    sec += para("Frames of the scene with camera motion (", literal("camsim.scene.sequence"), "): ",
+                (sequence_module.__doc__ or "").strip().split("\n\n")[0].replace("\n", " "))
+    docs = _attribute_docs(seq_cls)
+    extra = [[[literal("pan_px_per_s")], "list of 2 numbers", "px/s", [literal("[0.0, 0.0]")], "",
+              "constant pan: " + docs.get("pan_px_per_s", "(vx, vy)")],
+             [[literal("homographies")], "list of 3×3 matrices", "", [literal("none")], "one per frame",
+              "one 3 × 3 homography (reference pixel → sensor pixel) per frame, constant over its exposure"]]
+    params = params_of(seq_cls)
+    sec += param_table(params, extra)
+    out.append(sec)
     return out
 
 

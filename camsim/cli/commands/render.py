@@ -214,6 +214,14 @@ def written_summary(scene, manifest: dict, out: Path) -> str:
     from camsim.render.frame_files import frame_stem
 
     stems = {frame_stem(scene.name, ill, f) for ill in scene.illuminants for f in scene.intensity_factors}
+    if getattr(scene, "sequence", None) is not None:  # a sequence's frames STEM_fNNN (camsim.render.sequence)
+        from camsim.render.sequence import frame_digits
+
+        digits = frame_digits(scene.sequence.frames)
+        refs = {f"{stem}_ref" for stem in stems}  # each illuminant × F's reference: listed, not counted as a frame
+        stems = {f"{stem}_f{i:0{digits}d}" for stem in stems for i in range(scene.sequence.frames)}
+    else:
+        refs = set()
     kinds = set()
     for frame in manifest["frames"]:
         files = frame.get("files", {})
@@ -221,6 +229,6 @@ def written_summary(scene, manifest: dict, out: Path) -> str:
             kinds.update(kind for kind, name in files.items() if name)
     names = [label for kind, label in FILE_KINDS.items() if kind in kinds]
     without_dng = "" if "dng" in kinds else "; no DNG: quantisation is off"
-    earlier = len(manifest["frames"]) - len(stems)
+    earlier = len(manifest["frames"]) - len(stems) - len(refs)
     return (f"wrote {_frames(len(stems))} ({', '.join(names)}{without_dng}) to {out}/ — index: "
             f"{out / 'manifest.json'}" + (f" (with {_frames(earlier)} of earlier runs)" if earlier > 0 else ""))
