@@ -206,7 +206,7 @@ def test_sequence_frames_by_frame_index_and_motion(tmp_path):
     metas = []
     for i, path in enumerate(sorted(folder.glob("*.json"))):
         meta = json.loads(path.read_text(encoding="utf-8"))
-        meta.update(seed=0, sequence="flat", frame_index=i, homography=np.eye(3).tolist())
+        meta.update(seed=0, sequence={"stem": "flat"}, frame_index=i, homography=np.eye(3).tolist())
         path.write_text(json.dumps(meta), encoding="utf-8")
         metas.append(meta)
     found = find_sequences(sorted(folder.glob("*.dng")))

@@ -100,13 +100,20 @@ def sequence_key(meta: dict, source: str) -> str:
                        meta.get("sequence"), source], sort_keys=True)
 
 
+def _index(meta: dict, key: str) -> int:
+    """A sidecar's ``seed`` or ``frame_index`` as an int, −1 where it has none (the schema allows a null seed)."""
+    value = meta.get(key)
+    return value if isinstance(value, int) and not isinstance(value, bool) else -1
+
+
 def _is_static(meta: dict) -> bool:
     h = meta.get("homography")
     if h is None:
         return True
     try:
         h = np.asarray(h, dtype=np.float64)
-        return h.shape == (3, 3) and bool(np.all(np.abs(h / h[2, 2] - np.eye(3)) <= STATIC_TOLERANCE))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return h.shape == (3, 3) and bool(np.all(np.abs(h / h[2, 2] - np.eye(3)) <= STATIC_TOLERANCE))
     except (TypeError, ValueError, ZeroDivisionError):
         return False
 
@@ -150,20 +157,22 @@ def find_sequences(paths, source: str = "dng", warn=None) -> list[Sequence]:
             continue
         seen: dict = {}
         kept = Sequence(group.key)
+        copies = []  # frames of the same noise as one kept: told only where the others make a sequence
         order = sorted(zip(group.paths, group.metas),
-                       key=lambda pm: (pm[1].get("frame_index", -1), pm[1].get("seed", -1), str(pm[0])))
+                       key=lambda pm: (_index(pm[1], "frame_index"), _index(pm[1], "seed"), str(pm[0])))
         for path, meta in order:
-            identity = (meta.get("seed"), meta.get("frame_index"))
+            identity = (_index(meta, "seed"), _index(meta, "frame_index"))
             if identity in seen:
-                if warn is not None:
-                    warn(f"{path}: the same scene, sensor and seed as {seen[identity]} (the same noise): left out "
-                         "of its sequence's temporal analysis")
+                copies.append(f"{path}: the same scene, sensor and seed as {seen[identity]} (the same noise): left "
+                              "out of its sequence's temporal analysis")
                 continue
             seen[identity] = path
             kept.paths.append(path)
             kept.metas.append(meta)
         if len(kept.paths) >= 2:
             sequences.append(kept)
+            for line in copies if warn is not None else ():
+                warn(line)
     return sequences
 
 

@@ -116,6 +116,15 @@ def _stages(value) -> dict:
     return value
 
 
+def _sequence(value):
+    """A frame of a ``[sequence]``: its record, an object whose ``stem`` names the sequence."""
+    if value is None:
+        return None
+    if not isinstance(value, dict) or not isinstance(value.get("stem"), str):
+        raise _Bad("null or an object with a stem (the sequence's name)")
+    return value
+
+
 def _surround(value):
     if value is None:
         return None
@@ -169,6 +178,11 @@ FRAME_KEYS = {
     "black_level_error_drawn_dn": _rgb(),
     "dark_current_effective_e_per_s": _rgb(low=0),
     "defect_counts": lambda v: _defect_counts(v),
+    # a [sequence]'s frame (camsim.render.sequence): its index, start time, homography from the reference, record
+    "frame_index": _optional(lambda v: _integer(v, low=0)),
+    "time_s": _optional(lambda v: _number(v, low=0)),
+    "homography": _optional(_matrix(3, 3)),
+    "sequence": _sequence,
 }
 
 
