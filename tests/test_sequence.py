@@ -255,3 +255,16 @@ def test_sequence_files_read_back(tmp_path):
     for name in ("flatseq_D65_F0.05_f001.exr", "flatseq_D65_F0.05_ref.exr", "flatseq_D65_F0.05_f000.dng"):
         frame = load_frame(tmp_path / "out" / name)
         assert frame is not None
+
+
+@pytest.mark.parametrize("extra", ["shake_px = 1e300", "pan_px_per_s = [1e300, 0]", "pan_px_per_s = [1e6, 0]"])
+def test_motion_beyond_any_frame_is_one_line(tmp_path, extra):
+    """A pan or shake that moves the scene beyond 10⁷ px (float32 sampling coordinates lose the pixel there; numpy
+    warned of overflows before) is refused on one line, exit 2, nothing written."""
+    from camsim.cli import main
+
+    scene = tmp_path / "s.toml"
+    scene.write_text('name = "far"\n[target]\nkind = "flat"\n[light]\nilluminants = ["D65"]\n[frame]\nwidth = 32\n'
+                     f'height = 24\n[sequence]\nframes = 6\nframe_interval_s = 2.0\n{extra}\n', encoding="utf-8")
+    assert main(["render", str(scene), "--out", str(tmp_path / "out"), "-q"]) == 2
+    assert not (tmp_path / "out").exists()

@@ -37,6 +37,9 @@ MAX_FRAMES = 10000
 MAX_SUBSAMPLES = 1024
 #: The automatic sub-sampling keeps every pixel's motion between sub-samples at most this far. Unit: px.
 MAX_SUBSAMPLE_STEP_PX = 0.25
+#: The farthest the camera may move a pixel in a sequence: float32 sampling coordinates keep 1 px up to 1.6e7.
+#: Unit: px.
+MAX_MOTION_PX = 1e7
 #: First spawn-key word of the shake's stream ("SHAKE").
 SHAKE_KEY = 0x54A4E
 
@@ -82,6 +85,13 @@ class SequenceParams:
         if self.blur_subsamples is not None and self.blur_subsamples > MAX_SUBSAMPLES:
             raise CamsimError(f"[sequence]: blur_subsamples must be at most {MAX_SUBSAMPLES}, got "
                               f"{self.blur_subsamples}")
+        duration = self.frames * self.frame_interval_s
+        pan = max(abs(v) for v in self.pan_px_per_s) * duration
+        shake = self.shake_px * 10 * math.sqrt(self.frames)  # ten σ of the walk's end (a rotation wraps)
+        if not (pan <= MAX_MOTION_PX and shake <= MAX_MOTION_PX):
+            raise CamsimError(f"[sequence]: the camera would move the scene by {max(pan, shake):.3g} px (the pan over "
+                              f"{duration:g} s, or ten σ of the shake's walk over {self.frames} frames), beyond "
+                              f"{MAX_MOTION_PX:g} px, where the frame has long left the scene")
 
     @property
     def moves(self) -> bool:
