@@ -14,6 +14,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,7 +22,6 @@ from camsim.scene.builtin_scenes import resolve_scene_file
 from camsim.sensor.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
 from camsim.core.errors import CamsimError
 from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
-from camsim.scene.sequence import SequenceParams, parse_sequence
 from camsim.scene.regions import Region, check_regions, parse_regions
 from camsim.core.names import safe_component
 from camsim.core.schema import Param, check_frame_size, finite_float, param, params_of, read_toml, typed, validate
@@ -29,6 +29,9 @@ from camsim.sensor.presets import camera_preset, sensor_preset
 from camsim.sensor.params import MAP_FILE_PARAMS, SENSOR_PARAMS, SensorParams
 from camsim.scene.sources import SOURCES, ChartSource, SceneSource
 from camsim.light.spectra import WavelengthGrid
+
+if TYPE_CHECKING:  # the annotation only: camsim.scene.sequence is imported where a scene has a sequence
+    from camsim.scene.sequence import SequenceParams
 
 STATISTICS = ("pixel", "paper")
 #: A raw scene's frames are under its own light, as shot (:mod:`camsim.scene.sources.raw`).
@@ -203,6 +206,14 @@ def _raw_scene_defaults(source, light: dict, frame: dict, sensor_table: dict, gi
     return source, list(RAW_SCENE_ILLUMINANTS), preset_name, iso
 
 
+def _sequence(table):
+    """A ``[sequence]`` table's :class:`camsim.scene.sequence.SequenceParams` (imported here: only sequences need it,
+    not the command line's start-up)."""
+    from camsim.scene.sequence import parse_sequence
+
+    return parse_sequence(table)
+
+
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene file, given by its path or by a built-in scene's name (``macbeth_26``).
 
@@ -298,6 +309,6 @@ def load_scene(path: str | Path) -> Scene:
         sensor_overrides=_frozen(sensor_table),
         base_dir=base_dir,
         regions=regions,
-        sequence=parse_sequence(doc["sequence"]) if "sequence" in doc else None,
+        sequence=_sequence(doc["sequence"]) if "sequence" in doc else None,
         **render,
     )
