@@ -103,3 +103,14 @@ def test_row_noise_is_shared_by_the_whole_row_of_a_bayer_sensor():
     residual = (frame.noisy_dn[0, y : y + h, x : x + w] - mosaic_clean) / k
     np.testing.assert_allclose(residual, np.broadcast_to(residual[:, :1], residual.shape), atol=1e-3)  # per row
     assert_mean_var(residual[:, 0], 0.0, 25.0, what="row offsets")
+
+
+@pytest.mark.parametrize("pattern", ["RGGB", "BGGR", "GRBG", "GBRG"])
+def test_mosaic_of_takes_each_sites_own_channel(pattern):
+    from camsim.sensor.cfa import mosaic_of
+
+    planes = np.stack([np.full((4, 6), 10.0 * (c + 1), dtype=np.float32) for c in range(3)])
+    mosaic = mosaic_of(planes, pattern)
+    assert mosaic.shape == (4, 6) and mosaic.dtype == np.float32
+    for i, colour in enumerate(pattern):
+        assert np.all(mosaic[i // 2::2, i % 2::2] == 10.0 * ("RGB".index(colour) + 1))

@@ -66,9 +66,9 @@ def test_temporal_independence_and_fixed_pattern(tmp_path, cfa):
     for f in frames:
         clean = f.clean_dn()
         if f.sensor.cfa is not None:  # each site's own channel
-            from camsim.render.sequence import mosaic
+            from camsim.sensor.cfa import mosaic_of
 
-            clean = mosaic(clean, f.sensor.cfa)
+            clean = mosaic_of(clean, f.sensor.cfa)[None]
         residuals.append((f.noisy_dn - clean).ravel().astype(np.float64))
     n = residuals[0].size
     for a, b in zip(residuals, residuals[1:]):
@@ -214,10 +214,10 @@ def test_per_pixel_draw_variance_matches_the_closed_form(cfa):
     sensor = SensorParams(exposure_s=2.0, read_noise_e=4.0, row_noise_e=1.5, dark_current_e_per_s=(5.0, 20.0, 60.0),
                           black_level_error_dn=30.0, quantisation=False, saturation=False, cfa=cfa)
     planes = np.broadcast_to(levels[:, None, None], (3, h, w)).astype(np.float32)
-    from camsim.render.sequence import mosaic
+    from camsim.sensor.cfa import mosaic_of
     from camsim.sensor.cfa import cfa_sites
 
-    source = planes if cfa is None else mosaic(planes, cfa)
+    source = planes if cfa is None else mosaic_of(planes, cfa)[None]
     draw = render_expectation_frame(source, sensor, rng=7, workers=2)
     k = sensor.dn_per_electron
     views = [(c, draw.noisy_dn[c]) for c in range(3)] if cfa is None else \
@@ -235,14 +235,14 @@ def test_per_pixel_draw_variance_matches_the_closed_form(cfa):
 
 def test_bayer_clean_layer_is_exact_at_the_sites():
     from camsim.render.raw_frame import expectation_clean_dn
-    from camsim.render.sequence import mosaic
+    from camsim.sensor.cfa import mosaic_of
 
     rng = np.random.default_rng(3)
     planes = (rng.random((3, 32, 48)) * 9000).astype(np.float32)
     sensor = SensorParams(exposure_s=1.0, cfa="RGGB", prnu_percent=1.0, dsnu_e=2.0, full_well_e=8000.0)
-    draw = render_expectation_frame(mosaic(planes, "RGGB"), sensor, rng=1)
+    draw = render_expectation_frame(mosaic_of(planes, "RGGB")[None], sensor, rng=1)
     clean = expectation_clean_dn(planes, sensor, draw.maps)
-    assert np.allclose(mosaic(clean, "RGGB")[0], draw.clean_dn[0], rtol=1e-6, atol=1e-4)
+    assert np.allclose(mosaic_of(clean, "RGGB"), draw.clean_dn[0], rtol=1e-6, atol=1e-4)
     assert clean.max() <= sensor.dn_per_electron * sensor.full_well_e * (1 + 1e-6)  # the full well bounds E
 
 

@@ -68,12 +68,9 @@ def quantise(image: np.ndarray, bits: int) -> np.ndarray:
 def mosaic_clean(clean: np.ndarray, cfa_pattern: str) -> np.ndarray:
     """The clean layer (3, H, W) of a Bayer frame at its mosaic's sites: (H, W), each pixel its own channel's value
     (what the sensor's noisy mosaic is the noisy realisation of)."""
-    from camsim.sensor.cfa import cfa_sites
+    from camsim.sensor.cfa import mosaic_of
 
-    out = np.empty(clean.shape[1:], dtype=clean.dtype)
-    for dy, dx, channel in cfa_sites(cfa_pattern):
-        out[dy::2, dx::2] = clean[channel, dy::2, dx::2]
-    return out
+    return mosaic_of(clean, cfa_pattern)
 
 
 def develop_frame(rendered, info, output: str, settings=None) -> tuple[dict, dict]:

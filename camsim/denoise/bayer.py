@@ -36,7 +36,7 @@ import numpy as np
 from camsim.core.errors import CamsimError
 from camsim.core.optional_numbers import finite_or_none
 from camsim.denoise.image_scores import SSIM_MIN_SIDE
-from camsim.sensor.cfa import cfa_sites
+from camsim.sensor.cfa import cfa_sites, mosaic_of
 
 __all__ = ["BAYER_INPUTS", "BAYER_PLANES", "PACKED", "MOSAIC", "DEFAULT_ISP_GAIN", "GAIN_WHY", "gain_text",
            "isp_text", "isp_settings", "BayerFrame", "bayer_frame", "clean_mosaic", "denormalise", "to_packed",
@@ -99,10 +99,7 @@ def clean_mosaic(clean: np.ndarray, pattern: str) -> np.ndarray:
     numpy.ndarray, shape (H, W), float32
         Unit: DN.
     """
-    out = np.empty(clean.shape[1:], dtype=np.float32)
-    for dy, dx, c in cfa_sites(pattern):
-        out[dy::2, dx::2] = clean[c, dy::2, dx::2]
-    return out
+    return mosaic_of(clean, pattern).astype(np.float32, copy=False)
 
 
 def denormalise(mosaic: np.ndarray, facts) -> np.ndarray:

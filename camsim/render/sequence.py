@@ -36,7 +36,7 @@ from camsim.core.seeding import frame_seed_sequence
 from camsim.render.frame import Frame
 from camsim.render.raw_frame import expectation_clean_dn, render_expectation_frame
 from camsim.scene.sequence import Motion, SequenceParams, check_timing
-from camsim.sensor.cfa import cfa_sites
+from camsim.sensor.cfa import mosaic_of
 
 
 @dataclass(frozen=True)
@@ -163,14 +163,6 @@ def moving_expectation(signal_e: np.ndarray, motion: Motion, frame: int, exposur
     return np.ascontiguousarray(np.moveaxis(out, -1, 0))
 
 
-def mosaic(planes: np.ndarray, cfa: str) -> np.ndarray:
-    """(1, H, W): each CFA site takes its channel's plane of ``planes`` (3, H, W)."""
-    out = np.empty((1,) + planes.shape[1:], dtype=planes.dtype)
-    for dy, dx, c in cfa_sites(cfa):
-        out[0, dy::2, dx::2] = planes[c, dy::2, dx::2]
-    return out
-
-
 def frame_digits(frames: int) -> int:
     """The zero-padded width of a frame's index in its stem: at least 3, the count's digits."""
     return max(3, len(str(frames - 1)))
@@ -202,13 +194,13 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
 
     maps = fixed_pattern(sensor, labels.shape)
     ref_clean = expectation_clean_dn(static, sensor, maps, workers)
-    ref_noisy = ref_clean if sensor.cfa is None else mosaic(ref_clean, sensor.cfa)
+    ref_noisy = ref_clean if sensor.cfa is None else mosaic_of(ref_clean, sensor.cfa)[None]
     yield "ref", SequenceFrame(np.ascontiguousarray(ref_noisy), None, labels, expected, sensor, None, maps, None,
                                ref_clean), {
         "sequence_reference": True, "homography": np.eye(3).tolist(), "sequence": record}
     for i in range(seq.frames):
         moving = moving_expectation(static, motion, i, sensor.exposure_s, workers) if seq.moves else static
-        source = moving if sensor.cfa is None else mosaic(moving, sensor.cfa)
+        source = moving if sensor.cfa is None else mosaic_of(moving, sensor.cfa)[None]
         rng = frame_seed_sequence(scene.seed, f"{lit.illuminant}/f{i}", intensity_factor)
         draw = render_expectation_frame(source, sensor, rng=rng, workers=workers)
         clean = draw.clean_dn if sensor.cfa is None else expectation_clean_dn(moving, sensor, draw.maps, workers)

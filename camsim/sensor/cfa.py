@@ -9,3 +9,12 @@ CFA_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
 def cfa_sites(pattern: str) -> list[tuple[int, int, int]]:
     """The 2 × 2 cell of a Bayer pattern as ``[(row offset, column offset, channel), ...]`` (channel 0 = R)."""
     return [(i // 2, i % 2, "RGB".index(colour)) for i, colour in enumerate(pattern)]
+
+
+def mosaic_of(planes, pattern: str):
+    """The Bayer mosaic (H, W) of per-channel planes (3, H, W): each site of the 2 × 2 cell takes its channel's
+    plane, in the planes' array type and dtype (numpy or CuPy)."""
+    out = planes[0].copy()
+    for dy, dx, channel in cfa_sites(pattern):
+        out[dy::2, dx::2] = planes[channel][dy::2, dx::2]
+    return out
