@@ -358,10 +358,6 @@ def check_frames(scene: Scene, camera: Camera | None = None) -> list[str]:
     CamsimError
         Naming the frame (illuminant and F) and the reason.
     """
-    if scene.source.table == "raw":  # no spectra, no light: the file's electrons (camsim.render.raw_render)
-        from camsim.render.raw_render import raw_frame_warnings
-
-        return raw_frame_warnings(scene)
     if camera is None:
         camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
     # with a fixed exposure every mean grows with F: the brightest frame stands for all; with auto exposure T

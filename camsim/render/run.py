@@ -44,6 +44,19 @@ def check_scene(scene: Scene) -> None:
                               "readers (LibRaw) refuse")
 
 
+def scene_warnings(scene: Scene) -> list[str]:
+    """Refuse a scene with a frame that cannot be drawn, before anything is drawn or written, and return its warnings
+    (one line each): :func:`camsim.render.pipeline.check_frames` of a spectral scene,
+    :func:`camsim.render.raw_render.raw_frame_warnings` of a raw scene (no spectra, no light: the file's electrons)."""
+    if scene.source.table == "raw":
+        from camsim.render.raw_render import raw_frame_warnings
+
+        return raw_frame_warnings(scene)
+    from camsim.render.pipeline import check_frames  # (looked up now: the tests replace it)
+
+    return check_frames(scene)
+
+
 def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = None, progress: bool = True,
                  preview: bool = False, device: str = "cpu", exr_compression: str = DEFAULT_EXR_COMPRESSION,
                  warn=None) -> dict:

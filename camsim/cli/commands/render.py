@@ -156,12 +156,11 @@ def _warn_clear_of_the_bar(line: str) -> None:
 def run(args) -> int:
     """Carry out ``camsim render``; returns the exit status (0).
 
-    Before anything is written, every frame is checked (:func:`camsim.render.pipeline.check_frames`: a frame that cannot
+    Before anything is written, every frame is checked (:func:`camsim.render.run.scene_warnings`: a frame that cannot
     be drawn is a :class:`CamsimError`) and the warnings of valid but dark-saturated frames go to stderr, one line
     each, ``camsim: warning: ...``.
     """
-    from camsim.render.pipeline import check_frames
-    from camsim.render.run import check_scene, render_scene
+    from camsim.render.run import check_scene, render_scene, scene_warnings
     from camsim.scene.scene_file import load_scene
 
     scene = apply_overrides(load_scene(args.scene), args)
@@ -175,7 +174,7 @@ def run(args) -> int:
         if drawn != scene.method:
             print(f"camsim: warning: --device {device} draws every pixel from its exact law: method {scene.method} "
                   f"is rendered as {drawn} (the sidecar records method_requested)", file=sys.stderr)
-    for warning in check_frames(scene):
+    for warning in scene_warnings(scene):
         print(f"camsim: warning: {warning}", file=sys.stderr)
     out = args.out if args.out is not None else DEFAULT_OUT / scene.name
     manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet, preview=args.preview,
