@@ -59,107 +59,19 @@ def static_signal_e(labels: np.ndarray, signal_e: np.ndarray) -> np.ndarray:
     return out
 
 
-#: Rows of a warp block: a block's temporaries stay small (in cache, no fresh pages) and blocks run on threads.
-WARP_BLOCK_PIXELS = 2**16
-
-
-def warp_bilinear(pixels: np.ndarray, inverse: np.ndarray, out: np.ndarray, weight: float = 1.0,
-                  rows: tuple[int, int] | None = None) -> None:
-    """``out += weight · pixels(H⁻¹ p)`` at every pixel p: bilinear between pixel centres, clamped at the edges.
-
-    Parameters
-    ----------
-    pixels : numpy.ndarray, shape (H, W, C), float32, C-contiguous
-        The image, channels last (one gather fetches a pixel's C values together).
-    inverse : numpy.ndarray, shape (3, 3)
-        H⁻¹: sensor pixel (x, y, 1) → reference pixel (homogeneous); an affine one (last row 0, 0, 1) skips the
-        division.
-    out : numpy.ndarray, shape (H, W, C) (or (r1 − r0, W, C) with ``rows``), float32
-        Accumulated in place.
-    rows : (r0, r1), optional
-        Only the sensor rows r0:r1 (``out`` holds just them).
-
-    Coordinates are float32 (at 4000 px, steps of 2.4e-4 px).
-    """
-    height, width, channels = pixels.shape
-    r0, r1 = (0, height) if rows is None else rows
-    inv = np.asarray(inverse, dtype=np.float64)
-    x = np.arange(width, dtype=np.float32)[None, :]
-    y = np.arange(r0, r1, dtype=np.float32)[:, None]
-    f32 = np.float32
-    qx = f32(inv[0, 0]) * x + (f32(inv[0, 1]) * y + f32(inv[0, 2]))
-    qy = f32(inv[1, 0]) * x + (f32(inv[1, 1]) * y + f32(inv[1, 2]))
-    if not (inv[2, 0] == 0 and inv[2, 1] == 0 and inv[2, 2] == 1):
-        w = f32(inv[2, 0]) * x + (f32(inv[2, 1]) * y + f32(inv[2, 2]))
-        qx /= w
-        qy /= w
-    np.clip(qx, 0, width - 1, out=qx)
-    np.clip(qy, 0, height - 1, out=qy)
-    x0 = np.floor(qx)
-    y0 = np.floor(qy)
-    np.minimum(x0, max(width - 2, 0), out=x0)
-    np.minimum(y0, max(height - 2, 0), out=y0)
-    qx -= x0  # the fractions
-    qy -= y0
-    index = y0.astype(np.int64)
-    index *= width
-    index += x0.astype(np.int64)
-    index = index.ravel()
-    dx = 1 if width > 1 else 0
-    dy = width if height > 1 else 0
-    fx, fy = qx.reshape(-1, 1), qy.reshape(-1, 1)
-    flat = pixels.reshape(-1, channels)
-    acc = out.reshape(-1, channels)
-    take = lambda i: np.take(flat, i, axis=0)  # noqa: E731 (rows of C values: far faster than flat[i])
-    top = take(index)  # (1 − fx) a + fx b, rows y0 and y0 + 1, then (1 − fy) top + fy bottom
-    top += (take(index + dx) - top) * fx
-    bottom = take(index + dy)
-    bottom += (take(index + dx + dy) - bottom) * fx
-    bottom -= top
-    bottom *= fy
-    top += bottom
-    if weight != 1:
-        top *= f32(weight)
-    acc += top
-
-
 def moving_expectation(signal_e: np.ndarray, motion: Motion, frame: int, exposure_s: float,
                        workers: int | None = None) -> np.ndarray:
     """Frame ``frame``'s expected signal electrons (3, H, W) float32: the mean of S̄(H(t)⁻¹ p) over the
     sub-sample times of its exposure (:meth:`camsim.scene.sequence.Motion.subsample_times`), bilinear, clamped at
-    the edges (:func:`warp_bilinear`), in row blocks on ``workers`` threads (default: every core; the result does
-    not depend on it: each block sums its sub-samples in order). Unit: e⁻."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    from camsim.render.frame import default_workers
+    the edges (:func:`camsim.render.warp.average_warp`, on ``workers`` threads; the result does not depend on
+    them). Unit: e⁻."""
+    from camsim.render.warp import average_warp
 
     times = motion.subsample_times(frame, exposure_s)
-    weight = 1 / len(times)
+    inverses = np.array([np.linalg.inv(motion.homography(float(t), frame)) for t in times])[:, None]
+    weights = np.full((len(times), 1), 1 / len(times))
     pixels = np.ascontiguousarray(np.moveaxis(signal_e, 0, -1), dtype=np.float32)
-    out = np.zeros_like(pixels)
-    inverses = []
-    for t in times:
-        h = motion.homography(float(t), frame)
-        inverses.append(None if np.allclose(h, np.eye(3), rtol=0, atol=1e-12) else np.linalg.inv(h))
-    height, width = pixels.shape[:2]
-    rows = max(1, WARP_BLOCK_PIXELS // width)
-
-    def block(r0: int) -> None:
-        r1 = min(height, r0 + rows)
-        for inverse in inverses:
-            if inverse is None:
-                out[r0:r1] += pixels[r0:r1] * np.float32(weight)
-            else:
-                warp_bilinear(pixels, inverse, out[r0:r1], weight, rows=(r0, r1))
-
-    starts = range(0, height, rows)
-    workers = default_workers() if workers is None else max(1, int(workers))
-    if workers == 1:
-        for r0 in starts:
-            block(r0)
-    else:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            list(pool.map(block, starts))
+    out = average_warp(pixels, inverses, weights, workers=workers)
     return np.ascontiguousarray(np.moveaxis(out, -1, 0))
 
 
