@@ -329,3 +329,27 @@ def test_a_frame_committed_but_not_yet_recorded_is_listed(tmp_path, monkeypatch)
     assert main(["render", "macbeth_26", *SMALL, "--intensity", "1", "0.5", "--out", str(out)]) == 130
     assert sidecars(out) == {"macbeth_26_D65_F1.json"}
     assert manifest_sidecars(out) == ["macbeth_26_D65_F1.json"]
+
+
+@pytest.mark.parametrize("frames_before", [0, 1])
+def test_a_signal_inside_the_manifests_write_is_undone(frames_before, tmp_path, monkeypatch):
+    """A signal inside the manifest's own write (the frame's entry made, the manifest not yet renamed into place;
+    the race that made tests/test_faults.py's two-renders test fail now and then): the run's unwinding writes it
+    again, so the manifest equals the committed frames."""
+    import camsim.render.frame_manifest as frame_manifest
+
+    real = frame_manifest.write_json_atomic
+    calls = []
+
+    def interrupted(path, data):
+        calls.append(path)
+        if len(calls) == frames_before + 1:  # this frame's update of the manifest: interrupted before the rename
+            raise KeyboardInterrupt
+        return real(path, data)
+
+    monkeypatch.setattr(frame_manifest, "write_json_atomic", interrupted)
+    out = tmp_path / "out"
+    assert main(["render", "macbeth_26", *SMALL, "--intensity", "1", "0.5", "--out", str(out)]) == 130
+    committed = sidecars(out)
+    assert len(committed) == frames_before + 1
+    assert sorted(manifest_sidecars(out)) == sorted(committed)

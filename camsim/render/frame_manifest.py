@@ -71,6 +71,7 @@ class FrameManifest:
         self.out_dir = Path(out_dir)
         self.scene = scene
         self.entries: dict[str, dict | None] = {}  # sidecar name → entry (None: being re-written), in order
+        self._unwritten = False  # whether the entries changed since the manifest was last written in full
         earlier = _read_json(self.out_dir / MANIFEST_NAME)
         listed = earlier.get("frames") if isinstance(earlier, dict) else None
         for entry in listed if isinstance(listed, list) else ():
@@ -94,11 +95,12 @@ class FrameManifest:
     def kept_on_failure(self) -> Iterator[FrameManifest]:
         """Render into the folder in the block; if the block fails or is interrupted, add to the manifest (and
         write, as far as the disk allows) a frame that committed but was not recorded yet: a signal can land
-        between a frame's commit and :meth:`commit`."""
+        between a frame's commit and :meth:`commit`, or inside the manifest's own write (the entry made, the file
+        not yet renamed into place)."""
         try:
             yield self
         except BaseException:
-            if self._add_unlisted():
+            if self._add_unlisted() or self._unwritten:
                 with contextlib.suppress(CamsimError):
                     self.write()
             raise
@@ -113,7 +115,9 @@ class FrameManifest:
     def write(self) -> Path:
         """Write the manifest (atomically); returns its path."""
         path = self.out_dir / MANIFEST_NAME
+        self._unwritten = True
         write_json_atomic(path, self.as_dict())
+        self._unwritten = False
         return path
 
     def withdraw(self, stem: str) -> None:
@@ -121,6 +125,7 @@ class FrameManifest:
         a frame that is not committed."""
         name = f"{stem}{SIDECAR_SUFFIX}"
         if self.entries.get(name) is not None:
+            self._unwritten = True
             self.entries[name] = None  # keeps its place for the new entry
             self.write()
 
@@ -133,5 +138,6 @@ class FrameManifest:
     def commit_entry(self, entry: dict) -> None:
         """Add (or replace in place) a frame's entry (:func:`manifest_entry` of its sidecar) that has just
         committed, and write the manifest."""
+        self._unwritten = True  # before the entry: a signal may land between any two lines
         self.entries[entry["files"]["json"]] = entry
         self.write()
