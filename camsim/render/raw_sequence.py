@@ -39,7 +39,8 @@ scene. :func:`raw_sequence_warnings` says so where that share is above :data:`CO
 (``tests/test_raw_sequence.py`` measures it).
 
 Saturated (masked) source sites move with the scene: the mask's indicator goes down the same path as the electrons
-(:func:`mask_share`: clean_planes of the 0/1 mosaic, the same warp, the CFA), giving each frame site the share of
+(:func:`mask_planes`: clean_planes of the 0/1 mosaic, warped with the electrons, its sites' own colour:
+:func:`mask_share`), giving each frame site the share of
 its interpolation weight that came from masked sites: 1 where it is all masked, 0 where no masked site touched it,
 in between on a moving mask's border. ``STEM_mask.png`` writes round(255 · share): 255 masked, 0 clean, any other
 value partly masked; the sidecar's ``raw_source.masked_px`` counts the sites with a share above 0 and
@@ -125,16 +126,15 @@ def source_planes_e(mosaic_e: np.ndarray, pattern: str) -> np.ndarray:
     return clean_planes(mosaic_e, pattern)
 
 
-def mask_share(masked: np.ndarray, pattern: str, motion: Motion | None, frame: int, exposure_s: float,
-               workers: int | None = None) -> np.ndarray:
-    """Each site's share (H, W) float32 in [0, 1] of its moved value's interpolation weight that came from masked
-    source sites: the 0/1 mask down the electrons' path (planes, the warp of frame ``frame``, the CFA). ``motion``
-    None: the static sequence (the source's mask itself)."""
-    from camsim.render.sequence import moving_expectation
+def mask_planes(masked: np.ndarray, pattern: str) -> np.ndarray:
+    """The mask's planes (3, H, W) float32: the 0/1 mask of saturated source sites made into planes as the
+    electrons are (:func:`source_planes_e`), to go down the same path."""
+    return source_planes_e(masked.astype(np.float32), pattern)
 
-    planes = clean_planes(masked.astype(np.float32), pattern)
-    if motion is not None:
-        planes = moving_expectation(planes, motion, frame, exposure_s, workers)
+
+def mask_share(planes: np.ndarray, pattern: str) -> np.ndarray:
+    """Each site's share (H, W) float32 in [0, 1] of its (moved) value's interpolation weight that came from masked
+    source sites: its own colour's plane of the (moved) :func:`mask_planes`."""
     return np.clip(mosaic_of(planes, pattern), 0.0, 1.0)
 
 
@@ -175,7 +175,10 @@ def render_raw_sequence_frames(scene, source: LoadedRaw, intensity_factor: float
     ref_clean = expectation_clean_dn(static, sensor, maps, workers)
     ref = RawDraw(np.ascontiguousarray(mosaic_of(ref_clean, pattern)[None]), None, mosaic_of(ref_clean, pattern),
                   maps, None)
-    static_share = mask_share(source.masked, pattern, None, 0, sensor.exposure_s)
+    masks = mask_planes(source.masked, pattern) if source.masked.any() else None
+    static_share = np.zeros((height, width), np.float32) if masks is None else mask_share(masks, pattern)
+    # a moving frame warps the electrons and the mask together (one warp, six channels: one set of coordinates)
+    moved_planes = static if masks is None else np.concatenate([static, masks])
     yield "ref", ref, ref_clean, static_share, {"sequence_reference": True, "homography": np.eye(3).tolist(),
                                                 "sequence": record}
     for i in range(seq.frames):
@@ -187,8 +190,9 @@ def render_raw_sequence_frames(scene, source: LoadedRaw, intensity_factor: float
             if seq.moves:
                 from camsim.render.sequence import moving_expectation
 
-                moving = moving_expectation(static, motion, i, sensor.exposure_s, workers)
-                share = mask_share(source.masked, pattern, motion, i, sensor.exposure_s, workers)
+                moved = moving_expectation(moved_planes, motion, i, sensor.exposure_s, workers)
+                moving = moved[:3]
+                share = static_share if masks is None else mask_share(moved[3:], pattern)
             else:
                 moving, share = static, static_share
             draw = render_expectation_frame(mosaic_of(moving, pattern)[None], sensor, rng=rng, workers=workers)
@@ -245,6 +249,6 @@ def render_raw_sequence(scene, out_dir, *, workers=None, progress=True, exr_comp
     return manifest.as_dict()
 
 
-__all__ = ["COMMON_SHARE_WARNING", "check_raw_sequence", "common_share", "mask_png", "mask_record", "mask_share",
-           "raw_sequence_warnings", "render_raw_sequence", "render_raw_sequence_frames", "source_mosaic_e",
+__all__ = ["COMMON_SHARE_WARNING", "check_raw_sequence", "common_share", "mask_png", "mask_record", "mask_planes",
+           "mask_share", "raw_sequence_warnings", "render_raw_sequence", "render_raw_sequence_frames", "source_mosaic_e",
            "source_planes_e"]
