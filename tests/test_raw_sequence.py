@@ -210,15 +210,49 @@ def test_thin_with_motion_is_refused_on_one_line(tmp_path, capsys, motion):
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
 
 
-def test_a_static_thin_sequence_renders_independent_frames(tmp_path):
+def test_a_static_thin_sequence_follows_the_thin_law(tmp_path):
+    """Per site over the frames: mean P + K p n, temporal variance K² n p (1 − p) + σ_read² + σ_row² + 1/12, n the
+    source's rounded count (Binomial(n, p) per frame, each frame its own draw)."""
     write_source(tmp_path / "a.dng", 64, 64, orientation=1)
-    scene = write_sequence_scene(tmp_path, "a.dng", 0.01, "frames = 2\nframe_interval_s = 0.2",
+    factor, frames = 0.3, 6
+    scene = write_sequence_scene(tmp_path, "a.dng", factor, f"frames = {frames}\nframe_interval_s = 0.2",
                                  extra='photon_law = "thin"')
     assert render(scene, tmp_path / "out") == 0
-    stem = tmp_path / "out" / "seq_as-shot_F0.01"
-    a, b = (rawpy.imread(f"{stem}_f{i:03d}.dng").raw_image for i in range(2))
+    stem = tmp_path / "out" / "seq_as-shot_F0.3"
+    stack = np.stack([rawpy.imread(f"{stem}_f{i:03d}.dng").raw_image.astype(np.float64) for i in range(frames)])
     assert json.loads(Path(f"{stem}_f001.json").read_text())["method"] == "raw-thin"
-    assert not np.array_equal(a, b)
+    preset = camera_preset("sony-a7s2")
+    point = preset.point_at(ISO)
+    k = point.k_dn_per_e
+    read_var, row_var = _tukey_read_sd(point) ** 2, point.row_sigma_dn ** 2
+    count = np.rint((np.rint(BLACK + SITE_E * k) - BLACK) / k)
+    for dy in (0, 1):
+        for dx in (0, 1):
+            site = stack[:, dy::2, dx::2]
+            n = count[dy, dx]
+            var = k * k * n * factor * (1 - factor) + read_var + row_var + 1 / 12
+            rows = site.shape[1]
+            tol_mean = SIGMAS * np.sqrt((var - row_var) / site.size + row_var / (frames * rows))
+            assert site.mean() == pytest.approx(preset.pedestal_dn + k * factor * n, abs=tol_mean), (dy, dx)
+            per_pixel = site.var(axis=0, ddof=1)
+            tol_var = SIGMAS * per_pixel.mean(axis=1).std(ddof=1) / np.sqrt(rows)
+            assert per_pixel.mean() == pytest.approx(var, abs=tol_var), (dy, dx, per_pixel.mean(), var)
+            assert tol_var < 0.2 * k * k * n * factor  # can fail: add's variance (no 1 − p) is 43 % more here
+
+
+def test_a_raw_sequence_warns_where_the_sources_noise_is_a_visible_share(tmp_path):
+    from camsim.render.raw_sequence import raw_sequence_warnings
+    from camsim.scene.scene_file import load_scene
+
+    write_source(tmp_path / "a.dng", 64, 64, orientation=1)
+    for factor, law, warned in ((0.5, "add", True), (0.005, "add", False), (0.02, "thin", True)):
+        scene = load_scene(write_sequence_scene(tmp_path, "a.dng", factor, "frames = 2\nframe_interval_s = 0.2",
+                                                extra=f'photon_law = "{law}"'))
+        lines = raw_sequence_warnings(scene)
+        assert len(lines) == int(warned) and all("\n" not in line for line in lines), (factor, law, lines)
+        if warned:  # the share it states: f / (1 + f) for add, p for thin
+            share = factor / (1 + factor) if law == "add" else factor
+            assert f"{100 * share:.3g} %" in lines[0], lines[0]
 
 
 def test_the_mask_moves_with_the_scene(tmp_path):
