@@ -39,11 +39,11 @@ scene. :func:`raw_sequence_warnings` says so where that share is above :data:`CO
 (``tests/test_raw_sequence.py`` measures it).
 
 Saturated (masked) source sites move with the scene: the mask's indicator goes down the same path as the electrons
-(:func:`mask_planes`: clean_planes of the 0/1 mosaic, warped with the electrons, its sites' own colour:
-:func:`mask_share`), giving each frame site the share of
-its interpolation weight that came from masked sites: 1 where it is all masked, 0 where no masked site touched it,
-in between on a moving mask's border. ``STEM_mask.png`` writes round(255 · share): 255 masked, 0 clean, any other
-value partly masked; the sidecar's ``raw_source.masked_px`` counts the sites with a share above 0 and
+(:func:`mask_planes`: clean_planes of the 0/1 mosaic, warped with the electrons; :func:`mask_share`: its sites' own
+colour), giving each frame site the share of its interpolation weight that came from masked sites: 1 where it is
+all masked, 0 where no masked site touched it, in between on a moving mask's border (and at a border site whose
+other colours are interpolated from across it). ``STEM_mask.png`` writes round(255 · share): 255 masked, 0 clean,
+any other value partly masked; the sidecar's ``raw_source.masked_px`` counts the sites with a share above 0 and
 ``masked_partial_px`` those between 0 and 1.
 
 Files, per F with stem STEM (``SCENE_as-shot_F<F>``): ``STEM_fNNN.dng/.exr/.json`` (and ``_mask.png`` where a site
@@ -51,7 +51,9 @@ is masked), each sidecar a raw scene's (:func:`camsim.render.raw_render.raw_side
 (``frame_index``, ``time_s``, ``homography``, ``homography_time``, ``blur_subsamples_used``, ``sequence``); and
 ``STEM_ref.exr/.json``: the reference frame, the source's expectation (no motion, no noise; the static planes'
 :func:`camsim.render.raw_frame.expectation_clean_dn`, the fixed pattern in), its noisy layer the clean one's sites,
-no DNG. Frame i draws from ``frame_seed_sequence(seed, "as-shot/f<i>", F)``.
+no DNG (under ``thin`` the planes are f · round(max(s, 0)): the law's mean, exact away from the full well, where
+a ``thin`` frame's own clean layer is :func:`camsim.render.raw_frame.render_raw_frame`'s approximation). Frame i
+draws from ``frame_seed_sequence(seed, "as-shot/f<i>", F)``.
 """
 
 from __future__ import annotations
@@ -79,6 +81,12 @@ from camsim.sensor.raw_laws import source_count_e
 #: A raw sequence warns where the source's own noise, common to every frame, is more than this share of a frame's
 #: shot-noise variance (f / (1 + f) for ``add``, p for ``thin``, f the largest fraction): 1 %.
 COMMON_SHARE_WARNING = 0.01
+
+
+#: The sidecar's ``units.raw_source``, added for a sequence's frame: what its mask counts are.
+MASK_UNITS = ("; in a sequence, masked_px counts the frame's sites that took any share of their value from masked "
+              "source sites (the mask moved with the scene) and masked_partial_px those that took part of it "
+              "(1 to 254 in the mask file, 255 all)")
 
 
 def check_raw_sequence(scene) -> None:
@@ -240,7 +248,8 @@ def render_raw_sequence(scene, out_dir, *, workers=None, progress=True, exr_comp
                     record = {**source.record(scene.source.photon_law, fraction), **mask_record(share)}
                     meta = raw_sidecar(scene, draw, record, source, factor, scene.seed, None)
                     meta = {**meta, **extra, "sequence": {**extra["sequence"], "stem": stem,
-                                                          "reference": f"{stem}_ref.exr"}}
+                                                          "reference": f"{stem}_ref.exr"},
+                            "units": {**meta["units"], "raw_source": meta["units"]["raw_source"] + MASK_UNITS}}
                     manifest.withdraw(name)
                     files = write_raw_frame(out_dir, name, draw, meta, source, scene.sensor, exr_compression,
                                             clean=clean, mask=mask_png(share))
@@ -249,6 +258,6 @@ def render_raw_sequence(scene, out_dir, *, workers=None, progress=True, exr_comp
     return manifest.as_dict()
 
 
-__all__ = ["COMMON_SHARE_WARNING", "check_raw_sequence", "common_share", "mask_png", "mask_record", "mask_planes",
-           "mask_share", "raw_sequence_warnings", "render_raw_sequence", "render_raw_sequence_frames", "source_mosaic_e",
-           "source_planes_e"]
+__all__ = ["COMMON_SHARE_WARNING", "MASK_UNITS", "check_raw_sequence", "common_share", "mask_png", "mask_planes",
+           "mask_record", "mask_share", "raw_sequence_warnings", "render_raw_sequence", "render_raw_sequence_frames",
+           "source_mosaic_e", "source_planes_e"]
