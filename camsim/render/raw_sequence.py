@@ -48,7 +48,8 @@ any other value partly masked; the sidecar's ``raw_source.masked_px`` counts the
 
 Files, per F with stem STEM (``SCENE_as-shot_F<F>``): ``STEM_fNNN.dng/.exr/.json`` (and ``_mask.png`` where a site
 is masked), each sidecar a raw scene's (:func:`camsim.render.raw_render.raw_sidecar`) with the sequence's keys
-(``frame_index``, ``time_s``, ``homography``, ``homography_time``, ``blur_subsamples_used``, ``sequence``); and
+(``frame_index``, ``time_s``, ``homography`` — in the mosaic's own pixels, the crop's, before the file's
+Orientation —, ``homography_time``, ``blur_subsamples_used``, ``sequence``); and
 ``STEM_ref.exr/.json``: the reference frame, the source's expectation (no motion, no noise; the static planes'
 :func:`camsim.render.raw_frame.expectation_clean_dn`, the fixed pattern in), its noisy layer the clean one's sites,
 no DNG (under ``thin`` the planes are f · round(max(s, 0)): the law's mean, exact away from the full well, where
