@@ -21,6 +21,10 @@ reference frame, the static scene's expectation (no motion, no noise; the fixed 
 has it), its noisy layer equal to its clean one, no DNG. An EXR's clean layer is its frame's own expectation
 (:func:`camsim.render.raw_frame.expectation_clean_dn`: every channel at every pixel). The sidecars' per-patch
 values (``patches``) are the static scene's.
+
+A raw scene's sequence moves the file's electrons instead (:mod:`camsim.render.raw_sequence`: the same
+:func:`moving_expectation`, then the file's CFA and the ``add`` law); :func:`check_sequence_scene` and
+:func:`render_sequence` hand it there.
 """
 
 from __future__ import annotations
