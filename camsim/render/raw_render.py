@@ -179,11 +179,17 @@ def check_raw_scene(scene) -> None:
 
 
 def raw_frame_warnings(scene) -> list[str]:
-    """:func:`camsim.render.pipeline.frame_warnings` of a raw scene's sensor (after :func:`check_raw_scene`)."""
+    """:func:`camsim.render.pipeline.frame_warnings` of a raw scene's sensor (after :func:`check_raw_scene`), and a
+    ``[sequence]``'s (:func:`camsim.render.raw_sequence.raw_sequence_warnings`, after its check)."""
     from camsim.render.pipeline import frame_warnings
 
     check_raw_scene(scene)
-    return frame_warnings(scene.sensor)
+    if scene.sequence is None:
+        return frame_warnings(scene.sensor)
+    from camsim.render.raw_sequence import check_raw_sequence, raw_sequence_warnings
+
+    check_raw_sequence(scene)
+    return frame_warnings(scene.sensor) + raw_sequence_warnings(scene)
 
 
 def raw_scene_frame(scene, intensity_factor: float, *, source: LoadedRaw | None = None, seed: int | None = None,
@@ -314,11 +320,16 @@ def as_shot_neutral(capture) -> np.ndarray:
 
 
 def write_raw_frame(out_dir: Path, stem: str, draw: RawDraw, meta: dict, source: LoadedRaw, sensor: SensorParams,
-                    exr_compression: str = DEFAULT_EXR_COMPRESSION) -> dict:
+                    exr_compression: str = DEFAULT_EXR_COMPRESSION, *, clean: np.ndarray | None = None,
+                    mask: np.ndarray | None = None) -> dict:
     """Write a raw scene's frame: ``stem.dng`` (if quantised, with the source's camera metadata), ``stem.exr``,
-    ``stem_mask.png`` (where the source has masked sites) and, last, ``stem.json`` (the commit record).
+    ``stem_mask.png`` (where ``meta``'s ``raw_source.masked_px`` is not 0) and, last, ``stem.json`` (the commit
+    record).
 
-    ``meta`` is :func:`raw_sidecar`'s dict without its ``files`` (set here). Returns the files by kind."""
+    ``meta`` is :func:`raw_sidecar`'s dict without its ``files`` (set here). ``clean``: the EXR's clean layer (3, H, W)
+    DN (default: :func:`clean_planes` of the draw's clean mosaic); ``mask``: the mask file's values (H, W) uint8
+    (default: 255 at the source's masked sites, 0 elsewhere; a moving sequence's: :mod:`camsim.render.raw_sequence`).
+    Returns the files by kind."""
     check_exr_compression(exr_compression)
     files = {"dng": f"{stem}.dng" if draw.digital_dn is not None else None, "exr": f"{stem}.exr",
              "json": f"{stem}{SIDECAR_SUFFIX}"}
@@ -346,12 +357,14 @@ def write_raw_frame(out_dir: Path, stem: str, draw: RawDraw, meta: dict, source:
         header = exr_header(meta, sensor)
         view, view_header = camera_view(draw.noisy_dn, sensor)
         header.update(view_header)
-        write_exr(out_dir / files["exr"], draw.noisy_dn, clean_planes(draw.clean_dn, sensor.cfa), header,
-                  exr_compression, view=view)
+        write_exr(out_dir / files["exr"], draw.noisy_dn,
+                  clean_planes(draw.clean_dn, sensor.cfa) if clean is None else clean, header, exr_compression,
+                  view=view)
         if "mask" in files:
             from camsim.render.preview import write_preview_png
 
-            mask = np.where(source.masked, np.uint8(255), np.uint8(0))
+            if mask is None:
+                mask = np.where(source.masked, np.uint8(255), np.uint8(0))
             write_preview_png(out_dir / files["mask"], np.repeat(mask[..., None], 3, axis=2))
         write_json_atomic(out_dir / files["json"], meta)
     return files

@@ -21,6 +21,10 @@ reference frame, the static scene's expectation (no motion, no noise; the fixed 
 has it), its noisy layer equal to its clean one, no DNG. An EXR's clean layer is its frame's own expectation
 (:func:`camsim.render.raw_frame.expectation_clean_dn`: every channel at every pixel). The sidecars' per-patch
 values (``patches``) are the static scene's.
+
+A raw scene's sequence moves the file's electrons instead (:mod:`camsim.render.raw_sequence`: the same
+:func:`moving_expectation`, then the file's CFA and the ``add`` law); :func:`check_sequence_scene` and
+:func:`render_sequence` hand it there.
 """
 
 from __future__ import annotations
@@ -82,8 +86,10 @@ def frame_digits(frames: int) -> int:
 
 def check_sequence_scene(scene) -> None:
     """Refuse, before any work, what a sequence cannot render (one line each)."""
-    if scene.source.table == "raw":
-        raise CamsimError("a [sequence] is not available for a raw scene yet")
+    if scene.source.table == "raw":  # the file's electrons moved: camsim.render.raw_sequence
+        from camsim.render.raw_sequence import check_raw_sequence
+
+        return check_raw_sequence(scene)
     if scene.exposure == "fixed":  # (auto: each frame's T is checked when it is known)
         check_timing(scene.sequence, scene.sensor.exposure_s)
     if scene.statistics != "pixel":
@@ -140,6 +146,11 @@ def render_sequence(scene, out_dir, *, workers=None, progress=True, exr_compress
     from camsim.render.pipeline import frame_sensor, light_scene, scene_frame_info
     from camsim.sensor.camera import load_camera
 
+    if scene.source.table == "raw":  # the file's electrons moved: camsim.render.raw_sequence
+        from camsim.render.raw_sequence import render_raw_sequence
+
+        return render_raw_sequence(scene, out_dir, workers=workers, progress=progress,
+                                   exr_compression=exr_compression)
     exr_compression = exr_compression or DEFAULT_EXR_COMPRESSION
     check_sequence_scene(scene)
     check_exr_compression(exr_compression)

@@ -125,6 +125,20 @@ def _sequence(value):
     return value
 
 
+def _raw_source(value):
+    """A raw scene's frame's source record: an object; its mask counts (``masked_px``, and a sequence frame's
+    ``masked_partial_px``: sites partly from masked source sites, camsim.render.raw_sequence) integers ≥ 0."""
+    if not isinstance(value, dict):
+        raise _Bad("an object (the raw source's record)")
+    for key in ("masked_px", "masked_partial_px"):
+        if key in value:
+            try:
+                _integer(value[key], low=0)
+            except _Bad as exc:
+                raise _Bad(f"an object whose {key} is {exc}") from None
+    return value
+
+
 def _surround(value):
     if value is None:
         return None
@@ -183,6 +197,7 @@ FRAME_KEYS = {
     "time_s": _optional(lambda v: _number(v, low=0)),
     "homography": _optional(_matrix(3, 3)),
     "sequence": _sequence,
+    "raw_source": _raw_source,
 }
 
 
