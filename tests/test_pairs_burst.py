@@ -185,6 +185,31 @@ def test_the_reference_is_the_scene_frames_clean_layer_of_the_crop():
         assert p["burst"]["margin_px"][0] >= 2  # the pan alone moves 2 px a second
 
 
+def test_an_integer_pan_shows_the_neighbouring_crop_of_the_photograph():
+    """A pan of (4, −2) px/s, T = 1 s, one sub-sample at each exposure's middle: frame j is translated by
+    d = (4, −2)·(j + ½), whole pixels, so its expectation is the scene frame's clean layer of the photograph's crop at
+    (x − dx, y − dy): the margin beyond the crop (11 px: the farthest frame moves 10) is the photograph's own scene,
+    and H maps the reference to it."""
+    from camsim.render.frame import clean_dn
+    from camsim.render.pipeline import light_scene
+    from camsim.scene.sources.image import ImageSource
+    from camsim.sensor.presets import sensor_preset
+
+    src = source(burst_frames=3, batch_size=2, pan_px_per_s=(4.0, -2.0), blur_subsamples=1)
+    batch = src.batch(0)
+    for i, p in enumerate(batch.params):
+        assert p["exposure_s"] == 1.0 and p["burst"]["margin_px"] == [11, 11] and not p["burst"]["clamped"]
+        sensor = sensor_preset(p["preset"], p["iso"])
+        for j in range(3):
+            dx, dy = batch.homographies[i, j, :2, 2]
+            assert (dx, dy) == (4.0 * (j + 0.5), -2.0 * (j + 0.5))
+            crop = ImageSource(path=IMAGES / p["image"], crop=(p["crop_x"] - int(dx), p["crop_y"] - int(dy), 64, 48))
+            lit = light_scene(src.scene.replace(source=crop), p["illuminant"])
+            expected = lit.expected(sensor, p["intensity_factor"], "pixel")
+            np.testing.assert_allclose(batch.frames_clean[i, j], clean_dn(lit.labels, expected, sensor), rtol=1e-5,
+                                       atol=1e-3)
+
+
 def test_the_homographies_move_the_clean_content():
     """A pure pan: each frame's expectation is the reference shifted by its homography's translation (at the
     exposure's middle; the blur within the exposure is symmetric about it), by the test's phase correlation within
