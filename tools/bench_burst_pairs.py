@@ -138,9 +138,9 @@ def main(argv=None) -> int:
         per_item = items / seconds
         print(f"{name:<14} {per_item:9.2f} {per_item * frames:9.2f} {single / (per_item * frames):26.2f}")
     moving = sources["burst moving"].batch(0).params
-    print("moving bursts: sub-samples per frame "
-          f"{[p['burst']['blur_subsamples_used'] for p in moving][0]}, margins "
-          f"{[p['burst']['margin_px'][0] for p in moving]} px, clamped {sum(p['burst']['clamped'] for p in moving)}")
+    print(f"moving bursts (batch 0): sub-samples per frame {moving[0]['burst']['blur_subsamples_used']} (item 0); "
+          f"reach {[round(p['burst']['reach_px'], 1) for p in moving]} px; margins (x, y) "
+          f"{[tuple(p['burst']['margin_px']) for p in moving]} px; clamped {sum(p['burst']['clamped'] for p in moving)}")
     if args.profile:
         print("one moving burst item, stage by stage (best of 3):")
         for name, seconds in profile(sources["burst moving"]):
