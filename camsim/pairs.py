@@ -297,9 +297,11 @@ class PairSource:
         """Refuse burst settings that cannot be rendered (one line each), and motion settings without a burst."""
         from camsim.scene.sequence import MAX_SUBSAMPLES
 
-        motion = {"shake_px": self.shake_px != 0.0, "shake_deg": self.shake_deg != 0.0,
-                  "pan_px_per_s": tuple(self.pan_px_per_s) != (0.0, 0.0), "frame_interval_s":
-                  self.frame_interval_s is not None, "blur_subsamples": self.blur_subsamples is not None}
+        pan = self.pan_px_per_s
+        still = isinstance(pan, (tuple, list)) and tuple(pan) == (0.0, 0.0)
+        motion = {"shake_px": self.shake_px != 0.0, "shake_deg": self.shake_deg != 0.0, "pan_px_per_s": not still,
+                  "frame_interval_s": self.frame_interval_s is not None,
+                  "blur_subsamples": self.blur_subsamples is not None}
         frames = self.burst_frames
         if frames is None:
             given = [name for name, on in motion.items() if on]
@@ -315,7 +317,6 @@ class PairSource:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 <= value < math.inf):
                 raise CamsimError(f"{name} must be a finite number ≥ 0, got {value!r}")
-        pan = self.pan_px_per_s
         if not (isinstance(pan, (tuple, list)) and len(pan) == 2 and all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in pan)):
             raise CamsimError(f"pan_px_per_s must be two finite numbers (vx, vy) in px/s, got {pan!r}")

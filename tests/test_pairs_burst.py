@@ -273,6 +273,7 @@ def test_a_photograph_too_small_for_the_motion_is_clamped_and_said():
     ({"burst_frames": 0}, "burst_frames must be a positive integer"),
     ({"burst_frames": 2.5}, "burst_frames must be a positive integer"),
     ({"burst_frames": None, "shake_px": 1.0}, "shake_px set without burst_frames"),
+    ({"burst_frames": None, "pan_px_per_s": "fast"}, "pan_px_per_s set without burst_frames"),
     ({"burst_frames": None, "pan_px_per_s": (1.0, 0.0), "frame_interval_s": 0.1},
      "pan_px_per_s, frame_interval_s set without burst_frames"),
     ({"shake_px": -1.0}, "shake_px must be a finite number ≥ 0"),
