@@ -40,6 +40,22 @@ conversion works on the host: on the CPU, ``srgb`` pairs with bilinear demosaici
 one compiled pass per image straight into the batch (:mod:`camsim.isp.fused`, numba; compiled once per process), the
 others by the ISP's numpy stages; on a GPU, a pair's planes are copied to the host for the stages and back.
 
+**Bursts** (``burst_frames = N``, issue 29): each item is N noisy frames of one crop seen by a moving camera and
+the clean reference, the static crop's expectation (the target of a burst denoiser: HDR+-style merging, KPN). The
+camera's motion is the sequence model of :class:`camsim.scene.sequence.Motion` (a Gaussian random walk of shake,
+``shake_px`` and ``shake_deg`` per ``frame_interval_s``, linear in between, and a constant pan ``pan_px_per_s``, in
+the crop's pixel coordinates, rotation about its centre), drawn from the item's own ``motion_seed`` (from the
+batch's seed sequence); frame j exposes [j · interval, j · interval + T] and its expected signal is the static
+crop's averaged along the path over the exposure (:func:`camsim.render.warp.average_warp`: bilinear, sub-sampled by
+:meth:`~camsim.scene.sequence.Motion.subsample_times`). The crop is cut with a **margin** of the photograph around it,
+as wide as the item's path reaches (its corners followed at every sub-sample), so that the moving frames see real
+scene; where the photograph is too small for that margin, the scene beyond it is clamped to its edge (as the sequence
+renderer does at the frame's edge) and the item's ``burst`` record says ``clamped``. Each frame is drawn with the
+same fixed-pattern maps (the sensor's) and its own temporal noise (the batch's noise stream, item by item, frame by
+frame); the batch gives each frame's own expectation (``frames_clean``) and each frame's homography from the
+reference crop to the frame at its exposure's middle (``homographies``, as a sequence sidecar's). Bursts render on
+the CPU only (the warp is numpy's; ``device="cuda"`` with ``burst_frames`` is refused).
+
 :class:`WrittenPairs` reads the pairs of a dataset written by ``camsim dataset`` (files or a Zarr store) in the same
 domains, one frame at a time as numpy arrays (:func:`camsim.pairs_torch.written_pairs` wraps it as a torch
 ``Dataset``).
@@ -71,6 +87,10 @@ PAIR_DOMAINS = ("dn", "raw", "srgb")
 PAIR_DEMOSAIC = "bilinear"
 #: The children of a batch's seed sequence, by use.
 _NOISE, _IMAGES, _LIGHT, _CAMERA, _ISO = 0, 1, 2, 3, 4
+#: The child of a batch's seed sequence that draws its bursts' motion seeds (after the virtual cameras' 5 … 8).
+_MOTION = 9
+#: Slack added to a burst's reach before its margin is rounded up (float32 sampling coordinates). Unit: px.
+_REACH_SLACK_PX = 0.01
 _VIRTUAL_STREAMS = {"camera": 3, "k": 4, "shape": 5, "tukey_scale_dn": 6, "gaussian_sigma_dn": 7, "row_sigma_dn": 8}
 
 
@@ -114,6 +134,21 @@ class PairBatch:
         (:attr:`camsim.isp.Developed.record`: each stage, the white-balance gains, the matrix, the gain); in
         ``"raw"`` ``black_dn``, ``white_dn`` and ``packed`` (the planes' names, or None for three chips); None in
         ``"dn"``.
+    homographies : numpy.ndarray or None, shape (B, N, 3, 3), float64
+        Bursts only (None for single pairs): per item and frame, H mapping a pixel of the reference crop (``clean``)
+        to where the frame sees it, at the middle of the frame's exposure (pixel coordinates of the crop: x the
+        column, y the row, a pixel's centre at integers; homogeneous). On the host.
+    frames_clean : array or None, shape (B, N, planes, H, W), float32
+        Bursts only: each frame's own expectation (the moving crop's, blurred by the motion within the exposure), in
+        the batch's domain, as ``clean`` is the static crop's.
+
+    Notes
+    -----
+    A burst batch (``burst_frames = N``) has ``noisy`` and ``digital`` of shape (B, N, planes, H, W) (in ``"raw"``
+    (B, N, 4, H/2, W/2) for a Bayer camera, in ``"srgb"`` (B, N, 3, H, W)), ``clean`` (B, planes, H, W) the static
+    crop's expectation, and per item a ``burst`` record in ``params`` (``frames``, ``frame_interval_s``, ``time_s``,
+    ``shake_px``, ``shake_deg``, ``pan_px_per_s``, ``motion_seed``, ``blur_subsamples_used``, ``margin_px``,
+    ``reach_px``, ``clamped``).
     """
 
     index: int
@@ -123,6 +158,8 @@ class PairBatch:
     params: list
     domain: str = "dn"
     isp: list | None = None
+    homographies: np.ndarray | None = None
+    frames_clean: object = None
 
 
 @dataclass(frozen=True)
@@ -170,6 +207,19 @@ class PairSource:
         The batches' arrays: DN (default), normalised and packed raw, or developed sRGB (module docstring).
     isp : camsim.isp.IspSettings or None
         ``srgb``: the ISP's settings (None: :func:`pair_isp`).
+    burst_frames : int or None
+        None: single pairs. N ≥ 1: bursts of N noisy frames of one crop with camera motion and its clean reference
+        (module docstring; :class:`PairBatch`'s shapes). The CPU only.
+    shake_px, shake_deg : float
+        Bursts: σ of the shake's random-walk steps per frame interval, translation per axis (px) and rotation about
+        the crop's centre (degrees) (:class:`camsim.scene.sequence.SequenceParams`).
+    pan_px_per_s : (float, float)
+        Bursts: a constant pan (vx, vy). Unit: px / s.
+    frame_interval_s : float or None
+        Bursts: time from one frame's start to the next's, at least each pair's exposure; None: the pair's exposure
+        (frames back to back). Unit: s.
+    blur_subsamples : int or None
+        Bursts: sub-samples of the motion per exposure; None: as many as keep every pixel's step ≤ 0.25 px.
     """
 
     scene: object
@@ -186,6 +236,12 @@ class PairSource:
     device: str = "cpu"
     domain: str = "dn"
     isp: object = None
+    burst_frames: int | None = None
+    shake_px: float = 0.0
+    shake_deg: float = 0.0
+    pan_px_per_s: tuple = (0.0, 0.0)
+    frame_interval_s: float | None = None
+    blur_subsamples: int | None = None
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
@@ -235,6 +291,73 @@ class PairSource:
             if photo.width < width or photo.height < height:
                 raise CamsimError(f"image {photo.name} is {photo.width}x{photo.height} pixels, smaller than the crop "
                                   f"{width}x{height}")
+        self._check_burst()
+
+    def _check_burst(self) -> None:
+        """Refuse burst settings that cannot be rendered (one line each), and motion settings without a burst."""
+        from camsim.scene.sequence import MAX_SUBSAMPLES
+
+        pan = self.pan_px_per_s
+        still = isinstance(pan, (tuple, list)) and tuple(pan) == (0.0, 0.0)
+        motion = {"shake_px": self.shake_px != 0.0, "shake_deg": self.shake_deg != 0.0, "pan_px_per_s": not still,
+                  "frame_interval_s": self.frame_interval_s is not None,
+                  "blur_subsamples": self.blur_subsamples is not None}
+        frames = self.burst_frames
+        if frames is None:
+            given = [name for name, on in motion.items() if on]
+            if given:
+                raise CamsimError(f"{', '.join(given)} set without burst_frames: motion is for bursts")
+            return
+        if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or frames < 1:
+            raise CamsimError(f"burst_frames must be a positive integer (frames per burst), got {frames!r}")
+        if self.device != "cpu":
+            raise CamsimError("burst pairs render on the CPU only (device='cpu'): the motion's warp "
+                              "(camsim.render.warp.average_warp) is numpy's")
+        for name in ("shake_px", "shake_deg"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 <= value < math.inf):
+                raise CamsimError(f"{name} must be a finite number ≥ 0, got {value!r}")
+        if not (isinstance(pan, (tuple, list)) and len(pan) == 2 and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in pan)):
+            raise CamsimError(f"pan_px_per_s must be two finite numbers (vx, vy) in px/s, got {pan!r}")
+        object.__setattr__(self, "pan_px_per_s", (float(pan[0]), float(pan[1])))
+        interval = self.frame_interval_s
+        if interval is not None and (isinstance(interval, bool) or not isinstance(interval, (int, float))
+                                     or not (0 < interval < math.inf)):
+            raise CamsimError(f"frame_interval_s must be a finite number > 0 (s) or None, got {interval!r}")
+        n = self.blur_subsamples
+        if n is not None and (isinstance(n, bool) or not isinstance(n, (int, np.integer))
+                              or not 1 <= n <= MAX_SUBSAMPLES):
+            raise CamsimError(f"blur_subsamples must be an integer from 1 to {MAX_SUBSAMPLES} or None, got {n!r}")
+        if self.scene.exposure == "fixed":  # (auto: each pair's T is checked when it is known)
+            for name in self.cameras:
+                self._burst_sequence(self._sensor(name, None, {}).exposure_s)
+
+    def _burst_sequence(self, exposure_s: float):
+        """The bursts' :class:`~camsim.scene.sequence.SequenceParams` for a pair of exposure ``exposure_s`` (s).
+
+        Raises
+        ------
+        CamsimError
+            The exposure is longer than ``frame_interval_s``, or the motion leaves every scene (the sequence's
+            bound).
+        """
+        from camsim.scene.sequence import SequenceParams
+
+        key = ("sequence", exposure_s)
+        if key not in self._cache:
+            interval = exposure_s if self.frame_interval_s is None else float(self.frame_interval_s)
+            if exposure_s > interval * (1 + 1e-12):
+                raise CamsimError(f"burst pairs: the exposure {exposure_s:g} s is longer than frame_interval_s "
+                                  f"{interval:g} s")
+            try:
+                self._cache[key] = SequenceParams(
+                    frames=int(self.burst_frames), frame_interval_s=interval, shake_px=float(self.shake_px),
+                    shake_deg=float(self.shake_deg), pan_px_per_s=self.pan_px_per_s,
+                    blur_subsamples=None if self.blur_subsamples is None else int(self.blur_subsamples))
+            except CamsimError as exc:
+                raise CamsimError(f"burst pairs: {str(exc).removeprefix('[sequence]: ')}") from None
+        return self._cache[key]
 
     @classmethod
     def from_scene(cls, scene, images, **settings) -> PairSource:
@@ -358,7 +481,7 @@ class PairSource:
                            "flip_horizontal": bool(self.flips and flips[i, 0]),
                            "flip_vertical": bool(self.flips and flips[i, 1]),
                            "illuminant": self.scene.illuminants[lights[i]], "intensity_factor": float(factors[i]),
-                           "preset": preset, "iso": iso, "_overrides": overrides})
+                           "preset": preset, "iso": iso, "_overrides": overrides, "_u": (u_x[i], u_y[i])})
         return params
 
     def _exposure_s(self, sensor, illuminant: str, factor: float) -> float:
@@ -376,41 +499,58 @@ class PairSource:
         if not (isinstance(index, (int, np.integer)) and index >= 0):
             raise CamsimError(f"a batch index is an integer ≥ 0, got {index!r}")
         xp = self.xp
-        children = pair_batch_seed_sequence(self.seed, int(index)).spawn(9)
+        children = pair_batch_seed_sequence(self.seed, int(index)).spawn(10)  # (spawn(9)'s nine, and _MOTION)
         params = self._draw_params(children)
         rng = device_generator(xp, children[_NOISE])
         width, height = self.crop
         first = self._sensor(params[0]["preset"], params[0]["iso"], params[0]["_overrides"])
         planes = 3 if first.cfa is None else 1
-        shape = (self.batch_size, planes, height, width)
+        tail = (planes, height, width)
         if self.domain == "raw" and first.cfa is not None:
-            shape = (self.batch_size, 4, height // 2, width // 2)
+            tail = (4, height // 2, width // 2)
         elif self.domain == "srgb":
-            shape = (self.batch_size, 3, height, width)
-        noisy = xp.empty(shape, dtype=xp.float32)
-        clean = xp.empty(shape, dtype=xp.float32)
-        digital = xp.empty(shape, dtype=xp.uint16) if first.quantisation and self.domain == "dn" else None
+            tail = (3, height, width)
+        frames = self.burst_frames
+        lead = (self.batch_size,) if frames is None else (self.batch_size, int(frames))
+        noisy = xp.empty(lead + tail, dtype=xp.float32)
+        clean = xp.empty((self.batch_size,) + tail, dtype=xp.float32)
+        digital = xp.empty(lead + tail, dtype=xp.uint16) if first.quantisation and self.domain == "dn" else None
+        frames_clean = homographies = seeds = None
+        if frames is not None:
+            frames_clean = xp.empty(lead + tail, dtype=xp.float32)
+            homographies = np.empty(lead + (3, 3))
+            seeds = np.random.default_rng(children[_MOTION]).integers(2**63, size=self.batch_size)
         records = None if self.domain == "dn" else []
         for i, p in enumerate(params):
             sensor = self._sensor(p["preset"], p["iso"], p["_overrides"])
             exposure = self._exposure_s(sensor, p["illuminant"], p["intensity_factor"])
             if exposure != sensor.exposure_s:
                 sensor = dataclasses.replace(sensor, exposure_s=exposure)
-            pair = self._render_pair(xp, rng, p, sensor)
-            if self.domain == "dn":
-                noisy[i], clean[i] = pair[0], pair[1]
-            elif self.domain == "srgb" and xp is np:  # developed straight into the batch
-                records.append(self._develop(pair[0], pair[1], self._facts(p, sensor), noisy[i], clean[i]))
+            if frames is None:
+                pair = self._render_pair(xp, rng, p, sensor)
+                record = self._store(xp, pair[0], pair[1], p, sensor, noisy[i], clean[i])
+                if digital is not None:
+                    digital[i] = pair[2]
             else:
-                pair_noisy, pair_clean, record = self._to_domain(to_host(pair[0]), to_host(pair[1]),
-                                                                 self._facts(p, sensor))
-                noisy[i], clean[i] = xp.asarray(pair_noisy), xp.asarray(pair_clean)
+                record = self._render_burst(xp, rng, p, sensor, int(seeds[i]), noisy[i], frames_clean[i], clean[i],
+                                            None if digital is None else digital[i], homographies[i])
+            if records is not None:
                 records.append(record)
-            if digital is not None:
-                digital[i] = pair[2]
-            del p["_overrides"]
+            del p["_overrides"], p["_u"]
             p.update(_sensor_record(sensor))
-        return PairBatch(int(index), noisy, clean, digital, params, self.domain, records)
+        return PairBatch(int(index), noisy, clean, digital, params, self.domain, records, homographies, frames_clean)
+
+    def _store(self, xp, noisy, clean, p: dict, sensor, out_noisy, out_clean):
+        """A pair's (planes, H, W) DN written into the batch's slots ``out_noisy``, ``out_clean`` in the source's
+        domain; returns its record (None in ``dn``)."""
+        if self.domain == "dn":
+            out_noisy[...], out_clean[...] = noisy, clean
+            return None
+        if self.domain == "srgb" and xp is np:  # developed straight into the batch
+            return self._develop(noisy, clean, self._facts(p, sensor), out_noisy, out_clean)
+        pair_noisy, pair_clean, record = self._to_domain(to_host(noisy), to_host(clean), self._facts(p, sensor))
+        out_noisy[...], out_clean[...] = xp.asarray(pair_noisy), xp.asarray(pair_clean)
+        return record
 
     # ------------------------------------------------------------------------------------------------ domains
     def _facts(self, p: dict, sensor):
@@ -469,8 +609,19 @@ class PairSource:
             rgb = rgb[::-1]
         if p["flip_horizontal"]:
             rgb = rgb[:, ::-1]
+        return self._draw(xp, rng, self._signal(xp, rgb, p, sensor), sensor)
+
+    def _signal(self, xp, rgb, p: dict, sensor):
+        """S̄ (3, H, W) float64 of a crop's linear sRGB ``rgb`` (H, W, 3): rgb times the illuminant's and camera's
+        matrix times T · F. Unit: e⁻."""
         scale = sensor.exposure_s * p["intensity_factor"] * self._electrons_per_rgb(p["illuminant"])
-        signal = xp.ascontiguousarray(xp.moveaxis(rgb.astype(xp.float64) @ xp.asarray(scale), 2, 0))  # (3, H, W)
+        return xp.ascontiguousarray(xp.moveaxis(rgb.astype(xp.float64) @ xp.asarray(scale), 2, 0))  # (3, H, W)
+
+    def _draw(self, xp, rng, signal, sensor, noise: bool = True):
+        """(noisy, clean, digital) planes of the per-pixel signal ``signal`` (3, H, W) e⁻ with the sensor's dark
+        charge and fixed pattern (the sensor's maps for the crop's size: the same for every frame of a burst);
+        without ``noise``, (None, clean, None) and nothing drawn from ``rng``."""
+        height, width = signal.shape[1:]
         dark = np.asarray(sensor.dark_mean_e, dtype=np.float64)
         maps = device_maps(xp, sensor, (height, width))
         offset = gain = dark_gain = None
@@ -491,24 +642,88 @@ class PairSource:
             poisson_mean, base = dark_mean, signal_mean
         if offset is not None:
             base = base + offset
-        # issue 28's black-level error: one offset per channel and pair, from the pair's noise stream (only when on)
-        error = None if not sensor.black_level_error_dn > 0 else [
-            float(v) * sensor.black_level_error_dn for v in to_host(rng.standard_normal(3))]
-        if gain is None and dark_gain is None:
-            noisy, digital = draw_planes(rng, signal + dark_planes, sensor, offset_e=offset,
-                                         black_level_error_dn=error)
-        else:
-            noisy, digital = draw_planes(rng, signal, sensor, dark_e=dark_planes, gain=gain, dark_gain=dark_gain,
-                                         offset_e=offset, black_level_error_dn=error)
+        noisy = digital = None
+        if noise:
+            # issue 28's black-level error: one offset per channel and frame, from the noise stream (only when on)
+            error = None if not sensor.black_level_error_dn > 0 else [
+                float(v) * sensor.black_level_error_dn for v in to_host(rng.standard_normal(3))]
+            if gain is None and dark_gain is None:
+                noisy, digital = draw_planes(rng, signal + dark_planes, sensor, offset_e=offset,
+                                             black_level_error_dn=error)
+            else:
+                noisy, digital = draw_planes(rng, signal, sensor, dark_e=dark_planes, gain=gain, dark_gain=dark_gain,
+                                             offset_e=offset, black_level_error_dn=error)
         from camsim.sensor.expected import clean_charge_e
 
         clean = (clean_charge_e(poisson_mean, sensor, base) * sensor.dn_per_electron).astype(xp.float32)
         if maps is not None and maps.stuck_index is not None:  # the crop's stuck pixels, target and input alike
             from camsim.render.frame import write_stuck
 
-            write_stuck(maps, sensor, noisy, digital)
+            if noise:
+                write_stuck(maps, sensor, noisy, digital)
             write_stuck(maps, sensor, clean, None)
         return noisy, clean, digital
+
+    def _render_burst(self, xp, rng, p: dict, sensor, motion_seed: int, out_noisy, out_frames_clean, out_clean,
+                      out_digital, out_homographies) -> dict | None:
+        """One burst item (module docstring) written into the batch's slots: ``out_noisy``, ``out_frames_clean``,
+        ``out_digital`` (N, …), ``out_clean`` (the reference), ``out_homographies`` (N, 3, 3); sets the item's
+        ``crop_x``, ``crop_y`` and ``burst`` record; returns the domain's record (None in ``dn``)."""
+        from camsim.render.warp import average_warp
+        from camsim.scene.sequence import Motion
+
+        width, height = self.crop
+        exposure = sensor.exposure_s
+        seq = self._burst_sequence(exposure)
+        motion = Motion.of(seq, width, height, motion_seed)
+        # each frame's inverse homographies (crop pixel -> reference crop pixel) at its sub-sample times, and how far
+        # beyond the crop they reach (a rectangle's extremes under a homography are at its corners)
+        corners = np.array([[0, width - 1, 0, width - 1], [0, 0, height - 1, height - 1], [1.0, 1.0, 1.0, 1.0]])
+        inverses, reach = [], 0.0
+        for j in range(seq.frames):
+            inv = np.array([np.linalg.inv(motion.homography(float(t), j))
+                            for t in motion.subsample_times(j, exposure)])
+            q = inv @ corners
+            q = q[:, :2] / q[:, 2:]
+            reach = max(reach, float(np.max(-q)), float(np.max(q[:, 0] - (width - 1))),
+                        float(np.max(q[:, 1] - (height - 1))))
+            inverses.append(inv)
+        need = max(0, math.ceil(reach + _REACH_SLACK_PX)) if reach > 0 else 0
+        # the crop with a margin of the photograph (as wide as the path reaches, the photograph permitting)
+        photo = self._photos[p["image_index"]]
+        u_x, u_y = p["_u"]
+        mx, my = min(need, (photo.width - width) // 2), min(need, (photo.height - height) // 2)
+        span_x, span_y = photo.width - width - 2 * mx, photo.height - height - 2 * my
+        x = mx + min(int(u_x * (span_x + 1)), span_x)
+        y = my + min(int(u_y * (span_y + 1)), span_y)
+        p["crop_x"], p["crop_y"] = x, y
+        rgb = self._rgb(p["image_index"])[y - my : y + height + my, x - mx : x + width + mx]
+        if p["flip_vertical"]:
+            rgb = rgb[::-1]
+        if p["flip_horizontal"]:
+            rgb = rgb[:, ::-1]
+        rgb = np.ascontiguousarray(rgb)
+        inside = (slice(my, my + height), slice(mx, mx + width))
+        shift, unshift = np.eye(3), np.eye(3)
+        shift[:2, 2], unshift[:2, 2] = (mx, my), (-mx, -my)
+        scratch = np.empty(out_clean.shape, dtype=np.float32)
+        record = None
+        for j, inv in enumerate(inverses):
+            weights = np.full((len(inv), 1), 1 / len(inv))
+            moved = average_warp(rgb, (shift @ inv @ unshift)[:, None], weights, workers=1)[inside]
+            noisy, frame_clean, digital = self._draw(xp, rng, self._signal(xp, moved, p, sensor), sensor)
+            record = self._store(xp, noisy, frame_clean, p, sensor, out_noisy[j], out_frames_clean[j])
+            if out_digital is not None:
+                out_digital[j] = digital
+            out_homographies[j] = motion.mid_homography(j, exposure)
+        _, reference, _ = self._draw(xp, rng, self._signal(xp, rgb[inside], p, sensor), sensor, noise=False)
+        self._store(xp, reference, reference, p, sensor, out_clean, scratch)
+        p["burst"] = {"frames": seq.frames, "frame_interval_s": seq.frame_interval_s,
+                      "time_s": [motion.start_s(j) for j in range(seq.frames)], "shake_px": seq.shake_px,
+                      "shake_deg": seq.shake_deg, "pan_px_per_s": list(seq.pan_px_per_s), "motion_seed": motion_seed,
+                      "blur_subsamples_used": [len(inv) for inv in inverses], "margin_px": [mx, my],
+                      "reach_px": reach, "clamped": bool(mx < need or my < need)}
+        return record
 
 
 def adc_white_dn(sensor) -> float:

@@ -6,7 +6,9 @@ camsim. On a GPU the tensors are the
 batch's CuPy arrays, handed over by DLPack (``torch.from_dlpack``: the same device memory, no copy through the host);
 on the CPU numpy's (``torch.from_numpy``). Give the dataset to a ``DataLoader`` with ``batch_size=None`` (the
 batches are formed already); with CPU workers each worker renders every n-th batch, so a run's batches do not depend
-on the number of workers (CUDA sources render in the main process: ``num_workers=0``).
+on the number of workers (CUDA sources render in the main process: ``num_workers=0``). Burst sources
+(``burst_frames``) give (B, N, planes, H, W) noisy frames, the (B, planes, H, W) clean reference and (B, N, 3, 3)
+homographies (:func:`batch_tensors`).
 
 :func:`written_pairs` is a map-style ``Dataset`` over a dataset written by ``camsim dataset`` (files or a Zarr
 store): item *i* is frame *i*'s pair in a domain (:class:`camsim.pairs.WrittenPairs`) as tensors, batched by a
@@ -34,12 +36,19 @@ def batch_tensors(batch: PairBatch) -> dict:
     """A :class:`~camsim.pairs.PairBatch` as a dict of tensors: ``noisy``, ``clean`` (float32, in the batch's
     domain: DN, normalised raw or sRGB), ``digital`` (the raw numbers as float32, exact below 2²⁴; None without
     quantisation and outside the ``dn`` domain), ``params`` (list of dict), ``index``, ``domain`` and ``isp`` (per
-    pair, how the arrays were made; None in ``dn``)."""
+    pair, how the arrays were made; None in ``dn``).
+
+    A burst batch (``burst_frames = N``) adds ``homographies`` (B, N, 3, 3) float64 (reference crop pixel → frame
+    pixel) and ``frames_clean`` (B, N, planes, H, W) float32 (each frame's own expectation); its ``noisy`` and
+    ``digital`` are (B, N, planes, H, W), its ``clean`` (B, planes, H, W) the static crop's expectation. Both keys
+    are None for single pairs."""
     digital = None
     if batch.digital is not None:
         digital = to_torch(batch.digital.astype(batch.noisy.dtype))
+    burst = {"homographies": None if batch.homographies is None else to_torch(batch.homographies),
+             "frames_clean": None if batch.frames_clean is None else to_torch(batch.frames_clean)}
     return {"noisy": to_torch(batch.noisy), "clean": to_torch(batch.clean), "digital": digital,
-            "params": batch.params, "index": batch.index, "domain": batch.domain, "isp": batch.isp}
+            "params": batch.params, "index": batch.index, "domain": batch.domain, "isp": batch.isp, **burst}
 
 
 def _dataset_class():

@@ -39,6 +39,24 @@ def test_dataset_yields_the_batches_as_tensors():
     assert np.array_equal(shared["digital"].numpy(), direct.digital.astype(np.float32))
 
 
+def test_burst_batches_are_tensors_too():
+    torch = pytest.importorskip("torch")
+    from camsim.pairs_torch import batch_tensors, pair_dataset
+
+    source = _source(burst_frames=3, shake_px=0.5, pan_px_per_s=(1.0, 0.0))
+    batch = next(iter(pair_dataset(source, start=1, stop=2)))
+    direct = source.batch(1)
+    assert batch["noisy"].shape == batch["frames_clean"].shape == batch["digital"].shape == (2, 3, 1, 32, 32)
+    assert batch["clean"].shape == (2, 1, 32, 32) and batch["homographies"].shape == (2, 3, 3, 3)
+    assert batch["homographies"].dtype == torch.float64
+    assert torch.equal(batch["noisy"], torch.from_numpy(direct.noisy))
+    assert torch.equal(batch["homographies"], torch.from_numpy(direct.homographies))
+    shared = batch_tensors(direct)
+    assert shared["frames_clean"].data_ptr() == direct.frames_clean.ctypes.data  # no copy
+    single = batch_tensors(_source().batch(0))
+    assert single["homographies"] is None and single["frames_clean"] is None
+
+
 @pytest.mark.slow
 def test_workers_split_the_batches_and_change_nothing():
     torch = pytest.importorskip("torch")
