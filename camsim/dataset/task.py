@@ -32,20 +32,30 @@ def render_task(frame: FrameSpec, out_dir: str | None, threads: int = 1,
     if out_dir is not None:
         folder = Path(out_dir) / FRAMES_DIR
         names, srgb_record = render_files(frame, folder, threads, exr_compression, srgb)
+        burst = _burst_entry(names)
         files = {kind: None if name is None else
                  {"name": f"{FRAMES_DIR}/{name}", "bytes": (folder / name).stat().st_size,
                   "sha256": sha256_file(folder / name)}
                  for kind, name in names.items()}
-        return {"id": frame.id, "exr_compression": exr_compression, "files": files} | _srgb_entry(srgb_record)
+        return ({"id": frame.id, "exr_compression": exr_compression, "files": files} | _srgb_entry(srgb_record)
+                | burst)
     with tempfile.TemporaryDirectory(prefix="camsim-frame-") as tmp:
         names, srgb_record = render_files(frame, Path(tmp), threads, exr_compression, srgb)
+        burst = _burst_entry(names)
         blobs = {kind: (Path(tmp) / name).read_bytes() for kind, name in names.items() if name is not None}
     files = {kind: None if name is None else
              {"name": f"{FRAMES_DIR}/{name}", "bytes": len(blobs[kind]),
               "sha256": hashlib.sha256(blobs[kind]).hexdigest()}
              for kind, name in names.items()}
     return ({"id": frame.id, "exr_compression": exr_compression, "files": files, "blobs": blobs}
-            | _srgb_entry(srgb_record))
+            | _srgb_entry(srgb_record) | burst)
+
+
+def _burst_entry(names: dict) -> dict:
+    """The result's ``burst`` (which frames make a burst: :func:`camsim.dataset.frame_render.render_burst_files`),
+    taken out of ``names``; nothing for a single frame."""
+    burst = names.pop("burst", None)
+    return {} if burst is None else {"burst": burst}
 
 
 def _srgb_entry(record: dict | None) -> dict:

@@ -77,7 +77,7 @@ def run(args) -> int:
         check_settings(workers=args.workers, threads=args.threads, scheduler=args.scheduler, verify=args.verify,
                        exr_compression=args.exr_compression, output=args.format, srgb=args.srgb)
         plan = plan_spec(args.spec)
-        check_output_of(plan, args.format)
+        check_output_of(plan, args.format, args.srgb or plan.srgb)
         print_plan(plan)
         return 0
     spec = load_spec(args.spec)
@@ -106,9 +106,17 @@ def print_plan(plan, write=None, chunk: int = 1000) -> None:
     lines = []
     for frame in plan.frames():
         shown = {"id": frame.id, "scene": frame.get("scene"), "repeat": frame.get("repeat"),
-                 **{n: frame.get(key) for n, key in keys}, "seed": frame.seed}
+                 **{n: _value(frame, key) for n, key in keys}, "seed": frame.seed}
         lines.append(encode(shown) + "\n")
         if len(lines) == chunk:
             write("".join(lines))
             lines = []
     write("".join(lines))
+
+
+def _value(frame, key: str):
+    """The frame's ``key``, or None where its record has none (``burst_frames`` of a scene without a burst)."""
+    try:
+        return frame.get(key)
+    except KeyError:
+        return None
