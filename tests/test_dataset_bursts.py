@@ -108,7 +108,7 @@ def test_bayer_burst_pairs_and_torch(tmp_path):
     from camsim.pairs_torch import collate_pairs, written_pairs
     from camsim.sensor.cfa import mosaic_of
 
-    spec = write_spec(tmp_path, fixed="burst_frames = 3\nframe_interval_s = 0.02\ncfa = \"RGGB\"",
+    spec = write_spec(tmp_path, fixed="burst_frames = 3\nframe_interval_s = 0.02\ncfa = \"RGGB\"\nshake_deg = 0.5",
                       grid="shake_px = [0.5, 1.0]", w=32, h=24)
     out = tmp_path / "out"
     run_dataset(spec, out, workers=1, progress=False, echo=None)
@@ -119,6 +119,16 @@ def test_bayer_burst_pairs_and_torch(tmp_path):
     _, reference, _ = read_exr(out / "frames" / f"{line['id']}_ref.exr")
     assert noisy.shape == (3, 1, 24, 32) and np.array_equal(clean[0], mosaic_of(reference, "RGGB"))
     assert not np.allclose(meta["homography"][1], np.eye(3))  # it shakes
+    # a crop's homographies map the crop's pixels: reference crop pixel q is the full frame's q + (x, y), seen at
+    # H (q + (x, y)) in the full frame, i.e. at that minus (x, y) in the crop
+    _, _, cropped = WrittenPairs(out, burst=True, crop=(16, 12), seed=3)[1]
+    x, y = cropped["crop"][:2]
+    assert (x, y) != (0, 0)
+    for n in range(3):
+        for q in ((0.0, 0.0), (15.0, 11.0), (7.5, 3.0)):
+            full = meta["homography"][n] @ np.array([q[0] + x, q[1] + y, 1.0])
+            crop = cropped["homography"][n] @ np.array([q[0], q[1], 1.0])
+            assert crop[:2] / crop[2] == pytest.approx(full[:2] / full[2] - np.array([x, y]), abs=1e-9)
     noisy, clean, _ = WrittenPairs(out, burst=True, domain="raw")[0]
     assert noisy.shape == (3, 4, 12, 16) and clean.shape == (4, 12, 16)
     batch = collate_pairs([written_pairs(out, burst=True)[i] for i in range(2)])
