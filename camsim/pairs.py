@@ -592,8 +592,9 @@ class WrittenPairs:
     float64 gives each frame's homography, reference pixel → frame pixel (the sidecar's, at the exposure's middle;
     with a crop, of the crop's pixels: T(−x, −y) · H · T(x, y), one crop window for the reference and every frame),
     so that frame n's pixel p shows the reference at H[n]⁻¹ p; ``meta["time_s"]`` (N,) the exposures' starts,
-    ``meta["frames"]`` the frames' ids. Domains ``dn`` and ``raw``; a burst dataset read without ``burst=True``
-    (or a single-frame one with it) is refused.
+    ``meta["frames"]`` the frames' ids. Domains ``dn`` and ``raw``, from files or a Zarr store (its ``noisy`` (frame,
+    burst_frame, …) and ``reference`` arrays); a burst dataset read without ``burst=True`` (or a single-frame one with
+    it) is refused.
 
     Raises
     ------
@@ -617,7 +618,7 @@ class WrittenPairs:
         self.store = path / STORE_NAME if (path / STORE_NAME).is_dir() else None
         self.records = [r for r in read_manifest(path) if ("arrays" if self.store else "files") in r]
         self.burst = bool(burst)
-        bursts = sum(1 for r in self.records if "burst" in r)
+        bursts = sum(1 for r in self.records if r.get("burst_frames") is not None)
         if not burst and bursts:
             raise CamsimError(f"{path} holds bursts (burst_frames): read them with burst=True")
         if burst and (bursts < len(self.records) or not self.records):
@@ -745,15 +746,25 @@ class WrittenPairs:
         from camsim.io.exr import read_exr, read_exr_clean
         from camsim.render.frame_files import read_frame_meta
 
-        files, burst = record["files"], record["burst"]
-        noisy, sidecars = [], []
-        for suffix in burst["frames"]:
-            path = self.path / files[f"{suffix}.exr"]["name"]
-            noisy.append(read_exr(path, clean=False)[0])
-            sidecars.append(read_frame_meta(path))
-        reference = self.path / files[f"{burst['reference']}.exr"]["name"]
-        clean = read_exr_clean(reference)[0]
-        noisy = np.stack(noisy)
+        if self.store is not None:  # the store's (frame, burst_frame, …) arrays and the item's sidecars
+            import json
+
+            group, index = self._zarr(), record["index"]
+            noisy, clean = np.asarray(group["noisy"][index]), np.asarray(group["reference"][index])
+            sidecars = json.loads(str(group["sidecar"][index]))["frames"]
+            from camsim.render.sequence import frame_digits
+
+            digits = frame_digits(len(sidecars))
+            suffixes = [f"f{meta['frame_index']:0{digits}d}" for meta in sidecars]
+        else:
+            files, burst = record["files"], record["burst"]
+            noisy, sidecars, suffixes = [], [], burst["frames"]
+            for suffix in suffixes:
+                path = self.path / files[f"{suffix}.exr"]["name"]
+                noisy.append(read_exr(path, clean=False)[0])
+                sidecars.append(read_frame_meta(path))
+            clean = read_exr_clean(self.path / files[f"{burst['reference']}.exr"]["name"])[0]
+            noisy = np.stack(noisy)
         cfa = sidecars[0].get("cfa_pattern") or None
         bayer = cfa is not None
         if bayer:
@@ -763,7 +774,7 @@ class WrittenPairs:
         homography = np.array([meta["homography"] for meta in sidecars], dtype=np.float64)
         meta = {"id": record["id"], "index": record["index"], "domain": self.domain, "crop": None,
                 "record": {k: v for k, v in record.items() if k not in ("files", "arrays")},
-                "frames": [f"{record['id']}_{suffix}" for suffix in burst["frames"]],
+                "frames": [f"{record['id']}_{suffix}" for suffix in suffixes],
                 "time_s": [float(meta["time_s"]) for meta in sidecars]}
         height, width = noisy.shape[2:]
         offset = self._offset(i, width, height, bayer)

@@ -186,7 +186,6 @@ def test_each_frames_homography_moves_the_reference_onto_it(tmp_path):
     ("shake_px = 1.0", (), "shake_px set a burst's motion, but burst_frames is not set"),
     ("burst_frames = 3\nframe_interval_s = 0.001", (), "longer than frame_interval_s"),
     ("burst_frames = 3\nstatistics = \"paper\"", (), "statistics = 'pixel'"),
-    ("burst_frames = 3", ("--format", "zarr"), "--format zarr is not made for them yet"),
     ("burst_frames = 3", ("--srgb", "png"), "no sRGB outputs yet"),
 ])
 def test_bad_burst_parameters_are_one_line_exit_2(tmp_path, capsys, fixed, args, message):
@@ -284,3 +283,50 @@ def test_resuming_a_half_written_burst_dataset(tmp_path, monkeypatch):
     summary = run_dataset(spec, out, workers=1, progress=False, echo=None)
     assert (summary["skipped"], summary["rendered"]) == (1, 1)
     assert _hashes(out) == expected
+
+
+def test_burst_store_equals_the_files(tmp_path):
+    """--format zarr: a store of bursts holds the file layout's bursts bit for bit (each frame's noisy, clean and
+    digital layers, the reference, the homographies, start times and sidecars); xarray reads its (frame,
+    burst_frame, …) arrays; WrittenPairs gives the same burst pairs from both; bursts of two lengths are refused."""
+    import xarray as xr
+    import zarr
+
+    from camsim.io.dng import read_dng
+
+    spec = write_spec(tmp_path, fixed="burst_frames = 3\nframe_interval_s = 0.02\ncfa = \"RGGB\"",
+                      grid="shake_px = [0.0, 1.2]", w=32, h=24)
+    run_dataset(spec, tmp_path / "files", workers=1, progress=False, echo=None)
+    run_dataset(spec, tmp_path / "zarr", workers=1, progress=False, echo=None, output="zarr")
+    group = zarr.open_group(tmp_path / "zarr" / "dataset.zarr", mode="r")
+    assert group["noisy"].shape == (2, 3, 1, 24, 32) and group["noisy"].chunks == (1, 3, 1, 24, 32)
+    assert group["reference"].shape == (2, 3, 24, 32) and group["homography"].shape == (2, 3, 3, 3)
+    frames = tmp_path / "files" / "frames"
+    for item in load_spec(spec).frames:
+        i = item.index
+        stored = json.loads(str(group["sidecar"][i]))
+        assert np.array_equal(group["reference"][i], read_exr(frames / f"{item.id}_ref.exr")[1])
+        for n in range(3):
+            noisy, clean, _ = read_exr(frames / f"{item.id}_f00{n}.exr")
+            assert np.array_equal(group["noisy"][i, n], noisy) and np.array_equal(group["clean"][i, n], clean)
+            assert np.array_equal(group["digital"][i, n], read_dng(frames / f"{item.id}_f00{n}.dng")[0])
+            meta = json.loads((frames / f"{item.id}_f00{n}.json").read_text())
+            assert np.array_equal(group["homography"][i, n], np.array(meta["homography"]))
+            assert group["time_s"][i, n] == meta["time_s"]
+            assert stored["frames"][n]["zarr"] == {"store": "dataset.zarr", "index": i, "burst_frame": n}
+            drop = ("files", "zarr", "exr_compression")
+            assert {k: v for k, v in stored["frames"][n].items() if k not in drop} == \
+                {k: v for k, v in meta.items() if k not in drop}
+        for a, b in zip(WrittenPairs(tmp_path / "files", burst=True, domain="raw", crop=(16, 12), seed=4)[i],
+                        WrittenPairs(tmp_path / "zarr", burst=True, domain="raw", crop=(16, 12), seed=4)[i]):
+            if isinstance(a, dict):
+                assert np.array_equal(a["homography"], b["homography"]) and a["frames"] == b["frames"]
+            else:
+                assert np.array_equal(a, b)
+    ds = xr.open_zarr(tmp_path / "zarr" / "dataset.zarr")
+    assert ds["noisy"].dims == ("frame", "burst_frame", "cfa", "y", "x") and ds["shake_px"].values.tolist() == [0.0, 1.2]
+    summary = run_dataset(spec, tmp_path / "zarr", workers=1, progress=False, echo=None, output="zarr")
+    assert summary["skipped"] == 2  # resumed: complete and verified
+    mixed = write_spec(tmp_path, fixed="frame_interval_s = 0.02", grid="burst_frames = [2, 3]", w=32, h=24)
+    with pytest.raises(Exception, match="needs one burst length"):
+        run_dataset(mixed, tmp_path / "mixed", workers=1, progress=False, echo=None, output="zarr")

@@ -18,7 +18,7 @@ from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION
 from camsim.render.pipeline import light_scene, scene_frame
 from camsim.scene.scene_file import load_scene
 
-__all__ = ["render_frame", "render_files", "render_burst_files"]
+__all__ = ["render_frame", "render_files", "render_burst", "render_burst_files"]
 
 
 @lru_cache(maxsize=16)
@@ -70,11 +70,29 @@ def _frame_scene(frame: FrameSpec) -> tuple:
     return scene, lit, camera
 
 
+def render_burst(frame: FrameSpec, threads: int = 1):
+    """Render a burst item (:attr:`FrameSpec.burst`) in memory, as ``camsim render`` renders a ``[sequence]``
+    (:func:`camsim.render.sequence.render_sequence_frames`, with the item's seed: its motion and every frame's
+    noise): yield ``(index, name, frame, info, extra)`` for its reference (``index`` ``"ref"``, ``name``
+    ``<id>_ref``) and then each frame (``<id>_fNNN``), with its :class:`FrameInfo` and its sequence keys."""
+    from camsim.render.pipeline import frame_sensor, scene_frame_info
+    from camsim.render.sequence import frame_digits, render_sequence_frames, sequence_frame_info
+
+    scene, lit, camera = _frame_scene(frame)
+    scene = scene.replace(seed=frame.seed)
+    factor = frame.intensity_factor
+    sensor = frame_sensor(scene, lit, factor)
+    base = dataclasses.replace(scene_frame_info(scene, lit, camera.name, factor, frame.seed), method="poisson")
+    digits = frame_digits(scene.sequence.frames)
+    for index, rendered, extra in render_sequence_frames(scene, lit, sensor, factor, workers=threads):
+        name, info = sequence_frame_info(frame.id, index, digits, extra, base)
+        yield index, name, rendered, info, extra
+
+
 def render_burst_files(frame: FrameSpec, directory: Path, threads: int = 1,
                        exr_compression: str = DEFAULT_EXR_COMPRESSION) -> tuple[dict, dict]:
-    """Render a burst item (:attr:`FrameSpec.burst`) and write its files into ``directory``, as ``camsim render``
-    writes a ``[sequence]``'s (:func:`camsim.render.sequence.render_sequence_frames`, with the item's seed: its
-    motion and every frame's noise): ``<id>_ref.exr/.json`` (the clean reference: the static scene), then
+    """Render a burst item (:func:`render_burst`) and write its files into ``directory``, as ``camsim render``
+    writes a ``[sequence]``'s: ``<id>_ref.exr/.json`` (the clean reference: the static scene), then
     ``<id>_fNNN.dng/.exr/.json`` per frame, each atomically.
 
     Returns
@@ -86,18 +104,8 @@ def render_burst_files(frame: FrameSpec, directory: Path, threads: int = 1,
         The manifest's ``burst``: ``frames`` (the frames' suffixes, ``f000`` …, in order) and ``reference``
         (``ref``); a frame's files are ``<id>_<suffix>.<kind>``.
     """
-    from camsim.render.pipeline import frame_sensor, scene_frame_info
-    from camsim.render.sequence import frame_digits, render_sequence_frames, sequence_frame_info
-
-    scene, lit, camera = _frame_scene(frame)
-    scene = scene.replace(seed=frame.seed)
-    factor = frame.intensity_factor
-    sensor = frame_sensor(scene, lit, factor)
-    base = dataclasses.replace(scene_frame_info(scene, lit, camera.name, factor, frame.seed), method="poisson")
-    digits = frame_digits(scene.sequence.frames)
     names, suffixes = {}, []
-    for index, rendered, extra in render_sequence_frames(scene, lit, sensor, factor, workers=threads):
-        name, info = sequence_frame_info(frame.id, index, digits, extra, base)
+    for index, name, rendered, info, _ in render_burst(frame, threads):
         suffix = name[len(frame.id) + 1:]
         written = write_frame(Path(directory), name, rendered, info, exr_compression=exr_compression)
         names.update({f"{suffix}.{kind}": value for kind, value in written.items()})

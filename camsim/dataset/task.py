@@ -9,7 +9,7 @@ import json
 import tempfile
 from pathlib import Path
 
-from camsim.dataset.frame_render import render_files, render_frame
+from camsim.dataset.frame_render import render_burst, render_files, render_frame
 from camsim.dataset.manifest import FRAMES_DIR, sha256_file
 from camsim.dataset.spec import FrameSpec
 from camsim.io.exr import set_exr_threads
@@ -67,12 +67,26 @@ def zarr_task(frame: FrameSpec, out_dir: str | None, threads: int = 1, *, layout
     """A worker's task for a Zarr store (:mod:`camsim.dataset.zarr_store`, whose ``layout`` it is): render one
     frame on ``threads`` threads and write its chunks into the store (with ``out_dir``; the result lists them), or,
     without, send its arrays and sidecar back (``data``, ``sidecar``) for the caller to write."""
-    from camsim.dataset.zarr_store import STORE_NAME, frame_arrays, write_frame_arrays
+    from camsim.dataset.zarr_store import STORE_NAME, burst_arrays, frame_arrays, write_frame_arrays
     from camsim.render.frame_files import sidecar
 
-    rendered, info = render_frame(frame, threads)
-    data, srgb_record = frame_arrays(rendered, layout, info)
-    meta = sidecar(rendered, info, None) | {"zarr": {"store": STORE_NAME, "index": frame.index}}
+    where = {"store": STORE_NAME, "index": frame.index}
+    if frame.burst is not None:  # a burst: its frames stacked, its reference, and one sidecar of them all
+        frames, extras, metas, reference, srgb_record = [], [], [], None, None
+        for index, _, rendered, info, extra in render_burst(frame, threads):
+            meta = sidecar(rendered, info, None)
+            if index == "ref":
+                reference, reference_meta = rendered, meta | {"zarr": where}
+            else:
+                frames.append(rendered)
+                extras.append(extra)
+                metas.append(meta | {"zarr": where | {"burst_frame": index}})
+        data = burst_arrays(frames, reference, layout, extras)
+        meta = {"reference": reference_meta, "frames": metas}
+    else:
+        rendered, info = render_frame(frame, threads)
+        data, srgb_record = frame_arrays(rendered, layout, info)
+        meta = sidecar(rendered, info, None) | {"zarr": where}
     text = json.dumps(meta, ensure_ascii=False, allow_nan=False)
     if out_dir is None:
         return {"id": frame.id, "data": data, "sidecar": text} | _srgb_entry(srgb_record)
