@@ -17,6 +17,12 @@ Layout of ``OUT``::
                                                    G, B) value per frame: id, illuminant, intensity_factor, seed,
                                                    read_noise_e, … (coordinates of the frame dimension in xarray)
         channel   (channel,) str                   R, G, B
+      a spec of bursts (``burst_frames``, one length): noisy, clean, digital (frame, burst_frame, plane, y, x), one
+      chunk per item, and
+        reference  (frame, channel, y, x) float32   each burst's clean reference (the file layout's ID_ref.exr)
+        homography (frame, burst_frame, 3, 3) float64   each frame's, reference pixel → frame pixel
+        time_s     (frame, burst_frame) float64     each frame's exposure start
+        sidecar    (frame,) str                     {"reference": ID_ref.json, "frames": [ID_f000.json, …]}
     OUT/records/<id>.done        each complete frame's record (atomic, written after its chunks)
     OUT/manifest.jsonl           one line per complete frame, in frame order (as for the file layout)
 

@@ -26,7 +26,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "A re-run renders only the frames that are not complete and verified. Frames run in parallel on "
             "this machine's cores, or on a Dask cluster with --scheduler; the files do not depend on which. "
             "With --format zarr, the frames go to one Zarr store instead, OUT/dataset.zarr: one chunked array per "
-            "layer (noisy, clean, digital), the sidecars and the parameter table, for xarray and Dask."
+            "layer (noisy, clean, digital), the sidecars and the parameter table, for xarray and Dask. A spec's "
+            "burst_frames makes each item a burst with camera motion: ID_fNNN.dng/.exr/.json per frame and the "
+            "clean reference ID_ref.exr/.json."
         ),
     )
     parser.add_argument("spec", metavar="SPEC.toml", type=Path, help="dataset spec file, or the name of a built-in "
@@ -45,8 +47,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--format", choices=("files", "zarr"), default="files",
                         help="files (default): OUT/frames/ID.dng, .exr, .json per frame; zarr: one Zarr store, "
                              "OUT/dataset.zarr, with arrays noisy, clean (float32) and digital (uint8/uint16) of "
-                             "shape (frame, channel, y, x), one chunk per frame, plus the sidecars, done flags and "
-                             "the parameters (docs, guide 'Datasets for denoisers'); every frame must have the same size")
+                             "shape (frame, channel, y, x) (bursts: (frame, burst_frame, channel, y, x) with the "
+                             "reference, homographies and start times), one chunk per frame, plus the sidecars, done "
+                             "flags and the parameters (docs, guide 'Datasets for denoisers'); every frame must have the same size")
     exr_compression_argument(parser, spec_key=True)
     parser.add_argument("--srgb", choices=("none", "png", "png16"),
                         help="also each frame's noisy and clean layers developed through one camera ISP (the same "
