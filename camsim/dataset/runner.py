@@ -98,7 +98,8 @@ def run_dataset(
     Returns
     -------
     dict
-        ``frames``, ``skipped``, ``rendered``, ``seconds`` (rendering wall time), ``frames_per_second``,
+        ``frames``, ``skipped``, ``rendered``, ``seconds`` (rendering wall time), ``frames_per_second`` (items: a
+        burst counts once; ``megapixels_per_second`` counts each of its frames),
         ``megapixels_per_second``, ``backend``, ``manifest`` (path), ``format``, ``exr_compression`` (None for
         a store), ``store`` (the store's path, or None), ``srgb`` (the sRGB output).
     """
@@ -150,7 +151,9 @@ def run_dataset(
                  else f"EXR compression {exr_compression}" + _kept_compressions(records, exr_compression))
         if srgb != "none":
             where += f"; sRGB {srgb_bits(srgb)}-bit, noisy and clean through one ISP"
-        say(f"dataset {spec.name}: {len(spec.frames)} frames of {spec.size_text}, "
+        bursts = {frame.burst.frames for frame in spec.frames if frame.burst is not None}
+        kind = "frames" if not bursts else f"bursts of {'/'.join(map(str, sorted(bursts)))} frames"
+        say(f"dataset {spec.name}: {len(spec.frames)} {kind} of {spec.size_text}, "
             f"{len(records)} complete and verified, {len(todo)} to render ({backend}, {threads} thread(s) each; "
             f"{where})"
             + (f"; {strays} records of other specs left in {out_dir / records_dir}" if strays else ""))
@@ -202,10 +205,11 @@ def run_dataset(
         "store": None if layout is None else layout.path,
         "srgb": srgb,
     }
-    rate = "" if not rendered else (f" in {seconds:.2f} s: {summary['frames_per_second']:.2f} frames/s, "
+    drawn = sum(1 if frame.burst is None else frame.burst.frames for frame in todo)  # a burst's frames, each
+    items = f"{rendered} frames" if drawn == rendered else f"{rendered} bursts ({drawn} frames)"
+    rate = "" if not rendered else (f" in {seconds:.2f} s: {drawn / seconds:.2f} frames/s, "
                                     f"{summary['megapixels_per_second']:.2f} MP/s")
-    say(f"rendered {rendered} frames{rate} ({backend}); skipped {summary['skipped']} complete; "
-        f"manifest: {manifest}")
+    say(f"rendered {items}{rate} ({backend}); skipped {summary['skipped']} complete; manifest: {manifest}")
     return summary
 
 
