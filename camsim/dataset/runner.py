@@ -248,9 +248,17 @@ def check_output_of(spec, output: str, srgb: str | None = None) -> None:
     if output != "files" and spec.axes.get("raw_file") == "raws":
         raise CamsimError(f"{spec.name}: a [raws] dataset is written as files (a raw scene's DNG, EXR and sidecar "
                           "per frame): --format zarr is not made for it yet")
-    if "burst_frames" in spec.axes and srgb not in (None, "none"):
+    if _has_bursts(spec) and srgb not in (None, "none"):
         raise CamsimError(f"{spec.name}: bursts (burst_frames) have no sRGB outputs yet: drop --srgb (or the "
                           "spec's srgb)")
+
+
+def _has_bursts(spec) -> bool:
+    """Whether a spec's items are bursts: any of a :class:`DatasetSpec`'s frames, or (a plan, whose frames are not
+    made yet) ``burst_frames`` set or inherited from a scene's ``[sequence]``."""
+    if isinstance(spec.frames, tuple):
+        return any(frame.burst is not None for frame in spec.frames)
+    return "burst_frames" in spec.axes
 
 
 def _check_format(out_dir: Path, output: str) -> None:

@@ -1095,16 +1095,16 @@ def burst_sequence(params: dict, scene: Scene) -> SequenceParams | None:
             raise CamsimError(f"{', '.join(motion)} set a burst's motion, but burst_frames is not set (the frames "
                               "of each burst)")
         return None
-    seed_values = base if base is not None else SequenceParams(frames=frames)
-    pan = (given.get("pan_x_px_per_s", seed_values.pan_px_per_s[0]),
-           given.get("pan_y_px_per_s", seed_values.pan_px_per_s[1]))
-    homographies = seed_values.homographies if base is not None else None
+    defaults = base if base is not None else SequenceParams(frames=frames)
+    pan = (given.get("pan_x_px_per_s", defaults.pan_px_per_s[0]),
+           given.get("pan_y_px_per_s", defaults.pan_px_per_s[1]))
+    homographies = defaults.homographies if base is not None else None
     if homographies is not None and len(homographies) != frames:
         raise CamsimError(f"burst_frames {frames} differs from the {len(homographies)} homographies of the scene "
                           "file's [sequence]")
     try:
         return SequenceParams(frames=frames, pan_px_per_s=pan, homographies=homographies,
-                              **{k: given.get(k, getattr(seed_values, k))
+                              **{k: given.get(k, getattr(defaults, k))
                                  for k in ("frame_interval_s", "shake_px", "shake_deg", "blur_subsamples")})
     except CamsimError as exc:
         raise CamsimError(str(exc).replace("[sequence]: frames ", "burst_frames ").replace("[sequence]", "burst")) \
