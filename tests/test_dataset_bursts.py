@@ -35,6 +35,9 @@ dsnu_e = 3
 {sequence}
 """
 
+#: A scene whose expectation changes when it moves (a flat field does not).
+TEXTURED = FLAT.replace('kind = "flat"\nreflectance = 0.5', 'kind = "dead-leaves"')
+
 SPEC = """
 name = "bursts"
 scene = "scene.toml"
@@ -51,8 +54,8 @@ height = {h}
 
 
 def write_spec(tmp_path, fixed="burst_frames = 4\nframe_interval_s = 0.02", grid="", top="", sensor="",
-               sequence="", w=64, h=48):
-    (tmp_path / "scene.toml").write_text(FLAT.format(sensor=sensor, sequence=sequence))
+               sequence="", w=64, h=48, scene=FLAT):
+    (tmp_path / "scene.toml").write_text(scene.format(sensor=sensor, sequence=sequence))
     path = tmp_path / "spec.toml"
     path.write_text(SPEC.format(fixed=fixed, grid=grid, top=top, w=w, h=h))
     return path
@@ -109,7 +112,7 @@ def test_bayer_burst_pairs_and_torch(tmp_path):
     from camsim.sensor.cfa import mosaic_of
 
     spec = write_spec(tmp_path, fixed="burst_frames = 3\nframe_interval_s = 0.02\ncfa = \"RGGB\"\nshake_deg = 0.5",
-                      grid="shake_px = [0.5, 1.0]", w=32, h=24)
+                      grid="shake_px = [0.5, 1.0]", w=32, h=24, scene=TEXTURED)
     out = tmp_path / "out"
     run_dataset(spec, out, workers=1, progress=False, echo=None)
     pairs = WrittenPairs(out, burst=True)
@@ -118,6 +121,8 @@ def test_bayer_burst_pairs_and_torch(tmp_path):
     line = meta["record"]
     _, reference, _ = read_exr(out / "frames" / f"{line['id']}_ref.exr")
     assert noisy.shape == (3, 1, 24, 32) and np.array_equal(clean[0], mosaic_of(reference, "RGGB"))
+    own = read_exr(out / "frames" / f"{line['id']}_f000.exr")[1]
+    assert not np.array_equal(clean[0], mosaic_of(own, "RGGB"))  # the reference, not a frame's own expectation
     assert not np.allclose(meta["homography"][1], np.eye(3))  # it shakes
     # a crop's homographies map the crop's pixels: reference crop pixel q is the full frame's q + (x, y), seen at
     # H (q + (x, y)) in the full frame, i.e. at that minus (x, y) in the crop
@@ -295,7 +300,7 @@ def test_burst_store_equals_the_files(tmp_path):
     from camsim.io.dng import read_dng
 
     spec = write_spec(tmp_path, fixed="burst_frames = 3\nframe_interval_s = 0.02\ncfa = \"RGGB\"",
-                      grid="shake_px = [0.0, 1.2]", w=32, h=24)
+                      grid="shake_px = [0.0, 1.2]", w=32, h=24, scene=TEXTURED)
     run_dataset(spec, tmp_path / "files", workers=1, progress=False, echo=None)
     run_dataset(spec, tmp_path / "zarr", workers=1, progress=False, echo=None, output="zarr")
     group = zarr.open_group(tmp_path / "zarr" / "dataset.zarr", mode="r")
@@ -305,7 +310,10 @@ def test_burst_store_equals_the_files(tmp_path):
     for item in load_spec(spec).frames:
         i = item.index
         stored = json.loads(str(group["sidecar"][i]))
-        assert np.array_equal(group["reference"][i], read_exr(frames / f"{item.id}_ref.exr")[1])
+        reference = read_exr(frames / f"{item.id}_ref.exr")[1]
+        assert np.array_equal(group["reference"][i], reference)
+        if i == 1:  # it shakes: its frames' expectations are not the reference's
+            assert not np.array_equal(group["clean"][i, 0], reference)
         for n in range(3):
             noisy, clean, _ = read_exr(frames / f"{item.id}_f00{n}.exr")
             assert np.array_equal(group["noisy"][i, n], noisy) and np.array_equal(group["clean"][i, n], clean)
