@@ -110,7 +110,7 @@ def _write_store(out_dir: Path, stem: str, scene, lit, sensor, factor: float, ba
         shutil.rmtree(partial, ignore_errors=True)
         raise
     finally:
-        zarr_store._open_arrays.clear()  # the temporary path's arrays, opened by write_frame_arrays
+        zarr_store.release_arrays()  # the temporary path's arrays, opened by write_frame_arrays
     return final
 
 

@@ -413,6 +413,12 @@ def _arrays(path: str, threads: int) -> dict:
     return arrays
 
 
+def release_arrays() -> None:
+    """Forget the store arrays this process opened (:func:`write_frame_arrays`): for a writer whose store moves
+    (a sequence's, renamed into place when complete: :mod:`camsim.dataset.sequence_store`)."""
+    _open_arrays.clear()
+
+
 def write_frame_arrays(layout: StoreLayout, index: int, data: dict, sidecar_text: str, threads: int = 1) -> dict:
     """Write frame ``index``'s chunks (``data``: :func:`frame_arrays`; its sidecar as JSON text), flush them to
     disk, and return what its record lists: per layer (and ``sidecar``) the chunk's name in the store, its size in
