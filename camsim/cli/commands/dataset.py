@@ -102,7 +102,8 @@ def print_plan(plan, write=None, chunk: int = 1000) -> None:
 
     write = write or sys.stdout.write
     varied = [name for name, how in plan.axes.items() if how != "fixed"]
-    write(f"dataset {plan.name}: {len(plan)} frames of {plan.size_text}; "
+    items = "bursts" if "burst_frames" in plan.axes else "frames"  # a burst spec's items (burst_frames: each's)
+    write(f"dataset {plan.name}: {len(plan)} {items} of {plan.size_text}; "
           f"varied: {', '.join(f'{n} ({plan.axes[n]})' for n in varied)}\n")
     keys = [(n, "photon_statistics" if n == "statistics" else n) for n in varied]
     encode = json.JSONEncoder(ensure_ascii=False).encode
