@@ -799,14 +799,26 @@ class WrittenPairs:
     seed) and how the arrays were made (``isp``: the ISP's record for ``srgb``; ``black_dn``, ``white_dn`` and
     ``packed`` for ``raw``).
 
+    **Bursts** (a dataset written with ``burst_frames``: :mod:`camsim.dataset.spec`), ``burst=True``: item ``i``
+    is its ``i``-th burst, ``(noisy, clean, meta)`` with ``noisy`` the N frames stacked, (N, P, H, W) (P = 3, or 1
+    for a Bayer mosaic; (N, 4, H/2, W/2) packed in ``raw``), and ``clean`` the burst's **reference** (P, H, W):
+    the clean static scene (``ID_ref.exr``'s clean layer: no motion, no noise, the fixed pattern in), aligned to no
+    frame but to the camera's path at its start (t = 0, the shake's pose 0). ``meta["homography"]`` (N, 3, 3)
+    float64 gives each frame's homography, reference pixel → frame pixel (the sidecar's, at the exposure's middle;
+    with a crop, of the crop's pixels: T(−x, −y) · H · T(x, y), one crop window for the reference and every frame),
+    so that frame n's pixel p shows the reference at H[n]⁻¹ p; ``meta["time_s"]`` (N,) the exposures' starts,
+    ``meta["frames"]`` the frames' ids. Domains ``dn`` and ``raw``, from files or a Zarr store (its ``noisy`` (frame,
+    burst_frame, …) and ``reference`` arrays); a burst dataset read without ``burst=True`` (or a single-frame one with
+    it) is refused.
+
     Raises
     ------
     CamsimError
         No dataset at ``path`` (neither ``manifest.jsonl`` nor ``dataset.zarr``), an unknown domain, an ``srgb``
-        domain without sRGB outputs, a crop larger than the frames.
+        domain without sRGB outputs, a crop larger than the frames, bursts read as frames or frames as bursts.
     """
 
-    def __init__(self, path, domain: str = "dn", crop: tuple | None = None, seed: int = 0):
+    def __init__(self, path, domain: str = "dn", crop: tuple | None = None, seed: int = 0, burst: bool = False):
         from camsim.dataset.manifest import MANIFEST_NAME, read_manifest
         from camsim.dataset.zarr_store import STORE_NAME
 
@@ -820,6 +832,15 @@ class WrittenPairs:
         self.path, self.domain, self.seed = path, domain, int(seed)
         self.store = path / STORE_NAME if (path / STORE_NAME).is_dir() else None
         self.records = [r for r in read_manifest(path) if ("arrays" if self.store else "files") in r]
+        self.burst = bool(burst)
+        bursts = sum(1 for r in self.records if r.get("burst_frames") is not None)
+        if not burst and bursts:
+            raise CamsimError(f"{path} holds bursts (burst_frames): read them with burst=True")
+        if burst and (bursts < len(self.records) or not self.records):
+            raise CamsimError(f"{path} holds {len(self.records) - bursts} single frame(s) and {bursts} burst(s): "
+                              "burst=True reads a dataset of bursts (burst_frames)")
+        if burst and domain == "srgb":
+            raise CamsimError("bursts have no sRGB outputs: read them in the dn or raw domain")
         if crop is not None:
             width, height = crop
             if not (isinstance(width, int) and isinstance(height, int) and width >= 1 and height >= 1):
@@ -897,6 +918,8 @@ class WrittenPairs:
             raise IndexError(f"pair {i!r} of a dataset of {len(self)}")
         i = int(i) % len(self)
         record = self.records[i]
+        if self.burst:
+            return self._read_burst(i, record)
         cfa = record.get("cfa")
         bayer = cfa is not None
         meta = {"id": record["id"], "index": record["index"], "domain": self.domain, "crop": None,
@@ -929,6 +952,63 @@ class WrittenPairs:
             clean = normalise(clean[0] if bayer else clean, facts)
             if bayer:
                 noisy, clean = pack_rggb(noisy, cfa), pack_rggb(clean, cfa)  # even offsets keep the pattern
+            meta.update(black_dn=facts.black_dn.tolist(), white_dn=facts.white_dn,
+                        packed=["R", "G1", "G2", "B"] if bayer else None)
+        return (np.ascontiguousarray(noisy, dtype=np.float32), np.ascontiguousarray(clean, dtype=np.float32), meta)
+
+    def _read_burst(self, i: int, record: dict) -> tuple:
+        """Burst ``i``: its frames and reference (class docstring)."""
+        from camsim.io.exr import read_exr, read_exr_clean
+        from camsim.render.frame_files import read_frame_meta
+
+        if self.store is not None:  # the store's (frame, burst_frame, …) arrays and the item's sidecars
+            import json
+
+            group, index = self._zarr(), record["index"]
+            noisy, clean = np.asarray(group["noisy"][index]), np.asarray(group["reference"][index])
+            sidecars = json.loads(str(group["sidecar"][index]))["frames"]
+            from camsim.render.sequence import frame_digits
+
+            digits = frame_digits(len(sidecars))
+            suffixes = [f"f{meta['frame_index']:0{digits}d}" for meta in sidecars]
+        else:
+            files, burst = record["files"], record["burst"]
+            noisy, sidecars, suffixes = [], [], burst["frames"]
+            for suffix in suffixes:
+                path = self.path / files[f"{suffix}.exr"]["name"]
+                noisy.append(read_exr(path, clean=False)[0])
+                sidecars.append(read_frame_meta(path))
+            clean = read_exr_clean(self.path / files[f"{burst['reference']}.exr"]["name"])[0]
+            noisy = np.stack(noisy)
+        cfa = sidecars[0].get("cfa_pattern") or None
+        bayer = cfa is not None
+        if bayer:
+            from camsim.dataset.srgb import mosaic_clean
+
+            clean = mosaic_clean(clean, cfa)[None]
+        homography = np.array([meta["homography"] for meta in sidecars], dtype=np.float64)
+        meta = {"id": record["id"], "index": record["index"], "domain": self.domain, "crop": None,
+                "record": {k: v for k, v in record.items() if k not in ("files", "arrays")},
+                "frames": [f"{record['id']}_{suffix}" for suffix in suffixes],
+                "time_s": [float(meta["time_s"]) for meta in sidecars]}
+        height, width = noisy.shape[2:]
+        offset = self._offset(i, width, height, bayer)
+        if offset is not None:
+            (x, y), (cw, ch) = offset, self.crop
+            noisy, clean = noisy[:, :, y:y + ch, x:x + cw], clean[:, y:y + ch, x:x + cw]
+            meta["crop"] = (x, y, cw, ch)
+            into, out_of = np.eye(3), np.eye(3)
+            into[:2, 2], out_of[:2, 2] = (x, y), (-x, -y)
+            homography = out_of @ homography @ into  # crop pixels: T(−x, −y) · H · T(x, y)
+        meta["homography"] = homography
+        if self.domain == "raw":
+            from camsim.isp import facts_from_meta, normalise, pack_rggb
+
+            facts = facts_from_meta(sidecars[0], quantised=False)  # one sensor: every frame's levels are these
+            noisy = np.stack([normalise(frame[0] if bayer else frame, facts) for frame in noisy])
+            clean = normalise(clean[0] if bayer else clean, facts)
+            if bayer:
+                noisy, clean = np.stack([pack_rggb(frame, cfa) for frame in noisy]), pack_rggb(clean, cfa)
             meta.update(black_dn=facts.black_dn.tolist(), white_dn=facts.white_dn,
                         packed=["R", "G1", "G2", "B"] if bayer else None)
         return (np.ascontiguousarray(noisy, dtype=np.float32), np.ascontiguousarray(clean, dtype=np.float32), meta)

@@ -93,28 +93,39 @@ def _written_class():
 
             def __getitem__(self, i: int) -> dict:
                 noisy, clean, meta = self.pairs.read(i)
-                return {"noisy": torch.from_numpy(noisy), "clean": torch.from_numpy(clean), "meta": meta}
+                item = {"noisy": torch.from_numpy(noisy), "clean": torch.from_numpy(clean), "meta": meta}
+                if self.pairs.burst:  # each frame's homography, reference pixel → frame pixel
+                    item["homography"] = torch.from_numpy(meta["homography"])
+                return item
 
         _CLASSES["written"] = WrittenPairDataset
     return _CLASSES["written"]
 
 
-def written_pairs(path, domain: str = "dn", crop: tuple | None = None, seed: int = 0):
+def written_pairs(path, domain: str = "dn", crop: tuple | None = None, seed: int = 0, burst: bool = False):
     """A map-style ``torch.utils.data.Dataset`` over the dataset written by ``camsim dataset`` into ``path`` (its
     output folder, files or Zarr): item *i* is ``{"noisy", "clean", "meta"}``, the pair of its *i*-th complete
     frame in ``domain`` (``"dn"``, ``"raw"``, ``"srgb"``), cut to ``crop`` (width, height) at an offset drawn from
     ``seed`` and *i* (:class:`camsim.pairs.WrittenPairs`). Batch with ``DataLoader(..., collate_fn=collate_pairs)``
-    (the pairs of a batch must have one size: give a ``crop`` where the frames' sizes differ)."""
-    return _written_class()(WrittenPairs(path, domain, crop, seed))
+    (the pairs of a batch must have one size: give a ``crop`` where the frames' sizes differ).
+
+    ``burst=True`` (a dataset of bursts): item *i* is its *i*-th burst, ``noisy`` (N, P, H, W) the frames,
+    ``clean`` (P, H, W) the clean reference (the static scene), and ``homography`` (N, 3, 3) float64, reference
+    pixel → frame pixel; :func:`collate_pairs` stacks them into (B, N, P, H, W), (B, P, H, W) and (B, N, 3, 3)."""
+    return _written_class()(WrittenPairs(path, domain, crop, seed, burst=burst))
 
 
 def collate_pairs(items: list) -> dict:
     """A ``DataLoader``'s ``collate_fn`` for :func:`written_pairs`: ``noisy`` and ``clean`` stacked into (B, planes,
-    H, W) tensors, ``meta`` a list of the items' dicts."""
+    H, W) tensors (bursts: (B, N, planes, H, W) and ``homography`` (B, N, 3, 3)), ``meta`` a list of the items'
+    dicts."""
     import torch
 
-    return {"noisy": torch.stack([item["noisy"] for item in items]),
-            "clean": torch.stack([item["clean"] for item in items]), "meta": [item["meta"] for item in items]}
+    out = {"noisy": torch.stack([item["noisy"] for item in items]),
+           "clean": torch.stack([item["clean"] for item in items]), "meta": [item["meta"] for item in items]}
+    if "homography" in items[0]:
+        out["homography"] = torch.stack([item["homography"] for item in items])
+    return out
 
 
 def pair_dataset(source: PairSource, start: int = 0, stop: int | None = None):

@@ -18,7 +18,7 @@ from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION
 from camsim.render.pipeline import light_scene, scene_frame
 from camsim.scene.scene_file import load_scene
 
-__all__ = ["render_frame", "render_files"]
+__all__ = ["render_frame", "render_files", "render_burst", "render_burst_files"]
 
 
 @lru_cache(maxsize=16)
@@ -47,6 +47,13 @@ def render_frame(frame: FrameSpec, threads: int = 1):
     ``[images]`` spec has the scene file's source replaced by its crop of an image, lit as a reflectance image;
     its flips mirror the lit scene's label map (every pixel keeps its colour's spectrum).
     """
+    scene, lit, camera = _frame_scene(frame)
+    return scene_frame(scene, frame.illuminant, frame.intensity_factor, seed=frame.seed, lit=lit, camera=camera,
+                       workers=threads)
+
+
+def _frame_scene(frame: FrameSpec) -> tuple:
+    """The frame's scene (its parameters applied), its lit scene and its camera."""
     base = _scene(frame.scene_path)
     image = frame.image
     source = None if image is None else image.source()
@@ -60,8 +67,51 @@ def render_frame(frame: FrameSpec, threads: int = 1):
     lit = _lit(frame.scene_path, frame.width, frame.height, frame.illuminant, scene.camera, source)
     if image is not None and (image.flip_horizontal or image.flip_vertical):
         lit = dataclasses.replace(lit, labels=image.flip(lit.labels))
-    return scene_frame(scene, frame.illuminant, frame.intensity_factor, seed=frame.seed, lit=lit, camera=camera,
-                       workers=threads)
+    return scene, lit, camera
+
+
+def render_burst(frame: FrameSpec, threads: int = 1):
+    """Render a burst item (:attr:`FrameSpec.burst`) in memory, as ``camsim render`` renders a ``[sequence]``
+    (:func:`camsim.render.sequence.render_sequence_frames`, with the item's seed: its motion and every frame's
+    noise): yield ``(index, name, frame, info, extra)`` for its reference (``index`` ``"ref"``, ``name``
+    ``<id>_ref``) and then each frame (``<id>_fNNN``), with its :class:`FrameInfo` and its sequence keys."""
+    from camsim.render.pipeline import frame_sensor, scene_frame_info
+    from camsim.render.sequence import frame_digits, render_sequence_frames, sequence_frame_info
+
+    scene, lit, camera = _frame_scene(frame)
+    scene = scene.replace(seed=frame.seed)
+    factor = frame.intensity_factor
+    sensor = frame_sensor(scene, lit, factor)
+    base = dataclasses.replace(scene_frame_info(scene, lit, camera.name, factor, frame.seed), method="poisson")
+    digits = frame_digits(scene.sequence.frames)
+    for index, rendered, extra in render_sequence_frames(scene, lit, sensor, factor, workers=threads):
+        name, info = sequence_frame_info(frame.id, index, digits, extra, base)
+        yield index, name, rendered, info, extra
+
+
+def render_burst_files(frame: FrameSpec, directory: Path, threads: int = 1,
+                       exr_compression: str = DEFAULT_EXR_COMPRESSION) -> tuple[dict, dict]:
+    """Render a burst item (:func:`render_burst`) and write its files into ``directory``, as ``camsim render``
+    writes a ``[sequence]``'s: ``<id>_ref.exr/.json`` (the clean reference: the static scene), then
+    ``<id>_fNNN.dng/.exr/.json`` per frame, each atomically.
+
+    Returns
+    -------
+    names : dict
+        File names by kind ``<frame>.<kind>``: ``ref.exr``, ``ref.json``, ``f000.dng`` (None without
+        quantisation), ``f000.exr``, ``f000.json`` (and ``f000.xmp`` beside a three-chip DNG) …
+    burst : dict
+        The manifest's ``burst``: ``frames`` (the frames' suffixes, ``f000`` …, in order) and ``reference``
+        (``ref``); a frame's files are ``<id>_<suffix>.<kind>``.
+    """
+    names, suffixes = {}, []
+    for index, name, rendered, info, _ in render_burst(frame, threads):
+        suffix = name[len(frame.id) + 1:]
+        written = write_frame(Path(directory), name, rendered, info, exr_compression=exr_compression)
+        names.update({f"{suffix}.{kind}": value for kind, value in written.items()})
+        if index != "ref":
+            suffixes.append(suffix)
+    return names, {"frames": suffixes, "reference": "ref"}
 
 
 def render_files(frame: FrameSpec, directory: Path, threads: int = 1,
@@ -89,6 +139,9 @@ def render_files(frame: FrameSpec, directory: Path, threads: int = 1,
 
         images, record = develop_raw_frame(draw, meta, srgb)
         return _write_srgb(frame, Path(directory), names, images, record), record
+    if frame.burst is not None:  # a burst: its frames and reference (no sRGB outputs: refused when planned)
+        names, burst = render_burst_files(frame, Path(directory), threads, exr_compression)
+        return {**names, "burst": burst}, None
     rendered, info = render_frame(frame, threads)
     names = write_frame(Path(directory), frame.id, rendered, info, exr_compression=exr_compression)
     if srgb == "none":

@@ -5,6 +5,8 @@ Layout of ``OUT``::
     OUT/frames/<id>.dng, <id>.exr, <id>.json   the frame's files (camsim's writers: temporary name, then rename)
     OUT/frames/<id>_srgb_noisy.png, <id>_srgb_clean.png   with ``--srgb``: noisy and clean developed through one
                                                ISP (camsim.dataset.srgb)
+    OUT/frames/<id>_ref.exr, <id>_ref.json, <id>_fNNN.dng/.exr/.json   a burst's (``burst_frames``): its clean
+                                               reference and frames (camsim.dataset.frame_render.render_burst_files)
     OUT/frames/<id>.done                       the frame's record, written (atomically) after all its files
     OUT/manifest.jsonl                         one line per complete frame, in frame order
 
@@ -42,8 +44,8 @@ VERIFY_MODES = ("sha256", "size")
 #: Files a frame lists that a reader owns once written, so that a changed one is no damage: darktable rewrites a
 #: three-chip DNG's ``.dng.xmp`` sidecar (``files``' ``xmp``) when it opens the DNG. Listed, not verified.
 READER_OWNED = ("xmp",)
-#: Keys of a record that say how the frame was written, not which frame it is.
-_OUTPUT_KEYS = ("files", "exr_compression", "srgb")
+#: Keys of a record that say how the frame was written, not which frame it is (``burst``: a burst's frames).
+_OUTPUT_KEYS = ("files", "exr_compression", "srgb", "burst")
 
 
 def sha256_file(path: Path) -> str:
@@ -82,13 +84,13 @@ def verified_record(out_dir: Path, frame: FrameSpec, verify: str = "sha256", srg
     if record is None:
         return None
     files = record.get("files")
-    if not isinstance(files, dict) or not files.get("exr") or not files.get("json"):
+    if not isinstance(files, dict) or not all(files.get(kind) for kind in required_files(record, frame)):
         return None
     if srgb != "none" and ((record.get("srgb") or {}).get("output") != srgb
                            or not files.get("srgb_noisy") or not files.get("srgb_clean")):
         return None
     for kind, entry in files.items():
-        if entry is None or kind in READER_OWNED:
+        if entry is None or kind.rpartition(".")[2] in READER_OWNED:  # a burst frame's: f000.xmp
             continue
         try:
             path = Path(out_dir) / entry["name"]
@@ -99,6 +101,20 @@ def verified_record(out_dir: Path, frame: FrameSpec, verify: str = "sha256", srg
         except (OSError, KeyError, TypeError):
             return None
     return record
+
+
+def required_files(record: dict, frame: FrameSpec) -> tuple:
+    """The kinds of file a complete frame's record must list: ``exr`` and ``json``, or a burst's (its ``burst``
+    record naming :attr:`FrameSpec.burst`'s frames, ``f000`` …, and its reference): each frame's ``.exr`` and
+    ``.json`` and the reference's (:func:`camsim.dataset.frame_render.render_burst_files`). A record that does not
+    name the frame's burst requires a file no record has."""
+    if frame.burst is None:
+        return ("exr", "json")
+    burst = record.get("burst")
+    if (not isinstance(burst, dict) or not isinstance(burst.get("frames"), list)
+            or len(burst["frames"]) != frame.burst.frames or not all(isinstance(s, str) for s in burst["frames"])):
+        return ("burst",)
+    return tuple(f"{suffix}.{kind}" for suffix in (*burst["frames"], "ref") for kind in ("exr", "json"))
 
 
 def write_manifest(out_dir: Path, records: dict) -> Path:
@@ -155,7 +171,7 @@ def store_result(out_dir: Path, frame: FrameSpec, result: dict) -> dict:
             tmp.write_bytes(data)
     record = {**frame.record, **({"exr_compression": result["exr_compression"]} if "exr_compression" in result
                                  else {}), **({"srgb": result["srgb"]} if "srgb" in result else {}),
-              "files": result["files"]}
+              **({"burst": result["burst"]} if "burst" in result else {}), "files": result["files"]}
     line = manifest_line(record)
     write_json_atomic(done_path(out_dir, frame.id), record, renamed=lambda: append_manifest(out_dir, line))
     return record

@@ -85,6 +85,7 @@ from camsim.dataset.spec import (
     ID_DIGITS,
     MAX_FRAMES,
     OWN_VALUE_PARAMS,
+    BURST_PARAMS,
     PARAMETERS,
     RAW_KEYS,
     RAW_SUFFIXES,
@@ -325,6 +326,10 @@ def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeat
         if param in axes:
             raise CamsimError(f"{where}: [{axes[param]}] {param} does not apply to [raws] frames (the light, the "
                               "camera and the colour filter array are each raw file's own)")
+    for p in BURST_PARAMS:  # a raw scene cannot move yet (camsim.render.sequence.check_sequence_scene)
+        if p.name in axes:
+            raise CamsimError(f"{where}: [{axes[p.name]}] {p.name}: bursts of [raws] crops are not available yet (a "
+                              "raw scene cannot move yet)")
     if "ratio" in axes and "exposure_s" in axes:
         raise CamsimError(f"{where}: set either ratio (T = T_source / ratio) or exposure_s, not both")
     points = math.prod(len(v) for v in grid.values()) * count

@@ -98,7 +98,8 @@ def run_dataset(
     Returns
     -------
     dict
-        ``frames``, ``skipped``, ``rendered``, ``seconds`` (rendering wall time), ``frames_per_second``,
+        ``frames``, ``skipped``, ``rendered``, ``seconds`` (rendering wall time), ``frames_per_second`` (items: a
+        burst counts once; ``megapixels_per_second`` counts each of its frames),
         ``megapixels_per_second``, ``backend``, ``manifest`` (path), ``format``, ``exr_compression`` (None for
         a store), ``store`` (the store's path, or None), ``srgb`` (the sRGB output).
     """
@@ -111,7 +112,7 @@ def run_dataset(
     if output == "zarr" and not (srgb or spec.srgb):
         srgb = zarr_store.held_srgb(out_dir)  # a store keeps its sRGB arrays when a re-run does not name them
     srgb = check_srgb(srgb or spec.srgb or "none")
-    check_output_of(spec, output)
+    check_output_of(spec, output, srgb)
     if output == "files":
         exr_compression = check_exr_compression(exr_compression or spec.exr_compression or DEFAULT_EXR_COMPRESSION)
     records_dir = FRAMES_DIR if output == "files" else zarr_store.RECORDS_DIR
@@ -150,7 +151,9 @@ def run_dataset(
                  else f"EXR compression {exr_compression}" + _kept_compressions(records, exr_compression))
         if srgb != "none":
             where += f"; sRGB {srgb_bits(srgb)}-bit, noisy and clean through one ISP"
-        say(f"dataset {spec.name}: {len(spec.frames)} frames of {spec.size_text}, "
+        bursts = {frame.burst.frames for frame in spec.frames if frame.burst is not None}
+        kind = "frames" if not bursts else f"bursts of {'/'.join(map(str, sorted(bursts)))} frames"
+        say(f"dataset {spec.name}: {len(spec.frames)} {kind} of {spec.size_text}, "
             f"{len(records)} complete and verified, {len(todo)} to render ({backend}, {threads} thread(s) each; "
             f"{where})"
             + (f"; {strays} records of other specs left in {out_dir / records_dir}" if strays else ""))
@@ -202,10 +205,11 @@ def run_dataset(
         "store": None if layout is None else layout.path,
         "srgb": srgb,
     }
-    rate = "" if not rendered else (f" in {seconds:.2f} s: {summary['frames_per_second']:.2f} frames/s, "
+    drawn = sum(1 if frame.burst is None else frame.burst.frames for frame in todo)  # a burst's frames, each
+    items = f"{rendered} frames" if drawn == rendered else f"{rendered} bursts ({drawn} frames)"
+    rate = "" if not rendered else (f" in {seconds:.2f} s: {drawn / seconds:.2f} frames/s, "
                                     f"{summary['megapixels_per_second']:.2f} MP/s")
-    say(f"rendered {rendered} frames{rate} ({backend}); skipped {summary['skipped']} complete; "
-        f"manifest: {manifest}")
+    say(f"rendered {items}{rate} ({backend}); skipped {summary['skipped']} complete; manifest: {manifest}")
     return summary
 
 
@@ -237,12 +241,24 @@ def check_settings(*, workers: int | None = None, threads: int = 1, scheduler: s
         check_srgb(srgb)
 
 
-def check_output_of(spec, output: str) -> None:
+def check_output_of(spec, output: str, srgb: str | None = None) -> None:
     """Refuse an output format a spec's frames cannot be written in (``spec``: a :class:`DatasetSpec` or its
-    plan): a ``[raws]`` spec's frames are raw scenes' files, not a Zarr store's arrays (yet)."""
+    plan): a ``[raws]`` spec's frames are raw scenes' files, not a Zarr store's arrays (yet); bursts
+    (``burst_frames``) have no sRGB outputs (yet)."""
     if output != "files" and spec.axes.get("raw_file") == "raws":
         raise CamsimError(f"{spec.name}: a [raws] dataset is written as files (a raw scene's DNG, EXR and sidecar "
                           "per frame): --format zarr is not made for it yet")
+    if _has_bursts(spec) and srgb not in (None, "none"):
+        raise CamsimError(f"{spec.name}: bursts (burst_frames) have no sRGB outputs yet: drop --srgb (or the "
+                          "spec's srgb)")
+
+
+def _has_bursts(spec) -> bool:
+    """Whether a spec's items are bursts: any of a :class:`DatasetSpec`'s frames, or (a plan, whose frames are not
+    made yet) ``burst_frames`` set or inherited from a scene's ``[sequence]``."""
+    if isinstance(spec.frames, tuple):
+        return any(frame.burst is not None for frame in spec.frames)
+    return "burst_frames" in spec.axes
 
 
 def _check_format(out_dir: Path, output: str) -> None:

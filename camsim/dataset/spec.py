@@ -76,6 +76,7 @@ and sensor (:class:`FrameGroup`), so that a spec of 10⁵ frames is planned in s
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import itertools
 import json
@@ -93,8 +94,9 @@ from camsim.render.run import check_scene
 from camsim.io.dng import MIN_SIZE
 from camsim.io.exr_compression import check_exr_compression
 from camsim.core.names import safe_component
-from camsim.core.schema import INT64_MAX, Param, check_frame_size
+from camsim.core.schema import INT64_MAX, Param, check_frame_size, params_of
 from camsim.scene.scene_file import FRAME_PARAMS, RENDER_PARAMS, Scene, check_intensity_factor, load_scene, read_toml
+from camsim.scene.sequence import SequenceParams, check_timing
 from camsim.core.seeding import dataset_frame_seeds, dataset_parameter_generator
 from camsim.sensor.params import MAP_FILE_PARAMS, SENSOR_PARAMS, with_checked_values
 from camsim.scene.sources.image import ImageSource
@@ -114,9 +116,26 @@ RAWS_PARAMS = (
           "Poisson of the expectation (the source noise-free), 'thin' = binomial thinning of the source's count "
           "(cannot brighten); default the [raws] table's", choices=PHOTON_LAWS),
 )
+_SEQUENCE = {p.name: p for p in params_of(SequenceParams)}
+#: The parameters of a burst (:mod:`camsim.scene.sequence`'s ``[sequence]``, declared there): ``burst_frames`` makes
+#: each dataset item a burst of that many frames with camera motion; the others are the motion's. A spec that sets
+#: none of them keeps the scene file's ``[sequence]``, if it has one (a burst of its frames).
+BURST_PARAMS = (
+    Param("burst_frames", "int", None, "frames of each item's burst (the scene file's [sequence] frames): "
+          "ID_fNNN.dng/.exr/.json and the clean reference ID_ref.exr/.json; none: one frame per item",
+          low=1, optional=True),
+    *(dataclasses.replace(_SEQUENCE[name], doc="burst: " + _SEQUENCE[name].doc)
+      for name in ("frame_interval_s", "shake_px", "shake_deg")),
+    Param("pan_x_px_per_s", "float", 0.0, "burst: constant pan, horizontal (the [sequence]'s pan_px_per_s[0])",
+          "px/s"),
+    Param("pan_y_px_per_s", "float", 0.0, "burst: constant pan, vertical (the [sequence]'s pan_px_per_s[1])",
+          "px/s"),
+    dataclasses.replace(_SEQUENCE["blur_subsamples"], doc="burst: " + _SEQUENCE["blur_subsamples"].doc),
+)
 #: Every parameter a spec may set, by name: the frame's choices, the render settings and the sensor's (the schema),
-#: and those of ``[raws]`` frames (:data:`RAWS_PARAMS`).
-PARAMETERS = {p.name: p for p in (*FRAME_PARAMS, *RENDER_PARAMS, *SENSOR_PARAMS, *RAWS_PARAMS) if p.name != "seed"}
+#: those of ``[raws]`` frames (:data:`RAWS_PARAMS`) and of bursts (:data:`BURST_PARAMS`).
+PARAMETERS = {p.name: p for p in (*FRAME_PARAMS, *RENDER_PARAMS, *SENSOR_PARAMS, *RAWS_PARAMS, *BURST_PARAMS)
+              if p.name != "seed"}
 #: The render settings of :class:`camsim.scene.scene_file.Scene` a frame takes from its spec (all but the seed: a frame has
 #: its own).
 RENDER_KEYS = tuple(p.name for p in RENDER_PARAMS if p.name != "seed")
@@ -385,8 +404,13 @@ class FrameSpec:
         return self.values[keys.index(key)] if key in keys else self.group.record[key]
 
     @property
+    def burst(self) -> SequenceParams | None:
+        """The frame's burst (:data:`BURST_PARAMS`: its frames and camera motion), or None: one frame."""
+        return self.group.scene_changes.get("sequence")
+
+    @property
     def megapixels(self) -> float:
-        return self.width * self.height / 1e6
+        return self.width * self.height / 1e6 * (1 if self.burst is None else self.burst.frames)
 
 
 def _size_text(sizes) -> str:
@@ -853,6 +877,8 @@ def plan_spec(path: str | Path) -> SpecPlan:
         raise CamsimError(f"{where}: more than {MAX_FRAMES} frames")
     for param in ("illuminant", "intensity_factor"):
         axes.setdefault(param, "scene")
+    if any(entry.scene.sequence is not None for entry in scenes):  # a scene file's [sequence]: bursts
+        axes.setdefault("burst_frames", "scene")
     random_values = {p: _draw(p, random_table[k], points, seed, f"{where} [random]")
                      for p, k in random_names.items()}
     if "virtual_camera" in doc:  # each grid point and draw: a camera, its K and its noise scales
@@ -1042,9 +1068,58 @@ class _FrameCheck:
                 and factor <= self.last[1]):
             return
         sensor = with_checked_values(self.scene.sensor, **dict(zip(self.sensor_keys, own))) if own else None
-        check_frame(self.lit, frame_sensor(self.scene, self.lit, factor, sensor), factor, self.scene.statistics)
+        sensor = frame_sensor(self.scene, self.lit, factor, sensor)
+        check_frame(self.lit, sensor, factor, self.scene.statistics)
+        if self.scene.sequence is not None:  # a burst: each exposure within its frame interval
+            check_timing(self.scene.sequence, sensor.exposure_s)
         if self.last is None or self.last[0] != own or factor > self.last[1]:
             self.last = (own, factor)
+
+
+def burst_sequence(params: dict, scene: Scene) -> SequenceParams | None:
+    """The burst of a frame with ``params`` (:data:`BURST_PARAMS`), each parameter the spec does not set taken from
+    the scene file's ``[sequence]`` (else its default); None without ``burst_frames`` (and without a ``[sequence]``).
+
+    Raises
+    ------
+    CamsimError
+        A burst parameter out of range, motion set without ``burst_frames``, ``burst_frames`` that differs from the
+        count of the scene's ``homographies``.
+    """
+    base = scene.sequence
+    given = {p.name: p.coerce(params[p.name], "burst") for p in BURST_PARAMS if p.name in params}
+    frames = given.get("burst_frames", base.frames if base is not None and "burst_frames" not in params else None)
+    if frames is None:
+        motion = sorted(k for k in given if k != "burst_frames")
+        if motion:
+            raise CamsimError(f"{', '.join(motion)} set a burst's motion, but burst_frames is not set (the frames "
+                              "of each burst)")
+        return None
+    defaults = base if base is not None else SequenceParams(frames=frames)
+    pan = (given.get("pan_x_px_per_s", defaults.pan_px_per_s[0]),
+           given.get("pan_y_px_per_s", defaults.pan_px_per_s[1]))
+    homographies = defaults.homographies if base is not None else None
+    if homographies is not None and len(homographies) != frames:
+        raise CamsimError(f"burst_frames {frames} differs from the {len(homographies)} homographies of the scene "
+                          "file's [sequence]")
+    try:
+        return SequenceParams(frames=frames, pan_px_per_s=pan, homographies=homographies,
+                              **{k: given.get(k, getattr(defaults, k))
+                                 for k in ("frame_interval_s", "shake_px", "shake_deg", "blur_subsamples")})
+    except CamsimError as exc:
+        raise CamsimError(str(exc).replace("[sequence]: frames ", "burst_frames ").replace("[sequence]", "burst")) \
+            from None
+
+
+def burst_record(burst: SequenceParams) -> dict:
+    """A burst frame's record keys (:data:`BURST_PARAMS`' names; ``burst_homographies`` where the scene file's
+    ``[sequence]`` lists them)."""
+    out = {"burst_frames": burst.frames, "frame_interval_s": burst.frame_interval_s, "shake_px": burst.shake_px,
+           "shake_deg": burst.shake_deg, "pan_x_px_per_s": burst.pan_px_per_s[0],
+           "pan_y_px_per_s": burst.pan_px_per_s[1], "blur_subsamples": burst.blur_subsamples}
+    if burst.homographies is not None:
+        out["burst_homographies"] = [list(map(list, h)) for h in burst.homographies]
+    return out
 
 
 def frame_sensor_overrides(params: dict, base: Path) -> dict:
@@ -1074,6 +1149,9 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> tupl
         changes["iso"] = params["iso"]
     overrides = frame_sensor_overrides(params, job.base)
     scene = entry.scene
+    burst = burst_sequence(params, scene)
+    if burst is not None or scene.sequence is not None:
+        changes["sequence"] = burst  # None: a scene file's [sequence] that the spec turns off (burst_frames = "none")
     frame_scene = scene.replace(intensity_factors=(params["intensity_factor"],), **changes)
     if overrides:
         frame_scene = frame_scene.with_sensor(**overrides)
@@ -1085,6 +1163,10 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> tupl
     if key not in checked:
         check_scene(frame_scene)
         checked[key] = True
+    if burst is not None:
+        from camsim.render.sequence import check_sequence_scene
+
+        check_sequence_scene(frame_scene)
     key = ("camera", str(entry.path), frame_scene.camera)
     if key not in checked:
         checked[key] = load_camera(frame_scene.camera, frame_scene.grid, frame_scene.sensitivity_basis,
@@ -1120,6 +1202,7 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> tupl
         # auto exposure only: a fixed exposure is the sensor's exposure_s (and frame ids stay those of earlier
         # versions); with auto, exposure_s is the sensor's setting and each frame's T is in its sidecar
         **(exposure_record(frame_scene) if frame_scene.exposure == "auto" else {}),
+        **(burst_record(burst) if burst is not None else {}),  # a burst's keys: only then (other ids unchanged)
         "spec_seed": job.seed,
     }
     if job.images is not None:  # the frame's own image, crop and flips (IMAGE_KEYS) fill these in

@@ -9,7 +9,7 @@ import json
 import tempfile
 from pathlib import Path
 
-from camsim.dataset.frame_render import render_files, render_frame
+from camsim.dataset.frame_render import render_burst, render_files, render_frame
 from camsim.dataset.manifest import FRAMES_DIR, sha256_file
 from camsim.dataset.spec import FrameSpec
 from camsim.io.exr import set_exr_threads
@@ -32,20 +32,30 @@ def render_task(frame: FrameSpec, out_dir: str | None, threads: int = 1,
     if out_dir is not None:
         folder = Path(out_dir) / FRAMES_DIR
         names, srgb_record = render_files(frame, folder, threads, exr_compression, srgb)
+        burst = _burst_entry(names)
         files = {kind: None if name is None else
                  {"name": f"{FRAMES_DIR}/{name}", "bytes": (folder / name).stat().st_size,
                   "sha256": sha256_file(folder / name)}
                  for kind, name in names.items()}
-        return {"id": frame.id, "exr_compression": exr_compression, "files": files} | _srgb_entry(srgb_record)
+        return ({"id": frame.id, "exr_compression": exr_compression, "files": files} | _srgb_entry(srgb_record)
+                | burst)
     with tempfile.TemporaryDirectory(prefix="camsim-frame-") as tmp:
         names, srgb_record = render_files(frame, Path(tmp), threads, exr_compression, srgb)
+        burst = _burst_entry(names)
         blobs = {kind: (Path(tmp) / name).read_bytes() for kind, name in names.items() if name is not None}
     files = {kind: None if name is None else
              {"name": f"{FRAMES_DIR}/{name}", "bytes": len(blobs[kind]),
               "sha256": hashlib.sha256(blobs[kind]).hexdigest()}
              for kind, name in names.items()}
     return ({"id": frame.id, "exr_compression": exr_compression, "files": files, "blobs": blobs}
-            | _srgb_entry(srgb_record))
+            | _srgb_entry(srgb_record) | burst)
+
+
+def _burst_entry(names: dict) -> dict:
+    """The result's ``burst`` (which frames make a burst: :func:`camsim.dataset.frame_render.render_burst_files`),
+    taken out of ``names``; nothing for a single frame."""
+    burst = names.pop("burst", None)
+    return {} if burst is None else {"burst": burst}
 
 
 def _srgb_entry(record: dict | None) -> dict:
@@ -57,12 +67,26 @@ def zarr_task(frame: FrameSpec, out_dir: str | None, threads: int = 1, *, layout
     """A worker's task for a Zarr store (:mod:`camsim.dataset.zarr_store`, whose ``layout`` it is): render one
     frame on ``threads`` threads and write its chunks into the store (with ``out_dir``; the result lists them), or,
     without, send its arrays and sidecar back (``data``, ``sidecar``) for the caller to write."""
-    from camsim.dataset.zarr_store import STORE_NAME, frame_arrays, write_frame_arrays
+    from camsim.dataset.zarr_store import STORE_NAME, burst_arrays, frame_arrays, write_frame_arrays
     from camsim.render.frame_files import sidecar
 
-    rendered, info = render_frame(frame, threads)
-    data, srgb_record = frame_arrays(rendered, layout, info)
-    meta = sidecar(rendered, info, None) | {"zarr": {"store": STORE_NAME, "index": frame.index}}
+    where = {"store": STORE_NAME, "index": frame.index}
+    if frame.burst is not None:  # a burst: its frames stacked, its reference, and one sidecar of them all
+        frames, extras, metas, reference, srgb_record = [], [], [], None, None
+        for index, _, rendered, info, extra in render_burst(frame, threads):
+            meta = sidecar(rendered, info, None)
+            if index == "ref":
+                reference, reference_meta = rendered, meta | {"zarr": where}
+            else:
+                frames.append(rendered)
+                extras.append(extra)
+                metas.append(meta | {"zarr": where | {"burst_frame": index}})
+        data = burst_arrays(frames, reference, layout, extras)
+        meta = {"reference": reference_meta, "frames": metas}
+    else:
+        rendered, info = render_frame(frame, threads)
+        data, srgb_record = frame_arrays(rendered, layout, info)
+        meta = sidecar(rendered, info, None) | {"zarr": where}
     text = json.dumps(meta, ensure_ascii=False, allow_nan=False)
     if out_dir is None:
         return {"id": frame.id, "data": data, "sidecar": text} | _srgb_entry(srgb_record)

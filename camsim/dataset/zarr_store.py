@@ -17,6 +17,12 @@ Layout of ``OUT``::
                                                    G, B) value per frame: id, illuminant, intensity_factor, seed,
                                                    read_noise_e, … (coordinates of the frame dimension in xarray)
         channel   (channel,) str                   R, G, B
+      a spec of bursts (``burst_frames``, one length): noisy, clean, digital (frame, burst_frame, plane, y, x), one
+      chunk per item, and
+        reference  (frame, channel, y, x) float32   each burst's clean reference (the file layout's ID_ref.exr)
+        homography (frame, burst_frame, 3, 3) float64   each frame's, reference pixel → frame pixel
+        time_s     (frame, burst_frame) float64     each frame's exposure start
+        sidecar    (frame,) str                     {"reference": ID_ref.json, "frames": [ID_f000.json, …]}
     OUT/records/<id>.done        each complete frame's record (atomic, written after its chunks)
     OUT/manifest.jsonl           one line per complete frame, in frame order (as for the file layout)
 
@@ -51,16 +57,20 @@ from camsim.dataset.srgb import SRGB_LAYERS
 from camsim.core.errors import CamsimError, output_error
 from camsim.io import atomic  # atomic.fsync_path: one flush, which tests can fail as a full disk does
 
-__all__ = ["STORE_NAME", "RECORDS_DIR", "LAYERS", "COMPRESSORS", "StoreLayout", "store_layout", "open_store",
-           "write_frame_arrays", "verified_record", "store_result", "write_done", "frame_arrays", "record_path",
+__all__ = ["STORE_NAME", "RECORDS_DIR", "LAYERS", "BURST_LAYERS", "COMPRESSORS", "StoreLayout", "store_layout",
+           "open_store", "burst_arrays", "write_frame_arrays", "verified_record", "store_result", "write_done", "frame_arrays", "record_path",
            "held_srgb"]
 
 STORE_NAME = "dataset.zarr"
 RECORDS_DIR = "records"
-#: The frame arrays of the store, one chunk per frame each.
-LAYERS = ("noisy", "clean", "digital", *SRGB_LAYERS)
+#: The arrays of a store of bursts besides the frame arrays (which gain a ``burst_frame`` dimension): each item's
+#: clean reference, its frames' homographies and start times.
+BURST_LAYERS = ("reference", "homography", "time_s")
+#: The frame arrays of the store, one chunk per frame (per item of a store of bursts) each.
+LAYERS = ("noisy", "clean", "digital", *SRGB_LAYERS, *BURST_LAYERS)
 #: Arrays that are not parameters of the records (their names are taken).
-_RESERVED = frozenset({*LAYERS, "sidecar", "done", "records", "channel", "cfa", "frame", "y", "x", "srgb"})
+_RESERVED = frozenset({*LAYERS, "sidecar", "done", "records", "channel", "cfa", "frame", "y", "x", "srgb",
+                       "burst_frame", "row", "column"})
 #: Frames per chunk of ``done`` and ``records`` (written by the main process only).
 TABLE_CHUNK = 4096
 _KEY_ENCODING = {"name": "default", "separator": "."}  # c.<frame>.0.0.0: one flat folder per array
@@ -96,6 +106,9 @@ class StoreLayout:
         frame is quantised.
     srgb : str or None
         The sRGB output (``png``: uint8 arrays ``srgb_noisy``, ``srgb_clean``; ``png16``: uint16), or None.
+    burst_frames : int or None
+        Frames of each item's burst (``burst_frames``): the frame arrays are then (frame, burst_frame, plane, y,
+        x) and the store has :data:`BURST_LAYERS`; None: one frame per item.
     """
 
     path: str
@@ -105,31 +118,50 @@ class StoreLayout:
     width: int
     digital: str | None
     srgb: str | None = None
+    burst_frames: int | None = None
 
     def shape(self, layer: str) -> tuple:
+        burst = () if self.burst_frames is None else (self.burst_frames,)
+        if layer == "homography":
+            return (self.frames, *burst, 3, 3)
+        if layer == "time_s":
+            return (self.frames, *burst)
+        if layer == "reference":
+            return (self.frames, 3, self.height, self.width)
         planes = 3 if layer == "clean" or layer in SRGB_LAYERS else self.planes
-        return (self.frames, planes, self.height, self.width)
+        return (self.frames, *burst, planes, self.height, self.width)
 
     def dims(self, layer: str) -> tuple:
+        burst = () if self.burst_frames is None else ("burst_frame",)
+        if layer == "homography":
+            return ("frame", *burst, "row", "column")
+        if layer == "time_s":
+            return ("frame", *burst)
+        if layer == "reference":
+            return ("frame", "channel", "y", "x")
         plane = "channel" if layer == "clean" or layer in SRGB_LAYERS or self.planes == 3 else "cfa"
-        return ("frame", plane, "y", "x")
+        return ("frame", *burst, plane, "y", "x")
 
     def layers(self) -> tuple:
         """The frame arrays of this layout's store."""
         return tuple(name for name in LAYERS if not (name == "digital" and self.digital is None)
-                     and not (name in SRGB_LAYERS and self.srgb is None))
+                     and not (name in SRGB_LAYERS and self.srgb is None)
+                     and not (name in BURST_LAYERS and self.burst_frames is None))
 
     def dtype(self, layer: str) -> str:
         from camsim.dataset.srgb import srgb_dtype
 
         if layer == "digital":
             return self.digital
+        if layer in ("homography", "time_s"):
+            return "float64"
         return srgb_dtype(self.srgb) if layer in SRGB_LAYERS else "float32"
 
     def describe(self) -> dict:
-        """The layout as the store's attributes record it (without its path; ``srgb`` only when set, so that a
-        store written before sRGB outputs existed has the same layout)."""
-        return {k: v for k, v in asdict(self).items() if k != "path" and not (k == "srgb" and v is None)}
+        """The layout as the store's attributes record it (without its path; ``srgb`` and ``burst_frames`` only
+        when set, so that a store written before they existed has the same layout)."""
+        return {k: v for k, v in asdict(self).items()
+                if k != "path" and not (k in ("srgb", "burst_frames") and v is None)}
 
 
 def held_srgb(out_dir: Path) -> str | None:
@@ -155,12 +187,18 @@ def store_layout(spec, out_dir: Path, srgb: str = "none") -> StoreLayout:
     if len(kinds) > 1:
         raise CamsimError(f"--format zarr needs one kind of sensor, but {spec.name} mixes three-chip frames and "
                           "colour filter array (mosaic) frames: write it as files (--format files) or split the spec")
+    bursts = {None if f.burst is None else f.burst.frames for f in spec.frames}
+    if len(bursts) > 1:
+        shown = ", ".join("single frames" if n is None else f"bursts of {n}" for n in sorted(bursts, key=str))
+        raise CamsimError(f"--format zarr needs one burst length (one array per layer), but {spec.name} has "
+                          f"{shown}: write it as files (--format files) or split the spec")
     bits = [f.get("bits") for f in spec.frames if f.get("quantisation")]
     (width, height), = sizes or [(spec.width, spec.height)]
+    (burst_frames,) = bursts or {None}
     return StoreLayout(path=str(Path(out_dir).resolve() / STORE_NAME), frames=len(spec.frames),
                        planes=1 if kinds == {True} else 3, height=height, width=width,
                        digital=None if not bits else np.dtype(np.uint8 if max(bits) <= 8 else np.uint16).name,
-                       srgb=None if srgb == "none" else srgb)
+                       srgb=None if srgb == "none" else srgb, burst_frames=burst_frames)
 
 
 # --- the main process: the store, its parameter table and its done flags ---------------------------------------
@@ -201,12 +239,15 @@ def open_store(layout: StoreLayout, spec, echo=None):
     coordinates = " ".join(columns)
     for layer in layout.layers():
         dtype = layout.dtype(layer)
-        units = "DN" if layer not in SRGB_LAYERS else f"sRGB (IEC 61966-2-1) code values, 0 to {np.iinfo(dtype).max}"
+        units = ("DN" if layer not in SRGB_LAYERS else f"sRGB (IEC 61966-2-1) code values, 0 to {np.iinfo(dtype).max}")
+        units = {"homography": "", "time_s": "s"}.get(layer, units)
         attributes = {"units": units, "description": _DESCRIPTIONS[layer], "coordinates": coordinates}
         _frame_array(group, members, layer, layout.shape(layer), (1, *layout.shape(layer)[1:]), dtype,
-                     np.nan if dtype == "float32" else 0, layout.dims(layer), attributes)
+                     np.nan if dtype in ("float32", "float64") else 0, layout.dims(layer), attributes)
     _frame_array(group, members, "sidecar", (layout.frames,), (1,), str, "", ("frame",),
-                 {"description": "each frame's sidecar (the file layout's ID.json), as JSON; '' until rendered",
+                 {"description": "each frame's sidecar (the file layout's ID.json), as JSON; '' until rendered"
+                                 + ("; a burst's: {\"reference\": ID_ref.json, \"frames\": [ID_f000.json, …]}"
+                                    if layout.burst_frames is not None else ""),
                   "coordinates": coordinates})
     _frame_array(group, members, "done", (layout.frames,), (min(layout.frames, TABLE_CHUNK),), bool, False,
                  ("frame",), {"description": "whether the frame is complete (set after its chunks are written)",
@@ -237,6 +278,11 @@ _DESCRIPTIONS = {
                   "ISP's record in the frame's record, key srgb), 0 until rendered",
     "srgb_clean": "the clean layer developed through the same ISP (same white balance, matrix, gain and tone curve; "
                   "the file layout's ID_srgb_clean.png), 0 until rendered",
+    "reference": "a burst's clean reference: the static scene's expectation, no motion, no noise (the file layout's "
+                 "ID_ref.exr clean layer), NaN until rendered",
+    "homography": "each burst frame's homography, reference pixel → frame pixel at the exposure's middle, NaN until "
+                  "rendered",
+    "time_s": "each burst frame's exposure start, from the burst's first frame's, NaN until rendered",
 }
 
 
@@ -322,6 +368,18 @@ def _remove_partials(root: Path) -> None:
 # --- a worker: one frame's chunks ------------------------------------------------------------------------------
 
 
+def burst_arrays(frames: list, reference, layout: StoreLayout, extras: list) -> dict:
+    """A rendered burst as the store's layers: its frames (:class:`camsim.render.frame.Frame`, in order) stacked,
+    the ``reference`` frame's clean layer, and each frame's ``homography`` and ``time_s`` from its sidecar keys
+    ``extras`` (:func:`camsim.render.sequence.render_sequence_frames`)."""
+    layers = [frame_arrays(frame, layout)[0] for frame in frames]
+    digital = None if layers[0]["digital"] is None else np.stack([d["digital"] for d in layers])
+    return {"noisy": np.stack([d["noisy"] for d in layers]), "clean": np.stack([d["clean"] for d in layers]),
+            "digital": digital, "reference": np.asarray(reference.clean_dn(), dtype=np.float32),
+            "homography": np.array([e["homography"] for e in extras], dtype=np.float64),
+            "time_s": np.array([e["time_s"] for e in extras], dtype=np.float64)}
+
+
 def frame_arrays(rendered, layout: StoreLayout, info=None) -> tuple[dict, dict | None]:
     """A rendered :class:`camsim.render.frame.Frame` as the store's layers (``digital`` None where not quantised),
     with the developed ``srgb_noisy`` and ``srgb_clean`` where the layout has an sRGB output (which needs the
@@ -355,6 +413,12 @@ def _arrays(path: str, threads: int) -> dict:
     return arrays
 
 
+def release_arrays() -> None:
+    """Forget the store arrays this process opened (:func:`write_frame_arrays`): for a writer whose store moves
+    (a sequence's, renamed into place when complete: :mod:`camsim.dataset.sequence_store`)."""
+    _open_arrays.clear()
+
+
 def write_frame_arrays(layout: StoreLayout, index: int, data: dict, sidecar_text: str, threads: int = 1) -> dict:
     """Write frame ``index``'s chunks (``data``: :func:`frame_arrays`; its sidecar as JSON text), flush them to
     disk, and return what its record lists: per layer (and ``sidecar``) the chunk's name in the store, its size in
@@ -367,7 +431,7 @@ def write_frame_arrays(layout: StoreLayout, index: int, data: dict, sidecar_text
             entries[name] = None
             continue
         array = arrays[name]
-        key = array.metadata.encode_chunk_key((index,) if name == "sidecar" else (index, 0, 0, 0))
+        key = array.metadata.encode_chunk_key((index,) + (0,) * (array.ndim - 1))
         chunk = root / name / key
         if name == "sidecar":
             digest = hashlib.sha256(value.encode("utf-8")).hexdigest()
@@ -400,8 +464,8 @@ def verified_record(out_dir: Path, group, frame, verify: str = "sha256") -> dict
     entries = record.get("arrays")
     if not isinstance(entries, dict) or not entries.get("noisy") or not entries.get("sidecar"):
         return None
-    if any(layer in group and not entries.get(layer) for layer in SRGB_LAYERS):
-        return None  # the store has sRGB arrays, which this frame's record does not list
+    if any(layer in group and not entries.get(layer) for layer in (*SRGB_LAYERS, *BURST_LAYERS)):
+        return None  # the store has sRGB (or bursts') arrays, which this frame's record does not list
     root = Path(str(group.store.root))
     for name, entry in entries.items():
         if entry is None:

@@ -84,6 +84,15 @@ def frame_digits(frames: int) -> int:
     return max(3, len(str(frames - 1)))
 
 
+def sequence_frame_info(stem: str, index, digits: int, extra: dict, base):
+    """A sequence frame's file stem (``STEM_fNNN``, or ``STEM_ref`` for ``index`` ``"ref"``) and its
+    :class:`camsim.render.frame_files.FrameInfo`: ``base`` with the frame's sidecar keys ``extra``
+    (:func:`render_sequence_frames`), whose ``sequence`` record gains ``stem`` and ``reference`` (its file)."""
+    name = f"{stem}_ref" if index == "ref" else f"{stem}_f{index:0{digits}d}"
+    extra = {**extra, "sequence": {**extra["sequence"], "stem": stem, "reference": f"{stem}_ref.exr"}}
+    return name, dataclasses.replace(base, sequence=extra)
+
+
 def check_sequence_scene(scene) -> None:
     """Refuse, before any work, what a sequence cannot render (one line each)."""
     if scene.source.table == "raw":  # the file's electrons moved: camsim.render.raw_sequence
@@ -173,10 +182,7 @@ def render_sequence(scene, out_dir, *, workers=None, progress=True, exr_compress
                                            method="poisson")
                 stem = frame_stem(scene.name, illuminant, factor)
                 for index, frame, extra in render_sequence_frames(scene, lit, sensor, factor, workers=workers):
-                    name = f"{stem}_ref" if index == "ref" else f"{stem}_f{index:0{digits}d}"
-                    extra = {**extra, "sequence": {**extra["sequence"], "stem": stem,
-                                                   "reference": f"{stem}_ref.exr"}}
-                    info = dataclasses.replace(base, sequence=extra)
+                    name, info = sequence_frame_info(stem, index, digits, extra, base)
                     manifest.withdraw(name)
                     files = write_frame(out_dir, name, frame, info, exr_compression=exr_compression)
                     manifest.commit(info, files)

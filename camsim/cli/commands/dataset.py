@@ -26,7 +26,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "A re-run renders only the frames that are not complete and verified. Frames run in parallel on "
             "this machine's cores, or on a Dask cluster with --scheduler; the files do not depend on which. "
             "With --format zarr, the frames go to one Zarr store instead, OUT/dataset.zarr: one chunked array per "
-            "layer (noisy, clean, digital), the sidecars and the parameter table, for xarray and Dask."
+            "layer (noisy, clean, digital), the sidecars and the parameter table, for xarray and Dask. A spec's "
+            "burst_frames makes each item a burst with camera motion: ID_fNNN.dng/.exr/.json per frame and the "
+            "clean reference ID_ref.exr/.json."
         ),
     )
     parser.add_argument("spec", metavar="SPEC.toml", type=Path, help="dataset spec file, or the name of a built-in "
@@ -45,8 +47,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--format", choices=("files", "zarr"), default="files",
                         help="files (default): OUT/frames/ID.dng, .exr, .json per frame; zarr: one Zarr store, "
                              "OUT/dataset.zarr, with arrays noisy, clean (float32) and digital (uint8/uint16) of "
-                             "shape (frame, channel, y, x), one chunk per frame, plus the sidecars, done flags and "
-                             "the parameters (docs, guide 'Datasets for denoisers'); every frame must have the same size")
+                             "shape (frame, channel, y, x) (bursts: (frame, burst_frame, channel, y, x) with the "
+                             "reference, homographies and start times), one chunk per frame, plus the sidecars, done "
+                             "flags and the parameters (docs, guide 'Datasets for denoisers'); every frame must have the same size")
     exr_compression_argument(parser, spec_key=True)
     parser.add_argument("--srgb", choices=("none", "png", "png16"),
                         help="also each frame's noisy and clean layers developed through one camera ISP (the same "
@@ -77,7 +80,7 @@ def run(args) -> int:
         check_settings(workers=args.workers, threads=args.threads, scheduler=args.scheduler, verify=args.verify,
                        exr_compression=args.exr_compression, output=args.format, srgb=args.srgb)
         plan = plan_spec(args.spec)
-        check_output_of(plan, args.format)
+        check_output_of(plan, args.format, args.srgb or plan.srgb)
         print_plan(plan)
         return 0
     spec = load_spec(args.spec)
@@ -99,16 +102,25 @@ def print_plan(plan, write=None, chunk: int = 1000) -> None:
 
     write = write or sys.stdout.write
     varied = [name for name, how in plan.axes.items() if how != "fixed"]
-    write(f"dataset {plan.name}: {len(plan)} frames of {plan.size_text}; "
+    items = "bursts" if "burst_frames" in plan.axes else "frames"  # a burst spec's items (burst_frames: each's)
+    write(f"dataset {plan.name}: {len(plan)} {items} of {plan.size_text}; "
           f"varied: {', '.join(f'{n} ({plan.axes[n]})' for n in varied)}\n")
     keys = [(n, "photon_statistics" if n == "statistics" else n) for n in varied]
     encode = json.JSONEncoder(ensure_ascii=False).encode
     lines = []
     for frame in plan.frames():
         shown = {"id": frame.id, "scene": frame.get("scene"), "repeat": frame.get("repeat"),
-                 **{n: frame.get(key) for n, key in keys}, "seed": frame.seed}
+                 **{n: _value(frame, key) for n, key in keys}, "seed": frame.seed}
         lines.append(encode(shown) + "\n")
         if len(lines) == chunk:
             write("".join(lines))
             lines = []
     write("".join(lines))
+
+
+def _value(frame, key: str):
+    """The frame's ``key``, or None where its record has none (``burst_frames`` of a scene without a burst)."""
+    try:
+        return frame.get(key)
+    except KeyError:
+        return None

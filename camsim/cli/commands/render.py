@@ -92,6 +92,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "it), pixel statistics only, and the sidecar records the device. The same seed, device "
                              "and library give the same files; CPU and GPU agree in distribution, not in bits")
     exr_compression_argument(parser)
+    parser.add_argument("--format", choices=("files", "zarr"), default="files",
+                        help="files (default): NAME.dng, .exr, .json per frame; zarr: a scene with a [sequence] "
+                             "as one Zarr store per illuminant and F, OUT/NAME.zarr, with arrays noisy, clean, "
+                             "digital (frame, channel, y, x), reference (channel, y, x), time_s, homography "
+                             "(frame, 3, 3) and the sidecars as JSON, one chunk per frame per layer, renamed into "
+                             "place when complete (docs, guide 'Rendering')")
     parser.add_argument("--preview", action="store_true",
                         help="also write an sRGB PNG of each frame (camera RGB → XYZ → sRGB, white-balanced from the "
                              "illuminant; the perfect white at F = 1 is sRGB white, so low light looks dark)")
@@ -174,9 +180,24 @@ def run(args) -> int:
         if drawn != scene.method:
             print(f"camsim: warning: --device {device} draws every pixel from its exact law: method {scene.method} "
                   f"is rendered as {drawn} (the sidecar records method_requested)", file=sys.stderr)
+    output = getattr(args, "format", "files")
+    if output == "zarr":  # before any work: what a sequence store cannot hold
+        if scene.sequence is None:
+            raise CamsimError("--format zarr writes a sequence as one array: the scene needs a [sequence] table "
+                              "(other scenes are written as files)")
+        if args.preview or device != "cpu":
+            raise CamsimError("a sequence's frames are drawn per pixel on the CPU and have no preview")
     for warning in scene_warnings(scene):
         print(f"camsim: warning: {warning}", file=sys.stderr)
     out = args.out if args.out is not None else DEFAULT_OUT / scene.name
+    if output == "zarr":
+        from camsim.dataset.sequence_store import render_sequence_store
+
+        stores = render_sequence_store(scene, out, workers=args.workers, progress=not args.quiet)
+        print(f"wrote {len(stores)} sequence store{'' if len(stores) == 1 else 's'} of "
+              f"{_frames(scene.sequence.frames)} and a reference each to {out}/: "
+              + ", ".join(p.name for p in stores))
+        return 0
     manifest = render_scene(scene, out, workers=args.workers, progress=not args.quiet, preview=args.preview,
                             device=device, exr_compression=args.exr_compression,
                             warn=_warn_clear_of_the_bar)  # camsim's own warnings stay with -q

@@ -1,0 +1,340 @@
+"""Dataset bursts (issue 29, point 4): ``camsim dataset`` items that are bursts with camera motion, read back as
+burst pairs (N noisy frames → the clean reference) by :class:`camsim.pairs.WrittenPairs`; the frames' fixed pattern
+identical and their temporal noise independent; each frame's homography against our own phase correlation; one-line
+errors; resuming a half-written burst."""
+
+import json
+
+import numpy as np
+import pytest
+
+from camsim.cli import main
+from camsim.dataset.runner import run_dataset
+from camsim.dataset.spec import load_spec
+from camsim.io.exr import read_exr
+from camsim.pairs import WrittenPairs
+from tests.test_sequence import _phase_shift
+
+FLAT = """
+name = "flatburst"
+[target]
+kind = "flat"
+reflectance = 0.5
+[light]
+illuminants = ["D65"]
+intensity_factors = [0.05]
+[camera.scale]
+kind = "anchor"
+reference_electrons = 8000
+[sensor]
+preset = "emva-12bit"
+exposure_s = 0.01
+prnu_percent = 2
+dsnu_e = 3
+{sensor}
+{sequence}
+"""
+
+#: A scene whose expectation changes when it moves (a flat field does not).
+TEXTURED = FLAT.replace('kind = "flat"\nreflectance = 0.5', 'kind = "dead-leaves"')
+
+SPEC = """
+name = "bursts"
+scene = "scene.toml"
+seed = 5
+{top}
+[frame]
+width = {w}
+height = {h}
+[fixed]
+{fixed}
+[grid]
+{grid}
+"""
+
+
+def write_spec(tmp_path, fixed="burst_frames = 4\nframe_interval_s = 0.02", grid="", top="", sensor="",
+               sequence="", w=64, h=48, scene=FLAT):
+    (tmp_path / "scene.toml").write_text(scene.format(sensor=sensor, sequence=sequence))
+    path = tmp_path / "spec.toml"
+    path.write_text(SPEC.format(fixed=fixed, grid=grid, top=top, w=w, h=h))
+    return path
+
+
+def test_burst_dataset_written_and_read_back_as_pairs(tmp_path):
+    """A static burst: every frame's clean layer is the reference's (the fixed pattern identical, and present), the
+    temporal noise of consecutive frames uncorrelated within ±3/√n, and WrittenPairs gives the frames stacked with
+    the reference and identity homographies."""
+    spec = write_spec(tmp_path, fixed="burst_frames = 4\nframe_interval_s = 0.02", w=96, h=64)
+    out = tmp_path / "out"
+    run_dataset(spec, out, workers=1, progress=False, echo=None)
+    lines = [json.loads(line) for line in (out / "manifest.jsonl").read_text().splitlines()]
+    assert len(lines) == 1
+    line = lines[0]
+    assert line["burst"] == {"frames": ["f000", "f001", "f002", "f003"], "reference": "ref"}
+    assert line["burst_frames"] == 4 and line["shake_px"] == 0.0
+    for kind in ("ref.exr", "ref.json", *(f"f00{i}.{k}" for i in range(4) for k in ("dng", "exr", "json"))):
+        assert (out / line["files"][kind]["name"]).is_file(), kind
+    _, reference, _ = read_exr(out / line["files"]["ref.exr"]["name"])
+    # the fixed pattern is in the clean layers (PRNU 2 %, DSNU 3 e⁻ on a flat field): not a constant
+    assert reference[1].std() > 0.005 * reference[1].mean()
+    residuals = []
+    for i in range(4):
+        noisy, clean, _ = read_exr(out / line["files"][f"f00{i}.exr"]["name"])
+        assert np.array_equal(clean, reference)  # no motion: each frame's expectation is the reference's
+        sidecar = json.loads((out / line["files"][f"f00{i}.json"]["name"]).read_text())
+        assert sidecar["frame_index"] == i and sidecar["time_s"] == pytest.approx(0.02 * i)
+        assert sidecar["sequence"]["stem"] == line["id"]
+        residuals.append((noisy - clean).ravel().astype(np.float64))
+    n = residuals[0].size
+    for a, b in zip(residuals, residuals[1:]):
+        assert abs(np.corrcoef(a, b)[0, 1]) < 3 / np.sqrt(n)
+    assert all(abs(r.mean()) < 5 * r.std() / np.sqrt(n) for r in residuals)
+
+    pairs = WrittenPairs(out, burst=True)
+    noisy, clean, meta = pairs[0]
+    assert noisy.shape == (4, 3, 64, 96) and clean.shape == (3, 64, 96)
+    assert np.array_equal(clean, reference)
+    assert np.array_equal(noisy[2], read_exr(out / line["files"]["f002.exr"]["name"])[0])
+    assert meta["homography"].shape == (4, 3, 3) and np.array_equal(meta["homography"], np.tile(np.eye(3), (4, 1, 1)))
+    assert meta["frames"] == [f"{line['id']}_f00{i}" for i in range(4)]
+    noisy, clean, meta = WrittenPairs(out, burst=True, domain="raw", crop=(32, 16), seed=1)[0]
+    assert noisy.shape == (4, 3, 16, 32) and clean.shape == (3, 16, 32) and meta["crop"][2:] == (32, 16)
+    with pytest.raises(Exception, match="burst=True"):
+        WrittenPairs(out)
+
+
+def test_bayer_burst_pairs_and_torch(tmp_path):
+    """A Bayer burst: (N, 1, H, W) mosaics with the reference at each site's own channel; (N, 4, H/2, W/2) packed in
+    raw; written_pairs and collate_pairs stack (B, N, P, H, W), (B, P, H, W), (B, N, 3, 3)."""
+    torch = pytest.importorskip("torch")
+    from camsim.pairs_torch import collate_pairs, written_pairs
+    from camsim.sensor.cfa import mosaic_of
+
+    spec = write_spec(tmp_path, fixed="burst_frames = 3\nframe_interval_s = 0.02\ncfa = \"RGGB\"\nshake_deg = 0.5",
+                      grid="shake_px = [0.5, 1.0]", w=32, h=24, scene=TEXTURED)
+    out = tmp_path / "out"
+    run_dataset(spec, out, workers=1, progress=False, echo=None)
+    pairs = WrittenPairs(out, burst=True)
+    assert len(pairs) == 2
+    noisy, clean, meta = pairs[1]
+    line = meta["record"]
+    _, reference, _ = read_exr(out / "frames" / f"{line['id']}_ref.exr")
+    assert noisy.shape == (3, 1, 24, 32) and np.array_equal(clean[0], mosaic_of(reference, "RGGB"))
+    own = read_exr(out / "frames" / f"{line['id']}_f000.exr")[1]
+    assert not np.array_equal(clean[0], mosaic_of(own, "RGGB"))  # the reference, not a frame's own expectation
+    assert not np.allclose(meta["homography"][1], np.eye(3))  # it shakes
+    # a crop's homographies map the crop's pixels: reference crop pixel q is the full frame's q + (x, y), seen at
+    # H (q + (x, y)) in the full frame, i.e. at that minus (x, y) in the crop
+    _, _, cropped = WrittenPairs(out, burst=True, crop=(16, 12), seed=3)[1]
+    x, y = cropped["crop"][:2]
+    assert (x, y) != (0, 0)
+    for n in range(3):
+        for q in ((0.0, 0.0), (15.0, 11.0), (7.5, 3.0)):
+            full = meta["homography"][n] @ np.array([q[0] + x, q[1] + y, 1.0])
+            crop = cropped["homography"][n] @ np.array([q[0], q[1], 1.0])
+            assert crop[:2] / crop[2] == pytest.approx(full[:2] / full[2] - np.array([x, y]), abs=1e-9)
+    noisy, clean, _ = WrittenPairs(out, burst=True, domain="raw")[0]
+    assert noisy.shape == (3, 4, 12, 16) and clean.shape == (4, 12, 16)
+    batch = collate_pairs([written_pairs(out, burst=True)[i] for i in range(2)])
+    assert tuple(batch["noisy"].shape) == (2, 3, 1, 24, 32) and tuple(batch["clean"].shape) == (2, 1, 24, 32)
+    assert tuple(batch["homography"].shape) == (2, 3, 3, 3) and batch["homography"].dtype == torch.float64
+
+
+BLOB_SCENE = """
+name = "blob"
+[image]
+path = "blob.png"
+kind = "reflectance"
+colourspace = "sRGB"
+[light]
+illuminants = ["D65"]
+intensity_factors = [1.0]
+[sensor]
+preset = "ideal"
+exposure_s = 0.002
+photon_noise = false
+"""
+
+
+def test_each_frames_homography_moves_the_reference_onto_it(tmp_path):
+    """A pure pan: the clean layer of frame n is the reference shifted by the translation of meta["homography"][n]
+    (our own phase correlation, within 0.05 px), the full frame and a crop alike."""
+    from camsim.isp import write_png
+
+    h, w = 64, 96
+    y, x = np.mgrid[0:h, 0:w]
+    blob = 0.15 + 0.7 * np.exp(-((x - 44.0) ** 2 + (y - 30.0) ** 2) / (2 * 6.0 ** 2))
+    write_png(tmp_path / "blob.png", np.stack([blob] * 3), bits=16)
+    (tmp_path / "scene.toml").write_text(BLOB_SCENE)
+    (tmp_path / "spec.toml").write_text(SPEC.replace("[frame]\nwidth = {w}\nheight = {h}\n", "").format(
+        top="", grid="", fixed="burst_frames = 3\nframe_interval_s = 0.01\npan_x_px_per_s = 140.0\n"
+                                         "pan_y_px_per_s = -75.0"))
+    out = tmp_path / "out"
+    run_dataset(tmp_path / "spec.toml", out, workers=1, progress=False, echo=None)
+    pairs = WrittenPairs(out, burst=True)
+    _, reference, meta = pairs[0]
+    line = meta["record"]
+    for n in range(3):
+        clean = read_exr(out / "frames" / f"{line['id']}_f00{n}.exr")[1]
+        dx, dy = _phase_shift(reference[1].astype(np.float64), clean[1].astype(np.float64))
+        t = meta["time_s"][n] + 0.001  # the exposure's middle
+        assert meta["homography"][n][:2, 2] == pytest.approx([140.0 * t, -75.0 * t], abs=1e-9)
+        assert abs(dx - meta["homography"][n][0, 2]) < 0.05 and abs(dy - meta["homography"][n][1, 2]) < 0.05
+    _, _, cropped = WrittenPairs(out, burst=True, crop=(40, 30), seed=2)[0]
+    assert np.allclose(cropped["homography"], meta["homography"])  # a translation is the same in crop pixels
+
+
+@pytest.mark.parametrize("fixed, args, message", [
+    ("burst_frames = 0", (), "burst_frames must be ≥ 1"),
+    ("burst_frames = 3\nshake_px = -1.0", (), "shake_px must be ≥ 0"),
+    ("shake_px = 1.0", (), "shake_px set a burst's motion, but burst_frames is not set"),
+    ("burst_frames = 3\nframe_interval_s = 0.001", (), "longer than frame_interval_s"),
+    ("burst_frames = 3\nstatistics = \"paper\"", (), "statistics = 'pixel'"),
+    ("burst_frames = 3", ("--srgb", "png"), "no sRGB outputs yet"),
+])
+def test_bad_burst_parameters_are_one_line_exit_2(tmp_path, capsys, fixed, args, message):
+    spec = write_spec(tmp_path, fixed=fixed)
+    for dry in ((), ("--dry-run",)):
+        code = main(["dataset", str(spec), "--out", str(tmp_path / "out"), "--workers", "1", "-q", *args, *dry])
+        err = capsys.readouterr().err
+        assert code == 2 and message in err and err.count("\n") == 1 and err.startswith("camsim: error:"), err
+    assert not (tmp_path / "out" / "frames").exists() or not any((tmp_path / "out" / "frames").iterdir())
+
+
+def test_raws_bursts_are_refused_on_one_line(tmp_path, capsys):
+    from tests.phone_dng import write_phone_dng
+
+    (tmp_path / "raws").mkdir()
+    mosaic = np.full((48, 64), 600, dtype=np.uint16)
+    write_phone_dng(tmp_path / "raws" / "a.dng", mosaic, pattern="RGGB", black_per_site=[64] * 4, white=1023,
+                    iso=100, exposure_s=0.01)
+    (tmp_path / "spec.toml").write_text('name = "r"\n[raws]\nfolder = "raws"\ncrop = [32, 32]\npreset = "sony-a7s2"\n'
+                                        '[fixed]\nburst_frames = 4\n')
+    code = main(["dataset", str(tmp_path / "spec.toml"), "--dry-run"])
+    err = capsys.readouterr().err
+    assert code == 2 and "bursts of [raws] crops are not available yet" in err and err.count("\n") == 1, err
+
+
+def test_a_scene_files_sequence_makes_bursts_and_none_turns_it_off(tmp_path):
+    seq = "[sequence]\nframes = 3\nframe_interval_s = 0.05\nshake_px = 0.5"
+    spec = load_spec(write_spec(tmp_path, fixed="", sequence=seq))
+    frame, = spec.frames
+    assert frame.burst.frames == 3 and frame.burst.shake_px == 0.5 and frame.record["burst_frames"] == 3
+    spec = load_spec(write_spec(tmp_path, fixed="burst_frames = 5\nshake_deg = 0.1", sequence=seq))
+    frame, = spec.frames
+    assert (frame.burst.frames, frame.burst.shake_px, frame.burst.shake_deg, frame.burst.frame_interval_s) == \
+        (5, 0.5, 0.1, 0.05)
+    spec = load_spec(write_spec(tmp_path, fixed='burst_frames = "none"', sequence=seq))
+    frame, = spec.frames
+    assert frame.burst is None and "burst_frames" not in frame.record
+    # a single-frame spec's records (and ids) carry no burst key
+    spec = load_spec(write_spec(tmp_path, fixed=""))
+    assert spec.frames[0].burst is None and not any(k.startswith("burst") for k in spec.frames[0].record)
+
+
+def test_random_burst_parameters_draw_per_item(tmp_path):
+    spec = write_spec(tmp_path, fixed="burst_frames = 2\nframe_interval_s = 0.05")
+    spec.write_text(spec.read_text() + "[random]\ncount = 3\nshake_px = { uniform = [0.0, 2.0] }\n")
+    frames = load_spec(spec).frames
+    values = [f.burst.shake_px for f in frames]
+    assert len(set(values)) == 3 and all(0 <= v <= 2 for v in values)
+    assert [f.record["shake_px"] for f in frames] == values and all(f.burst.frames == 2 for f in frames)
+
+
+def _hashes(folder):
+    import hashlib
+
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted((folder / "frames").iterdir())}
+
+
+def test_resuming_a_half_written_burst_dataset(tmp_path, monkeypatch):
+    """A run that dies inside the second burst leaves the first complete and the second without its record; a
+    re-run renders the second only, and the files equal an uninterrupted run's byte for byte. A damaged frame
+    file of a complete burst is rendered again."""
+    import camsim.dataset.frame_render as frame_render
+
+    spec = write_spec(tmp_path, fixed="burst_frames = 3\nframe_interval_s = 0.02", grid="shake_px = [0.0, 0.7]",
+                      w=32, h=24)
+    whole = tmp_path / "whole"
+    run_dataset(spec, whole, workers=1, progress=False, echo=None)
+    expected = _hashes(whole)
+
+    real = frame_render.write_frame
+    calls = []
+
+    def dying(*args, **kwargs):
+        calls.append(args[1])
+        if len(calls) == 6:  # the second burst: its reference written, then the run dies
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(frame_render, "write_frame", dying)
+    out = tmp_path / "out"
+    with pytest.raises(KeyboardInterrupt):
+        run_dataset(spec, out, workers=1, progress=False, echo=None)
+    monkeypatch.setattr(frame_render, "write_frame", real)
+    first, second = load_spec(spec).frames
+    assert (out / "frames" / f"{first.id}.done").is_file() and not (out / "frames" / f"{second.id}.done").exists()
+    assert (out / "frames" / f"{second.id}_ref.exr").is_file()  # half-written: its reference is there
+    assert [json.loads(line)["id"] for line in (out / "manifest.jsonl").read_text().splitlines()] == [first.id]
+    summary = run_dataset(spec, out, workers=1, progress=False, echo=None)
+    assert (summary["skipped"], summary["rendered"]) == (1, 1)
+    assert _hashes(out) == expected
+    # damage one frame of the first burst: it is rendered again, the same bytes
+    damaged = out / "frames" / f"{first.id}_f001.exr"
+    data = damaged.read_bytes()
+    damaged.write_bytes(data[:-1] + bytes([data[-1] ^ 0xFF]))
+    summary = run_dataset(spec, out, workers=1, progress=False, echo=None)
+    assert (summary["skipped"], summary["rendered"]) == (1, 1)
+    assert _hashes(out) == expected
+
+
+def test_burst_store_equals_the_files(tmp_path):
+    """--format zarr: a store of bursts holds the file layout's bursts bit for bit (each frame's noisy, clean and
+    digital layers, the reference, the homographies, start times and sidecars); xarray reads its (frame,
+    burst_frame, …) arrays; WrittenPairs gives the same burst pairs from both; bursts of two lengths are refused."""
+    import xarray as xr
+    import zarr
+
+    from camsim.io.dng import read_dng
+
+    spec = write_spec(tmp_path, fixed="burst_frames = 3\nframe_interval_s = 0.02\ncfa = \"RGGB\"",
+                      grid="shake_px = [0.0, 1.2]", w=32, h=24, scene=TEXTURED)
+    run_dataset(spec, tmp_path / "files", workers=1, progress=False, echo=None)
+    run_dataset(spec, tmp_path / "zarr", workers=1, progress=False, echo=None, output="zarr")
+    group = zarr.open_group(tmp_path / "zarr" / "dataset.zarr", mode="r")
+    assert group["noisy"].shape == (2, 3, 1, 24, 32) and group["noisy"].chunks == (1, 3, 1, 24, 32)
+    assert group["reference"].shape == (2, 3, 24, 32) and group["homography"].shape == (2, 3, 3, 3)
+    frames = tmp_path / "files" / "frames"
+    for item in load_spec(spec).frames:
+        i = item.index
+        stored = json.loads(str(group["sidecar"][i]))
+        reference = read_exr(frames / f"{item.id}_ref.exr")[1]
+        assert np.array_equal(group["reference"][i], reference)
+        if i == 1:  # it shakes: its frames' expectations are not the reference's
+            assert not np.array_equal(group["clean"][i, 0], reference)
+        for n in range(3):
+            noisy, clean, _ = read_exr(frames / f"{item.id}_f00{n}.exr")
+            assert np.array_equal(group["noisy"][i, n], noisy) and np.array_equal(group["clean"][i, n], clean)
+            assert np.array_equal(group["digital"][i, n], read_dng(frames / f"{item.id}_f00{n}.dng")[0])
+            meta = json.loads((frames / f"{item.id}_f00{n}.json").read_text())
+            assert np.array_equal(group["homography"][i, n], np.array(meta["homography"]))
+            assert group["time_s"][i, n] == meta["time_s"]
+            assert stored["frames"][n]["zarr"] == {"store": "dataset.zarr", "index": i, "burst_frame": n}
+            drop = ("files", "zarr", "exr_compression")
+            assert {k: v for k, v in stored["frames"][n].items() if k not in drop} == \
+                {k: v for k, v in meta.items() if k not in drop}
+        for a, b in zip(WrittenPairs(tmp_path / "files", burst=True, domain="raw", crop=(16, 12), seed=4)[i],
+                        WrittenPairs(tmp_path / "zarr", burst=True, domain="raw", crop=(16, 12), seed=4)[i]):
+            if isinstance(a, dict):
+                assert np.array_equal(a["homography"], b["homography"]) and a["frames"] == b["frames"]
+            else:
+                assert np.array_equal(a, b)
+    ds = xr.open_zarr(tmp_path / "zarr" / "dataset.zarr")
+    assert ds["noisy"].dims == ("frame", "burst_frame", "cfa", "y", "x") and ds["shake_px"].values.tolist() == [0.0, 1.2]
+    summary = run_dataset(spec, tmp_path / "zarr", workers=1, progress=False, echo=None, output="zarr")
+    assert summary["skipped"] == 2  # resumed: complete and verified
+    mixed = write_spec(tmp_path, fixed="frame_interval_s = 0.02", grid="burst_frames = [2, 3]", w=32, h=24)
+    with pytest.raises(Exception, match="needs one burst length"):
+        run_dataset(mixed, tmp_path / "mixed", workers=1, progress=False, echo=None, output="zarr")
