@@ -294,11 +294,11 @@ def test_bad_burst_settings_are_refused_on_one_line(settings, match):
 
 
 def test_the_docs_burst_example_runs_and_prints_what_they_say(monkeypatch, capsys):
-    """The python block of "Burst pairs" (docs/guides/denoiser-datasets.md) prints the text block after it."""
+    """The python block of "Burst pairs on the fly" (docs/guides/denoiser-datasets.md) prints the text block after it."""
     import re
 
     text = (ROOT / "docs" / "guides" / "denoiser-datasets.md").read_text(encoding="utf-8")
-    section = text[text.index("### Burst pairs"):]
+    section = text[text.index("### Burst pairs on the fly"):]
     code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
     printed = re.search(r"```text\n(.*?)```", section, re.S).group(1)
     monkeypatch.chdir(ROOT)
