@@ -132,8 +132,8 @@ def _per_row(value, check, what: str) -> list:
     for item in value:
         try:
             check(item)
-        except _Bad as exc:
-            raise _Bad(f"a list of {what}, one per row ({exc})") from None
+        except _Bad:
+            raise _Bad(f"a list of {what}, one per row") from None
     return value
 
 
