@@ -53,10 +53,10 @@ MAX_SUBSAMPLE_STEP_PX = 0.25
 #: The farthest the camera may move a pixel in a sequence: float32 sampling coordinates keep 1 px up to 1.6e7.
 #: Unit: px.
 MAX_MOTION_PX = 1e7
-#: With both motion and flicker, the automatic sub-sampling also takes at least this many sub-samples per period of
-#: the light, so that the light varies little within one (a sub-sample is placed at its part's middle while the light
-#: weights the part unevenly: the displacement this leaves is below 0.02 px · m/(1 − m) at 0.25 px per step).
-MIN_SUBSAMPLES_PER_FLICKER_PERIOD = 8
+#: With both motion and flicker, the automatic sub-sampling also keeps below this the displacement that placing each
+#: sub-sample at its part's middle leaves, while the light weights the part unevenly (:meth:`Motion.subsample_count`).
+#: Unit: px.
+MAX_FLICKER_DISPLACEMENT_PX = 0.01
 #: The highest flicker frequency (a PWM-dimmed LED flickers at kHz). Unit: Hz.
 MAX_FLICKER_HZ = 1e6
 #: First spawn-key word of the shake's stream ("SHAKE").
@@ -305,9 +305,16 @@ class Motion:
         """n, the sub-samples of each row's exposure: ``blur_subsamples``, or as many as keep every pixel's motion
         between two at most :data:`MAX_SUBSAMPLE_STEP_PX` — the frame corners' largest displacement over any row's
         exposure, measured on 64 steps per exposure (the path from row 0's start to the last row's end, its largest
-        sum over 64 consecutive steps), divided by it — and, with flicker too, at least
-        :data:`MIN_SUBSAMPLES_PER_FLICKER_PERIOD` per period of the light; at least 1, at most
-        :data:`MAX_SUBSAMPLES`. 1 without motion."""
+        sum over 64 consecutive steps), divided by it — and, with flicker too, enough that the sub-samples' placement
+        at their parts' middles displaces the image by at most ε = :data:`MAX_FLICKER_DISPLACEMENT_PX`; at least 1,
+        at most :data:`MAX_SUBSAMPLES`. 1 without motion.
+
+        The flicker's bound: part s, [t_s − δ/2, t_s + δ/2] (δ = T/n), is weighted by ∫ L over it but sampled at
+        t_s; to first order in the motion (image speed u, gradient g) its error is (g·u/T) ∫ (t − t_s) L dt =
+        (g·u/T) L'(t_s) δ³/12. Summed over the parts, |error| ≤ |g| (|u| δ) δ/(12 T) ∫ |L'| dt ≤ |g| · step · m ω δ/12
+        (|L'| ≤ m ω, ω = 2π f), i.e. a displacement of step · m ω δ / (12 F) of an image of the light F collected;
+        with step = path / n: path · m · ω T / (12 F n²) ≤ ε for n ≥ √(path · m · ω T / (12 ε F)), F the least
+        row's share of the light."""
         n = self.params.blur_subsamples
         if n is None:
             if not self.params.moves:
@@ -328,7 +335,10 @@ class Motion:
                 else float(step.sum())
             n = math.ceil(path / MAX_SUBSAMPLE_STEP_PX - 1e-9)
             if self.params.flickers:
-                n = max(n, math.ceil(MIN_SUBSAMPLES_PER_FLICKER_PERIOD * self.params.flicker_hz * exposure_s - 1e-9))
+                p = self.params
+                least = max(float(np.min(self.light_factor(frame, exposure_s))), 1e-3)
+                bound = path * p.flicker_depth * 2 * math.pi * p.flicker_hz * exposure_s
+                n = max(n, math.ceil(math.sqrt(bound / (12 * MAX_FLICKER_DISPLACEMENT_PX * least)) - 1e-9))
             n = int(min(MAX_SUBSAMPLES, max(1, n)))
         return n
 
