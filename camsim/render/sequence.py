@@ -3,8 +3,9 @@
 For each illuminant × F the static scene is lit once and its expected signal electrons per pixel and channel
 S̄ (3, H, W) are gathered through the label map (so a chart, a target or an image alike becomes a per-pixel image:
 that is what motion costs a chart, 12 bytes a pixel and a draw per pixel instead of one plan per spectrum). Frame
-i's expectation is the average of S̄ along the camera's path over its exposure
-(:func:`moving_expectation`, the motion of :mod:`camsim.scene.sequence`): at each sub-sample time t, the value at
+i's expectation is the average of S̄ along the camera's path over its exposure, each row over its own under a
+rolling shutter, weighted by a flickering light (:func:`moving_expectation`, the motion and the light of
+:mod:`camsim.scene.sequence`): at each sub-sample time t, the value at
 sensor pixel p is S̄ at q = H(t)⁻¹ p, **bilinear** between pixel centres; a q outside the frame is **clamped** to the
 nearest edge pixel (the scene beyond the frame is taken to continue its edge). The frame is then drawn per pixel
 from that expectation (:func:`camsim.render.raw_frame.render_expectation_frame`: Poisson(S̄ · g + D̄ · d), the
@@ -16,7 +17,8 @@ method (the sidecar records ``poisson``).
 Files, per illuminant × F with stem STEM (:func:`camsim.render.frame_files.frame_stem`): ``STEM_fNNN.dng/.exr/.json``
 (NNN zero-padded to at least 3 digits and to the frame count's), each sidecar with ``frame_index``, ``time_s`` (the
 exposure's start, s from the first frame's), ``exposure_s``, ``homography`` (3 × 3, reference pixel → sensor pixel,
-at the exposure's middle) and ``sequence`` (the table and the reference's file); and ``STEM_ref.exr/.json``: the
+at the exposure's middle) and ``sequence`` (the table and the reference's file) — with a rolling shutter or flicker
+also the per-row ground truth of :func:`sequence_frame_record` —; and ``STEM_ref.exr/.json``: the
 reference frame, the static scene's expectation (no motion, no noise; the fixed pattern in, as every clean layer
 has it), its noisy layer equal to its clean one, no DNG. An EXR's clean layer is its frame's own expectation
 (:func:`camsim.render.raw_frame.expectation_clean_dn`: every channel at every pixel). The sidecars' per-patch
