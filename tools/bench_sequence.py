@@ -95,8 +95,8 @@ def main(argv=None) -> None:
     per_frame = frames_s / args.frames
     print(f"{args.scene} {width}x{height} Bayer RGGB, shake {args.shake_px} px / {args.shake_deg} deg per interval, "
           f"rolling shutter {args.rolling_shutter_row_s:g} s/row, flicker {args.flicker_hz:g} Hz × "
-          f"{args.flicker_depth:g}, T = {args.exposure} s, {args.frames} frames, sub-samples per exposure {np.mean(subsamples):.1f} "
-          f"(min {min(subsamples)}, max {max(subsamples)})")
+          f"{args.flicker_depth:g}, T = {args.exposure} s, {args.frames} frames, sub-samples per exposure "
+          f"{np.mean(subsamples):.1f} (min {min(subsamples)}, max {max(subsamples)})")
     print(f"static frame (scene_frame + clean layer, the faster of two): {static_s:.2f} s")
     print(f"sequence: reference {ref_s:.2f} s once; per frame {per_frame:.2f} s "
           f"(expectation along the path {parts['expectation'] / args.frames:.2f} s, draw "
