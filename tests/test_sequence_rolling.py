@@ -336,3 +336,17 @@ def test_sidecar_schema_refuses_bad_per_row_keys(tmp_path):
                              ("rolling_shutter_row_s", -1, "rolling_shutter_row_s")]:
         with pytest.raises(CamsimError, match=says):
             check_sidecar({**meta, key: value}, "f")
+
+
+def test_timing_rule_allows_overlap_across_rows():
+    """A row is exposed once per frame (T ≤ the interval) and the frame's readout fits in the interval (H · Δ ≤ the
+    interval); a frame's last rows may still expose when the next frame's row 0 starts (T + (H − 1) Δ > the
+    interval is allowed)."""
+    from camsim.scene.sequence import check_timing
+
+    seq = SequenceParams(frames=3, frame_interval_s=0.04, rolling_shutter_row_s=1e-4)
+    check_timing(seq, 0.04, 400)  # T = the interval, readout 400 × 0.1 ms = the interval: the limits themselves
+    with pytest.raises(CamsimError, match="readout, 401 rows"):
+        check_timing(seq, 0.01, 401)
+    with pytest.raises(CamsimError, match="longer than frame_interval_s"):
+        check_timing(seq, 0.041, 10)
