@@ -216,6 +216,19 @@ def test_sequence_frames_by_frame_index_and_motion(tmp_path):
     lines = []
     assert find_sequences(sorted(folder.glob("*.dng")), warn=lines.append) == []
     assert len(lines) == 1 and "moves" in lines[0] and "\n" not in lines[0]
+    # a rolling shutter's row homographies move too; a flickering light is no steady one (a factor of 1 is)
+    rows = metas[2]["height_px"]
+    for extra, says in [({"row_homographies": [np.eye(3).tolist()] * (rows - 1) + [[[1, 0, 0.5], [0, 1, 0],
+                                                                                    [0, 0, 1]]]}, "moves"),
+                        ({"flicker_factor": 1.02}, "flicker"),
+                        ({"flicker_row_factor": [1.0] * (rows - 1) + [0.97]}, "flicker")]:
+        (folder / "flat_s2.json").write_text(json.dumps(metas[2] | extra), encoding="utf-8")
+        lines = []
+        assert find_sequences(sorted(folder.glob("*.dng")), warn=lines.append) == []
+        assert len(lines) == 1 and says in lines[0] and "\n" not in lines[0], lines
+    (folder / "flat_s2.json").write_text(json.dumps(metas[2] | {"flicker_factor": 1.0,
+                                                                "row_homographies": [np.eye(3).tolist()] * rows}))
+    assert len(find_sequences(sorted(folder.glob("*.dng")))) == 1
 
 
 def test_stack_errors_are_one_line():

@@ -7,6 +7,7 @@ the per-pixel expectation along the path, the draw, the clean layer), and prints
 and where a sequence frame's time goes. No files are written (their cost is the same for both). Usage::
 
     python tools/bench_sequence.py [--size 4000x3000] [--frames 16] [--shake-px 1] [--workers N]
+        [--rolling-shutter-row-s 1e-5] [--flicker-hz 100 --flicker-depth 0.2]
 """
 
 from __future__ import annotations
@@ -27,6 +28,10 @@ def main(argv=None) -> None:
     parser.add_argument("--exposure", type=float, default=0.01)
     parser.add_argument("--interval", type=float, default=1 / 30)
     parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--rolling-shutter-row-s", type=float, default=0.0, help="a rolling shutter's line time "
+                        "(s; 0: a global shutter)")
+    parser.add_argument("--flicker-hz", type=float, default=0.0)
+    parser.add_argument("--flicker-depth", type=float, default=0.0)
     parser.add_argument("--scene", default="dead_leaves", help="a built-in scene (camsim/scenes/NAME.toml): a "
                         "chart or a target (their size is --size)")
     args = parser.parse_args(argv)
@@ -43,7 +48,9 @@ def main(argv=None) -> None:
     scene = scene.replace(width=width, height=height, intensity_factors=(1.0,)).with_sensor(
         cfa="RGGB", exposure_s=args.exposure)
     scene = scene.replace(sequence=SequenceParams(frames=args.frames, frame_interval_s=args.interval,
-                                                  shake_px=args.shake_px, shake_deg=args.shake_deg))
+                                                  shake_px=args.shake_px, shake_deg=args.shake_deg,
+                                                  rolling_shutter_row_s=args.rolling_shutter_row_s,
+                                                  flicker_hz=args.flicker_hz, flicker_depth=args.flicker_depth))
     illuminant = scene.illuminants[0]
     lit = light_scene(scene, illuminant)
     sensor = frame_sensor(scene, lit, 1.0)
@@ -87,8 +94,9 @@ def main(argv=None) -> None:
         setattr(seqmod, name, original)
     per_frame = frames_s / args.frames
     print(f"{args.scene} {width}x{height} Bayer RGGB, shake {args.shake_px} px / {args.shake_deg} deg per interval, "
-          f"T = {args.exposure} s, {args.frames} frames, sub-samples per exposure {np.mean(subsamples):.1f} "
-          f"(min {min(subsamples)}, max {max(subsamples)})")
+          f"rolling shutter {args.rolling_shutter_row_s:g} s/row, flicker {args.flicker_hz:g} Hz × "
+          f"{args.flicker_depth:g}, T = {args.exposure} s, {args.frames} frames, sub-samples per exposure "
+          f"{np.mean(subsamples):.1f} (min {min(subsamples)}, max {max(subsamples)})")
     print(f"static frame (scene_frame + clean layer, the faster of two): {static_s:.2f} s")
     print(f"sequence: reference {ref_s:.2f} s once; per frame {per_frame:.2f} s "
           f"(expectation along the path {parts['expectation'] / args.frames:.2f} s, draw "

@@ -4,8 +4,9 @@ A **sequence** is two or more frames of one static scene taken by one sensor: th
 light (illuminant, F), the camera, the exposure and every sensor key — ``sensor_seed`` included, so the
 fixed-pattern maps are the same — and differ in their temporal noise: their ``seed`` (or, for the frames of a scene
 file's ``[sequence]``, their ``frame_index`` within one ``sequence``). Frames of two sensors (two
-``sensor_seed``) are never grouped. A sequence whose sidecars record a ``homography`` other than the identity is not
-of a static scene and is left out (with one line that says so).
+``sensor_seed``) are never grouped. A sequence whose sidecars record a ``homography`` (or a rolling shutter's
+``row_homographies``) other than the identity is not of a static scene, and one whose ``flicker_factor`` or
+``flicker_row_factor`` is not 1 not under a steady light: either is left out (with one line that says so).
 
 For a stack of N frames y_j(x) (DN) and a region of n pixels of one channel (a patch less the border, or the whole
 frame; a Bayer frame: that colour's sites), with the per-pixel mean over frames ȳ(x):
@@ -107,15 +108,32 @@ def _index(meta: dict, key: str) -> int:
 
 
 def _is_static(meta: dict) -> bool:
-    h = meta.get("homography")
-    if h is None:
-        return True
-    try:
-        h = np.asarray(h, dtype=np.float64)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return h.shape == (3, 3) and bool(np.all(np.abs(h / h[2, 2] - np.eye(3)) <= STATIC_TOLERANCE))
-    except (TypeError, ValueError, ZeroDivisionError):
-        return False
+    for key in ("homography", "row_homographies"):
+        h = meta.get(key)
+        if h is None:
+            continue
+        try:
+            h = np.asarray(h, dtype=np.float64).reshape(-1, 3, 3)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                if not np.all(np.abs(h / h[:, 2:, 2:] - np.eye(3)) <= STATIC_TOLERANCE):
+                    return False
+        except (TypeError, ValueError, ZeroDivisionError):
+            return False
+    return True
+
+
+def _is_steady(meta: dict) -> bool:
+    """Whether the frame's light was steady: no ``flicker_factor`` / ``flicker_row_factor`` other than 1."""
+    for key in ("flicker_factor", "flicker_row_factor"):
+        value = meta.get(key)
+        if value is None:
+            continue
+        try:
+            if not np.all(np.abs(np.asarray(value, dtype=np.float64) - 1) <= STATIC_TOLERANCE):
+                return False
+        except (TypeError, ValueError):
+            return False
+    return True
 
 
 def find_sequences(paths, source: str = "dng", warn=None) -> list[Sequence]:
@@ -130,7 +148,7 @@ def find_sequences(paths, source: str = "dng", warn=None) -> list[Sequence]:
         and are never one sequence).
     warn : callable, optional
         Called with one line per frame left out: a second frame of the same seed (not independent), a sequence
-        that moves.
+        that moves or flickers.
 
     Returns
     -------
@@ -154,6 +172,11 @@ def find_sequences(paths, source: str = "dng", warn=None) -> list[Sequence]:
             if warn is not None:
                 warn(f"{group.paths[0].parent}: the sequence of {group.paths[0].name} ({len(group.paths)} frames) "
                      "moves (a homography other than the identity): no temporal analysis")
+            continue
+        if not all(_is_steady(m) for m in group.metas):
+            if warn is not None:
+                warn(f"{group.paths[0].parent}: the sequence of {group.paths[0].name} ({len(group.paths)} frames) "
+                     "is lit by a flickering light (a flicker factor other than 1): no temporal analysis")
             continue
         seen: dict = {}
         kept = Sequence(group.key)

@@ -95,11 +95,14 @@ def check_raw_sequence(scene) -> None:
     checks, the timing, and ``thin`` with motion."""
     check_raw_scene(scene)
     seq = scene.sequence
-    check_timing(seq, scene.sensor.exposure_s)
+    check_timing(seq, scene.sensor.exposure_s, scene.source.own_size()[1])
     if seq.moves and scene.source.photon_law == "thin":
         raise CamsimError("[raw] photon_law = 'thin' cannot move: thinning keeps each of a site's own source "
                           "electrons, and a moved site mixes several sites' values (no count to thin); use "
                           "photon_law = 'add', or a static [sequence]")
+    if seq.flickers and scene.source.photon_law == "thin":
+        raise CamsimError("[raw] photon_law = 'thin' cannot follow a flickering light (its fraction is one per "
+                          "frame); use photon_law = 'add', or flicker_depth = 0")
 
 
 def common_share(fraction: float, law: str) -> float:
@@ -168,6 +171,8 @@ def render_raw_sequence_frames(scene, source: LoadedRaw, intensity_factor: float
     """Yield ``("ref", draw, clean, share, extra)`` and then ``(i, draw, clean, share, extra)`` for every frame of the
     raw scene's ``[sequence]`` at F: the frame (:class:`camsim.render.raw_frame.RawDraw`), its EXR clean layer (3,
     H, W) DN, its mask share (H, W) and its sidecar's sequence keys (module docstring)."""
+    from camsim.render.sequence import moving_expectation, sequence_frame_record
+
     seq = scene.sequence
     sensor = scene.sensor
     law = scene.source.photon_law
@@ -196,21 +201,15 @@ def render_raw_sequence_frames(scene, source: LoadedRaw, intensity_factor: float
             draw = render_raw_frame(source.electrons_e, sensor, fraction, law="thin", rng=rng, workers=workers)
             clean, share = clean_planes(draw.clean_dn, pattern), static_share
         else:
-            if seq.moves:
-                from camsim.render.sequence import moving_expectation
-
+            if seq.moves:  # the electrons and the mask along the path (a rolling shutter's rows, the light's flicker)
                 moved = moving_expectation(moved_planes, motion, i, sensor.exposure_s, workers)
                 moving = moved[:3]
                 share = static_share if masks is None else mask_share(moved[3:], pattern)
-            else:
-                moving, share = static, static_share
+            else:  # S̄ itself, or times each row's share of a flickering light
+                moving, share = moving_expectation(static, motion, i, sensor.exposure_s, workers), static_share
             draw = render_expectation_frame(mosaic_of(moving, pattern)[None], sensor, rng=rng, workers=workers)
             clean = expectation_clean_dn(moving, sensor, draw.maps, workers)
-        extra = {"frame_index": i, "time_s": motion.start_s(i),
-                 "homography": motion.mid_homography(i, sensor.exposure_s).tolist(),
-                 "homography_time": "the exposure's middle, time_s + exposure_s / 2",
-                 "blur_subsamples_used": int(len(motion.subsample_times(i, sensor.exposure_s))) if seq.moves else 1,
-                 "sequence": record}
+        extra = {**sequence_frame_record(motion, i, sensor.exposure_s), "sequence": record}
         yield i, draw, clean, share, extra
 
 

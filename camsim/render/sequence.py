@@ -3,8 +3,9 @@
 For each illuminant × F the static scene is lit once and its expected signal electrons per pixel and channel
 S̄ (3, H, W) are gathered through the label map (so a chart, a target or an image alike becomes a per-pixel image:
 that is what motion costs a chart, 12 bytes a pixel and a draw per pixel instead of one plan per spectrum). Frame
-i's expectation is the average of S̄ along the camera's path over its exposure
-(:func:`moving_expectation`, the motion of :mod:`camsim.scene.sequence`): at each sub-sample time t, the value at
+i's expectation is the average of S̄ along the camera's path over its exposure, each row over its own under a
+rolling shutter, weighted by a flickering light (:func:`moving_expectation`, the motion and the light of
+:mod:`camsim.scene.sequence`): at each sub-sample time t, the value at
 sensor pixel p is S̄ at q = H(t)⁻¹ p, **bilinear** between pixel centres; a q outside the frame is **clamped** to the
 nearest edge pixel (the scene beyond the frame is taken to continue its edge). The frame is then drawn per pixel
 from that expectation (:func:`camsim.render.raw_frame.render_expectation_frame`: Poisson(S̄ · g + D̄ · d), the
@@ -16,7 +17,8 @@ method (the sidecar records ``poisson``).
 Files, per illuminant × F with stem STEM (:func:`camsim.render.frame_files.frame_stem`): ``STEM_fNNN.dng/.exr/.json``
 (NNN zero-padded to at least 3 digits and to the frame count's), each sidecar with ``frame_index``, ``time_s`` (the
 exposure's start, s from the first frame's), ``exposure_s``, ``homography`` (3 × 3, reference pixel → sensor pixel,
-at the exposure's middle) and ``sequence`` (the table and the reference's file); and ``STEM_ref.exr/.json``: the
+at the exposure's middle) and ``sequence`` (the table and the reference's file) — with a rolling shutter or flicker
+also the per-row ground truth of :func:`sequence_frame_record` —; and ``STEM_ref.exr/.json``: the
 reference frame, the static scene's expectation (no motion, no noise; the fixed pattern in, as every clean layer
 has it), its noisy layer equal to its clean one, no DNG. An EXR's clean layer is its frame's own expectation
 (:func:`camsim.render.raw_frame.expectation_clean_dn`: every channel at every pixel). The sidecars' per-patch
@@ -65,18 +67,50 @@ def static_signal_e(labels: np.ndarray, signal_e: np.ndarray) -> np.ndarray:
 
 def moving_expectation(signal_e: np.ndarray, motion: Motion, frame: int, exposure_s: float,
                        workers: int | None = None) -> np.ndarray:
-    """Frame ``frame``'s expected signal electrons (3, H, W) float32: the mean of S̄(H(t)⁻¹ p) over the
-    sub-sample times of its exposure (:meth:`camsim.scene.sequence.Motion.subsample_times`), bilinear, clamped at
-    the edges (:func:`camsim.render.warp.average_warp`, on ``workers`` threads; the result does not depend on
-    them). Unit: e⁻."""
+    """Frame ``frame``'s expected signal electrons (3, H, W) float32: at sensor pixel (x, r), the mean of
+    L(t) · S̄(H(t)⁻¹ (x, r)) over row r's exposure — the weighted sum over the sub-samples of
+    :meth:`camsim.scene.sequence.Motion.exposure_samples` (each row's own times under a rolling shutter; weights the
+    light's exact integral over each part), bilinear, clamped at the edges (:func:`camsim.render.warp.average_warp`,
+    on ``workers`` threads; the result does not depend on them). Without motion no warp: S̄ times each row's (or the
+    frame's) share of the light (:meth:`~camsim.scene.sequence.Motion.light_factor`), or S̄ itself under a steady
+    light. Unit: e⁻."""
     from camsim.render.warp import average_warp
 
-    times = motion.subsample_times(frame, exposure_s)
-    inverses = np.array([np.linalg.inv(motion.homography(float(t), frame)) for t in times])[:, None]
-    weights = np.full((len(times), 1), 1 / len(times))
+    if not motion.params.moves:
+        factor = motion.light_factor(frame, exposure_s)
+        if factor is None:
+            return signal_e
+        return (np.asarray(signal_e, dtype=np.float64) * factor[None, :, None]).astype(np.float32)
+    times, weights = motion.exposure_samples(frame, exposure_s)
+    inverses = np.linalg.inv(motion.homographies(times, frame)).reshape(times.shape + (3, 3))
     pixels = np.ascontiguousarray(np.moveaxis(signal_e, 0, -1), dtype=np.float32)
     out = average_warp(pixels, inverses, weights, workers=workers)
     return np.ascontiguousarray(np.moveaxis(out, -1, 0))
+
+
+def sequence_frame_record(motion: Motion, frame: int, exposure_s: float) -> dict:
+    """Frame ``frame``'s ground truth for its sidecar: ``frame_index``, ``time_s`` (row 0's exposure start),
+    ``homography`` (at row 0's exposure middle), ``blur_subsamples_used``; with a rolling shutter
+    ``rolling_shutter_row_s`` (Δ: row r starts at time_s + r · Δ) and ``row_homographies`` (one 3 × 3 per row, at
+    its exposure's middle time_s + r · Δ + T/2); with flicker ``flicker_factor`` (a global shutter: the frame's share
+    of the light, (1/T) ∫ L dt over its exposure) or ``flicker_row_factor`` (a rolling shutter: one per row)."""
+    seq = motion.params
+    out = {"frame_index": frame, "time_s": motion.start_s(frame),
+           "homography": motion.mid_homography(frame, exposure_s).tolist(),
+           "homography_time": "the exposure's middle, time_s + exposure_s / 2",
+           "blur_subsamples_used": motion.subsample_count(frame, exposure_s) if seq.moves else 1}
+    if seq.rolling:
+        out["homography_time"] = "row 0's exposure middle, time_s + exposure_s / 2"
+        out["rolling_shutter_row_s"] = seq.rolling_shutter_row_s
+        out["row_homographies"] = motion.row_homographies(frame, exposure_s).tolist()
+        out["row_homographies_time"] = "row r's exposure middle, time_s + r · rolling_shutter_row_s + exposure_s / 2"
+    factor = motion.light_factor(frame, exposure_s)
+    if factor is not None:
+        if seq.rolling:
+            out["flicker_row_factor"] = factor.tolist()
+        else:
+            out["flicker_factor"] = float(factor[0])
+    return out
 
 
 def frame_digits(frames: int) -> int:
@@ -99,8 +133,12 @@ def check_sequence_scene(scene) -> None:
         from camsim.render.raw_sequence import check_raw_sequence
 
         return check_raw_sequence(scene)
+    own = scene.source.has_own_size
+    height = (scene.source.own_size() if own else (scene.width, scene.height))[1]
     if scene.exposure == "fixed":  # (auto: each frame's T is checked when it is known)
-        check_timing(scene.sequence, scene.sensor.exposure_s)
+        check_timing(scene.sequence, scene.sensor.exposure_s, height)
+    else:
+        check_timing(scene.sequence, 0.0, height)
     if scene.statistics != "pixel":
         raise CamsimError("a [sequence] draws pixel statistics (its frames are drawn per pixel); set "
                           "statistics = 'pixel'")
@@ -110,10 +148,10 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
     """Yield ``("ref", frame, extra)`` and then ``(i, frame, extra)`` for every frame of ``scene.sequence`` under
     ``lit`` at F: :class:`SequenceFrame` objects and the sidecar keys of each (``extra``)."""
     seq: SequenceParams = scene.sequence
-    check_timing(seq, sensor.exposure_s)
     expected = lit.expected(sensor, intensity_factor, scene.statistics)
     labels = lit.labels
     height, width = labels.shape
+    check_timing(seq, sensor.exposure_s, height)
     static = static_signal_e(labels, expected.signal_e)
     motion = Motion.of(seq, width, height, scene.seed)
     record = seq.record()
@@ -126,18 +164,14 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
                                ref_clean), {
         "sequence_reference": True, "homography": np.eye(3).tolist(), "sequence": record}
     for i in range(seq.frames):
-        moving = moving_expectation(static, motion, i, sensor.exposure_s, workers) if seq.moves else static
+        moving = moving_expectation(static, motion, i, sensor.exposure_s, workers)
         source = moving if sensor.cfa is None else mosaic_of(moving, sensor.cfa)[None]
         rng = frame_seed_sequence(scene.seed, f"{lit.illuminant}/f{i}", intensity_factor)
         draw = render_expectation_frame(source, sensor, rng=rng, workers=workers)
         clean = draw.clean_dn if sensor.cfa is None else expectation_clean_dn(moving, sensor, draw.maps, workers)
         frame = SequenceFrame(draw.noisy_dn, draw.digital_dn, labels, expected, sensor, None, draw.maps,
                               draw.black_level_error_dn, clean)
-        extra = {"frame_index": i, "time_s": motion.start_s(i),
-                 "homography": motion.mid_homography(i, sensor.exposure_s).tolist(),
-                 "homography_time": "the exposure's middle, time_s + exposure_s / 2",
-                 "blur_subsamples_used": int(len(motion.subsample_times(i, sensor.exposure_s))) if seq.moves else 1,
-                 "sequence": record}
+        extra = {**sequence_frame_record(motion, i, sensor.exposure_s), "sequence": record}
         yield i, frame, extra
 
 

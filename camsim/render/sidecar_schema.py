@@ -139,6 +139,18 @@ def _raw_source(value):
     return value
 
 
+def _per_row(value, check, what: str) -> list:
+    """A list of one entry per row (its length is checked against ``height_px`` by :func:`check_sidecar`)."""
+    if not isinstance(value, list) or not value:
+        raise _Bad(f"a list of {what}, one per row")
+    for item in value:
+        try:
+            check(item)
+        except _Bad:
+            raise _Bad(f"a list of {what}, one per row") from None
+    return value
+
+
 def _surround(value):
     if value is None:
         return None
@@ -198,7 +210,15 @@ FRAME_KEYS = {
     "homography": _optional(_matrix(3, 3)),
     "sequence": _sequence,
     "raw_source": _raw_source,
+    # a rolling shutter's (row r exposed from time_s + r · rolling_shutter_row_s) and a flickering light's frame
+    "rolling_shutter_row_s": _optional(lambda v: _number(v, low=0)),
+    "row_homographies": _optional(lambda v: _per_row(v, _matrix(3, 3), "3 × 3 matrices")),
+    "flicker_factor": _optional(lambda v: _number(v, low=0)),
+    "flicker_row_factor": _optional(lambda v: _per_row(v, lambda f: _number(f, low=0), "numbers ≥ 0")),
 }
+
+#: The keys with one entry per row of the frame (``height_px`` of them).
+PER_ROW_KEYS = ("row_homographies", "flicker_row_factor")
 
 
 def _defect_counts(value) -> dict:
@@ -329,6 +349,9 @@ def check_sidecar(meta, where) -> dict:
                             _number(v, above=0 if p.above == 0 else None)
                         except _Bad as exc:
                             raise _Bad(str(exc), p.name, meta[p.name]) from None
+        for key in PER_ROW_KEYS:
+            if meta.get(key) is not None and len(meta[key]) != meta["height_px"]:
+                raise _Bad(f"one entry per row (height_px {meta['height_px']}), not {len(meta[key])}", key, meta[key])
         if meta.get("cfa_pattern") is not None:
             from camsim.sensor.cfa import CFA_PATTERNS
 
