@@ -285,3 +285,37 @@ def test_the_mask_moves_with_the_scene(tmp_path):
     away[19:37, 28:52] = False
     assert np.all(half[away] == 0)
     assert metas[2]["raw_source"]["masked_partial_px"] == int(partial.sum())
+
+
+def test_a_raw_sequence_under_a_rolling_shutter_and_flicker_follows_the_closed_form(tmp_path):
+    """A static add sequence of a flat raw under a flickering light with a rolling shutter: each frame's clean layer,
+    row r, is the reference's times F_r = 1 + m / (ωT) · (sin(ω (t_r + T) + φ) − sin(ω t_r + φ)), t_r = tᵢ + r Δ
+    (this file's closed form of (1/T) ∫ (1 + m cos(ωt + φ)) dt), and the sidecar gives the same factors."""
+    write_source(tmp_path / "a.dng", 64, 64, orientation=1)
+    m, f_hz, delta, interval = 0.6, 13.0, 1e-3, 0.2  # T = the source's 0.1 s: 1.3 periods, bands over 64 rows
+    scene = write_sequence_scene(tmp_path, "a.dng", 0.01, f"frames = 2\nframe_interval_s = {interval}\n"
+                                 f"rolling_shutter_row_s = {delta}\nflicker_hz = {f_hz}\nflicker_depth = {m}")
+    assert render(scene, tmp_path / "out") == 0
+    stem = tmp_path / "out" / "seq_as-shot_F0.01"
+    _, ref, _ = read_exr(Path(f"{stem}_ref.exr"))
+    omega = 2 * np.pi * f_hz
+    for i in range(2):
+        meta = json.loads(Path(f"{stem}_f{i:03d}.json").read_text())
+        exposure = meta["exposure_s"]
+        t = i * interval + np.arange(64) * delta
+        factor = 1 + m / (omega * exposure) * (np.sin(omega * (t + exposure)) - np.sin(omega * t))
+        assert np.allclose(meta["flicker_row_factor"], factor, rtol=1e-9, atol=1e-12)
+        _, clean, _ = read_exr(Path(f"{stem}_f{i:03d}.exr"))
+        measured = (clean / ref).mean(axis=(0, 2))
+        assert np.allclose(measured, factor, rtol=2e-4), np.abs(measured / factor - 1).max()
+        assert np.ptp(factor) > 0.05  # the bands are there to see
+
+
+def test_thin_under_a_flickering_light_is_refused_on_one_line(tmp_path, capsys):
+    write_source(tmp_path / "a.dng", 64, 64, orientation=1)
+    scene = write_sequence_scene(tmp_path, "a.dng", 0.01, "frames = 2\nframe_interval_s = 0.2\nflicker_hz = 100\n"
+                                 "flicker_depth = 0.5", extra='photon_law = "thin"')
+    capsys.readouterr()
+    assert render(scene, tmp_path / "out") == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("camsim: error:") and "flicker" in err and "\n" not in err, err
