@@ -192,6 +192,8 @@ def test_each_frames_homography_moves_the_reference_onto_it(tmp_path):
     ("burst_frames = 3\nframe_interval_s = 0.001", (), "longer than frame_interval_s"),
     ("burst_frames = 3\nstatistics = \"paper\"", (), "statistics = 'pixel'"),
     ("burst_frames = 3", ("--srgb", "png"), "no sRGB outputs yet"),
+    ("burst_frames = 3\nrolling_shutter_row_s = 0.001", (), "the rolling shutter's readout, 48 rows"),
+    ("burst_frames = 3\nflicker_depth = 1.5", (), "flicker_depth must be"),
 ])
 def test_bad_burst_parameters_are_one_line_exit_2(tmp_path, capsys, fixed, args, message):
     spec = write_spec(tmp_path, fixed=fixed)
@@ -338,3 +340,30 @@ def test_burst_store_equals_the_files(tmp_path):
     mixed = write_spec(tmp_path, fixed="frame_interval_s = 0.02", grid="burst_frames = [2, 3]", w=32, h=24)
     with pytest.raises(Exception, match="needs one burst length"):
         run_dataset(mixed, tmp_path / "mixed", workers=1, progress=False, echo=None, output="zarr")
+
+
+def test_a_bursts_rolling_shutter_and_flicker_reach_its_frames(tmp_path):
+    """The spec's rolling_shutter_row_s and flicker keys (and a scene file's) reach each burst frame: on a flat field
+    (no motion) each row's clean layer is the reference's times F_r = 1 + m/(ωT) (sin(ω(t_r + T)) − sin(ω t_r)),
+    t_r = tᵢ + r Δ (this test's closed form), the sidecar lists the same factors, and the records carry the keys."""
+    delta, f_hz, m, interval, exposure = 2e-4, 130.0, 0.5, 0.02, 0.01  # T: 1.3 periods
+    spec = write_spec(tmp_path, fixed=f"burst_frames = 2\nframe_interval_s = {interval}\nrolling_shutter_row_s = "
+                      f"{delta}\nflicker_depth = {m}", sequence=f"[sequence]\nframes = 2\nflicker_hz = {f_hz}")
+    out = tmp_path / "out"
+    run_dataset(spec, out, workers=1, progress=False, echo=None)
+    line, = [json.loads(t) for t in (out / "manifest.jsonl").read_text().splitlines()]
+    assert (line["rolling_shutter_row_s"], line["flicker_hz"], line["flicker_depth"]) == (delta, f_hz, m)
+    _, reference, _ = read_exr(out / line["files"]["ref.exr"]["name"])
+    omega = 2 * np.pi * f_hz
+    for i in range(2):
+        t = i * interval + np.arange(48) * delta
+        factor = 1 + m / (omega * exposure) * (np.sin(omega * (t + exposure)) - np.sin(omega * t))
+        sidecar = json.loads((out / line["files"][f"f00{i}.json"]["name"]).read_text())
+        assert np.allclose(sidecar["flicker_row_factor"], factor, rtol=1e-9)
+        _, clean, _ = read_exr(out / line["files"][f"f00{i}.exr"]["name"])
+        # the dark charge is not modulated: clean − ref = (F_r − 1) · K g S̄, the flat field's signal alone (one value
+        # for every row, but for the PRNU's 2 % averaged over a row's 64 pixels)
+        signal = (clean - reference).mean(axis=(0, 2))[np.abs(factor - 1) > 0.005] / (factor - 1)[np.abs(factor - 1)
+                                                                                                  > 0.005]
+        assert np.ptp(factor) > 0.05 and signal.size > 20
+        assert np.allclose(signal, signal.mean(), rtol=0.01) and signal.mean() > 0

@@ -120,6 +120,8 @@ _SEQUENCE = {p.name: p for p in params_of(SequenceParams)}
 #: The parameters of a burst (:mod:`camsim.scene.sequence`'s ``[sequence]``, declared there): ``burst_frames`` makes
 #: each dataset item a burst of that many frames with camera motion; the others are the motion's. A spec that sets
 #: none of them keeps the scene file's ``[sequence]``, if it has one (a burst of its frames).
+#: A burst's rolling shutter and flickering light (the [sequence]'s keys of the same names).
+_LIGHT_AND_SHUTTER = ("rolling_shutter_row_s", "flicker_hz", "flicker_depth", "flicker_phase_deg")
 BURST_PARAMS = (
     Param("burst_frames", "int", None, "frames of each item's burst (the scene file's [sequence] frames): "
           "ID_fNNN.dng/.exr/.json and the clean reference ID_ref.exr/.json; none: one frame per item",
@@ -130,7 +132,8 @@ BURST_PARAMS = (
           "px/s"),
     Param("pan_y_px_per_s", "float", 0.0, "burst: constant pan, vertical (the [sequence]'s pan_px_per_s[1])",
           "px/s"),
-    dataclasses.replace(_SEQUENCE["blur_subsamples"], doc="burst: " + _SEQUENCE["blur_subsamples"].doc),
+    *(dataclasses.replace(_SEQUENCE[name], doc="burst: " + _SEQUENCE[name].doc)
+      for name in ("blur_subsamples", *_LIGHT_AND_SHUTTER)),
 )
 #: Every parameter a spec may set, by name: the frame's choices, the render settings and the sensor's (the schema),
 #: those of ``[raws]`` frames (:data:`RAWS_PARAMS`) and of bursts (:data:`BURST_PARAMS`).
@@ -1070,8 +1073,8 @@ class _FrameCheck:
         sensor = with_checked_values(self.scene.sensor, **dict(zip(self.sensor_keys, own))) if own else None
         sensor = frame_sensor(self.scene, self.lit, factor, sensor)
         check_frame(self.lit, sensor, factor, self.scene.statistics)
-        if self.scene.sequence is not None:  # a burst: each exposure within its frame interval
-            check_timing(self.scene.sequence, sensor.exposure_s)
+        if self.scene.sequence is not None:  # a burst: each exposure (and a rolling shutter's readout) in its interval
+            check_timing(self.scene.sequence, sensor.exposure_s, self.lit.labels.shape[0])
         if self.last is None or self.last[0] != own or factor > self.last[1]:
             self.last = (own, factor)
 
@@ -1105,7 +1108,8 @@ def burst_sequence(params: dict, scene: Scene) -> SequenceParams | None:
     try:
         return SequenceParams(frames=frames, pan_px_per_s=pan, homographies=homographies,
                               **{k: given.get(k, getattr(defaults, k))
-                                 for k in ("frame_interval_s", "shake_px", "shake_deg", "blur_subsamples")})
+                                 for k in ("frame_interval_s", "shake_px", "shake_deg", "blur_subsamples",
+                                           *_LIGHT_AND_SHUTTER)})
     except CamsimError as exc:
         raise CamsimError(str(exc).replace("[sequence]: frames ", "burst_frames ").replace("[sequence]", "burst")) \
             from None
@@ -1116,7 +1120,8 @@ def burst_record(burst: SequenceParams) -> dict:
     ``[sequence]`` lists them)."""
     out = {"burst_frames": burst.frames, "frame_interval_s": burst.frame_interval_s, "shake_px": burst.shake_px,
            "shake_deg": burst.shake_deg, "pan_x_px_per_s": burst.pan_px_per_s[0],
-           "pan_y_px_per_s": burst.pan_px_per_s[1], "blur_subsamples": burst.blur_subsamples}
+           "pan_y_px_per_s": burst.pan_px_per_s[1], "blur_subsamples": burst.blur_subsamples,
+           **{k: getattr(burst, k) for k in _LIGHT_AND_SHUTTER if getattr(burst, k)}}  # only where set: ids kept
     if burst.homographies is not None:
         out["burst_homographies"] = [list(map(list, h)) for h in burst.homographies]
     return out
