@@ -100,6 +100,13 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
     labels = lit.labels
     height, width = labels.shape
     static = static_signal_e(labels, expected.signal_e)
+    optics = None
+    if getattr(scene, "optics", None) is not None:  # the lens in front of the static scene (camsim.render.optics)
+        from camsim.render.optics import apply_optics, channel_weights, optics_record
+
+        weights = channel_weights(lit)
+        static = apply_optics(static, scene.optics, lit.grid.wavelengths_nm, weights, workers=workers)
+        optics = {"optics": optics_record(scene.optics, lit.grid.wavelengths_nm, weights)}
     motion = Motion.of(seq, width, height, scene.seed)
     record = seq.record()
     from camsim.sensor.fixed_pattern import fixed_pattern
@@ -109,7 +116,7 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
     ref_noisy = ref_clean if sensor.cfa is None else mosaic_of(ref_clean, sensor.cfa)[None]
     yield "ref", SequenceFrame(np.ascontiguousarray(ref_noisy), None, labels, expected, sensor, None, maps, None,
                                ref_clean), {
-        "sequence_reference": True, "homography": np.eye(3).tolist(), "sequence": record}
+        "sequence_reference": True, "homography": np.eye(3).tolist(), "sequence": record, **(optics or {})}
     for i in range(seq.frames):
         moving = moving_expectation(static, motion, i, sensor.exposure_s, workers) if seq.moves else static
         source = moving if sensor.cfa is None else mosaic_of(moving, sensor.cfa)[None]
@@ -122,7 +129,7 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
                  "homography": motion.mid_homography(i, sensor.exposure_s).tolist(),
                  "homography_time": "the exposure's middle, time_s + exposure_s / 2",
                  "blur_subsamples_used": int(len(motion.subsample_times(i, sensor.exposure_s))) if seq.moves else 1,
-                 "sequence": record}
+                 "sequence": record, **(optics or {})}
         yield i, frame, extra
 
 
