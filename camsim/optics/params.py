@@ -72,6 +72,9 @@ class OpticsParams:
             raise CamsimError(f"[optics]: fill_factor must be in (0, 1], got {self.fill_factor!r}")
         if self.defocus_waves and self.defocus_um:
             raise CamsimError("[optics]: set at most one of defocus_waves and defocus_um")
+        if (self.defocus_waves or self.defocus_um) and not self.diffraction:
+            raise CamsimError("[optics]: defocus is the pupil's diffraction with the W020 phase (Hopkins): it needs "
+                              "diffraction = true")
         if not all(0.5 <= m <= 2 for m in self.lateral_ca):
             raise CamsimError(f"[optics]: lateral_ca magnifications must be within [0.5, 2], got "
                               f"{list(self.lateral_ca)}")

@@ -82,8 +82,8 @@ def lens_otf_radial(rho, wavelength_nm, weights, *, f_number: float, pixel_pitch
     """Σ_λ w_c(λ) OTF_lens(ρ; λ) per channel at radial frequencies ``rho`` (cy/px), shape (3, len(rho)).
 
     OTF_lens is the diffraction OTF (:func:`diffraction_otf`) or with defocus Hopkins's (:func:`defocused_otf`); with
-    diffraction off, the defocus alone in the geometric limit is not modelled: the lens factor is 1 (diffraction
-    off means an ideal lens). ``weights`` (3, N) sum to 1 per channel over ``wavelength_nm`` (N,)."""
+    diffraction off the lens factor is 1 (an ideal lens: :class:`camsim.optics.params.OpticsParams` refuses defocus
+    without diffraction). ``weights`` (3, N) sum to 1 per channel over ``wavelength_nm`` (N,)."""
     rho = np.asarray(rho, dtype=np.float64)
     weights = np.asarray(weights, dtype=np.float64)
     if not diffraction:
