@@ -146,21 +146,41 @@ def channel_otf(radial_table, table_step: float, fy, fx, *, olpf_shift_px: float
                 fill_factor: float | None) -> np.ndarray:
     """One channel's 2-D OTF (len(fy), len(fx)) float32 on a frequency grid: its radial lens OTF (sampled at
     ρ = i · ``table_step``, interpolated linearly) × the separable OLPF and pixel-aperture factors (None: off)."""
-    fy = np.asarray(fy, dtype=np.float64)[:, None]
-    fx = np.asarray(fx, dtype=np.float64)[None, :]
-    rho = np.sqrt(fy * fy + fx * fx)
-    table = np.asarray(radial_table, dtype=np.float64)
-    out = np.interp(rho, np.arange(table.size) * table_step, table).astype(np.float32)
-    sep_y = np.ones(fy.shape, dtype=np.float64)
-    sep_x = np.ones(fx.shape, dtype=np.float64)
+    return channel_otfs(np.asarray(radial_table)[None], table_step, fy, fx, olpf_shift_px=olpf_shift_px,
+                        fill_factor=fill_factor)[0]
+
+
+def channel_otfs(radial_tables, table_step: float, fy, fx, *, olpf_shift_px: float | None,
+                 fill_factor: float | None) -> list[np.ndarray]:
+    """:func:`channel_otf` of each row of ``radial_tables`` (C, M) on one grid, the grid's work shared: ρ is computed
+    once, and where the rows' frequencies come in ± pairs (``fftfreq``'s order) only the rows with fy ≥ 0 are
+    interpolated and the others copied (every factor is even in fy)."""
+    fy = np.asarray(fy, dtype=np.float64)
+    fx = np.asarray(fx, dtype=np.float64)
+    height = fy.size
+    # the rows r ≥ 1 whose −fy is row height − r (fftfreq: 0, 1, …, −2, −1 over height): compute rows 0 … half
+    half = height // 2 + 1 if np.array_equal(np.abs(fy[1:]), np.abs(fy[1:][::-1])) else height
+    fyh = fy[:half, None]
+    rho = np.sqrt(fyh * fyh + fx[None, :] ** 2)
+    sep_y = np.ones(fyh.shape, dtype=np.float64)
+    sep_x = np.ones(fx[None, :].shape, dtype=np.float64)
     if olpf_shift_px is not None:
-        sep_y = sep_y * olpf_otf(fy, olpf_shift_px)
-        sep_x = sep_x * olpf_otf(fx, olpf_shift_px)
+        sep_y = sep_y * olpf_otf(fyh, olpf_shift_px)
+        sep_x = sep_x * olpf_otf(fx[None, :], olpf_shift_px)
     if fill_factor is not None:
-        sep_y = sep_y * pixel_aperture_otf(fy, fill_factor)
-        sep_x = sep_x * pixel_aperture_otf(fx, fill_factor)
-    out *= sep_y.astype(np.float32)
-    out *= sep_x.astype(np.float32)
+        sep_y = sep_y * pixel_aperture_otf(fyh, fill_factor)
+        sep_x = sep_x * pixel_aperture_otf(fx[None, :], fill_factor)
+    sep_y, sep_x = sep_y.astype(np.float32), sep_x.astype(np.float32)
+    out = []
+    for table in np.asarray(radial_tables, dtype=np.float64):
+        grid = np.empty((height, fx.size), dtype=np.float32)
+        top = grid[:half]
+        top[...] = np.interp(rho, np.arange(table.size) * table_step, table)
+        top *= sep_y
+        top *= sep_x
+        if half < height:
+            grid[half:] = grid[1:height - half + 1][::-1]
+        out.append(grid)
     return out
 
 
@@ -187,10 +207,10 @@ def convolve_plane(plane, otf, margin: int, shape: tuple[int, int], *, workers: 
     height, width = plane.shape
     pad = ((margin, shape[0] - height - margin), (margin, shape[1] - width - margin))
     padded = np.pad(plane, pad, mode="symmetric")
-    spectrum = fft.rfft2(padded, workers=workers)
+    spectrum = fft.rfft2(padded, workers=workers, overwrite_x=True)
     del padded
     spectrum *= otf
-    result = fft.irfft2(spectrum, s=shape, workers=workers)
+    result = fft.irfft2(spectrum, s=shape, workers=workers, overwrite_x=True)
     del spectrum
     if out is None:
         out = np.empty((height, width), dtype=np.float32)

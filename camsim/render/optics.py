@@ -30,7 +30,7 @@ from camsim.optics.params import OpticsParams
 from camsim.optics.stages import (
     RADIAL_SAMPLES_PER_CY,
     cos4_falloff,
-    channel_otf,
+    channel_otfs,
     convolve_plane,
     field_angle_rad,
     lens_otf_radial,
@@ -99,8 +99,8 @@ def optics_otfs(optics: OpticsParams, wavelengths_nm, weights, shape: tuple[int,
     radial = lens_otf_radial(rho, wavelengths_nm, weights, f_number=optics.f_number,
                              pixel_pitch_um=optics.pixel_pitch_um, diffraction=optics.diffraction,
                              w020_waves_550=optics.w020_waves_550)
-    return [channel_otf(radial[c], step, fy, fx, olpf_shift_px=optics.olpf_shift_px if optics.olpf else None,
-                        fill_factor=optics.fill_factor) for c in range(3)]
+    return channel_otfs(radial, step, fy, fx, olpf_shift_px=optics.olpf_shift_px if optics.olpf else None,
+                        fill_factor=optics.fill_factor)
 
 
 def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, workers: int | None = None) -> np.ndarray:
