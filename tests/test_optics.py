@@ -422,3 +422,21 @@ def test_colour_edge_approximation_is_measured():
     colour = tool.colour_edge_difference(8.0, left="red", right="blue", size=(24, 48))
     assert np.all(colour["max_rel_pixel"] > 1e-3) and np.all(colour["max_rel_pixel"] < 0.05)
     assert all(abs(x - 24) <= 6 for x in colour["where_px"])  # at the edge
+
+
+def test_a_sequence_sees_the_scene_through_the_optics():
+    """With [sequence] and [optics], the optics blur the static scene before the motion: the reference's clean layer
+    is the optics frame's expectation (camsim render without the sequence), and every sidecar records the optics."""
+    from camsim.render.pipeline import light_scene, scene_frame
+    from camsim.render.sequence import render_sequence_frames
+    from camsim.scene.scene_file import load_scene
+    from camsim.scene.sequence import SequenceParams
+
+    scene = load_scene("slanted_edge_lens").replace(width=64, height=48).with_sensor(exposure_s=0.01)
+    scene = scene.replace(optics=parse_optics({"f_number": 11, "olpf": True}))
+    lit = light_scene(scene, "D65")
+    still, _ = scene_frame(scene, "D65", 1.0, lit=lit, workers=1)
+    seq = scene.replace(sequence=SequenceParams(frames=1, frame_interval_s=0.02, pan_px_per_s=(10.0, 0.0)))
+    (_, ref, ref_extra), (_, _, extra) = render_sequence_frames(seq, lit, seq.sensor, 1.0, workers=1)
+    assert np.array_equal(ref.clean_dn(), still.clean_dn())
+    assert ref_extra["optics"]["f_number"] == 11.0 and extra["optics"]["olpf"] is True
