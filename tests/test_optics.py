@@ -440,3 +440,30 @@ def test_a_sequence_sees_the_scene_through_the_optics():
     (_, ref, ref_extra), (_, _, extra) = render_sequence_frames(seq, lit, seq.sensor, 1.0, workers=1)
     assert np.array_equal(ref.clean_dn(), still.clean_dn())
     assert ref_extra["optics"]["f_number"] == 11.0 and extra["optics"]["olpf"] is True
+
+
+@pytest.mark.parametrize("table, message", [
+    ({"defocus_waves": 1e9}, "beyond"),
+    ({"defocus_um": -1e9}, "beyond"),
+    ({"olpf_shift_px": 1e9}, "at most 64"),
+    ({"f_number": float("inf")}, "finite"),
+])
+def test_hostile_values_are_one_line(table, message):
+    with pytest.raises(CamsimError, match=message):
+        parse_optics(table)
+
+
+def test_extreme_lenses_stay_bounded():
+    """A huge f-number blurs a frame to its mean (OTF 0 but at f = 0), a tiny one leaves it as it is; a large defocus
+    keeps the margin within the frame's size; a 1-pixel-wide frame is blurred along its length only."""
+    rng = np.random.default_rng(5)
+    planes = rng.random((3, 20, 30)).astype(np.float32)
+    weights = np.full((3, WAVELENGTHS.size), 1 / WAVELENGTHS.size)
+    wide = apply_optics(planes, OpticsParams(f_number=1e6), WAVELENGTHS, weights, workers=1)
+    assert np.allclose(wide, wide.mean(axis=(1, 2), keepdims=True), atol=1e-4)
+    sharp = apply_optics(planes, OpticsParams(f_number=1e-6, fill_factor=1e-12), WAVELENGTHS, weights, workers=1)
+    assert np.allclose(sharp, planes, atol=1e-5)
+    defocused = apply_optics(planes, OpticsParams(defocus_waves=20), WAVELENGTHS, weights, workers=1)
+    assert np.all(np.isfinite(defocused))
+    line = apply_optics(planes[:, :, :1], OpticsParams(f_number=16), WAVELENGTHS, weights, workers=1)
+    assert line.shape == (3, 20, 1) and np.all(np.isfinite(line))

@@ -25,6 +25,11 @@ DEFOCUS_REFERENCE_UM = 0.55
 TABLE_ONLY_KEYS = ("relative_illumination",)
 #: The largest field angle a vignetting table or the frame may reach. Unit: degrees.
 MAX_FIELD_ANGLE_DEG = 89.0
+#: The largest defocus: |W020| in waves at 550 nm (a geometric blur of radius 4 N |W020| 0.55 / pitch px: 44 px at
+#: f/4 and 4 µm pixels; the OTF's quadrature grows with it). Unit: waves.
+MAX_DEFOCUS_WAVES = 20.0
+#: The largest OLPF spot separation. Unit: px.
+MAX_OLPF_SHIFT_PX = 64.0
 
 
 @dataclass(frozen=True)
@@ -49,7 +54,7 @@ class OpticsParams:
                               "(2/π)(acos ν − ν√(1−ν²)), ν = f / f_c)")
     defocus_waves: float = param(0.0, "float", "defocus: W020, the peak wavefront error at 550 nm (at λ: "
                                  "W020·0.55/λ_µm waves); the OTF is the pupil's autocorrelation with that phase "
-                                 "(Hopkins); at most one of defocus_waves and defocus_um non-zero", "waves")
+                                 "(Hopkins); at most one of defocus_waves and defocus_um non-zero; |W020| ≤ 20", "waves")
     defocus_um: float = param(0.0, "float", "defocus as the image-plane focus shift Δz: W020 = Δz / (8 N²) µm", "µm")
     olpf: bool = param(False, "bool", "a birefringent optical low-pass filter: 4 equal spots at (±s/2, ±s/2) px, "
                        "OTF cos(π fx s) cos(π fy s)")
@@ -72,6 +77,12 @@ class OpticsParams:
             raise CamsimError(f"[optics]: fill_factor must be in (0, 1], got {self.fill_factor!r}")
         if self.defocus_waves and self.defocus_um:
             raise CamsimError("[optics]: set at most one of defocus_waves and defocus_um")
+        if abs(self.w020_waves_550) > MAX_DEFOCUS_WAVES:
+            raise CamsimError(f"[optics]: the defocus's W020 = {self.w020_waves_550:.4g} waves at 550 nm is beyond "
+                              f"±{MAX_DEFOCUS_WAVES:g} waves")
+        if self.olpf_shift_px > MAX_OLPF_SHIFT_PX:
+            raise CamsimError(f"[optics]: olpf_shift_px must be at most {MAX_OLPF_SHIFT_PX:g} px, got "
+                              f"{self.olpf_shift_px!r}")
         if (self.defocus_waves or self.defocus_um) and not self.diffraction:
             raise CamsimError("[optics]: defocus is the pupil's diffraction with the W020 phase (Hopkins): it needs "
                               "diffraction = true")

@@ -10,7 +10,8 @@ them in the order light meets them:
 2. vignetting: × cos⁴ of each pixel's field angle (or the table's relative illumination), 1 at the centre;
 3. the PSF: per channel, FFT convolution with OTF_c = Σ_λ w_c(λ) OTF_lens(λ) × OLPF × pixel aperture
    (:func:`camsim.optics.stages.convolve_plane`: real FFTs in float32, the frame extended by reflection about its
-   edge by a margin, so a uniform field stays uniform and nothing wraps around).
+   edge by a margin (:func:`camsim.optics.stages.margin_px`, at most the frame's larger side), so a uniform field
+   stays uniform and nothing wraps around).
 
 w_c(λ) are the weights over wavelength of the signal channel c receives, averaged over the frame's pixels (each
 spectrum of a chart or target weighted by its pixel count; an image's or a cube's recovered spectra, per pixel, the
@@ -140,8 +141,8 @@ def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, wor
         falloff = cos4_falloff(theta) if optics.vignetting == "cos4" else table_falloff(
             theta, optics.relative_illumination)
         out *= falloff.astype(np.float32)[None]
-    margin = margin_px(optics.f_number, optics.pixel_pitch_um, optics.w020_waves_550,
-                       optics.olpf_shift_px if optics.olpf else 0.0)
+    margin = min(margin_px(optics.f_number, optics.pixel_pitch_um, optics.w020_waves_550,
+                           optics.olpf_shift_px if optics.olpf else 0.0), max(height, width))
     shape = padded_shape(height, width, margin)
     for c, otf in enumerate(optics_otfs(optics, wavelengths_nm, weights, shape)):
         convolve_plane(out[c], otf, margin, shape, workers=workers, out=out[c])
