@@ -51,8 +51,13 @@ def defocused_otf(nu, w020_waves: float) -> np.ndarray:
 
     With the unit pupil displaced by ±ν, the phase difference across the overlap is 2π · 4 W020 ν x, so with
     k = 8π W020 ν: OTF(ν) = (4 / (π k)) ∫₀^√(1−ν²) sin(k (√(1 − y²) − ν)) dy; W020 → 0 gives
-    :func:`diffraction_otf`. The integral is taken with y = √(1−ν²) sin φ by Gauss–Legendre on φ ∈ [0, π/2]. Real
-    (the pupil is symmetric), negative where the defocus reverses contrast. Unitless."""
+    :func:`diffraction_otf`. The integral is taken with y = √(1−ν²) sin φ by composite Gauss–Legendre on
+    φ ∈ [0, π/2]. Real
+    (the pupil is symmetric), negative where the defocus reverses contrast. Unitless.
+
+    The product approximation "diffraction OTF × defocus OTF", :func:`diffraction_otf` (ν) · 2 J₁(a)/a with
+    a = 8π W020 ν (the geometric blur disc), is not used: it is off from this exact OTF by up to 0.06 (absolute, at
+    W020 = 0.1 wave), 0.22 (0.25 and 0.5), 0.13 (1), 0.07 (2) and 0.04 (5 waves)."""
     nu = np.minimum(np.abs(np.asarray(nu, dtype=np.float64)), 1.0)
     if w020_waves == 0:
         return diffraction_otf(nu)
