@@ -23,7 +23,7 @@ from camsim.scene.scene_file import load_scene
 from camsim.scene.sources import ImageSource
 from tests.helpers import ROOT
 
-BUILTIN = "astronaut, chelsea, coffee, dark, dead_leaves, flat, macbeth_26, slanted_edge"
+BUILTIN = "astronaut, chelsea, coffee, dark, dead_leaves, flat, macbeth_26, slanted_edge, slanted_edge_lens"
 PHOTOGRAPHS = ("astronaut", "chelsea", "coffee")
 SCENE_ARGS = ["--illuminant", "D65", "--intensity", "1", "--size", "120x80", "-q"]
 
@@ -35,7 +35,7 @@ def _digests(folder):
 def test_names_and_paths():
     # denoise_small.toml beside them is a dataset spec
     assert builtin_scene_names() == ("astronaut", "chelsea", "coffee", "dark", "dead_leaves", "flat", "macbeth_26",
-                                     "slanted_edge")
+                                     "slanted_edge", "slanted_edge_lens")
     path = builtin_scene_path("macbeth_26")
     assert path == SCENES_DIR / "macbeth_26.toml" and path.is_file()
     assert SCENES_DIR.parent == ROOT / "camsim"
@@ -44,7 +44,7 @@ def test_names_and_paths():
     assert (ROOT / "scenes").resolve() == SCENES_DIR.resolve()
     assert sorted(p.name for p in (ROOT / "scenes").glob("*.toml")) == [
         "astronaut.toml", "chelsea.toml", "coffee.toml", "dark.toml", "dead_leaves.toml", "denoise_small.toml",
-        "flat.toml", "macbeth_26.toml", "slanted_edge.toml"]
+        "flat.toml", "macbeth_26.toml", "slanted_edge.toml", "slanted_edge_lens.toml"]
 
 
 def test_load_by_name_equals_load_by_path(tmp_path, monkeypatch):
@@ -204,7 +204,7 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
     with zipfile.ZipFile(wheel) as archive:
         names = set(archive.namelist())
         for scene in ("macbeth_26.toml", "denoise_small.toml", "dead_leaves.toml", "slanted_edge.toml",
-                      "astronaut.toml", "chelsea.toml", "coffee.toml", "dark.toml", "flat.toml"):
+                      "slanted_edge_lens.toml", "astronaut.toml", "chelsea.toml", "coffee.toml", "dark.toml", "flat.toml"):
             assert archive.read(f"camsim/scenes/{scene}") == (SCENES_DIR / scene).read_bytes()
         for image in ("astronaut.png", "chelsea.png", "coffee.png", "README.md"):  # denoise_small's [images]
             assert archive.read(f"camsim/scenes/images/{image}") == (SCENES_DIR / "images" / image).read_bytes()

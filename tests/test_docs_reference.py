@@ -136,6 +136,9 @@ def test_scene_key_reference_has_every_schema_key(reference):
     keys = _declared(camsim.SensorParams) | _declared(camsim.Scene)
     keys |= {"preset", "iso"} | {key for cls in SOURCES.values() for key in cls.keys}
     keys |= {f"[{name}]" for name in SOURCES}
+    from camsim.optics.params import OpticsParams, TABLE_ONLY_KEYS
+
+    keys |= _declared(OpticsParams) | set(TABLE_ONLY_KEYS)  # [optics]
     missing = sorted(k for k in keys if k not in shown)
     assert not missing, f"scene-file keys missing from the reference: {missing}"
 

@@ -27,18 +27,19 @@ LAYERS = {
     "colour": 3,      # colorimetry, recovery, colour_names, rawcolour
     "sensor": 4,      # params, stages, kernels, dn_law, black_level, fixed_pattern, expected, noise_profile, cfa,
                       # camera, presets
-    "io": 5,          # the file-format codecs, atomic writes, figures
-    "methods": 6,     # the samplers
-    "scene": 7,       # scene files, sources, chart, built-in scenes, regions, radiance
-    "render": 8,      # frame, pipeline, run, frame files, manifest, sidecar schema, preview, backends
+    "optics": 5,      # the lens's parameters ([optics]) and its stages: OTFs, vignetting, lateral CA, FFT convolution
+    "io": 6,          # the file-format codecs, atomic writes, figures
+    "methods": 7,     # the samplers
+    "scene": 8,       # scene files, sources, chart, built-in scenes, regions, radiance
+    "render": 9,      # frame, pipeline, run, frame files, manifest, sidecar schema, preview, backends, optics
     # the applications: one layer, they may import one another (without a cycle)
-    "analysis": 9, "calibration": 9, "dataset": 9, "denoise": 9, "emva": 9, "experiments": 9, "isp": 9, "optimise": 9,
-    "pairs": 9, "pairs_torch": 9,
-    "cli": 10,        # the command line and its sub-commands
-    "__main__": 11,   # python -m camsim
+    "analysis": 10, "calibration": 10, "dataset": 10, "denoise": 10, "emva": 10, "experiments": 10, "isp": 10,
+    "optimise": 10, "pairs": 10, "pairs_torch": 10,
+    "cli": 11,        # the command line and its sub-commands
+    "__main__": 12,   # python -m camsim
 }
-LAYER_NAMES = {1: "core", 2: "light", 3: "colour", 4: "sensor", 5: "io", 6: "methods", 7: "scene", 8: "render",
-               9: "applications", 10: "cli", 11: "__main__"}
+LAYER_NAMES = {1: "core", 2: "light", 3: "colour", 4: "sensor", 5: "optics", 6: "io", 7: "methods", 8: "scene",
+               9: "render", 10: "applications", 11: "cli", 12: "__main__"}
 
 #: Package-level import edges allowed to close a cycle, with the reason. Applications are one layer, so one may
 #: import another; this is the one pair that import each other today.

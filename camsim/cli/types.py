@@ -130,6 +130,17 @@ def exposure_setting(param):
     return parse
 
 
+def optics_setting(text: str) -> tuple:
+    """``NAME=VALUE`` for a key of a scene's ``[optics]`` (:func:`camsim.optics.params.optics_setting`)."""
+    from camsim.core.errors import CamsimError
+    from camsim.optics.params import optics_setting as parse
+
+    try:
+        return parse(text)
+    except CamsimError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def sensor_setting(text: str) -> tuple:
     """``NAME=VALUE`` for a sensor parameter (:data:`camsim.sensor.params.SENSOR_PARAMS`), typed by the schema."""
     from camsim.core.errors import CamsimError

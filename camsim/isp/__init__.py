@@ -1,6 +1,6 @@
 """The camera ISP: a camsim frame's numbers developed into an sRGB picture (``camsim develop``, ``camsim.isp``).
 
-An application (layer 9). Stages, each a pure array function (:mod:`camsim.isp.stages`): black level and white
+An application (layer 10). Stages, each a pure array function (:mod:`camsim.isp.stages`): black level and white
 level (:func:`normalise`), white balance (:func:`white_balance_gains`, :func:`apply_white_balance`), demosaicing
 (:func:`demosaic`, :data:`DEMOSAIC_METHODS`: bilinear in camsim's own float32 code, equal to colour-demosaicing's
 within float32 rounding; Malvar 2004 and Menon 2007 colour-demosaicing's), camera → linear sRGB (:func:`srgb_matrix`,

@@ -85,6 +85,8 @@ class FrameInfo:
     device: dict | None = None
     # a sequence's frame (camsim.render.sequence): its keys frame_index, time_s, homography, sequence …, at the top
     sequence: dict | None = None
+    # the scene's [optics] (camsim.render.optics): the table, channel_wavelength_weights, otf_model: the sidecar's "optics"
+    optics: dict | None = None
 
 
 def frame_stem(scene: str, illuminant: str, intensity_factor: float) -> str:
@@ -176,6 +178,7 @@ def sidecar(frame: Frame, info: FrameInfo, files: dict | None, exr_compression: 
         **({"target": info.target} if info.target is not None else {}),
         **({"recovery": info.recovery} if info.recovery is not None else {}),
         **(info.sequence or {}),
+        **({"optics": info.optics} if info.optics is not None else {}),
         # the perfect white (reflectance 1) under the frame's light at this F, in this exposure: the colour white
         **({"white_signal_e": (info.white_signal_e_per_s * info.intensity_factor * sensor.exposure_s).tolist()}
            if info.white_signal_e_per_s is not None else {}),

@@ -299,6 +299,16 @@ def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed:
     lit = light_scene(scene, illuminant, camera) if lit is None else lit
     if lit.illuminant != illuminant:
         raise ValueError(f"scene_frame under {illuminant!r} was given a scene lit by {lit.illuminant!r}")
+    if scene.optics is not None:  # the optics blur the expectation: the frame is drawn per pixel (render.optics)
+        from camsim.render.optics import check_optics_scene, optics_frame
+
+        check_optics_scene(scene)
+        if device != "cpu":
+            raise CamsimError("a scene with [optics] is drawn per pixel on the CPU (--device cpu)")
+        frame, record = optics_frame(lit, frame_sensor(scene, lit, intensity_factor), intensity_factor, scene.optics,
+                                     rng=frame_seed_sequence(seed, illuminant, intensity_factor), workers=workers)
+        info = scene_frame_info(scene, lit, camera.name, intensity_factor, seed, device)
+        return frame, dataclasses.replace(info, method="poisson", optics=record)
     frame = make_frame(lit, frame_sensor(scene, lit, intensity_factor), intensity_factor,
                        statistics=scene.statistics, method=scene.method,
                        rng=frame_seed_sequence(seed, illuminant, intensity_factor), tolerance=scene.tolerance,

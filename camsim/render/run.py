@@ -23,6 +23,10 @@ def check_scene(scene: Scene) -> None:
     """Fail early, before any frame is written, on names that do not resolve (or make unsafe file names:
     :mod:`camsim.core.names`) and sizes that cannot be written. A raw scene is checked by
     :func:`camsim.render.raw_render.check_raw_scene`."""
+    if scene.optics is not None:  # an [optics] table: pixel statistics, no raw scene (camsim.render.optics)
+        from camsim.render.optics import check_optics_scene
+
+        check_optics_scene(scene)
     if scene.source.table == "raw":
         from camsim.render.raw_render import check_raw_scene
 
@@ -78,6 +82,12 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
     dict
         The manifest: per frame of the folder, scene, illuminant, F, seed and file paths relative to ``out_dir``.
     """
+    if scene.optics is not None:  # refused before the folder is touched (camsim.render.optics)
+        from camsim.render.optics import check_optics_scene
+
+        check_optics_scene(scene)
+        if device != "cpu":
+            raise CamsimError("a scene with [optics] is drawn per pixel on the CPU (--device cpu)")
     if scene.sequence is not None:  # frames with camera motion: camsim.render.sequence
         from camsim.render.sequence import check_sequence_scene, render_sequence
 

@@ -153,6 +153,13 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
     height, width = labels.shape
     check_timing(seq, sensor.exposure_s, height)
     static = static_signal_e(labels, expected.signal_e)
+    optics = None
+    if getattr(scene, "optics", None) is not None:  # the lens in front of the static scene (camsim.render.optics)
+        from camsim.render.optics import apply_optics, channel_weights, optics_record
+
+        weights = channel_weights(lit)
+        static = apply_optics(static, scene.optics, lit.grid.wavelengths_nm, weights, workers=workers)
+        optics = {"optics": optics_record(scene.optics, lit.grid.wavelengths_nm, weights)}
     motion = Motion.of(seq, width, height, scene.seed)
     record = seq.record()
     from camsim.sensor.fixed_pattern import fixed_pattern
@@ -162,7 +169,7 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
     ref_noisy = ref_clean if sensor.cfa is None else mosaic_of(ref_clean, sensor.cfa)[None]
     yield "ref", SequenceFrame(np.ascontiguousarray(ref_noisy), None, labels, expected, sensor, None, maps, None,
                                ref_clean), {
-        "sequence_reference": True, "homography": np.eye(3).tolist(), "sequence": record}
+        "sequence_reference": True, "homography": np.eye(3).tolist(), "sequence": record, **(optics or {})}
     for i in range(seq.frames):
         moving = moving_expectation(static, motion, i, sensor.exposure_s, workers)
         source = moving if sensor.cfa is None else mosaic_of(moving, sensor.cfa)[None]
@@ -171,7 +178,7 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
         clean = draw.clean_dn if sensor.cfa is None else expectation_clean_dn(moving, sensor, draw.maps, workers)
         frame = SequenceFrame(draw.noisy_dn, draw.digital_dn, labels, expected, sensor, None, draw.maps,
                               draw.black_level_error_dn, clean)
-        extra = {**sequence_frame_record(motion, i, sensor.exposure_s), "sequence": record}
+        extra = {**sequence_frame_record(motion, i, sensor.exposure_s), "sequence": record, **(optics or {})}
         yield i, frame, extra
 
 

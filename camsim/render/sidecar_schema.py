@@ -151,6 +151,35 @@ def _per_row(value, check, what: str) -> list:
     return value
 
 
+def _optics(value):
+    """A frame made through a scene's ``[optics]`` (:mod:`camsim.render.optics`): the table's keys (checked by its
+    schema, :func:`camsim.optics.params.parse_optics`), ``channel_wavelength_weights`` (``wavelength_nm`` and three
+    rows of weights ≥ 0 on them, each summing to 1) and ``otf_model`` (text)."""
+    from camsim.core.errors import CamsimError
+    from camsim.optics.params import parse_optics
+
+    what = "an object of the [optics] keys, channel_wavelength_weights and otf_model"
+    if not isinstance(value, dict):
+        raise _Bad(what)
+    table = {k: v for k, v in value.items() if k not in ("channel_wavelength_weights", "otf_model")}
+    if table.get("relative_illumination", 0) is None:
+        del table["relative_illumination"]
+    try:
+        parse_optics(table)
+    except CamsimError as exc:
+        raise _Bad(f"{what} ({exc})") from None
+    weights = value.get("channel_wavelength_weights")
+    if not isinstance(weights, dict) or not isinstance(weights.get("wavelength_nm"), list):
+        raise _Bad(f"{what}: channel_wavelength_weights an object of wavelength_nm and weights")
+    count = len(weights["wavelength_nm"])
+    _numbers(weights["wavelength_nm"], count, low=0)
+    rows = _matrix(3, count, low=0)(weights.get("weights"))
+    if any(abs(sum(row) - 1) > 1e-6 for row in rows):
+        raise _Bad(f"{what}: each channel's weights summing to 1")
+    _string(value.get("otf_model"))
+    return value
+
+
 def _surround(value):
     if value is None:
         return None
@@ -215,6 +244,8 @@ FRAME_KEYS = {
     "row_homographies": _optional(lambda v: _per_row(v, _matrix(3, 3), "3 × 3 matrices")),
     "flicker_factor": _optional(lambda v: _number(v, low=0)),
     "flicker_row_factor": _optional(lambda v: _per_row(v, lambda f: _number(f, low=0), "numbers ≥ 0")),
+    # a scene's [optics] (camsim.render.optics): the table, each channel's wavelength weights, the OTF's statement
+    "optics": _optics,
 }
 
 #: The keys with one entry per row of the frame (``height_px`` of them).

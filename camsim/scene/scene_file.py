@@ -31,6 +31,7 @@ from camsim.scene.sources import SOURCES, ChartSource, SceneSource
 from camsim.light.spectra import WavelengthGrid
 
 if TYPE_CHECKING:  # the annotation only: camsim.scene.sequence is imported where a scene has a sequence
+    from camsim.optics.params import OpticsParams
     from camsim.scene.sequence import SequenceParams
 
 STATISTICS = ("pixel", "paper")
@@ -98,6 +99,7 @@ class Scene:
     base_dir: Path | None = None
     regions: tuple = ()
     sequence: SequenceParams | None = None  # a [sequence] table: frames with camera motion (camsim.scene.sequence)
+    optics: OpticsParams | None = None  # an [optics] table: the lens in front of the sensor (camsim.optics)
 
     def __post_init__(self):
         if not isinstance(self.source, SceneSource):
@@ -166,7 +168,7 @@ FRAME_PARAMS = (
 
 _FRAME_PARAMS = {p.name: p for p in FRAME_PARAMS}
 _TOP_KEYS = {"name", "description", "spectral", "light", "frame", "camera", "sensor", "render", "region", "sequence",
-             *SOURCES}
+             "optics", *SOURCES}
 
 
 def _table(doc: dict, key: str, allowed: set, where: str) -> dict:
@@ -212,6 +214,14 @@ def _sequence(table):
     from camsim.scene.sequence import parse_sequence
 
     return parse_sequence(table)
+
+
+def _optics(table):
+    """An ``[optics]`` table's :class:`camsim.optics.params.OpticsParams` (imported here: only scenes with optics
+    need it)."""
+    from camsim.optics.params import parse_optics
+
+    return parse_optics(table)
 
 
 def load_scene(path: str | Path) -> Scene:
@@ -310,5 +320,6 @@ def load_scene(path: str | Path) -> Scene:
         base_dir=base_dir,
         regions=regions,
         sequence=_sequence(doc["sequence"]) if "sequence" in doc else None,
+        optics=_optics(doc["optics"]) if "optics" in doc else None,
         **render,
     )

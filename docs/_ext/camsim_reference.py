@@ -515,6 +515,22 @@ def scene_key_nodes() -> list[nodes.Node]:
     params = params_of(seq_cls)
     sec += param_table(params, extra)
     out.append(sec)
+
+    optics_module = sys.modules.get("camsim.optics.params") or importlib.import_module("camsim.optics.params")
+    sec = section("[optics]", "optics-table")
+    sec += para("The lens in front of the sensor (", literal("camsim.optics"), "), applied to the expected electrons "
+                "before the noise is drawn; also settable on the command line as ", literal("--optics NAME=VALUE"),
+                ". Each stage is switchable: diffraction of a circular pupil per wavelength, defocus (",
+                literal("defocus_waves"), " or ", literal("defocus_um"), "; Hopkins's exact OTF), the 4-spot "
+                "optical low-pass filter, the pixel aperture, vignetting (cos⁴ or a table) and lateral chromatic "
+                "aberration. The frame's sidecar records the table as ", literal("optics"), " with each channel's ",
+                literal("channel_wavelength_weights"), " and the ", literal("otf_model"), " applied.")
+    extra = [[[literal("relative_illumination")], "list of [angle, value] pairs", "deg, —", [literal("none")],
+              "angles from 0, increasing; values > 0",
+              "with vignetting = \"table\": the relative illumination at each field angle, taken relative to the "
+              "value at 0° and interpolated linearly in the angle"]]
+    sec += param_table(optics_module.OPTICS_PARAMS, extra)
+    out.append(sec)
     return out
 
 

@@ -7,10 +7,18 @@ import sys
 from pathlib import Path
 
 from camsim.render.backends import DEVICES
-from camsim.cli.types import exposure_setting, positive_float, positive_int, schema_value, sensor_setting
+from camsim.cli.types import (
+    exposure_setting,
+    optics_setting,
+    positive_float,
+    positive_int,
+    schema_value,
+    sensor_setting,
+)
 from camsim.cli.commands import DEFAULT_OUT, camera_argument, exr_compression_argument, preset_argument
 from camsim.core.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS
+from camsim.optics.params import OPTICS_PARAMS
 from camsim.scene.scene_file import RENDER_PARAMS
 from camsim.sensor.params import SENSOR_PARAMS, STAGES
 
@@ -60,6 +68,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="set any sensor parameter, after the preset and the scene file (repeatable; VALUE as "
                              "in a scene file: 2.5, [1, 2, 3], true, RGGB, none): "
                              + "; ".join(p.help_text() for p in SENSOR_PARAMS).replace("%", "%%"))
+    parser.add_argument("--optics", metavar="NAME=VALUE", type=optics_setting, action="append", default=[],
+                        help="set a key of the scene's [optics] table, after the scene file (repeatable; the first "
+                             "one adds an [optics] table with its defaults to a scene without one; VALUE as in a "
+                             "scene file): " + "; ".join(p.help_text() for p in OPTICS_PARAMS).replace("%", "%%")
+                             + "; relative_illumination: [[angle_deg, value], …] with vignetting = table")
     parser.add_argument("--disable", metavar="STAGE", choices=STAGES, nargs="+", action="extend", default=[],
                         help=f"switch sensor stage(s) off: {', '.join(STAGES)}")
     parser.add_argument("--cfa", choices=_SENSOR["cfa"].choices,
@@ -135,9 +148,29 @@ def apply_overrides(scene, args):
                               "own (an image's can be set with [image] size = [width, height], a raw's with [raw] "
                               "crop = [x, y, width, height])")
         changes["width"], changes["height"] = parse_size(args.size)
+    if getattr(args, "optics", None):
+        changes["optics"] = optics_overrides(scene.optics, args.optics)
     scene = scene.replace(**changes)
     overrides = sensor_overrides(args)
     return scene.with_sensor(**overrides) if overrides else scene
+
+
+def optics_overrides(optics, settings):
+    """The scene's ``[optics]`` (or, where it has none, the table's defaults) with the ``--optics NAME=VALUE``
+    settings in order (a later one wins), checked as a scene file's table is."""
+    import dataclasses
+
+    from camsim.optics.params import OpticsParams, parse_optics
+
+    base = optics if optics is not None else OpticsParams()
+    table = {f.name: getattr(base, f.name) for f in dataclasses.fields(base)}
+    if table["relative_illumination"] is None:
+        del table["relative_illumination"]
+    table["lateral_ca"] = list(table["lateral_ca"])
+    given = dict(settings)
+    if "relative_illumination" not in given and given.get("vignetting", table["vignetting"]) != "table":
+        table.pop("relative_illumination", None)  # the scene's table, left behind by another vignetting
+    return parse_optics(table | given)
 
 
 def sensor_overrides(args) -> dict:

@@ -1,0 +1,469 @@
+"""Optics in front of the sensor (issue 30): energy per stage, cos⁴ at stated field angles, each OTF stage against
+its closed form written here (the DFT of the PSF the code makes, on the grid), Hopkins's defocus against our own
+numerical pupil autocorrelation, the noise after the optics against the exact per-pixel law (χ²), the scene table,
+``--optics`` overrides and one-line errors, the sidecar's record and same seed ⇒ same files."""
+
+import hashlib
+import json
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from camsim.cli import main
+from camsim.core.errors import CamsimError
+from camsim.optics.params import OpticsParams, optics_setting, parse_optics
+from camsim.optics.stages import (
+    channel_otf,
+    convolve_plane,
+    cos4_falloff,
+    defocused_otf,
+    diffraction_otf,
+    field_angle_rad,
+    lens_otf_radial,
+    table_falloff,
+)
+from camsim.render.optics import apply_optics
+
+WAVELENGTHS = np.arange(400.0, 701.0, 10.0)
+
+
+def _closed_diffraction(nu):
+    """(2/π)(acos ν − ν√(1−ν²)), 0 beyond the cut-off (Goodman Eq. 6-32), written independently."""
+    nu = np.asarray(nu, dtype=np.float64)
+    out = np.zeros_like(nu)
+    inside = nu < 1
+    v = nu[inside]
+    out[inside] = 2 / np.pi * (np.arccos(v) - v * np.sqrt(1 - v * v))
+    return out
+
+
+def _mono_weights(wavelength_nm):
+    w = np.zeros((3, WAVELENGTHS.size))
+    w[:, int(np.argmin(np.abs(WAVELENGTHS - wavelength_nm)))] = 1
+    return w
+
+
+def _otf_of(height, width, *, f_number=8.0, pitch=2.0, wavelength=550.0, w020=0.0, diffraction=True,
+            olpf=None, fill=None):
+    """The code's OTF of channel 0 on a (height, width) grid (periodic: no margin)."""
+    from scipy import fft
+
+    step = 1 / 8192
+    rho = np.arange(int(np.sqrt(0.5) / step) + 2) * step
+    radial = lens_otf_radial(rho, WAVELENGTHS, _mono_weights(wavelength), f_number=f_number, pixel_pitch_um=pitch,
+                             diffraction=diffraction, w020_waves_550=w020)
+    return channel_otf(radial[0], step, fft.fftfreq(height), fft.rfftfreq(width), olpf_shift_px=olpf,
+                       fill_factor=fill)
+
+
+def _psf(otf, height, width):
+    """The PSF the convolution applies: a unit impulse at pixel (0, 0) convolved, periodic."""
+    delta = np.zeros((height, width), np.float32)
+    delta[0, 0] = 1
+    return convolve_plane(delta, otf, 0, (height, width), workers=1)
+
+
+# ---------------------------------------------------------------------------------------------------- energy
+
+
+@pytest.mark.parametrize("stage", [dict(), dict(w020=1.5), dict(diffraction=False, olpf=1.0),
+                                   dict(diffraction=False, fill=0.5), dict(olpf=1.3, fill=0.8, w020=0.7)])
+def test_every_blur_stage_conserves_energy_periodic(stage):
+    """The PSF stages redistribute light: on the periodic grid (the padding's convention) the sum of electrons is
+    unchanged to float32 precision."""
+    h, w = 64, 96
+    image = np.random.default_rng(1).gamma(2.0, 300.0, (h, w)).astype(np.float32)
+    out = convolve_plane(image, _otf_of(h, w, **stage), 0, (h, w), workers=1)
+    assert out.sum(dtype=np.float64) == pytest.approx(image.sum(dtype=np.float64), rel=2e-6)
+    assert not np.allclose(out, image)  # (it did blur)
+
+
+def test_frame_energy_away_from_borders_and_a_uniform_field_stays_uniform():
+    """apply_optics with the compact stages on (OLPF, pixel aperture, lateral CA): a blob far from the borders keeps
+    its sum; a uniform frame stays uniform (the reflected margin: nothing wraps around). (The Airy pattern's tails
+    carry light beyond any frame: 1 − EE(r) ≈ 2 λN / (π² r), so its energy is tested on the periodic grid above.)
+    Lateral CA conserves the sum to the accuracy of bilinear resampling (it smooths by t(1 − t)/2 · f'' at phase t):
+    float precision where the phase cycles (m = 1.1, 0.9), about 1e-3 on this blob at m = 1.01."""
+    h, w = 96, 128
+    y, x = np.mgrid[:h, :w]
+    blob = 1000 * np.exp(-((x - 60.3) ** 2 + (y - 47.6) ** 2) / (2 * 6.0**2))
+    planes = np.stack([blob] * 3).astype(np.float32)
+    optics = OpticsParams(f_number=11, pixel_pitch_um=2.0, olpf=True, fill_factor=0.7, diffraction=False,
+                          lateral_ca=(1.1, 1.0, 0.9))
+    weights = np.full((3, WAVELENGTHS.size), 1 / WAVELENGTHS.size)
+    out = apply_optics(planes, optics, WAVELENGTHS, weights, workers=1)
+    for c in range(3):
+        assert out[c].sum(dtype=np.float64) == pytest.approx(planes[c].sum(dtype=np.float64), rel=3e-5)
+    flat = np.full((3, 40, 50), 123.0, np.float32)
+    assert np.allclose(apply_optics(flat, OpticsParams(f_number=11, olpf=True, defocus_waves=1.0), WAVELENGTHS,
+                                    weights, workers=1), 123.0, rtol=1e-5)
+
+
+def test_lateral_ca_magnifies_about_the_centre():
+    """A point's image moves from c + d to c + m·d (our own centroid), its sum kept."""
+    h, w = 81, 101
+    y, x = np.mgrid[:h, :w]
+    blob = np.exp(-((x - 80.0) ** 2 + (y - 20.0) ** 2) / (2 * 2.5**2)).astype(np.float32)
+    planes = np.stack([blob] * 3)
+    optics = OpticsParams(diffraction=False, fill_factor=1.0, lateral_ca=(1.05, 1.0, 0.95))
+    out = apply_optics(planes, optics, WAVELENGTHS, np.full((3, WAVELENGTHS.size), 1 / WAVELENGTHS.size), workers=1)
+    cx, cy = (w - 1) / 2, (h - 1) / 2
+    for c, m in enumerate((1.05, 1.0, 0.95)):
+        total = out[c].sum(dtype=np.float64)
+        assert total == pytest.approx(blob.sum(dtype=np.float64), rel=5e-3)  # bilinear's smoothing, σ = 2.5 px
+        mx, my = (out[c] * x).sum() / total, (out[c] * y).sum() / total
+        assert mx == pytest.approx(cx + m * (80 - cx), abs=0.01) and my == pytest.approx(cy + m * (20 - cy), abs=0.01)
+
+
+# ---------------------------------------------------------------------------------------------------- vignetting
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 5.0, 10.0, 20.0, 30.0, 45.0])
+def test_cos4_at_stated_field_angles(angle_deg):
+    """A pixel r px from the centre with pitch p and focal length f sees θ = atan(r p / f): cos⁴θ to 1e-6, 1 at the
+    centre; a frame's flat field through apply_optics (vignetting alone) follows it."""
+    r, f_mm = 40, 10.0
+    pitch = np.tan(np.radians(angle_deg)) * f_mm * 1e3 / r  # so that pixel r px right of the centre is at θ
+    pitch = max(pitch, 1e-3)
+    theta = field_angle_rad(81, 81, pitch, f_mm)
+    expected = np.cos(np.radians(angle_deg)) ** 4 if angle_deg else 1.0
+    assert cos4_falloff(theta)[40, 40 + r] == pytest.approx(expected, abs=1e-6)
+    assert cos4_falloff(theta)[40, 40] == 1.0
+    flat = np.ones((3, 81, 81), np.float32)
+    optics = OpticsParams(diffraction=False, fill_factor=1.0, vignetting="cos4", focal_length_mm=f_mm,
+                          pixel_pitch_um=pitch)
+    out = apply_optics(flat, optics, WAVELENGTHS, np.full((3, WAVELENGTHS.size), 1 / WAVELENGTHS.size), workers=1)
+    # the 100 % pixel aperture's box blur averages the smooth fall-off over ±½ px: f''/24, second order
+    assert out[0, 40, 40 + r] == pytest.approx(expected, abs=1e-3)
+
+
+def test_relative_illumination_table():
+    table = ((0.0, 2.0), (10.0, 1.8), (30.0, 1.0))
+    assert table_falloff(np.radians([0.0, 5.0, 10.0, 20.0, 40.0]), table) == pytest.approx(
+        [1.0, 0.95, 0.9, 0.7, 0.5], abs=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------------- OTFs
+
+
+def test_diffraction_psf_dft_is_the_airy_otf():
+    """f/8, 2 µm pitch, 550 nm: f_c = 2 / (0.55 · 8) = 0.4545 cy/px, inside the grid. The DFT of the PSF the
+    convolution applies equals (2/π)(acos ν − ν√(1−ν²)), ν = ρ / f_c, zero beyond the cut-off."""
+    h, w = 64, 80
+    psf = _psf(_otf_of(h, w, f_number=8, pitch=2.0, wavelength=550.0, fill=None), h, w)
+    measured = np.fft.rfft2(psf.astype(np.float64))
+    fy, fx = np.fft.fftfreq(h)[:, None], np.fft.rfftfreq(w)[None, :]
+    closed = _closed_diffraction(np.hypot(fy, fx) / (2 / (0.55 * 8)))
+    assert np.abs(measured - closed).max() < 2e-6
+    assert psf.sum() == pytest.approx(1, abs=1e-6) and psf[0, 0] == psf.max()
+
+
+def test_olpf_psf_is_four_spots():
+    """s = 2 px puts the four spots on pixels (±1, ±1): a quarter each, nothing elsewhere (our own PSF)."""
+    h, w = 32, 40
+    psf = _psf(_otf_of(h, w, diffraction=False, olpf=2.0), h, w)
+    expected = np.zeros((h, w))
+    for dy in (-1, 1):
+        for dx in (-1, 1):
+            expected[dy % h, dx % w] = 0.25
+    assert np.abs(psf - expected).max() < 1e-6
+
+
+def test_pixel_aperture_psf_dft_is_the_sinc():
+    h, w = 48, 64
+    ff = 0.36  # side 0.6 px
+    psf = _psf(_otf_of(h, w, diffraction=False, fill=ff), h, w)
+    measured = np.fft.rfft2(psf.astype(np.float64))
+    fy, fx = np.fft.fftfreq(h)[:, None], np.fft.rfftfreq(w)[None, :]
+    closed = np.sinc(0.6 * fy) * np.sinc(0.6 * fx)
+    assert np.abs(measured - closed).max() < 2e-6
+
+
+def _pupil_autocorrelation(nu, w020, n=801):
+    """OTF(ν) of the unit pupil with phase 2π W020 r², by direct summation of the overlap of the pupils shifted
+    by ±ν along x (our own grid quadrature, independent of the code's 1-D integral)."""
+    x = np.linspace(-1, 1, n)
+    X, Y = np.meshgrid(x, x)
+    inside = lambda a, b: (a * a + b * b) <= 1  # noqa: E731
+    plus, minus = X + nu, X - nu
+    overlap = inside(plus, Y) & inside(minus, Y)
+    phase = 2 * np.pi * w020 * ((plus**2 + Y**2) - (minus**2 + Y**2))
+    area = inside(X, Y).sum()
+    return float(np.sum(np.where(overlap, np.cos(phase), 0.0)) / area)
+
+
+@pytest.mark.parametrize("w020", [0.0, 0.25, 1.0, 2.0])
+def test_defocus_otf_against_a_numerical_pupil_autocorrelation(w020):
+    nus = np.array([0.05, 0.2, 0.4, 0.6, 0.8, 0.95])
+    code = defocused_otf(nus, w020)
+    ours = np.array([_pupil_autocorrelation(v, w020) for v in nus])
+    assert np.abs(code - ours).max() < 6e-3  # the 801² grid's error
+    if w020 == 0:
+        assert code == pytest.approx(_closed_diffraction(nus), abs=1e-12)
+    assert defocused_otf(np.array([0.0]), w020)[0] == pytest.approx(1.0, abs=1e-12)
+
+
+def test_defocus_um_is_w020_over_8_n_squared():
+    assert OpticsParams(f_number=4, defocus_um=12.0).w020_waves_550 == pytest.approx(12 / 128 / 0.55)
+    with pytest.raises(CamsimError, match="at most one"):
+        OpticsParams(defocus_um=1.0, defocus_waves=0.5)
+    with pytest.raises(CamsimError, match="needs diffraction = true"):
+        OpticsParams(defocus_waves=0.5, diffraction=False)
+
+
+# ---------------------------------------------------------------------------------------------------- noise
+
+
+def _summed_law(lams, sensor):
+    """The expected histogram of digital numbers of pixels with charges ``lams`` (each its own law,
+    :func:`camsim.sensor.dn_law.dn_pmf`; pixels grouped by λ to 0.1 e⁻, which moves a mean by ≤ 0.05 k DN, a
+    fifth of the test's standard error): (first level, counts)."""
+    from camsim.sensor.dn_law import dn_pmf
+
+    keys, counts = np.unique(np.round(np.asarray(lams, dtype=np.float64), 1), return_counts=True)
+    laws = [dn_pmf(float(lam), sensor.dn_per_electron, sensor.read_noise_e, sensor.full_well_e, sensor.bits,
+                   sensor.pedestal_dn) for lam in keys]
+    first = min(law.first for law in laws)
+    total = np.zeros(max(law.first + law.pmf.size for law in laws) - first)
+    for law, n in zip(laws, counts):
+        total[law.first - first:law.first - first + law.pmf.size] += n * law.pmf
+    return first, total
+
+
+@pytest.mark.parametrize("cfa", [None, "RGGB"])
+def test_noise_after_optics_follows_the_exact_per_pixel_law(cfa):
+    """slanted_edge_lens (f/4, diffraction, OLPF) on flat regions far from the edge: each pixel's charge mean is its
+    clean value / k (no PRNU, DSNU: λ = S̄ + D̄ after the optics — within 2 % of the flat side's own, the rest the
+    Airy pattern's edge-spread tail λN (R − 1) / (π² x) from the other side: 0.8 % at 50 px), and the digital numbers follow the sum of the per-pixel laws
+    (camsim.sensor.dn_law.dn_pmf): χ², and the mean."""
+    from camsim.render.pipeline import scene_frame
+    from camsim.scene.scene_file import load_scene
+    from camsim.sensor.cfa import cfa_sites
+
+    scene = load_scene("slanted_edge_lens").replace(width=240, height=160).with_sensor(
+        prnu_percent=0.0, dsnu_e=0.0, cfa=cfa)
+    frame, info = scene_frame(scene, "D65", 1.0, workers=1)
+    sensor = frame.sensor
+    k = sensor.dn_per_electron
+    assert info.optics is not None and info.method == "poisson"
+    rows = slice(10, 150)
+    for side, cols, label in (("dark", slice(4, 70), 0), ("bright", slice(172, 236), -1)):
+        for c in range(3):
+            own = float(frame.expected.signal_e[label, c] + frame.expected.dark_e[c])
+            lams = frame.clean_dn()[c, rows, cols] / k
+            mask = np.ones(lams.shape, bool)
+            if cfa:
+                mask[:] = False
+                for dy, dx, ch in cfa_sites(cfa):
+                    if ch == c:
+                        mask[(rows.start + dy) % 2::2, (cols.start + dx) % 2::2] = True
+            assert np.all(np.abs(lams[mask] / own - 1) < 0.02), (side, c)
+            values = frame.digital_dn[0 if cfa else c, rows, cols][mask].astype(np.int64)
+            first, expected = _summed_law(lams[mask], sensor)
+            assert values.min() >= first and values.max() < first + expected.size
+            observed = np.bincount(values - first, minlength=expected.size).astype(float)
+            assert _chi2_p_counts(observed, expected) > 1e-4, (side, c)
+            levels = first + np.arange(expected.size)
+            mean = expected @ levels / expected.sum()
+            sd = np.sqrt(expected @ (levels - mean) ** 2 / expected.sum() / values.size)
+            assert abs(values.mean() - mean) < 5 * sd, (side, c)
+
+
+def _chi2_p_counts(observed, expected):
+    """Pearson's χ² p of observed against expected counts, bins expecting fewer than 5 pooled."""
+    obs, exp, o_acc, e_acc = [], [], 0.0, 0.0
+    for o, e in zip(observed, expected):
+        o_acc, e_acc = o_acc + o, e_acc + e
+        if e_acc >= 5:
+            obs.append(o_acc)
+            exp.append(e_acc)
+            o_acc = e_acc = 0.0
+    obs[-1] += o_acc
+    exp[-1] += e_acc
+    obs, exp = np.array(obs), np.array(exp)
+    return float(stats.chi2.sf(np.sum((obs - exp) ** 2 / exp), obs.size - 1))
+
+
+def test_the_edge_is_blurred_as_the_otf_says():
+    """The clean layer across the edge: the optics spread it (10–90 % width grows); the flat levels 50 px from the
+    edge move by the Airy pattern's tails only (at f/16, λN ≈ 2.2 px: a few % of the other side's light)."""
+    from camsim.render.pipeline import scene_frame
+    from camsim.scene.scene_file import load_scene
+
+    sharp = load_scene("slanted_edge").replace(width=120, height=80, intensity_factors=(1.0,))
+    lens = load_scene("slanted_edge_lens").replace(width=120, height=80)
+    lens = lens.replace(optics=parse_optics({"f_number": 16, "olpf": True}))
+    a = scene_frame(sharp, "D65", 1.0, workers=1)[0].clean_dn()[1, 40]
+    b = scene_frame(lens, "D65", 1.0, workers=1)[0].clean_dn()[1, 40]
+
+    def width(row):
+        lo, hi = row[:20].mean(), row[-20:].mean()
+        t = (row - lo) / (hi - lo)
+        return np.sum((t > 0.1) & (t < 0.9))
+
+    assert width(b) > width(a) + 1
+    assert b[:20].mean() == pytest.approx(a[:20].mean(), rel=0.05) and b[-20:].mean() == pytest.approx(
+        a[-20:].mean(), rel=0.05)
+    assert b[:20].mean() > a[:20].mean() and b[-20:].mean() < a[-20:].mean()  # light spread from bright to dark
+
+
+# ---------------------------------------------------------------------------------------------------- table, CLI
+
+
+@pytest.mark.parametrize("table, message", [
+    ({"f_number": 0}, "f_number must be a positive number"),
+    ({"f_number": "f/4"}, "f_number must be a number"),
+    ({"fill_factor": 1.5}, r"fill_factor must be in \(0, 1\]"),
+    ({"vignetting": "lens"}, "vignetting must be one of none, cos4, table"),
+    ({"vignetting": "table"}, "needs relative_illumination"),
+    ({"vignetting": "table", "relative_illumination": [[5, 1], [10, 0.9]]}, "from 0"),
+    ({"vignetting": "table", "relative_illumination": [[0, 1], [10, -1]]}, "positive"),
+    ({"relative_illumination": [[0, 1], [10, 0.9]]}, "applies with vignetting"),
+    ({"lateral_ca": [1, 1]}, "lateral_ca must be"),
+    ({"lateral_ca": [1, 1, 3]}, "within"),
+    ({"aperture": 2}, "unknown key"),
+])
+def test_bad_tables(table, message):
+    with pytest.raises(CamsimError, match=message):
+        parse_optics(table)
+
+
+def test_optics_setting_types_by_the_schema():
+    assert optics_setting("f_number=8") == ("f_number", 8.0)
+    assert optics_setting("olpf=true") == ("olpf", True)
+    assert optics_setting("lateral_ca=[1.001, 1, 0.999]") == ("lateral_ca", [1.001, 1.0, 0.999])
+    assert optics_setting("relative_illumination=[[0, 1], [20, 0.8]]")[1] == ((0.0, 1.0), (20.0, 0.8))
+    with pytest.raises(CamsimError, match="NAME one of"):
+        optics_setting("focal=3")
+
+
+def _digests(folder):
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir())
+            if p.suffix in (".dng", ".exr", ".json")}
+
+
+def test_cli_overrides_sidecar_and_same_seed_same_files(tmp_path, capsys):
+    from camsim.render.sidecar_schema import check_sidecar
+
+    args = ["render", "slanted_edge_lens", "--size", "64x48", "-q", "--optics", "f_number=8",
+            "--optics", "vignetting=cos4", "--optics", "lateral_ca=[1.002, 1, 0.998]", "--sensor", "cfa=RGGB"]
+    assert main(args + ["--out", str(tmp_path / "a")]) == 0
+    assert main(args + ["--out", str(tmp_path / "b")]) == 0
+    a, b = _digests(tmp_path / "a"), _digests(tmp_path / "b")
+    assert a == b and len(a) == 4  # DNG, EXR, JSON, manifest
+    meta = json.loads((tmp_path / "a" / "slanted_edge_lens_D65_F1.json").read_text())
+    check_sidecar(meta, "sidecar")
+    optics = meta["optics"]
+    assert optics["f_number"] == 8.0 and optics["vignetting"] == "cos4" and optics["olpf"] is True
+    assert optics["lateral_ca"] == [1.002, 1.0, 0.998] and optics["diffraction"] is True
+    weights = np.array(optics["channel_wavelength_weights"]["weights"])
+    assert weights.shape == (3, len(meta["wavelengths_nm"])) and np.allclose(weights.sum(axis=1), 1)
+    assert "Hopkins" in optics["otf_model"]
+    # each channel's weights peak where its Qe × D65 does: R at longer wavelengths than B
+    wl = np.array(optics["channel_wavelength_weights"]["wavelength_nm"])
+    assert (weights[0] @ wl) > (weights[1] @ wl) > (weights[2] @ wl)
+    # a scene without [optics] gets one from --optics; without it, no optics record (today's files unchanged)
+    assert main(["render", "slanted_edge", "--size", "64x48", "-F", "1", "-q", "--optics", "olpf=true",
+                 "--out", str(tmp_path / "c")]) == 0
+    assert json.loads((tmp_path / "c" / "slanted_edge_D65_F1.json").read_text())["optics"]["olpf"] is True
+    assert main(["render", "slanted_edge", "--size", "64x48", "-F", "1", "-q", "--out", str(tmp_path / "d")]) == 0
+    assert "optics" not in json.loads((tmp_path / "d" / "slanted_edge_D65_F1.json").read_text())
+    bad = dict(meta, optics=dict(optics, f_number=-1))
+    with pytest.raises(CamsimError, match="optics"):
+        check_sidecar(bad, "sidecar")
+
+
+@pytest.mark.parametrize("option, message", [
+    ("f_number=-2", "f_number must be a positive number"),
+    ("fill_factor=2", "fill_factor must be in"),
+    ("wobble=1", "NAME one of"),
+    ("vignetting=table", "needs relative_illumination"),
+    ("relative_illumination=[[0, 1], [5]]", "relative_illumination"),
+])
+def test_cli_bad_values_are_one_line_exit_2(tmp_path, capsys, option, message):
+    out = tmp_path / "o"
+    assert main(["render", "slanted_edge_lens", "--size", "64x48", "-q", "--optics", option,
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("camsim: error: ") and err.count("\n") == 1 and message in err, err
+    assert not out.exists()
+
+
+def test_scene_file_optics_and_refusals(tmp_path, capsys):
+    path = tmp_path / "s.toml"
+    from camsim.scene.builtin_scenes import builtin_scene_path
+
+    text = builtin_scene_path("slanted_edge_lens").read_text()
+    path.write_text(text.replace('statistics = "pixel"', 'statistics = "paper"'))
+    assert main(["render", str(path), "--size", "64x48", "-q", "--out", str(tmp_path / "p")]) == 2
+    assert "statistics = 'pixel'" in capsys.readouterr().err and not (tmp_path / "p").exists()
+    path.write_text(text.replace("olpf = true", "olpf = 1"))
+    assert main(["render", str(path), "-q", "--out", str(tmp_path / "q")]) == 2
+    assert "olpf must be true or false" in capsys.readouterr().err
+    path.write_text(text.replace("fill_factor = 1.0", "fill_factor = 1.0\nzoom = 2"))
+    assert main(["render", str(path), "-q", "--out", str(tmp_path / "r")]) == 2
+    assert "unknown key(s): zoom" in capsys.readouterr().err
+
+
+def test_colour_edge_approximation_is_measured():
+    """tools/optics_colour_edge.py: one PSF per channel against the per-wavelength reference. A grey edge (one
+    spectral shape) has no approximation error; a red | blue edge has one of order 1 % at f/8 (the figure the docs
+    state)."""
+    import importlib.util
+
+    from tests.helpers import ROOT
+
+    spec = importlib.util.spec_from_file_location("optics_colour_edge", ROOT / "tools" / "optics_colour_edge.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    grey = tool.colour_edge_difference(8.0, left="grey0.2", right="grey0.8", size=(24, 48))
+    assert np.all(grey["max_rel_pixel"] < 2e-5)
+    colour = tool.colour_edge_difference(8.0, left="red", right="blue", size=(24, 48))
+    assert np.all(colour["max_rel_pixel"] > 1e-3) and np.all(colour["max_rel_pixel"] < 0.05)
+    assert all(abs(x - 24) <= 6 for x in colour["where_px"])  # at the edge
+
+
+def test_a_sequence_sees_the_scene_through_the_optics():
+    """With [sequence] and [optics], the optics blur the static scene before the motion: the reference's clean layer
+    is the optics frame's expectation (camsim render without the sequence), and every sidecar records the optics."""
+    from camsim.render.pipeline import light_scene, scene_frame
+    from camsim.render.sequence import render_sequence_frames
+    from camsim.scene.scene_file import load_scene
+    from camsim.scene.sequence import SequenceParams
+
+    scene = load_scene("slanted_edge_lens").replace(width=64, height=48).with_sensor(exposure_s=0.01)
+    scene = scene.replace(optics=parse_optics({"f_number": 11, "olpf": True}))
+    lit = light_scene(scene, "D65")
+    still, _ = scene_frame(scene, "D65", 1.0, lit=lit, workers=1)
+    seq = scene.replace(sequence=SequenceParams(frames=1, frame_interval_s=0.02, pan_px_per_s=(10.0, 0.0)))
+    (_, ref, ref_extra), (_, _, extra) = render_sequence_frames(seq, lit, seq.sensor, 1.0, workers=1)
+    assert np.array_equal(ref.clean_dn(), still.clean_dn())
+    assert ref_extra["optics"]["f_number"] == 11.0 and extra["optics"]["olpf"] is True
+
+
+@pytest.mark.parametrize("table, message", [
+    ({"defocus_waves": 1e9}, "beyond"),
+    ({"defocus_um": -1e9}, "beyond"),
+    ({"olpf_shift_px": 1e9}, "at most 64"),
+    ({"f_number": float("inf")}, "finite"),
+])
+def test_hostile_values_are_one_line(table, message):
+    with pytest.raises(CamsimError, match=message):
+        parse_optics(table)
+
+
+def test_extreme_lenses_stay_bounded():
+    """A huge f-number blurs a frame to its mean (OTF 0 but at f = 0), a tiny one leaves it as it is; a large defocus
+    keeps the margin within the frame's size; a 1-pixel-wide frame is blurred along its length only."""
+    rng = np.random.default_rng(5)
+    planes = rng.random((3, 20, 30)).astype(np.float32)
+    weights = np.full((3, WAVELENGTHS.size), 1 / WAVELENGTHS.size)
+    wide = apply_optics(planes, OpticsParams(f_number=1e6), WAVELENGTHS, weights, workers=1)
+    assert np.allclose(wide, wide.mean(axis=(1, 2), keepdims=True), atol=1e-4)
+    sharp = apply_optics(planes, OpticsParams(f_number=1e-6, fill_factor=1e-12), WAVELENGTHS, weights, workers=1)
+    assert np.allclose(sharp, planes, atol=1e-5)
+    defocused = apply_optics(planes, OpticsParams(defocus_waves=20), WAVELENGTHS, weights, workers=1)
+    assert np.all(np.isfinite(defocused))
+    line = apply_optics(planes[:, :, :1], OpticsParams(f_number=16), WAVELENGTHS, weights, workers=1)
+    assert line.shape == (3, 20, 1) and np.all(np.isfinite(line))
