@@ -380,7 +380,7 @@ def check_region(region_xywh, width: int, height: int, where: str = "") -> tuple
     return x, y, w, h
 
 
-def target_region(target: dict, width: int, height: int, margin_px: int = 48) -> tuple:
+def target_region(target: dict, width: int, height: int, margin_px: int = 24) -> tuple:
     """The region of a slanted-edge target's frame (the sidecar's ``target`` record) to measure: the central 80 %
     of the rows (of the columns, for an edge beyond 45°... never: the target's angle is within ±45° of vertical),
     and the columns the edge crosses there, widened by ``margin_px`` on each side, within the frame.

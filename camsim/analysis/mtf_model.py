@@ -26,6 +26,7 @@ wavelength (``channel_wavelength_weights``, each channel's sum 1).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -83,6 +84,11 @@ def w020_from_focus_shift(defocus_um: float, f_number: float) -> float:
     return defocus_um / (8 * f_number ** 2) / DEFOCUS_REFERENCE_UM
 
 
+@functools.lru_cache(maxsize=2)
+def _gauss_legendre(n: int):
+    return np.polynomial.legendre.leggauss(n)
+
+
 def pupil_otf(nu, w020_waves: float) -> np.ndarray:
     """The OTF of a circular pupil with defocus, exactly: Hopkins' integral of the pupil's autocorrelation.
 
@@ -109,7 +115,7 @@ def pupil_otf(nu, w020_waves: float) -> np.ndarray:
     nu = np.clip(np.abs(np.asarray(nu, dtype=np.float64)), 0.0, 1.0)
     if w020_waves == 0:
         return (2 / np.pi) * (np.arccos(nu) - nu * np.sqrt(1 - nu * nu))
-    nodes, weights = np.polynomial.legendre.leggauss(_QUADRATURE_NODES)
+    nodes, weights = _gauss_legendre(_QUADRATURE_NODES)
     top = np.arccos(nu)[..., None]
     phi = 0.5 * top * (nodes + 1)  # nodes on [0, acos ν]
     integrand = np.cos(8 * np.pi * w020_waves * nu[..., None] * (np.cos(phi) - nu[..., None])) * np.sin(phi) ** 2
