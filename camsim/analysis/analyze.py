@@ -186,12 +186,12 @@ def _frame_mtf(frame: LoadedFrame, edge_region) -> dict | None:
 
     if not wants_mtf(frame.meta, edge_region):
         return None
-    clean = None
-    if frame.source == "exr":
-        from camsim.io.exr import read_exr_clean
-
-        clean, _ = read_exr_clean(frame.path)
     try:
+        clean = None
+        if frame.source == "exr":
+            from camsim.io.exr import read_exr_clean
+
+            clean, _ = read_exr_clean(frame.path)
         return measure_frame_mtf(frame.pixels_dn, frame.meta, edge_region, clean, str(frame.path),
                                  "dng" if frame.quantised else "noisy")
     except CamsimError as exc:
