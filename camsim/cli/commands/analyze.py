@@ -1,4 +1,5 @@
-"""``camsim analyze``: measure the patches of rendered frames (statistics, chromaticity ellipses, ΔE, SNR)."""
+"""``camsim analyze``: measure the patches of rendered frames (statistics, chromaticity ellipses, ΔE, SNR) and the
+slanted-edge MTF."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add ``analyze`` and its options to ``subparsers``; returns its parser."""
     parser = subparsers.add_parser(
         "analyze",
-        help="measure patches of rendered frames: statistics, chromaticity ellipses, ΔE, SNR",
+        help="measure patches of rendered frames: statistics, chromaticity ellipses, ΔE, SNR; slanted-edge MTF",
         description=(
             "Measure every patch of every frame (DNG + sidecar, or EXR) in the given files and folders: per-channel "
             "mean, variance and standard deviation in DN and e⁻, the xy chromaticity ellipse (PCA, 1 σ), ΔE_ab by "
@@ -28,6 +29,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "sequence of N ≥ 2) also get their temporal and spatial noise separated (EMVA 1288: the pixels' variance over the frames, "
             "the mean image's variance less temporal / N), per patch and for the whole frame, against the model's: "
             "OUT/temporal.csv. "
+            "Frames with a slanted edge (a slanted-edge target's sidecar, or --edge-region) also get their edge-SFR "
+            "per channel (ISO 12233:2017 e-SFR; a Bayer colour on its own sites) beside the closed-form MTF of the "
+            "sidecar's optics: OUT/mtf.csv (channel, frequency_cy_per_px, mtf_measured, mtf_model), MTF50 and MTF "
+            "at Nyquist in analysis.json and the table, and OUT/mtf.png. "
             "Folders give their committed frames only (the sidecar, written last, names the file); other frame "
             "files there are ignored with one warning per folder, hidden files silently. A bad file (unreadable, "
             "truncated, foreign, a compressed DNG, a missing or mismatched sidecar, a sidecar value of the wrong "
