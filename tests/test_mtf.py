@@ -301,6 +301,28 @@ def test_the_model_column_follows_the_sidecars_optics_record(edge_frames, tmp_pa
     assert record["optics_otf_model"] == "written by the test"
 
 
+@pytest.mark.parametrize("key, value, message", [
+    ("target", {"kind": "slanted-edge", "centre_xy": [80, 400], "normal_xy": [0.0, 1.0]}, "target record needs"),
+    ("optics", {"f_number": -4, "pixel_pitch_um": 4.0}, "optics f_number must be"),
+])
+def test_a_bad_record_is_a_warning_and_the_rest_is_analysed(edge_frames, tmp_path, capsys, key, value, message):
+    folder = tmp_path / "f"
+    folder.mkdir()
+    for suffix in (".dng", ".json"):
+        (folder / f"e{suffix}").write_bytes((edge_frames / "three" / f"slanted_edge_D65_F1{suffix}").read_bytes())
+    meta = json.loads((folder / "e.json").read_text())
+    meta["files"] = [name.replace("slanted_edge_D65_F1", "e") for name in meta.get("files", [])]
+    meta[key] = value
+    (folder / "e.json").write_text(json.dumps(meta))
+    capsys.readouterr()
+    assert main(["analyze", str(folder / "e.dng"), "--out", str(tmp_path / "a"), "-q", "--no-figures"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("camsim: warning: no MTF:") and message in err[0]
+    assert not (tmp_path / "a" / "mtf.csv").exists()
+    record = json.loads((tmp_path / "a" / "analysis.json").read_text())["frames"][0]
+    assert message in record["mtf"]["error"] and record["patches"]
+
+
 def test_edge_region_outside_the_frame_is_one_line_exit_2(edge_frames, tmp_path, capsys):
     frame = edge_frames / "three" / "slanted_edge_D65_F1.dng"
     capsys.readouterr()
