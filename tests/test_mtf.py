@@ -242,6 +242,8 @@ def edge_frames(tmp_path_factory):
     out = tmp_path_factory.mktemp("edge")
     assert main(["render", str(SCENES / "slanted_edge.toml"), "--size", "160x800", "--intensity", "1", "-q",
                  "--out", str(out / "three")]) == 0
+    assert main(["render", str(SCENES / "slanted_edge.toml"), "--size", "160x800", "--intensity", "1", "-q",
+                 "--cfa", "RGGB", "--out", str(out / "bayer")]) == 0
     return out
 
 
@@ -276,6 +278,22 @@ def test_analyze_writes_mtf_csv_of_a_rendered_slanted_edge(edge_frames, tmp_path
                  "--no-figures"]) == 0
     assert {r["channel"] for r in _rows(tmp_path / "e" / "mtf.csv")} == {"R", "G", "B", "R_clean", "G_clean",
                                                                           "B_clean"}
+
+
+def test_analyze_measures_a_rendered_bayer_frame_per_colour(edge_frames, tmp_path):
+    """The RGGB frame: each colour on its own sites within 0.03 of the pixel box up to Nyquist; MTF50 within 3 %
+    (red and blue have a quarter of the sites: their SFR is noisier than a three-chip frame's)."""
+    frame = edge_frames / "bayer" / "slanted_edge_D65_F1.dng"
+    assert main(["analyze", str(frame), "--out", str(tmp_path / "a"), "-q", "--no-figures"]) == 0
+    rows = _rows(tmp_path / "a" / "mtf.csv")
+    record = json.loads((tmp_path / "a" / "analysis.json").read_text())["frames"][0]["mtf"]
+    assert "own sites" in record["method"]
+    for channel in record["channels"]:
+        f = np.array([float(r["frequency_cy_per_px"]) for r in rows if r["channel"] == channel["channel"]])
+        m = np.array([float(r["mtf_measured"]) for r in rows if r["channel"] == channel["channel"]])
+        model = pixel_box_mtf(f, 5.0)
+        assert np.max(np.abs(m - model)[f <= 0.5]) < 0.03
+        assert channel["mtf50_cy_per_px"] == pytest.approx(M.mtf50(f, model), rel=0.03)
 
 
 def test_the_model_column_follows_the_sidecars_optics_record(edge_frames, tmp_path):
