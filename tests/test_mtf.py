@@ -198,15 +198,15 @@ def _record(**changes):
 
 
 def test_a_channels_model_is_its_stages_product_along_the_normal():
-    """With one wavelength per channel: (2/π)(acos ν − ν√(1−ν²)) × cos(π f nx) cos(π f ny) × the pixel box, written
-    out here; a fill factor adds its box of side √ff."""
+    """With one wavelength per channel: (2/π)(acos ν − ν√(1−ν²)) × cos(π f nx) cos(π f ny) × the aperture's box of
+    side √ff × the target's pixel box, written out here (the renderer applies the aperture at every ff, 1 too)."""
     f = np.linspace(0, 1, 101)
     n = (math.cos(0.1), -math.sin(0.1))
     nu = np.clip(f * 0.65 * 4 / 4, 0, 1)  # red: λ = 0.65 µm, f_c = 4 / (0.65 · 4)
     airy = (2 / np.pi) * (np.arccos(nu) - nu * np.sqrt(1 - nu ** 2))
     olpf = np.cos(np.pi * f * n[0]) * np.cos(np.pi * f * n[1])
     box = np.sinc(f * n[0]) * np.sinc(f * n[1])
-    assert np.allclose(MM.channel_mtf(f, n, _record(), 0), np.abs(airy * olpf * box), atol=1e-12)
+    assert np.allclose(MM.channel_mtf(f, n, _record(), 0), np.abs(airy * olpf * box * box), atol=1e-12)
     half = np.sinc(f * n[0] * math.sqrt(0.5)) * np.sinc(f * n[1] * math.sqrt(0.5))
     assert np.allclose(MM.channel_mtf(f, n, _record(fill_factor=0.5), 0), np.abs(airy * olpf * box * half),
                        atol=1e-12)
@@ -298,7 +298,8 @@ def test_analyze_measures_a_rendered_bayer_frame_per_colour(edge_frames, tmp_pat
 
 def test_the_model_column_follows_the_sidecars_optics_record(edge_frames, tmp_path):
     """A sidecar with an optics record (written here) fills mtf_model with its closed form along the measured
-    normal: one wavelength per channel, diffraction × OLPF × the pixel box, written out in the test."""
+    normal: one wavelength per channel, diffraction × OLPF × the aperture (ff = 1) × the target's pixel box,
+    written out in the test."""
     folder = tmp_path / "f"
     folder.mkdir()
     for suffix in (".dng", ".json"):
@@ -314,7 +315,7 @@ def test_the_model_column_follows_the_sidecars_optics_record(edge_frames, tmp_pa
     f = np.array([float(r["frequency_cy_per_px"]) for r in rows])
     nu = np.clip(f * 0.45 * 4 / 4, 0, 1)  # blue: λ = 0.45 µm
     expected = np.abs((2 / np.pi) * (np.arccos(nu) - nu * np.sqrt(1 - nu ** 2)) * np.cos(np.pi * f * nx)
-                      * np.cos(np.pi * f * ny) * np.sinc(f * nx) * np.sinc(f * ny))
+                      * np.cos(np.pi * f * ny) * (np.sinc(f * nx) * np.sinc(f * ny)) ** 2)
     assert np.allclose([float(r["mtf_model"]) for r in rows], expected, atol=1e-9)
     assert record["optics_otf_model"] == "written by the test"
 

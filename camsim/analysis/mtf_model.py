@@ -15,8 +15,9 @@ Stages (the sidecar's ``optics`` record, contract of issue 30):
   :func:`defocus_otf`; the product "diffraction OTF × geometric blur disk" is only an approximation
   (:func:`defocus_product_otf`, its distance from the exact one in :func:`product_approximation_error`);
 * the birefringent 4-spot OLPF, spots at (±s/2, ±s/2) px with equal weights: OTF cos(π fx s)·cos(π fy s);
-* a square pixel aperture of side √ff px: sinc(√ff fx)·sinc(√ff fy) (applied only where ff < 1: the full pixel's
-  box is already the source's own sampling);
+* a square pixel aperture of side √ff px: sinc(√ff fx)·sinc(√ff fy), at every fill factor (the renderer applies
+  it to the frame, whose pixels already integrate the scene where the source does: with ff = 1 the target's edge
+  carries the one-pixel box twice, once as its own sampling and once as the aperture stage);
 * the source's own sampling: the slanted-edge target holds each pixel's exact bright area fraction, a box of one
   pixel: sinc(fx)·sinc(fy) (numpy's sinc, sin(πx)/(πx)).
 
@@ -40,7 +41,8 @@ _QUADRATURE_NODES = 256
 #: The channels' names, in the order of the optics record's weights.
 CHANNELS = ("R", "G", "B")
 #: The one-line statement of this module's model (the figure's and the summary's caption).
-MODEL_STATEMENT = ("MTF_c(f) = |sum_l w_c(l) OTF_pupil(f; l) * OLPF(f) * aperture(f) * sinc(f n_x) sinc(f n_y)|, "
+MODEL_STATEMENT = ("MTF_c(f) = |sum_l w_c(l) OTF_pupil(f; l) * OLPF(f) * sinc(sqrt(ff) f n_x) sinc(sqrt(ff) f n_y) * "
+                   "sinc(f n_x) sinc(f n_y) [the target's sampling]|, "
                    "OTF_pupil = Hopkins' defocused pupil autocorrelation (the Airy OTF without defocus), along the "
                    "edge normal n")
 
@@ -265,6 +267,5 @@ def channel_mtf(f_cy_per_px, normal_xy, optics: dict | None, channel: int, sourc
         otf = otf * pupil / max(float(np.sum(record["_weights"][channel])), np.finfo(float).tiny)
     if record.get("olpf"):
         otf = otf * olpf_otf(fx, fy, record["olpf_shift_px"])
-    if record["fill_factor"] < 1:
-        otf = otf * box_otf(fx, fy, math.sqrt(record["fill_factor"]))
+    otf = otf * box_otf(fx, fy, math.sqrt(record["fill_factor"]))
     return np.abs(otf)
