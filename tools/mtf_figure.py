@@ -3,9 +3,10 @@
 Renders SCENE (default: ``camsim/scenes/slanted_edge_lens.toml`` where it exists — the slanted edge behind an f/4
 lens with diffraction and OLPF —, else ``slanted_edge.toml``, the bare target) at F = 1 and ``--size``, measures it
 with ``camsim analyze`` (its e-SFR per channel beside the model of the sidecar's optics record) and copies the
-figure to ``--png`` (default ``docs/mtf_slanted_edge.png``); prints the MTF50 and MTF at Nyquist per channel::
+figure to ``--png`` (default ``docs/mtf_<scene file's stem>.png``: the guide's ``docs/mtf_slanted_edge_lens.png`` and
+``docs/mtf_slanted_edge.png``); prints the MTF50 and MTF at Nyquist per channel::
 
-    python tools/mtf_figure.py [SCENE] [--size 400x800] [--png docs/mtf_slanted_edge.png]
+    python tools/mtf_figure.py [SCENE] [--size 400x800] [--png FILE]
 """
 
 from __future__ import annotations
@@ -28,8 +29,10 @@ def run(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scene", nargs="?", default=str(lens if lens.exists() else lens.with_name("slanted_edge.toml")))
     parser.add_argument("--size", default="400x800")
-    parser.add_argument("--png", type=Path, default=ROOT / "docs" / "mtf_slanted_edge.png")
+    parser.add_argument("--png", type=Path)
     args = parser.parse_args(argv)
+    if args.png is None:
+        args.png = ROOT / "docs" / f"mtf_{Path(args.scene).stem}.png"
     with tempfile.TemporaryDirectory() as tmp:
         frames, out = Path(tmp) / "frames", Path(tmp) / "analysis"
         if main(["render", args.scene, "--size", args.size, "--intensity", "1", "--illuminant", "D65", "-q",
