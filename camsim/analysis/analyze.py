@@ -406,8 +406,9 @@ def summary(results, settings: AnalysisSettings, skipped=(), uncommitted=()) -> 
         if "mtf" in result:  # the curves are mtf.csv's; analysis.json holds the summary
             result = result | {"mtf": {k: v for k, v in result["mtf"].items() if k != "curves"}}
         frames.append(result | {"counts": counts})
+    region = {"edge_region_xywh": list(settings.edge_region)} if settings.edge_region is not None else {}
     return {"settings": {"border_px": settings.border_px, "black_subtraction": settings.black,
-                         "camera_to_xyz": settings.matrix}, "totals": totals, "skipped": list(skipped),
+                         "camera_to_xyz": settings.matrix, **region}, "totals": totals, "skipped": list(skipped),
             "uncommitted": list(uncommitted), "frames": frames}
 
 
