@@ -41,7 +41,8 @@ def gaussian_edge(width, height, angle_deg, sigma_px):
 
 
 def pixel_box_mtf(f, angle_deg):
-    """The MTF along the edge normal of a one-pixel box (the target's exact-area pixels): sinc(f cos θ)·sinc(f sin θ)."""
+    """The MTF along the edge normal of a one-pixel box (the target's exact-area pixels):
+    sinc(f cos θ)·sinc(f sin θ)."""
     theta = math.radians(angle_deg)
     return np.abs(np.sinc(f * math.cos(theta)) * np.sinc(f * math.sin(theta)))
 

@@ -640,7 +640,8 @@ def mtf_figure(record: dict, path, title: str = "") -> None:
             ax.plot(f, [r["mtf_measured"] for r in rows], color=colour, lw=1.4,
                     label=f"{ch['channel']} measured" + (f" (MTF50 {m50:.3f})" if m50 is not None else ""))
             if rows and rows[0]["mtf_model"] is not None:
-                ax.plot(f, [r["mtf_model"] for r in rows], color=colour, lw=1.0, ls="--", label=f"{ch['channel']} model")
+                ax.plot(f, [r["mtf_model"] for r in rows], color=colour, lw=1.0, ls="--",
+                        label=f"{ch['channel']} model")
         ax.axvline(0.5, color="0.5", lw=0.8, ls=":")
         ax.axhline(0.5, color="0.8", lw=0.6)
         ax.set(xlim=(0, F_MAX_CY_PER_PX), ylim=(0, 1.1), xlabel="frequency (cycles / pixel)", ylabel="MTF",
