@@ -21,7 +21,8 @@ transposed):
    bins (none in a good region). It is oriented dark → bright.
 4. **ESF → LSF** by the derivative [−½, 0, +½], a **Hamming window** centred on the LSF's centroid, the **DFT**,
    its modulus normalised at zero frequency, and the **derivative's correction**: divided by the central
-   difference's own transfer function sinc(2 f Δ) (Δ = ¼ px; ``sfrmat3``'s ``fir2fix``), at most 10×.
+   difference's own transfer function, exactly sinc(2 f Δ) = sin(2π f Δ) / (2π f Δ) (Δ = ¼ px; the standard's
+   correction, as ``sfrmat3``'s ``fir2fix``, which states it with its own frequency indexing), at most 10×.
 
 Frequencies are cycles per sensor pixel along the edge normal; the SFR is reported up to 1 cy/px (twice Nyquist).
 The ¼-px binning itself blurs the ESF by a box of ¼ px (samples anywhere in a bin count at its centre): an MTF
