@@ -72,6 +72,10 @@ def check_settings(path: Path, meta: dict, settings: AnalysisSettings, dark: Dar
             raise CamsimError(f"a border of {settings.border_px} px (--border) leaves patch {index} "
                               f"'{patch['name']}' ({w}x{h} px) of {path} empty: it allows at most "
                               f"{max((min(w, h) - least) // 2, 0)} px")
+    if settings.edge_region is not None:
+        from camsim.analysis.mtf import check_region
+
+        check_region(settings.edge_region, meta["width_px"], meta["height_px"], f"{path}: ")
     if dark is not None:
         layout = f"{meta.get('width_px')}x{meta.get('height_px')} {meta.get('cfa_pattern') or 'three-chip'}"
         if layout != dark.layout():
@@ -157,6 +161,7 @@ def measure_frame(frame: LoadedFrame, settings: AnalysisSettings, black: np.ndar
     frame_black = frame.expected_black_dn() if settings.black == "none" else black
     problems: list[str] = []
     statistics = frame_statistics(frame, frame_black, problems)
+    mtf = _frame_mtf(frame, settings.edge_region)
     return {
         "frame_file": str(frame.path),
         "source": frame.source,
@@ -170,7 +175,27 @@ def measure_frame(frame: LoadedFrame, settings: AnalysisSettings, black: np.ndar
         "patches": patches,
         "frame_statistics": statistics,
         "unreadable_exr": problems[0] if problems else None,  # its EXR, there but unreadable: no residual
+        **({"mtf": mtf} if mtf is not None else {}),
     }
+
+
+def _frame_mtf(frame: LoadedFrame, edge_region) -> dict | None:
+    """The e-SFR record of a frame (:func:`camsim.analysis.mtf.measure_frame_mtf`; an EXR's clean layer measured
+    too), ``{"error": why}`` where it cannot be measured, None for a frame without an edge to measure."""
+    from camsim.analysis.mtf import measure_frame_mtf, wants_mtf
+
+    if not wants_mtf(frame.meta, edge_region):
+        return None
+    try:
+        clean = None
+        if frame.source == "exr":
+            from camsim.io.exr import read_exr_clean
+
+            clean, _ = read_exr_clean(frame.path)
+        return measure_frame_mtf(frame.pixels_dn, frame.meta, edge_region, clean, str(frame.path),
+                                 "dng" if frame.quantised else "noisy")
+    except CamsimError as exc:
+        return {"error": str(exc)}
 
 
 def non_finite(value, where: str = "") -> str | None:
@@ -273,6 +298,8 @@ def analyse(paths, settings: AnalysisSettings | None = None, source="dng", dark_
                 raise CamsimError(f"{path}: its sidecar's values give a measurement that is not finite ({where}); "
                                   "values out of range?")
             results.append(result)
+            if result.get("mtf", {}).get("error"):
+                report.note(f"no MTF: {result['mtf']['error']}")
             if result["unreadable_exr"]:
                 report.note(f"measured {path} without its residual noisy − clean: {result['unreadable_exr']}")
         except CamsimError as exc:
@@ -283,6 +310,8 @@ def analyse(paths, settings: AnalysisSettings | None = None, source="dng", dark_
         report.frame_done()
     if not results:
         raise report.failure(paths)
+    if settings.edge_region is not None and all("error" in r["mtf"] for r in results):
+        raise CamsimError(f"no MTF measured: {results[0]['mtf']['error']}")
     return Analysis(results, report.skipped, report.uncommitted)
 
 
@@ -374,9 +403,12 @@ def summary(results, settings: AnalysisSettings, skipped=(), uncommitted=()) -> 
             counts["snr_undefined"] += sum(ch["snr_status"] != "ok" for ch in patch["channels"])
         for key in totals:
             totals[key] += counts[key]
+        if "mtf" in result:  # the curves are mtf.csv's; analysis.json holds the summary
+            result = result | {"mtf": {k: v for k, v in result["mtf"].items() if k != "curves"}}
         frames.append(result | {"counts": counts})
+    region = {"edge_region_xywh": list(settings.edge_region)} if settings.edge_region is not None else {}
     return {"settings": {"border_px": settings.border_px, "black_subtraction": settings.black,
-                         "camera_to_xyz": settings.matrix}, "totals": totals, "skipped": list(skipped),
+                         "camera_to_xyz": settings.matrix, **region}, "totals": totals, "skipped": list(skipped),
             "uncommitted": list(uncommitted), "frames": frames}
 
 
@@ -430,13 +462,15 @@ def write_outputs(results, settings, out_dir: Path, skipped=(), uncommitted=(), 
     and, with ``figures``, the PNG figures (:func:`camsim.experiments.figures.analysis_figures`). With ``temporal``
     rows (:func:`camsim.analysis.temporal.analyse_sequences`), also ``out_dir/temporal.csv``, their records under
     ``temporal`` in ``analysis.json`` and their columns in ``README.txt``; without, every file is as before.
+    Frames with an MTF record (a slanted edge: :mod:`camsim.analysis.mtf`) also get ``out_dir/mtf.csv`` (one frame;
+    several: ``mtf_<frame stem>.csv`` each) and, with ``figures``, ``mtf.png`` (measured beside the model).
 
     Returns
     -------
     csv_path, json_path : pathlib.Path
         ``analysis.csv`` and ``analysis.json``.
     figure_files : list of str
-        The figures' file names in ``out_dir`` (empty without ``figures`` or without patches).
+        The figures' file names in ``out_dir`` (empty without ``figures``, or without patches and edges).
     """
     from camsim.analysis.columns import guide_text
 
@@ -444,6 +478,7 @@ def write_outputs(results, settings, out_dir: Path, skipped=(), uncommitted=(), 
     csv_path, json_path = out_dir / CSV_NAME, out_dir / SUMMARY_NAME
     write_text_atomic(csv_path, csv_text(tidy_rows(results)))
     write_text_atomic(out_dir / FRAME_CSV_NAME, csv_text(frame_rows(results), FRAME_COLUMNS + FRAME_STAT_COLUMNS))
+    mtf_files = _write_mtf(results, out_dir, figures)
     document = summary(results, settings, skipped, uncommitted)
     if temporal:
         from camsim.analysis.temporal import TEMPORAL_COLUMNS, TEMPORAL_CSV_NAME
@@ -456,5 +491,59 @@ def write_outputs(results, settings, out_dir: Path, skipped=(), uncommitted=(), 
         from camsim.experiments.figures import analysis_figures
 
         names = list(analysis_figures(results, out_dir).values())
-    write_text_atomic(out_dir / GUIDE_NAME, guide_text(names, temporal=bool(temporal)))
-    return csv_path, json_path, names
+    write_text_atomic(out_dir / GUIDE_NAME, guide_text(names, temporal=bool(temporal), mtf=mtf_files))
+    return csv_path, json_path, names + [name for name in mtf_files if name.endswith(".png")]
+
+
+def mtf_file_stems(results) -> dict:
+    """The file stem of each measured frame's MTF files, by result index: ``mtf`` for the only one, else
+    ``mtf_<frame stem>`` (``_2``, ``_3`` … where stems repeat)."""
+    measured = [i for i, r in enumerate(results) if "curves" in r.get("mtf", {})]
+    if len(measured) == 1:
+        return {measured[0]: "mtf"}
+    stems, seen = {}, set()
+    for i in measured:
+        stem, n = f"mtf_{Path(results[i]['frame_file']).stem}", 1
+        while (stem if n == 1 else f"{stem}_{n}") in seen:
+            n += 1
+        stems[i] = stem if n == 1 else f"{stem}_{n}"
+        seen.add(stems[i])
+    return stems
+
+
+def _write_mtf(results, out_dir: Path, figures: bool) -> list[str]:
+    """Each measured frame's ``mtf.csv`` (:data:`camsim.analysis.mtf.MTF_COLUMNS`) and, with ``figures``, its
+    ``mtf.png``; the files' names go into the frame's ``mtf`` record. Returns the names written."""
+    from camsim.analysis.mtf import MTF_COLUMNS, mtf_figure
+
+    names = []
+    for i, stem in mtf_file_stems(results).items():
+        record = results[i]["mtf"]
+        write_text_atomic(out_dir / f"{stem}.csv", csv_text(record["curves"], MTF_COLUMNS))
+        record["csv"] = f"{stem}.csv"
+        names.append(record["csv"])
+        if figures:
+            mtf_figure(record, out_dir / f"{stem}.png", Path(results[i]["frame_file"]).name)
+            record["figure"] = f"{stem}.png"
+            names.append(record["figure"])
+    return names
+
+
+def mtf_lines(results) -> list[str]:
+    """The printed table of the slanted-edge SFRs: one line per frame × channel (MTF50 and MTF at Nyquist,
+    measured and model) and the warnings."""
+    lines = []
+    fmt = lambda v, spec: "—" if v is None else format(v, spec)  # noqa: E731
+    for result in results:
+        record = result.get("mtf")
+        if record is None or "channels" not in record:
+            continue
+        if not lines:
+            lines.append(f"{'frame (slanted-edge SFR)':44s} {'ch':8s} {'angle °':>7s} {'MTF50 cy/px':>11s} "
+                         f"{'model':>7s} {'MTF@Nyq':>8s} {'model':>7s}")
+        for ch in record["channels"]:
+            lines.append(f"{Path(result['frame_file']).name[:44]:44s} {ch['channel']:8s} {ch['angle_deg']:7.2f} "
+                         f"{fmt(ch['mtf50_cy_per_px'], '11.4f')} {fmt(ch['model_mtf50_cy_per_px'], '7.4f')} "
+                         f"{ch['mtf_nyquist']:8.4f} {fmt(ch['model_mtf_nyquist'], '7.4f')}")
+            lines += [f"  warning: {w}" for w in ch["warnings"]]
+    return lines

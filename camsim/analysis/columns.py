@@ -175,9 +175,27 @@ TEMPORAL_DEFINITION = (
 CSV_COLUMNS = {"analysis.csv": ANALYSIS_COLUMNS, "frame_statistics.csv": FRAME_STATISTICS_COLUMNS}
 
 
-def guide_text(figures=(), temporal: bool = False) -> str:
+#: What ``mtf.csv`` measures (:mod:`camsim.analysis.mtf`).
+MTF_DEFINITION = ("The slanted-edge SFR (ISO 12233:2017 e-SFR) of each channel in the edge's region (the sidecar's "
+                  "slanted-edge target, or --edge-region): the edge fitted per row, the pixels projected on its normal "
+                  "into quarter-pixel bins, the edge spread's derivative Hamming-windowed and Fourier transformed. A "
+                  "Bayer frame's colours are each measured on their own sites; an EXR's clean layer is measured too "
+                  "(channels R_clean, G_clean, B_clean). MTF50 and the MTF at Nyquist are in analysis.json (mtf).")
+#: The columns of ``mtf.csv``.
+MTF_COLUMNS = {
+    "channel": "R, G, B (the DNG's numbers or the EXR's noisy layer); R_clean, G_clean, B_clean (the EXR's clean "
+               "layer)",
+    "frequency_cy_per_px": "spatial frequency along the edge normal, cycles per sensor pixel (Nyquist 0.5)",
+    "mtf_measured": "the measured SFR, 1 at frequency 0",
+    "mtf_model": "the closed-form MTF from the sidecar's optics record (diffraction / defocus per wavelength weighted "
+                 "by the channel, OLPF, pixel aperture, the target's own pixel sampling); empty without optics",
+}
+
+
+def guide_text(figures=(), temporal: bool = False, mtf=()) -> str:
     """The companion text of the CSVs (``OUT/README.txt``): SNR, ΔE, the flags, every column of each CSV (with
-    ``temporal``, also of ``temporal.csv``) and the figures written (file names)."""
+    ``temporal``, also of ``temporal.csv``; with ``mtf``, the MTF files' names, also of ``mtf.csv``) and the figures
+    written (file names)."""
     lines = ["camsim analyze: what the files hold", "",
              "SNR", "  " + SNR_DEFINITION, "",
              "ΔE at low light", "  " + DELTA_E_AT_LOW_LIGHT, "",
@@ -190,6 +208,11 @@ def guide_text(figures=(), temporal: bool = False) -> str:
     if temporal:
         lines += ["", "temporal.csv (one row per sequence × region × channel)", "  " + TEMPORAL_DEFINITION]
         lines += [f"  {name}: {text}" for name, text in TEMPORAL_COLUMNS.items()]
+    if mtf:
+        lines += ["", "mtf.csv (one row per channel × frequency; several edge frames: mtf_<frame stem>.csv each)",
+                  "  " + MTF_DEFINITION]
+        lines += [f"  {name}: {text}" for name, text in MTF_COLUMNS.items()]
+        lines += ["  files: " + ", ".join(mtf)]
     if figures:
         lines += ["", "Figures (per scene, light and camera: *_xy.png the CIE 1931 xy diagram with pixel samples "
                       "and 1 σ noise ellipses at representative F and the camera black point (a star); "

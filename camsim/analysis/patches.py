@@ -30,11 +30,15 @@ class AnalysisSettings:
         dark frame's mean.
     matrix : str
         Camera → XYZ method (``camsim.colour.colorimetry.CAMERA_TO_XYZ_METHODS``).
+    edge_region : tuple of int or None
+        (x, y, w, h) pixels of a slanted edge whose SFR every frame gets (:mod:`camsim.analysis.mtf`); None: only
+        frames whose sidecar records a slanted-edge target, in the target's region.
     """
 
     border_px: int = 3
     black: str = "none"
     matrix: str = "paper"
+    edge_region: tuple | None = None
 
     def __post_init__(self):
         if self.black not in BLACK_MODES:
