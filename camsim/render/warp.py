@@ -11,12 +11,29 @@ average; a flickering light's share of each sub-interval). ``bilinear`` is betwe
 at integer coordinates, x the column, y the row); a point outside the image is **clamped** to the nearest edge pixel
 (the scene beyond the frame continues its edge). Coordinates are float32 (at 4000 px, steps of 2.4e-4 px); an
 affine inverse (last row 0, 0, 1) skips the perspective division.
+
+Two implementations of the one law, which agree to float32 rounding (``tests/test_warp.py``):
+
+- **compiled** (numba, the default where numba can be imported): one nogil kernel per row block makes one pass per
+  output pixel over all sub-samples, with the numpy path's float32 coordinate arithmetic, clamping and bilinear
+  order (so the two agree to float32 rounding, in practice bit for bit). Compiled on first use, once per process
+  (numba is imported then, not with camsim; no on-disk cache, as :mod:`camsim.isp.fused`); the row blocks run on
+  camsim's threads, and the result does not depend on their number.
+- **numpy** (:func:`warp_bilinear`, one sub-sample over a row block at a time): the reference, and the fallback
+  where numba cannot be imported (``average_warp(..., compiled=False)`` asks for it).
 """
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
+from camsim.core.errors import CamsimError
+
+#: What :func:`warp_path` says of each implementation.
+COMPILED_PATH = "compiled (numba: one pass per output pixel over all sub-samples)"
+NUMPY_PATH = "numpy (one pass per sub-sample)"
 #: Pixels of a warp block: a block's temporaries stay small (in cache, no fresh pages) and blocks run on threads.
 WARP_BLOCK_PIXELS = 2**16
 
@@ -102,8 +119,130 @@ def _is_identity(inverses: np.ndarray) -> bool:
     return bool(np.all(inverses == np.eye(3)))
 
 
+_LOCK = threading.Lock()
+_STATE: dict = {}
+
+
+def _build():
+    """Compile the kernel (numba imported here). Returns it."""
+    import numba
+
+    jit = numba.njit(cache=False, nogil=True, fastmath=False, error_model="numpy", boundscheck=False)
+
+    @jit
+    def warp_rows(pixels, coef, affine, identity, weights, out, r0, r1):
+        """``out[r0:r1]`` = Σ_s weights[s, r] · pixels(H⁻¹[s, r] p) (module docstring): one pass per output pixel
+        over the sub-samples, in their order, in float32 as :func:`warp_bilinear` (the same operations on the same
+        values, so the same roundings). ``coef`` (S, 1|H, 9) float32 the inverses' entries row by row, ``affine``
+        (S, 1|H) bool, ``identity`` (S,) bool, ``weights`` (S, 1|H) float32; ``out`` zero on entry."""
+        height, width, channels = pixels.shape
+        samples = coef.shape[0]
+        per_row = coef.shape[1] > 1
+        weight_rows = weights.shape[1] > 1
+        zero = np.float32(0.0)
+        x_max = np.float32(width - 1)
+        y_max = np.float32(height - 1)
+        ix_max = max(width - 2, 0)
+        iy_max = max(height - 2, 0)
+        step_x = 1 if width > 1 else 0
+        step_y = 1 if height > 1 else 0
+        three = channels == 3
+        b = np.empty((samples, 3), dtype=np.float32)  # the row's a_i1 · y + a_i2
+        a = np.empty((samples, 3), dtype=np.float32)  # the row's a_i0
+        w = np.empty(samples, dtype=np.float32)
+        flat = np.empty(samples, dtype=np.bool_)  # affine
+        for r in range(r0, r1):
+            y = np.float32(r)
+            for s in range(samples):
+                k = r if per_row else 0
+                for i in range(3):
+                    a[s, i] = coef[s, k, 3 * i]
+                    b[s, i] = coef[s, k, 3 * i + 1] * y + coef[s, k, 3 * i + 2]
+                flat[s] = affine[s, k]
+                w[s] = weights[s, r if weight_rows else 0]
+            row = out[r]
+            for x in range(width):
+                xf = np.float32(x)
+                acc0 = acc1 = acc2 = zero  # three channels: the sums in registers (the same order as in row)
+                for s in range(samples):
+                    ws = w[s]
+                    if identity[s]:
+                        if three:
+                            acc0 += pixels[r, x, 0] * ws
+                            acc1 += pixels[r, x, 1] * ws
+                            acc2 += pixels[r, x, 2] * ws
+                        else:
+                            for c in range(channels):
+                                row[x, c] += pixels[r, x, c] * ws
+                        continue
+                    qx = a[s, 0] * xf + b[s, 0]
+                    qy = a[s, 1] * xf + b[s, 1]
+                    if not flat[s]:
+                        h = a[s, 2] * xf + b[s, 2]
+                        qx = qx / h
+                        qy = qy / h
+                    # clamp to the image (a NaN, from a singular inverse, to 0), then the cell and its fractions
+                    qx = qx if qx > zero else zero
+                    qx = qx if qx < x_max else x_max
+                    qy = qy if qy > zero else zero
+                    qy = qy if qy < y_max else y_max
+                    ix = min(int(qx), ix_max)
+                    iy = min(int(qy), iy_max)
+                    fx = qx - np.float32(ix)
+                    fy = qy - np.float32(iy)
+                    jx, jy = ix + step_x, iy + step_y
+                    if three:
+                        p, q = pixels[iy, ix, 0], pixels[jy, ix, 0]
+                        top = p + (pixels[iy, jx, 0] - p) * fx
+                        bottom = q + (pixels[jy, jx, 0] - q) * fx
+                        acc0 += (top + (bottom - top) * fy) * ws
+                        p, q = pixels[iy, ix, 1], pixels[jy, ix, 1]
+                        top = p + (pixels[iy, jx, 1] - p) * fx
+                        bottom = q + (pixels[jy, jx, 1] - q) * fx
+                        acc1 += (top + (bottom - top) * fy) * ws
+                        p, q = pixels[iy, ix, 2], pixels[jy, ix, 2]
+                        top = p + (pixels[iy, jx, 2] - p) * fx
+                        bottom = q + (pixels[jy, jx, 2] - q) * fx
+                        acc2 += (top + (bottom - top) * fy) * ws
+                    else:
+                        for c in range(channels):
+                            p, q = pixels[iy, ix, c], pixels[jy, ix, c]
+                            top = p + (pixels[iy, jx, c] - p) * fx
+                            bottom = q + (pixels[jy, jx, c] - q) * fx
+                            row[x, c] += (top + (bottom - top) * fy) * ws
+                if three:
+                    row[x, 0] = acc0
+                    row[x, 1] = acc1
+                    row[x, 2] = acc2
+
+    return {"warp_rows": warp_rows, "numba": numba.__version__}
+
+
+def warp_kernels() -> dict | None:
+    """The compiled kernel (compiled on the first call in a process), or None where numba cannot be imported."""
+    with _LOCK:
+        if "kernels" not in _STATE:
+            try:
+                _STATE["kernels"] = _build()
+            except ImportError as exc:
+                _STATE["kernels"], _STATE["why"] = None, str(exc)
+        return _STATE["kernels"]
+
+
+def warp_path(compiled: bool | None = None) -> str:
+    """Which implementation :func:`average_warp` takes with ``compiled``: :data:`COMPILED_PATH` or
+    :data:`NUMPY_PATH` (``None``: the compiled one where numba can be imported)."""
+    if compiled is False:
+        return NUMPY_PATH
+    if warp_kernels() is None:
+        if compiled:
+            raise CamsimError(f"the compiled warp needs numba, which cannot be imported ({_STATE.get('why')})")
+        return NUMPY_PATH
+    return COMPILED_PATH
+
+
 def average_warp(pixels: np.ndarray, inverses: np.ndarray, weights: np.ndarray, *,
-                 workers: int | None = None) -> np.ndarray:
+                 workers: int | None = None, compiled: bool | None = None) -> np.ndarray:
     """Σ_s weights[s, r] · pixels(H⁻¹[s, r] p) at every pixel p = (x, r) (module docstring).
 
     Parameters
@@ -117,6 +256,10 @@ def average_warp(pixels: np.ndarray, inverses: np.ndarray, weights: np.ndarray, 
     workers : int, optional
         Threads over row blocks (default: every core). The result does not depend on it: each block sums its
         sub-samples in order.
+    compiled : bool, optional
+        The implementation (module docstring): None (default) the compiled kernel where numba can be imported,
+        else numpy; False numpy; True the compiled kernel (a CamsimError without numba). The two agree to float32
+        rounding.
 
     Returns
     -------
@@ -131,7 +274,8 @@ def average_warp(pixels: np.ndarray, inverses: np.ndarray, weights: np.ndarray, 
     weights = np.asarray(weights, dtype=np.float64)
     height, width = pixels.shape[:2]
     samples = inverses.shape[0]
-    if inverses.shape[2:] != (3, 3) or inverses.shape[1] not in (1, height) or weights.shape[0] != samples \
+    if inverses.ndim != 4 or weights.ndim != 2 or inverses.shape[2:] != (3, 3) \
+            or inverses.shape[1] not in (1, height) or weights.shape[0] != samples \
             or weights.shape[1] not in (1, height):
         raise ValueError(f"average_warp: inverses {inverses.shape} and weights {weights.shape} do not fit "
                          f"{samples} sub-samples of {height} rows")
@@ -139,21 +283,32 @@ def average_warp(pixels: np.ndarray, inverses: np.ndarray, weights: np.ndarray, 
     out = np.zeros_like(pixels)
     rows = max(1, WARP_BLOCK_PIXELS // width)
 
-    def block(r0: int) -> None:
-        r1 = min(height, r0 + rows)
-        for s in range(samples):
-            weight = weights[s, 0] if weights.shape[1] == 1 else weights[s, r0:r1]
-            if identity[s]:
-                w = np.asarray(weight, dtype=np.float32)
-                out[r0:r1] += pixels[r0:r1] * (w[:, None, None] if w.ndim else w)
-            else:
-                inverse = _row_coefficients(inverses[s], r0, r1)
-                warp_bilinear(pixels, inverse[0] if inverse.shape[0] == 1 else inverse, out[r0:r1], weight,
-                              rows=(r0, r1))
+    if warp_path(compiled) == COMPILED_PATH:
+        kernel = _STATE["kernels"]["warp_rows"]
+        coef = np.ascontiguousarray(inverses.astype(np.float32).reshape(samples, inverses.shape[1], 9))
+        affine = np.ascontiguousarray((inverses[..., 2, 0] == 0) & (inverses[..., 2, 1] == 0)
+                                      & (inverses[..., 2, 2] == 1))
+        identity_flags = np.array(identity, dtype=np.bool_)
+        weights32 = np.ascontiguousarray(weights.astype(np.float32))
+
+        def block(r0: int) -> None:
+            kernel(pixels, coef, affine, identity_flags, weights32, out, r0, min(height, r0 + rows))
+    else:
+        def block(r0: int) -> None:
+            r1 = min(height, r0 + rows)
+            for s in range(samples):
+                weight = weights[s, 0] if weights.shape[1] == 1 else weights[s, r0:r1]
+                if identity[s]:
+                    w = np.asarray(weight, dtype=np.float32)
+                    out[r0:r1] += pixels[r0:r1] * (w[:, None, None] if w.ndim else w)
+                else:
+                    inverse = _row_coefficients(inverses[s], r0, r1)
+                    warp_bilinear(pixels, inverse[0] if inverse.shape[0] == 1 else inverse, out[r0:r1], weight,
+                                  rows=(r0, r1))
 
     starts = range(0, height, rows)
     workers = default_workers() if workers is None else max(1, int(workers))
-    if workers == 1:
+    if workers == 1 or len(starts) == 1:
         for r0 in starts:
             block(r0)
     else:
