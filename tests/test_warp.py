@@ -111,6 +111,9 @@ def test_kernel_and_numpy_agree_to_float32_rounding(case):
     reference = warp.average_warp(pixels, inverses, weights, compiled=False)
     ulp = np.spacing(np.float32(np.abs(reference).max()))
     assert np.max(np.abs(compiled - reference)) <= 4 * ulp
+    for path, channels_last in ((True, compiled), (False, reference)):  # channels first: the same values
+        planar = warp.average_warp(pixels, inverses, weights, compiled=path, planar=True)
+        assert planar.flags.c_contiguous and np.array_equal(planar, np.moveaxis(channels_last, -1, 0))
 
 
 def test_the_result_does_not_depend_on_the_workers(monkeypatch):

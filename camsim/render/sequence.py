@@ -60,19 +60,24 @@ def static_signal_e(labels: np.ndarray, signal_e: np.ndarray) -> np.ndarray:
 
 
 def moving_expectation(signal_e: np.ndarray, motion: Motion, frame: int, exposure_s: float,
-                       workers: int | None = None) -> np.ndarray:
+                       workers: int | None = None, *, pixels: np.ndarray | None = None) -> np.ndarray:
     """Frame ``frame``'s expected signal electrons (3, H, W) float32: the mean of S̄(H(t)⁻¹ p) over the
     sub-sample times of its exposure (:meth:`camsim.scene.sequence.Motion.subsample_times`), bilinear, clamped at
     the edges (:func:`camsim.render.warp.average_warp`, on ``workers`` threads; the result does not depend on
-    them). Unit: e⁻."""
+    them). ``pixels``: S̄ channels last, (H, W, 3) float32 C-contiguous (:func:`channels_last`), made once for all
+    the frames of a sequence (default: made here). Unit: e⁻."""
     from camsim.render.warp import average_warp
 
     times = motion.subsample_times(frame, exposure_s)
     inverses = np.array([np.linalg.inv(motion.homography(float(t), frame)) for t in times])[:, None]
     weights = np.full((len(times), 1), 1 / len(times))
-    pixels = np.ascontiguousarray(np.moveaxis(signal_e, 0, -1), dtype=np.float32)
-    out = average_warp(pixels, inverses, weights, workers=workers)
-    return np.ascontiguousarray(np.moveaxis(out, -1, 0))
+    pixels = channels_last(signal_e) if pixels is None else pixels
+    return average_warp(pixels, inverses, weights, workers=workers, planar=True)
+
+
+def channels_last(signal_e: np.ndarray) -> np.ndarray:
+    """S̄ (3, H, W) as the warp reads it: (H, W, 3) float32, C-contiguous (a copy)."""
+    return np.ascontiguousarray(np.moveaxis(signal_e, 0, -1), dtype=np.float32)
 
 
 def frame_digits(frames: int) -> int:
@@ -110,8 +115,10 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
     yield "ref", SequenceFrame(np.ascontiguousarray(ref_noisy), None, labels, expected, sensor, None, maps, None,
                                ref_clean), {
         "sequence_reference": True, "homography": np.eye(3).tolist(), "sequence": record}
+    pixels = channels_last(static) if seq.moves else None  # once for every frame
     for i in range(seq.frames):
-        moving = moving_expectation(static, motion, i, sensor.exposure_s, workers) if seq.moves else static
+        moving = moving_expectation(static, motion, i, sensor.exposure_s, workers, pixels=pixels) if seq.moves \
+            else static
         source = moving if sensor.cfa is None else mosaic_of(moving, sensor.cfa)[None]
         rng = frame_seed_sequence(scene.seed, f"{lit.illuminant}/f{i}", intensity_factor)
         draw = render_expectation_frame(source, sensor, rng=rng, workers=workers)

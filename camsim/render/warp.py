@@ -130,11 +130,12 @@ def _build():
     jit = numba.njit(cache=False, nogil=True, fastmath=False, error_model="numpy", boundscheck=False)
 
     @jit
-    def warp_rows(pixels, coef, affine, identity, weights, out, r0, r1):
-        """``out[r0:r1]`` = Σ_s weights[s, r] · pixels(H⁻¹[s, r] p) (module docstring): one pass per output pixel
-        over the sub-samples, in their order, in float32 as :func:`warp_bilinear` (the same operations on the same
-        values, so the same roundings). ``coef`` (S, 1|H, 9) float32 the inverses' entries row by row, ``affine``
-        (S, 1|H) bool, ``identity`` (S,) bool, ``weights`` (S, 1|H) float32; ``out`` zero on entry."""
+    def warp_rows(pixels, coef, affine, identity, weights, out, planar, r0, r1):
+        """Rows r0:r1 of Σ_s weights[s, r] · pixels(H⁻¹[s, r] p) (module docstring) written into ``out``, (H, W, C),
+        or (C, H, W) where ``planar``: one pass per output pixel over the sub-samples, in their order, in float32 as
+        :func:`warp_bilinear` (the same operations on the same values from 0, so the same roundings). ``coef``
+        (S, 1|H, 9) float32 the inverses' entries row by row, ``affine`` (S, 1|H) bool, ``identity`` (S,) bool,
+        ``weights`` (S, 1|H) float32."""
         height, width, channels = pixels.shape
         samples = coef.shape[0]
         per_row = coef.shape[1] > 1
@@ -151,6 +152,7 @@ def _build():
         a = np.empty((samples, 3), dtype=np.float32)  # the row's a_i0
         w = np.empty(samples, dtype=np.float32)
         flat = np.empty(samples, dtype=np.bool_)  # affine
+        acc = np.empty(channels, dtype=np.float32)  # a pixel's sums (more or fewer than three channels)
         for r in range(r0, r1):
             y = np.float32(r)
             for s in range(samples):
@@ -160,10 +162,10 @@ def _build():
                     b[s, i] = coef[s, k, 3 * i + 1] * y + coef[s, k, 3 * i + 2]
                 flat[s] = affine[s, k]
                 w[s] = weights[s, r if weight_rows else 0]
-            row = out[r]
             for x in range(width):
                 xf = np.float32(x)
-                acc0 = acc1 = acc2 = zero  # three channels: the sums in registers (the same order as in row)
+                acc0 = acc1 = acc2 = zero  # three channels: the sums in registers
+                acc[:] = zero
                 for s in range(samples):
                     ws = w[s]
                     if identity[s]:
@@ -173,7 +175,7 @@ def _build():
                             acc2 += pixels[r, x, 2] * ws
                         else:
                             for c in range(channels):
-                                row[x, c] += pixels[r, x, c] * ws
+                                acc[c] += pixels[r, x, c] * ws
                         continue
                     qx = a[s, 0] * xf + b[s, 0]
                     qy = a[s, 1] * xf + b[s, 1]
@@ -209,11 +211,15 @@ def _build():
                             p, q = pixels[iy, ix, c], pixels[jy, ix, c]
                             top = p + (pixels[iy, jx, c] - p) * fx
                             bottom = q + (pixels[jy, jx, c] - q) * fx
-                            row[x, c] += (top + (bottom - top) * fy) * ws
+                            acc[c] += (top + (bottom - top) * fy) * ws
                 if three:
-                    row[x, 0] = acc0
-                    row[x, 1] = acc1
-                    row[x, 2] = acc2
+                    acc[0], acc[1], acc[2] = acc0, acc1, acc2
+                if planar:
+                    for c in range(channels):
+                        out[c, r, x] = acc[c]
+                else:
+                    for c in range(channels):
+                        out[r, x, c] = acc[c]
 
     return {"warp_rows": warp_rows, "numba": numba.__version__}
 
@@ -242,7 +248,7 @@ def warp_path(compiled: bool | None = None) -> str:
 
 
 def average_warp(pixels: np.ndarray, inverses: np.ndarray, weights: np.ndarray, *,
-                 workers: int | None = None, compiled: bool | None = None) -> np.ndarray:
+                 workers: int | None = None, compiled: bool | None = None, planar: bool = False) -> np.ndarray:
     """Σ_s weights[s, r] · pixels(H⁻¹[s, r] p) at every pixel p = (x, r) (module docstring).
 
     Parameters
@@ -260,10 +266,13 @@ def average_warp(pixels: np.ndarray, inverses: np.ndarray, weights: np.ndarray, 
         The implementation (module docstring): None (default) the compiled kernel where numba can be imported,
         else numpy; False numpy; True the compiled kernel (a CamsimError without numba). The two agree to float32
         rounding.
+    planar : bool
+        Return the channels first, (C, H, W) C-contiguous (the compiled kernel writes them so; the numpy path
+        copies).
 
     Returns
     -------
-    numpy.ndarray, shape (H, W, C), float32
+    numpy.ndarray, shape (H, W, C), or (C, H, W) where ``planar``, float32
     """
     from concurrent.futures import ThreadPoolExecutor
 
@@ -280,20 +289,23 @@ def average_warp(pixels: np.ndarray, inverses: np.ndarray, weights: np.ndarray, 
         raise ValueError(f"average_warp: inverses {inverses.shape} and weights {weights.shape} do not fit "
                          f"{samples} sub-samples of {height} rows")
     identity = [_is_identity(inverses[s]) for s in range(samples)]
-    out = np.zeros_like(pixels)
     rows = max(1, WARP_BLOCK_PIXELS // width)
 
-    if warp_path(compiled) == COMPILED_PATH:
+    is_compiled = warp_path(compiled) == COMPILED_PATH
+    if is_compiled:
         kernel = _STATE["kernels"]["warp_rows"]
         coef = np.ascontiguousarray(inverses.astype(np.float32).reshape(samples, inverses.shape[1], 9))
         affine = np.ascontiguousarray((inverses[..., 2, 0] == 0) & (inverses[..., 2, 1] == 0)
                                       & (inverses[..., 2, 2] == 1))
         identity_flags = np.array(identity, dtype=np.bool_)
         weights32 = np.ascontiguousarray(weights.astype(np.float32))
+        out = np.empty((pixels.shape[2], height, width) if planar else pixels.shape, dtype=np.float32)
 
-        def block(r0: int) -> None:
-            kernel(pixels, coef, affine, identity_flags, weights32, out, r0, min(height, r0 + rows))
+        def block(r0: int) -> None:  # every value of the rows written
+            kernel(pixels, coef, affine, identity_flags, weights32, out, planar, r0, min(height, r0 + rows))
     else:
+        out = np.zeros_like(pixels)
+
         def block(r0: int) -> None:
             r1 = min(height, r0 + rows)
             for s in range(samples):
@@ -314,4 +326,6 @@ def average_warp(pixels: np.ndarray, inverses: np.ndarray, weights: np.ndarray, 
     else:
         with ThreadPoolExecutor(max_workers=workers) as pool:
             list(pool.map(block, starts))
+    if planar and not is_compiled:  # the numpy path's: a copy
+        out = np.ascontiguousarray(np.moveaxis(out, -1, 0))
     return out
