@@ -4,7 +4,9 @@ Renders, in one process and on the same scene (``--scene``, default the dead-lea
 static frame as ``camsim render`` draws it (:func:`camsim.render.pipeline.scene_frame`, the scene lit beforehand)
 and then ``--frames`` frames of a ``[sequence]`` with shake (:func:`camsim.render.sequence.render_sequence_frames`:
 the per-pixel expectation along the path, the draw, the clean layer), and prints the seconds of each, the ratio
-and where a sequence frame's time goes. No files are written (their cost is the same for both). Usage::
+and where a sequence frame's time goes. No files are written (their cost is the same for both). The warp
+(:func:`camsim.render.warp.average_warp`) is compiled before the timings (its one-off compile time printed apart),
+and one frame's warp is timed on both paths, numpy and compiled, in the same run. Usage::
 
     python tools/bench_sequence.py [--size 4000x3000] [--frames 16] [--shake-px 1] [--workers N]
 """
@@ -12,6 +14,7 @@ and where a sequence frame's time goes. No files are written (their cost is the 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 
@@ -42,8 +45,7 @@ def main(argv=None) -> None:
     scene = load_scene(ROOT / "camsim" / "scenes" / f"{args.scene}.toml")
     scene = scene.replace(width=width, height=height, intensity_factors=(1.0,)).with_sensor(
         cfa="RGGB", exposure_s=args.exposure)
-    scene = scene.replace(sequence=SequenceParams(frames=args.frames, frame_interval_s=args.interval,
-                                                  shake_px=args.shake_px, shake_deg=args.shake_deg))
+    scene = scene.replace(sequence=SequenceParams(**sequence_options(args)))
     illuminant = scene.illuminants[0]
     lit = light_scene(scene, illuminant)
     sensor = frame_sensor(scene, lit, 1.0)
@@ -56,6 +58,9 @@ def main(argv=None) -> None:
         static_s.append(time.perf_counter() - t0)
         del frame
     static_s = min(static_s)
+
+    compile_s = _compile_warp()
+    warp_s = _warp_paths(scene, lit, sensor, args.workers)
 
     parts = {"expectation": 0.0, "draw": 0.0, "clean": 0.0}
     wrapped = {}
@@ -86,14 +91,75 @@ def main(argv=None) -> None:
     for name, original in wrapped.items():
         setattr(seqmod, name, original)
     per_frame = frames_s / args.frames
+    load = os.getloadavg()
     print(f"{args.scene} {width}x{height} Bayer RGGB, shake {args.shake_px} px / {args.shake_deg} deg per interval, "
           f"T = {args.exposure} s, {args.frames} frames, sub-samples per exposure {np.mean(subsamples):.1f} "
-          f"(min {min(subsamples)}, max {max(subsamples)})")
+          f"(min {min(subsamples)}, max {max(subsamples)}); {os.cpu_count()} cores, workers "
+          f"{args.workers or 'all'}, load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
     print(f"static frame (scene_frame + clean layer, the faster of two): {static_s:.2f} s")
+    if warp_s is not None:
+        samples, numpy_s, compiled_s = warp_s
+        print(f"warp of one frame ({samples} sub-samples, the faster of two): numpy {numpy_s:.2f} s "
+              f"({numpy_s / samples:.3f} s per sub-sample), compiled {compiled_s:.2f} s "
+              f"({compiled_s / samples:.3f} s per sub-sample): {numpy_s / compiled_s:.1f}x; compiling it "
+              f"{compile_s:.2f} s once per process (not in the figures)")
+    else:
+        print("warp: numba cannot be imported, the numpy path only")
     print(f"sequence: reference {ref_s:.2f} s once; per frame {per_frame:.2f} s "
           f"(expectation along the path {parts['expectation'] / args.frames:.2f} s, draw "
           f"{parts['draw'] / args.frames:.2f} s, clean layer {parts['clean'] / args.frames:.2f} s)")
     print(f"ratio per frame / static: {per_frame / static_s:.2f}")
+
+
+def sequence_options(args) -> dict:
+    """The benchmark's ``[sequence]`` (SequenceParams' keyword arguments) from the command line: the one place a
+    new option of the table goes."""
+    return {"frames": args.frames, "frame_interval_s": args.interval, "shake_px": args.shake_px,
+            "shake_deg": args.shake_deg}
+
+
+def _compile_warp() -> float:
+    """Compile the warp kernel (where numba is there); its seconds."""
+    import numpy as np
+
+    from camsim.render.warp import average_warp, warp_kernels
+
+    t0 = time.perf_counter()
+    if warp_kernels() is not None:
+        shift = np.eye(3)
+        shift[0, 2] = 0.5
+        average_warp(np.zeros((4, 4, 3), dtype=np.float32), shift[None, None], np.ones((1, 1)), compiled=True)
+    return time.perf_counter() - t0
+
+
+def _warp_paths(scene, lit, sensor, workers):
+    """(sub-samples, numpy s, compiled s) of the second frame's warp (the faster of two each; the sub-samples'
+    inverses as :func:`camsim.render.sequence.moving_expectation` makes them), or None without numba."""
+    import numpy as np
+
+    from camsim.render.sequence import channels_last, static_signal_e
+    from camsim.render.warp import average_warp, warp_kernels
+    from camsim.scene.sequence import Motion
+
+    if warp_kernels() is None:
+        return None
+    expected = lit.expected(sensor, 1.0, scene.statistics)
+    pixels = channels_last(static_signal_e(lit.labels, expected.signal_e))
+    height, width = lit.labels.shape
+    motion = Motion.of(scene.sequence, width, height, scene.seed)
+    frame = min(1, scene.sequence.frames - 1)
+    times = motion.subsample_times(frame, sensor.exposure_s)
+    inverses = np.array([np.linalg.inv(motion.homography(float(t), frame)) for t in times])[:, None]
+    weights = np.full((len(times), 1), 1 / len(times))
+    seconds = {}
+    for compiled in (False, True):
+        runs = []
+        for _ in range(2):
+            t0 = time.perf_counter()
+            average_warp(pixels, inverses, weights, workers=workers, compiled=compiled, planar=True)
+            runs.append(time.perf_counter() - t0)
+        seconds[compiled] = min(runs)
+    return len(times), seconds[False], seconds[True]
 
 
 if __name__ == "__main__":

@@ -121,7 +121,7 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
             else static
         source = moving if sensor.cfa is None else mosaic_of(moving, sensor.cfa)[None]
         rng = frame_seed_sequence(scene.seed, f"{lit.illuminant}/f{i}", intensity_factor)
-        draw = render_expectation_frame(source, sensor, rng=rng, workers=workers)
+        draw = render_expectation_frame(source, sensor, rng=rng, workers=workers, clean=sensor.cfa is None)
         clean = draw.clean_dn if sensor.cfa is None else expectation_clean_dn(moving, sensor, draw.maps, workers)
         frame = SequenceFrame(draw.noisy_dn, draw.digital_dn, labels, expected, sensor, None, draw.maps,
                               draw.black_level_error_dn, clean)
