@@ -165,7 +165,8 @@ def _build():
             for x in range(width):
                 xf = np.float32(x)
                 acc0 = acc1 = acc2 = zero  # three channels: the sums in registers
-                acc[:] = zero
+                if not three:
+                    acc[:] = zero
                 for s in range(samples):
                     ws = w[s]
                     if identity[s]:
@@ -212,9 +213,11 @@ def _build():
                             top = p + (pixels[iy, jx, c] - p) * fx
                             bottom = q + (pixels[jy, jx, c] - q) * fx
                             acc[c] += (top + (bottom - top) * fy) * ws
-                if three:
-                    acc[0], acc[1], acc[2] = acc0, acc1, acc2
-                if planar:
+                if three and planar:
+                    out[0, r, x], out[1, r, x], out[2, r, x] = acc0, acc1, acc2
+                elif three:
+                    out[r, x, 0], out[r, x, 1], out[r, x, 2] = acc0, acc1, acc2
+                elif planar:
                     for c in range(channels):
                         out[c, r, x] = acc[c]
                 else:
