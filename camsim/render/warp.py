@@ -14,13 +14,17 @@ affine inverse (last row 0, 0, 1) skips the perspective division.
 
 Two implementations of the one law, which agree to float32 rounding (``tests/test_warp.py``):
 
-- **compiled** (numba, the default where numba can be imported): one nogil kernel per row block makes one pass per
-  output pixel over all sub-samples, with the numpy path's float32 coordinate arithmetic, clamping and bilinear
-  order (so the two agree to float32 rounding, in practice bit for bit). Compiled on first use, once per process
-  (numba is imported then, not with camsim; no on-disk cache, as :mod:`camsim.isp.fused`); the row blocks run on
-  camsim's threads, and the result does not depend on their number.
+- **compiled** (numba, the default where numba can be imported): :func:`average_warp` in one nogil kernel per row
+  block, one pass per output pixel over all sub-samples (its sums in registers, written once, channels last or
+  first: ``planar``), with the numpy path's float32 coordinate arithmetic, clamping and bilinear order, so the two
+  agree to float32 rounding (bit for bit on the tests' random images and motions, and a sequence's files are the
+  same bytes). Compiled on first use, once per process (numba is imported then, not with camsim; about 2–4 s; no
+  on-disk cache, as :mod:`camsim.isp.fused`); the row blocks run on camsim's threads, and the result does not
+  depend on their number. About 6× the numpy path's speed per sub-sample on one thread (``docs/benchmarks.md``).
+  Where a coordinate is NaN (a singular inverse's w = 0 at 0/0) the kernel takes 0; the numpy path fails there.
 - **numpy** (:func:`warp_bilinear`, one sub-sample over a row block at a time): the reference, and the fallback
-  where numba cannot be imported (``average_warp(..., compiled=False)`` asks for it).
+  where numba cannot be imported (``average_warp(..., compiled=False)`` asks for it; :func:`warp_path` says which
+  path a call takes).
 """
 
 from __future__ import annotations
