@@ -51,14 +51,14 @@ def main(argv=None) -> None:
     lit = light_scene(scene, illuminant)
     sensor = frame_sensor(scene, lit, 1.0)
 
-    static_s = []
-    for _ in range(2):  # the faster of two (the first pays one-off set-up)
-        t0 = time.perf_counter()
+    def static_frame() -> tuple[float, float]:
+        """(wall s, CPU s of every thread) of one static frame and its EXR's clean layer, as render makes them."""
+        t0, c0 = time.perf_counter(), time.process_time()
         frame, _ = scene_frame(scene, illuminant, 1.0, lit=lit, workers=args.workers)
-        frame.clean_dn()  # its EXR's clean layer, as render writes it
-        static_s.append(time.perf_counter() - t0)
-        del frame
-    static_s = min(static_s)
+        frame.clean_dn()
+        return time.perf_counter() - t0, time.process_time() - c0
+
+    static = [static_frame() for _ in range(2)]  # the faster of two (the first pays one-off set-up) ...
 
     compile_s = _compile_warp()
     warp_s = _warp_paths(scene, lit, sensor, args.workers)
@@ -77,27 +77,33 @@ def main(argv=None) -> None:
 
         wrapped[name] = original
         setattr(seqmod, name, timed)
-    t0 = time.perf_counter()
-    subsamples = []
+    t0, c0 = time.perf_counter(), time.process_time()
+    subsamples, frame_s = [], []  # per frame: (wall s, CPU s)
     ref_s = None
     for index, f, extra in seqmod.render_sequence_frames(scene, lit, sensor, 1.0, workers=args.workers):
+        t1, c1 = time.perf_counter(), time.process_time()
         if index == "ref":
-            ref_s = time.perf_counter() - t0
+            ref_s = t1 - t0
             for k in parts:
                 parts[k] = 0.0
-            t0 = time.perf_counter()
         else:
             subsamples.append(extra["blur_subsamples_used"])
-    frames_s = time.perf_counter() - t0
+            frame_s.append((t1 - t0, c1 - c0))
+        del f
+        t0, c0 = time.perf_counter(), time.process_time()
     for name, original in wrapped.items():
         setattr(seqmod, name, original)
-    per_frame = frames_s / args.frames
+    static.append(static_frame())  # ... and one after the sequence (the load of a shared machine moves)
+    static_s, static_cpu = min(static)
+    per_frame, per_frame_cpu = np.mean(frame_s, axis=0)
+    median_frame = float(np.median([w for w, _ in frame_s]))
     load = os.getloadavg()
     print(f"{args.scene} {width}x{height} Bayer RGGB, shake {args.shake_px} px / {args.shake_deg} deg per interval, "
           f"T = {args.exposure} s, {args.frames} frames, sub-samples per exposure {np.mean(subsamples):.1f} "
           f"(min {min(subsamples)}, max {max(subsamples)}); {os.cpu_count()} cores, workers "
           f"{args.workers or 'all'}, load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
-    print(f"static frame (scene_frame + clean layer, the faster of two): {static_s:.2f} s")
+    print(f"static frame (scene_frame + clean layer, the fastest of three: two before the sequence, one after): "
+          f"{static_s:.2f} s (CPU {static_cpu:.2f} s)")
     if warp_s is not None:
         samples, numpy_s, compiled_s = warp_s
         print(f"expectation of one frame ({samples} sub-samples, the faster of two): numpy warp {numpy_s:.2f} s "
@@ -106,10 +112,11 @@ def main(argv=None) -> None:
               f"{compile_s:.2f} s once per process (not in the figures)")
     else:
         print("warp: numba cannot be imported, the numpy path only")
-    print(f"sequence: reference {ref_s:.2f} s once; per frame {per_frame:.2f} s "
-          f"(expectation along the path {parts['expectation'] / args.frames:.2f} s, draw "
+    print(f"sequence: reference {ref_s:.2f} s once; per frame {per_frame:.2f} s, median {median_frame:.2f} s, "
+          f"CPU {per_frame_cpu:.2f} s (expectation along the path {parts['expectation'] / args.frames:.2f} s, draw "
           f"{parts['draw'] / args.frames:.2f} s, clean layer {parts['clean'] / args.frames:.2f} s)")
-    print(f"ratio per frame / static: {per_frame / static_s:.2f}")
+    print(f"ratio per frame / static: {per_frame / static_s:.2f} (median frame {median_frame / static_s:.2f}, "
+          f"CPU {per_frame_cpu / static_cpu:.2f})")
 
 
 def sequence_options(args) -> dict:
