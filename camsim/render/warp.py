@@ -15,12 +15,15 @@ affine inverse (last row 0, 0, 1) skips the perspective division.
 Two implementations of the one law, which agree to float32 rounding (``tests/test_warp.py``):
 
 - **compiled** (numba, the default where numba can be imported): :func:`average_warp` in one nogil kernel per row
-  block, one pass per output pixel over all sub-samples (its sums in registers, written once, channels last or
-  first: ``planar``), with the numpy path's float32 coordinate arithmetic, clamping and bilinear order, so the two
-  agree to float32 rounding (bit for bit on the tests' random images and motions, and a sequence's files are the
-  same bytes). Compiled on first use, once per process (numba is imported then, not with camsim; about 2–4 s; no
-  on-disk cache, as :mod:`camsim.isp.fused`); the row blocks run on camsim's threads, and the result does not
-  depend on their number. About 6× the numpy path's speed per sub-sample on one thread (``docs/benchmarks.md``).
+  block. Each output row's sums stay in a row buffer (in cache) while every sub-sample, in order, adds its bilinear
+  samples to it — per sub-sample one loop of coordinates (the cell and fractions of every pixel of the row) and one
+  of gathers and multiply-adds per channel, loops the compiler vectorises — and the row is written once, channels
+  last or first (``planar``). The numpy path's float32 coordinate arithmetic, clamping and bilinear order, and the
+  same order of the sums from 0, so the two agree to float32 rounding (bit for bit on the tests' random images and
+  motions; a sequence's files are the same bytes). Compiled on first use, once per process (numba is imported
+  then, not with camsim; 1–2 s; no on-disk cache, as :mod:`camsim.isp.fused`); the row blocks run on camsim's
+  threads, and the result does not depend on their number. About 9× the numpy path's speed per sub-sample on one
+  thread, per-row inverses (a rolling shutter's) about as fast as one per sub-sample (``docs/benchmarks.md``).
   Where a coordinate is NaN (a singular inverse's w = 0 at 0/0) the kernel takes 0; the numpy path fails there.
 - **numpy** (:func:`warp_bilinear`, one sub-sample over a row block at a time): the reference, and the fallback
   where numba cannot be imported (``average_warp(..., compiled=False)`` asks for it; :func:`warp_path` says which
@@ -36,7 +39,7 @@ import numpy as np
 from camsim.core.errors import CamsimError
 
 #: What :func:`warp_path` says of each implementation.
-COMPILED_PATH = "compiled (numba: one pass per output pixel over all sub-samples)"
+COMPILED_PATH = "compiled (numba: each output row's sums over all sub-samples in a row buffer, written once)"
 NUMPY_PATH = "numpy (one pass per sub-sample)"
 #: Pixels of a warp block: a block's temporaries stay small (in cache, no fresh pages) and blocks run on threads.
 WARP_BLOCK_PIXELS = 2**16
@@ -136,10 +139,10 @@ def _build():
     @jit
     def warp_rows(pixels, coef, affine, identity, weights, out, planar, r0, r1):
         """Rows r0:r1 of Σ_s weights[s, r] · pixels(H⁻¹[s, r] p) (module docstring) written into ``out``, (H, W, C),
-        or (C, H, W) where ``planar``: one pass per output pixel over the sub-samples, in their order, in float32 as
-        :func:`warp_bilinear` (the same operations on the same values from 0, so the same roundings). ``coef``
-        (S, 1|H, 9) float32 the inverses' entries row by row, ``affine`` (S, 1|H) bool, ``identity`` (S,) bool,
-        ``weights`` (S, 1|H) float32."""
+        or (C, H, W) where ``planar``: per row, the sums (C, W) from 0, each sub-sample in order adding its samples
+        in float32 as :func:`warp_bilinear` (the same operations on the same values, so the same roundings).
+        ``coef`` (S, 1|H, 9) float32 the inverses' entries row by row, ``affine`` (S, 1|H) bool, ``identity`` (S,)
+        bool, ``weights`` (S, 1|H) float32."""
         height, width, channels = pixels.shape
         samples = coef.shape[0]
         per_row = coef.shape[1] > 1
@@ -149,84 +152,73 @@ def _build():
         y_max = np.float32(height - 1)
         ix_max = max(width - 2, 0)
         iy_max = max(height - 2, 0)
-        step_x = 1 if width > 1 else 0
-        step_y = 1 if height > 1 else 0
-        three = channels == 3
-        b = np.empty((samples, 3), dtype=np.float32)  # the row's a_i1 · y + a_i2
-        a = np.empty((samples, 3), dtype=np.float32)  # the row's a_i0
-        w = np.empty(samples, dtype=np.float32)
-        flat = np.empty(samples, dtype=np.bool_)  # affine
-        acc = np.empty(channels, dtype=np.float32)  # a pixel's sums (more or fewer than three channels)
+        step_x = channels if width > 1 else 0
+        step_y = width * channels if height > 1 else 0
+        flat_pixels = pixels.reshape(-1)
+        base = np.empty(width, dtype=np.int64)
+        fxs = np.empty(width, dtype=np.float32)
+        fys = np.empty(width, dtype=np.float32)
+        acc = np.empty((channels, width), dtype=np.float32)
+        xs = np.arange(width).astype(np.float32)
         for r in range(r0, r1):
             y = np.float32(r)
+            acc[:] = zero
             for s in range(samples):
                 k = r if per_row else 0
-                for i in range(3):
-                    a[s, i] = coef[s, k, 3 * i]
-                    b[s, i] = coef[s, k, 3 * i + 1] * y + coef[s, k, 3 * i + 2]
-                flat[s] = affine[s, k]
-                w[s] = weights[s, r if weight_rows else 0]
-            for x in range(width):
-                xf = np.float32(x)
-                acc0 = acc1 = acc2 = zero  # three channels: the sums in registers
-                if not three:
-                    acc[:] = zero
-                for s in range(samples):
-                    ws = w[s]
-                    if identity[s]:
-                        if three:
-                            acc0 += pixels[r, x, 0] * ws
-                            acc1 += pixels[r, x, 1] * ws
-                            acc2 += pixels[r, x, 2] * ws
-                        else:
-                            for c in range(channels):
-                                acc[c] += pixels[r, x, c] * ws
-                        continue
-                    qx = a[s, 0] * xf + b[s, 0]
-                    qy = a[s, 1] * xf + b[s, 1]
-                    if not flat[s]:
-                        h = a[s, 2] * xf + b[s, 2]
-                        qx = qx / h
-                        qy = qy / h
-                    # clamp to the image (a NaN, from a singular inverse, to 0), then the cell and its fractions
-                    qx = qx if qx > zero else zero
-                    qx = qx if qx < x_max else x_max
-                    qy = qy if qy > zero else zero
-                    qy = qy if qy < y_max else y_max
-                    ix = min(int(qx), ix_max)
-                    iy = min(int(qy), iy_max)
-                    fx = qx - np.float32(ix)
-                    fy = qy - np.float32(iy)
-                    jx, jy = ix + step_x, iy + step_y
-                    if three:
-                        p, q = pixels[iy, ix, 0], pixels[jy, ix, 0]
-                        top = p + (pixels[iy, jx, 0] - p) * fx
-                        bottom = q + (pixels[jy, jx, 0] - q) * fx
-                        acc0 += (top + (bottom - top) * fy) * ws
-                        p, q = pixels[iy, ix, 1], pixels[jy, ix, 1]
-                        top = p + (pixels[iy, jx, 1] - p) * fx
-                        bottom = q + (pixels[jy, jx, 1] - q) * fx
-                        acc1 += (top + (bottom - top) * fy) * ws
-                        p, q = pixels[iy, ix, 2], pixels[jy, ix, 2]
-                        top = p + (pixels[iy, jx, 2] - p) * fx
-                        bottom = q + (pixels[jy, jx, 2] - q) * fx
-                        acc2 += (top + (bottom - top) * fy) * ws
-                    else:
-                        for c in range(channels):
-                            p, q = pixels[iy, ix, c], pixels[jy, ix, c]
-                            top = p + (pixels[iy, jx, c] - p) * fx
-                            bottom = q + (pixels[jy, jx, c] - q) * fx
-                            acc[c] += (top + (bottom - top) * fy) * ws
-                if three and planar:
-                    out[0, r, x], out[1, r, x], out[2, r, x] = acc0, acc1, acc2
-                elif three:
-                    out[r, x, 0], out[r, x, 1], out[r, x, 2] = acc0, acc1, acc2
-                elif planar:
+                ws = weights[s, r if weight_rows else 0]
+                if identity[s]:
                     for c in range(channels):
-                        out[c, r, x] = acc[c]
+                        for x in range(width):
+                            acc[c, x] += pixels[r, x, c] * ws
+                    continue
+                a0, a1, a2 = coef[s, k, 0], coef[s, k, 3], coef[s, k, 6]
+                b0 = coef[s, k, 1] * y + coef[s, k, 2]
+                b1 = coef[s, k, 4] * y + coef[s, k, 5]
+                b2 = coef[s, k, 7] * y + coef[s, k, 8]
+                if affine[s, k]:
+                    for x in range(width):
+                        qx = a0 * xs[x] + b0
+                        qy = a1 * xs[x] + b1
+                        qx = qx if qx > zero else zero
+                        qx = qx if qx < x_max else x_max
+                        qy = qy if qy > zero else zero
+                        qy = qy if qy < y_max else y_max
+                        ix = min(np.int64(qx), ix_max)
+                        iy = min(np.int64(qy), iy_max)
+                        fxs[x] = qx - np.float32(ix)
+                        fys[x] = qy - np.float32(iy)
+                        base[x] = (iy * width + ix) * channels
                 else:
+                    for x in range(width):
+                        h = a2 * xs[x] + b2
+                        qx = (a0 * xs[x] + b0) / h
+                        qy = (a1 * xs[x] + b1) / h
+                        qx = qx if qx > zero else zero
+                        qx = qx if qx < x_max else x_max
+                        qy = qy if qy > zero else zero
+                        qy = qy if qy < y_max else y_max
+                        ix = min(np.int64(qx), ix_max)
+                        iy = min(np.int64(qy), iy_max)
+                        fxs[x] = qx - np.float32(ix)
+                        fys[x] = qy - np.float32(iy)
+                        base[x] = (iy * width + ix) * channels
+                for c in range(channels):
+                    row = acc[c]
+                    for x in range(width):
+                        i00 = base[x] + c
+                        fx, fy = fxs[x], fys[x]
+                        p, q = flat_pixels[i00], flat_pixels[i00 + step_y]
+                        top = p + (flat_pixels[i00 + step_x] - p) * fx
+                        bottom = q + (flat_pixels[i00 + step_y + step_x] - q) * fx
+                        row[x] += (top + (bottom - top) * fy) * ws
+            if planar:
+                for c in range(channels):
+                    for x in range(width):
+                        out[c, r, x] = acc[c, x]
+            else:
+                for x in range(width):
                     for c in range(channels):
-                        out[r, x, c] = acc[c]
+                        out[r, x, c] = acc[c, x]
 
     return {"warp_rows": warp_rows, "numba": numba.__version__}
 
