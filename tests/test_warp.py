@@ -114,6 +114,10 @@ def test_kernel_and_numpy_agree_to_float32_rounding(case):
     for path, channels_last in ((True, compiled), (False, reference)):  # channels first: the same values
         planar = warp.average_warp(pixels, inverses, weights, compiled=path, planar=True)
         assert planar.flags.c_contiguous and np.array_equal(planar, np.moveaxis(channels_last, -1, 0))
+        for layout, want in ((True, planar), (False, channels_last)):  # into a given array, whatever it held
+            out = np.full(want.shape, np.nan, dtype=np.float32)
+            got = warp.average_warp(pixels, inverses, weights, compiled=path, planar=layout, out=out)
+            assert got is out and np.array_equal(out, want)
 
 
 def test_the_result_does_not_depend_on_the_workers(monkeypatch):
@@ -147,3 +151,8 @@ def test_shapes_that_do_not_fit_are_refused():
         warp.average_warp(pixels, np.zeros((2, 3, 3, 3)), np.ones((2, 1)))
     with pytest.raises(ValueError, match="do not fit"):
         warp.average_warp(pixels, np.zeros((2, 1, 3, 3)), np.ones((3, 1)))
+    with pytest.raises(ValueError, match="out must be"):
+        warp.average_warp(pixels, np.eye(3)[None, None], np.ones((1, 1)), out=np.zeros((4, 5, 3)))
+    with pytest.raises(ValueError, match="out must be"):
+        warp.average_warp(pixels, np.eye(3)[None, None], np.ones((1, 1)), planar=True,
+                          out=np.zeros((4, 5, 3), dtype=np.float32))

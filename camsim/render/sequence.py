@@ -60,19 +60,21 @@ def static_signal_e(labels: np.ndarray, signal_e: np.ndarray) -> np.ndarray:
 
 
 def moving_expectation(signal_e: np.ndarray, motion: Motion, frame: int, exposure_s: float,
-                       workers: int | None = None, *, pixels: np.ndarray | None = None) -> np.ndarray:
+                       workers: int | None = None, *, pixels: np.ndarray | None = None,
+                       out: np.ndarray | None = None) -> np.ndarray:
     """Frame ``frame``'s expected signal electrons (3, H, W) float32: the mean of S̄(H(t)⁻¹ p) over the
     sub-sample times of its exposure (:meth:`camsim.scene.sequence.Motion.subsample_times`), bilinear, clamped at
     the edges (:func:`camsim.render.warp.average_warp`, on ``workers`` threads; the result does not depend on
     them). ``pixels``: S̄ channels last, (H, W, 3) float32 C-contiguous (:func:`channels_last`), made once for all
-    the frames of a sequence (default: made here). Unit: e⁻."""
+    the frames of a sequence (default: made here); ``out``: a (3, H, W) float32 array to write the result into (one
+    for all the frames; default: a new one). Unit: e⁻."""
     from camsim.render.warp import average_warp
 
     times = motion.subsample_times(frame, exposure_s)
     inverses = np.array([np.linalg.inv(motion.homography(float(t), frame)) for t in times])[:, None]
     weights = np.full((len(times), 1), 1 / len(times))
     pixels = channels_last(signal_e) if pixels is None else pixels
-    return average_warp(pixels, inverses, weights, workers=workers, planar=True)
+    return average_warp(pixels, inverses, weights, workers=workers, planar=True, out=out)
 
 
 def channels_last(signal_e: np.ndarray) -> np.ndarray:
@@ -115,10 +117,11 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
     yield "ref", SequenceFrame(np.ascontiguousarray(ref_noisy), None, labels, expected, sensor, None, maps, None,
                                ref_clean), {
         "sequence_reference": True, "homography": np.eye(3).tolist(), "sequence": record}
-    pixels = channels_last(static) if seq.moves else None  # once for every frame
+    # once for every frame: S̄ channels last, and the buffer of each frame's expectation (no frame keeps it)
+    pixels, buffer = (channels_last(static), np.empty_like(static)) if seq.moves else (None, None)
     for i in range(seq.frames):
-        moving = moving_expectation(static, motion, i, sensor.exposure_s, workers, pixels=pixels) if seq.moves \
-            else static
+        moving = moving_expectation(static, motion, i, sensor.exposure_s, workers, pixels=pixels, out=buffer) \
+            if seq.moves else static
         source = moving if sensor.cfa is None else mosaic_of(moving, sensor.cfa)[None]
         rng = frame_seed_sequence(scene.seed, f"{lit.illuminant}/f{i}", intensity_factor)
         draw = render_expectation_frame(source, sensor, rng=rng, workers=workers, clean=sensor.cfa is None)

@@ -247,7 +247,8 @@ def warp_path(compiled: bool | None = None) -> str:
 
 
 def average_warp(pixels: np.ndarray, inverses: np.ndarray, weights: np.ndarray, *,
-                 workers: int | None = None, compiled: bool | None = None, planar: bool = False) -> np.ndarray:
+                 workers: int | None = None, compiled: bool | None = None, planar: bool = False,
+                 out: np.ndarray | None = None) -> np.ndarray:
     """Σ_s weights[s, r] · pixels(H⁻¹[s, r] p) at every pixel p = (x, r) (module docstring).
 
     Parameters
@@ -268,10 +269,14 @@ def average_warp(pixels: np.ndarray, inverses: np.ndarray, weights: np.ndarray, 
     planar : bool
         Return the channels first, (C, H, W) C-contiguous (the compiled kernel writes them so; the numpy path
         copies).
+    out : numpy.ndarray, optional
+        Where to write the result: C-contiguous float32 of the result's shape (its values are overwritten; a
+        sequence keeps one for all its frames, sparing fresh pages). Default: a new array.
 
     Returns
     -------
     numpy.ndarray, shape (H, W, C), or (C, H, W) where ``planar``, float32
+        ``out`` where given.
     """
     from concurrent.futures import ThreadPoolExecutor
 
@@ -287,6 +292,11 @@ def average_warp(pixels: np.ndarray, inverses: np.ndarray, weights: np.ndarray, 
             or weights.shape[1] not in (1, height):
         raise ValueError(f"average_warp: inverses {inverses.shape} and weights {weights.shape} do not fit "
                          f"{samples} sub-samples of {height} rows")
+    shape = (pixels.shape[2], height, width) if planar else pixels.shape
+    if out is not None and not (isinstance(out, np.ndarray) and out.shape == shape and out.dtype == np.float32
+                                and out.flags.c_contiguous and out.flags.writeable):
+        raise ValueError(f"average_warp: out must be a writeable C-contiguous float32 array of shape {shape}")
+    result = out
     identity = [_is_identity(inverses[s]) for s in range(samples)]
     rows = max(1, WARP_BLOCK_PIXELS // width)
 
@@ -298,12 +308,13 @@ def average_warp(pixels: np.ndarray, inverses: np.ndarray, weights: np.ndarray, 
                                       & (inverses[..., 2, 2] == 1))
         identity_flags = np.array(identity, dtype=np.bool_)
         weights32 = np.ascontiguousarray(weights.astype(np.float32))
-        out = np.empty((pixels.shape[2], height, width) if planar else pixels.shape, dtype=np.float32)
+        out = np.empty(shape, dtype=np.float32) if result is None else result
 
         def block(r0: int) -> None:  # every value of the rows written
             kernel(pixels, coef, affine, identity_flags, weights32, out, planar, r0, min(height, r0 + rows))
     else:
-        out = np.zeros_like(pixels)
+        out = np.zeros_like(pixels) if result is None or planar else result
+        out[...] = 0
 
         def block(r0: int) -> None:
             r1 = min(height, r0 + rows)
@@ -326,5 +337,8 @@ def average_warp(pixels: np.ndarray, inverses: np.ndarray, weights: np.ndarray, 
         with ThreadPoolExecutor(max_workers=workers) as pool:
             list(pool.map(block, starts))
     if planar and not is_compiled:  # the numpy path's: a copy
-        out = np.ascontiguousarray(np.moveaxis(out, -1, 0))
+        if result is None:
+            return np.ascontiguousarray(np.moveaxis(out, -1, 0))
+        result[...] = np.moveaxis(out, -1, 0)
+        return result
     return out
