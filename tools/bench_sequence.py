@@ -4,9 +4,12 @@ Renders, in one process and on the same scene (``--scene``, default the dead-lea
 static frame as ``camsim render`` draws it (:func:`camsim.render.pipeline.scene_frame`, the scene lit beforehand)
 and then ``--frames`` frames of a ``[sequence]`` with shake (:func:`camsim.render.sequence.render_sequence_frames`:
 the per-pixel expectation along the path, the draw, the clean layer), and prints the seconds of each, the ratio
-and where a sequence frame's time goes. No files are written (their cost is the same for both). The warp
+and where a sequence frame's time goes. No files are written (their cost is the same for both). The static frame is
+the fastest of three (two before the sequence, one after: the load of a shared machine moves); each figure has its
+CPU time (every thread's) beside the wall clock, and the machine's load average is printed. The warp
 (:func:`camsim.render.warp.average_warp`) is compiled before the timings (its one-off compile time printed apart),
-and one frame's warp is timed on both paths, numpy and compiled, in the same run. Usage::
+and one frame's expectation is timed on both of its paths, numpy and compiled, in the same run. The sequence's
+table is :func:`sequence_options`'s (a new ``[sequence]`` option of the benchmark goes there). Usage::
 
     python tools/bench_sequence.py [--size 4000x3000] [--frames 16] [--shake-px 1] [--workers N]
 """
