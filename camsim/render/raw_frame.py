@@ -58,10 +58,11 @@ class RawDraw:
         :attr:`camsim.render.frame.Frame.noisy_dn` of a CFA frame). Unit: DN.
     digital_dn : numpy.ndarray or None, shape (1, H, W), uint8 (nb ≤ 8) or uint16
         The quantised DN, with the pedestal; None when quantisation is off. Unit: DN.
-    clean_dn : numpy.ndarray, shape (H, W), float32
+    clean_dn : numpy.ndarray or None, shape (H, W), float32
         The law's expected DN before quantisation at each site, k · E[min(charge + o, full well)] (the fixed-pattern
         maps' shifts included, as :func:`camsim.render.frame.clean_dn`; a stuck pixel's level; not the black-level
-        error): see :func:`render_raw_frame` for where it is exact. Unit: DN.
+        error): see :func:`render_raw_frame` for where it is exact; None where not asked for
+        (:func:`render_expectation_frame`'s ``clean``). Unit: DN.
     maps : FixedPattern or None
         The target sensor's DSNU (offset, dark-current) and PRNU maps, shape (3, H, W) each (a site uses its
         channel's plane), or None when all are off.
@@ -69,7 +70,7 @@ class RawDraw:
 
     noisy_dn: np.ndarray
     digital_dn: np.ndarray | None
-    clean_dn: np.ndarray
+    clean_dn: np.ndarray | None
     maps: FixedPattern | None
     black_level_error_dn: np.ndarray | None = None  # the frame's drawn black-level error (3,), DN, if on
 
@@ -86,7 +87,7 @@ class _RawJob:
     dark_cell: np.ndarray  # (2, 2) float64: D̄ of each site of the CFA cell, e⁻
     noisy: np.ndarray  # (1, H, W) float32 output
     digital: np.ndarray | None  # (1, H, W) output
-    clean: np.ndarray  # (planes, H, W) float32 output
+    clean: np.ndarray | None  # (planes, H, W) float32 output, or None: not computed
     black_level_error_dn: np.ndarray | None = None  # (3,) DN: added before the ADC
 
 
@@ -249,7 +250,7 @@ def _draw_plane(job: _RawJob, plane: int, r0: int, r1: int, rng: np.random.Gener
     level = saturation_level_e(sensor.full_well_e, offset) if sensor.saturation else None
     source = job.source[plane, r0:r1]
     mean = scratch.mean[:h]  # float64: the Poisson means
-    clean = job.clean[plane, r0:r1]
+    clean = None if job.clean is None else job.clean[plane, r0:r1]
 
     if job.law == "add":
         np.maximum(source, 0.0, out=mean)
@@ -280,7 +281,8 @@ def _draw_plane(job: _RawJob, plane: int, r0: int, r1: int, rng: np.random.Gener
             poisson_mean, base = dark, (signal if offset is None else signal + offset)
 
     # the clean layer: k E[min(X + o, full well)], X = Poisson(poisson_mean) + (base − o)
-    _clean_rows(clean, poisson_mean, base, sensor, k)
+    if clean is not None:
+        _clean_rows(clean, poisson_mean, base, sensor, k)
 
     # the target's stages, in the order render_frame runs them (float32 in the output; float64 with offsets)
     view = job.noisy[plane, r0:r1]
@@ -322,7 +324,7 @@ def _clean_rows(clean: np.ndarray, poisson_mean, base, sensor: SensorParams, k: 
 
 def render_expectation_frame(signal_e, sensor: SensorParams, *,
                              rng: np.random.Generator | np.random.SeedSequence | int | None = None,
-                             workers: int | None = None) -> RawDraw:
+                             workers: int | None = None, clean: bool = True) -> RawDraw:
     """Draw one frame from a per-pixel expectation of signal electrons, (planes, H, W): a moving scene's frame.
 
     The ``add`` law of :func:`render_raw_frame` with f = 1 on a (1, H, W) CFA mosaic (each site its channel's
@@ -337,12 +339,15 @@ def render_expectation_frame(signal_e, sensor: SensorParams, *,
         S̄: the expected signal electrons at each pixel before PRNU, ≥ 0 (the dark charge is the sensor's).
     sensor : SensorParams
     rng, workers : as :func:`render_raw_frame`.
+    clean : bool
+        Compute the clean layer (False: ``clean_dn`` is None, for a caller that makes its own, as a CFA sequence's
+        every-channel :func:`expectation_clean_dn`; the draws are the same).
 
     Returns
     -------
     RawDraw
         ``noisy_dn`` and ``digital_dn`` of shape (planes, H, W); ``clean_dn`` (planes, H, W): k · E[min(X + o, full
-        well)] at each pixel's own plane (exact: :func:`camsim.sensor.expected.clean_charge_e`).
+        well)] at each pixel's own plane (exact: :func:`camsim.sensor.expected.clean_charge_e`), or None.
     """
     source = np.ascontiguousarray(signal_e, dtype=np.float32)
     planes = 1 if sensor.cfa is not None else 3
@@ -359,13 +364,13 @@ def render_expectation_frame(signal_e, sensor: SensorParams, *,
             dark_cell[dy, dx] = sensor.dark_mean_e[c]
     noisy = np.empty((planes, height, width), dtype=np.float32)
     digital = np.empty((planes, height, width), dtype=dn_dtype(sensor.bits)) if sensor.quantisation else None
-    clean = np.empty((planes, height, width), dtype=np.float32)
+    clean = np.empty((planes, height, width), dtype=np.float32) if clean else None
     error = black_level_error(sensor, rng)
     job = _RawJob(source, sensor, 1.0, "add", maps, dark_cell, noisy, digital, clean, error)
     run_blocks(height, rows, rng, workers, lambda: _Scratch(rows, width),
                lambda r0, r1, block_rng, scratch: _draw_block(job, r0, r1, block_rng, scratch))
     write_stuck(maps, sensor, noisy, digital)
-    if maps is not None and maps.stuck_index is not None:
+    if clean is not None and maps is not None and maps.stuck_index is not None:
         set_stuck_dn(clean, maps.stuck_index, stuck_float_dn(maps.stuck_level_dn, sensor.pedestal_dn))
     return RawDraw(noisy, digital, clean, maps, error)
 

@@ -66,14 +66,17 @@ def static_signal_e(labels: np.ndarray, signal_e: np.ndarray) -> np.ndarray:
 
 
 def moving_expectation(signal_e: np.ndarray, motion: Motion, frame: int, exposure_s: float,
-                       workers: int | None = None) -> np.ndarray:
+                       workers: int | None = None, *, pixels: np.ndarray | None = None,
+                       out: np.ndarray | None = None) -> np.ndarray:
     """Frame ``frame``'s expected signal electrons (3, H, W) float32: at sensor pixel (x, r), the mean of
     L(t) · S̄(H(t)⁻¹ (x, r)) over row r's exposure — the weighted sum over the sub-samples of
     :meth:`camsim.scene.sequence.Motion.exposure_samples` (each row's own times under a rolling shutter; weights the
     light's exact integral over each part), bilinear, clamped at the edges (:func:`camsim.render.warp.average_warp`,
     on ``workers`` threads; the result does not depend on them). Without motion no warp: S̄ times each row's (or the
     frame's) share of the light (:meth:`~camsim.scene.sequence.Motion.light_factor`), or S̄ itself under a steady
-    light. Unit: e⁻."""
+    light. ``pixels``: S̄ channels last, (H, W, 3) float32 C-contiguous (:func:`channels_last`), made once for
+    all the frames of a sequence (default: made here); ``out``: a (3, H, W) float32 array to write a warp's result
+    into (one for all the frames; default: a new one). Unit: e⁻."""
     from camsim.render.warp import average_warp
 
     if not motion.params.moves:
@@ -83,9 +86,13 @@ def moving_expectation(signal_e: np.ndarray, motion: Motion, frame: int, exposur
         return (np.asarray(signal_e, dtype=np.float64) * factor[None, :, None]).astype(np.float32)
     times, weights = motion.exposure_samples(frame, exposure_s)
     inverses = np.linalg.inv(motion.homographies(times, frame)).reshape(times.shape + (3, 3))
-    pixels = np.ascontiguousarray(np.moveaxis(signal_e, 0, -1), dtype=np.float32)
-    out = average_warp(pixels, inverses, weights, workers=workers)
-    return np.ascontiguousarray(np.moveaxis(out, -1, 0))
+    pixels = channels_last(signal_e) if pixels is None else pixels
+    return average_warp(pixels, inverses, weights, workers=workers, planar=True, out=out)
+
+
+def channels_last(signal_e: np.ndarray) -> np.ndarray:
+    """S̄ (3, H, W) as the warp reads it: (H, W, 3) float32, C-contiguous (a copy)."""
+    return np.ascontiguousarray(np.moveaxis(signal_e, 0, -1), dtype=np.float32)
 
 
 def sequence_frame_record(motion: Motion, frame: int, exposure_s: float) -> dict:
@@ -170,11 +177,13 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
     yield "ref", SequenceFrame(np.ascontiguousarray(ref_noisy), None, labels, expected, sensor, None, maps, None,
                                ref_clean), {
         "sequence_reference": True, "homography": np.eye(3).tolist(), "sequence": record, **(optics or {})}
+    # once for every frame: S̄ channels last, and the buffer of each frame's expectation (no frame keeps it)
+    pixels, buffer = (channels_last(static), np.empty_like(static)) if seq.moves else (None, None)
     for i in range(seq.frames):
-        moving = moving_expectation(static, motion, i, sensor.exposure_s, workers)
+        moving = moving_expectation(static, motion, i, sensor.exposure_s, workers, pixels=pixels, out=buffer)
         source = moving if sensor.cfa is None else mosaic_of(moving, sensor.cfa)[None]
         rng = frame_seed_sequence(scene.seed, f"{lit.illuminant}/f{i}", intensity_factor)
-        draw = render_expectation_frame(source, sensor, rng=rng, workers=workers)
+        draw = render_expectation_frame(source, sensor, rng=rng, workers=workers, clean=sensor.cfa is None)
         clean = draw.clean_dn if sensor.cfa is None else expectation_clean_dn(moving, sensor, draw.maps, workers)
         frame = SequenceFrame(draw.noisy_dn, draw.digital_dn, labels, expected, sensor, None, draw.maps,
                               draw.black_level_error_dn, clean)
