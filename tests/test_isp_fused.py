@@ -156,7 +156,7 @@ def test_without_numba_the_pairs_take_the_numpy_stages(monkeypatch):
     from camsim.pairs import pair_isp
     from camsim.sensor.presets import sensor_preset
 
-    monkeypatch.setattr(fused, "_STATE", {"kernels": None, "why": "no numba (test)"})
+    monkeypatch.setattr(fused._KERNELS, "state", {"kernels": None, "why": "no numba (test)"})
     dn, srgb = _sources()
     dn_batch, batch = dn.batch(0), srgb.batch(0)
     for i, p in enumerate(dn_batch.params):

@@ -18,7 +18,6 @@ from camsim.optics.stages import (
     convolve_plane,
     cos4_falloff,
     defocused_otf,
-    diffraction_otf,
     field_angle_rad,
     lens_otf_radial,
     table_falloff,

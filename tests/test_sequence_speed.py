@@ -40,7 +40,7 @@ def test_sequence_frames_are_the_same_on_both_warp_paths(cfa, monkeypatch):
                                                   pan_px_per_s=(20.0, -7.0), homographies=homographies))
     assert warp.warp_path() == warp.COMPILED_PATH
     compiled = _frames(scene)
-    monkeypatch.setattr(warp, "_STATE", {"kernels": None, "why": "no numba (test)"})
+    monkeypatch.setattr(warp._KERNELS, "state", {"kernels": None, "why": "no numba (test)"})
     reference = _frames(scene)
     assert len(compiled) == len(reference) == 4
     assert not np.allclose(compiled[0][1].clean_dn(), compiled[1][1].clean_dn(), rtol=1e-2)

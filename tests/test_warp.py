@@ -138,7 +138,7 @@ def test_without_numba_the_numpy_path(monkeypatch):
     pixels, _, inverses, weights = _case(CASES[1], 2)
     reference = warp.average_warp(pixels, inverses, weights, compiled=False)
     assert warp.warp_path() == warp.COMPILED_PATH and warp.warp_path(False) == warp.NUMPY_PATH
-    monkeypatch.setattr(warp, "_STATE", {"kernels": None, "why": "no numba (test)"})
+    monkeypatch.setattr(warp._KERNELS, "state", {"kernels": None, "why": "no numba (test)"})
     assert warp.warp_path() == warp.NUMPY_PATH
     assert np.array_equal(warp.average_warp(pixels, inverses, weights), reference)
     with pytest.raises(CamsimError, match="numba"):

@@ -27,7 +27,6 @@ whole; a reader checks ``done`` all true (and ``complete``) all the same.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 import shutil
@@ -58,9 +57,7 @@ def render_sequence_store(scene, out_dir, *, workers: int | None = None, progres
     from tqdm import tqdm
 
     from camsim.io.output_folder import output_folder
-    from camsim.render.frame_files import frame_stem
-    from camsim.render.pipeline import frame_sensor, light_scene, scene_frame_info
-    from camsim.render.sequence import check_sequence_scene
+    from camsim.render.sequence import check_sequence_scene, sequence_jobs
     from camsim.sensor.camera import load_camera
 
     if scene.sequence is None:
@@ -76,16 +73,10 @@ def render_sequence_store(scene, out_dir, *, workers: int | None = None, progres
     with output_folder(out_dir) as out_dir:
         out_dir = Path(out_dir)
         camera = load_camera(scene.camera, scene.grid, scene.sensitivity_basis, scene.base_dir)
-        jobs = [(ill, f) for ill in scene.illuminants for f in scene.intensity_factors]
-        bar = tqdm(total=len(jobs) * (seq.frames + 1), desc=f"rendering {scene.name}", unit="frame",
-                   disable=not progress)
+        bar = tqdm(total=len(scene.illuminants) * len(scene.intensity_factors) * (seq.frames + 1),
+                   desc=f"rendering {scene.name}", unit="frame", disable=not progress)
         with bar:
-            for illuminant, factor in jobs:
-                lit = light_scene(scene, illuminant, camera)
-                sensor = frame_sensor(scene, lit, factor)
-                base = dataclasses.replace(scene_frame_info(scene, lit, camera.name, factor, scene.seed),
-                                           method="poisson")
-                stem = frame_stem(scene.name, illuminant, factor)
+            for factor, lit, sensor, stem, base in sequence_jobs(scene, camera):
                 stores.append(_write_store(out_dir, stem, scene, lit, sensor, factor, base, workers, bar.update))
     return stores
 

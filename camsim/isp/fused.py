@@ -28,10 +28,10 @@ made it (:data:`FUSED_PATH`, :data:`STAGES_PATH`).
 from __future__ import annotations
 
 import math
-import threading
 
 import numpy as np
 
+from camsim.core.compiled import CompiledOnce
 from camsim.core.errors import CamsimError
 from camsim.isp.stages import DEMOSAIC_PAD, _workspace
 from camsim.sensor.cfa import cfa_sites
@@ -53,9 +53,6 @@ _LOW = 2.0 ** -0.5
 _TONES = {"linear": 0, "srgb": 1, "filmic": 2}
 #: The bilinear quantities at a site, in the kernel's order: own value, horizontal, vertical, diagonal, cross sums.
 _OWN, _HORIZONTAL, _VERTICAL, _DIAGONAL, _CROSS = range(5)
-
-_LOCK = threading.Lock()
-_STATE: dict = {}
 
 
 def _power_coefficients() -> tuple:
@@ -190,16 +187,13 @@ def _build():
     return {"bayer": bayer, "three_chip": three_chip, "power": power, "numba": numba.__version__}
 
 
+_KERNELS = CompiledOnce(_build)
+
+
 def fused_kernels() -> dict | None:
     """The compiled kernels (compiled on the first call in a process; each dtype of input on its first use), or None
     where numba cannot be imported."""
-    with _LOCK:
-        if "kernels" not in _STATE:
-            try:
-                _STATE["kernels"] = _build()
-            except ImportError as exc:
-                _STATE["kernels"], _STATE["why"] = None, str(exc)
-        return _STATE["kernels"]
+    return _KERNELS.get()
 
 
 def fused_applies(facts, settings, shape) -> bool:
@@ -236,7 +230,7 @@ def develop_into(raw, facts, settings, plan, out) -> None:
     :func:`fused_applies` and :func:`fused_kernels`."""
     from camsim.isp.develop import _fused_matrix
 
-    kernels = _STATE["kernels"]
+    kernels = _KERNELS.get()
     if not (out.dtype == np.float32 and out.flags.c_contiguous and out.ndim == 3 and out.shape[0] == 3
             and out.shape[1:] == raw.shape[-2:]):
         raise CamsimError(f"the ISP's output must be a C-contiguous float32 array of shape (3, {raw.shape[-2]}, "

@@ -191,6 +191,24 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
         yield i, frame, extra
 
 
+def sequence_jobs(scene, camera):
+    """Yield ``(F, lit, sensor, stem, base)`` for each illuminant × F of a sequence scene, in order: the lit scene
+    (:func:`camsim.render.pipeline.light_scene`, once per illuminant), the frame's sensor, the stem
+    (:func:`camsim.render.frame_files.frame_stem`) and the frames' :class:`camsim.render.frame_files.FrameInfo` (method
+    ``poisson``: a sequence draws per pixel) — for the files (:func:`render_sequence`) and the Zarr store
+    (:mod:`camsim.dataset.sequence_store`) alike."""
+    from camsim.render.frame_files import frame_stem
+    from camsim.render.pipeline import frame_sensor, light_scene, scene_frame_info
+
+    for illuminant in scene.illuminants:
+        lit = light_scene(scene, illuminant, camera)
+        for factor in scene.intensity_factors:
+            sensor = frame_sensor(scene, lit, factor)
+            base = dataclasses.replace(scene_frame_info(scene, lit, camera.name, factor, scene.seed),
+                                       method="poisson")
+            yield factor, lit, sensor, frame_stem(scene.name, illuminant, factor), base
+
+
 def render_sequence(scene, out_dir, *, workers=None, progress=True, exr_compression=None, warn=None) -> dict:
     """Render every illuminant × F of a scene with a ``[sequence]``: its reference and frames (module docstring),
     each committed by its sidecar, the manifest listing them (a frame's entry with ``frame_index`` and ``time_s``,
@@ -200,9 +218,8 @@ def render_sequence(scene, out_dir, *, workers=None, progress=True, exr_compress
 
     from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression
     from camsim.io.output_folder import output_folder
-    from camsim.render.frame_files import frame_stem, write_frame
+    from camsim.render.frame_files import write_frame
     from camsim.render.frame_manifest import MANIFEST_NAME, FrameManifest
-    from camsim.render.pipeline import frame_sensor, light_scene, scene_frame_info
     from camsim.sensor.camera import load_camera
 
     if scene.source.table == "raw":  # the file's electrons moved: camsim.render.raw_sequence
@@ -220,17 +237,11 @@ def render_sequence(scene, out_dir, *, workers=None, progress=True, exr_compress
         manifest = FrameManifest(out_dir, scene.name)
         if manifest.frames or (out_dir / MANIFEST_NAME).exists():
             manifest.write()
-        jobs = [(ill, f) for ill in scene.illuminants for f in scene.intensity_factors]
-        bar = tqdm(total=len(jobs) * (seq.frames + 1), desc=f"rendering {scene.name}", unit="frame",
-                   disable=not progress)
+        bar = tqdm(total=len(scene.illuminants) * len(scene.intensity_factors) * (seq.frames + 1),
+                   desc=f"rendering {scene.name}", unit="frame", disable=not progress)
         digits = frame_digits(seq.frames)
         with bar, manifest.kept_on_failure():
-            for illuminant, factor in jobs:
-                lit = light_scene(scene, illuminant, camera)
-                sensor = frame_sensor(scene, lit, factor)
-                base = dataclasses.replace(scene_frame_info(scene, lit, camera.name, factor, scene.seed),
-                                           method="poisson")
-                stem = frame_stem(scene.name, illuminant, factor)
+            for factor, lit, sensor, stem, base in sequence_jobs(scene, camera):
                 for index, frame, extra in render_sequence_frames(scene, lit, sensor, factor, workers=workers):
                     name, info = sequence_frame_info(stem, index, digits, extra, base)
                     manifest.withdraw(name)

@@ -32,10 +32,10 @@ Two implementations of the one law, which agree to float32 rounding (``tests/tes
 
 from __future__ import annotations
 
-import threading
 
 import numpy as np
 
+from camsim.core.compiled import CompiledOnce
 from camsim.core.errors import CamsimError
 
 #: What :func:`warp_path` says of each implementation.
@@ -125,9 +125,6 @@ def warp_bilinear(pixels: np.ndarray, inverse: np.ndarray, out: np.ndarray, weig
 def _is_identity(inverses: np.ndarray) -> bool:
     return bool(np.all(inverses == np.eye(3)))
 
-
-_LOCK = threading.Lock()
-_STATE: dict = {}
 
 
 def _build():
@@ -223,15 +220,12 @@ def _build():
     return {"warp_rows": warp_rows, "numba": numba.__version__}
 
 
+_KERNELS = CompiledOnce(_build)
+
+
 def warp_kernels() -> dict | None:
     """The compiled kernel (compiled on the first call in a process), or None where numba cannot be imported."""
-    with _LOCK:
-        if "kernels" not in _STATE:
-            try:
-                _STATE["kernels"] = _build()
-            except ImportError as exc:
-                _STATE["kernels"], _STATE["why"] = None, str(exc)
-        return _STATE["kernels"]
+    return _KERNELS.get()
 
 
 def warp_path(compiled: bool | None = None) -> str:
@@ -241,7 +235,7 @@ def warp_path(compiled: bool | None = None) -> str:
         return NUMPY_PATH
     if warp_kernels() is None:
         if compiled:
-            raise CamsimError(f"the compiled warp needs numba, which cannot be imported ({_STATE.get('why')})")
+            raise CamsimError(f"the compiled warp needs numba, which cannot be imported ({_KERNELS.why})")
         return NUMPY_PATH
     return COMPILED_PATH
 
@@ -302,7 +296,7 @@ def average_warp(pixels: np.ndarray, inverses: np.ndarray, weights: np.ndarray, 
 
     is_compiled = warp_path(compiled) == COMPILED_PATH
     if is_compiled:
-        kernel = _STATE["kernels"]["warp_rows"]
+        kernel = _KERNELS.get()["warp_rows"]
         coef = np.ascontiguousarray(inverses.astype(np.float32).reshape(samples, inverses.shape[1], 9))
         affine = np.ascontiguousarray((inverses[..., 2, 0] == 0) & (inverses[..., 2, 1] == 0)
                                       & (inverses[..., 2, 2] == 1))
