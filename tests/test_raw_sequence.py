@@ -319,3 +319,13 @@ def test_thin_under_a_flickering_light_is_refused_on_one_line(tmp_path, capsys):
     assert render(scene, tmp_path / "out") == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("camsim: error:") and "flicker" in err and "\n" not in err, err
+
+
+def test_a_raw_sequence_refuses_zarr_on_one_line(tmp_path, capsys):
+    write_source(tmp_path / "a.dng", 64, 64, orientation=1)
+    scene = write_sequence_scene(tmp_path, "a.dng", 0.01, "frames = 2\nframe_interval_s = 0.2\nshake_px = 0.5")
+    capsys.readouterr()
+    assert main(["render", str(scene), "--out", str(tmp_path / "out"), "-q", "--format", "zarr"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("camsim: error: --format zarr: a raw scene's sequence") and "\n" not in err, err
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())

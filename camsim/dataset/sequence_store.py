@@ -63,6 +63,9 @@ def render_sequence_store(scene, out_dir, *, workers: int | None = None, progres
     if scene.sequence is None:
         raise CamsimError("--format zarr writes a sequence as one array: the scene needs a [sequence] table (other "
                           "scenes are written as files)")
+    if scene.source.table == "raw":
+        raise CamsimError("--format zarr: a raw scene's sequence is written as files only (STEM_fNNN.dng/.exr/.json "
+                          "and STEM_ref); leave out --format zarr")
     check_sequence_scene(scene)
     try:
         import zarr  # noqa: F401
