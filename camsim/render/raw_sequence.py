@@ -222,7 +222,6 @@ def render_raw_sequence(scene, out_dir, *, workers=None, progress=True, exr_comp
     from camsim.io.output_folder import output_folder
     from camsim.render.frame_files import frame_stem
     from camsim.render.frame_manifest import MANIFEST_NAME, FrameManifest, manifest_entry
-    from camsim.render.raw_render import write_raw_frame
     from camsim.render.sequence import frame_digits
 
     exr_compression = exr_compression or DEFAULT_EXR_COMPRESSION
@@ -242,22 +241,35 @@ def render_raw_sequence(scene, out_dir, *, workers=None, progress=True, exr_comp
             for factor in scene.intensity_factors:
                 stem = frame_stem(scene.name, RAW_ILLUMINANT, factor)
                 fraction = frame_fraction(scene.sensor, source, factor)
-                for index, draw, clean, share, extra in render_raw_sequence_frames(scene, source, factor,
-                                                                                   workers=workers):
+                record = source.record(scene.source.photon_law, fraction)
+                for index, *frame in render_raw_sequence_frames(scene, source, factor, workers=workers):
                     name = f"{stem}_ref" if index == "ref" else f"{stem}_f{index:0{digits}d}"
-                    record = {**source.record(scene.source.photon_law, fraction), **mask_record(share)}
-                    meta = raw_sidecar(scene, draw, record, source, factor, scene.seed, None)
-                    meta = {**meta, **extra, "sequence": {**extra["sequence"], "stem": stem,
-                                                          "reference": f"{stem}_ref.exr"},
-                            "units": {**meta["units"], "raw_source": meta["units"]["raw_source"] + MASK_UNITS}}
                     manifest.withdraw(name)
-                    files = write_raw_frame(out_dir, name, draw, meta, source, scene.sensor, exr_compression,
-                                            clean=clean, mask=mask_png(share))
+                    files, meta = write_raw_sequence_frame(out_dir, name, stem, scene, source, factor, *frame,
+                                                           record, exr_compression)
                     manifest.commit_entry(manifest_entry({**meta, "files": files}))
                     bar.update()
     return manifest.as_dict()
 
 
+def write_raw_sequence_frame(out_dir: Path, name: str, stem: str, scene, source: LoadedRaw, intensity_factor: float,
+                             draw: RawDraw, clean: np.ndarray, share: np.ndarray, extra: dict, record: dict,
+                             exr_compression: str) -> tuple[dict, dict]:
+    """Write one frame of :func:`render_raw_sequence_frames` (``draw``, ``clean``, ``share``, ``extra``) as
+    ``out_dir/name.dng/.exr/.json`` (and ``name_mask.png`` where a site is masked:
+    :func:`camsim.render.raw_render.write_raw_frame`), its sidecar a raw scene's (``record``: its ``raw_source``
+    without the mask counts, which the frame's ``share`` sets) with the sequence's keys, whose ``sequence`` gains
+    ``stem`` and ``reference`` (``stem_ref.exr``). Returns the files by kind and the sidecar (without ``files``)."""
+    from camsim.render.raw_render import write_raw_frame
+
+    meta = raw_sidecar(scene, draw, {**record, **mask_record(share)}, source, intensity_factor, scene.seed, None)
+    meta = {**meta, **extra, "sequence": {**extra["sequence"], "stem": stem, "reference": f"{stem}_ref.exr"},
+            "units": {**meta["units"], "raw_source": meta["units"]["raw_source"] + MASK_UNITS}}
+    files = write_raw_frame(Path(out_dir), name, draw, meta, source, scene.sensor, exr_compression, clean=clean,
+                            mask=mask_png(share))
+    return files, meta
+
+
 __all__ = ["COMMON_SHARE_WARNING", "MASK_UNITS", "check_raw_sequence", "common_share", "mask_png", "mask_planes",
            "mask_record", "mask_share", "raw_sequence_warnings", "render_raw_sequence", "render_raw_sequence_frames",
-           "source_mosaic_e", "source_planes_e"]
+           "source_mosaic_e", "source_planes_e", "write_raw_sequence_frame"]
