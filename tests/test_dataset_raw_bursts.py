@@ -246,3 +246,17 @@ def test_resuming_a_half_written_raws_burst_dataset(tmp_path, monkeypatch):
     summary = run_dataset(spec, out, workers=1, progress=False, echo=None)
     assert (summary["skipped"], summary["rendered"]) == (1, 1)
     assert _hashes(out) == expected
+
+
+def test_the_common_source_noise_is_warned_of_on_one_line(tmp_path, capsys):
+    """At ratio 2 (f = 0.5) the source's own photon noise is f / (1 + f) = 1/3 of a frame's shot-noise variance,
+    common to every frame: one warning line; at ratio 100 (f = 0.01, 0.99 %) none."""
+    spec = make_spec(tmp_path, count=1)
+    assert main(["dataset", str(spec), "--out", str(tmp_path / "quiet"), "--workers", "1", "-q"]) == 0
+    assert capsys.readouterr().err == ""
+    spec.write_text(spec.read_text().replace("ratio = 100.0", "ratio = 2.0").replace("frame_interval_s = 0.01",
+                                                                                     "frame_interval_s = 0.3"))
+    assert main(["dataset", str(spec), "--out", str(tmp_path / "out"), "--workers", "1", "-q"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("camsim: warning: bursts of [raws] crops"), err
+    assert "at f = 0.5, about 33.3 %" in err, err

@@ -111,7 +111,8 @@ from camsim.sensor.params import SENSOR_PARAMS, with_checked_values
 from camsim.sensor.presets.virtual import VIRTUAL_KEYS
 from camsim.sensor.raw_laws import PHOTON_LAWS
 
-__all__ = ["RawCrop", "RawGroup", "plan_raws", "render_raw_files", "render_raw", "render_raw_burst_files"]
+__all__ = ["RawCrop", "RawGroup", "plan_raws", "raw_burst_warnings", "render_raw_files", "render_raw",
+           "render_raw_burst_files"]
 
 #: Parameters a ``[raws]`` spec may not set: the light, the camera curves and the render settings are a
 #: spectral scene's; the pattern is the file's.
@@ -633,3 +634,21 @@ def render_raw_burst_files(frame: FrameSpec, directory: Path, threads: int = 1,
         if index != "ref":
             suffixes.append(suffix)
     return names, {"frames": suffixes, "reference": "ref"}
+
+
+def raw_burst_warnings(frames) -> list[str]:
+    """The warning (one line, or none) of a dataset's bursts of ``[raws]`` crops (``frames``: its
+    :class:`FrameSpec`): the source's own noise is common to every frame of a burst
+    (:func:`camsim.render.raw_sequence.common_noise_warnings`), at the largest fraction f = F · T / T_source of
+    each photon law among the bursts."""
+    from camsim.render.raw_sequence import common_noise_warnings
+
+    largest: dict = {}
+    for frame in frames:
+        if frame.raw is None or frame.burst is None:
+            continue
+        law = frame.get("photon_law")
+        f = frame.intensity_factor * float(frame.get("exposure_s")) / float(frame.get("source_exposure_s"))
+        largest[law] = max(largest.get(law, 0.0), f)
+    lines = [line for law, f in largest.items() for line in common_noise_warnings(f, law, "bursts of [raws] crops")]
+    return lines[:1]

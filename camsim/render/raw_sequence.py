@@ -117,10 +117,17 @@ def raw_sequence_warnings(scene) -> list[str]:
     (:func:`common_share`) at the largest fraction exceeds :data:`COMMON_SHARE_WARNING`."""
     src = scene.source
     f = max(scene.intensity_factors) * float(scene.sensor.exposure_s) / src.source_exposure_s
-    share = common_share(f, src.photon_law)
+    return common_noise_warnings(f, src.photon_law, "[sequence] of a raw scene")
+
+
+def common_noise_warnings(fraction: float, law: str, what: str) -> list[str]:
+    """The warning (one line, or none) that ``what``'s frames (a raw sequence's, a dataset's bursts of raw crops)
+    share the source's own noise: where its share (:func:`common_share`) at the largest ``fraction`` f under
+    ``law`` exceeds :data:`COMMON_SHARE_WARNING`."""
+    share = common_share(fraction, law)
     if share <= COMMON_SHARE_WARNING:
         return []
-    return [f"[sequence] of a raw scene: the source's own noise is common to every frame (at f = {f:g}, about "
+    return [f"{what}: the source's own noise is common to every frame (at f = {fraction:g}, about "
             f"{100 * share:.3g} % of a frame's shot-noise variance): its frames are independent about their clean "
             "layer, which carries it, not about the scene (darken more, or see the real-raws guide, 'In motion')"]
 
@@ -270,6 +277,6 @@ def write_raw_sequence_frame(out_dir: Path, name: str, stem: str, scene, source:
     return files, meta
 
 
-__all__ = ["COMMON_SHARE_WARNING", "MASK_UNITS", "check_raw_sequence", "common_share", "mask_png", "mask_planes",
+__all__ = ["COMMON_SHARE_WARNING", "MASK_UNITS", "check_raw_sequence", "common_noise_warnings", "common_share", "mask_png", "mask_planes",
            "mask_record", "mask_share", "raw_sequence_warnings", "render_raw_sequence", "render_raw_sequence_frames",
            "source_mosaic_e", "source_planes_e", "write_raw_sequence_frame"]
