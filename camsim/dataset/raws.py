@@ -63,6 +63,16 @@ With ``srgb`` (``png``, ``png16``), the noisy and clean mosaics are developed th
 (:func:`camsim.dataset.srgb.develop_raw_frame`: the source's colour matrix and as-shot neutral, gain
 1 / (F · T / T_source), the exposure ratio). The file layout only: a Zarr store (``--format zarr``) is refused for
 ``[raws]`` specs.
+
+Bursts. ``burst_frames`` and the motion's parameters (:data:`camsim.dataset.spec.BURST_PARAMS`) make each item a
+burst of its crop (:func:`render_raw_burst_files`): a raw scene's ``[sequence]``
+(:func:`camsim.render.raw_sequence.render_raw_sequence_frames`) with the item's seed, ``ID_fNNN.dng/.exr/.json``
+(``_mask.png`` where masked) and the reference ``ID_ref.exr/.json``, the manifest's ``burst`` and the record's burst
+keys as a scene burst's. The flips come before the motion: the homographies are in the files' (flipped crop's)
+pixels. ``thin`` with motion or flicker, and exposures (with a rolling shutter's readout) longer than the frame
+interval, are refused when the spec is read; :func:`raw_burst_warnings` says where the source's own noise, common to
+a burst's frames, is more than 1 % of a frame's shot-noise variance. Zarr stores stay refused (the sequence store's
+arrays are a spectral frame's).
 """
 
 from __future__ import annotations
