@@ -260,3 +260,23 @@ def test_the_common_source_noise_is_warned_of_on_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("camsim: warning: bursts of [raws] crops"), err
     assert "at f = 0.5, about 33.3 %" in err, err
+
+
+def test_saturated_sites_make_moving_masks_listed_and_verified(tmp_path):
+    """A saturated patch in the file: every frame and the reference have ID_<frame>_mask.png, listed in the record
+    (``f000.mask`` …) and verified on a re-run (nothing rendered again)."""
+    spec = make_spec(tmp_path, count=1)
+    mosaic = source_mosaic()
+    mosaic[20:30, 25:40] = 16383
+    write_phone_dng(tmp_path / "raws" / "a.dng", mosaic, pattern="RGGB", black_per_site=[BLACK_SOURCE] * 4,
+                    white=16383, iso=100, exposure_s=T_SOURCE, make="SONY", model="ILCE-7SM2",
+                    unique_camera_model="Sony ILCE-7SM2")
+    out = tmp_path / "out"
+    run_dataset(spec, out, workers=1, progress=False, echo=None)
+    line = json.loads((out / "manifest.jsonl").read_text().splitlines()[0])
+    for suffix in ("ref", "f000", "f001", "f002"):
+        assert (out / line["files"][f"{suffix}.mask"]["name"]).is_file()
+        meta = json.loads((out / "frames" / f"{line['id']}_{suffix}.json").read_text())
+        assert meta["raw_source"]["masked_px"] > 0
+    summary = run_dataset(spec, out, workers=1, progress=False, echo=None)
+    assert (summary["skipped"], summary["rendered"]) == (1, 0)
