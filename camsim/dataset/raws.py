@@ -501,7 +501,8 @@ def _resolve_raw(params: dict, file: _RawFile, job: _RawJob) -> tuple[FrameGroup
     keys = sorted(record)
     group = FrameGroup(
         scene_path=str(raws.folder / file.name), width=raws.width, height=raws.height, illuminant="as-shot",
-        scene_changes={} if burst is None else {"sequence": burst}, sensor_overrides=overrides, record=record, value_keys=job.value_keys,
+        scene_changes={} if burst is None else {"sequence": burst}, sensor_overrides=overrides, record=record,
+        value_keys=job.value_keys,
         canonical_parts=tuple(f"{_canonical(k)}:{_canonical(record[k])}" for k in keys),
         canonical_slots=tuple((keys.index(k), f"{_canonical(k)}:") for k in job.value_keys),
         raws=group_raws)
@@ -600,7 +601,8 @@ def render_raw_files(frame: FrameSpec, directory: Path, threads: int = 1,
 def render_raw_burst_files(frame: FrameSpec, directory: Path, threads: int = 1,
                            exr_compression: str | None = None) -> tuple[dict, dict]:
     """Render a burst item of a ``[raws]`` spec (:attr:`FrameSpec.burst`) and write its files into ``directory``, as
-    ``camsim render`` writes a raw scene's ``[sequence]`` (:func:`camsim.render.raw_sequence.render_raw_sequence_frames`,
+    ``camsim render`` writes a raw scene's ``[sequence]``
+    (:func:`camsim.render.raw_sequence.render_raw_sequence_frames`,
     :func:`camsim.render.raw_sequence.write_raw_sequence_frame`) with the item's seed (its motion and every frame's
     noise): ``<id>_ref.exr/.json`` (the crop's expectation, no motion, no noise), then ``<id>_fNNN.dng/.exr/.json``
     (and ``<id>_fNNN_mask.png`` where a site took a share of a saturated source site), each committed by its sidecar.

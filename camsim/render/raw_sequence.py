@@ -277,6 +277,6 @@ def write_raw_sequence_frame(out_dir: Path, name: str, stem: str, scene, source:
     return files, meta
 
 
-__all__ = ["COMMON_SHARE_WARNING", "MASK_UNITS", "check_raw_sequence", "common_noise_warnings", "common_share", "mask_png", "mask_planes",
-           "mask_record", "mask_share", "raw_sequence_warnings", "render_raw_sequence", "render_raw_sequence_frames",
-           "source_mosaic_e", "source_planes_e", "write_raw_sequence_frame"]
+__all__ = ["COMMON_SHARE_WARNING", "MASK_UNITS", "check_raw_sequence", "common_noise_warnings", "common_share",
+           "mask_png", "mask_planes", "mask_record", "mask_share", "raw_sequence_warnings", "render_raw_sequence",
+           "render_raw_sequence_frames", "source_mosaic_e", "source_planes_e", "write_raw_sequence_frame"]
