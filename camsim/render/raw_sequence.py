@@ -54,7 +54,10 @@ Orientation —, ``homography_time``, ``blur_subsamples_used``, ``sequence``); a
 :func:`camsim.render.raw_frame.expectation_clean_dn`, the fixed pattern in), its noisy layer the clean one's sites,
 no DNG (under ``thin`` the planes are f · round(max(s, 0)): the law's mean, exact away from the full well, where
 a ``thin`` frame's own clean layer is :func:`camsim.render.raw_frame.render_raw_frame`'s approximation). Frame i
-draws from ``frame_seed_sequence(seed, "as-shot/f<i>", F)``.
+draws from ``frame_seed_sequence(seed, "as-shot/f<i>", F)``. Each frame is written by
+:func:`write_raw_sequence_frame`, which a dataset's bursts of ``[raws]`` crops share
+(:func:`camsim.dataset.raws.render_raw_burst_files`: the stem the item's id, the seed the item's, the source the crop
+after its flips).
 """
 
 from __future__ import annotations
