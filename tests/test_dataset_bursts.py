@@ -204,18 +204,26 @@ def test_bad_burst_parameters_are_one_line_exit_2(tmp_path, capsys, fixed, args,
     assert not (tmp_path / "out" / "frames").exists() or not any((tmp_path / "out" / "frames").iterdir())
 
 
-def test_raws_bursts_are_refused_on_one_line(tmp_path, capsys):
+def test_raws_crops_make_bursts_and_thin_with_shake_is_refused_on_one_line(tmp_path, capsys):
+    """A [raws] spec with burst_frames plans bursts (tests/test_dataset_raw_bursts.py renders them); photon_law
+    'thin' with shake cannot move (a moved site has no count to thin): exit 2, one line, at --dry-run."""
     from tests.phone_dng import write_phone_dng
 
     (tmp_path / "raws").mkdir()
     mosaic = np.full((48, 64), 600, dtype=np.uint16)
     write_phone_dng(tmp_path / "raws" / "a.dng", mosaic, pattern="RGGB", black_per_site=[64] * 4, white=1023,
                     iso=100, exposure_s=0.01)
-    (tmp_path / "spec.toml").write_text('name = "r"\n[raws]\nfolder = "raws"\ncrop = [32, 32]\npreset = "sony-a7s2"\n'
-                                        '[fixed]\nburst_frames = 4\n')
+    text = ('name = "r"\n[raws]\nfolder = "raws"\ncrop = [32, 32]\npreset = "sony-a7s2"\n{law}'
+            '[fixed]\nburst_frames = 4\nframe_interval_s = 0.02\nshake_px = 1.0\n')
+    (tmp_path / "spec.toml").write_text(text.format(law=""))
+    frame, = load_spec(tmp_path / "spec.toml").frames
+    assert frame.burst.frames == 4 and frame.burst.shake_px == 1.0 and frame.record["burst_frames"] == 4
+    assert main(["dataset", str(tmp_path / "spec.toml"), "--dry-run"]) == 0
+    assert "1 bursts of 32x32" in capsys.readouterr().out
+    (tmp_path / "spec.toml").write_text(text.format(law='photon_law = "thin"\n'))
     code = main(["dataset", str(tmp_path / "spec.toml"), "--dry-run"])
     err = capsys.readouterr().err
-    assert code == 2 and "bursts of [raws] crops are not available yet" in err and err.count("\n") == 1, err
+    assert code == 2 and "photon_law = 'thin' cannot move" in err and err.count("\n") == 1, err
 
 
 def test_a_scene_files_sequence_makes_bursts_and_none_turns_it_off(tmp_path):

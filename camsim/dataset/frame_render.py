@@ -129,6 +129,11 @@ def render_files(frame: FrameSpec, directory: Path, threads: int = 1,
     srgb_record : dict or None
         What the sRGB files hold (:func:`camsim.dataset.srgb.develop_frame`), None without them.
     """
+    if frame.raw is not None and frame.burst is not None:  # a burst of a [raws] crop (no sRGB: refused when planned)
+        from camsim.dataset.raws import render_raw_burst_files
+
+        names, burst = render_raw_burst_files(frame, Path(directory), threads, exr_compression)
+        return {**names, "burst": burst}, None
     if frame.raw is not None:  # a crop of a raw file of a [raws] folder
         from camsim.dataset.raws import render_raw_files
 

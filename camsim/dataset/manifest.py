@@ -6,7 +6,9 @@ Layout of ``OUT``::
     OUT/frames/<id>_srgb_noisy.png, <id>_srgb_clean.png   with ``--srgb``: noisy and clean developed through one
                                                ISP (camsim.dataset.srgb)
     OUT/frames/<id>_ref.exr, <id>_ref.json, <id>_fNNN.dng/.exr/.json   a burst's (``burst_frames``): its clean
-                                               reference and frames (camsim.dataset.frame_render.render_burst_files)
+                                               reference and frames (camsim.dataset.frame_render.render_burst_files;
+                                               a [raws] crop's: camsim.dataset.raws.render_raw_burst_files, with
+                                               <id>_<frame>_mask.png where masked)
     OUT/frames/<id>.done                       the frame's record, written (atomically) after all its files
     OUT/manifest.jsonl                         one line per complete frame, in frame order
 

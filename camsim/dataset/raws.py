@@ -63,6 +63,16 @@ With ``srgb`` (``png``, ``png16``), the noisy and clean mosaics are developed th
 (:func:`camsim.dataset.srgb.develop_raw_frame`: the source's colour matrix and as-shot neutral, gain
 1 / (F · T / T_source), the exposure ratio). The file layout only: a Zarr store (``--format zarr``) is refused for
 ``[raws]`` specs.
+
+Bursts. ``burst_frames`` and the motion's parameters (:data:`camsim.dataset.spec.BURST_PARAMS`) make each item a
+burst of its crop (:func:`render_raw_burst_files`): a raw scene's ``[sequence]``
+(:func:`camsim.render.raw_sequence.render_raw_sequence_frames`) with the item's seed, ``ID_fNNN.dng/.exr/.json``
+(``_mask.png`` where masked) and the reference ``ID_ref.exr/.json``, the manifest's ``burst`` and the record's burst
+keys as a scene burst's. The flips come before the motion: the homographies are in the files' (flipped crop's)
+pixels. ``thin`` with motion or flicker, and exposures (with a rolling shutter's readout) longer than the frame
+interval, are refused when the spec is read; :func:`raw_burst_warnings` says where the source's own noise, common to
+a burst's frames, is more than 1 % of a frame's shot-noise variance. Zarr stores stay refused (the sequence store's
+arrays are a spectral frame's).
 """
 
 from __future__ import annotations
@@ -100,15 +110,19 @@ from camsim.dataset.spec import (
     _parameter_tables,
     _virtual_cameras,
     FileCrop,
+    burst_record,
+    burst_sequence,
     folder_table,
     frame_sensor_overrides,
 )
 from camsim.io.dng import MAX_EXPOSURE_S, MIN_SIZE
+from camsim.scene.sequence import check_timing
 from camsim.sensor.params import SENSOR_PARAMS, with_checked_values
 from camsim.sensor.presets.virtual import VIRTUAL_KEYS
 from camsim.sensor.raw_laws import PHOTON_LAWS
 
-__all__ = ["RawCrop", "RawGroup", "plan_raws", "render_raw_files", "render_raw"]
+__all__ = ["RawCrop", "RawGroup", "plan_raws", "raw_burst_warnings", "render_raw_files", "render_raw",
+           "render_raw_burst_files"]
 
 #: Parameters a ``[raws]`` spec may not set: the light, the camera curves and the render settings are a
 #: spectral scene's; the pattern is the file's.
@@ -326,10 +340,6 @@ def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeat
         if param in axes:
             raise CamsimError(f"{where}: [{axes[param]}] {param} does not apply to [raws] frames (the light, the "
                               "camera and the colour filter array are each raw file's own)")
-    for p in BURST_PARAMS:  # a raw scene cannot move yet (camsim.render.sequence.check_sequence_scene)
-        if p.name in axes:
-            raise CamsimError(f"{where}: [{axes[p.name]}] {p.name}: bursts of [raws] crops are not available yet (a "
-                              "raw scene cannot move yet)")
     if "ratio" in axes and "exposure_s" in axes:
         raise CamsimError(f"{where}: set either ratio (T = T_source / ratio) or exposure_s, not both")
     points = math.prod(len(v) for v in grid.values()) * count
@@ -405,16 +415,31 @@ def _raw_frame_values(job: _RawJob) -> Iterator[tuple]:
 
 def _check_raw_frame(group: FrameGroup, sensor, factor: float, own: dict) -> None:
     """Refuse a frame that cannot be drawn or written: its own sensor values out of range, an exposure longer than
-    a DNG records, ``thin`` brightening (F · T above the source's exposure)."""
+    a DNG records, ``thin`` brightening (F · T above the source's exposure), a burst whose exposures (and a rolling
+    shutter's readout) do not fit in its frame interval."""
     if own:
         sensor = with_checked_values(sensor, **own)
     raws = group.raws
+    burst = group.scene_changes.get("sequence")
+    if burst is not None:
+        _check_burst(lambda: check_timing(burst, sensor.exposure_s, group.height))
     if sensor.quantisation and sensor.exposure_s > MAX_EXPOSURE_S:
         raise CamsimError(f"exposure T = {sensor.exposure_s:g} s is longer than a DNG records ({MAX_EXPOSURE_S} s)")
     if raws.photon_law == "thin" and factor * sensor.exposure_s > raws.source_exposure_s * (1 + 1e-12):
         raise CamsimError(f"photon_law 'thin' cannot brighten: F·T = {factor * sensor.exposure_s:g} s is more than "
                           f"the source's exposure {raws.source_exposure_s:g} s; lower F or T, or use photon_law = "
                           "'add'")
+
+
+def _check_burst(check) -> None:
+    """Run a burst's ``check`` (a raw ``[sequence]``'s), its error said in a spec's words (``burst``,
+    ``burst_frames``)."""
+    try:
+        check()
+    except CamsimError as exc:
+        text = str(exc).replace("[sequence]: frames ", "burst_frames ").replace("[raw] photon_law", "photon_law")
+        text = text.replace("a static [sequence]", "a burst without motion").replace("[sequence]", "burst")
+        raise CamsimError(text) from None
 
 
 def _resolve_raw(params: dict, file: _RawFile, job: _RawJob) -> tuple[FrameGroup, object]:
@@ -445,6 +470,12 @@ def _resolve_raw(params: dict, file: _RawFile, job: _RawJob) -> tuple[FrameGroup
     scene = frame_scene(group_raws, overrides, RawCrop(str(raws.folder / file.name), 0, 0, raws.width, raws.height,
                                                         False, False), float(params["intensity_factor"]))
     sensor = scene.sensor
+    burst = burst_sequence(params, scene)
+    if burst is not None:  # thin cannot move or flicker (one check: the raw scene's; timing per frame)
+        from camsim.render.raw_sequence import check_raw_sequence
+
+        moving = scene.replace(sequence=burst)
+        _check_burst(lambda: check_raw_sequence(moving))
     record = {
         "scene": job.name,
         "scene_source": "raws",
@@ -462,6 +493,7 @@ def _resolve_raw(params: dict, file: _RawFile, job: _RawJob) -> tuple[FrameGroup
         "preset": preset,
         **({"iso": iso} if iso is not None else {}),
         **sensor.to_dict(),
+        **(burst_record(burst) if burst is not None else {}),  # a burst's keys: only then (other ids unchanged)
         "spec_seed": job.seed,
         **dict.fromkeys(RAW_KEYS),
     }
@@ -469,7 +501,8 @@ def _resolve_raw(params: dict, file: _RawFile, job: _RawJob) -> tuple[FrameGroup
     keys = sorted(record)
     group = FrameGroup(
         scene_path=str(raws.folder / file.name), width=raws.width, height=raws.height, illuminant="as-shot",
-        scene_changes={}, sensor_overrides=overrides, record=record, value_keys=job.value_keys,
+        scene_changes={} if burst is None else {"sequence": burst}, sensor_overrides=overrides, record=record,
+        value_keys=job.value_keys,
         canonical_parts=tuple(f"{_canonical(k)}:{_canonical(record[k])}" for k in keys),
         canonical_slots=tuple((keys.index(k), f"{_canonical(k)}:") for k in job.value_keys),
         raws=group_raws)
@@ -563,3 +596,71 @@ def render_raw_files(frame: FrameSpec, directory: Path, threads: int = 1,
                             exr_compression or DEFAULT_EXR_COMPRESSION)
     return names, (draw, meta)
 
+
+
+def render_raw_burst_files(frame: FrameSpec, directory: Path, threads: int = 1,
+                           exr_compression: str | None = None) -> tuple[dict, dict]:
+    """Render a burst item of a ``[raws]`` spec (:attr:`FrameSpec.burst`) and write its files into ``directory``, as
+    ``camsim render`` writes a raw scene's ``[sequence]``
+    (:func:`camsim.render.raw_sequence.render_raw_sequence_frames`,
+    :func:`camsim.render.raw_sequence.write_raw_sequence_frame`) with the item's seed (its motion and every frame's
+    noise): ``<id>_ref.exr/.json`` (the crop's expectation, no motion, no noise), then ``<id>_fNNN.dng/.exr/.json``
+    (and ``<id>_fNNN_mask.png`` where a site took a share of a saturated source site), each committed by its sidecar.
+
+    The motion moves the frame's own source, the crop as the frame sees it (:func:`load_crop`: after its flips):
+    each sidecar's ``homography`` maps the reference's pixels to the frame's in the files' own pixels (the crop's,
+    mirrored as the frame is; x the column, y the row), not the raw file's.
+
+    Returns
+    -------
+    names : dict
+        File names by kind ``<frame>.<kind>``: ``ref.exr``, ``ref.json``, ``f000.dng`` (None without quantisation),
+        ``f000.exr``, ``f000.json``, ``f000.mask`` (where masked) …
+    burst : dict
+        The manifest's ``burst``: ``frames`` (``f000`` …, in order) and ``reference`` (``ref``).
+    """
+    from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION
+    from camsim.render.raw_render import frame_fraction
+    from camsim.render.raw_sequence import render_raw_sequence_frames, write_raw_sequence_frame
+    from camsim.render.sequence import frame_digits
+
+    crop = frame.raw
+    factor = frame.intensity_factor
+    scene = frame_scene(frame.group.raws, frame.sensor_overrides, crop, factor)
+    scene = scene.replace(sequence=frame.burst, seed=frame.seed)
+    source = load_crop(frame)
+    if source.capture.cfa != scene.sensor.cfa:  # the flips' construction: a frame keeps its file's pattern
+        raise CamsimError(f"{crop.path}: window {list(crop.window)} reads a {source.capture.cfa} mosaic, not the "
+                          f"frame's {scene.sensor.cfa}")
+    law = scene.source.photon_law
+    record = {**source.record(law, frame_fraction(scene.sensor, source, factor)),
+              "flip_horizontal": crop.flip_horizontal, "flip_vertical": crop.flip_vertical,
+              "sha256": frame.get("raw_sha256")}
+    digits = frame_digits(frame.burst.frames)
+    names, suffixes = {}, []
+    for index, *drawn in render_raw_sequence_frames(scene, source, factor, workers=threads):
+        suffix = "ref" if index == "ref" else f"f{index:0{digits}d}"
+        files, _ = write_raw_sequence_frame(Path(directory), f"{frame.id}_{suffix}", frame.id, scene, source, factor,
+                                            *drawn, record, exr_compression or DEFAULT_EXR_COMPRESSION)
+        names.update({f"{suffix}.{kind}": value for kind, value in files.items()})
+        if index != "ref":
+            suffixes.append(suffix)
+    return names, {"frames": suffixes, "reference": "ref"}
+
+
+def raw_burst_warnings(frames) -> list[str]:
+    """The warning (one line, or none) of a dataset's bursts of ``[raws]`` crops (``frames``: its
+    :class:`FrameSpec`): the source's own noise is common to every frame of a burst
+    (:func:`camsim.render.raw_sequence.common_noise_warnings`), at the largest fraction f = F · T / T_source of
+    each photon law among the bursts."""
+    from camsim.render.raw_sequence import common_noise_warnings
+
+    largest: dict = {}
+    for frame in frames:
+        if frame.raw is None or frame.burst is None:
+            continue
+        law = frame.get("photon_law")
+        f = frame.intensity_factor * float(frame.get("exposure_s")) / float(frame.get("source_exposure_s"))
+        largest[law] = max(largest.get(law, 0.0), f)
+    lines = [line for law, f in largest.items() for line in common_noise_warnings(f, law, "bursts of [raws] crops")]
+    return lines[:1]

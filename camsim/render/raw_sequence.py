@@ -54,7 +54,10 @@ Orientation —, ``homography_time``, ``blur_subsamples_used``, ``sequence``); a
 :func:`camsim.render.raw_frame.expectation_clean_dn`, the fixed pattern in), its noisy layer the clean one's sites,
 no DNG (under ``thin`` the planes are f · round(max(s, 0)): the law's mean, exact away from the full well, where
 a ``thin`` frame's own clean layer is :func:`camsim.render.raw_frame.render_raw_frame`'s approximation). Frame i
-draws from ``frame_seed_sequence(seed, "as-shot/f<i>", F)``.
+draws from ``frame_seed_sequence(seed, "as-shot/f<i>", F)``. Each frame is written by
+:func:`write_raw_sequence_frame`, which a dataset's bursts of ``[raws]`` crops share
+(:func:`camsim.dataset.raws.render_raw_burst_files`: the stem the item's id, the seed the item's, the source the crop
+after its flips).
 """
 
 from __future__ import annotations
@@ -117,10 +120,17 @@ def raw_sequence_warnings(scene) -> list[str]:
     (:func:`common_share`) at the largest fraction exceeds :data:`COMMON_SHARE_WARNING`."""
     src = scene.source
     f = max(scene.intensity_factors) * float(scene.sensor.exposure_s) / src.source_exposure_s
-    share = common_share(f, src.photon_law)
+    return common_noise_warnings(f, src.photon_law, "[sequence] of a raw scene")
+
+
+def common_noise_warnings(fraction: float, law: str, what: str) -> list[str]:
+    """The warning (one line, or none) that ``what``'s frames (a raw sequence's, a dataset's bursts of raw crops)
+    share the source's own noise: where its share (:func:`common_share`) at the largest ``fraction`` f under
+    ``law`` exceeds :data:`COMMON_SHARE_WARNING`."""
+    share = common_share(fraction, law)
     if share <= COMMON_SHARE_WARNING:
         return []
-    return [f"[sequence] of a raw scene: the source's own noise is common to every frame (at f = {f:g}, about "
+    return [f"{what}: the source's own noise is common to every frame (at f = {fraction:g}, about "
             f"{100 * share:.3g} % of a frame's shot-noise variance): its frames are independent about their clean "
             "layer, which carries it, not about the scene (darken more, or see the real-raws guide, 'In motion')"]
 
@@ -222,7 +232,6 @@ def render_raw_sequence(scene, out_dir, *, workers=None, progress=True, exr_comp
     from camsim.io.output_folder import output_folder
     from camsim.render.frame_files import frame_stem
     from camsim.render.frame_manifest import MANIFEST_NAME, FrameManifest, manifest_entry
-    from camsim.render.raw_render import write_raw_frame
     from camsim.render.sequence import frame_digits
 
     exr_compression = exr_compression or DEFAULT_EXR_COMPRESSION
@@ -242,22 +251,35 @@ def render_raw_sequence(scene, out_dir, *, workers=None, progress=True, exr_comp
             for factor in scene.intensity_factors:
                 stem = frame_stem(scene.name, RAW_ILLUMINANT, factor)
                 fraction = frame_fraction(scene.sensor, source, factor)
-                for index, draw, clean, share, extra in render_raw_sequence_frames(scene, source, factor,
-                                                                                   workers=workers):
+                record = source.record(scene.source.photon_law, fraction)
+                for index, *frame in render_raw_sequence_frames(scene, source, factor, workers=workers):
                     name = f"{stem}_ref" if index == "ref" else f"{stem}_f{index:0{digits}d}"
-                    record = {**source.record(scene.source.photon_law, fraction), **mask_record(share)}
-                    meta = raw_sidecar(scene, draw, record, source, factor, scene.seed, None)
-                    meta = {**meta, **extra, "sequence": {**extra["sequence"], "stem": stem,
-                                                          "reference": f"{stem}_ref.exr"},
-                            "units": {**meta["units"], "raw_source": meta["units"]["raw_source"] + MASK_UNITS}}
                     manifest.withdraw(name)
-                    files = write_raw_frame(out_dir, name, draw, meta, source, scene.sensor, exr_compression,
-                                            clean=clean, mask=mask_png(share))
+                    files, meta = write_raw_sequence_frame(out_dir, name, stem, scene, source, factor, *frame,
+                                                           record, exr_compression)
                     manifest.commit_entry(manifest_entry({**meta, "files": files}))
                     bar.update()
     return manifest.as_dict()
 
 
-__all__ = ["COMMON_SHARE_WARNING", "MASK_UNITS", "check_raw_sequence", "common_share", "mask_png", "mask_planes",
-           "mask_record", "mask_share", "raw_sequence_warnings", "render_raw_sequence", "render_raw_sequence_frames",
-           "source_mosaic_e", "source_planes_e"]
+def write_raw_sequence_frame(out_dir: Path, name: str, stem: str, scene, source: LoadedRaw, intensity_factor: float,
+                             draw: RawDraw, clean: np.ndarray, share: np.ndarray, extra: dict, record: dict,
+                             exr_compression: str) -> tuple[dict, dict]:
+    """Write one frame of :func:`render_raw_sequence_frames` (``draw``, ``clean``, ``share``, ``extra``) as
+    ``out_dir/name.dng/.exr/.json`` (and ``name_mask.png`` where a site is masked:
+    :func:`camsim.render.raw_render.write_raw_frame`), its sidecar a raw scene's (``record``: its ``raw_source``
+    without the mask counts, which the frame's ``share`` sets) with the sequence's keys, whose ``sequence`` gains
+    ``stem`` and ``reference`` (``stem_ref.exr``). Returns the files by kind and the sidecar (without ``files``)."""
+    from camsim.render.raw_render import write_raw_frame
+
+    meta = raw_sidecar(scene, draw, {**record, **mask_record(share)}, source, intensity_factor, scene.seed, None)
+    meta = {**meta, **extra, "sequence": {**extra["sequence"], "stem": stem, "reference": f"{stem}_ref.exr"},
+            "units": {**meta["units"], "raw_source": meta["units"]["raw_source"] + MASK_UNITS}}
+    files = write_raw_frame(Path(out_dir), name, draw, meta, source, scene.sensor, exr_compression, clean=clean,
+                            mask=mask_png(share))
+    return files, meta
+
+
+__all__ = ["COMMON_SHARE_WARNING", "MASK_UNITS", "check_raw_sequence", "common_noise_warnings", "common_share",
+           "mask_png", "mask_planes", "mask_record", "mask_share", "raw_sequence_warnings", "render_raw_sequence",
+           "render_raw_sequence_frames", "source_mosaic_e", "source_planes_e", "write_raw_sequence_frame"]

@@ -84,6 +84,13 @@ def run(args) -> int:
         print_plan(plan)
         return 0
     spec = load_spec(args.spec)
+    if spec.axes.get("raw_file") == "raws" and "burst_frames" in spec.axes:  # bursts of real raws: their noise
+        import sys
+
+        from camsim.dataset.raws import raw_burst_warnings
+
+        for line in raw_burst_warnings(spec.frames):
+            print(f"camsim: warning: {line}", file=sys.stderr)
     out = args.out if args.out is not None else DEFAULT_OUT / spec.name
     run_dataset(spec, out, workers=args.workers, threads=args.threads, scheduler=args.scheduler,
                 verify=args.verify, progress=not args.quiet, exr_compression=args.exr_compression,
