@@ -155,7 +155,8 @@ def _warp_paths(scene, lit, sensor, workers):
     (:func:`camsim.render.sequence.moving_expectation`, the faster of two on each path of its warp), or None
     without numba."""
     import camsim.render.warp as warp
-    from camsim.render.sequence import channels_last, moving_expectation, static_signal_e
+    from camsim.render.raw_frame import static_signal_e
+    from camsim.render.sequence import channels_last, moving_expectation
     from camsim.scene.sequence import Motion
 
     if warp.warp_kernels() is None:

@@ -95,7 +95,6 @@ from camsim.dataset.spec import (
     ID_DIGITS,
     MAX_FRAMES,
     OWN_VALUE_PARAMS,
-    BURST_PARAMS,
     PARAMETERS,
     RAW_KEYS,
     RAW_SUFFIXES,

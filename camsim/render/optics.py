@@ -1,7 +1,7 @@
 """A frame through the optics (issue 30): the scene's ``[optics]`` applied to the expected electrons, then the noise.
 
 The scene's expected signal electrons per pixel and channel S̄ (3, H, W) are gathered through the label map
-(:func:`camsim.render.sequence.static_signal_e`), the optics' stages (:mod:`camsim.optics.stages`) are applied to
+(:func:`camsim.render.raw_frame.static_signal_e`), the optics' stages (:mod:`camsim.optics.stages`) are applied to
 them in the order light meets them:
 
 1. lateral chromatic aberration: channel c's image magnified by m_c about the frame's centre (bilinear, clamped at
@@ -159,9 +159,8 @@ def optics_record(optics: OpticsParams, wavelengths_nm, weights) -> dict:
 
 def optics_frame(lit, sensor, intensity_factor: float, optics: OpticsParams, *, rng, workers: int | None = None):
     """One frame of ``lit`` through ``optics``, drawn per pixel: ``(frame, record)``, a
-    :class:`camsim.render.sequence.SequenceFrame` (its clean layer per pixel) and the sidecar's ``optics``."""
-    from camsim.render.raw_frame import expectation_clean_dn, render_expectation_frame
-    from camsim.render.sequence import SequenceFrame, static_signal_e
+    :class:`camsim.render.raw_frame.ExpectationFrame` (its clean layer per pixel) and the sidecar's ``optics``."""
+    from camsim.render.raw_frame import ExpectationFrame, expectation_clean_dn, render_expectation_frame, static_signal_e
     from camsim.sensor.cfa import mosaic_of
 
     expected = lit.expected(sensor, intensity_factor, "pixel")
@@ -173,6 +172,6 @@ def optics_frame(lit, sensor, intensity_factor: float, optics: OpticsParams, *, 
     draw = render_expectation_frame(source, sensor, rng=rng, workers=workers)
     del source
     clean = draw.clean_dn if sensor.cfa is None else expectation_clean_dn(signal, sensor, draw.maps, workers)
-    frame = SequenceFrame(draw.noisy_dn, draw.digital_dn, lit.labels, expected, sensor, None, draw.maps,
+    frame = ExpectationFrame(draw.noisy_dn, draw.digital_dn, lit.labels, expected, sensor, None, draw.maps,
                           draw.black_level_error_dn, clean)
     return frame, optics_record(optics, wavelengths, weights)

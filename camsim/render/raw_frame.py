@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.render.frame import black_level_error, block_rows, run_blocks, write_stuck
+from camsim.render.frame import Frame, black_level_error, block_rows, run_blocks, write_stuck
 from camsim.sensor.cfa import CFA_PATTERNS, cfa_sites
 from camsim.sensor.expected import clean_charge_e
 from camsim.sensor.fixed_pattern import FixedPattern, fixed_pattern
@@ -320,6 +320,27 @@ def _clean_rows(clean: np.ndarray, poisson_mean, base, sensor: SensorParams, k: 
     np.multiply(lam, k, out=clean, casting="unsafe")
     if base is not None:
         clean += np.float32(k) * np.asarray(base, dtype=np.float32)
+
+
+@dataclass(frozen=True)
+class ExpectationFrame(Frame):
+    """A frame drawn from a per-pixel expectation (:func:`render_expectation_frame`: a moving scene's, a scene seen
+    through optics), its clean layer per pixel, not one value per spectrum."""
+
+    clean: np.ndarray | None = None  # (3, H, W) float32, DN
+
+    def clean_dn(self) -> np.ndarray:
+        return self.clean
+
+
+def static_signal_e(labels: np.ndarray, signal_e: np.ndarray) -> np.ndarray:
+    """S̄ per pixel and channel, (3, H, W) float32, from the per-spectrum ``signal_e`` (K, 3) through ``labels``.
+    Unit: e⁻."""
+    table = np.asarray(signal_e, dtype=np.float32)
+    out = np.empty((3,) + labels.shape, dtype=np.float32)
+    for c in range(3):
+        out[c] = table[:, c][labels]
+    return out
 
 
 def render_expectation_frame(signal_e, sensor: SensorParams, *,

@@ -179,17 +179,13 @@ def check_raw_scene(scene) -> None:
 
 
 def raw_frame_warnings(scene) -> list[str]:
-    """:func:`camsim.render.pipeline.frame_warnings` of a raw scene's sensor (after :func:`check_raw_scene`), and a
-    ``[sequence]``'s (:func:`camsim.render.raw_sequence.raw_sequence_warnings`, after its check)."""
+    """:func:`camsim.render.pipeline.frame_warnings` of a raw scene's sensor (after :func:`check_raw_scene`); a
+    ``[sequence]`` adds :func:`camsim.render.raw_sequence.raw_sequence_warnings` (:func:`camsim.render.run.scene_warnings`
+    dispatches)."""
     from camsim.render.pipeline import frame_warnings
 
     check_raw_scene(scene)
-    if scene.sequence is None:
-        return frame_warnings(scene.sensor)
-    from camsim.render.raw_sequence import check_raw_sequence, raw_sequence_warnings
-
-    check_raw_sequence(scene)
-    return frame_warnings(scene.sensor) + raw_sequence_warnings(scene)
+    return frame_warnings(scene.sensor)
 
 
 def raw_scene_frame(scene, intensity_factor: float, *, source: LoadedRaw | None = None, seed: int | None = None,

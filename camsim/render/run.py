@@ -55,7 +55,13 @@ def scene_warnings(scene: Scene) -> list[str]:
     if scene.source.table == "raw":
         from camsim.render.raw_render import raw_frame_warnings
 
-        return raw_frame_warnings(scene)
+        if scene.sequence is None:
+            return raw_frame_warnings(scene)
+        from camsim.render.raw_sequence import check_raw_sequence, raw_sequence_warnings
+
+        warnings = raw_frame_warnings(scene)
+        check_raw_sequence(scene)
+        return warnings + raw_sequence_warnings(scene)
     from camsim.render.pipeline import check_frames  # (looked up now: the tests replace it)
 
     return check_frames(scene)
@@ -88,6 +94,14 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
         check_optics_scene(scene)
         if device != "cpu":
             raise CamsimError("a scene with [optics] is drawn per pixel on the CPU (--device cpu)")
+    if scene.sequence is not None and scene.source.table == "raw":  # a raw's electrons moved: render.raw_sequence
+        from camsim.render.raw_sequence import check_raw_sequence, render_raw_sequence
+
+        check_raw_sequence(scene)
+        if preview or device != "cpu":
+            raise CamsimError("a sequence's frames are drawn per pixel on the CPU and have no preview")
+        return render_raw_sequence(scene, out_dir, workers=workers, progress=progress,
+                                   exr_compression=exr_compression)
     if scene.sequence is not None:  # frames with camera motion: camsim.render.sequence
         from camsim.render.sequence import check_sequence_scene, render_sequence
 

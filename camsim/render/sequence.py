@@ -25,44 +25,22 @@ has it), its noisy layer equal to its clean one, no DNG. An EXR's clean layer is
 values (``patches``) are the static scene's.
 
 A raw scene's sequence moves the file's electrons instead (:mod:`camsim.render.raw_sequence`: the same
-:func:`moving_expectation`, then the file's CFA and the ``add`` law); :func:`check_sequence_scene` and
-:func:`render_sequence` hand it there.
+:func:`moving_expectation`, then the file's CFA and the ``add`` law), where :mod:`camsim.render.run` sends it
+(that module imports this one, not the reverse).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from camsim.core.errors import CamsimError
 from camsim.core.seeding import frame_seed_sequence
-from camsim.render.frame import Frame
-from camsim.render.raw_frame import expectation_clean_dn, render_expectation_frame
+from camsim.render.raw_frame import ExpectationFrame, expectation_clean_dn, render_expectation_frame, static_signal_e
 from camsim.scene.sequence import Motion, SequenceParams, check_timing
 from camsim.sensor.cfa import mosaic_of
-
-
-@dataclass(frozen=True)
-class SequenceFrame(Frame):
-    """A frame whose clean layer is per pixel (a moving scene's), not one value per spectrum."""
-
-    clean: np.ndarray | None = None  # (3, H, W) float32, DN
-
-    def clean_dn(self) -> np.ndarray:
-        return self.clean
-
-
-def static_signal_e(labels: np.ndarray, signal_e: np.ndarray) -> np.ndarray:
-    """S̄ per pixel and channel, (3, H, W) float32, from the per-spectrum ``signal_e`` (K, 3) through ``labels``.
-    Unit: e⁻."""
-    table = np.asarray(signal_e, dtype=np.float32)
-    out = np.empty((3,) + labels.shape, dtype=np.float32)
-    for c in range(3):
-        out[c] = table[:, c][labels]
-    return out
 
 
 def moving_expectation(signal_e: np.ndarray, motion: Motion, frame: int, exposure_s: float,
@@ -136,10 +114,8 @@ def sequence_frame_info(stem: str, index, digits: int, extra: dict, base):
 
 def check_sequence_scene(scene) -> None:
     """Refuse, before any work, what a sequence cannot render (one line each)."""
-    if scene.source.table == "raw":  # the file's electrons moved: camsim.render.raw_sequence
-        from camsim.render.raw_sequence import check_raw_sequence
-
-        return check_raw_sequence(scene)
+    if scene.source.table == "raw":  # (camsim.render.run dispatches a raw scene's to camsim.render.raw_sequence)
+        raise CamsimError("a raw scene's [sequence] is rendered from its file's electrons (camsim render), not here")
     own = scene.source.has_own_size
     height = (scene.source.own_size() if own else (scene.width, scene.height))[1]
     if scene.exposure == "fixed":  # (auto: each frame's T is checked when it is known)
@@ -153,7 +129,7 @@ def check_sequence_scene(scene) -> None:
 
 def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, workers=None):
     """Yield ``("ref", frame, extra)`` and then ``(i, frame, extra)`` for every frame of ``scene.sequence`` under
-    ``lit`` at F: :class:`SequenceFrame` objects and the sidecar keys of each (``extra``)."""
+    ``lit`` at F: :class:`camsim.render.raw_frame.ExpectationFrame` objects and the sidecar keys of each (``extra``)."""
     seq: SequenceParams = scene.sequence
     expected = lit.expected(sensor, intensity_factor, scene.statistics)
     labels = lit.labels
@@ -174,7 +150,7 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
     maps = fixed_pattern(sensor, labels.shape)
     ref_clean = expectation_clean_dn(static, sensor, maps, workers)
     ref_noisy = ref_clean if sensor.cfa is None else mosaic_of(ref_clean, sensor.cfa)[None]
-    yield "ref", SequenceFrame(np.ascontiguousarray(ref_noisy), None, labels, expected, sensor, None, maps, None,
+    yield "ref", ExpectationFrame(np.ascontiguousarray(ref_noisy), None, labels, expected, sensor, None, maps, None,
                                ref_clean), {
         "sequence_reference": True, "homography": np.eye(3).tolist(), "sequence": record, **(optics or {})}
     # once for every frame: S̄ channels last, and the buffer of each frame's expectation (no frame keeps it)
@@ -185,7 +161,7 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
         rng = frame_seed_sequence(scene.seed, f"{lit.illuminant}/f{i}", intensity_factor)
         draw = render_expectation_frame(source, sensor, rng=rng, workers=workers, clean=sensor.cfa is None)
         clean = draw.clean_dn if sensor.cfa is None else expectation_clean_dn(moving, sensor, draw.maps, workers)
-        frame = SequenceFrame(draw.noisy_dn, draw.digital_dn, labels, expected, sensor, None, draw.maps,
+        frame = ExpectationFrame(draw.noisy_dn, draw.digital_dn, labels, expected, sensor, None, draw.maps,
                               draw.black_level_error_dn, clean)
         extra = {**sequence_frame_record(motion, i, sensor.exposure_s), "sequence": record, **(optics or {})}
         yield i, frame, extra
@@ -222,11 +198,6 @@ def render_sequence(scene, out_dir, *, workers=None, progress=True, exr_compress
     from camsim.render.frame_manifest import MANIFEST_NAME, FrameManifest
     from camsim.sensor.camera import load_camera
 
-    if scene.source.table == "raw":  # the file's electrons moved: camsim.render.raw_sequence
-        from camsim.render.raw_sequence import render_raw_sequence
-
-        return render_raw_sequence(scene, out_dir, workers=workers, progress=progress,
-                                   exr_compression=exr_compression)
     exr_compression = exr_compression or DEFAULT_EXR_COMPRESSION
     check_sequence_scene(scene)
     check_exr_compression(exr_compression)
