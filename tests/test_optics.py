@@ -468,7 +468,7 @@ def test_scene_file_optics_and_refusals(tmp_path, capsys):
 
 def test_colour_edge_approximation_is_measured():
     """tools/optics_colour_edge.py: one PSF per channel against the per-wavelength reference. A grey edge (one
-    spectral shape) has no approximation error; a red | blue edge has one of order 1 % at f/8 (the figure the docs
+    spectral shape) has no approximation error; a red | blue edge has one of order 2 % at f/8 (the figure the docs
     state)."""
     import importlib.util
 
