@@ -393,8 +393,8 @@ def test_a_malformed_edge_region_is_refused(text, tmp_path, capsys):
 def test_rendered_optics_measure_their_closed_form(f_number, defocus, olpf, tmp_path):
     """Issue 30's acceptance: the slanted edge rendered through diffraction (and the OLPF; and half a wave of
     defocus), noise on, 640 rows: the e-SFR within 0.03 of the closed form up to Nyquist, MTF50 within 2.5 % (below),
-    for three f-numbers. The model here is the closed form of the frame's own optics record (camsim.analysis.mtf_model, the
-    renderer's oracle: Hopkins' OTF computed on its own)."""
+    for three f-numbers. The model here is the closed form of the frame's own optics record
+    (camsim.analysis.mtf_model, the renderer's oracle: Hopkins' OTF computed on its own)."""
     pytest.importorskip("camsim.optics")
     scene = (SCENES / "slanted_edge.toml").read_text()
     scene += (f"\n[optics]\nf_number = {f_number}\nfocal_length_mm = 8.0\npixel_pitch_um = 4.0\n"

@@ -1,13 +1,13 @@
 """A scene's ``[optics]`` table: the lens and the stages in front of the sensor (issue 30).
 
-Each stage is switchable: diffraction (``diffraction = true``: the Airy pattern of a circular pupil, per
-wavelength), defocus (``defocus_waves``, W020 in waves at 550 nm, or ``defocus_um``, the image-plane focus shift Δz,
+Each stage is switchable: diffraction (``diffraction = true``: the Airy pattern of a circular pupil, per wavelength),
+defocus (``defocus_waves``, W020 in waves at 550 nm, or ``defocus_um``, the image-plane focus shift Δz,
 W020 = Δz / (8 N²) µm), the birefringent 4-spot low-pass filter (``olpf``, spots at (±s/2, ±s/2) px), the pixel
-aperture (``fill_factor``: a square of side √ff px, relative to the source's full-pixel area sampling), vignetting (``vignetting = "cos4"`` from ``focal_length_mm``
-and ``pixel_pitch_um``, or ``"table"`` of ``relative_illumination``) and lateral chromatic aberration
-(``lateral_ca``: a magnification per channel about the frame's centre). The table's keys are declared once here
-(:func:`camsim.core.schema.param`): the scene reader, ``camsim render --optics NAME=VALUE``, the sidecar's
-``optics`` record and the docs' reference derive from them.
+aperture (``fill_factor``: a square of side √ff px, relative to the source's full-pixel area sampling), vignetting
+(``vignetting = "cos4"`` from ``focal_length_mm`` and ``pixel_pitch_um``, or ``"table"`` of
+``relative_illumination``) and lateral chromatic aberration (``lateral_ca``: a magnification per channel about the
+frame's centre). The table's keys are declared once here (:func:`camsim.core.schema.param`): the scene reader,
+``camsim render --optics NAME=VALUE``, the sidecar's ``optics`` record and the docs' reference derive from them.
 """
 
 from __future__ import annotations

@@ -21,7 +21,9 @@ box replaced by sinc(√ff fx) sinc(√ff fy), so the stage multiplies by their 
 identity at ff = 1, and for ff < 1 a gain rising with frequency, up to sinc(√ff/2) / sinc(½) ≤ π/2 ≈ 1.57 at
 Nyquist (1.27 at ff = 0.5). That gain sharpens: where the source holds detail near Nyquist that the lens passes (a
 sharp edge's aliases), the expectation rings and can fall below 0 next to a dark pixel (a 0 → 1 edge with no lens:
-−0.04 at ff = 0.5, −0.08 as ff → 0); :func:`clip_negative` clips it at 0 and reports the electrons that added. The colour-edge approximation: one PSF per channel, from the weights of the light the channel
+−0.04 at ff = 0.5, −0.08 as ff → 0); :func:`clip_negative` clips it at 0 and reports the electrons that added.
+
+The colour-edge approximation: one PSF per channel, from the weights of the light the channel
 receives on average over the frame; where the spectrum changes within the PSF's reach (an edge between a red and
 a blue patch), the true image is Σ_λ PSF_λ ∗ e_c(λ), not PSF_c ∗ Σ_λ e_c(λ) (``tools/optics_colour_edge.py``
 measures the difference).
