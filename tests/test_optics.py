@@ -133,8 +133,8 @@ def test_cos4_at_stated_field_angles(angle_deg):
     optics = OpticsParams(diffraction=False, fill_factor=1.0, vignetting="cos4", focal_length_mm=f_mm,
                           pixel_pitch_um=pitch)
     out = apply_optics(flat, optics, WAVELENGTHS, np.full((3, WAVELENGTHS.size), 1 / WAVELENGTHS.size), workers=1)
-    # the 100 % pixel aperture's box blur averages the smooth fall-off over ±½ px: f''/24, second order
-    assert out[0, 40, 40 + r] == pytest.approx(expected, abs=1e-3)
+    # a 100 % fill factor adds no blur (the source's own full-pixel sampling is the aperture): float32 rounding only
+    assert out[0, 40, 40 + r] == pytest.approx(expected, abs=1e-6)
 
 
 def test_relative_illumination_table():
@@ -169,14 +169,71 @@ def test_olpf_psf_is_four_spots():
     assert np.abs(psf - expected).max() < 1e-6
 
 
-def test_pixel_aperture_psf_dft_is_the_sinc():
+def test_pixel_aperture_psf_dft_is_the_box_ratio():
+    """The aperture relative to the source's full-pixel sampling: the DFT of the stage's PSF is
+    [sin(0.6 π f) / (0.6 π f)] / [sin(π f) / (π f)] per axis (side 0.6 px), written out here; 1 at f = 0, rising to
+    sinc(0.3) / sinc(0.5) = 1.36 at Nyquist; at ff = 1 the stage is the identity."""
     h, w = 48, 64
     ff = 0.36  # side 0.6 px
     psf = _psf(_otf_of(h, w, diffraction=False, fill=ff), h, w)
     measured = np.fft.rfft2(psf.astype(np.float64))
     fy, fx = np.fft.fftfreq(h)[:, None], np.fft.rfftfreq(w)[None, :]
-    closed = np.sinc(0.6 * fy) * np.sinc(0.6 * fx)
-    assert np.abs(measured - closed).max() < 2e-6
+
+    def ratio(f):
+        f = np.where(f == 0, 1e-300, f)
+        return (np.sin(0.6 * np.pi * f) / (0.6 * np.pi * f)) / (np.sin(np.pi * f) / (np.pi * f))
+
+    closed = ratio(fy) * ratio(fx)
+    assert np.abs(measured - closed).max() < 4e-6
+    assert closed[0, -1] == pytest.approx(np.sin(0.3 * np.pi) / 0.3 / 2, abs=1e-12)  # Nyquist along x: 1.348
+    identity = _psf(_otf_of(h, w, diffraction=False, fill=1.0), h, w)
+    assert identity[0, 0] == pytest.approx(1, abs=1e-6) and np.abs(identity).sum() == pytest.approx(1, abs=1e-5)
+
+
+def _aperture_kernel(side, taps=40):
+    """h[k] = ∫_{−½}^{½} [sinc(side f) / sinc(f)] cos(2π f k) df by quadrature (scipy.integrate.quad): one axis of
+    the aperture stage's PSF on the pixel grid, an infinite grid's (its taps fall as 1/k²)."""
+    from scipy.integrate import quad
+
+    def gain(f):
+        return 1.0 if f == 0 else (np.sin(np.pi * side * f) / (side * np.sin(np.pi * f)))
+
+    return np.array([quad(lambda f: gain(f) * np.cos(2 * np.pi * f * k), -0.5, 0.5, limit=200)[0]
+                     for k in range(taps)])
+
+
+def test_a_single_bright_pixel_rings_below_zero_and_the_clip_is_recorded():
+    """No lens, ff = 0.25 (side ½ px), one bright pixel of E e⁻ in a black field: the stage's PSF is h[i]·h[j] (our
+    own quadrature of the gain), whose negative lobes (one tap of each sign) carry 2·P·N of the unit sum (P, N the
+    sums of h's positive and negative taps): the expectation is clipped at 0, and the electrons the clip added,
+    E·2PN, are what apply_optics records, as the fraction 2PN of the channel's sum."""
+    h1 = _aperture_kernel(0.5)
+    full = np.concatenate([h1[:0:-1], h1])  # taps −39 … 39
+    assert full.sum() == pytest.approx(1, abs=2e-3) and h1[1] < 0  # the gain is 1 at f = 0; a negative first tap
+    positive, negative = full[full > 0].sum(), -full[full < 0].sum()
+    expected_fraction = 2 * positive * negative
+    size, energy = 161, 1.0e4
+    planes = np.zeros((3, size, size), np.float32)
+    planes[:, size // 2, size // 2] = energy
+    weights = np.full((3, WAVELENGTHS.size), 1 / WAVELENGTHS.size)
+    clip = {}
+    out = apply_optics(planes, OpticsParams(diffraction=False, fill_factor=0.25), WAVELENGTHS, weights, workers=1,
+                       clip=clip)
+    assert out.min() == 0.0
+    c = size // 2
+    assert out[0, c, c] == pytest.approx(energy * h1[0] ** 2, rel=1e-3)  # the peak: the gain raised it
+    assert out[0, c, c + 2] == pytest.approx(energy * h1[0] * h1[2], rel=2e-3)  # a positive tap, kept
+    assert out[0, c, c + 1] == 0.0  # h[0] h[1] < 0: clipped
+    for k in range(3):
+        assert clip["negative_clipped_fraction"][k] == pytest.approx(expected_fraction, rel=2e-2)
+        assert clip["negative_clipped_e"][k] == pytest.approx(energy * expected_fraction, rel=2e-2)
+        # the sum after the clip: the impulse's plus what the clip added
+        assert out[k].sum(dtype=np.float64) == pytest.approx(energy + clip["negative_clipped_e"][k], rel=1e-4)
+    # ff = 1: no stage, nothing clipped beyond float rounding
+    clip = {}
+    same = apply_optics(planes, OpticsParams(diffraction=False, fill_factor=1.0), WAVELENGTHS, weights, workers=1,
+                        clip=clip)
+    assert np.allclose(same, planes, atol=1e-2) and max(clip["negative_clipped_e"]) < 1e-5 * energy
 
 
 def _pupil_autocorrelation(nu, w020, n=801):
@@ -358,7 +415,8 @@ def test_cli_overrides_sidecar_and_same_seed_same_files(tmp_path, capsys):
     assert optics["lateral_ca"] == [1.002, 1.0, 0.998] and optics["diffraction"] is True
     weights = np.array(optics["channel_wavelength_weights"]["weights"])
     assert weights.shape == (3, len(meta["wavelengths_nm"])) and np.allclose(weights.sum(axis=1), 1)
-    assert "Hopkins" in optics["otf_model"]
+    assert "Hopkins" in optics["otf_model"] and "sinc(sqrt(ff) fx) / sinc(fx)" in optics["otf_model"]
+    assert len(optics["negative_clipped_e"]) == 3 and all(0 <= v < 1e-3 for v in optics["negative_clipped_fraction"])
     # each channel's weights peak where its Qe × D65 does: R at longer wavelengths than B
     wl = np.array(optics["channel_wavelength_weights"]["wavelength_nm"])
     assert (weights[0] @ wl) > (weights[1] @ wl) > (weights[2] @ wl)
@@ -371,6 +429,8 @@ def test_cli_overrides_sidecar_and_same_seed_same_files(tmp_path, capsys):
     bad = dict(meta, optics=dict(optics, f_number=-1))
     with pytest.raises(CamsimError, match="optics"):
         check_sidecar(bad, "sidecar")
+    with pytest.raises(CamsimError, match="negative_clipped_e"):
+        check_sidecar(dict(meta, optics=dict(optics, negative_clipped_e=[-1.0, 0.0, 0.0])), "sidecar")
 
 
 @pytest.mark.parametrize("option, message", [
@@ -407,7 +467,7 @@ def test_scene_file_optics_and_refusals(tmp_path, capsys):
 
 def test_colour_edge_approximation_is_measured():
     """tools/optics_colour_edge.py: one PSF per channel against the per-wavelength reference. A grey edge (one
-    spectral shape) has no approximation error; a red | blue edge has one of order 1 % at f/8 (the figure the docs
+    spectral shape) has no approximation error; a red | blue edge has one of order 2 % at f/8 (the figure the docs
     state)."""
     import importlib.util
 
@@ -460,7 +520,7 @@ def test_extreme_lenses_stay_bounded():
     weights = np.full((3, WAVELENGTHS.size), 1 / WAVELENGTHS.size)
     wide = apply_optics(planes, OpticsParams(f_number=1e6), WAVELENGTHS, weights, workers=1)
     assert np.allclose(wide, wide.mean(axis=(1, 2), keepdims=True), atol=1e-4)
-    sharp = apply_optics(planes, OpticsParams(f_number=1e-6, fill_factor=1e-12), WAVELENGTHS, weights, workers=1)
+    sharp = apply_optics(planes, OpticsParams(f_number=1e-6, fill_factor=1.0), WAVELENGTHS, weights, workers=1)
     assert np.allclose(sharp, planes, atol=1e-5)
     defocused = apply_optics(planes, OpticsParams(defocus_waves=20), WAVELENGTHS, weights, workers=1)
     assert np.all(np.isfinite(defocused))

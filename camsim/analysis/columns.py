@@ -188,7 +188,8 @@ MTF_COLUMNS = {
     "frequency_cy_per_px": "spatial frequency along the edge normal, cycles per sensor pixel (Nyquist 0.5)",
     "mtf_measured": "the measured SFR, 1 at frequency 0",
     "mtf_model": "the closed-form MTF from the sidecar's optics record (diffraction / defocus per wavelength weighted "
-                 "by the channel, OLPF, pixel aperture, the target's own pixel sampling); empty without optics",
+                 "by the channel, OLPF, the pixel: a box of side sqrt(fill_factor), the source's full-pixel sampling and "
+                 "the aperture together); empty without optics",
 }
 
 

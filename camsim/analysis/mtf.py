@@ -575,7 +575,6 @@ def measure_frame_mtf(pixels: np.ndarray, meta: dict, edge_region=None, clean: n
             record = check_optics_record(optics)
         except CamsimError as exc:
             raise CamsimError(f"{prefix}{exc}") from None
-    box = 1.0 if geometry is not None else None
     cfa = meta.get("cfa_pattern") or None
     layers = [(pixels, cfa, source, "")]
     if clean is not None:
@@ -592,7 +591,7 @@ def measure_frame_mtf(pixels: np.ndarray, meta: dict, edge_region=None, clean: n
         for index, (name, sfr) in enumerate(sfrs.items()):
             model = None
             if record is not None:
-                model = channel_mtf(sfr.frequency_cy_per_px, sfr.normal_xy, record, index, box)
+                model = channel_mtf(sfr.frequency_cy_per_px, sfr.normal_xy, record, index)
             warnings = list(sfr.warnings) + (["pixels at the white level in the region: a clipped edge's SFR is "
                                               "too high"] if clipped else [])
             channels.append({
@@ -616,8 +615,11 @@ def measure_frame_mtf(pixels: np.ndarray, meta: dict, edge_region=None, clean: n
                   "normal" + ("; each CFA colour measured on its own sites" if cfa else ""),
         "model": MODEL_STATEMENT if record is not None else None,
         "optics_otf_model": optics.get("otf_model") if isinstance(optics, dict) else None,
-        "source_sampling": ("the target's exact-area pixels: sinc(f nx) sinc(f ny)" if box else
-                            "unknown (not a slanted-edge target): the model holds the optics alone")
+        "source_sampling": ("the target's exact-area pixels: the full pixel's box, within the model's pixel factor "
+                            "sinc(sqrt(ff) f nx) sinc(sqrt(ff) f ny)" if geometry is not None else
+                            "not a slanted-edge target: the model takes the frame's pixels as full-pixel area samples "
+                            "(camsim's sources are) within its pixel factor sinc(sqrt(ff) f nx) sinc(sqrt(ff) f ny); "
+                            "the scene's own blur is not in it")
         if record is not None else None,
         "channels": channels, "curves": curves,
     }

@@ -15,14 +15,15 @@ Stages (the sidecar's ``optics`` record, contract of issue 30):
   :func:`defocus_otf`; the product "diffraction OTF × geometric blur disk" is only an approximation
   (:func:`defocus_product_otf`, its distance from the exact one in :func:`product_approximation_error`);
 * the birefringent 4-spot OLPF, spots at (±s/2, ±s/2) px with equal weights: OTF cos(π fx s)·cos(π fy s);
-* a square pixel aperture of side √ff px: sinc(√ff fx)·sinc(√ff fy), at every fill factor (the renderer applies
-  it to the frame, whose pixels already integrate the scene where the source does: with ff = 1 the target's edge
-  carries the one-pixel box twice, once as its own sampling and once as the aperture stage);
-* the source's own sampling: the slanted-edge target holds each pixel's exact bright area fraction, a box of one
-  pixel: sinc(fx)·sinc(fy) (numpy's sinc, sin(πx)/(πx)).
+* the pixel: a square aperture of side √ff px (ff the fill factor), sinc(√ff fx)·sinc(√ff fy) (numpy's sinc,
+  sin(πx)/(πx)), the frame's total pixel factor. A camsim source's pixels are already area integrals over the whole
+  pixel (the slanted-edge target holds each pixel's exact bright area fraction, a box of one pixel, sinc(fx)·sinc(fy);
+  a chart's patches are constant on pixel boundaries; an image's pixels are area samples), and the renderer's
+  aperture stage is relative to that sampling (sinc(√ff f) / sinc(f) per axis): the two make one box of side √ff,
+  not a separate source box (at ff = 1, a perfect lens: MTF at Nyquist sinc(½) = 0.637).
 
-A channel's MTF is |Σ_λ w_c(λ)·OTF_optics(f; λ) × OLPF × aperture × sampling| with w_c the channel's weights over
-wavelength (``channel_wavelength_weights``, each channel's sum 1).
+A channel's MTF is |Σ_λ w_c(λ)·OTF_optics(f; λ) × OLPF × pixel| with w_c the channel's weights over wavelength
+(``channel_wavelength_weights``, each channel's sum 1).
 """
 
 from __future__ import annotations
@@ -41,10 +42,10 @@ _QUADRATURE_NODES = 256
 #: The channels' names, in the order of the optics record's weights.
 CHANNELS = ("R", "G", "B")
 #: The one-line statement of this module's model (the figure's and the summary's caption).
-MODEL_STATEMENT = ("MTF_c(f) = |sum_l w_c(l) OTF_pupil(f; l) * OLPF(f) * sinc(sqrt(ff) f n_x) sinc(sqrt(ff) f n_y) * "
-                   "sinc(f n_x) sinc(f n_y) [the target's sampling]|, "
-                   "OTF_pupil = Hopkins' defocused pupil autocorrelation (the Airy OTF without defocus), along the "
-                   "edge normal n")
+MODEL_STATEMENT = ("MTF_c(f) = |sum_l w_c(l) OTF_pupil(f; l) * OLPF(f) * sinc(sqrt(ff) f n_x) sinc(sqrt(ff) f n_y) "
+                   "[the pixel: the source's full-pixel area sampling and the aperture stage together, a box of side "
+                   "sqrt(ff)]|, OTF_pupil = Hopkins' defocused pupil autocorrelation (the Airy OTF without defocus), "
+                   "along the edge normal n")
 
 
 def cutoff_cy_per_px(wavelength_um, f_number: float, pitch_um: float):
@@ -224,8 +225,7 @@ def check_optics_record(optics) -> dict:
     return record
 
 
-def channel_mtf(f_cy_per_px, normal_xy, optics: dict | None, channel: int, source_box_px: float | None = 1.0) \
-        -> np.ndarray:
+def channel_mtf(f_cy_per_px, normal_xy, optics: dict | None, channel: int) -> np.ndarray:
     """The model MTF of one channel along the edge normal.
 
     Parameters
@@ -235,23 +235,22 @@ def channel_mtf(f_cy_per_px, normal_xy, optics: dict | None, channel: int, sourc
     normal_xy : (float, float)
         The edge's unit normal (nx, ny) in pixel coordinates.
     optics : dict or None
-        The sidecar's ``optics`` record (:func:`check_optics_record`); None: no optics (the sampling only).
+        The sidecar's ``optics`` record (:func:`check_optics_record`); None: no optics (the full pixel's box
+        alone, as ff = 1).
     channel : int
         0, 1, 2 for R, G, B (the row of ``channel_wavelength_weights``).
-    source_box_px : float or None
-        The side of the source's own sampling box (1: the target's exact-area pixels); None for none.
 
     Returns
     -------
     numpy.ndarray, shape (n,), float64
-        |Σ_λ w_c(λ) OTF_pupil(f; λ) × OLPF × aperture × sampling|.
+        |Σ_λ w_c(λ) OTF_pupil(f; λ) × OLPF × sinc(√ff f nx) sinc(√ff f ny)|.
     """
     f = np.abs(np.asarray(f_cy_per_px, dtype=np.float64))
     nx, ny = normal_xy
     fx, fy = f * nx, f * ny
-    otf = np.ones_like(f) if source_box_px is None else box_otf(fx, fy, source_box_px)
     if optics is None:
-        return np.abs(otf)
+        return np.abs(box_otf(fx, fy, 1.0))
+    otf = np.ones_like(f)
     record = optics if "w020_waves_550" in optics else check_optics_record(optics)
     if record.get("diffraction") or record["w020_waves_550"]:
         pupil = np.zeros_like(f)

@@ -1,13 +1,13 @@
 """A scene's ``[optics]`` table: the lens and the stages in front of the sensor (issue 30).
 
-Each stage is switchable: diffraction (``diffraction = true``: the Airy pattern of a circular pupil, per
-wavelength), defocus (``defocus_waves``, W020 in waves at 550 nm, or ``defocus_um``, the image-plane focus shift Δz,
+Each stage is switchable: diffraction (``diffraction = true``: the Airy pattern of a circular pupil, per wavelength),
+defocus (``defocus_waves``, W020 in waves at 550 nm, or ``defocus_um``, the image-plane focus shift Δz,
 W020 = Δz / (8 N²) µm), the birefringent 4-spot low-pass filter (``olpf``, spots at (±s/2, ±s/2) px), the pixel
-aperture (``fill_factor``: a square of side √ff px), vignetting (``vignetting = "cos4"`` from ``focal_length_mm``
-and ``pixel_pitch_um``, or ``"table"`` of ``relative_illumination``) and lateral chromatic aberration
-(``lateral_ca``: a magnification per channel about the frame's centre). The table's keys are declared once here
-(:func:`camsim.core.schema.param`): the scene reader, ``camsim render --optics NAME=VALUE``, the sidecar's
-``optics`` record and the docs' reference derive from them.
+aperture (``fill_factor``: a square of side √ff px, relative to the source's full-pixel area sampling), vignetting
+(``vignetting = "cos4"`` from ``focal_length_mm`` and ``pixel_pitch_um``, or ``"table"`` of
+``relative_illumination``) and lateral chromatic aberration (``lateral_ca``: a magnification per channel about the
+frame's centre). The table's keys are declared once here (:func:`camsim.core.schema.param`): the scene reader,
+``camsim render --optics NAME=VALUE``, the sidecar's ``optics`` record and the docs' reference derive from them.
 """
 
 from __future__ import annotations
@@ -59,9 +59,11 @@ class OpticsParams:
     olpf: bool = param(False, "bool", "a birefringent optical low-pass filter: 4 equal spots at (±s/2, ±s/2) px, "
                        "OTF cos(π fx s) cos(π fy s)")
     olpf_shift_px: float = param(1.0, "float", "the OLPF's spot separation s", "px", above=0)
-    fill_factor: float = param(1.0, "float", "the pixel aperture: a square of side √ff px, OTF sinc(√ff fx) "
-                               "sinc(√ff fy), applied to the frame (whose pixels already integrate the scene over "
-                               "the full pixel where the source does)", above=0)
+    fill_factor: float = param(1.0, "float", "the pixel aperture: a square of side √ff px; the frame's total "
+                               "pixel factor is sinc(√ff fx) sinc(√ff fy). A scene's pixels are already full-pixel "
+                               "area samples (sinc(f) per axis), so the stage applies sinc(√ff f) / sinc(f) per "
+                               "axis: none at ff = 1, a gain up to π/2 at Nyquist as ff → 0 (the expectation "
+                               "clipped at 0 where a sharp edge then rings below it)", above=0)
     vignetting: str = param("none", "str", "'none'; 'cos4': cos⁴ of the field angle, relative to the centre; "
                             "'table': relative_illumination, [[angle_deg, value], …]", choices=VIGNETTING)
     lateral_ca: tuple = param((1.0, 1.0, 1.0), "rgb", "lateral chromatic aberration: the magnification of each "

@@ -5,13 +5,25 @@ pixel's centre at integer coordinates. A wavelength λ's diffraction cut-off is 
 
 The OTF of a channel c is
 
-    OTF_c(fx, fy) = [Σ_λ w_c(λ) · OTF_lens(ρ; λ)] · cos(π fx s) cos(π fy s) · sinc(√ff fx) sinc(√ff fy),
+    OTF_c(fx, fy) = [Σ_λ w_c(λ) · OTF_lens(ρ; λ)] · cos(π fx s) cos(π fy s)
+                    · [sinc(√ff fx) / sinc(fx)] · [sinc(√ff fy) / sinc(fy)],
 
 ρ = √(fx² + fy²), with OTF_lens the diffraction OTF of a circular pupil (2/π)(acos ν − ν√(1−ν²)), ν = ρ / f_c(λ),
 or, with defocus, the pupil's autocorrelation with the W020 phase (Hopkins 1955; exact, by quadrature:
 :func:`defocused_otf`), and w_c(λ) the channel's received-signal weights (:func:`channel_wavelength_weights`); the
-OLPF and pixel-aperture factors are present where those stages are on. Every factor is 1 at f = 0: the PSF
-conserves energy. The colour-edge approximation: one PSF per channel, from the weights of the light the channel
+OLPF factor is present where that stage is on, the pixel-aperture factor where ff < 1. Every factor is 1 at f = 0:
+the PSF conserves energy.
+
+The pixel aperture is relative to the source's own sampling: a scene's pixels are already area integrals over the
+whole pixel (the slanted-edge target's exact covered area, a chart's patches constant on pixel boundaries, an
+image's area samples), which carry the full pixel's box sinc(fx) sinc(fy); a square aperture of side √ff px is that
+box replaced by sinc(√ff fx) sinc(√ff fy), so the stage multiplies by their ratio (:func:`pixel_aperture_otf`): the
+identity at ff = 1, and for ff < 1 a gain rising with frequency, up to sinc(√ff/2) / sinc(½) ≤ π/2 ≈ 1.57 at
+Nyquist (1.27 at ff = 0.5). That gain sharpens: where the source holds detail near Nyquist that the lens passes (a
+sharp edge's aliases), the expectation rings and can fall below 0 next to a dark pixel (a 0 → 1 edge with no lens:
+−0.04 at ff = 0.5, −0.08 as ff → 0); :func:`clip_negative` clips it at 0 and reports the electrons that added.
+
+The colour-edge approximation: one PSF per channel, from the weights of the light the channel
 receives on average over the frame; where the spectrum changes within the PSF's reach (an edge between a red and
 a blue patch), the true image is Σ_λ PSF_λ ∗ e_c(λ), not PSF_c ∗ Σ_λ e_c(λ) (``tools/optics_colour_edge.py``
 measures the difference).
@@ -116,9 +128,31 @@ def olpf_otf(frequency, shift_px: float) -> np.ndarray:
 
 
 def pixel_aperture_otf(frequency, fill_factor: float) -> np.ndarray:
-    """One axis of a square pixel aperture of side a = √ff px: sinc(a f) = sin(π a f) / (π a f). The 2-D OTF is the
-    product over fx and fy. Unitless."""
-    return np.sinc(math.sqrt(fill_factor) * np.asarray(frequency, dtype=np.float64))
+    """One axis of a square pixel aperture of side a = √ff px relative to the source's full-pixel area sampling:
+    sinc(a f) / sinc(f) (sinc(x) = sin(π x) / (π x)). The 2-D OTF is the product over fx and fy. Unitless.
+
+    The source's pixels already carry the full pixel's box sinc(f) (module docstring): the frame's total pixel
+    factor is then sinc(a f), the aperture's own. 1 at f = 0; exactly 1 at ff = 1; for ff < 1 a gain ≥ 1 rising to
+    sinc(a/2) / sinc(½) at Nyquist (≤ π/2). For frequencies on a pixel grid, |f| ≤ ½ (sinc(f) ≥ 2/π there).
+    """
+    frequency = np.asarray(frequency, dtype=np.float64)
+    if fill_factor == 1:
+        return np.ones(frequency.shape)
+    return np.sinc(math.sqrt(fill_factor) * frequency) / np.sinc(frequency)
+
+
+def clip_negative(planes) -> np.ndarray:
+    """Clip an expectation (C, H, W) at 0 in place; return the electrons that added per plane, (C,) float64 ≥ 0.
+
+    After the pixel aperture's gain (:func:`pixel_aperture_otf`, ff < 1) a sharp edge's ringing can fall below 0;
+    a charge's mean cannot. Elsewhere what is clipped is the float32 FFT's rounding (≲ 1e-6 of the frame's values).
+    Unit: e⁻ (as ``planes``)."""
+    added = np.empty(planes.shape[0])
+    for c, plane in enumerate(planes):
+        negative = plane < 0
+        added[c] = -float(plane[negative].sum(dtype=np.float64))
+        plane[negative] = 0
+    return added
 
 
 def channel_wavelength_weights(mean_photon_rate, qe) -> np.ndarray:
@@ -154,8 +188,9 @@ def margin_px(f_number: float, pixel_pitch_um: float, w020_waves_550: float, olp
 
 def channel_otf(radial_table, table_step: float, fy, fx, *, olpf_shift_px: float | None,
                 fill_factor: float | None) -> np.ndarray:
-    """One channel's 2-D OTF (len(fy), len(fx)) float32 on a frequency grid: its radial lens OTF (sampled at
-    ρ = i · ``table_step``, interpolated linearly) × the separable OLPF and pixel-aperture factors (None: off)."""
+    """One channel's 2-D OTF (len(fy), len(fx)) float32 on a frequency grid (|f| ≤ ½): its radial lens OTF (sampled
+    at ρ = i · ``table_step``, interpolated linearly) × the separable OLPF and pixel-aperture factors (None: off; the
+    aperture relative to the source's full-pixel sampling, :func:`pixel_aperture_otf`)."""
     return channel_otfs(np.asarray(radial_table)[None], table_step, fy, fx, olpf_shift_px=olpf_shift_px,
                         fill_factor=fill_factor)[0]
 

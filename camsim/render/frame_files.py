@@ -85,7 +85,8 @@ class FrameInfo:
     device: dict | None = None
     # a sequence's frame (camsim.render.sequence): its keys frame_index, time_s, homography, sequence …, at the top
     sequence: dict | None = None
-    # the scene's [optics] (camsim.render.optics): the table, channel_wavelength_weights, otf_model: the sidecar's "optics"
+    # the scene's [optics] (camsim.render.optics): the table, channel_wavelength_weights, otf_model, negative_clipped_e
+    # and _fraction: the sidecar's "optics"
     optics: dict | None = None
 
 

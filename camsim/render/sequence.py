@@ -141,8 +141,9 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
         from camsim.render.optics import apply_optics, channel_weights, optics_record
 
         weights = channel_weights(lit)
-        static = apply_optics(static, scene.optics, lit.grid.wavelengths_nm, weights, workers=workers)
-        optics = {"optics": optics_record(scene.optics, lit.grid.wavelengths_nm, weights)}
+        clip = {}
+        static = apply_optics(static, scene.optics, lit.grid.wavelengths_nm, weights, workers=workers, clip=clip)
+        optics = {"optics": optics_record(scene.optics, lit.grid.wavelengths_nm, weights, clip)}
     motion = Motion.of(seq, width, height, scene.seed)
     record = seq.record()
     from camsim.sensor.fixed_pattern import fixed_pattern

@@ -154,14 +154,16 @@ def _per_row(value, check, what: str) -> list:
 def _optics(value):
     """A frame made through a scene's ``[optics]`` (:mod:`camsim.render.optics`): the table's keys (checked by its
     schema, :func:`camsim.optics.params.parse_optics`), ``channel_wavelength_weights`` (``wavelength_nm`` and three
-    rows of weights ≥ 0 on them, each summing to 1) and ``otf_model`` (text)."""
+    rows of weights ≥ 0 on them, each summing to 1), ``otf_model`` (text) and, where written, the clip at 0's
+    ``negative_clipped_e`` and ``negative_clipped_fraction`` (3 numbers ≥ 0 each)."""
     from camsim.core.errors import CamsimError
     from camsim.optics.params import parse_optics
 
     what = "an object of the [optics] keys, channel_wavelength_weights and otf_model"
     if not isinstance(value, dict):
         raise _Bad(what)
-    table = {k: v for k, v in value.items() if k not in ("channel_wavelength_weights", "otf_model")}
+    clipped = ("negative_clipped_e", "negative_clipped_fraction")
+    table = {k: v for k, v in value.items() if k not in ("channel_wavelength_weights", "otf_model") + clipped}
     if table.get("relative_illumination", 0) is None:
         del table["relative_illumination"]
     try:
@@ -177,6 +179,9 @@ def _optics(value):
     if any(abs(sum(row) - 1) > 1e-6 for row in rows):
         raise _Bad(f"{what}: each channel's weights summing to 1")
     _string(value.get("otf_model"))
+    for key in clipped:
+        if key in value:
+            _numbers(value[key], 3, low=0, what=f"numbers ({key})")
     return value
 
 

@@ -522,9 +522,12 @@ def scene_key_nodes() -> list[nodes.Node]:
                 "before the noise is drawn; also settable on the command line as ", literal("--optics NAME=VALUE"),
                 ". Each stage is switchable: diffraction of a circular pupil per wavelength, defocus (",
                 literal("defocus_waves"), " or ", literal("defocus_um"), "; Hopkins's exact OTF), the 4-spot "
-                "optical low-pass filter, the pixel aperture, vignetting (cos⁴ or a table) and lateral chromatic "
+                "optical low-pass filter, the pixel aperture (relative to the source's full-pixel sampling: none at "
+                "fill_factor = 1), vignetting (cos⁴ or a table) and lateral chromatic "
                 "aberration. The frame's sidecar records the table as ", literal("optics"), " with each channel's ",
-                literal("channel_wavelength_weights"), " and the ", literal("otf_model"), " applied.")
+                literal("channel_wavelength_weights"), ", the ", literal("otf_model"), " applied and the electrons "
+                "the clip of the expectation at 0 added (", literal("negative_clipped_e"), ", ",
+                literal("negative_clipped_fraction"), ").")
     extra = [[[literal("relative_illumination")], "list of [angle, value] pairs", "deg, —", [literal("none")],
               "angles from 0, increasing; values > 0",
               "with vignetting = \"table\": the relative illumination at each field angle, taken relative to the "
