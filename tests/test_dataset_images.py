@@ -263,7 +263,7 @@ def test_the_example_images_ship_beside_the_scenes():
     readme = (images / "README.md").read_text(encoding="utf-8")
     assert "public domain" in readme and readme.count("CC0") >= 2
     assert builtin_scene_names() == ("astronaut", "chelsea", "coffee", "dark", "dead_leaves", "flat", "macbeth_26",
-                                     "slanted_edge")  # the images folder holds no scene
+                                     "slanted_edge", "slanted_edge_lens")  # the images folder holds no scene
 
 
 def test_example_spec_plan():
