@@ -30,6 +30,12 @@ sinc(f/4), 0.974 at Nyquist and 0.963 at 0.6 cy/px, which the 2017 standard leav
 of an ideal pixel by 2.3 %). This module divides it out as well (``bin_correction``, on by default; off leaves it in, as
 the standard), so that the SFR measures the frame, not the method.
 
+The **window's extent** is the region's (the standard leaves it to the user): a window of ±X px cuts the tails of
+a blur's line spread function, and the Airy pattern's are long (energy beyond ±X as 1/X), which raises MTF50 by
+about 0.36·(λN/p)/X. On a slanted-edge target's frame the region is therefore ±50·λN/p px (λ = 0.7 µm) about the
+edge, at least ±24 px (:func:`window_margin_px`: at most +0.7 % on MTF50 from the window); the Hamming window
+itself is the standard's.
+
 For a **Bayer mosaic** each channel is measured on its own sites only, at their true positions on the sensor: red
 and blue on every second row and column, green on the quincunx of both green sites. The projection onto the normal
 puts them on the ¼-px bins of the sensor's pitch (a slanted edge samples every phase), so the SFR of every channel
@@ -374,7 +380,7 @@ def mosaic_sites(mosaic: np.ndarray, cfa_pattern: str, channel: str, region_xywh
 #: The least margin of a target's region on each side of the edge, pixels (:func:`target_region`).
 MIN_MARGIN_PX = 24
 #: The margin per λ_max·N / p of a diffraction-limited lens (:func:`window_margin_px`).
-MARGIN_PER_AIRY = 25.0
+MARGIN_PER_AIRY = 50.0
 
 
 def window_margin_px(optics) -> int:
@@ -383,9 +389,14 @@ def window_margin_px(optics) -> int:
 
     The Airy pattern's line spread function has long tails (its energy beyond ±X falls as 1/X): a window of ±X
     cuts them, which lowers the SFR's value at 0 more than elsewhere and raises the normalised SFR, by about
-    0.27·(λN/p)/X (measured: +2 % at MTF50 for f/11, 4 µm pixels and X = 24 px, +1 % at 48 px). The margin is at
-    least 25·λN/p px (λ = 0.7 µm, the red end), for about 1 %; defocus adds twice the geometric blur disk's
-    diameter 8 N W020 / p. An unusable record gives the least margin (the model reports it).
+    0.36·(λN/p)/X on MTF50 (the bias of the method itself, measured on noiseless edges blurred by the closed-form
+    OTF, 4 µm pixels, 640 rows: at f/5.6 in red +1.36 % at X = 24 px, +0.66 % at 48, +0.29 % at 96; at f/11 in red
+    +2.86 %, +1.40 %, +0.68 %; it is the window: a flat-top window halves it, at more noise). The margin is
+    at least 50·λN/p px (λ = 0.7 µm, the red end), which leaves at most +0.7 % (red), +0.6 % (green), +0.5 %
+    (blue); defocus adds twice the geometric blur disk's diameter 8 N W020 / p. The SFR's noise grows with the
+    window (as √X) and falls with the rows (as 1/√rows): a frame for this margin needs about 2·(50·0.7·N/p) px
+    across the edge and many rows (ISO 12233's Hamming window is kept). An unusable record gives the least margin
+    (the model reports it).
     """
     margin = float(MIN_MARGIN_PX)
     if isinstance(optics, dict):
