@@ -24,6 +24,8 @@ expectation after the optics (:func:`camsim.render.raw_frame.expectation_clean_d
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from camsim.core.errors import CamsimError
@@ -38,19 +40,31 @@ from camsim.optics.stages import (
     magnification_inverse,
     margin_px,
     padded_shape,
+    padded_spectrum,
+    plane_of_spectrum,
     table_falloff,
 )
 
-#: The sidecar's one-line statement of the OTF applied (the model MTF of the analysis is its magnitude times the
-#: source's own sampling).
-OTF_MODEL = ("OTF_c(fx, fy) = [sum_lambda w_c(lambda) * OTF_lens(rho / f_c(lambda); W020(lambda))] * "
+#: The largest error the per-spectrum decomposition may leave in any spectrum's OTF, at any frequency (OTF(0) = 1):
+#: :mod:`camsim.optics.spectral`. Unitless.
+OTF_TOLERANCE = 1e-3
+
+#: The sidecar's statement of the OTF applied (the model MTF of the analysis is its magnitude, with the frame's
+#: mean weights ``channel_wavelength_weights``, times the source's own sampling); :func:`otf_model` appends the
+#: frame's ranks and bounds.
+OTF_MODEL = ("OTF_kc(fx, fy) = [sum_lambda w_kc(lambda) * OTF_lens(rho / f_c(lambda); W020(lambda))] * "
              "cos(pi fx s) cos(pi fy s) [olpf] * sinc(sqrt(ff) fx) sinc(sqrt(ff) fy) [always; ff = fill_factor], "
              "rho = sqrt(fx^2 + fy^2) cy/px, f_c = pixel_pitch_um / (lambda_um f_number); OTF_lens = (2/pi)(acos nu "
              "- nu sqrt(1 - nu^2)) [diffraction], with defocus the exact pupil autocorrelation with the W020 phase "
-             "(Hopkins 1955, W020(lambda) = W020_550 * 0.55 / lambda_um waves), 1 without diffraction; w_c = "
-             "Qe_c(lambda) * mean photon rate over the frame's pixels, normalised; applied by FFT to the expected "
-             "electrons (reflected margin), after lateral CA (magnification about the centre, x 1/m^2) and "
-             "vignetting, before the noise")
+             "(Hopkins 1955, W020(lambda) = W020_550 * 0.55 / lambda_um waves), 1 without diffraction; per spectrum "
+             "k (a chart's patch, an image's recovered colour) and channel c, w_kc = Qe_c(lambda) g_k(lambda), "
+             "normalised; applied as the channel's mean OTF O_c (channel_wavelength_weights: w_c = Qe_c(lambda) * "
+             "the photon rate averaged over the frame's pixels, normalised) on the whole channel plus the deviation "
+             "OTF_kc - O_c in r_c radial components B_j (SVD over wavelength of OTF_lens - O_c weighted by each "
+             "wavelength's largest w_kc; r_c the least with max_k |error of OTF_kc| <= "
+             f"{OTF_TOLERANCE:g} at every frequency), each an FFT convolution of a per-pixel amplitude map "
+             "e_kc sum_lambda w_kc a_j; applied to the expected electrons (reflected margin), after lateral CA "
+             "(magnification about the centre, x 1/m^2) and vignetting, before the noise")
 
 
 def check_optics_scene(scene) -> None:
@@ -89,22 +103,133 @@ def channel_weights(lit) -> np.ndarray:
     return channel_wavelength_weights(mean_photon_rate(lit), lit.qe)
 
 
-def optics_otfs(optics: OpticsParams, wavelengths_nm, weights, shape: tuple[int, int]) -> list[np.ndarray]:
-    """The three channels' OTFs on the padded grid ``shape``, (shape[0], shape[1] // 2 + 1) float32 each."""
-    from scipy import fft
+@dataclass(frozen=True, eq=False)
+class SpectralOtf:
+    """The per-spectrum part of a frame's OTFs (:mod:`camsim.optics.spectral`): per channel c, r_c radial components
+    and their per-spectrum amplitudes, mapped to the pixels through the labels.
 
-    fy = fft.fftfreq(shape[0])
-    fx = fft.rfftfreq(shape[1])
+    Attributes
+    ----------
+    labels : numpy.ndarray, shape (H, W)
+        Each pixel's spectrum (row of the amplitudes).
+    components : tuple of numpy.ndarray
+        Per channel, B_j(ρ) (r_c, M) at the radial samples of :func:`radial_samples`. Unitless.
+    amplitudes : tuple of numpy.ndarray
+        Per channel, (r_c, K) float32: e_kc Σ_λ w_kc(λ) a_j(λ), the amplitude of component j in a pixel of spectrum k.
+        Unit: e⁻.
+    bounds : tuple of float
+        Per channel, the largest error of any spectrum's OTF at any frequency. Unitless.
+    """
+
+    labels: np.ndarray
+    components: tuple
+    amplitudes: tuple
+    bounds: tuple
+
+    @property
+    def ranks(self) -> tuple[int, ...]:
+        return tuple(int(c.shape[0]) for c in self.components)
+
+
+def radial_samples() -> tuple[np.ndarray, float]:
+    """The radial frequencies ρ (cy/px) of the lens OTF's table, 0 to past the grid's corner √0.5, and their step."""
     step = 1.0 / RADIAL_SAMPLES_PER_CY
-    rho = np.arange(int(np.ceil(np.sqrt(0.5) / step)) + 2) * step
+    return np.arange(int(np.ceil(np.sqrt(0.5) / step)) + 2) * step, step
+
+
+def _row_blocks(rate, rows: int = 65536):
+    """(start, dense rows float64) of a (K, N) photon rate (an array or factored spectra), ``rows`` at a time."""
+    for start in range(0, rate.shape[0], rows):
+        yield start, np.asarray(rate[start:start + rows], dtype=np.float64)
+
+
+def spectral_otf(labels, photon_rate, qe, signal_e, weights, wavelengths_nm, optics: OpticsParams,
+                 tolerance: float = OTF_TOLERANCE) -> SpectralOtf:
+    """Each spectrum's OTF per channel as the mean OTF's deviation in few components (:mod:`camsim.optics.spectral`).
+
+    Parameters
+    ----------
+    labels : numpy.ndarray, shape (H, W)
+        Each pixel's spectrum, 0 … K − 1.
+    photon_rate : numpy.ndarray or FactoredSpectra, shape (K, N)
+        g_k(λ), any unit (the weights are relative).
+    qe : array_like, shape (3, N)
+    signal_e : array_like, shape (K, 3)
+        e_kc, the expected electrons of a pixel of spectrum k in channel c (∝ Σ_λ Qe_c g_k). Unit: e⁻.
+    weights : array_like, shape (3, N)
+        The frame's mean weights w_c(λ) (:func:`channel_weights`): the mean OTF's.
+    wavelengths_nm : array_like, shape (N,)
+    optics : OpticsParams
+    tolerance : float
+        The largest error left in any spectrum's OTF at any frequency.
+    """
+    from camsim.optics.spectral import deviation_basis, truncation_errors
+
+    qe = np.asarray(qe, dtype=np.float64)
+    signal_e = np.asarray(signal_e, dtype=np.float64)
+    count = signal_e.shape[0]
+    empty = SpectralOtf(labels, (np.zeros((0, 1)),) * 3, (np.zeros((0, count), dtype=np.float32),) * 3,
+                        (0.0, 0.0, 0.0))
+    if not optics.diffraction:  # the lens OTF is 1 at every wavelength: nothing depends on the spectrum
+        return empty
+    used = np.bincount(labels.ravel(), minlength=count) > 0
+    totals = np.asarray(photon_rate @ qe.T, dtype=np.float64)  # (K, 3): Σ_λ g_k Qe_c
+    envelope = np.zeros(qe.shape)
+    for start, rows in _row_blocks(photon_rate):
+        keep = used[start:start + rows.shape[0]]
+        for c in range(3):
+            total = totals[start:start + rows.shape[0], c]
+            ok = keep & (total > 0)
+            if ok.any():
+                envelope[c] = np.maximum(envelope[c], (rows[ok] * qe[c] / total[ok, None]).max(axis=0))
+    rho, _ = radial_samples()
+    kw = dict(f_number=optics.f_number, pixel_pitch_um=optics.pixel_pitch_um, diffraction=True,
+              w020_waves_550=optics.w020_waves_550)
+    table = lens_otf_radial(rho, wavelengths_nm, np.eye(len(wavelengths_nm)), **kw)  # (N, M): OTF(ρ; λ)
+    means = lens_otf_radial(rho, wavelengths_nm, weights, **kw)
+    components, amplitudes, bounds = [], [], []
+    for c in range(3):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(used & (totals[:, c] > 0), signal_e[:, c] / totals[:, c], 0.0)  # e_kc / Σ_λ g_k Qe_c
+        spread = np.where(used & (totals[:, c] > 0), 1 / np.where(totals[:, c] > 0, totals[:, c], 1), 0.0)
+        coefficients, basis = deviation_basis(table, means[c], envelope[c])
+        rank, bound = 0, 0.0
+        for first in range(0, basis.shape[0] + 1, 8):
+            ranks = list(range(first, min(first + 8, basis.shape[0] + 1)))
+            errors = truncation_errors(table, means[c], coefficients, basis, ranks)  # (len(ranks), N)
+            # max_k Σ_λ w_kc(λ) err(λ), w_kc = g_k Qe_c / Σ_λ g_k Qe_c
+            per_spectrum = np.asarray(photon_rate @ (qe[c][:, None] * errors.T)) * spread[:, None]
+            worst = per_spectrum.max(axis=0)
+            fits = np.nonzero(worst <= tolerance)[0]
+            if fits.size:
+                rank, bound = ranks[fits[0]], float(worst[fits[0]])
+                break
+            rank, bound = ranks[-1], float(worst[-1])
+        components.append(basis[:rank])
+        amplitudes.append((np.asarray(photon_rate @ (qe[c][:, None] * coefficients[:, :rank]))
+                           * ratio[:, None]).T.astype(np.float32))
+        bounds.append(bound)
+    return SpectralOtf(labels, tuple(components), tuple(amplitudes), tuple(bounds))
+
+
+def optics_otfs(optics: OpticsParams, wavelengths_nm, weights, shape: tuple[int, int]) -> list[np.ndarray]:
+    """The three channels' mean OTFs on the padded grid ``shape``, (shape[0], shape[1] // 2 + 1) float32 each."""
+    rho, step = radial_samples()
     radial = lens_otf_radial(rho, wavelengths_nm, weights, f_number=optics.f_number,
                              pixel_pitch_um=optics.pixel_pitch_um, diffraction=optics.diffraction,
                              w020_waves_550=optics.w020_waves_550)
-    return channel_otfs(radial, step, fy, fx, olpf_shift_px=optics.olpf_shift_px if optics.olpf else None,
-                        fill_factor=optics.fill_factor)
+    return _grids(optics, radial, step, shape)
 
 
-def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, workers: int | None = None) -> np.ndarray:
+def _grids(optics: OpticsParams, radial, step: float, shape: tuple[int, int]) -> list[np.ndarray]:
+    from scipy import fft
+
+    return channel_otfs(radial, step, fft.fftfreq(shape[0]), fft.rfftfreq(shape[1]),
+                        olpf_shift_px=optics.olpf_shift_px if optics.olpf else None, fill_factor=optics.fill_factor)
+
+
+def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, spectral: SpectralOtf | None = None,
+                 workers: int | None = None) -> np.ndarray:
     """The expected electrons (3, H, W) after the optics (module docstring: lateral CA, vignetting, the PSF).
 
     Parameters
@@ -114,7 +239,10 @@ def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, wor
     optics : OpticsParams
     wavelengths_nm : array_like, shape (N,)
     weights : array_like, shape (3, N)
-        w_c(λ), each row summing to 1 (:func:`channel_weights`).
+        w_c(λ), each row summing to 1 (:func:`channel_weights`): the mean OTF of each channel.
+    spectral : SpectralOtf, optional
+        Each spectrum's deviation from the mean OTF (:func:`spectral_otf`); None: the mean OTF alone (exact where
+        every pixel's light has one spectral shape per channel).
     workers : int, optional
         Threads of the FFTs and the warp (the result does not depend on them).
 
@@ -127,52 +255,94 @@ def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, wor
     workers = default_workers() if workers is None else workers
     out = np.array(signal_e, dtype=np.float32, copy=True)
     height, width = out.shape[1:]
-    if any(m != 1 for m in optics.lateral_ca):
-        from camsim.render.warp import average_warp
-
-        for c, m in enumerate(optics.lateral_ca):
-            if m == 1:
-                continue
-            inverse = magnification_inverse(m, height, width)[None, None]
-            warped = average_warp(out[c][..., None], inverse, np.ones((1, 1)), workers=workers)[..., 0]
-            np.multiply(warped, np.float32(1 / (m * m)), out=out[c])
+    falloff = None
     if optics.vignetting != "none":
         theta = field_angle_rad(height, width, optics.pixel_pitch_um, optics.focal_length_mm)
-        falloff = cos4_falloff(theta) if optics.vignetting == "cos4" else table_falloff(
-            theta, optics.relative_illumination)
-        out *= falloff.astype(np.float32)[None]
+        falloff = (cos4_falloff(theta) if optics.vignetting == "cos4" else table_falloff(
+            theta, optics.relative_illumination)).astype(np.float32)
+
+    def before_psf(plane, c):  # lateral CA, then vignetting, in place on one channel's (H, W) float32 plane
+        m = optics.lateral_ca[c]
+        if m != 1:
+            from camsim.render.warp import average_warp
+
+            inverse = magnification_inverse(m, height, width)[None, None]
+            warped = average_warp(plane[..., None], inverse, np.ones((1, 1)), workers=workers)[..., 0]
+            np.multiply(warped, np.float32(1 / (m * m)), out=plane)
+        if falloff is not None:
+            plane *= falloff
+
+    for c in range(3):
+        before_psf(out[c], c)
     margin = min(margin_px(optics.f_number, optics.pixel_pitch_um, optics.w020_waves_550,
                            optics.olpf_shift_px if optics.olpf else 0.0), max(height, width))
     shape = padded_shape(height, width, margin)
+    _, step = radial_samples()
     for c, otf in enumerate(optics_otfs(optics, wavelengths_nm, weights, shape)):
-        convolve_plane(out[c], otf, margin, shape, workers=workers, out=out[c])
+        if spectral is None or spectral.components[c].shape[0] == 0:
+            convolve_plane(out[c], otf, margin, shape, workers=workers, out=out[c])
+            continue
+        spectrum = padded_spectrum(out[c], margin, shape, workers=workers)
+        spectrum *= otf
+        del otf
+        for j, grid in enumerate(_grids(optics, spectral.components[c], step, shape)):
+            plane = spectral.amplitudes[c][j][spectral.labels]
+            before_psf(plane, c)
+            part = padded_spectrum(plane, margin, shape, workers=workers)
+            del plane
+            part *= grid
+            spectrum += part
+            del part
+        plane_of_spectrum(spectrum, margin, shape, (height, width), workers=workers, out=out[c])
     return out
 
 
-def optics_record(optics: OpticsParams, wavelengths_nm, weights) -> dict:
-    """The sidecar's ``optics``: the table's keys, ``channel_wavelength_weights`` and ``otf_model``."""
+def otf_model(spectral: SpectralOtf | None) -> str:
+    """The sidecar's ``otf_model``: :data:`OTF_MODEL` and the frame's ranks r_c and error bounds."""
+    if spectral is None:
+        return OTF_MODEL + "; this frame: the mean OTF alone (r = 0)"
+    ranks = ", ".join(str(r) for r in spectral.ranks)
+    bounds = ", ".join(f"{b:.2g}" for b in spectral.bounds)
+    return OTF_MODEL + f"; this frame: r = ({ranks}) for R, G, B, error bounds ({bounds})"
+
+
+def optics_record(optics: OpticsParams, wavelengths_nm, weights, spectral: SpectralOtf | None = None) -> dict:
+    """The sidecar's ``optics``: the table's keys, ``channel_wavelength_weights`` (the frame's mean) and
+    ``otf_model`` (with the frame's ranks and bounds)."""
     return {**optics.record(),
             "channel_wavelength_weights": {"wavelength_nm": [float(v) for v in wavelengths_nm],
                                            "weights": np.asarray(weights, dtype=np.float64).tolist()},
-            "otf_model": OTF_MODEL}
+            "otf_model": otf_model(spectral)}
+
+
+def optics_signal(lit, signal_e, optics: OpticsParams, *, static=None, workers: int | None = None):
+    """The lit scene's expected electrons through ``optics``, per spectrum: ``(signal (3, H, W) float32, record)``.
+    ``signal_e`` (K, 3) per spectrum; ``static``: its (3, H, W) planes if already made
+    (:func:`camsim.render.sequence.static_signal_e`)."""
+    from camsim.render.sequence import static_signal_e
+
+    weights = channel_weights(lit)
+    wavelengths = lit.grid.wavelengths_nm
+    spectral = spectral_otf(lit.labels, lit.photon_rate, lit.qe, signal_e, weights, wavelengths, optics)
+    if static is None:
+        static = static_signal_e(lit.labels, signal_e)
+    signal = apply_optics(static, optics, wavelengths, weights, spectral=spectral, workers=workers)
+    return signal, optics_record(optics, wavelengths, weights, spectral)
 
 
 def optics_frame(lit, sensor, intensity_factor: float, optics: OpticsParams, *, rng, workers: int | None = None):
     """One frame of ``lit`` through ``optics``, drawn per pixel: ``(frame, record)``, a
     :class:`camsim.render.sequence.SequenceFrame` (its clean layer per pixel) and the sidecar's ``optics``."""
     from camsim.render.raw_frame import expectation_clean_dn, render_expectation_frame
-    from camsim.render.sequence import SequenceFrame, static_signal_e
+    from camsim.render.sequence import SequenceFrame
     from camsim.sensor.cfa import mosaic_of
 
     expected = lit.expected(sensor, intensity_factor, "pixel")
-    weights = channel_weights(lit)
-    wavelengths = lit.grid.wavelengths_nm
-    signal = apply_optics(static_signal_e(lit.labels, expected.signal_e), optics, wavelengths, weights,
-                          workers=workers)
+    signal, record = optics_signal(lit, expected.signal_e, optics, workers=workers)
     source = signal if sensor.cfa is None else mosaic_of(signal, sensor.cfa)[None]
     draw = render_expectation_frame(source, sensor, rng=rng, workers=workers)
     del source
     clean = draw.clean_dn if sensor.cfa is None else expectation_clean_dn(signal, sensor, draw.maps, workers)
     frame = SequenceFrame(draw.noisy_dn, draw.digital_dn, lit.labels, expected, sensor, None, draw.maps,
                           draw.black_level_error_dn, clean)
-    return frame, optics_record(optics, wavelengths, weights)
+    return frame, record

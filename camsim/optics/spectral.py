@@ -1,0 +1,66 @@
+"""Per-spectrum OTFs in a few FFTs: the wavelength OTFs' deviation from a channel's mean OTF, decomposed.
+
+Each spectrum k (a chart's patch, an image's recovered colour) gives channel c its own OTF,
+OTF_{k,c}(ρ) = Σ_λ w_{k,c}(λ) OTF(ρ; λ) with w_{k,c}(λ) ∝ Qe_c(λ) g_k(λ) (each row summing to 1). Written as the
+channel's mean OTF Ō_c (the frame's mean light: :func:`camsim.optics.stages.channel_wavelength_weights`) plus the
+deviation D_c(λ, ρ) = OTF(ρ; λ) − Ō_c(ρ), the deviation over the grid's wavelengths is nearly low-rank:
+
+    D_c(λ, ρ) ≈ Σ_{j<r} a_j(λ) B_j(ρ),
+
+B_j the first r right singular vectors of diag(u_c) D_c, u_c(λ) = max_k w_{k,c}(λ) (the wavelengths a channel's
+spectra weigh most are fitted best), a_j(λ) = Σ_ρ D_c(λ, ρ) B_j(ρ) (least squares: the B_j are orthonormal over
+the samples). Then OTF_{k,c} ≈ Ō_c + Σ_j (Σ_λ w_{k,c}(λ) a_j(λ)) B_j, with the error at every frequency at most
+
+    ε_c(r) = max_k Σ_λ w_{k,c}(λ) · max_ρ |D_c(λ, ρ) − Σ_{j<r} a_j(λ) B_j(ρ)|,
+
+over the radial samples (the 2-D grid interpolates them linearly and multiplies by the OLPF and pixel-aperture
+factors, each of magnitude ≤ 1: the bound holds there too). r is the least with ε_c(r) ≤ the tolerance. Every
+OTF is 1 at ρ = 0, so D_c(λ, 0) = 0, B_j(0) = 0 and the energy is the mean OTF's: conserved. Where every spectrum
+weighs the wavelengths alike (a grey chart) D's weighted part vanishes and r = 0: the mean OTF alone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def deviation_basis(table, mean_otf, envelope) -> tuple[np.ndarray, np.ndarray]:
+    """The orthonormal radial components B_j and each wavelength's coefficients a_j(λ) of the deviation
+    D(λ, ρ) = ``table`` − ``mean_otf`` (module docstring), all of them, most important first.
+
+    Parameters
+    ----------
+    table : array_like, shape (N, M)
+        OTF(ρ_m; λ_n) at the radial samples. Unitless.
+    mean_otf : array_like, shape (M,)
+        The channel's mean OTF Ō_c(ρ_m). Unitless.
+    envelope : array_like, shape (N,)
+        u_c(λ) ≥ 0: the largest weight any spectrum gives each wavelength (0: the wavelength is not fitted).
+
+    Returns
+    -------
+    coefficients : numpy.ndarray, shape (N, R)
+        a_j(λ). Unitless.
+    components : numpy.ndarray, shape (R, M)
+        B_j(ρ_m), orthonormal over the samples; R the rank of diag(u) D.
+    """
+    deviation = np.asarray(table, dtype=np.float64) - np.asarray(mean_otf, dtype=np.float64)[None]
+    envelope = np.asarray(envelope, dtype=np.float64)
+    _, singular, vt = np.linalg.svd(envelope[:, None] * deviation, full_matrices=False)
+    rank = int(np.sum(singular > singular[0] * 1e-13)) if singular.size and singular[0] > 0 else 0
+    components = vt[:rank]
+    return deviation @ components.T, components
+
+
+def truncation_errors(table, mean_otf, coefficients, components, ranks) -> np.ndarray:
+    """max_ρ |D(λ, ρ) − Σ_{j<r} a_j(λ) B_j(ρ)| per wavelength for each r in ``ranks`` (increasing), shape
+    (len(ranks), N). Unitless."""
+    residual = np.asarray(table, dtype=np.float64) - np.asarray(mean_otf, dtype=np.float64)[None]
+    out = np.empty((len(ranks), residual.shape[0]))
+    done = 0
+    for i, r in enumerate(ranks):
+        if r > done:
+            residual -= coefficients[:, done:r] @ components[done:r]
+            done = r
+        out[i] = np.abs(residual).max(axis=1)
+    return out
