@@ -11,9 +11,10 @@ B_j the first r right singular vectors of diag(u_c) D_c, u_c(λ) = max_k w_{k,c}
 spectra weigh most are fitted best), a_j(λ) = Σ_ρ D_c(λ, ρ) B_j(ρ) (least squares: the B_j are orthonormal over
 the samples). Then OTF_{k,c} ≈ Ō_c + Σ_j (Σ_λ w_{k,c}(λ) a_j(λ)) B_j, with the error at every frequency at most
 
-    ε_c(r) = max_k Σ_λ w_{k,c}(λ) · max_ρ |D_c(λ, ρ) − Σ_{j<r} a_j(λ) B_j(ρ)|,
+    ε_c(r) = max_k max_ρ |Σ_λ w_{k,c}(λ) (D_c(λ, ρ) − Σ_{j<r} a_j(λ) B_j(ρ))|
 
-over the radial samples (the 2-D grid interpolates them linearly and multiplies by the OLPF and pixel-aperture
+over the radial samples (computed so for up to :data:`EXACT_BOUND_SAMPLES` spectra × samples; beyond, the larger
+max_k Σ_λ w_{k,c}(λ) max_ρ |…|) (the 2-D grid interpolates them linearly and multiplies by the OLPF and pixel-aperture
 factors, each of magnitude ≤ 1: the bound holds there too). r is the least with ε_c(r) ≤ the tolerance. Every
 OTF is 1 at ρ = 0, so D_c(λ, 0) = 0, B_j(0) = 0 and the energy is the mean OTF's: conserved. Where every spectrum
 weighs the wavelengths alike (a grey chart) D's weighted part vanishes and r = 0: the mean OTF alone.
@@ -22,6 +23,10 @@ weighs the wavelengths alike (a grey chart) D's weighted part vanishes and r = 0
 from __future__ import annotations
 
 import numpy as np
+
+#: Spectra × radial samples up to which the error bound ε_c(r) is the exact maximum over the spectra (beyond: the
+#: triangle inequality's larger bound, a few products over the spectra).
+EXACT_BOUND_SAMPLES = 50_000_000
 
 
 def deviation_basis(table, mean_otf, envelope) -> tuple[np.ndarray, np.ndarray]:
@@ -52,15 +57,11 @@ def deviation_basis(table, mean_otf, envelope) -> tuple[np.ndarray, np.ndarray]:
     return deviation @ components.T, components
 
 
-def truncation_errors(table, mean_otf, coefficients, components, ranks) -> np.ndarray:
-    """max_ρ |D(λ, ρ) − Σ_{j<r} a_j(λ) B_j(ρ)| per wavelength for each r in ``ranks`` (increasing), shape
-    (len(ranks), N). Unitless."""
+def residuals(table, mean_otf, coefficients, components):
+    """Yield ``(r, E_r)`` for r = 0 … R: E_r(λ, ρ) = D(λ, ρ) − Σ_{j<r} a_j(λ) B_j(ρ), shape (N, M) (one array updated
+    in place: use it before the next). Unitless."""
     residual = np.asarray(table, dtype=np.float64) - np.asarray(mean_otf, dtype=np.float64)[None]
-    out = np.empty((len(ranks), residual.shape[0]))
-    done = 0
-    for i, r in enumerate(ranks):
-        if r > done:
-            residual -= coefficients[:, done:r] @ components[done:r]
-            done = r
-        out[i] = np.abs(residual).max(axis=1)
-    return out
+    for r in range(components.shape[0] + 1):
+        if r:
+            residual -= np.outer(coefficients[:, r - 1], components[r - 1])
+        yield r, residual

@@ -163,7 +163,7 @@ def spectral_otf(labels, photon_rate, qe, signal_e, weights, wavelengths_nm, opt
     tolerance : float
         The largest error left in any spectrum's OTF at any frequency.
     """
-    from camsim.optics.spectral import deviation_basis, truncation_errors
+    from camsim.optics.spectral import EXACT_BOUND_SAMPLES, deviation_basis, residuals
 
     qe = np.asarray(qe, dtype=np.float64)
     signal_e = np.asarray(signal_e, dtype=np.float64)
@@ -193,18 +193,20 @@ def spectral_otf(labels, photon_rate, qe, signal_e, weights, wavelengths_nm, opt
             ratio = np.where(used & (totals[:, c] > 0), signal_e[:, c] / totals[:, c], 0.0)  # e_kc / Σ_λ g_k Qe_c
         spread = np.where(used & (totals[:, c] > 0), 1 / np.where(totals[:, c] > 0, totals[:, c], 1), 0.0)
         coefficients, basis = deviation_basis(table, means[c], envelope[c])
-        rank, bound = 0, 0.0
-        for first in range(0, basis.shape[0] + 1, 8):
-            ranks = list(range(first, min(first + 8, basis.shape[0] + 1)))
-            errors = truncation_errors(table, means[c], coefficients, basis, ranks)  # (len(ranks), N)
-            # max_k Σ_λ w_kc(λ) err(λ), w_kc = g_k Qe_c / Σ_λ g_k Qe_c
-            per_spectrum = np.asarray(photon_rate @ (qe[c][:, None] * errors.T)) * spread[:, None]
-            worst = per_spectrum.max(axis=0)
-            fits = np.nonzero(worst <= tolerance)[0]
-            if fits.size:
-                rank, bound = ranks[fits[0]], float(worst[fits[0]])
+        rank, bound = basis.shape[0], 0.0
+        dense = None
+        if np.count_nonzero(spread) * rho.size <= EXACT_BOUND_SAMPLES:  # each spectrum's weights w_kc (K', N)
+            index = np.nonzero(spread)[0]
+            dense = np.asarray(photon_rate[index], dtype=np.float64) * qe[c] * spread[index, None]
+        for r, residual in residuals(table, means[c], coefficients, basis):
+            if dense is not None:  # max_k max_ρ |Σ_λ w_kc(λ) E_r(λ, ρ)|
+                worst = max((float(np.abs(dense[i:i + 1024] @ residual).max()) for i in range(0, len(dense), 1024)),
+                            default=0.0)
+            else:  # max_k Σ_λ w_kc(λ) max_ρ |E_r(λ, ρ)|
+                worst = float(np.max(np.asarray(photon_rate @ (qe[c] * np.abs(residual).max(axis=1))) * spread))
+            if worst <= tolerance or r == basis.shape[0]:
+                rank, bound = r, worst
                 break
-            rank, bound = ranks[-1], float(worst[-1])
         components.append(basis[:rank])
         amplitudes.append((np.asarray(photon_rate @ (qe[c][:, None] * coefficients[:, :rank]))
                            * ratio[:, None]).T.astype(np.float32))
