@@ -51,9 +51,12 @@ def deviation_basis(table, mean_otf, envelope) -> tuple[np.ndarray, np.ndarray]:
     """
     deviation = np.asarray(table, dtype=np.float64) - np.asarray(mean_otf, dtype=np.float64)[None]
     envelope = np.asarray(envelope, dtype=np.float64)
-    _, singular, vt = np.linalg.svd(envelope[:, None] * deviation, full_matrices=False)
+    # the SVD of X = diag(u) D (N × M, M ≫ N) through X^T = Q R: X = R^T Q^T, R^T = U S W^T, so X's right singular
+    # vectors are W^T Q^T (a small SVD; the same vectors as the SVD of X, in a fraction of the time)
+    q, r = np.linalg.qr((envelope[:, None] * deviation).T)
+    _, singular, wt = np.linalg.svd(r.T)
     rank = int(np.sum(singular > singular[0] * 1e-13)) if singular.size and singular[0] > 0 else 0
-    components = vt[:rank]
+    components = wt[:rank] @ q.T
     return deviation @ components.T, components
 
 

@@ -279,15 +279,23 @@ def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, spe
     margin = min(margin_px(optics.f_number, optics.pixel_pitch_um, optics.w020_waves_550,
                            optics.olpf_shift_px if optics.olpf else 0.0), max(height, width))
     shape = padded_shape(height, width, margin)
-    _, step = radial_samples()
-    for c, otf in enumerate(optics_otfs(optics, wavelengths_nm, weights, shape)):
-        if spectral is None or spectral.components[c].shape[0] == 0:
+    if spectral is None or not any(spectral.ranks):
+        for c, otf in enumerate(optics_otfs(optics, wavelengths_nm, weights, shape)):
+            convolve_plane(out[c], otf, margin, shape, workers=workers, out=out[c])
+        return out
+    rho, step = radial_samples()
+    means = lens_otf_radial(rho, wavelengths_nm, weights, f_number=optics.f_number,
+                            pixel_pitch_um=optics.pixel_pitch_um, diffraction=optics.diffraction,
+                            w020_waves_550=optics.w020_waves_550)
+    for c in range(3):  # the mean OTF and the components on the grid, one channel at a time (memory)
+        otf, *grids = _grids(optics, np.vstack([means[c:c + 1], spectral.components[c]]), step, shape)
+        if not grids:
             convolve_plane(out[c], otf, margin, shape, workers=workers, out=out[c])
             continue
         spectrum = padded_spectrum(out[c], margin, shape, workers=workers)
         spectrum *= otf
         del otf
-        for j, grid in enumerate(_grids(optics, spectral.components[c], step, shape)):
+        for j, grid in enumerate(grids):
             plane = spectral.amplitudes[c][j][spectral.labels]
             before_psf(plane, c)
             part = padded_spectrum(plane, margin, shape, workers=workers)
@@ -295,6 +303,7 @@ def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, spe
             part *= grid
             spectrum += part
             del part
+            grids[j] = None
         plane_of_spectrum(spectrum, margin, shape, (height, width), workers=workers, out=out[c])
     return out
 
