@@ -143,6 +143,35 @@ def _row_blocks(rate, rows: int = 65536):
         yield start, np.asarray(rate[start:start + rows], dtype=np.float64)
 
 
+def _extreme_weights(photon_rate, qe_c, spread, most: int) -> np.ndarray | None:
+    """Normalised weights w_kc(λ) (V, N) of a few spectra whose convex hull holds every used spectrum's weights, or
+    None where more than ``most`` would be needed: the bound max_ρ |Σ_λ w(λ) E(λ, ρ)| is convex in w, so its
+    largest value over the spectra is at one of them. Dense spectra: all the used ones. An image's factored
+    spectra (J ≤ 4 basis spectra): w_kc = x_k · (B_j Qe_c) with x_k = coefficients_k / Σ_λ g_k Qe_c on the
+    hyperplane x · (B Qe_c) = 1: the vertices of their convex hull there (scipy's Qhull)."""
+    from camsim.light.rates import FactoredSpectra
+
+    index = np.nonzero(spread)[0]
+    if (index.size > most and isinstance(photon_rate, FactoredSpectra)
+            and isinstance(photon_rate.coefficients, np.ndarray) and 2 <= photon_rate.basis.shape[0] <= 4):
+        from scipy.spatial import ConvexHull, QhullError
+
+        per_basis = photon_rate.basis * qe_c  # (J, N)
+        x = np.asarray(photon_rate.coefficients[index], dtype=np.float64) * spread[index, None]
+        _, _, vt = np.linalg.svd(per_basis.sum(axis=1)[None])  # rows 1 … J − 1: the hyperplane's directions
+        y = x @ vt[1:].T
+        try:
+            vertices = (ConvexHull(y).vertices if y.shape[1] > 1
+                        else np.array([np.argmin(y[:, 0]), np.argmax(y[:, 0])]))
+        except (QhullError, ValueError):  # degenerate (e.g. collinear colours): all of them, or the looser bound
+            vertices = None
+        if vertices is not None and vertices.size <= most:
+            return x[vertices] @ per_basis
+    if index.size > most:
+        return None
+    return np.asarray(photon_rate[index], dtype=np.float64) * qe_c * spread[index, None]
+
+
 def spectral_otf(labels, photon_rate, qe, signal_e, weights, wavelengths_nm, optics: OpticsParams,
                  tolerance: float = OTF_TOLERANCE) -> SpectralOtf:
     """Each spectrum's OTF per channel as the mean OTF's deviation in few components (:mod:`camsim.optics.spectral`).
@@ -194,10 +223,7 @@ def spectral_otf(labels, photon_rate, qe, signal_e, weights, wavelengths_nm, opt
         spread = np.where(used & (totals[:, c] > 0), 1 / np.where(totals[:, c] > 0, totals[:, c], 1), 0.0)
         coefficients, basis = deviation_basis(table, means[c], envelope[c])
         rank, bound = basis.shape[0], 0.0
-        dense = None
-        if np.count_nonzero(spread) * rho.size <= EXACT_BOUND_SAMPLES:  # each spectrum's weights w_kc (K', N)
-            index = np.nonzero(spread)[0]
-            dense = np.asarray(photon_rate[index], dtype=np.float64) * qe[c] * spread[index, None]
+        dense = _extreme_weights(photon_rate, qe[c], spread, EXACT_BOUND_SAMPLES // rho.size)
         for r, residual in residuals(table, means[c], coefficients, basis):
             if dense is not None:  # max_k max_ρ |Σ_λ w_kc(λ) E_r(λ, ρ)|
                 worst = max((float(np.abs(dense[i:i + 1024] @ residual).max()) for i in range(0, len(dense), 1024)),
