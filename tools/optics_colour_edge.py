@@ -1,17 +1,21 @@
-"""The colour-edge approximation of camsim's optics, measured: one PSF per channel against a per-wavelength reference.
+"""The colour-edge error of camsim's optics, measured: per-spectrum OTFs and one PSF per channel against a
+per-wavelength reference.
 
-camsim blurs each channel's expected electrons with one OTF, OTF_c = Σ_λ w_c(λ) OTF(λ), the weights w_c(λ) those of
-the light channel c receives averaged over the frame (:mod:`camsim.render.optics`). Where the spectrum changes
-within the PSF's reach — an edge between a red and a blue patch — the exact image is the per-wavelength sum
+camsim blurs each channel's expected electrons with its mean OTF, OTF_c = Σ_λ w_c(λ) OTF(λ), the weights w_c(λ) those
+of the light channel c receives averaged over the frame, plus each spectrum's deviation from it in a few components
+(:mod:`camsim.render.optics`, :mod:`camsim.optics.spectral`). Where the spectrum changes within the PSF's reach — an
+edge between a red and a blue patch — the exact image is the per-wavelength sum
 
     ref_c = Σ_λ PSF_λ ∗ e_c(λ),        e_c(λ) = Qe_c(λ) g(λ, x) per pixel,
 
-while camsim computes PSF_c ∗ Σ_λ e_c(λ). This tool builds a vertical edge between two ColorChecker patches (N Ohta,
-under D65, seen by the scene's camera), computes both with the same stage functions (:mod:`camsim.optics.stages`:
-the monochromatic OTFs on the same padded grid, :func:`camsim.render.optics.apply_optics` for camsim's own result)
-and prints, per f-number and channel, the largest difference relative to the reference at that pixel and relative
-to the channel's brightest value. A grey edge (one spectral shape on both sides) has no such error: its row is the
-check that the two computations agree (float32 rounding). Usage::
+while the mean OTF alone (one PSF per channel) computes PSF_c ∗ Σ_λ e_c(λ). This tool builds a vertical edge between
+two ColorChecker patches (N Ohta, under D65, seen by the scene's camera), computes camsim's result
+(:func:`camsim.render.optics.apply_optics` with :func:`camsim.render.optics.spectral_otf`), the mean OTF's alone, and
+the reference with the same stage functions (:mod:`camsim.optics.stages`: the monochromatic OTFs on the same padded
+grid), and prints, per f-number and channel, the largest difference relative to the reference at that pixel and
+relative to the channel's brightest value, with the decomposition's ranks and OTF error bounds. A grey edge (one
+spectral shape on both sides) has no such error: its row is the check that the computations agree (float32
+rounding). Usage::
 
     python tools/optics_colour_edge.py [--f-number 4 8 16] [--pitch 4] [--left red] [--right blue] [--olpf]
 """

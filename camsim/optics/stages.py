@@ -11,10 +11,11 @@ The OTF of a channel c is
 or, with defocus, the pupil's autocorrelation with the W020 phase (Hopkins 1955; exact, by quadrature:
 :func:`defocused_otf`), and w_c(λ) the channel's received-signal weights (:func:`channel_wavelength_weights`); the
 OLPF and pixel-aperture factors are present where those stages are on. Every factor is 1 at f = 0: the PSF
-conserves energy. The colour-edge approximation: one PSF per channel, from the weights of the light the channel
-receives on average over the frame; where the spectrum changes within the PSF's reach (an edge between a red and
-a blue patch), the true image is Σ_λ PSF_λ ∗ e_c(λ), not PSF_c ∗ Σ_λ e_c(λ) (``tools/optics_colour_edge.py``
-measures the difference).
+conserves energy. With w_c(λ) the weights of the light the channel receives on average over the frame, this is the
+channel's mean OTF; where the spectrum changes within the PSF's reach (an edge between a red and a blue patch), the
+true image is Σ_λ PSF_λ ∗ e_c(λ), not PSF_c ∗ Σ_λ e_c(λ): :mod:`camsim.render.optics` adds each spectrum's
+deviation from the mean OTF in a few components (:mod:`camsim.optics.spectral`; ``tools/optics_colour_edge.py``
+measures both against the per-wavelength sum).
 """
 
 from __future__ import annotations

@@ -8,14 +8,21 @@ them in the order light meets them:
    the edges: :func:`camsim.render.warp.average_warp` with one inverse homography), its values × 1/m_c² so that the
    light is redistributed, not created (exact for content that stays within the frame);
 2. vignetting: × cos⁴ of each pixel's field angle (or the table's relative illumination), 1 at the centre;
-3. the PSF: per channel, FFT convolution with OTF_c = Σ_λ w_c(λ) OTF_lens(λ) × OLPF × pixel aperture
-   (:func:`camsim.optics.stages.convolve_plane`: real FFTs in float32, the frame extended by reflection about its
+3. the PSF: per spectrum and channel. Each spectrum k (a chart's patch, an image's recovered colour) gives channel c
+   the OTF OTF_kc = Σ_λ w_kc(λ) OTF_lens(λ) × OLPF × pixel aperture, w_kc(λ) ∝ Qe_c(λ) g_k(λ). The channel is
+   convolved with its mean OTF O_c (w_c(λ): the light channel c receives averaged over the frame's pixels,
+   :func:`channel_weights`), and each spectrum's deviation OTF_kc − O_c, decomposed over wavelength into r_c radial
+   components B_j (:mod:`camsim.optics.spectral`, r_c the least whose error in every spectrum's OTF is at most
+   :data:`OTF_TOLERANCE` at every frequency), is added as r_c more convolutions, each of a per-pixel map of
+   amplitudes e_kc Σ_λ w_kc(λ) a_j(λ) (gathered through the labels; an image's colours on a basis: linear in their
+   coefficients) through the same CA and vignetting: r_c + 1 forward FFTs and one inverse per channel
+   (:func:`camsim.optics.stages.padded_spectrum`: real FFTs in float32, the frame extended by reflection about its
    edge by a margin (:func:`camsim.optics.stages.margin_px`, at most the frame's larger side), so a uniform field
-   stays uniform and nothing wraps around).
+   stays uniform and nothing wraps around). A frame whose spectra all weigh the wavelengths alike in a channel (a
+   grey chart) needs r_c = 0: the mean OTF alone, one convolution (:func:`camsim.optics.stages.convolve_plane`).
 
-w_c(λ) are the weights over wavelength of the signal channel c receives, averaged over the frame's pixels (each
-spectrum of a chart or target weighted by its pixel count; an image's or a cube's recovered spectra, per pixel, the
-same way): one PSF per channel (the colour-edge approximation: :mod:`camsim.optics.stages`). The frame is then
+What remains against a per-wavelength reference (``tools/optics_colour_edge.py``) is the decomposition's error,
+within its bound, and float32 rounding. The frame is then
 drawn per pixel from that expectation (:func:`camsim.render.raw_frame.render_expectation_frame`: Poisson(S̄·g +
 D̄·d) and every later stage of the sensor), so the noise stays exact; the sidecar records ``method = "poisson"``
 and ``optics``: the table, ``channel_wavelength_weights`` and ``otf_model``. The EXR's clean layer is the
