@@ -107,7 +107,8 @@ def lens_otf_radial(rho, wavelength_nm, weights, *, f_number: float, pixel_pitch
         if not np.any(weights[:, i]):
             continue
         otf = defocused_otf(rho / cut[i], float(w020[i]))
-        out += weights[:, i, None] * otf[None]
+        rows = np.nonzero(weights[:, i])[0]  # the rows that weigh λ (the identity: one)
+        out[rows] += weights[rows, i, None] * otf[None]
     return out
 
 

@@ -85,10 +85,13 @@ def check_optics_scene(scene) -> None:
                           "statistics = 'pixel'")
 
 
-def mean_photon_rate(lit) -> np.ndarray:
+def mean_photon_rate(lit, counts=None) -> np.ndarray:
     """ḡ(λ): the photon rate averaged over the frame's pixels, shape (N,): each spectrum weighted by its pixel
-    count (a factored image's coefficients averaged first, blockwise for a cube's file)."""
-    counts = np.bincount(lit.labels.ravel(), minlength=lit.photon_rate.shape[0]).astype(np.float64)
+    count (a factored image's coefficients averaged first, blockwise for a cube's file); ``counts``: the pixels of
+    each spectrum, if already counted."""
+    if counts is None:
+        counts = np.bincount(lit.labels.ravel(), minlength=lit.photon_rate.shape[0])
+    counts = np.asarray(counts, dtype=np.float64)
     counts /= counts.sum()
     rate = lit.photon_rate
     if isinstance(rate, np.ndarray):
@@ -102,12 +105,12 @@ def mean_photon_rate(lit) -> np.ndarray:
     return mean @ rate.basis
 
 
-def channel_weights(lit) -> np.ndarray:
+def channel_weights(lit, counts=None) -> np.ndarray:
     """Each channel's weights over the lit scene's wavelengths (3, N): :func:`camsim.optics.stages.channel_wavelength_weights`
     of the frame's mean photon rate and the camera's Qe."""
     from camsim.optics.stages import channel_wavelength_weights
 
-    return channel_wavelength_weights(mean_photon_rate(lit), lit.qe)
+    return channel_wavelength_weights(mean_photon_rate(lit, counts), lit.qe)
 
 
 @dataclass(frozen=True, eq=False)
@@ -180,7 +183,7 @@ def _extreme_weights(photon_rate, qe_c, spread, most: int) -> np.ndarray | None:
 
 
 def spectral_otf(labels, photon_rate, qe, signal_e, weights, wavelengths_nm, optics: OpticsParams,
-                 tolerance: float = OTF_TOLERANCE) -> SpectralOtf:
+                 tolerance: float = OTF_TOLERANCE, counts=None) -> SpectralOtf:
     """Each spectrum's OTF per channel as the mean OTF's deviation in few components (:mod:`camsim.optics.spectral`).
 
     Parameters
@@ -198,6 +201,8 @@ def spectral_otf(labels, photon_rate, qe, signal_e, weights, wavelengths_nm, opt
     optics : OpticsParams
     tolerance : float
         The largest error left in any spectrum's OTF at any frequency.
+    counts : array_like, shape (K,), optional
+        The pixels of each spectrum (``np.bincount`` of the labels), if already counted.
     """
     from camsim.optics.spectral import EXACT_BOUND_SAMPLES, deviation_basis, residuals
 
@@ -208,7 +213,7 @@ def spectral_otf(labels, photon_rate, qe, signal_e, weights, wavelengths_nm, opt
                         (0.0, 0.0, 0.0))
     if not optics.diffraction:  # the lens OTF is 1 at every wavelength: nothing depends on the spectrum
         return empty
-    used = np.bincount(labels.ravel(), minlength=count) > 0
+    used = (np.bincount(labels.ravel(), minlength=count) if counts is None else np.asarray(counts)) > 0
     totals = np.asarray(photon_rate @ qe.T, dtype=np.float64)  # (K, 3): Σ_λ g_k Qe_c
     envelope = np.zeros(qe.shape)
     for start, rows in _row_blocks(photon_rate):
@@ -365,9 +370,11 @@ def optics_signal(lit, signal_e, optics: OpticsParams, *, static=None, workers: 
     (:func:`camsim.render.sequence.static_signal_e`)."""
     from camsim.render.sequence import static_signal_e
 
-    weights = channel_weights(lit)
+    counts = np.bincount(lit.labels.ravel(), minlength=lit.photon_rate.shape[0])
+    weights = channel_weights(lit, counts)
     wavelengths = lit.grid.wavelengths_nm
-    spectral = spectral_otf(lit.labels, lit.photon_rate, lit.qe, signal_e, weights, wavelengths, optics)
+    spectral = spectral_otf(lit.labels, lit.photon_rate, lit.qe, signal_e, weights, wavelengths, optics,
+                            counts=counts)
     if static is None:
         static = static_signal_e(lit.labels, signal_e)
     signal = apply_optics(static, optics, wavelengths, weights, spectral=spectral, workers=workers)
