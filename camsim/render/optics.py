@@ -106,8 +106,9 @@ def mean_photon_rate(lit, counts=None) -> np.ndarray:
 
 
 def channel_weights(lit, counts=None) -> np.ndarray:
-    """Each channel's weights over the lit scene's wavelengths (3, N): :func:`camsim.optics.stages.channel_wavelength_weights`
-    of the frame's mean photon rate and the camera's Qe."""
+    """Each channel's weights over the lit scene's wavelengths (3, N):
+    :func:`camsim.optics.stages.channel_wavelength_weights` of the frame's mean photon rate and the camera's Qe (the
+    mean OTF's; ``counts``: the pixels of each spectrum, if already counted)."""
     from camsim.optics.stages import channel_wavelength_weights
 
     return channel_wavelength_weights(mean_photon_rate(lit, counts), lit.qe)
