@@ -24,9 +24,10 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Spectra × radial samples up to which the error bound ε_c(r) is the exact maximum over the spectra (beyond: the
-#: triangle inequality's larger bound, a few products over the spectra).
-EXACT_BOUND_SAMPLES = 50_000_000
+#: Spectra × radial samples up to which the error bound ε_c(r) is the exact maximum over the spectra (about 860
+#: spectra: N times as many products per rank tried; beyond, the triangle inequality's larger bound, a few products
+#: over the spectra; an image's factored colours are checked at their convex hull's vertices, a few).
+EXACT_BOUND_SAMPLES = 5_000_000
 
 
 def deviation_basis(table, mean_otf, envelope) -> tuple[np.ndarray, np.ndarray]:
