@@ -6,9 +6,9 @@ pixels, three channels, the ``paper-table1`` sensor (every noise stage on), ``pi
 as ``camsim render`` makes them (:func:`camsim.render.pipeline.scene_frame`, and the frame's EXR clean layer,
 ``frame.clean_dn()``, which render writes): without optics (the per-spectrum plans of
 :func:`camsim.render.frame.render_frame`) and with ``[optics]`` f/4, 4 µm pixels, diffraction and the 4-spot OLPF
-(:mod:`camsim.render.optics`: the per-pixel expectation, the FFT convolution per channel, the per-pixel draw). The
-medians of the same run give the ratio; where the optics frame's time goes (the expectation's gather, the optics,
-the draw, the clean layer) is measured on its last repeat. Peak memory: the peak RSS of a fresh child process that
+(:mod:`camsim.render.optics`: the per-pixel expectation, per channel the FFT convolutions of the mean OTF and of
+each spectrum's components, the per-pixel draw). The medians of the same run give the ratio; where the optics
+frame's time goes (the expectation's gather, the optics, the draw, the clean layer) is measured on its last repeat. Peak memory: the peak RSS of a fresh child process that
 sets up and makes one frame of each kind (imports included). No files are written (their cost is the same for
 both). Targets: time and peak memory ≤ 1.5× without optics.
 

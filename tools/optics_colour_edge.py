@@ -1,17 +1,21 @@
-"""The colour-edge approximation of camsim's optics, measured: one PSF per channel against a per-wavelength reference.
+"""The colour-edge error of camsim's optics, measured: per-spectrum OTFs and one PSF per channel against a
+per-wavelength reference.
 
-camsim blurs each channel's expected electrons with one OTF, OTF_c = Σ_λ w_c(λ) OTF(λ), the weights w_c(λ) those of
-the light channel c receives averaged over the frame (:mod:`camsim.render.optics`). Where the spectrum changes
-within the PSF's reach — an edge between a red and a blue patch — the exact image is the per-wavelength sum
+camsim blurs each channel's expected electrons with its mean OTF, OTF_c = Σ_λ w_c(λ) OTF(λ), the weights w_c(λ) those
+of the light channel c receives averaged over the frame, plus each spectrum's deviation from it in a few components
+(:mod:`camsim.render.optics`, :mod:`camsim.optics.spectral`). Where the spectrum changes within the PSF's reach — an
+edge between a red and a blue patch — the exact image is the per-wavelength sum
 
     ref_c = Σ_λ PSF_λ ∗ e_c(λ),        e_c(λ) = Qe_c(λ) g(λ, x) per pixel,
 
-while camsim computes PSF_c ∗ Σ_λ e_c(λ). This tool builds a vertical edge between two ColorChecker patches (N Ohta,
-under D65, seen by the scene's camera), computes both with the same stage functions (:mod:`camsim.optics.stages`:
-the monochromatic OTFs on the same padded grid, :func:`camsim.render.optics.apply_optics` for camsim's own result)
-and prints, per f-number and channel, the largest difference relative to the reference at that pixel and relative
-to the channel's brightest value. A grey edge (one spectral shape on both sides) has no such error: its row is the
-check that the two computations agree (float32 rounding). Usage::
+while the mean OTF alone (one PSF per channel) computes PSF_c ∗ Σ_λ e_c(λ). This tool builds a vertical edge between
+two ColorChecker patches (N Ohta, under D65, seen by the scene's camera), computes camsim's result
+(:func:`camsim.render.optics.apply_optics` with :func:`camsim.render.optics.spectral_otf`), the mean OTF's alone, and
+the reference with the same stage functions (:mod:`camsim.optics.stages`: the monochromatic OTFs on the same padded
+grid), and prints, per f-number and channel, the largest difference relative to the reference at that pixel and
+relative to the channel's brightest value, with the decomposition's ranks and OTF error bounds. A grey edge (one
+spectral shape on both sides) has no such error: its row is the check that the computations agree (float32
+rounding). Usage::
 
     python tools/optics_colour_edge.py [--f-number 4 8 16] [--pitch 4] [--left red] [--right blue] [--olpf]
 """
@@ -65,7 +69,7 @@ def colour_edge_difference(f_number: float, pitch_um: float = 4.0, left: str = "
         margin_px,
         padded_shape,
     )
-    from camsim.render.optics import apply_optics
+    from camsim.render.optics import apply_optics, spectral_otf
 
     wavelengths, rates, qe = edge_spectra(left, right)
     height, width = size
@@ -77,7 +81,9 @@ def colour_edge_difference(f_number: float, pitch_um: float = 4.0, left: str = "
     weights = channel_wavelength_weights(mean_rate, qe)
     electrons = np.einsum("cn,kn->kc", qe, rates)  # (2, 3): each side's electrons per channel (Σ over λ)
     planes = np.stack([electrons[labels, c] for c in range(3)]).astype(np.float32)
-    ours = apply_optics(planes, optics, wavelengths, weights, workers=1).astype(np.float64)
+    spectral = spectral_otf(labels, rates, qe, electrons, weights, wavelengths, optics)
+    ours = apply_optics(planes, optics, wavelengths, weights, spectral=spectral, workers=1).astype(np.float64)
+    mean = apply_optics(planes, optics, wavelengths, weights, workers=1).astype(np.float64)
     # the reference: every wavelength's own PSF on its own electrons, summed (same grid, margin and reflection)
     margin = margin_px(f_number, pitch_um, 0.0, optics.olpf_shift_px if olpf else 0.0)
     shape = padded_shape(height, width, margin)
@@ -98,11 +104,14 @@ def colour_edge_difference(f_number: float, pitch_um: float = 4.0, left: str = "
         blurred = [convolve_plane(m, otf, margin, shape, workers=1).astype(np.float64) for m in masks]
         for c in range(3):
             ref[c] += qe[c, i] * (rates[0, i] * blurred[0] + rates[1, i] * blurred[1])
-    diff = np.abs(ours - ref)
-    rel = diff / np.maximum(ref, 1e-300)
-    return {"max_rel_pixel": rel.reshape(3, -1).max(axis=1), "max_rel_peak": diff.reshape(3, -1).max(axis=1)
-            / ref.reshape(3, -1).max(axis=1), "where_px": [int(np.unravel_index(np.argmax(rel[c]), size)[1])
-                                                          for c in range(3)]}
+    out = {"ranks": spectral.ranks, "bounds": spectral.bounds}
+    for key, image in (("", ours), ("mean_", mean)):
+        diff = np.abs(image - ref)
+        rel = diff / np.maximum(ref, 1e-300)
+        out |= {f"{key}max_rel_pixel": rel.reshape(3, -1).max(axis=1),
+                f"{key}max_rel_peak": diff.reshape(3, -1).max(axis=1) / ref.reshape(3, -1).max(axis=1),
+                f"{key}where_px": [int(np.unravel_index(np.argmax(rel[c]), size)[1]) for c in range(3)]}
+    return out
 
 
 def main(argv=None) -> None:
@@ -117,9 +126,13 @@ def main(argv=None) -> None:
           "D65, Nikon 5100 (NPL) Qe; max |camsim − per-wavelength reference| per channel R, G, B")
     for n in args.f_number:
         out = colour_edge_difference(n, args.pitch, args.left, args.right, args.olpf)
-        cells = ", ".join(f"{'RGB'[c]} {100 * out['max_rel_pixel'][c]:.3f} % of the pixel's value "
-                          f"({100 * out['max_rel_peak'][c]:.3f} % of the channel's peak)" for c in range(3))
-        print(f"f/{n:g}: {cells}")
+        for key, what in (("mean_", "one PSF per channel (the frame's mean light)"),
+                          ("", f"per spectrum, r = {out['ranks']}, OTF bounds "
+                               f"({', '.join(f'{b:.1e}' for b in out['bounds'])})")):
+            cells = ", ".join(f"{'RGB'[c]} {100 * out[key + 'max_rel_pixel'][c]:.4f} % of the pixel's value "
+                              f"({100 * out[key + 'max_rel_peak'][c]:.4f} % of the channel's peak)"
+                              for c in range(3))
+            print(f"f/{n:g}, {what}: {cells}")
 
 
 if __name__ == "__main__":

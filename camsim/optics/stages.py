@@ -23,10 +23,11 @@ Nyquist (1.27 at ff = 0.5). That gain sharpens: where the source holds detail ne
 sharp edge's aliases), the expectation rings and can fall below 0 next to a dark pixel (a 0 → 1 edge with no lens:
 −0.04 at ff = 0.5, −0.08 as ff → 0); :func:`clip_negative` clips it at 0 and reports the electrons that added.
 
-The colour-edge approximation: one PSF per channel, from the weights of the light the channel
-receives on average over the frame; where the spectrum changes within the PSF's reach (an edge between a red and
-a blue patch), the true image is Σ_λ PSF_λ ∗ e_c(λ), not PSF_c ∗ Σ_λ e_c(λ) (``tools/optics_colour_edge.py``
-measures the difference).
+With w_c(λ) the weights of the light the channel receives on average over the frame, this is the channel's mean
+OTF; where the spectrum changes within the PSF's reach (an edge between a red and a blue patch), the true image is
+Σ_λ PSF_λ ∗ e_c(λ), not PSF_c ∗ Σ_λ e_c(λ): :mod:`camsim.render.optics` adds each spectrum's deviation from the mean
+OTF in a few components (:mod:`camsim.optics.spectral`; ``tools/optics_colour_edge.py`` measures both against the
+per-wavelength sum).
 """
 
 from __future__ import annotations
@@ -101,23 +102,25 @@ def w020_at(w020_waves_550: float, wavelength_nm) -> np.ndarray:
 
 def lens_otf_radial(rho, wavelength_nm, weights, *, f_number: float, pixel_pitch_um: float, diffraction: bool,
                     w020_waves_550: float) -> np.ndarray:
-    """Σ_λ w_c(λ) OTF_lens(ρ; λ) per channel at radial frequencies ``rho`` (cy/px), shape (3, len(rho)).
+    """Σ_λ w_c(λ) OTF_lens(ρ; λ) per row c of ``weights`` at radial frequencies ``rho`` (cy/px), shape
+    (C, len(rho)) (C = 3 channels; the identity (N, N) gives every wavelength's own OTF).
 
     OTF_lens is the diffraction OTF (:func:`diffraction_otf`) or with defocus Hopkins's (:func:`defocused_otf`); with
     diffraction off the lens factor is 1 (an ideal lens: :class:`camsim.optics.params.OpticsParams` refuses defocus
-    without diffraction). ``weights`` (3, N) sum to 1 per channel over ``wavelength_nm`` (N,)."""
+    without diffraction). ``weights`` (C, N) sum to 1 per row over ``wavelength_nm`` (N,)."""
     rho = np.asarray(rho, dtype=np.float64)
     weights = np.asarray(weights, dtype=np.float64)
     if not diffraction:
-        return np.ones((3, rho.size))
-    out = np.zeros((3, rho.size))
+        return np.ones((weights.shape[0], rho.size))
+    out = np.zeros((weights.shape[0], rho.size))
     cut = cutoff_cy_per_px(pixel_pitch_um, wavelength_nm, f_number)
     w020 = w020_at(w020_waves_550, wavelength_nm)
     for i in range(len(cut)):
         if not np.any(weights[:, i]):
             continue
         otf = defocused_otf(rho / cut[i], float(w020[i]))
-        out += weights[:, i, None] * otf[None]
+        rows = np.nonzero(weights[:, i])[0]  # the rows that weigh λ (the identity: one)
+        out[rows] += weights[rows, i, None] * otf[None]
     return out
 
 
@@ -246,17 +249,32 @@ def convolve_plane(plane, otf, margin: int, shape: tuple[int, int], *, workers: 
     convolution is periodic on the padded grid: it conserves the padded sum exactly (OTF(0) = 1), and the frame's
     own sum where the PSF's reach from the frame's content stays within the margin. A uniform frame stays
     uniform. Returns the (H, W) float32 result (in ``out``, if given)."""
+    plane = np.asarray(plane, dtype=np.float32)
+    spectrum = padded_spectrum(plane, margin, shape, workers=workers)
+    spectrum *= otf
+    return plane_of_spectrum(spectrum, margin, shape, plane.shape, workers=workers, out=out)
+
+
+def padded_spectrum(plane, margin: int, shape: tuple[int, int], *, workers: int | None = None) -> np.ndarray:
+    """The real FFT (shape[0], shape[1] // 2 + 1) complex64 of ``plane`` (H, W) extended by reflection to ``shape``
+    (:func:`convolve_plane`)."""
     from scipy import fft
 
     plane = np.asarray(plane, dtype=np.float32)
     height, width = plane.shape
     pad = ((margin, shape[0] - height - margin), (margin, shape[1] - width - margin))
     padded = np.pad(plane, pad, mode="symmetric")
-    spectrum = fft.rfft2(padded, workers=workers, overwrite_x=True)
-    del padded
-    spectrum *= otf
+    return fft.rfft2(padded, workers=workers, overwrite_x=True)
+
+
+def plane_of_spectrum(spectrum, margin: int, shape: tuple[int, int], size: tuple[int, int], *,
+                      workers: int | None = None, out=None) -> np.ndarray:
+    """The frame (H, W) = ``size`` float32 of a padded grid's real spectrum (:func:`padded_spectrum`): the inverse
+    real FFT, cropped (``spectrum`` is overwritten)."""
+    from scipy import fft
+
+    height, width = size
     result = fft.irfft2(spectrum, s=shape, workers=workers, overwrite_x=True)
-    del spectrum
     if out is None:
         out = np.empty((height, width), dtype=np.float32)
     np.copyto(out, result[margin:margin + height, margin:margin + width])

@@ -138,12 +138,10 @@ def render_sequence_frames(scene, lit, sensor, intensity_factor: float, *, worke
     static = static_signal_e(labels, expected.signal_e)
     optics = None
     if getattr(scene, "optics", None) is not None:  # the lens in front of the static scene (camsim.render.optics)
-        from camsim.render.optics import apply_optics, channel_weights, optics_record
+        from camsim.render.optics import optics_signal
 
-        weights = channel_weights(lit)
-        clip = {}
-        static = apply_optics(static, scene.optics, lit.grid.wavelengths_nm, weights, workers=workers, clip=clip)
-        optics = {"optics": optics_record(scene.optics, lit.grid.wavelengths_nm, weights, clip)}
+        static, record = optics_signal(lit, expected.signal_e, scene.optics, static=static, workers=workers)
+        optics = {"optics": record}
     motion = Motion.of(seq, width, height, scene.seed)
     record = seq.record()
     from camsim.sensor.fixed_pattern import fixed_pattern
