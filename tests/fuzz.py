@@ -522,6 +522,11 @@ def build_seeds(folder: Path) -> Seeds:
         if "scene" in doc:  # a dataset spec
             continue
         scenes[path.stem] = shrink_scene(doc)
+    # a scene with a [sequence] (issue 29): shake, pan, a rolling shutter and a flickering light, 3 frames
+    scenes["dead_leaves_sequence"] = {**scenes["dead_leaves"], "sequence": {
+        "frames": 3, "frame_interval_s": 0.05, "shake_px": 0.5, "shake_deg": 0.1, "pan_px_per_s": [20.0, -5.0],
+        "rolling_shutter_row_s": 0.0005, "flicker_hz": 100.0, "flicker_depth": 0.3}}
+    scenes["dead_leaves_sequence"]["sensor"] = {**scenes["dead_leaves"].get("sensor", {}), "exposure_s": 0.01}
     spec = tomllib.loads((SCENES / "denoise_small.toml").read_text(encoding="utf-8"))
     spec.update(repeats=1, scene="macbeth_26.toml")
     spec["images"].update(folder="images", crop=list(TINY))
