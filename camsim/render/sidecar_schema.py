@@ -129,7 +129,8 @@ def _raw_source(value):
     """A raw scene's frame's source record: an object; its mask counts (``masked_px``, and a sequence frame's
     ``masked_partial_px``: sites partly from masked source sites, camsim.render.raw_sequence) integers ≥ 0."""
     if not isinstance(value, dict):
-        raise _Bad("an object (the raw source's record)")
+        raise _Bad("an object (the raw source's record; its masked_px and a sequence frame's masked_partial_px "
+                   "integers ≥ 0)")
     for key in ("masked_px", "masked_partial_px"):
         if key in value:
             try:
@@ -159,7 +160,8 @@ def _optics(value):
     from camsim.core.errors import CamsimError
     from camsim.optics.params import parse_optics
 
-    what = "an object of the [optics] keys, channel_wavelength_weights and otf_model"
+    what = ("an object of the [optics] keys, channel_wavelength_weights, otf_model and the clip at 0's "
+            "negative_clipped_e and negative_clipped_fraction")
     if not isinstance(value, dict):
         raise _Bad(what)
     clipped = ("negative_clipped_e", "negative_clipped_fraction")
