@@ -153,7 +153,7 @@ def clip_negative(planes) -> np.ndarray:
     added = np.empty(planes.shape[0])
     for c, plane in enumerate(planes):
         negative = plane < 0
-        added[c] = -float(plane[negative].sum(dtype=np.float64))
+        added[c] = 0.0 - float(plane[negative].sum(dtype=np.float64))  # (0 − 0 is +0, not the −0 of −0)
         plane[negative] = 0
     return added
 
