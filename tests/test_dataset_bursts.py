@@ -258,6 +258,45 @@ def _hashes(folder):
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted((folder / "frames").iterdir())}
 
 
+def check_resuming_after_a_death_in_the_second_burst(spec, tmp_path, monkeypatch, owner, writer: str) -> None:
+    """Render ``spec`` (two bursts) whole; then again with ``owner.writer`` (the function that writes a frame's
+    files) raising KeyboardInterrupt on its 6th call, inside the second burst after its reference: the first burst
+    complete, the second without its record, the manifest listing the first only; a re-run renders the second
+    only and the files equal the whole run's byte for byte; a damaged frame file of the first burst is rendered
+    again, the same bytes."""
+    whole = tmp_path / "whole"
+    run_dataset(spec, whole, workers=1, progress=False, echo=None)
+    expected = _hashes(whole)
+
+    real = getattr(owner, writer)
+    calls = []
+
+    def dying(*args, **kwargs):
+        calls.append(args[1])
+        if len(calls) == 6:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(owner, writer, dying)
+    out = tmp_path / "out"
+    with pytest.raises(KeyboardInterrupt):
+        run_dataset(spec, out, workers=1, progress=False, echo=None)
+    monkeypatch.setattr(owner, writer, real)
+    first, second = load_spec(spec).frames
+    assert (out / "frames" / f"{first.id}.done").is_file() and not (out / "frames" / f"{second.id}.done").exists()
+    assert (out / "frames" / f"{second.id}_ref.exr").is_file()  # half-written: its reference is there
+    assert [json.loads(line)["id"] for line in (out / "manifest.jsonl").read_text().splitlines()] == [first.id]
+    summary = run_dataset(spec, out, workers=1, progress=False, echo=None)
+    assert (summary["skipped"], summary["rendered"]) == (1, 1)
+    assert _hashes(out) == expected
+    damaged = out / "frames" / f"{first.id}_f001.exr"
+    data = damaged.read_bytes()
+    damaged.write_bytes(data[:-1] + bytes([data[-1] ^ 0xFF]))
+    summary = run_dataset(spec, out, workers=1, progress=False, echo=None)
+    assert (summary["skipped"], summary["rendered"]) == (1, 1)
+    assert _hashes(out) == expected
+
+
 def test_resuming_a_half_written_burst_dataset(tmp_path, monkeypatch):
     """A run that dies inside the second burst leaves the first complete and the second without its record; a
     re-run renders the second only, and the files equal an uninterrupted run's byte for byte. A damaged frame
@@ -266,38 +305,7 @@ def test_resuming_a_half_written_burst_dataset(tmp_path, monkeypatch):
 
     spec = write_spec(tmp_path, fixed="burst_frames = 3\nframe_interval_s = 0.02", grid="shake_px = [0.0, 0.7]",
                       w=32, h=24)
-    whole = tmp_path / "whole"
-    run_dataset(spec, whole, workers=1, progress=False, echo=None)
-    expected = _hashes(whole)
-
-    real = frame_render.write_frame
-    calls = []
-
-    def dying(*args, **kwargs):
-        calls.append(args[1])
-        if len(calls) == 6:  # the second burst: its reference written, then the run dies
-            raise KeyboardInterrupt
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(frame_render, "write_frame", dying)
-    out = tmp_path / "out"
-    with pytest.raises(KeyboardInterrupt):
-        run_dataset(spec, out, workers=1, progress=False, echo=None)
-    monkeypatch.setattr(frame_render, "write_frame", real)
-    first, second = load_spec(spec).frames
-    assert (out / "frames" / f"{first.id}.done").is_file() and not (out / "frames" / f"{second.id}.done").exists()
-    assert (out / "frames" / f"{second.id}_ref.exr").is_file()  # half-written: its reference is there
-    assert [json.loads(line)["id"] for line in (out / "manifest.jsonl").read_text().splitlines()] == [first.id]
-    summary = run_dataset(spec, out, workers=1, progress=False, echo=None)
-    assert (summary["skipped"], summary["rendered"]) == (1, 1)
-    assert _hashes(out) == expected
-    # damage one frame of the first burst: it is rendered again, the same bytes
-    damaged = out / "frames" / f"{first.id}_f001.exr"
-    data = damaged.read_bytes()
-    damaged.write_bytes(data[:-1] + bytes([data[-1] ^ 0xFF]))
-    summary = run_dataset(spec, out, workers=1, progress=False, echo=None)
-    assert (summary["skipped"], summary["rendered"]) == (1, 1)
-    assert _hashes(out) == expected
+    check_resuming_after_a_death_in_the_second_burst(spec, tmp_path, monkeypatch, frame_render, "write_frame")
 
 
 def test_burst_store_equals_the_files(tmp_path):

@@ -5,7 +5,6 @@ the reference is the flipped crop of the file made dark by the ratio, each frame
 onto its clean layer in the files' own (flipped) pixels (our own phase correlation), the frames' noise about their
 clean layers is independent (pairwise correlation within 3/√N); ``thin`` with motion refused on one line; resuming."""
 
-import hashlib
 import json
 from pathlib import Path
 
@@ -14,10 +13,10 @@ import pytest
 
 from camsim.cli import main
 from camsim.dataset.runner import run_dataset
-from camsim.dataset.spec import load_spec
 from camsim.io.exr import read_exr
 from camsim.pairs import WrittenPairs
 from tests.phone_dng import write_phone_dng
+from tests.test_dataset_bursts import check_resuming_after_a_death_in_the_second_burst
 from tests.test_sequence import _phase_shift
 
 T_SOURCE = 0.5  # the source files' exposure (s)
@@ -78,10 +77,6 @@ def site_plane(planes: np.ndarray, pattern: str = "RGGB") -> np.ndarray:
         dy, dx = divmod(k, 2)
         out[dy::2, dx::2] = planes[index[letter], dy::2, dx::2]
     return out
-
-
-def _hashes(folder: Path) -> dict:
-    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted((folder / "frames").iterdir())}
 
 
 def test_a_raws_burst_renders_its_frames_and_reference_as_the_closed_form(tmp_path):
@@ -212,40 +207,12 @@ def test_a_raws_burst_timing_and_zarr_are_refused_on_one_line(tmp_path, capsys):
 
 
 def test_resuming_a_half_written_raws_burst_dataset(tmp_path, monkeypatch):
-    """A run that dies inside the second burst (its reference written) leaves the first complete; a re-run renders
-    the second only, byte for byte an uninterrupted run's; a damaged frame file is rendered again."""
+    """A run that dies inside the second burst (its reference and first frame written) leaves the first complete; a
+    re-run renders the second only, byte for byte an uninterrupted run's; a damaged frame file is rendered again."""
     import camsim.render.raw_render as raw_render
 
-    spec = make_spec(tmp_path, count=2)
-    whole = tmp_path / "whole"
-    run_dataset(spec, whole, workers=1, progress=False, echo=None)
-    expected = _hashes(whole)
-    real = raw_render.write_raw_frame
-    calls = []
-
-    def dying(*args, **kwargs):
-        calls.append(args[1])
-        if len(calls) == 6:  # the second burst: its reference and first frame written, then the run dies
-            raise KeyboardInterrupt
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(raw_render, "write_raw_frame", dying)
-    out = tmp_path / "out"
-    with pytest.raises(KeyboardInterrupt):
-        run_dataset(spec, out, workers=1, progress=False, echo=None)
-    monkeypatch.setattr(raw_render, "write_raw_frame", real)
-    first, second = load_spec(spec).frames
-    assert (out / "frames" / f"{first.id}.done").is_file() and not (out / "frames" / f"{second.id}.done").exists()
-    assert (out / "frames" / f"{second.id}_ref.exr").is_file()
-    summary = run_dataset(spec, out, workers=1, progress=False, echo=None)
-    assert (summary["skipped"], summary["rendered"]) == (1, 1)
-    assert _hashes(out) == expected
-    damaged = out / "frames" / f"{first.id}_f001.exr"
-    data = damaged.read_bytes()
-    damaged.write_bytes(data[:-1] + bytes([data[-1] ^ 0xFF]))
-    summary = run_dataset(spec, out, workers=1, progress=False, echo=None)
-    assert (summary["skipped"], summary["rendered"]) == (1, 1)
-    assert _hashes(out) == expected
+    check_resuming_after_a_death_in_the_second_burst(make_spec(tmp_path, count=2), tmp_path, monkeypatch, raw_render,
+                                                     "write_raw_frame")
 
 
 def test_the_common_source_noise_is_warned_of_on_one_line(tmp_path, capsys):
