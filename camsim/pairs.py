@@ -681,8 +681,7 @@ class PairSource:
         corners = np.array([[0, width - 1, 0, width - 1], [0, 0, height - 1, height - 1], [1.0, 1.0, 1.0, 1.0]])
         inverses, reach = [], 0.0
         for j in range(seq.frames):
-            inv = np.array([np.linalg.inv(motion.homography(float(t), j))
-                            for t in motion.subsample_times(j, exposure)])
+            inv = np.linalg.inv(motion.homographies(motion.subsample_times(j, exposure), j))
             q = inv @ corners
             q = q[:, :2] / q[:, 2:]
             reach = max(reach, float(np.max(-q)), float(np.max(q[:, 0] - (width - 1))),

@@ -73,8 +73,7 @@ def profile(source) -> list[tuple[str, float]]:
 
     def motion():
         m = Motion.of(seq, width, height, burst["motion_seed"])
-        return [np.array([np.linalg.inv(m.homography(float(t), j)) for t in m.subsample_times(j, p["exposure_s"])])
-                for j in range(seq.frames)]
+        return [np.linalg.inv(m.homographies(m.subsample_times(j, p["exposure_s"]), j)) for j in range(seq.frames)]
 
     inverses = timed("motion (homographies, sub-samples)", motion)
     inside = (slice(my, my + height), slice(mx, mx + width))
