@@ -20,7 +20,7 @@ import numpy as np
 from camsim.core.errors import CamsimError
 from camsim.render.frame import Frame, black_level_error, block_rows, run_blocks, write_stuck
 from camsim.sensor.cfa import CFA_PATTERNS, cfa_sites
-from camsim.sensor.expected import clean_charge_e
+from camsim.sensor.expected import clean_charge_e, poisson_tail_reach
 from camsim.sensor.fixed_pattern import FixedPattern, fixed_pattern
 from camsim.sensor.params import SensorParams
 from camsim.sensor.raw_laws import (
@@ -213,11 +213,12 @@ def render_raw_frame(source_e, sensor: SensorParams, fraction: float, *, law: st
 
 def _can_saturate(poisson_mean_e: np.ndarray, base_e, full_well_e: float) -> bool:
     """Whether some pixel, base + Poisson(mean), may reach the full well with a probability that shows in a float64
-    mean: :func:`camsim.sensor.expected.poisson_min_e`'s test (⌊c − base⌋ − 1 ≤ λ + 40 √λ + 40), on the rows'
-    largest mean and base (so never false where a pixel's own test is true)."""
-    top = float(poisson_mean_e.max())
+    mean: :func:`camsim.sensor.expected.poisson_min_e`'s test (⌊c − base⌋ − 1 ≤
+    :func:`camsim.sensor.expected.poisson_tail_reach` (λ)), on the rows' largest mean and base (so never false where
+    a pixel's own test is true)."""
+    top = max(float(poisson_mean_e.max()), 0.0)
     top_base = 0.0 if base_e is None else float(np.max(base_e))
-    return math.floor(full_well_e - top_base) - 1 <= top + 40 * math.sqrt(max(top, 0.0)) + 40
+    return math.floor(full_well_e - top_base) - 1 <= poisson_tail_reach(top, math)
 
 
 def _draw_block(job: _RawJob, r0: int, r1: int, rng: np.random.Generator, scratch: _Scratch) -> None:

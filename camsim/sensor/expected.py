@@ -210,6 +210,19 @@ def clean_charge_e(poisson_mean_e, sensor: SensorParams, base_e=0.0):
     return xp.where(room <= 0, c, (c - room) + poisson_min_e(lam, xp.maximum(room, 0.0)))
 
 
+#: :func:`poisson_tail_reach`'s λ + z √λ + a: beyond it P(X ≥ m) < 1e-23 for every λ from 1e-12 to 1e15 (scipy's log
+#: survival function on 20 000 means; 1e-23.1 at the worst), so λ − E[min(X, c)] = λ P(X ≥ m) − c P(X > m) is below
+#: λ · 1e-23, far under half a float64 ulp of λ: E[min(X, c)] rounds to λ itself.
+TAIL_REACH_SIGMAS, TAIL_REACH_OFFSET = 10.0, 20.0
+
+
+def poisson_tail_reach(lam, xp=np):
+    """λ + 10 √λ + 20 (:data:`TAIL_REACH_SIGMAS`, :data:`TAIL_REACH_OFFSET`): a Poisson(λ) count reaches m with
+    m − 1 beyond it with a probability below 1e-23, so a full well c with ⌊c⌋ − 1 beyond it leaves E[min(X, c)] = λ
+    to the last bit of a float64 (:func:`poisson_min_e`). ``lam`` a float or an array of ``xp``. Unit: e⁻."""
+    return lam + TAIL_REACH_SIGMAS * xp.sqrt(lam) + TAIL_REACH_OFFSET
+
+
 def poisson_min_e(lam, c):
     """E[min(X, c)] for X ~ Poisson(lam), elementwise; ``c`` ≥ 0 may be fractional. Unit: e⁻.
 
@@ -223,10 +236,9 @@ def poisson_min_e(lam, c):
     lam = xp.asarray(lam, dtype=xp.float64)
     c = xp.broadcast_to(xp.asarray(c, dtype=xp.float64), lam.shape)
     m = xp.floor(c)
-    # Where m − 1 lies beyond λ + 40 √λ + 40, λ − E[min(X, c)] = λ P(X ≥ m) − c P(X > m) is below λ · 1e-118 (computed
-    # with scipy's log survival function for λ from 1e-12 to 1e15), so E[min(X, c)] is λ to the last bit of a
-    # float64: the tail is summed only where it can show (an image has a mean per colour, ~1e6 of them)
-    near = m - 1 <= lam + 40 * xp.sqrt(lam) + 40
+    # the tail is summed only where it can show in a float64 (an image has a mean per colour, ~1e6 of them; a frame
+    # through optics one per pixel)
+    near = m - 1 <= poisson_tail_reach(lam, xp)
     out = lam.copy()
     if not bool(near.any()):
         return out
