@@ -23,6 +23,7 @@ from camsim.optics.stages import (
     table_falloff,
 )
 from camsim.render.optics import apply_optics
+from tests.helpers import small_scene
 
 WAVELENGTHS = np.arange(400.0, 701.0, 10.0)
 
@@ -287,19 +288,34 @@ def _summed_law(lams, sensor):
     return first, total
 
 
+@pytest.fixture(params=["cpu", "numpy", "cuda"])
+def device(request):
+    """Where an optics frame is drawn: the block renderer (cpu), the array path on numpy (the GPU's code on the
+    CPU), or on CuPy where it sees a GPU (else skipped)."""
+    if request.param == "cuda":
+        from camsim.core.errors import CamsimError
+        from camsim.render.backends import cuda_module
+
+        try:
+            cuda_module()
+        except CamsimError as exc:
+            pytest.skip(f"no GPU: {exc}")
+    return request.param
+
+
 @pytest.mark.parametrize("cfa", [None, "RGGB"])
-def test_noise_after_optics_follows_the_exact_per_pixel_law(cfa):
+def test_noise_after_optics_follows_the_exact_per_pixel_law(cfa, device):
     """slanted_edge_lens (f/4, diffraction, OLPF) on flat regions far from the edge: each pixel's charge mean is its
     clean value / k (no PRNU, DSNU: λ = S̄ + D̄ after the optics — within 2 % of the flat side's own, the rest the
-    Airy pattern's edge-spread tail λN (R − 1) / (π² x) from the other side: 0.8 % at 50 px), and the digital numbers follow the sum of the per-pixel laws
-    (camsim.sensor.dn_law.dn_pmf): χ², and the mean."""
+    Airy pattern's edge-spread tail λN (R − 1) / (π² x) from the other side: 0.8 % at 50 px), and the digital numbers
+    follow the sum of the per-pixel laws (camsim.sensor.dn_law.dn_pmf): χ², and the mean; on every device."""
     from camsim.render.pipeline import scene_frame
     from camsim.scene.scene_file import load_scene
     from camsim.sensor.cfa import cfa_sites
 
     scene = load_scene("slanted_edge_lens").replace(width=240, height=160).with_sensor(
         prnu_percent=0.0, dsnu_e=0.0, cfa=cfa)
-    frame, info = scene_frame(scene, "D65", 1.0, workers=1)
+    frame, info = scene_frame(scene, "D65", 1.0, workers=1, device=device)
     sensor = frame.sensor
     k = sensor.dn_per_electron
     assert info.optics is not None and info.method == "poisson"
@@ -471,7 +487,7 @@ def test_colour_edge_approximation_is_measured():
     off by of order 1 % at f/8, the per-spectrum OTFs by less than their 1e-3 bound."""
     import importlib.util
 
-    from tests.helpers import ROOT
+    from tests.helpers import small_scene, ROOT
 
     spec = importlib.util.spec_from_file_location("optics_colour_edge", ROOT / "tools" / "optics_colour_edge.py")
     tool = importlib.util.module_from_spec(spec)
@@ -527,3 +543,41 @@ def test_extreme_lenses_stay_bounded():
     assert np.all(np.isfinite(defocused))
     line = apply_optics(planes[:, :, :1], OpticsParams(f_number=16), WAVELENGTHS, weights, workers=1)
     assert line.shape == (3, 20, 1) and np.all(np.isfinite(line))
+
+
+@pytest.mark.parametrize("cfa", [None, "RGGB"])
+def test_the_optics_on_a_device_give_the_cpus_expectation(cfa, device):
+    """Every stage (lateral CA, cos⁴ vignetting, diffraction with defocus per spectrum, the OLPF, a fill factor < 1,
+    the clip) on the array path's device against the CPU's: the numpy path is the CPU's code (the
+    same bits), CuPy's cuFFT rounds its float32 otherwise (≤ 2e-6 of the frame's largest value). The frame's sidecar
+    says where it was drawn; its clean layer is the expectation's."""
+    from camsim.core.xp import to_host
+    from camsim.optics.params import parse_optics
+    from camsim.render.backends import array_module
+    from camsim.render.optics import optics_signal
+    from camsim.render.pipeline import light_scene, scene_frame
+
+    optics = parse_optics({"f_number": 2.8, "pixel_pitch_um": 3.0, "focal_length_mm": 8.0, "diffraction": True,
+                           "defocus_waves": 0.25, "olpf": True, "fill_factor": 0.5, "vignetting": "cos4",
+                           "lateral_ca": [1.002, 1.0, 0.997]})
+    scene = small_scene(width=200, height=132, optics=optics).with_sensor(cfa=cfa)
+    lit = light_scene(scene, "D65")
+    signal_e = lit.expected(scene.sensor, 1.0, "pixel").signal_e
+    reference, record = optics_signal(lit, signal_e, optics, workers=1)
+    assert "r = (0, 0, 0)" not in record["otf_model"]  # the per-spectrum components are applied
+    if device == "cpu":
+        return
+    xp = array_module(device)
+    signal, device_record = optics_signal(lit, signal_e, optics, labels=xp.asarray(lit.labels), workers=1)
+    signal = to_host(signal)
+    if device == "numpy":
+        np.testing.assert_array_equal(signal, reference)
+        assert device_record == record
+    else:
+        assert np.max(np.abs(signal - reference)) <= 2e-6 * reference.max()
+        assert device_record["otf_model"] == record["otf_model"]
+    frame, info = scene_frame(scene, "D65", 1.0, workers=1, device=device)
+    assert info.device["device"] == device and info.optics["otf_model"] == record["otf_model"]
+    k = frame.sensor.dn_per_electron
+    dark = frame.expected.dark_e.reshape(3, 1, 1)
+    np.testing.assert_allclose(frame.clean_dn(), (reference + dark) * k, rtol=1e-5, atol=1e-3 * k)

@@ -12,7 +12,15 @@ frame's time goes (the expectation's gather, the optics, the draw, the clean lay
 sets up and makes one frame of each kind (imports included). No files are written (their cost is the same for
 both). Targets: time and peak memory ≤ 1.5× without optics.
 
-Run:  python tools/bench_optics.py [--size 4000x3000] [--repeats 3] [--workers N]
+On a device (``--device cuda``: an NVIDIA GPU through CuPy; ``numpy``: the same array code on the CPU) the two frames
+are the array path's (:func:`camsim.render.backends.array_path.render_frame_xp`, the label map already on the device,
+the expected signal made once, as ``tools/bench_gpu.py``'s W1) and :func:`camsim.render.optics.optics_frame_xp`
+(everything a frame does: the OTFs' plan on the host, :func:`camsim.render.optics.optics_plan`; the gather, the
+optics' FFTs and the per-pixel draw on the device), each synchronised, excluding the copy to the host; the parts of
+the last repeat (plan, optics, draw) and the memory pool's bytes after each kind (its blocks freed in between)
+are reported; no peak RSS.
+
+Run:  python tools/bench_optics.py [--size 4000x3000] [--repeats 3] [--workers N] [--device cpu|cuda|numpy]
 Progress goes to stderr; the last stdout line is one JSON object.
 """
 
@@ -26,6 +34,8 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 OPTICS = {"f_number": 4.0, "pixel_pitch_um": 4.0, "diffraction": True, "olpf": True}
@@ -65,16 +75,87 @@ def child(kind: str, width: int, height: int, workers) -> None:
     print(json.dumps({"peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 
 
+def synchronised(xp, fn):
+    """Seconds of ``fn()`` on ``xp``'s device, the queued work finished before each clock reading."""
+    from camsim.core.xp import synchronize
+
+    synchronize(xp)
+    t0 = time.perf_counter()
+    fn()
+    synchronize(xp)
+    return time.perf_counter() - t0
+
+
+def device_run(device: str, width: int, height: int, repeats: int) -> dict:
+    """W1 with and without the optics on ``device``'s array path (module docstring)."""
+    from camsim.render.backends import array_module, device_name
+    from camsim.render.backends.array_path import render_frame_xp
+    from camsim.render.optics import apply_optics, optics_frame_xp, optics_plan
+    from camsim.render.pipeline import frame_sensor, light_scene
+    from camsim.render.raw_frame import static_signal_e
+
+    xp = array_module(device)
+    base, optics = scenes(width, height)
+    lit = light_scene(optics, "D65")
+    sensor = frame_sensor(optics, lit, 1.0)
+    expected = lit.expected(sensor, 1.0, "pixel")
+    labels = xp.asarray(lit.labels)
+    seeds = iter(range(10**6))
+    kinds = {"off": lambda: render_frame_xp(xp, labels, expected, sensor, rng=next(seeds)),
+             "on": lambda: optics_frame_xp(xp, lit, expected, sensor, optics.optics, rng=next(seeds), labels=labels)}
+    pool = None if xp is np else xp.get_default_memory_pool()
+    held = {}
+    for kind, fn in kinds.items():  # warm-up (the device's kernels compiled, the maps copied) and the pool's bytes
+        if pool is not None:
+            pool.free_all_blocks()
+        synchronised(xp, fn)
+        held[kind] = None if pool is None else pool.total_bytes() / 2**20
+    times = {"off": [], "on": []}
+    for r in range(repeats):
+        for kind, fn in kinds.items():
+            progress(f"repeat {r + 1}/{repeats}: optics {kind} on {device}")
+            times[kind].append(synchronised(xp, fn))
+    parts = {}
+    t0 = time.perf_counter()
+    weights, spectral = optics_plan(lit, expected.signal_e, optics.optics)
+    parts["plan"] = time.perf_counter() - t0
+    import dataclasses
+
+    spectral = dataclasses.replace(spectral, labels=labels)
+    box = {}
+    parts["optics"] = synchronised(xp, lambda: box.update(signal=apply_optics(
+        static_signal_e(labels, expected.signal_e), optics.optics, lit.grid.wavelengths_nm, weights,
+        spectral=spectral)))
+    parts["draw"] = synchronised(xp, lambda: render_frame_xp(xp, labels, expected, sensor, rng=1,
+                                                             signal_e=box["signal"]))
+    off, on = statistics.median(times["off"]), statistics.median(times["on"])
+    return {"size": f"{width}x{height}", "optics": OPTICS, "device": device,
+            "device_name": device_name() if device == "cuda" else "numpy", "repeats": repeats,
+            "off_s": times["off"], "on_s": times["on"], "median_off_s": off, "median_on_s": on,
+            "ratio_time": on / off, "ratio_time_plan_reused": (parts["optics"] + parts["draw"]) / off,
+            "pool_mb_off": held["off"], "pool_mb_on": held["on"], "on_parts_s": parts}
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", default="4000x3000")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--device", choices=("cpu", "cuda", "numpy"), default="cpu",
+                        help="cpu: camsim render's frames (default); cuda, numpy: the array path's (module docstring)")
     parser.add_argument("--child", choices=("on", "off"), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     width, height = (int(v) for v in args.size.lower().split("x"))
     if args.child:
         return child(args.child, width, height, args.workers)
+    if args.device != "cpu":
+        result = device_run(args.device, width, height, args.repeats)
+        print(f"W1 {result['size']} on {result['device_name']}: without optics median {result['median_off_s'] * 1e3:.1f} "
+              f"ms, with diffraction + OLPF {result['median_on_s'] * 1e3:.1f} ms (ratio {result['ratio_time']:.2f}; "
+              f"the plan reused {result['ratio_time_plan_reused']:.2f}); parts " + ", ".join(
+                  f"{k} {v * 1e3:.1f} ms" for k, v in result["on_parts_s"].items()))
+        print(json.dumps(result))
+        return None
 
     peaks = {}
     for kind in ("off", "on"):

@@ -45,6 +45,17 @@ def special_namespace(xp):
     return special
 
 
+def fft_namespace(xp):
+    """The FFTs of ``xp``: ``scipy.fft`` for numpy (its ``workers`` threads), ``cupyx.scipy.fft`` for CuPy (cuFFT)."""
+    if xp is np:
+        from scipy import fft
+
+        return fft
+    from cupyx.scipy import fft
+
+    return fft
+
+
 def to_host(array) -> np.ndarray | None:
     """``array`` as a numpy array (a copy from the device for CuPy; numpy arrays and None as they are)."""
     if array is None or isinstance(array, np.ndarray):
@@ -60,4 +71,4 @@ def synchronize(xp) -> None:
         xp.cuda.get_current_stream().synchronize()
 
 
-__all__ = ["generator_namespace", "namespace_of", "special_namespace", "synchronize", "to_host"]
+__all__ = ["fft_namespace", "generator_namespace", "namespace_of", "special_namespace", "synchronize", "to_host"]

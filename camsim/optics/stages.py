@@ -36,6 +36,8 @@ import math
 
 import numpy as np
 
+from camsim.core.xp import fft_namespace, namespace_of
+
 #: Wavelength of ``defocus_waves``. Unit: µm.
 DEFOCUS_REFERENCE_UM = 0.55
 #: Samples of the radial OTF table per cycle per pixel (interpolated linearly on the frequency grid).
@@ -149,7 +151,7 @@ def clip_negative(planes) -> np.ndarray:
 
     After the pixel aperture's gain (:func:`pixel_aperture_otf`, ff < 1) a sharp edge's ringing can fall below 0;
     a charge's mean cannot. Elsewhere what is clipped is the float32 FFT's rounding (≲ 1e-6 of the frame's values).
-    Unit: e⁻ (as ``planes``)."""
+    ``planes`` on numpy or CuPy (:mod:`camsim.core.xp`). Unit: e⁻ (as ``planes``)."""
     added = np.empty(planes.shape[0])
     for c, plane in enumerate(planes):
         negative = plane < 0
@@ -199,17 +201,17 @@ def channel_otf(radial_table, table_step: float, fy, fx, *, olpf_shift_px: float
 
 
 def channel_otfs(radial_tables, table_step: float, fy, fx, *, olpf_shift_px: float | None,
-                 fill_factor: float | None) -> list[np.ndarray]:
+                 fill_factor: float | None, xp=np) -> list:
     """:func:`channel_otf` of each row of ``radial_tables`` (C, M) on one grid, the grid's work shared: ρ is computed
     once, and where the rows' frequencies come in ± pairs (``fftfreq``'s order) only the rows with fy ≥ 0 are
-    interpolated and the others copied (every factor is even in fy)."""
+    interpolated and the others copied (every factor is even in fy). The grids are made on ``xp``'s device (numpy,
+    or CuPy: :mod:`camsim.core.xp`); the 1-D factors on the host."""
     fy = np.asarray(fy, dtype=np.float64)
     fx = np.asarray(fx, dtype=np.float64)
     height = fy.size
     # the rows r ≥ 1 whose −fy is row height − r (fftfreq: 0, 1, …, −2, −1 over height): compute rows 0 … half
     half = height // 2 + 1 if np.array_equal(np.abs(fy[1:]), np.abs(fy[1:][::-1])) else height
     fyh = fy[:half, None]
-    rho = np.sqrt(fyh * fyh + fx[None, :] ** 2)
     sep_y = np.ones(fyh.shape, dtype=np.float64)
     sep_x = np.ones(fx[None, :].shape, dtype=np.float64)
     if olpf_shift_px is not None:
@@ -218,12 +220,15 @@ def channel_otfs(radial_tables, table_step: float, fy, fx, *, olpf_shift_px: flo
     if fill_factor is not None:
         sep_y = sep_y * pixel_aperture_otf(fyh, fill_factor)
         sep_x = sep_x * pixel_aperture_otf(fx[None, :], fill_factor)
-    sep_y, sep_x = sep_y.astype(np.float32), sep_x.astype(np.float32)
+    sep_y, sep_x = xp.asarray(sep_y.astype(np.float32)), xp.asarray(sep_x.astype(np.float32))
+    fyh, fxd = xp.asarray(fyh), xp.asarray(fx[None, :])
+    rho = xp.sqrt(fyh * fyh + fxd ** 2)
     out = []
     for table in np.asarray(radial_tables, dtype=np.float64):
-        grid = np.empty((height, fx.size), dtype=np.float32)
+        grid = xp.empty((height, fx.size), dtype=xp.float32)
         top = grid[:half]
-        top[...] = np.interp(rho, np.arange(table.size) * table_step, table)
+        top[...] = xp.interp(rho.ravel(), xp.asarray(np.arange(table.size) * table_step),
+                             xp.asarray(table)).reshape(rho.shape)  # (CuPy's interp takes 1-D points)
         top *= sep_y
         top *= sep_x
         if half < height:
@@ -240,44 +245,46 @@ def padded_shape(height: int, width: int, margin: int) -> tuple[int, int]:
 
 
 def convolve_plane(plane, otf, margin: int, shape: tuple[int, int], *, workers: int | None = None,
-                   out=None) -> np.ndarray:
+                   out=None):
     """One plane (H, W) convolved with the PSF whose OTF is ``otf`` (shape[0], shape[1] // 2 + 1) on the padded
-    grid, by real FFTs in float32.
+    grid, by real FFTs in float32, on the plane's device (numpy or CuPy: :mod:`camsim.core.xp`).
 
     The frame is extended by reflection (mirror about its edge, numpy's ``symmetric``: the scene beyond the frame is
     taken to mirror it) to ``shape`` (``margin`` px before the frame on each axis, the rest after it), so the
     convolution is periodic on the padded grid: it conserves the padded sum exactly (OTF(0) = 1), and the frame's
     own sum where the PSF's reach from the frame's content stays within the margin. A uniform frame stays
     uniform. Returns the (H, W) float32 result (in ``out``, if given)."""
-    plane = np.asarray(plane, dtype=np.float32)
     spectrum = padded_spectrum(plane, margin, shape, workers=workers)
     spectrum *= otf
-    return plane_of_spectrum(spectrum, margin, shape, plane.shape, workers=workers, out=out)
+    return plane_of_spectrum(spectrum, margin, shape, np.shape(plane), workers=workers, out=out)
 
 
-def padded_spectrum(plane, margin: int, shape: tuple[int, int], *, workers: int | None = None) -> np.ndarray:
+def _fft_threads(xp, workers: int | None) -> dict:
+    """The FFT's thread count where it has one (scipy's ``workers``; cuFFT has none)."""
+    return {"workers": workers} if xp is np else {}
+
+
+def padded_spectrum(plane, margin: int, shape: tuple[int, int], *, workers: int | None = None):
     """The real FFT (shape[0], shape[1] // 2 + 1) complex64 of ``plane`` (H, W) extended by reflection to ``shape``
-    (:func:`convolve_plane`)."""
-    from scipy import fft
-
-    plane = np.asarray(plane, dtype=np.float32)
+    (:func:`convolve_plane`), on the plane's device."""
+    xp = namespace_of(plane)
+    plane = xp.asarray(plane, dtype=xp.float32)
     height, width = plane.shape
     pad = ((margin, shape[0] - height - margin), (margin, shape[1] - width - margin))
-    padded = np.pad(plane, pad, mode="symmetric")
-    return fft.rfft2(padded, workers=workers, overwrite_x=True)
+    padded = xp.pad(plane, pad, mode="symmetric")
+    return fft_namespace(xp).rfft2(padded, overwrite_x=True, **_fft_threads(xp, workers))
 
 
 def plane_of_spectrum(spectrum, margin: int, shape: tuple[int, int], size: tuple[int, int], *,
-                      workers: int | None = None, out=None) -> np.ndarray:
+                      workers: int | None = None, out=None):
     """The frame (H, W) = ``size`` float32 of a padded grid's real spectrum (:func:`padded_spectrum`): the inverse
-    real FFT, cropped (``spectrum`` is overwritten)."""
-    from scipy import fft
-
+    real FFT, cropped (``spectrum`` is overwritten), on the spectrum's device."""
+    xp = namespace_of(spectrum)
     height, width = size
-    result = fft.irfft2(spectrum, s=shape, workers=workers, overwrite_x=True)
+    result = fft_namespace(xp).irfft2(spectrum, s=shape, overwrite_x=True, **_fft_threads(xp, workers))
     if out is None:
-        out = np.empty((height, width), dtype=np.float32)
-    np.copyto(out, result[margin:margin + height, margin:margin + width])
+        out = xp.empty((height, width), dtype=xp.float32)
+    out[...] = result[margin:margin + height, margin:margin + width]
     return out
 
 

@@ -37,11 +37,13 @@ expectation after the optics (:func:`camsim.render.raw_frame.expectation_clean_d
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from camsim.core.errors import CamsimError
+from camsim.core.xp import namespace_of, to_host
 from camsim.optics.params import OpticsParams
 from camsim.optics.stages import (
     RADIAL_SAMPLES_PER_CY,
@@ -263,20 +265,22 @@ def spectral_otf(labels, photon_rate, qe, signal_e, weights, wavelengths_nm, opt
     return SpectralOtf(labels, tuple(components), tuple(amplitudes), tuple(bounds))
 
 
-def optics_otfs(optics: OpticsParams, wavelengths_nm, weights, shape: tuple[int, int]) -> list[np.ndarray]:
-    """The three channels' mean OTFs on the padded grid ``shape``, (shape[0], shape[1] // 2 + 1) float32 each."""
+def optics_otfs(optics: OpticsParams, wavelengths_nm, weights, shape: tuple[int, int], xp=np) -> list:
+    """The three channels' mean OTFs on the padded grid ``shape``, (shape[0], shape[1] // 2 + 1) float32 each, on
+    ``xp``'s device."""
     rho, step = radial_samples()
     radial = lens_otf_radial(rho, wavelengths_nm, weights, f_number=optics.f_number,
                              pixel_pitch_um=optics.pixel_pitch_um, diffraction=optics.diffraction,
                              w020_waves_550=optics.w020_waves_550)
-    return _grids(optics, radial, step, shape)
+    return _grids(optics, radial, step, shape, xp)
 
 
-def _grids(optics: OpticsParams, radial, step: float, shape: tuple[int, int]) -> list[np.ndarray]:
+def _grids(optics: OpticsParams, radial, step: float, shape: tuple[int, int], xp=np) -> list:
     from scipy import fft
 
     return channel_otfs(radial, step, fft.fftfreq(shape[0]), fft.rfftfreq(shape[1]),
-                        olpf_shift_px=optics.olpf_shift_px if optics.olpf else None, fill_factor=optics.fill_factor if optics.fill_factor < 1 else None)
+                        olpf_shift_px=optics.olpf_shift_px if optics.olpf else None,
+                        fill_factor=optics.fill_factor if optics.fill_factor < 1 else None, xp=xp)
 
 
 def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, spectral: SpectralOtf | None = None,
@@ -286,15 +290,17 @@ def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, spe
 
     Parameters
     ----------
-    signal_e : numpy.ndarray, shape (3, H, W)
-        S̄ per pixel and channel before the optics. Unit: e⁻.
+    signal_e : array, shape (3, H, W)
+        S̄ per pixel and channel before the optics, on numpy or CuPy (the optics run on its device: the lateral
+        CA's warp on the CPU, its planes copied there and back). Unit: e⁻.
     optics : OpticsParams
     wavelengths_nm : array_like, shape (N,)
     weights : array_like, shape (3, N)
         w_c(λ), each row summing to 1 (:func:`channel_weights`): the mean OTF of each channel.
     spectral : SpectralOtf, optional
-        Each spectrum's deviation from the mean OTF (:func:`spectral_otf`); None: the mean OTF alone (exact where
-        every pixel's light has one spectral shape per channel).
+        Each spectrum's deviation from the mean OTF (:func:`spectral_otf`; its labels on the signal's device or
+        copied there); None: the mean OTF alone (exact where every pixel's light has one spectral shape per
+        channel).
     workers : int, optional
         Threads of the FFTs and the warp (the result does not depend on them).
     clip : dict, optional
@@ -303,27 +309,29 @@ def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, spe
 
     Returns
     -------
-    numpy.ndarray, shape (3, H, W), float32, ≥ 0. Unit: e⁻.
+    array, shape (3, H, W), float32, ≥ 0, on the signal's device. Unit: e⁻.
     """
     from camsim.render.frame import default_workers
 
     workers = default_workers() if workers is None else workers
-    out = np.array(signal_e, dtype=np.float32, copy=True)
+    xp = namespace_of(signal_e)
+    out = xp.array(signal_e, dtype=xp.float32, copy=True)
     height, width = out.shape[1:]
     falloff = None
     if optics.vignetting != "none":
         theta = field_angle_rad(height, width, optics.pixel_pitch_um, optics.focal_length_mm)
-        falloff = (cos4_falloff(theta) if optics.vignetting == "cos4" else table_falloff(
-            theta, optics.relative_illumination)).astype(np.float32)
+        falloff = xp.asarray((cos4_falloff(theta) if optics.vignetting == "cos4" else table_falloff(
+            theta, optics.relative_illumination)).astype(np.float32))
 
     def before_psf(plane, c):  # lateral CA, then vignetting, in place on one channel's (H, W) float32 plane
         m = optics.lateral_ca[c]
-        if m != 1:
+        if m != 1:  # the warp's kernel runs on the CPU
             from camsim.render.warp import average_warp
 
             inverse = magnification_inverse(m, height, width)[None, None]
-            warped = average_warp(plane[..., None], inverse, np.ones((1, 1)), workers=workers)[..., 0]
-            np.multiply(warped, np.float32(1 / (m * m)), out=plane)
+            warped = average_warp(to_host(plane)[..., None], inverse, np.ones((1, 1)), workers=workers)[..., 0]
+            np.multiply(warped, np.float32(1 / (m * m)), out=warped)
+            plane[...] = xp.asarray(warped)
         if falloff is not None:
             plane *= falloff
 
@@ -333,15 +341,16 @@ def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, spe
                            optics.olpf_shift_px if optics.olpf else 0.0), max(height, width))
     shape = padded_shape(height, width, margin)
     if spectral is None or not any(spectral.ranks):
-        for c, otf in enumerate(optics_otfs(optics, wavelengths_nm, weights, shape)):
+        for c, otf in enumerate(optics_otfs(optics, wavelengths_nm, weights, shape, xp)):
             convolve_plane(out[c], otf, margin, shape, workers=workers, out=out[c])
         return _clipped(out, clip)
     rho, step = radial_samples()
     means = lens_otf_radial(rho, wavelengths_nm, weights, f_number=optics.f_number,
                             pixel_pitch_um=optics.pixel_pitch_um, diffraction=optics.diffraction,
                             w020_waves_550=optics.w020_waves_550)
+    labels = xp.asarray(spectral.labels)
     for c in range(3):  # the mean OTF and the components on the grid, one channel at a time (memory)
-        otf, *grids = _grids(optics, np.vstack([means[c:c + 1], spectral.components[c]]), step, shape)
+        otf, *grids = _grids(optics, np.vstack([means[c:c + 1], spectral.components[c]]), step, shape, xp)
         if not grids:
             convolve_plane(out[c], otf, margin, shape, workers=workers, out=out[c])
             continue
@@ -349,7 +358,7 @@ def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, spe
         spectrum *= otf
         del otf
         for j, grid in enumerate(grids):
-            plane = spectral.amplitudes[c][j][spectral.labels]
+            plane = xp.asarray(spectral.amplitudes[c][j])[labels]
             before_psf(plane, c)
             part = padded_spectrum(plane, margin, shape, workers=workers)
             del plane
@@ -365,7 +374,7 @@ def _clipped(out: np.ndarray, clip: dict | None) -> np.ndarray:
     """``out`` clipped at 0 (:func:`camsim.optics.stages.clip_negative`), its record into ``clip``."""
     added = clip_negative(out)
     if clip is not None:
-        totals = out.sum(axis=(1, 2), dtype=np.float64) - added
+        totals = to_host(out.sum(axis=(1, 2), dtype=np.float64)) - added
         clip["negative_clipped_e"] = [float(v) for v in added]
         clip["negative_clipped_fraction"] = [float(a / t) if t > 0 else 0.0 for a, t in zip(added, totals)]
     return out
@@ -391,31 +400,71 @@ def optics_record(optics: OpticsParams, wavelengths_nm, weights, spectral: Spect
             "otf_model": otf_model(spectral), **(clip or {})}
 
 
-def optics_signal(lit, signal_e, optics: OpticsParams, *, static=None, workers: int | None = None):
-    """The lit scene's expected electrons through ``optics``, per spectrum: ``(signal (3, H, W) float32, record)``.
-    ``signal_e`` (K, 3) per spectrum; ``static``: its (3, H, W) planes if already made
-    (:func:`camsim.render.raw_frame.static_signal_e`)."""
-    from camsim.render.raw_frame import static_signal_e
-
+def optics_plan(lit, signal_e, optics: OpticsParams) -> tuple[np.ndarray, SpectralOtf]:
+    """What the OTFs of a frame depend on, made on the host: each channel's mean weights w_c(λ) (3, N)
+    (:func:`channel_weights`) and the per-spectrum components (:func:`spectral_otf`) of the lit scene and its
+    expected electrons per spectrum ``signal_e`` (K, 3)."""
     counts = np.bincount(lit.labels.ravel(), minlength=lit.photon_rate.shape[0])
     weights = channel_weights(lit, counts)
-    wavelengths = lit.grid.wavelengths_nm
-    spectral = spectral_otf(lit.labels, lit.photon_rate, lit.qe, signal_e, weights, wavelengths, optics,
+    spectral = spectral_otf(lit.labels, lit.photon_rate, lit.qe, signal_e, weights, lit.grid.wavelengths_nm, optics,
                             counts=counts)
+    return weights, spectral
+
+
+def optics_signal(lit, signal_e, optics: OpticsParams, *, static=None, labels=None, workers: int | None = None):
+    """The lit scene's expected electrons through ``optics``, per spectrum: ``(signal (3, H, W) float32, record)``.
+    ``signal_e`` (K, 3) per spectrum; ``static``: its (3, H, W) planes if already made
+    (:func:`camsim.render.raw_frame.static_signal_e`); ``labels``: the label map on the device where the optics are to
+    run (numpy or CuPy; default the lit scene's, on the CPU): the planes, the FFTs and the result are there, the
+    plan (:func:`optics_plan`) on the host."""
+    from camsim.render.raw_frame import static_signal_e
+
+    weights, spectral = optics_plan(lit, signal_e, optics)
+    labels = lit.labels if labels is None else labels
+    if labels is not lit.labels:
+        spectral = dataclasses.replace(spectral, labels=labels)
     if static is None:
-        static = static_signal_e(lit.labels, signal_e)
+        static = static_signal_e(labels, signal_e)
     clip = {}
+    wavelengths = lit.grid.wavelengths_nm
     signal = apply_optics(static, optics, wavelengths, weights, spectral=spectral, workers=workers, clip=clip)
     return signal, optics_record(optics, wavelengths, weights, spectral, clip)
 
 
-def optics_frame(lit, sensor, intensity_factor: float, optics: OpticsParams, *, rng, workers: int | None = None):
+def optics_frame_xp(xp, lit, expected, sensor, optics: OpticsParams, *, rng, labels=None):
+    """One frame of ``lit`` through ``optics`` on ``xp``'s device (numpy or CuPy): the optics on the device
+    (:func:`optics_signal`), then every pixel drawn from its own mean by the array path
+    (:func:`camsim.render.backends.array_path.render_frame_xp` with ``signal_e``). Returns ``(DeviceFrame, signal
+    (3, H, W) float32 on the device, record)``; ``labels``: the label map already on the device, if it is."""
+    from camsim.render.backends.array_path import render_frame_xp
+
+    labels = xp.asarray(lit.labels) if labels is None else labels
+    signal, record = optics_signal(lit, expected.signal_e, optics, labels=labels)
+    drawn = render_frame_xp(xp, labels, expected, sensor, rng=rng, signal_e=signal)
+    return drawn, signal, record
+
+
+def optics_frame(lit, sensor, intensity_factor: float, optics: OpticsParams, *, rng, workers: int | None = None,
+                 device: str = "cpu"):
     """One frame of ``lit`` through ``optics``, drawn per pixel: ``(frame, record)``, a
-    :class:`camsim.render.raw_frame.ExpectationFrame` (its clean layer per pixel) and the sidecar's ``optics``."""
+    :class:`camsim.render.raw_frame.ExpectationFrame` (its clean layer per pixel) and the sidecar's ``optics``.
+
+    ``device``: ``cpu`` (the block renderer's draws, :func:`camsim.render.raw_frame.render_expectation_frame`) or
+    ``cuda`` / ``numpy`` (:func:`optics_frame_xp`; the pixels copied to the host); the clean layer on the CPU,
+    :func:`camsim.render.raw_frame.expectation_clean_dn` of the expectation either way."""
     from camsim.render.raw_frame import ExpectationFrame, expectation_clean_dn, render_expectation_frame
     from camsim.sensor.cfa import mosaic_of
 
     expected = lit.expected(sensor, intensity_factor, "pixel")
+    if device != "cpu":
+        from camsim.render.backends import array_module
+        from camsim.sensor.fixed_pattern import fixed_pattern
+
+        drawn, signal, record = optics_frame_xp(array_module(device), lit, expected, sensor, optics, rng=rng)
+        maps = fixed_pattern(sensor, lit.labels.shape)
+        clean = expectation_clean_dn(to_host(signal), sensor, maps, workers)
+        return ExpectationFrame(to_host(drawn.noisy_dn), to_host(drawn.digital_dn), lit.labels, expected, sensor,
+                                None, maps, drawn.black_level_error_dn, clean), record
     signal, record = optics_signal(lit, expected.signal_e, optics, workers=workers)
     source = signal if sensor.cfa is None else mosaic_of(signal, sensor.cfa)[None]
     draw = render_expectation_frame(source, sensor, rng=rng, workers=workers)

@@ -303,10 +303,9 @@ def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed:
         from camsim.render.optics import check_optics_scene, optics_frame
 
         check_optics_scene(scene)
-        if device != "cpu":
-            raise CamsimError("a scene with [optics] is drawn per pixel on the CPU (--device cpu)")
         frame, record = optics_frame(lit, frame_sensor(scene, lit, intensity_factor), intensity_factor, scene.optics,
-                                     rng=frame_seed_sequence(seed, illuminant, intensity_factor), workers=workers)
+                                     rng=frame_seed_sequence(seed, illuminant, intensity_factor), workers=workers,
+                                     device=device)
         info = scene_frame_info(scene, lit, camera.name, intensity_factor, seed, device)
         return frame, dataclasses.replace(info, method="poisson", optics=record)
     frame = make_frame(lit, frame_sensor(scene, lit, intensity_factor), intensity_factor,

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.core.errors import CamsimError
+from camsim.core.xp import namespace_of
 from camsim.render.frame import Frame, black_level_error, block_rows, run_blocks, write_stuck
 from camsim.sensor.cfa import CFA_PATTERNS, cfa_sites
 from camsim.sensor.expected import clean_charge_e, poisson_tail_reach
@@ -334,11 +335,12 @@ class ExpectationFrame(Frame):
         return self.clean
 
 
-def static_signal_e(labels: np.ndarray, signal_e: np.ndarray) -> np.ndarray:
-    """S̄ per pixel and channel, (3, H, W) float32, from the per-spectrum ``signal_e`` (K, 3) through ``labels``.
-    Unit: e⁻."""
-    table = np.asarray(signal_e, dtype=np.float32)
-    out = np.empty((3,) + labels.shape, dtype=np.float32)
+def static_signal_e(labels, signal_e: np.ndarray):
+    """S̄ per pixel and channel, (3, H, W) float32, from the per-spectrum ``signal_e`` (K, 3) through ``labels``, on
+    the labels' device (numpy or CuPy: :mod:`camsim.core.xp`). Unit: e⁻."""
+    xp = namespace_of(labels)
+    table = xp.asarray(np.asarray(signal_e, dtype=np.float32))
+    out = xp.empty((3,) + labels.shape, dtype=xp.float32)
     for c in range(3):
         out[c] = table[:, c][labels]
     return out

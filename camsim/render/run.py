@@ -92,8 +92,6 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
         from camsim.render.optics import check_optics_scene
 
         check_optics_scene(scene)
-        if device != "cpu":
-            raise CamsimError("a scene with [optics] is drawn per pixel on the CPU (--device cpu)")
     if scene.sequence is not None and scene.source.table == "raw":  # a raw's electrons moved: render.raw_sequence
         from camsim.render.raw_sequence import check_raw_sequence, render_raw_sequence
 

@@ -146,24 +146,45 @@ def mosaic(xp, cfa: str, planes) -> object:
     return out
 
 
-def plane_inputs(xp, labels, expected: ExpectedSignal, sensor: SensorParams, maps: FixedPattern | None) -> dict:
-    """The keyword arguments of :func:`draw_planes` for a label map (on ``xp``'s device) and its expected signal.
+def plane_inputs(xp, labels, expected: ExpectedSignal, sensor: SensorParams, maps: FixedPattern | None,
+                 signal_e=None) -> dict:
+    """The keyword arguments of :func:`draw_planes` for a label map (on ``xp``'s device) and its expected signal, or
+    for per-pixel signal planes ``signal_e``.
 
     Without fixed-pattern maps, one gather of S̄ + D̄ per plane (:attr:`ExpectedSignal.charge_mean_e`); with them,
-    S̄ per pixel, D̄ per plane (per site for a Bayer sensor) and the maps (each site's own channel).
+    S̄ per pixel, D̄ per plane (per site for a Bayer sensor) and the maps (each site's own channel). ``signal_e``
+    (3, H, W) on the device, ≥ 0: S̄ at each pixel instead of the label map's (a frame through the optics,
+    :mod:`camsim.render.optics`), D̄ still the expected signal's. Unit: e⁻.
     """
     dark = np.asarray(expected.dark_e, dtype=np.float64)
     offset = gain = dark_gain = None
     if maps is not None:
         offset, gain, dark_gain = maps.offset_e, maps.gain, maps.dark_gain
     per_pixel = gain is not None or dark_gain is not None
-    means = xp.asarray(expected.signal_e.T if per_pixel else expected.charge_mean_e, dtype=xp.float64)  # (3, K)
+    if signal_e is None:  # pick: a site's values of channel c; whole: the three planes
+        means = xp.asarray(expected.signal_e.T if per_pixel else expected.charge_mean_e, dtype=xp.float64)  # (3, K)
+
+        def pick(c, site):
+            return means[c][labels[site]]
+
+        def whole():
+            return means[:, labels]
+    else:
+        plus = None if per_pixel else dark  # D̄ joins S̄ in the Poisson mean where no maps scale it
+
+        def pick(c, site):
+            values = signal_e[c][site].astype(xp.float64)
+            return values if plus is None else values + plus[c]
+
+        def whole():
+            values = signal_e.astype(xp.float64)
+            return values if plus is None else values + xp.asarray(plus.reshape(3, 1, 1))
     if sensor.cfa is None:
-        out = {"mean_e": means[:, labels], "offset_e": offset, "gain": gain, "dark_gain": dark_gain}
+        out = {"mean_e": whole(), "offset_e": offset, "gain": gain, "dark_gain": dark_gain}
         if per_pixel:
             out["dark_e"] = xp.asarray(dark.reshape(3, 1, 1))
         return out
-    out = {"mean_e": mosaic(xp, sensor.cfa, lambda c, site: means[c][labels[site]])}
+    out = {"mean_e": mosaic(xp, sensor.cfa, pick)}
     for key, planes in (("offset_e", offset), ("gain", gain), ("dark_gain", dark_gain)):
         out[key] = None if planes is None else mosaic(xp, sensor.cfa, planes)
     if per_pixel:
@@ -220,7 +241,7 @@ def device_maps(xp, sensor: SensorParams, shape) -> FixedPattern | None:
 
 
 def render_frame_xp(xp, labels, expected: ExpectedSignal, sensor: SensorParams, *, rng, statistics: str = "pixel",
-                    method: str = "poisson") -> DeviceFrame:
+                    method: str = "poisson", signal_e=None) -> DeviceFrame:
     """Render one frame with the array path on ``xp`` (numpy or CuPy): the arrays stay on the device.
 
     Parameters
@@ -236,6 +257,9 @@ def render_frame_xp(xp, labels, expected: ExpectedSignal, sensor: SensorParams, 
         give the same frame.
     statistics, method : str
         ``pixel`` statistics only; every method but ``spectral`` (:func:`camsim.render.backends.device_method`).
+    signal_e : array, shape (3, H, W), optional
+        S̄ at each pixel on the device, ≥ 0, instead of the label map's (:func:`plane_inputs`): a frame through the
+        optics (:func:`camsim.render.optics.optics_frame_xp`). Unit: e⁻.
 
     Raises
     ------
@@ -253,7 +277,7 @@ def render_frame_xp(xp, labels, expected: ExpectedSignal, sensor: SensorParams, 
     labels_d = xp.asarray(labels)
     maps = device_maps(xp, sensor, labels.shape)
     noisy, digital = draw_planes(rng, sensor=sensor, black_level_error_dn=error,
-                                 **plane_inputs(xp, labels_d, expected, sensor, maps))
+                                 **plane_inputs(xp, labels_d, expected, sensor, maps, signal_e))
     write_stuck(maps, sensor, noisy, digital)
     return DeviceFrame(noisy, digital, labels_d, maps, error)
 
