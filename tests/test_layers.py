@@ -1,5 +1,6 @@
 """The package layout is camsim's layers (docs/architecture.md): each module imports only its own layer and the
-layers below it, and the packages import one another without a cycle.
+layers below it, the packages import one another without a cycle, and so do the modules of a package
+(:func:`module_graph`: the dataset package's).
 
 Every module of ``camsim/`` is parsed with :mod:`ast` (nothing is imported): its ``import`` statements at the top
 and inside functions, and the modules it imports by name (a string constant that is a module's dotted name, as in
@@ -48,7 +49,7 @@ CYCLE_EXCEPTIONS = {
                                  "imported inside the function (the experiments import the analysis at the top)",
 }
 
-#: Module-level import edges allowed to close a cycle of the modules of one package (:func:`module_graph`), with
+#: Import edges between the modules of one package (:func:`module_graph`) allowed to close a cycle, with
 #: the reason.
 MODULE_CYCLE_EXCEPTIONS = {
     ("camsim.dataset._pool", "camsim.dataset._preload"): "the pool names _preload for its fork server to import "
