@@ -113,6 +113,7 @@ from camsim.dataset.spec_parts import (
     virtual_camera_draws,
 )
 from camsim.io.dng import MAX_EXPOSURE_S, MIN_SIZE
+from camsim.scene.scene_file import check_intensity_factor
 from camsim.scene.sequence import check_timing
 from camsim.sensor.params import SENSOR_PARAMS, with_checked_values
 from camsim.sensor.presets.virtual import VIRTUAL_KEYS
@@ -391,8 +392,6 @@ def _raw_frame_values(job: _RawJob) -> Iterator[tuple]:
             key = (file_index, combo_key, *(canonical_json(params[p]) for p in shared_random))
             point += 1
             try:
-                from camsim.scene.scene_file import check_intensity_factor
-
                 factor = check_intensity_factor(params["intensity_factor"])
                 own = tuple(PARAMETERS[p].coerce(params[p], "sensor parameter") for p in own_sensor)
                 entry = groups.get(key)
