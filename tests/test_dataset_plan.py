@@ -13,8 +13,9 @@ from pathlib import Path
 import pytest
 
 from camsim.cli.commands.dataset import print_plan
-from camsim.dataset import spec as spec_module
-from camsim.dataset.spec import OWN_VALUE_PARAMS, load_spec, plan_spec
+from camsim.dataset import spec_parts
+from camsim.dataset.spec import load_spec, plan_spec
+from camsim.dataset.spec_parts import OWN_VALUE_PARAMS
 from camsim.core.errors import CamsimError
 from camsim.core.seeding import dataset_frame_seed, dataset_frame_seeds
 
@@ -174,7 +175,7 @@ def test_ids_widen_to_the_frame_count(tmp_path, monkeypatch):
     ids sort in frame order. (ID_DIGITS is made 2 here, for a 101-frame spec; the next test has 100 001 frames.)"""
     short = load_spec(write(tmp_path, random_spec(100), "short.toml"))
     assert {len(f.id) for f in short.frames} == {16} and short.frames[-1].id.startswith("00099-")
-    monkeypatch.setattr(spec_module, "ID_DIGITS", 2)
+    monkeypatch.setattr(spec_parts, "ID_DIGITS", 2)
     for count, digits in ((100, 2), (101, 3)):
         spec = load_spec(write(tmp_path, random_spec(count), f"s{count}.toml"))
         ids = [f.id for f in spec.frames]

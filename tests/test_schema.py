@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from camsim.analysis.grouping import GROUP_KEYS
-from camsim.dataset.spec import PARAMETERS
+from camsim.dataset.spec_parts import PARAMETERS
 from camsim.core.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS, get_method
 from camsim.scene.scene_file import RENDER_PARAMS, load_scene

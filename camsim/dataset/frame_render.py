@@ -12,7 +12,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from camsim.sensor.camera import load_camera
-from camsim.dataset.spec import FrameSpec
+from camsim.dataset.spec_parts import FrameSpec
 from camsim.render.frame_files import write_frame
 from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION
 from camsim.render.pipeline import light_scene, scene_frame

@@ -12,10 +12,10 @@ Layout of ``OUT``::
     OUT/frames/<id>.done                       the frame's record, written (atomically) after all its files
     OUT/manifest.jsonl                         one line per complete frame, in frame order
 
-A record is the frame's parameters and seed (:attr:`camsim.dataset.spec.FrameSpec.record`), the compression of its
-EXR (``exr_compression``; a record of an earlier camsim has none: its EXRs are ZIP-compressed), what its developed
-sRGB PNGs hold, if written (``srgb``: :mod:`camsim.dataset.srgb`), and its files (``ID_srgb_noisy.png`` and
-``ID_srgb_clean.png`` among them then).
+A record is the frame's parameters and seed (:attr:`camsim.dataset.spec_parts.FrameSpec.record`), the compression
+of its EXR (``exr_compression``; a record of an earlier camsim has none: its EXRs are ZIP-compressed), what its
+developed sRGB PNGs hold, if written (``srgb``: :mod:`camsim.dataset.srgb`), and its files (``ID_srgb_noisy.png``
+and ``ID_srgb_clean.png`` among them then).
 A frame is complete when its ``.done`` record exists, describes the same frame (every parameter and the seed)
 and every file it lists exists with the recorded size and SHA-256; the compression it was written with does not
 matter (a re-run keeps it, and writes the frames it renders with its own). The manifest is rebuilt from the records when
@@ -32,7 +32,7 @@ import json
 import os
 from pathlib import Path
 
-from camsim.dataset.spec import FrameSpec
+from camsim.dataset.spec_parts import FrameSpec
 from camsim.core.errors import output_error
 from camsim.io.atomic import atomic_path, write_json_atomic, write_text_atomic
 

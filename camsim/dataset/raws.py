@@ -50,7 +50,7 @@ window's offset in the file as read (odd along a flipped axis). With ``flips``, 
 more than the crop. Files of different patterns may share a folder: each frame's sensor has its file's pattern
 (the record's ``cfa``).
 
-The record of each frame holds :data:`camsim.dataset.spec.RAW_KEYS` (the file name relative to the folder, its
+The record of each frame holds :data:`camsim.dataset.spec_parts.RAW_KEYS` (the file name relative to the folder, its
 SHA-256, ``crop_x``, ``crop_y``, ``flip_horizontal``, ``flip_vertical``), the source's camera, ISO and exposure
 (``source_preset``, ``source_iso``, ``source_exposure_s``), the photon law, the ratio (where set) and the target
 sensor's every parameter, so that the id changes with the file's bytes. The frame's files are a raw scene's
@@ -64,7 +64,7 @@ With ``srgb`` (``png``, ``png16``), the noisy and clean mosaics are developed th
 1 / (F · T / T_source), the exposure ratio). The file layout only: a Zarr store (``--format zarr``) is refused for
 ``[raws]`` specs.
 
-Bursts. ``burst_frames`` and the motion's parameters (:data:`camsim.dataset.spec.BURST_PARAMS`) make each item a
+Bursts. ``burst_frames`` and the motion's parameters (:data:`camsim.dataset.spec_parts.BURST_PARAMS`) make each item a
 burst of its crop (:func:`render_raw_burst_files`): a raw scene's ``[sequence]``
 (:func:`camsim.render.raw_sequence.render_raw_sequence_frames`) with the item's seed, ``ID_fNNN.dng/.exr/.json``
 (``_mask.png`` where masked) and the reference ``ID_ref.exr/.json``, the manifest's ``burst`` and the record's burst
@@ -90,58 +90,55 @@ import numpy as np
 
 from camsim.core.errors import CamsimError
 from camsim.core.seeding import dataset_parameter_generator
-from camsim.dataset.spec import (
-    _FACTOR,
-    ID_DIGITS,
+from camsim.dataset.spec_parts import (
+    FACTOR_INDEX,
     MAX_FRAMES,
     OWN_VALUE_PARAMS,
     PARAMETERS,
     RAW_KEYS,
-    RAW_SUFFIXES,
-    RAWS_TABLE_KEYS,
     RENDER_KEYS,
     FrameGroup,
     FrameSpec,
+    RawCrop,
     SpecPlan,
-    _canonical,
-    _draw,
-    _frames,
-    _parameter_tables,
-    _virtual_cameras,
-    FileCrop,
     burst_record,
     burst_sequence,
+    canonical_json,
+    draw_parameter,
     folder_table,
+    frame_id_digits,
     frame_sensor_overrides,
+    frames_with_ids,
+    parameter_tables,
+    virtual_camera_draws,
 )
 from camsim.io.dng import MAX_EXPOSURE_S, MIN_SIZE
+from camsim.scene.scene_file import check_intensity_factor
 from camsim.scene.sequence import check_timing
 from camsim.sensor.params import SENSOR_PARAMS, with_checked_values
 from camsim.sensor.presets.virtual import VIRTUAL_KEYS
 from camsim.sensor.raw_laws import PHOTON_LAWS
 
-__all__ = ["RawCrop", "RawGroup", "plan_raws", "raw_burst_warnings", "render_raw_files", "render_raw",
-           "render_raw_burst_files"]
+__all__ = ["RAWS_TABLE_KEYS", "RAW_SUFFIXES", "RawGroup", "plan_raws", "raw_burst_warnings", "render_raw_files",
+           "render_raw", "render_raw_burst_files"]
 
 #: Parameters a ``[raws]`` spec may not set: the light, the camera curves and the render settings are a
 #: spectral scene's; the pattern is the file's.
 _NOT_FOR_RAWS = ("illuminant", "camera", "cfa", *RENDER_KEYS)
 #: How many raw files a worker process keeps read (full mosaics: 2 bytes a pixel each).
 _KEPT_FILES = 4
-
-
-@dataclass(frozen=True)
-class RawCrop(FileCrop):
-    """The source of a frame of a ``[raws]`` spec: a window of a raw file, perhaps mirrored (:class:`FileCrop`).
-
-    Its ``x``, ``y`` are even, or odd along a flipped axis (the window one column or row further in, so that the
-    mirrored frame has the file's pattern); ``width``, ``height`` are even.
-    """
+#: Keys of a ``[raws]`` table.
+RAWS_TABLE_KEYS = ("folder", "pattern", "crop", "flips", "photon_law", "preset")
+#: File name suffixes a ``[raws]`` folder is searched for without a ``pattern`` (any case): the raw formats LibRaw
+#: reads.
+RAW_SUFFIXES = (".dng", ".arw", ".srf", ".sr2", ".nef", ".nrw", ".cr2", ".cr3", ".crw", ".raf", ".orf", ".rw2",
+                ".pef", ".srw", ".raw", ".rwl", ".3fr", ".fff", ".iiq", ".mos", ".mef", ".mrw", ".erf", ".kdc",
+                ".dcr", ".x3f", ".gpr")
 
 
 @dataclass(frozen=True)
 class RawGroup:
-    """What the frames of a group of a ``[raws]`` spec share (:attr:`camsim.dataset.spec.FrameGroup.raws`).
+    """What the frames of a group of a ``[raws]`` spec share (:attr:`camsim.dataset.spec_parts.FrameGroup.raws`).
 
     Attributes
     ----------
@@ -292,7 +289,7 @@ def _raw_draws(raws: _RawFolder, n: int, seed: int) -> list:
 
 @dataclass(frozen=True)
 class _RawJob:
-    """What :func:`camsim.dataset.spec._frames` needs to make the frames of a ``[raws]`` spec."""
+    """What :func:`camsim.dataset.spec_parts.frames_with_ids` needs to make the frames of a ``[raws]`` spec."""
 
     where: str
     base: Path
@@ -311,8 +308,8 @@ class _RawJob:
 
     @property
     def sensor_keys(self) -> tuple:
-        """The own values that are sensor parameters (:attr:`camsim.dataset.spec.FrameGroup.sensor_keys`)."""
-        return self.value_keys[_FACTOR + 1:len(self.value_keys) - len(RAW_KEYS) - ("ratio" in self.value_keys)]
+        """The own values that are sensor parameters (:attr:`camsim.dataset.spec_parts.FrameGroup.sensor_keys`)."""
+        return self.value_keys[FACTOR_INDEX + 1:len(self.value_keys) - len(RAW_KEYS) - ("ratio" in self.value_keys)]
 
 
 def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeats: int, exr_compression,
@@ -325,7 +322,7 @@ def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeat
     CamsimError
         A key that does not apply (``scene``, ``[frame]``, ``[images]``, ``illuminant`` …), a bad ``[raws]`` table
         or file (:func:`_raws`), ``ratio`` with ``exposure_s``, or more than
-        :data:`camsim.dataset.spec.MAX_FRAMES` frames.
+        :data:`camsim.dataset.spec_parts.MAX_FRAMES` frames.
     """
     where = str(path)
     for key, why in (("scene", "a [raws] spec's light and camera are each raw file's own: no scene file"),
@@ -334,7 +331,7 @@ def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeat
         if key in doc:
             raise CamsimError(f"{where}: {'[' + key + ']' if key != 'scene' else key} does not apply: {why}")
     raws = _raws(doc["raws"], base, where)
-    axes, fixed, grid, random_table, random_names, count = _parameter_tables(doc, where)
+    axes, fixed, grid, random_table, random_names, count = parameter_tables(doc, where)
     for param in _NOT_FOR_RAWS:
         if param in axes:
             raise CamsimError(f"{where}: [{axes[param]}] {param} does not apply to [raws] frames (the light, the "
@@ -344,10 +341,11 @@ def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeat
     points = math.prod(len(v) for v in grid.values()) * count
     if points * repeats > MAX_FRAMES:
         raise CamsimError(f"{where}: more than {MAX_FRAMES} frames")
-    random_values = {p: _draw(p, random_table[k], points, seed, f"{where} [random]") for p, k in random_names.items()}
+    random_values = {p: draw_parameter(p, random_table[k], points, seed, f"{where} [random]")
+                     for p, k in random_names.items()}
     virtual = "virtual_camera" in doc
     if virtual:
-        drawn = _virtual_cameras(doc["virtual_camera"], points, seed, axes, where)
+        drawn = virtual_camera_draws(doc["virtual_camera"], points, seed, axes, where)
         random_values.update({key: [d[key] for d in drawn] for key in VIRTUAL_KEYS})
         axes.update(dict.fromkeys(VIRTUAL_KEYS, "virtual_camera"))
     axes.setdefault("intensity_factor", "fixed")  # F = 1 unless the spec says
@@ -362,11 +360,11 @@ def plan_raws(doc: dict, path: Path, base: Path, *, name: str, seed: int, repeat
     job = _RawJob(where=where, base=base, name=name, seed=seed, repeats=repeats, count=count, raws=raws,
                   fixed=fixed, grid=grid, random_values=random_values, virtual=virtual,
                   value_keys=("repeat", "intensity_factor", *own_sensor, *own_ratio, *RAW_KEYS),
-                  id_digits=max(ID_DIGITS, len(str(points * repeats - 1))),
+                  id_digits=frame_id_digits(points * repeats),
                   raw_values=_raw_draws(raws, points, seed))
     return SpecPlan(name=name, path=path, seed=seed, width=raws.width, height=raws.height, axes=axes,
                     count=points * repeats, sizes=((raws.width, raws.height),),
-                    make_frames=partial(_frames, job, frame_values=_raw_frame_values),
+                    make_frames=partial(frames_with_ids, job, frame_values=_raw_frame_values),
                     exr_compression=exr_compression, srgb=srgb)
 
 
@@ -391,11 +389,9 @@ def _raw_frame_values(job: _RawJob) -> Iterator[tuple]:
             file_index, raw = job.raw_values[point]
             if own_ratio:  # the frame's exposure, an own value
                 params["exposure_s"] = job.raws.files[file_index].source_exposure_s / float(params["ratio"])
-            key = (file_index, combo_key, *(_canonical(params[p]) for p in shared_random))
+            key = (file_index, combo_key, *(canonical_json(params[p]) for p in shared_random))
             point += 1
             try:
-                from camsim.scene.scene_file import check_intensity_factor
-
                 factor = check_intensity_factor(params["intensity_factor"])
                 own = tuple(PARAMETERS[p].coerce(params[p], "sensor parameter") for p in own_sensor)
                 entry = groups.get(key)
@@ -502,8 +498,8 @@ def _resolve_raw(params: dict, file: _RawFile, job: _RawJob) -> tuple[FrameGroup
         scene_path=str(raws.folder / file.name), width=raws.width, height=raws.height, illuminant="as-shot",
         scene_changes={} if burst is None else {"sequence": burst}, sensor_overrides=overrides, record=record,
         value_keys=job.value_keys,
-        canonical_parts=tuple(f"{_canonical(k)}:{_canonical(record[k])}" for k in keys),
-        canonical_slots=tuple((keys.index(k), f"{_canonical(k)}:") for k in job.value_keys),
+        canonical_parts=tuple(f"{canonical_json(k)}:{canonical_json(record[k])}" for k in keys),
+        canonical_slots=tuple((keys.index(k), f"{canonical_json(k)}:") for k in job.value_keys),
         raws=group_raws)
     return group, sensor
 

@@ -33,7 +33,8 @@ from camsim.dataset.manifest import (
     verified_record,
     write_manifest,
 )
-from camsim.dataset.spec import DatasetSpec, FrameSpec, check_srgb, load_spec
+from camsim.dataset.spec import check_srgb, load_spec
+from camsim.dataset.spec_parts import DatasetSpec, FrameSpec
 from camsim.dataset.srgb import srgb_bits
 from camsim.dataset.task import render_task, zarr_task
 from camsim.core.errors import CamsimError

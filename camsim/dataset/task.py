@@ -11,7 +11,7 @@ from pathlib import Path
 
 from camsim.dataset.frame_render import render_burst, render_files, render_frame
 from camsim.dataset.manifest import FRAMES_DIR, sha256_file
-from camsim.dataset.spec import FrameSpec
+from camsim.dataset.spec_parts import FrameSpec
 from camsim.io.exr import set_exr_threads
 from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION
 

@@ -65,6 +65,18 @@ def spec_module():
     return _module_of(camsim.dataset.load_spec)
 
 
+def spec_parts_module():
+    """The module of what every dataset spec is made of: its parameters and their tables, its frames."""
+    import camsim.dataset
+
+    return _module_of(camsim.dataset.FrameSpec)
+
+
+def raws_module():
+    """The module of a ``[raws]`` spec (its table's keys), beside the spec's."""
+    return importlib.import_module(spec_module().__name__.rsplit(".", 1)[0] + ".raws")
+
+
 def sidecar_module():
     import camsim
 
@@ -549,22 +561,22 @@ def _joined(items, fmt: str, last: str, code: bool = True) -> list:
 
 def dataset_key_nodes() -> list[nodes.Node]:
     """The dataset spec's reference: its tables and keys, then every parameter a frame may vary."""
-    spec = spec_module()
+    spec, parts, raws = spec_module(), spec_parts_module(), raws_module()
     out: list[nodes.Node] = []
 
     sec = section("Tables and keys of a spec", "spec-tables")
     sec += para("A dataset spec may have these top-level keys and tables (any other is an error): ")
     sec += _key_list(spec._TOP_KEYS)
     rows = [[[literal("[images]")], [_key_list(spec.IMAGES_TABLE_KEYS)]],
-            [[literal("[raws]")], [_key_list(spec.RAWS_TABLE_KEYS)]],
-            [[literal("[virtual_camera]")], [_key_list(spec.VIRTUAL_CAMERA_TABLE_KEYS)]],
+            [[literal("[raws]")], [_key_list(raws.RAWS_TABLE_KEYS)]],
+            [[literal("[virtual_camera]")], [_key_list(parts.VIRTUAL_CAMERA_TABLE_KEYS)]],
             [[literal("[random]")], [para(literal("count"), nodes.Text(" (draws per grid point), and per parameter "
                                                                        "one distribution, "),
                                           literal("{ NAME = [...] }"), nodes.Text(" with NAME one of "),
-                                          *_joined(spec.DISTRIBUTIONS, "{}", " or "))]]]
+                                          *_joined(parts.DISTRIBUTIONS, "{}", " or "))]]]
     sec += table(["Table", "Keys"], rows, [1, 4])
     aliases = []
-    for plural, single in spec.GRID_ALIASES.items():
+    for plural, single in parts.GRID_ALIASES.items():
         aliases += [", " if aliases else "", literal(plural), f" (for {single})"]
     sec += para("Plural spellings accepted in ", literal("[grid]"), ": ", *aliases, ".")
     out.append(sec)
@@ -573,7 +585,7 @@ def dataset_key_nodes() -> list[nodes.Node]:
     sec += para("Each may be set in ", literal("[fixed]"), ", ", literal("[grid]"), " (a list) or ",
                 literal("[random]"), " (a distribution), at most one of them; a parameter the spec does not set "
                 "keeps the scene file's value.")
-    sec += param_table(spec.PARAMETERS.values())
+    sec += param_table(parts.PARAMETERS.values())
     out.append(sec)
     return out
 
