@@ -33,10 +33,11 @@ per-wavelength sum).
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
-from camsim.core.xp import fft_namespace, namespace_of
+from camsim.core.xp import fft_namespace, namespace_of, to_host
 
 #: Wavelength of ``defocus_waves``. Unit: µm.
 DEFOCUS_REFERENCE_UM = 0.55
@@ -105,25 +106,40 @@ def w020_at(w020_waves_550: float, wavelength_nm) -> np.ndarray:
 def lens_otf_radial(rho, wavelength_nm, weights, *, f_number: float, pixel_pitch_um: float, diffraction: bool,
                     w020_waves_550: float) -> np.ndarray:
     """Σ_λ w_c(λ) OTF_lens(ρ; λ) per row c of ``weights`` at radial frequencies ``rho`` (cy/px), shape
-    (C, len(rho)) (C = 3 channels; the identity (N, N) gives every wavelength's own OTF).
+    (C, len(rho)) (C = 3 channels): ``weights`` @ :func:`wavelength_otf_table`.
 
     OTF_lens is the diffraction OTF (:func:`diffraction_otf`) or with defocus Hopkins's (:func:`defocused_otf`); with
     diffraction off the lens factor is 1 (an ideal lens: :class:`camsim.optics.params.OpticsParams` refuses defocus
     without diffraction). ``weights`` (C, N) sum to 1 per row over ``wavelength_nm`` (N,)."""
-    rho = np.asarray(rho, dtype=np.float64)
     weights = np.asarray(weights, dtype=np.float64)
     if not diffraction:
-        return np.ones((weights.shape[0], rho.size))
-    out = np.zeros((weights.shape[0], rho.size))
+        return np.ones((weights.shape[0], np.size(rho)))
+    return weights @ wavelength_otf_table(rho, wavelength_nm, f_number=f_number, pixel_pitch_um=pixel_pitch_um,
+                                          w020_waves_550=w020_waves_550)
+
+
+def wavelength_otf_table(rho, wavelength_nm, *, f_number: float, pixel_pitch_um: float,
+                         w020_waves_550: float) -> np.ndarray:
+    """Each wavelength's lens OTF (diffraction, with defocus W020) at radial frequencies ``rho`` (cy/px), shape
+    (N, len(rho)), read-only; computed once per lens, wavelengths and frequencies (the last two kept: a frame's
+    channels, spectra and repeated frames share it). Unitless."""
+    rho = np.ascontiguousarray(rho, dtype=np.float64)
+    wavelength_nm = np.ascontiguousarray(wavelength_nm, dtype=np.float64)
+    return _wavelength_otf_table(rho.tobytes(), wavelength_nm.tobytes(), float(f_number), float(pixel_pitch_um),
+                                 float(w020_waves_550))
+
+
+@lru_cache(maxsize=2)
+def _wavelength_otf_table(rho: bytes, wavelength_nm: bytes, f_number: float, pixel_pitch_um: float,
+                          w020_waves_550: float) -> np.ndarray:
+    rho, wavelength_nm = np.frombuffer(rho), np.frombuffer(wavelength_nm)
     cut = cutoff_cy_per_px(pixel_pitch_um, wavelength_nm, f_number)
     w020 = w020_at(w020_waves_550, wavelength_nm)
-    for i in range(len(cut)):
-        if not np.any(weights[:, i]):
-            continue
-        otf = defocused_otf(rho / cut[i], float(w020[i]))
-        rows = np.nonzero(weights[:, i])[0]  # the rows that weigh λ (the identity: one)
-        out[rows] += weights[rows, i, None] * otf[None]
-    return out
+    table = np.empty((cut.size, rho.size))
+    for i in range(cut.size):
+        table[i] = defocused_otf(rho / cut[i], float(w020[i]))
+    table.flags.writeable = False
+    return table
 
 
 def olpf_otf(frequency, shift_px: float) -> np.ndarray:
@@ -152,12 +168,12 @@ def clip_negative(planes) -> np.ndarray:
     After the pixel aperture's gain (:func:`pixel_aperture_otf`, ff < 1) a sharp edge's ringing can fall below 0;
     a charge's mean cannot. Elsewhere what is clipped is the float32 FFT's rounding (≲ 1e-6 of the frame's values).
     ``planes`` on numpy or CuPy (:mod:`camsim.core.xp`). Unit: e⁻ (as ``planes``)."""
-    added = np.empty(planes.shape[0])
-    for c, plane in enumerate(planes):
-        negative = plane < 0
-        added[c] = 0.0 - float(plane[negative].sum(dtype=np.float64))  # (0 − 0 is +0, not the −0 of −0)
-        plane[negative] = 0
-    return added
+    xp = namespace_of(planes)
+    below = xp.empty(planes.shape[0], dtype=xp.float64)
+    for c, plane in enumerate(planes):  # (no boolean mask: a device compacts one with a sync per plane)
+        below[c] = xp.minimum(plane, 0).sum(dtype=xp.float64)
+        xp.maximum(plane, 0, out=plane)
+    return 0.0 - np.asarray(to_host(below))  # (0 − 0 is +0, not the −0 of −0)
 
 
 def channel_wavelength_weights(mean_photon_rate, qe) -> np.ndarray:

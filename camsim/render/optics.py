@@ -38,6 +38,7 @@ expectation after the optics (:func:`camsim.render.raw_frame.expectation_clean_d
 from __future__ import annotations
 
 import dataclasses
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,6 +60,7 @@ from camsim.optics.stages import (
     padded_spectrum,
     plane_of_spectrum,
     table_falloff,
+    wavelength_otf_table,
 )
 
 #: The largest error the per-spectrum decomposition may leave in any spectrum's OTF, at any frequency (OTF(0) = 1):
@@ -195,9 +197,34 @@ def _extreme_weights(photon_rate, qe_c, spread, most: int) -> np.ndarray | None:
     return np.asarray(photon_rate[index], dtype=np.float64) * qe_c * spread[index, None]
 
 
+@dataclass(frozen=True, eq=False)
+class SpectralBasis:
+    """What of a frame's per-spectrum OTFs does not depend on its exposure (:func:`spectral_basis`): per channel c the
+    components B_j (r_c, M), each spectrum's projections Σ_λ g_k(λ) Qe_c(λ) a_j(λ) (K, r_c) and the error bound, and
+    Σ_λ g_k Qe_c (K, 3) of the used spectra (0 for the others). :meth:`otf` scales the projections by a frame's
+    electrons into a :class:`SpectralOtf`."""
+
+    components: tuple
+    projections: tuple
+    bounds: tuple
+    totals: np.ndarray
+
+    def otf(self, labels, signal_e) -> SpectralOtf:
+        """The frame's :class:`SpectralOtf`: amplitudes e_kc Σ_λ w_kc a_j = projections_kc · e_kc / Σ_λ g_k Qe_c."""
+        signal_e = np.asarray(signal_e, dtype=np.float64)
+        amplitudes = []
+        for c in range(3):
+            total = self.totals[:, c]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.where(total > 0, signal_e[:, c] / total, 0.0)  # e_kc / Σ_λ g_k Qe_c
+            amplitudes.append((self.projections[c] * ratio[:, None]).T.astype(np.float32))
+        return SpectralOtf(labels, self.components, tuple(amplitudes), self.bounds)
+
+
 def spectral_otf(labels, photon_rate, qe, signal_e, weights, wavelengths_nm, optics: OpticsParams,
                  tolerance: float = OTF_TOLERANCE, counts=None) -> SpectralOtf:
-    """Each spectrum's OTF per channel as the mean OTF's deviation in few components (:mod:`camsim.optics.spectral`).
+    """Each spectrum's OTF per channel as the mean OTF's deviation in few components (:mod:`camsim.optics.spectral`):
+    :func:`spectral_basis` scaled by the frame's electrons (:meth:`SpectralBasis.otf`).
 
     Parameters
     ----------
@@ -217,16 +244,24 @@ def spectral_otf(labels, photon_rate, qe, signal_e, weights, wavelengths_nm, opt
     counts : array_like, shape (K,), optional
         The pixels of each spectrum (``np.bincount`` of the labels), if already counted.
     """
+    count = np.shape(signal_e)[0]
+    used = (np.bincount(labels.ravel(), minlength=count) if counts is None else np.asarray(counts)) > 0
+    basis = spectral_basis(photon_rate, qe, used, weights, wavelengths_nm, optics, tolerance)
+    return basis.otf(labels, signal_e)
+
+
+def spectral_basis(photon_rate, qe, used, weights, wavelengths_nm, optics: OpticsParams,
+                   tolerance: float = OTF_TOLERANCE) -> SpectralBasis:
+    """:func:`spectral_otf`'s part that holds for every exposure of the lit scene: ``used`` (K,) bool, the spectra
+    some pixel has; the other arguments as there."""
     from camsim.optics.spectral import EXACT_BOUND_SAMPLES, deviation_basis, residuals
 
     qe = np.asarray(qe, dtype=np.float64)
-    signal_e = np.asarray(signal_e, dtype=np.float64)
-    count = signal_e.shape[0]
-    empty = SpectralOtf(labels, (np.zeros((0, 1)),) * 3, (np.zeros((0, count), dtype=np.float32),) * 3,
-                        (0.0, 0.0, 0.0))
+    used = np.asarray(used, dtype=bool)
+    count = used.size
     if not optics.diffraction:  # the lens OTF is 1 at every wavelength: nothing depends on the spectrum
-        return empty
-    used = (np.bincount(labels.ravel(), minlength=count) if counts is None else np.asarray(counts)) > 0
+        return SpectralBasis((np.zeros((0, 1)),) * 3, (np.zeros((count, 0)),) * 3, (0.0, 0.0, 0.0),
+                             np.zeros((count, 3)))
     totals = np.asarray(photon_rate @ qe.T, dtype=np.float64)  # (K, 3): Σ_λ g_k Qe_c
     envelope = np.zeros(qe.shape)
     for start, rows in _row_blocks(photon_rate):
@@ -237,14 +272,11 @@ def spectral_otf(labels, photon_rate, qe, signal_e, weights, wavelengths_nm, opt
             if ok.any():
                 envelope[c] = np.maximum(envelope[c], (rows[ok] * qe[c] / total[ok, None]).max(axis=0))
     rho, _ = radial_samples()
-    kw = dict(f_number=optics.f_number, pixel_pitch_um=optics.pixel_pitch_um, diffraction=True,
-              w020_waves_550=optics.w020_waves_550)
-    table = lens_otf_radial(rho, wavelengths_nm, np.eye(len(wavelengths_nm)), **kw)  # (N, M): OTF(ρ; λ)
-    means = lens_otf_radial(rho, wavelengths_nm, weights, **kw)
-    components, amplitudes, bounds = [], [], []
+    table = wavelength_otf_table(rho, wavelengths_nm, f_number=optics.f_number, pixel_pitch_um=optics.pixel_pitch_um,
+                                 w020_waves_550=optics.w020_waves_550)  # (N, M): OTF(ρ; λ)
+    means = np.asarray(weights, dtype=np.float64) @ table
+    components, projections, bounds = [], [], []
     for c in range(3):
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = np.where(used & (totals[:, c] > 0), signal_e[:, c] / totals[:, c], 0.0)  # e_kc / Σ_λ g_k Qe_c
         spread = np.where(used & (totals[:, c] > 0), 1 / np.where(totals[:, c] > 0, totals[:, c], 1), 0.0)
         coefficients, basis = deviation_basis(table, means[c], envelope[c])
         rank, bound = basis.shape[0], 0.0
@@ -259,10 +291,10 @@ def spectral_otf(labels, photon_rate, qe, signal_e, weights, wavelengths_nm, opt
                 rank, bound = r, worst
                 break
         components.append(basis[:rank])
-        amplitudes.append((np.asarray(photon_rate @ (qe[c][:, None] * coefficients[:, :rank]))
-                           * ratio[:, None]).T.astype(np.float32))
+        projections.append(np.asarray(photon_rate @ (qe[c][:, None] * coefficients[:, :rank])))
         bounds.append(bound)
-    return SpectralOtf(labels, tuple(components), tuple(amplitudes), tuple(bounds))
+    return SpectralBasis(tuple(components), tuple(projections), tuple(bounds),
+                         np.where(used[:, None], totals, 0.0))
 
 
 def optics_otfs(optics: OpticsParams, wavelengths_nm, weights, shape: tuple[int, int], xp=np) -> list:
@@ -400,15 +432,32 @@ def optics_record(optics: OpticsParams, wavelengths_nm, weights, spectral: Spect
             "otf_model": otf_model(spectral), **(clip or {})}
 
 
+#: id(lit scene) → (a weak reference to it, the optics, its plan): the last :data:`PLANS_KEPT` lit scenes' plans, so a
+#: render's frames of one light (its F, a dataset's exposures) share them
+_PLANS: dict = {}
+PLANS_KEPT = 4
+
+
 def optics_plan(lit, signal_e, optics: OpticsParams) -> tuple[np.ndarray, SpectralOtf]:
     """What the OTFs of a frame depend on, made on the host: each channel's mean weights w_c(λ) (3, N)
     (:func:`channel_weights`) and the per-spectrum components (:func:`spectral_otf`) of the lit scene and its
-    expected electrons per spectrum ``signal_e`` (K, 3)."""
-    counts = np.bincount(lit.labels.ravel(), minlength=lit.photon_rate.shape[0])
-    weights = channel_weights(lit, counts)
-    spectral = spectral_otf(lit.labels, lit.photon_rate, lit.qe, signal_e, weights, lit.grid.wavelengths_nm, optics,
-                            counts=counts)
-    return weights, spectral
+    expected electrons per spectrum ``signal_e`` (K, 3). The part that holds for every exposure
+    (:func:`spectral_basis`, the weights) is made once per lit scene and optics (kept for the last
+    :data:`PLANS_KEPT`)."""
+    key = (id(lit), optics)
+    kept = _PLANS.get(key)
+    if kept is None or kept[0]() is not lit:
+        counts = np.bincount(lit.labels.ravel(), minlength=lit.photon_rate.shape[0])
+        weights = channel_weights(lit, counts)
+        basis = spectral_basis(lit.photon_rate, lit.qe, counts > 0, weights, lit.grid.wavelengths_nm, optics)
+        weights.flags.writeable = False
+        kept = (weakref.ref(lit), (weights, basis))
+        _PLANS.pop(key, None)
+        _PLANS[key] = kept
+        while len(_PLANS) > PLANS_KEPT:
+            _PLANS.pop(next(iter(_PLANS)))
+    weights, basis = kept[1]
+    return weights, basis.otf(lit.labels, signal_e)
 
 
 def optics_signal(lit, signal_e, optics: OpticsParams, *, static=None, labels=None, workers: int | None = None):
