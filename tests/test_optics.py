@@ -569,7 +569,9 @@ def test_the_optics_on_a_device_give_the_cpus_expectation(cfa, device):
         return
     xp = array_module(device)
     signal, device_record = optics_signal(lit, signal_e, optics, labels=xp.asarray(lit.labels), workers=1)
+    again, _ = optics_signal(lit, signal_e, optics, labels=xp.asarray(lit.labels), workers=1)  # (kept OTF grids)
     signal = to_host(signal)
+    np.testing.assert_array_equal(to_host(again), signal)
     if device == "numpy":
         np.testing.assert_array_equal(signal, reference)
         assert device_record == record

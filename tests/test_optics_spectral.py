@@ -195,3 +195,29 @@ def test_an_images_hull_gives_the_exact_bound(monkeypatch):
     loose = spectral_otf(labels, dense, QE, electrons, weights, WAVELENGTHS, optics)  # the triangle inequality's
     assert hull.ranks == every.ranks and np.allclose(hull.bounds, every.bounds, rtol=1e-9)
     assert all(a >= b for a, b in zip(loose.ranks, every.ranks)) and max(loose.ranks) > max(every.ranks)
+
+
+def test_a_lit_scenes_plan_is_made_once_and_scaled_per_exposure():
+    """optics_plan keeps the exposure-free part per lit scene: a frame at another F (or exposure) gets exactly the
+    amplitudes spectral_otf computes from scratch; another lit scene (another light) its own plan."""
+    import camsim.render.optics as optics_module
+    from camsim.optics.params import parse_optics
+    from camsim.render.optics import channel_weights, optics_plan
+    from camsim.render.pipeline import light_scene
+    from tests.helpers import small_scene
+
+    optics = parse_optics({"f_number": 4.0, "pixel_pitch_um": 4.0, "diffraction": True, "olpf": True})
+    scene = small_scene(width=120, height=80, illuminants=("D65", "A"), optics=optics)
+    optics_module._PLANS.clear()
+    for illuminant in ("D65", "A"):
+        lit = light_scene(scene, illuminant)
+        for factor in (1.0, 0.013, 7.5):
+            signal_e = lit.expected(scene.sensor, factor, "pixel").signal_e
+            weights, planned = optics_plan(lit, signal_e, optics)
+            fresh = spectral_otf(lit.labels, lit.photon_rate, lit.qe, signal_e, channel_weights(lit),
+                                 lit.grid.wavelengths_nm, optics)
+            np.testing.assert_array_equal(weights, channel_weights(lit))
+            assert planned.ranks == fresh.ranks and planned.bounds == fresh.bounds
+            for a, b in zip(planned.amplitudes, fresh.amplitudes):
+                np.testing.assert_array_equal(a, b)
+    assert len(optics_module._PLANS) == 2

@@ -307,12 +307,31 @@ def optics_otfs(optics: OpticsParams, wavelengths_nm, weights, shape: tuple[int,
     return _grids(optics, radial, step, shape, xp)
 
 
+#: A GPU's OTF grids of the last frames (key → grids): :data:`GRIDS_KEPT` of them (a frame's three channels; 25 MB a
+#: grid of W1's padded size), so repeated frames of one light reuse them; none are kept on the CPU, whose memory a
+#: frame's grids would grow by a quarter (issue 30's bound: 1.5 ×)
+_DEVICE_GRIDS: dict = {}
+GRIDS_KEPT = 3
+
+
 def _grids(optics: OpticsParams, radial, step: float, shape: tuple[int, int], xp=np) -> list:
     from scipy import fft
 
-    return channel_otfs(radial, step, fft.fftfreq(shape[0]), fft.rfftfreq(shape[1]),
-                        olpf_shift_px=optics.olpf_shift_px if optics.olpf else None,
-                        fill_factor=optics.fill_factor if optics.fill_factor < 1 else None, xp=xp)
+    def made():
+        return channel_otfs(radial, step, fft.fftfreq(shape[0]), fft.rfftfreq(shape[1]),
+                            olpf_shift_px=optics.olpf_shift_px if optics.olpf else None,
+                            fill_factor=optics.fill_factor if optics.fill_factor < 1 else None, xp=xp)
+
+    if xp is np:
+        return made()
+    radial = np.ascontiguousarray(radial, dtype=np.float64)
+    key = (xp, tuple(shape), step, optics.olpf, optics.olpf_shift_px, optics.fill_factor, radial.shape,
+           radial.tobytes())
+    grids = _DEVICE_GRIDS.pop(key, None)
+    _DEVICE_GRIDS[key] = grids = made() if grids is None else grids
+    while len(_DEVICE_GRIDS) > GRIDS_KEPT:
+        _DEVICE_GRIDS.pop(next(iter(_DEVICE_GRIDS)))
+    return list(grids)
 
 
 def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, spectral: SpectralOtf | None = None,
