@@ -7,7 +7,8 @@ and inside functions, and the modules it imports by name (a string constant that
 ``_EXPORTS`` tables, ``import_module(...)`` and the samplers' ``draw_module``). ``from camsim import NAME`` counts
 as an import of the module that defines NAME (``camsim._EXPORTS``), and so does ``import camsim`` for each
 ``camsim.NAME`` the module reads; ``from camsim import __version__`` (or ``camsim.__version__``) imports nothing: the
-package itself is loaded before any of its modules. A new package or top-level module must be given its layer in :data:`LAYERS` (and in the architecture page).
+package itself is loaded before any of its modules. A new package or top-level module must be given its layer in
+:data:`LAYERS` (and in the architecture page).
 """
 
 from __future__ import annotations
