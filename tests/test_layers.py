@@ -1,12 +1,14 @@
 """The package layout is camsim's layers (docs/architecture.md): each module imports only its own layer and the
-layers below it, the packages import one another without a cycle, and so do the modules of a package
-(:func:`module_graph`: the dataset package's).
+layers below it, the packages import one another without a cycle, and so do the modules, within each package
+and across the whole tree (:func:`module_graph`).
 
 Every module of ``camsim/`` is parsed with :mod:`ast` (nothing is imported): its ``import`` statements at the top
 and inside functions, and the modules it imports by name (a string constant that is a module's dotted name, as in
 ``_EXPORTS`` tables, ``import_module(...)`` and the samplers' ``draw_module``). ``from camsim import NAME`` counts
-as an import of the module that defines NAME (``camsim._EXPORTS``); ``from camsim import __version__`` imports
-nothing. A new package or top-level module must be given its layer in :data:`LAYERS` (and in the architecture page).
+as an import of the module that defines NAME (``camsim._EXPORTS``), and so does ``import camsim`` for each
+``camsim.NAME`` the module reads; ``from camsim import __version__`` (or ``camsim.__version__``) imports nothing: the
+package itself is loaded before any of its modules. A new package or top-level module must be given its layer in
+:data:`LAYERS` (and in the architecture page).
 """
 
 from __future__ import annotations
@@ -42,15 +44,13 @@ LAYERS = {
 LAYER_NAMES = {1: "core", 2: "light", 3: "colour", 4: "sensor", 5: "optics", 6: "io", 7: "methods", 8: "scene",
                9: "render", 10: "applications", 11: "cli", 12: "__main__"}
 
-#: Package-level import edges allowed to close a cycle, with the reason. Applications are one layer, so one may
-#: import another; this is the one pair that import each other today.
-CYCLE_EXCEPTIONS = {
-    ("analysis", "experiments"): "camsim.analysis.analyze draws its figures with camsim.experiments.figures, "
-                                 "imported inside the function (the experiments import the analysis at the top)",
-}
+#: Package-level import edges allowed to close a cycle, with the reason (none: applications are one layer, so one
+#: may import another, but never back; ``camsim analyze`` and the experiments draw their figures with the makers of
+#: ``camsim.analysis.figures``, below both).
+CYCLE_EXCEPTIONS: dict[tuple[str, str], str] = {}
 
-#: Import edges between the modules of one package (:func:`module_graph`) allowed to close a cycle, with
-#: the reason.
+#: Import edges between modules (:func:`module_graph`) allowed to close a cycle, with the reason. Each must still
+#: close one: the tests fail when the edge is gone or no longer part of a cycle.
 MODULE_CYCLE_EXCEPTIONS = {
     ("camsim.dataset._pool", "camsim.dataset._preload"): "the pool names _preload for its fork server to import "
                                                          "(set_forkserver_preload): another process imports it, not "
@@ -94,12 +94,24 @@ def _target(name: str) -> str | None:
 def imports_of(module: str) -> list[tuple[str, int]]:
     """``(imported camsim module, line)`` for every import in ``module``, at the top or inside functions."""
     path = MODULES[module]
-    is_package = path.name == "__init__.py"
-    tree = ast.parse(path.read_text(), filename=str(path))
+    return imports_in(path.read_text(), module, is_package=path.name == "__init__.py")
+
+
+def imports_in(source: str, module: str, is_package: bool = False) -> list[tuple[str, int]]:
+    """``(imported camsim module, line)`` for every import in ``source``, the text of ``module``."""
+    tree = ast.parse(source, filename=module)
     found = []
+    # the names ``import camsim`` binds: the module imports what it reads of them (camsim.NAME), not the package
+    front_door = {alias.asname or "camsim" for node in ast.walk(tree) if isinstance(node, ast.Import)
+                  for alias in node.names if alias.name == "camsim" or (alias.name.startswith("camsim.")
+                                                                        and not alias.asname)}
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            found += [(_target(alias.name), node.lineno) for alias in node.names if alias.name.split(".")[0] == "camsim"]
+            found += [(_target(alias.name), node.lineno) for alias in node.names
+                      if alias.name.split(".")[0] == "camsim" and alias.name != "camsim"]
+        elif isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in front_door \
+                and node.attr in ROOT_EXPORTS:  # camsim.NAME: a lazy re-export, its defining module
+            found.append((ROOT_EXPORTS[node.attr], node.lineno))
         elif isinstance(node, ast.ImportFrom):
             if node.level:  # relative: from the module's package, one level up per extra dot
                 base = module.split(".") if is_package else module.split(".")[:-1]
@@ -161,14 +173,21 @@ def package_graph() -> dict[str, set[str]]:
     return graph
 
 
-def module_graph(unit: str) -> dict[str, set[str]]:
-    """Module -> the modules of the same package it imports (lazy and by-name imports included), for the modules
-    of ``camsim.<unit>``."""
+def module_graph(unit: str | None = None) -> dict[str, set[str]]:
+    """Module -> the modules it imports (lazy and by-name imports included): of the same package, for the modules
+    of ``camsim.<unit>``; every camsim module, for all of them, without ``unit``."""
     graph = defaultdict(set)
     for module in MODULES:
-        if module.startswith(f"camsim.{unit}.") or module == f"camsim.{unit}":
+        if unit is None:
+            graph[module] |= {target for target, _ in imports_of(module)}
+        elif module.startswith(f"camsim.{unit}.") or module == f"camsim.{unit}":
             graph[module] |= {target for target, _ in imports_of(module) if unit_of(target) == unit}
     return graph
+
+
+#: The packages of camsim's layers (a unit that is a package, not a module directly in camsim/).
+LAYER_PACKAGES = sorted(unit for unit in LAYERS if f"camsim.{unit}" in MODULES
+                        and MODULES[f"camsim.{unit}"].name == "__init__.py")
 
 
 def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
@@ -193,6 +212,48 @@ def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
     return None
 
 
+def reaches(graph: dict[str, set[str]], start: str, goal: str) -> bool:
+    """Whether a path of ``graph`` leads from ``start`` to ``goal``."""
+    seen, todo = set(), [start]
+    while todo:
+        node = todo.pop()
+        if node == goal:
+            return True
+        if node not in seen:
+            seen.add(node)
+            todo += graph.get(node, ())
+    return False
+
+
+def all_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """One cycle (:func:`find_cycle`) of each strongly connected part of ``graph`` that has one: however many
+    cycles there are, each part of them is named."""
+    nodes = set(graph) | {n for targets in graph.values() for n in targets}
+    parts, placed = [], set()
+    for node in sorted(nodes):
+        if node in placed:
+            continue
+        part = {other for other in nodes if reaches(graph, node, other) and reaches(graph, other, node)}
+        placed |= part | {node}
+        if len(part) > 1 or node in graph.get(node, ()):
+            parts.append(find_cycle({n: graph.get(n, set()) & part for n in part}))
+    return parts
+
+
+def _drop_exceptions(graph: dict[str, set[str]], exceptions: dict, name=lambda n: n) -> None:
+    """Remove each excepted edge ``a -> b`` from ``graph``; it must be there and close a cycle (a path b → a)."""
+    for (a, b), reason in exceptions.items():
+        assert b in graph.get(a, set()), f"the exception {name(a)} -> {name(b)} ({reason}) is no longer needed: " \
+                                         "remove it"
+        assert reaches(graph, b, a), f"the exception {name(a)} -> {name(b)} ({reason}) closes no cycle any more: " \
+                                     "remove it"
+        graph[a].discard(b)
+
+
+def _cycles_text(cycles: list[list[str]], name=lambda n: n) -> str:
+    return "\n".join(" -> ".join(name(n) for n in cycle) for cycle in cycles)
+
+
 def test_every_module_has_a_layer():
     units = {unit_of(m) for m in MODULES if m != "camsim"}
     assert units <= set(LAYERS), f"no layer for {sorted(units - set(LAYERS))}: add them to LAYERS"
@@ -212,37 +273,76 @@ def test_imports_go_only_downwards():
 
 def test_the_parser_sees_lazy_and_by_name_imports():
     """The check reads imports inside functions and by name, not only the top of a module."""
-    assert "camsim.experiments.figures" in {t for t, _ in imports_of("camsim.analysis.analyze")}
+    assert "camsim.analysis.temporal" in {t for t, _ in imports_of("camsim.analysis.analyze")}
     assert "camsim.methods.fused" in {t for t, _ in imports_of("camsim.methods")}
     assert "camsim.scene.scene_file" in {t for t, _ in imports_of("camsim.scene")}
 
 
+@pytest.mark.parametrize("source, imported", [
+    ("import camsim\nversion = camsim.__version__", set()),
+    ("from camsim import __version__", set()),
+    ("def f():\n    import camsim\n    return camsim.load_scene", {"camsim.scene.scene_file"}),
+    ("import camsim as c\nc.render_scene", {"camsim.render.run"}),
+    ("import camsim.core.errors\ncamsim.scene_frame", {"camsim.core.errors", "camsim.render.pipeline"}),
+    ("from camsim import SensorParams", {"camsim.sensor.params"}),
+    ("from . import plan", {"camsim.methods.plan"}),
+])
+def test_the_parser_reads_the_front_door_as_the_names_it_gives(source, imported):
+    """``import camsim`` loads nothing (the package is loaded before its modules); what a module reads of it
+    (``camsim.NAME``) loads the module that defines NAME."""
+    assert {t for t, _ in imports_in(source, "camsim.methods.fused")} == imported
+
+
 def test_the_packages_import_one_another_without_a_cycle():
     graph = package_graph()
-    for (a, b), reason in CYCLE_EXCEPTIONS.items():
-        assert b in graph.get(a, set()), f"the exception {a} -> {b} ({reason}) is no longer needed: remove it"
-        graph[a].discard(b)
-    cycle = find_cycle(graph)
-    assert cycle is None, "a cycle of package imports: " + " -> ".join(f"camsim.{u}" for u in cycle)
+    _drop_exceptions(graph, CYCLE_EXCEPTIONS, name=lambda u: f"camsim.{u}")
+    cycles = all_cycles(graph)
+    assert not cycles, "cycles of package imports:\n" + _cycles_text(cycles, name=lambda u: f"camsim.{u}")
 
 
-@pytest.mark.parametrize("unit", ["dataset"])
+@pytest.mark.parametrize("unit", LAYER_PACKAGES)
 def test_the_modules_of_a_package_import_one_another_without_a_cycle(unit):
     """Within a package too, imports go one way (an import inside a function counts: it only hides a cycle): the
     shared parts sit in a module below the modules that use them, as ``camsim.dataset.spec_parts`` below
-    ``spec`` and ``raws``."""
+    ``spec`` and ``raws`` and ``camsim.methods.tolerance`` below the registry (``camsim.methods``) and ``plan``; a
+    package's ``__init__`` that its own modules import is no hub of names they need."""
     graph = module_graph(unit)
-    for (a, b), reason in MODULE_CYCLE_EXCEPTIONS.items():
-        if unit_of(a) == unit:
-            assert b in graph.get(a, set()), f"the exception {a} -> {b} ({reason}) is no longer needed: remove it"
-            graph[a].discard(b)
-    cycle = find_cycle(graph)
-    assert cycle is None, "a cycle of module imports: " + " -> ".join(cycle)
+    _drop_exceptions(graph, {edge: why for edge, why in MODULE_CYCLE_EXCEPTIONS.items() if unit_of(edge[0]) == unit})
+    cycles = all_cycles(graph)
+    assert not cycles, "cycles of module imports:\n" + _cycles_text(cycles)
+
+
+def test_the_modules_import_one_another_without_a_cycle():
+    """Across the whole tree (the front door, every package, the top-level modules), imports go one way."""
+    graph = module_graph()
+    _drop_exceptions(graph, MODULE_CYCLE_EXCEPTIONS)
+    cycles = all_cycles(graph)
+    assert not cycles, "cycles of module imports:\n" + _cycles_text(cycles)
+
+
+def test_every_package_is_checked():
+    assert set(LAYERS) - set(LAYER_PACKAGES) == TOP_LEVEL_MODULES - {"__init__"}  # pairs, pairs_torch, __main__
 
 
 def test_the_cycle_finder_finds_one():
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
     assert find_cycle({"a": {"b", "c"}, "b": {"c"}, "c": set()}) is None
+
+
+def test_every_cycle_is_named():
+    graph = {"a": {"b"}, "b": {"a", "c"}, "c": {"d"}, "d": {"c"}, "e": {"e"}, "f": {"a"}}
+    assert sorted(all_cycles(graph)) == [["a", "b", "a"], ["c", "d", "c"], ["e", "e"]]
+    assert all_cycles({"a": {"b", "c"}, "b": {"c"}, "c": set()}) == []
+
+
+def test_an_exception_must_close_a_cycle():
+    graph = {"a": {"b"}, "b": {"a"}}
+    _drop_exceptions(graph, {("a", "b"): "why"})
+    assert graph == {"a": set(), "b": {"a"}}
+    with pytest.raises(AssertionError, match="no longer needed"):
+        _drop_exceptions({"a": {"c"}, "b": {"a"}}, {("a", "b"): "why"})
+    with pytest.raises(AssertionError, match="closes no cycle"):
+        _drop_exceptions({"a": {"b"}, "b": set()}, {("a", "b"): "why"})
 
 
 def test_the_public_paths_are_kept():

@@ -13,6 +13,7 @@ from tqdm import tqdm
 from camsim.render.frame_files import (LoadedFrame, load_frame, no_frames_message, read_frame_meta, search_frames,
                                 uncommitted_lines)
 from camsim.analysis.dark import DarkFrame, load_dark
+from camsim.analysis.figures import analysis_figures
 from camsim.analysis.frame_stats import FRAME_STAT_COLUMNS, frame_statistics
 from camsim.analysis.grouping import group_key
 from camsim.analysis.patches import AnalysisSettings, analyse_frame, frame_matrix
@@ -459,7 +460,7 @@ def write_outputs(results, settings, out_dir: Path, skipped=(), uncommitted=(), 
     """Write ``out_dir/analysis.csv`` (per frame × patch × channel), ``out_dir/frame_statistics.csv`` (per frame ×
     channel, :func:`camsim.analysis.frame_stats.frame_statistics`), ``out_dir/analysis.json`` (:func:`summary`),
     ``out_dir/README.txt`` (every column, SNR, ΔE and the flags explained: :func:`camsim.analysis.columns.guide_text`)
-    and, with ``figures``, the PNG figures (:func:`camsim.experiments.figures.analysis_figures`). With ``temporal``
+    and, with ``figures``, the PNG figures (:func:`camsim.analysis.figures.analysis_figures`). With ``temporal``
     rows (:func:`camsim.analysis.temporal.analyse_sequences`), also ``out_dir/temporal.csv``, their records under
     ``temporal`` in ``analysis.json`` and their columns in ``README.txt``; without, every file is as before.
     Frames with an MTF record (a slanted edge: :mod:`camsim.analysis.mtf`) also get ``out_dir/mtf.csv`` (one frame;
@@ -488,8 +489,6 @@ def write_outputs(results, settings, out_dir: Path, skipped=(), uncommitted=(), 
     write_json_atomic(json_path, document)
     names = []
     if figures:
-        from camsim.experiments.figures import analysis_figures
-
         names = list(analysis_figures(results, out_dir).values())
     write_text_atomic(out_dir / GUIDE_NAME, guide_text(names, temporal=bool(temporal), mtf=mtf_files))
     return csv_path, json_path, names + [name for name in mtf_files if name.endswith(".png")]

@@ -2,7 +2,8 @@
 
 :data:`METHODS` maps each name to a :class:`SamplingMethod`; :func:`get_method` is the one place a name is
 checked. The command line, the scene-file reader and the dataset spec take their choices from
-:data:`METHOD_NAMES`.
+:data:`METHOD_NAMES`. ``auto``'s default tolerance, :data:`DEFAULT_TOLERANCE`, is defined below this registry and
+the plans (:mod:`camsim.methods.tolerance`), so that no module of the package imports the package itself.
 
 * ``poisson`` — one exact draw per pixel and channel (the default).
 * ``table`` — exact as ``poisson``: each spectrum and channel's charge drawn from its exact law by an alias table
@@ -26,12 +27,7 @@ from functools import cached_property
 from importlib import import_module
 
 from camsim.core.errors import CamsimError
-
-#: Default ``auto`` tolerance: the largest KS distance accepted between a pixel value's exact law (before
-#: quantisation) and the law ``auto`` draws it from, per spectrum and channel. With Table I's 4 e⁻ read noise the
-#: Gaussian never exceeds it (worst 0.0065, near 32 e⁻, ``pixel`` statistics); without read noise it needs about
-#: 800 e⁻. It bounds one pixel's law, not a frame's: n pixels of a patch detect a KS distance ε once √n ε ≳ 1.63.
-DEFAULT_TOLERANCE = 0.01
+from camsim.methods.tolerance import DEFAULT_TOLERANCE
 
 
 @dataclass(frozen=True)

@@ -38,7 +38,7 @@ from scipy import special, stats
 from camsim.sensor.expected import ExpectedSignal
 from camsim.light.rates import FactoredSpectra
 from camsim.sensor.fixed_pattern import dark_gain_at, map_file_extreme
-from camsim.methods import DEFAULT_TOLERANCE
+from camsim.methods.tolerance import DEFAULT_TOLERANCE
 from camsim.sensor.params import SensorParams
 
 #: Saturation cannot act on a spectrum whose mean is this many standard deviations below the full well.

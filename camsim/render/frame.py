@@ -302,7 +302,7 @@ def render_frame(
     workers : int, optional
         Threads (default: the number of cores). The output does not depend on it.
     tolerance : float, optional
-        ``auto``'s KS tolerance (default :data:`camsim.methods.DEFAULT_TOLERANCE`).
+        ``auto``'s KS tolerance (default :data:`camsim.methods.tolerance.DEFAULT_TOLERANCE`).
 
     Raises
     ------

@@ -21,7 +21,8 @@ import numpy as np
 from camsim.scene.builtin_scenes import resolve_scene_file
 from camsim.sensor.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
 from camsim.core.errors import CamsimError
-from camsim.methods import DEFAULT_TOLERANCE, METHOD_NAMES
+from camsim.methods import METHOD_NAMES
+from camsim.methods.tolerance import DEFAULT_TOLERANCE
 from camsim.scene.regions import Region, check_regions, parse_regions
 from camsim.core.names import safe_component
 from camsim.core.schema import Param, check_frame_size, finite_float, param, params_of, read_toml, typed, validate
