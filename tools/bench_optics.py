@@ -124,7 +124,7 @@ def device_run(device: str, width: int, height: int, repeats: int) -> dict:
     parts = {}
     optics_module._PLANS.clear()
     t0 = time.perf_counter()
-    weights, spectral = optics_plan(lit, expected.signal_e, optics.optics)
+    weights, spectral = optics_plan(lit, expected.signal_e, optics.optics, labels)
     parts["plan"] = time.perf_counter() - t0
     import dataclasses
 
