@@ -150,3 +150,16 @@ class FullDiskExrFile:
     def write(self, path):
         Path(path).write_bytes(b"v/1\x01partial")
         raise RuntimeError(f"Cannot write image file {path}. No space left on device")
+
+
+def cupy_or_skip():
+    """CuPy, where it sees a GPU; else the calling test is skipped (one reason line)."""
+    import pytest
+
+    from camsim.core.errors import CamsimError
+    from camsim.render.backends import cuda_module
+
+    try:
+        return cuda_module()
+    except CamsimError as exc:
+        pytest.skip(f"no GPU: {exc}")

@@ -20,7 +20,7 @@ from camsim.sensor.kernels import poisson, tukey_lambda_variance
 from camsim.render.frame import clean_dn
 from camsim.sensor.params import PRESETS, SensorParams
 from camsim.core.xp import to_host
-from tests.helpers import patch_pixels, small_scene
+from tests.helpers import cupy_or_skip, patch_pixels, small_scene
 
 TABLE1 = PRESETS["paper-table1"]
 #: χ² and KS tests must not reject at this level (many tests run: a false alarm stays rare).
@@ -30,14 +30,7 @@ P_MIN = 1e-4
 @pytest.fixture(params=["numpy", "cuda"], scope="module")
 def xp(request):
     """numpy, or CuPy where it sees a GPU (else the test is skipped)."""
-    if request.param == "numpy":
-        return np
-    from camsim.render.backends import cuda_module
-
-    try:
-        return cuda_module()
-    except CamsimError as exc:
-        pytest.skip(f"no GPU: {exc}")
+    return np if request.param == "numpy" else cupy_or_skip()
 
 
 def chi2_p(values, first: int, pmf: np.ndarray) -> float:

@@ -23,7 +23,7 @@ from camsim.optics.stages import (
     table_falloff,
 )
 from camsim.render.optics import apply_optics
-from tests.helpers import small_scene
+from tests.helpers import cupy_or_skip, small_scene
 
 WAVELENGTHS = np.arange(400.0, 701.0, 10.0)
 
@@ -293,13 +293,7 @@ def device(request):
     """Where an optics frame is drawn: the block renderer (cpu), the array path on numpy (the GPU's code on the
     CPU), or on CuPy where it sees a GPU (else skipped)."""
     if request.param == "cuda":
-        from camsim.core.errors import CamsimError
-        from camsim.render.backends import cuda_module
-
-        try:
-            cuda_module()
-        except CamsimError as exc:
-            pytest.skip(f"no GPU: {exc}")
+        cupy_or_skip()
     return request.param
 
 
