@@ -451,8 +451,8 @@ def optics_record(optics: OpticsParams, wavelengths_nm, weights, spectral: Spect
             "otf_model": otf_model(spectral), **(clip or {})}
 
 
-#: id(lit scene) → (a weak reference to it, the optics, its plan): the last :data:`PLANS_KEPT` lit scenes' plans, so a
-#: render's frames of one light (its F, a dataset's exposures) share them
+#: (id(lit scene), optics) → (a weak reference to the lit scene, its plan: weights and SpectralBasis): the last
+#: :data:`PLANS_KEPT` plans, so a render's frames of one light (its F, a dataset's exposures) share them
 _PLANS: dict = {}
 PLANS_KEPT = 4
 
@@ -468,7 +468,8 @@ def optics_plan(lit, signal_e, optics: OpticsParams, labels=None) -> tuple[np.nd
     kept = _PLANS.get(key)
     if kept is None or kept[0]() is not lit:
         labels = lit.labels if labels is None else labels
-        counts = np.asarray(to_host(namespace_of(labels).bincount(labels.ravel(), minlength=lit.photon_rate.shape[0])))
+        count = lit.photon_rate.shape[0]
+        counts = np.asarray(to_host(namespace_of(labels).bincount(labels.ravel(), minlength=count)))
         weights = channel_weights(lit, counts)
         basis = spectral_basis(lit.photon_rate, lit.qe, counts > 0, weights, lit.grid.wavelengths_nm, optics)
         weights.flags.writeable = False
