@@ -78,6 +78,9 @@ from camsim.core.seeding import pair_batch_seed_sequence
 from camsim.core.xp import on_device, to_host
 from camsim.sensor.params import SENSOR_PARAMS, SensorBatch, with_checked_values
 
+#: The most pixels a chunk of frames drawn together holds on the CPU (its arrays stay in the caches), and on a device
+#: (all of a batch, however small its crops; 2²⁶ float64 pixels: 512 MiB an array).
+_CPU_CHUNK_PIXELS, _DEVICE_CHUNK_PIXELS = 2**16, 2**26
 #: The sensor parameters' schema entries by name.
 _SENSOR_PARAMS = {p.name: p for p in SENSOR_PARAMS}
 
@@ -528,8 +531,7 @@ class PairSource:
         quantised = sensors[0].quantisation and self.domain == "dn"
         homographies = frames_clean = None
         if self.burst_frames is None:
-            noisy, clean, digital = self._draw_frames(xp, rng, self._signals(xp, self._crops(xp, params), params,
-                                                                             sensors), sensors)
+            noisy, clean, digital = self._draw_frames(xp, rng, self._crops(params), params, sensors)
             noisy, clean, records = self._in_domain(xp, noisy, clean, params, sensors)
         else:
             noisy, clean, digital, frames_clean, homographies, records = self._bursts(xp, rng, children, params,
@@ -637,9 +639,9 @@ class PairSource:
         return {"domain": "srgb", "path": path, **record}
 
     # ------------------------------------------------------------------------------------------------ drawing
-    def _crops(self, xp, params: list):
-        """The pairs' crops of their photographs (with their flips), linear sRGB (B, H, W, 3) float32 on ``xp``'s
-        device: one stack of the photographs' views."""
+    def _crops(self, params: list) -> list:
+        """The pairs' crops of their photographs (with their flips), linear sRGB (H, W, 3) float32 views on the
+        source's device."""
         width, height = self.crop
         views = []
         for p in params:
@@ -650,45 +652,48 @@ class PairSource:
             if p["flip_horizontal"]:
                 rgb = rgb[:, ::-1]
             views.append(rgb)
-        return xp.stack(views)
+        return views
 
     def _signals(self, xp, rgb, params: list, sensors: list):
         """S̄ (M, 3, H, W) float64 of M crops' linear sRGB ``rgb`` (M, H, W, 3): each pixel's rgb times its frame's
         3 × 3 matrix of the illuminant and camera times T · F, one batched product. Unit: e⁻."""
         m, height, width, _ = rgb.shape
-        scale = np.stack([sensor.exposure_s * p["intensity_factor"] * self._electrons_per_rgb(p["illuminant"])
-                          for p, sensor in zip(params, sensors)])  # (M, 3, 3)
-        flat = xp.asarray(rgb).reshape(m, height * width, 3).astype(xp.float64)
-        signal = xp.matmul(flat, xp.asarray(scale))  # (M, H·W, 3)
-        return xp.ascontiguousarray(xp.moveaxis(signal, 2, 1)).reshape(m, 3, height, width)
+        scale = np.stack([sensor.exposure_s * p["intensity_factor"] * self._electrons_per_rgb(p["illuminant"]).T
+                          for p, sensor in zip(params, sensors)])  # (M, 3, 3): channels × rgb
+        flat = rgb.reshape(m, height * width, 3).astype(xp.float64)
+        return xp.matmul(xp.asarray(scale), flat.transpose(0, 2, 1)).reshape(m, 3, height, width)
 
-    def _draw_frames(self, xp, rng, signal, sensors: list, noise: bool = True):
-        """``(noisy, clean, digital)`` (M, planes, H, W) of M frames' per-pixel signals ``signal`` (M, 3, H, W) e⁻,
-        each with its sensor's dark charge and fixed pattern (the sensor's maps for the crop's size: the same for
-        every frame of a burst); without ``noise``, (None, clean, None) and nothing drawn from ``rng``.
+    def _draw_frames(self, xp, rng, rgb: list, params: list, sensors: list, noise: bool = True):
+        """``(noisy, clean, digital)`` (M, planes, H, W) of M frames of linear sRGB ``rgb`` (M arrays (H, W, 3) on
+        ``xp``'s device), each frame's signal (:meth:`_signals`) with its sensor's dark charge and fixed pattern (the
+        sensor's maps for the crop's size: the same for every frame of a burst); without ``noise``, (None, clean,
+        None) and nothing drawn from ``rng``.
 
-        The frames are drawn together (:meth:`_draw_group`); frames whose sensors differ in what cannot broadcast
-        (:data:`camsim.sensor.params.BATCH_SHARED`: the Bayer pattern, the stage switches, the read-noise law) are
-        drawn as one group each, in the order of their first frame, and put back in place."""
+        The frames are drawn together (:meth:`_draw_group`): all of them in one chain of array calls on a device;
+        on the CPU in chunks of at most :data:`_CPU_CHUNK_PIXELS` pixels (a chunk's arrays stay in the caches:
+        32 × 32 crops are drawn 64 at a time, 512 × 512 ones one by one). Frames whose sensors differ in what cannot
+        broadcast (:data:`camsim.sensor.params.BATCH_SHARED`: the Bayer pattern, the stage switches, the read-noise
+        law) are drawn in separate chunks, in the order of their first frame, and put back in place."""
+        height, width = rgb[0].shape[:2]
+        limit = max(1, (_CPU_CHUNK_PIXELS if xp is np else _DEVICE_CHUNK_PIXELS) // (height * width))
         groups: dict = {}
         for i, sensor in enumerate(sensors):
             groups.setdefault(SensorBatch.key(sensor), []).append(i)
-        if len(groups) == 1:
-            return self._draw_group(xp, rng, signal, sensors, noise)
-        parts = []
-        for items in groups.values():
-            where = xp.asarray(np.array(items, dtype=np.intp))
-            parts.append((where, self._draw_group(xp, rng, signal[where], [sensors[i] for i in items], noise)))
-        out = []
-        for k, dtype in enumerate((xp.float32, xp.float32, xp.uint16)):
-            present = [(where, arrays[k]) for where, arrays in parts if arrays[k] is not None]
-            if not present:
-                out.append(None)
-                continue
-            array = xp.zeros((len(sensors),) + present[0][1].shape[1:], dtype=dtype)
-            for where, values in present:
-                array[where] = values
-            out.append(array)
+        chunks = [items[start : start + limit] for items in groups.values() for start in range(0, len(items), limit)]
+        out = [None, None, None]
+        for items in chunks:
+            if len(chunks) == 1:
+                return self._draw_group(xp, rng, self._signals(xp, xp.stack(rgb), params, sensors), sensors, noise)
+            chunk_params, chunk_sensors = [params[i] for i in items], [sensors[i] for i in items]
+            signal = self._signals(xp, xp.stack([rgb[i] for i in items]), chunk_params, chunk_sensors)
+            arrays = self._draw_group(xp, rng, signal, chunk_sensors, noise)
+            together = items == list(range(items[0], items[-1] + 1))
+            where = slice(items[0], items[-1] + 1) if together else xp.asarray(np.array(items, dtype=np.intp))
+            for k, (array, dtype) in enumerate(zip(arrays, (xp.float32, xp.float32, xp.uint16))):
+                if array is not None:
+                    if out[k] is None:
+                        out[k] = xp.zeros((len(sensors),) + array.shape[1:], dtype=dtype)
+                    out[k][where] = array
         return tuple(out)
 
     def _draw_group(self, xp, rng, signal, sensors: list, noise: bool = True):
@@ -748,10 +753,9 @@ class PairSource:
                                             for p, sensor, seed in zip(params, sensors, seeds)))
         frame_params = [p for p in params for _ in range(n)]
         frame_sensors = [sensor for sensor in sensors for _ in range(n)]
-        noisy, frames_clean, digital = self._draw_frames(
-            xp, rng, self._signals(xp, np.concatenate(moved), frame_params, frame_sensors), frame_sensors)
-        _, reference, _ = self._draw_frames(xp, rng, self._signals(xp, np.stack(static), params, sensors), sensors,
-                                            noise=False)
+        noisy, frames_clean, digital = self._draw_frames(xp, rng, [frame for item in moved for frame in item],
+                                                         frame_params, frame_sensors)
+        _, reference, _ = self._draw_frames(xp, rng, list(static), params, sensors, noise=False)
         noisy, frames_clean, records = self._in_domain(xp, noisy, frames_clean, frame_params, frame_sensors)
         clean, _, _ = self._in_domain(xp, reference, reference, params, sensors)
         if records is not None:

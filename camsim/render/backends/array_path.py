@@ -240,13 +240,21 @@ def device_maps(xp, sensor: SensorParams, shape) -> FixedPattern | None:
     shape = tuple(shape)
     if sensor.dark_offsets or sensor.hot_pixels or sensor.dead_pixel_fraction > 0 or sensor.stuck_pixel_fraction > 0:
         return _device_effect_maps(xp, fixed_pattern(sensor, shape))
+    return _device_scaled_maps(xp, sensor.sensor_seed, shape, sensor.dsnu_e, sensor.prnu_percent,
+                               sensor.dsnu_dark_current_percent)
+
+
+@lru_cache(maxsize=4)
+def _device_scaled_maps(xp, sensor_seed: int, shape: tuple, dsnu_e: float, prnu_percent: float,
+                        dark_percent: float) -> FixedPattern:
+    """The offset DSNU, PRNU and dark-current DSNU maps of :func:`device_maps`, kept for the figures they depend on
+    (the same camera at another ISO or exposure: the same maps, no new arrays)."""
     offset = gain = None
-    if sensor.dsnu_e > 0 or sensor.prnu_percent > 0:
-        unit_offset, unit_gain = _device_unit_maps(xp, sensor.sensor_seed, shape)
-        offset = unit_offset * np.float32(sensor.dsnu_e) if sensor.dsnu_e > 0 else None
-        gain = prnu_gain(xp, unit_gain, sensor.prnu_percent) if sensor.prnu_percent > 0 else None
-    p = sensor.dsnu_dark_current_percent
-    dark_gain = _device_dark_gain(xp, sensor.sensor_seed, shape, p / 100) if p > 0 else None
+    if dsnu_e > 0 or prnu_percent > 0:
+        unit_offset, unit_gain = _device_unit_maps(xp, sensor_seed, shape)
+        offset = unit_offset * np.float32(dsnu_e) if dsnu_e > 0 else None
+        gain = prnu_gain(xp, unit_gain, prnu_percent) if prnu_percent > 0 else None
+    dark_gain = _device_dark_gain(xp, sensor_seed, shape, dark_percent / 100) if dark_percent > 0 else None
     return FixedPattern(offset, gain, dark_gain)
 
 
