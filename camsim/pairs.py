@@ -18,6 +18,14 @@ exact expectation before quantisation, k · E[min(X + o, full well)] (:func:`cam
 arrays are CuPy's (a torch training loop takes them without a copy through the host: :mod:`camsim.pairs_torch`),
 with ``device="cpu"`` numpy's.
 
+The pairs of a batch are drawn together: signals, Poisson means, draws, full well, read noise, gain, ADC and clean
+targets on (B, planes, H, W) arrays in one chain of array calls per batch (about 60 for any B, where a pair made about
+60 of its own before: on a GPU each costs its launch whatever its size), each pair's sensor figures broadcast as
+(B, 1, 1, 1) arrays (:class:`camsim.sensor.params.SensorBatch`). Pairs whose cameras differ in what cannot broadcast
+(their Bayer pattern, stage switches or read-noise law: :data:`camsim.sensor.params.BATCH_SHARED`) are drawn in
+separate groups; on the CPU the same code draws chunks of at most :data:`_CPU_CHUNK_PIXELS` pixels, whose arrays stay
+in the caches. The noise stream is consumed batch-wise: the same seed gives the same batch, bit for bit.
+
 The arrays of a batch are in one of :data:`PAIR_DOMAINS`, the source's ``domain``:
 
 - ``"dn"`` (the default): the DN above, planes (1 for a Bayer mosaic, 3 for a three-chip sensor) at full
@@ -51,8 +59,8 @@ crop's averaged along the path over the exposure (:func:`camsim.render.warp.aver
 as wide as the item's path reaches (its corners followed at every sub-sample), so that the moving frames see real
 scene; where the photograph is too small for that margin, the scene beyond it is clamped to its edge (as the sequence
 renderer does at the frame's edge) and the item's ``burst`` record says ``clamped``. Each frame is drawn with the
-same fixed-pattern maps (the sensor's) and its own temporal noise (the batch's noise stream, item by item, frame by
-frame); the batch gives each frame's own expectation (``frames_clean``) and each frame's homography from the
+same fixed-pattern maps (the sensor's) and its own temporal noise (the batch's noise stream: every frame of every
+item drawn together); the batch gives each frame's own expectation (``frames_clean``) and each frame's homography from the
 reference crop to the frame at its exposure's middle (``homographies``, as a sequence sidecar's). Bursts render on
 the CPU only (the warp is numpy's; ``device="cuda"`` with ``burst_frames`` is refused).
 
