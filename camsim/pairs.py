@@ -663,13 +663,11 @@ class PairSource:
         return views
 
     def _signals(self, xp, rgb, params: list, sensors: list):
-        """S̄ (M, 3, H, W) float64 of M crops' linear sRGB ``rgb`` (M, H, W, 3): each pixel's rgb times its frame's
-        3 × 3 matrix of the illuminant and camera times T · F, one batched product. Unit: e⁻."""
-        m, height, width, _ = rgb.shape
-        scale = np.stack([sensor.exposure_s * p["intensity_factor"] * self._electrons_per_rgb(p["illuminant"]).T
-                          for p, sensor in zip(params, sensors)])  # (M, 3, 3): channels × rgb
-        flat = rgb.reshape(m, height * width, 3).astype(xp.float64)
-        return xp.matmul(xp.asarray(scale), flat.transpose(0, 2, 1)).reshape(m, 3, height, width)
+        """S̄ (M, 3, H, W) float64 of M crops' linear sRGB ``rgb`` (M, H, W, 3) float32: each pixel's rgb times its
+        frame's 3 × 3 matrix of the illuminant and camera times T · F, one batched product. Unit: e⁻."""
+        scale = np.stack([sensor.exposure_s * p["intensity_factor"] * self._electrons_per_rgb(p["illuminant"])
+                          for p, sensor in zip(params, sensors)])[:, None]  # (M, 1, 3, 3): rgb × channels
+        return xp.ascontiguousarray(xp.moveaxis(rgb.astype(xp.float64) @ xp.asarray(scale), 3, 1))  # (M, 3, H, W)
 
     def _draw_frames(self, xp, rng, rgb: list, params: list, sensors: list, noise: bool = True):
         """``(noisy, clean, digital)`` (M, planes, H, W) of M frames of linear sRGB ``rgb`` (M arrays (H, W, 3) on
