@@ -60,9 +60,9 @@ as wide as the item's path reaches (its corners followed at every sub-sample), s
 scene; where the photograph is too small for that margin, the scene beyond it is clamped to its edge (as the sequence
 renderer does at the frame's edge) and the item's ``burst`` record says ``clamped``. Each frame is drawn with the
 same fixed-pattern maps (the sensor's) and its own temporal noise (the batch's noise stream: every frame of every
-item drawn together); the batch gives each frame's own expectation (``frames_clean``) and each frame's homography from the
-reference crop to the frame at its exposure's middle (``homographies``, as a sequence sidecar's). Bursts render on
-the CPU only (the warp is numpy's; ``device="cuda"`` with ``burst_frames`` is refused).
+item drawn together); the batch gives each frame's own expectation (``frames_clean``) and each frame's homography
+from the reference crop to the frame at its exposure's middle (``homographies``, as a sequence sidecar's). Bursts
+render on the CPU only (the warp is numpy's; ``device="cuda"`` with ``burst_frames`` is refused).
 
 :class:`WrittenPairs` reads the pairs of a dataset written by ``camsim dataset`` (files or a Zarr store) in the same
 domains, one frame at a time as numpy arrays (:func:`camsim.pairs_torch.written_pairs` wraps it as a torch
@@ -71,7 +71,6 @@ domains, one frame at a time as numpy arrays (:func:`camsim.pairs_torch.written_
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -716,7 +715,8 @@ class PairSource:
         if batch.cfa is not None:  # each site its own channel
             signal = mosaic(xp, batch.cfa, signal)
             dark_planes = None if dark_planes is None else mosaic(xp, batch.cfa, dark_planes)
-            offset, gain, dark_gain = (None if v is None else mosaic(xp, batch.cfa, v) for v in (offset, gain, dark_gain))
+            offset, gain, dark_gain = (None if v is None else mosaic(xp, batch.cfa, v)
+                                       for v in (offset, gain, dark_gain))
         # the Poisson mean of each pixel (g S̄ + d D̄; d D̄ alone without photon noise) and what it holds besides
         signal_mean = signal if gain is None else signal * gain
         dark_mean = dark_planes if dark_planes is None or dark_gain is None else dark_planes * dark_gain
@@ -767,7 +767,8 @@ class PairSource:
         if records is not None:
             records = records[n - 1 :: n]  # each item's (its frames' are alike)
         split = (b, n)
-        noisy, frames_clean = noisy.reshape(split + noisy.shape[1:]), frames_clean.reshape(split + frames_clean.shape[1:])
+        noisy = noisy.reshape(split + noisy.shape[1:])
+        frames_clean = frames_clean.reshape(split + frames_clean.shape[1:])
         if digital is not None:
             digital = digital.reshape(split + digital.shape[1:])
         return noisy, clean, digital, frames_clean, np.stack(homographies), records

@@ -6,7 +6,6 @@ within ±3/√N); and on a stand-in for CuPy (tests/fake_cupy.py: numpy behind C
 transfer and as many array calls for 8 pairs as for 2."""
 
 import numpy as np
-import pytest
 
 from camsim.pairs import PairSource
 from tests import fake_cupy
@@ -78,7 +77,8 @@ def test_each_pair_of_a_mixed_batch_has_its_own_cameras_mean_and_variance_and_th
 
 def test_a_batch_on_a_stand_in_for_cupy_makes_no_implicit_transfer_and_its_calls_do_not_grow_with_its_size():
     """On fake CuPy (numpy behind CuPy's rules) batches render in every domain and with every kind of camera —
-    Bayer and three-chip (KAF-3200ME), fixed-pattern maps (IMX363's PRNU), a black-level error (KAF-3200ME's), virtual cameras —
+    Bayer and three-chip (KAF-3200ME), fixed-pattern maps (IMX363's PRNU), a black-level error (KAF-3200ME's),
+    virtual cameras —
     and a batch of 8 pairs makes as many kernel-launching calls as one of 2 (the pairs drawn together; F low
     enough that no pixel nears its full well, where the saturation's branches would add calls), the same bits as
     the same batch drawn again."""

@@ -40,8 +40,6 @@ def _worker(args) -> dict:
     assert Path(camsim.__file__).resolve().is_relative_to(Path(args.checkout).resolve()), camsim.__file__
     import importlib.util
 
-    import numpy as np
-
     def load(name: str, path: Path):
         spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(spec)

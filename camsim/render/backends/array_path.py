@@ -123,7 +123,7 @@ def draw_planes(rng, mean_e, sensor: SensorParams, *, dark_e=0.0, gain=None, dar
                                   sensor.tukey_lambda)
         noisy = add_read_noise_e(noisy, noise)
     electrons_to_dn(noisy, sensor.dn_per_electron, out=noisy)
-    if np.any(sensor.row_noise_e > 0):  # one offset per row of each plane (a Bayer mosaic's rows whatever their colours)
+    if np.any(sensor.row_noise_e > 0):  # one offset per row of each plane (a Bayer mosaic's rows, whatever colours)
         add_row_noise(noisy, sensor.row_noise_e * sensor.dn_per_electron, rng)
     if black_level_error_dn is not None:
         for p in range(noisy.shape[-3]):
