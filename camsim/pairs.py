@@ -18,6 +18,14 @@ exact expectation before quantisation, k · E[min(X + o, full well)] (:func:`cam
 arrays are CuPy's (a torch training loop takes them without a copy through the host: :mod:`camsim.pairs_torch`),
 with ``device="cpu"`` numpy's.
 
+The pairs of a batch are drawn together: signals, Poisson means, draws, full well, read noise, gain, ADC and clean
+targets on (B, planes, H, W) arrays in one chain of array calls per batch (about 60 for any B, where a pair made about
+60 of its own before: on a GPU each costs its launch whatever its size), each pair's sensor figures broadcast as
+(B, 1, 1, 1) arrays (:class:`camsim.sensor.params.SensorBatch`). Pairs whose cameras differ in what cannot broadcast
+(their Bayer pattern, stage switches or read-noise law: :data:`camsim.sensor.params.BATCH_SHARED`) are drawn in
+separate groups; on the CPU the same code draws chunks of at most :data:`_CPU_CHUNK_PIXELS` pixels, whose arrays stay
+in the caches. The noise stream is consumed batch-wise: the same seed gives the same batch, bit for bit.
+
 The arrays of a batch are in one of :data:`PAIR_DOMAINS`, the source's ``domain``:
 
 - ``"dn"`` (the default): the DN above, planes (1 for a Bayer mosaic, 3 for a three-chip sensor) at full
@@ -51,10 +59,10 @@ crop's averaged along the path over the exposure (:func:`camsim.render.warp.aver
 as wide as the item's path reaches (its corners followed at every sub-sample), so that the moving frames see real
 scene; where the photograph is too small for that margin, the scene beyond it is clamped to its edge (as the sequence
 renderer does at the frame's edge) and the item's ``burst`` record says ``clamped``. Each frame is drawn with the
-same fixed-pattern maps (the sensor's) and its own temporal noise (the batch's noise stream, item by item, frame by
-frame); the batch gives each frame's own expectation (``frames_clean``) and each frame's homography from the
-reference crop to the frame at its exposure's middle (``homographies``, as a sequence sidecar's). Bursts render on
-the CPU only (the warp is numpy's; ``device="cuda"`` with ``burst_frames`` is refused).
+same fixed-pattern maps (the sensor's) and its own temporal noise (the batch's noise stream: every frame of every
+item drawn together); the batch gives each frame's own expectation (``frames_clean``) and each frame's homography
+from the reference crop to the frame at its exposure's middle (``homographies``, as a sequence sidecar's). Bursts
+render on the CPU only (the warp is numpy's; ``device="cuda"`` with ``burst_frames`` is refused).
 
 :class:`WrittenPairs` reads the pairs of a dataset written by ``camsim dataset`` (files or a Zarr store) in the same
 domains, one frame at a time as numpy arrays (:func:`camsim.pairs_torch.written_pairs` wraps it as a torch
@@ -63,7 +71,6 @@ domains, one frame at a time as numpy arrays (:func:`camsim.pairs_torch.written_
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -75,7 +82,14 @@ from camsim.render.backends import array_module, device_generator
 from camsim.render.backends.array_path import device_maps, draw_planes, mosaic
 from camsim.core.errors import CamsimError
 from camsim.core.seeding import pair_batch_seed_sequence
-from camsim.core.xp import to_host
+from camsim.core.xp import on_device, to_host
+from camsim.sensor.params import SENSOR_PARAMS, SensorBatch, with_checked_values
+
+#: The most pixels a chunk of frames drawn together holds on the CPU (its arrays stay in the caches), and on a device
+#: (all of a batch, however small its crops; 2²⁶ float64 pixels: 512 MiB an array).
+_CPU_CHUNK_PIXELS, _DEVICE_CHUNK_PIXELS = 2**16, 2**26
+#: The sensor parameters' schema entries by name.
+_SENSOR_PARAMS = {p.name: p for p in SENSOR_PARAMS}
 
 #: What ``cameras_mode`` may be: camera presets at an ISO drawn log-uniformly, or virtual cameras (LED's).
 CAMERA_MODES = ("preset", "virtual")
@@ -435,9 +449,23 @@ class PairSource:
         return self._cache[key]
 
     def _sensor(self, preset: str, iso, overrides: dict):
+        """The sensor of camera ``preset`` at ``iso`` with the scene's sensor overrides, then ``overrides`` (a virtual
+        camera's figures, :data:`camsim.sensor.presets.virtual.VIRTUAL_KEYS`).
+
+        The preset with the scene's overrides (user input) is validated in full once per (preset, iso) and kept; a
+        virtual camera's figures are each checked by their schema entry and set on it with the checks across fields
+        (:func:`camsim.sensor.params.with_checked_values`): the sensor :func:`camsim.sensor.presets.sensor_preset`
+        gives for the same settings, without validating every field of it per pair."""
         from camsim.sensor.presets import sensor_preset
 
-        return sensor_preset(preset, iso, self.scene.base_dir, **(dict(self.scene.sensor_overrides) | overrides))
+        key = ("sensor", preset, iso)
+        if key not in self._cache:
+            self._cache[key] = sensor_preset(preset, iso, self.scene.base_dir, **dict(self.scene.sensor_overrides))
+        sensor = self._cache[key]
+        if not overrides:
+            return sensor
+        return with_checked_values(sensor, **{name: _SENSOR_PARAMS[name].coerce(value, "virtual camera")
+                                              for name, value in overrides.items()})
 
     # ------------------------------------------------------------------------------------------------ draws
     def _draw_params(self, children: list) -> list:
@@ -495,64 +523,81 @@ class PairSource:
 
     # ------------------------------------------------------------------------------------------------ batches
     def batch(self, index: int) -> PairBatch:
-        """Render batch ``index`` (≥ 0): a function of the source and the index only."""
+        """Render batch ``index`` (≥ 0): a function of the source and the index only.
+
+        The batch's pairs are drawn together (module docstring): their signals, noise and clean targets computed on
+        (B, planes, H, W) arrays in one chain of array calls per batch, each pair's sensor figures broadcast from
+        a :class:`~camsim.sensor.params.SensorBatch`."""
         if not (isinstance(index, (int, np.integer)) and index >= 0):
             raise CamsimError(f"a batch index is an integer ≥ 0, got {index!r}")
         xp = self.xp
         children = pair_batch_seed_sequence(self.seed, int(index)).spawn(10)  # (spawn(9)'s nine, and _MOTION)
         params = self._draw_params(children)
         rng = device_generator(xp, children[_NOISE])
-        width, height = self.crop
-        first = self._sensor(params[0]["preset"], params[0]["iso"], params[0]["_overrides"])
-        planes = 3 if first.cfa is None else 1
-        tail = (planes, height, width)
-        if self.domain == "raw" and first.cfa is not None:
-            tail = (4, height // 2, width // 2)
-        elif self.domain == "srgb":
-            tail = (3, height, width)
-        frames = self.burst_frames
-        lead = (self.batch_size,) if frames is None else (self.batch_size, int(frames))
-        noisy = xp.empty(lead + tail, dtype=xp.float32)
-        clean = xp.empty((self.batch_size,) + tail, dtype=xp.float32)
-        digital = xp.empty(lead + tail, dtype=xp.uint16) if first.quantisation and self.domain == "dn" else None
-        frames_clean = homographies = seeds = None
-        if frames is not None:
-            frames_clean = xp.empty(lead + tail, dtype=xp.float32)
-            homographies = np.empty(lead + (3, 3))
-            seeds = np.random.default_rng(children[_MOTION]).integers(2**63, size=self.batch_size)
-        records = None if self.domain == "dn" else []
-        for i, p in enumerate(params):
-            sensor = self._sensor(p["preset"], p["iso"], p["_overrides"])
-            exposure = self._exposure_s(sensor, p["illuminant"], p["intensity_factor"])
-            if exposure != sensor.exposure_s:
-                sensor = dataclasses.replace(sensor, exposure_s=exposure)
-            if frames is None:
-                pair = self._render_pair(xp, rng, p, sensor)
-                record = self._store(xp, pair[0], pair[1], p, sensor, noisy[i], clean[i])
-                if digital is not None:
-                    digital[i] = pair[2]
-            else:
-                record = self._render_burst(xp, rng, p, sensor, int(seeds[i]), noisy[i], frames_clean[i], clean[i],
-                                            None if digital is None else digital[i], homographies[i])
-            if records is not None:
-                records.append(record)
+        sensors = [self._pair_sensor(p) for p in params]
+        quantised = sensors[0].quantisation and self.domain == "dn"
+        homographies = frames_clean = None
+        if self.burst_frames is None:
+            noisy, clean, digital = self._draw_frames(xp, rng, self._crops(params), params, sensors)
+            noisy, clean, records = self._in_domain(xp, noisy, clean, params, sensors)
+        else:
+            noisy, clean, digital, frames_clean, homographies, records = self._bursts(xp, rng, children, params,
+                                                                                     sensors)
+        if digital is not None:
+            digital = digital.astype(xp.uint16, copy=False) if quantised else None
+        for p, sensor in zip(params, sensors):
             del p["_overrides"], p["_u"]
             p.update(_sensor_record(sensor))
         return PairBatch(int(index), noisy, clean, digital, params, self.domain, records, homographies, frames_clean)
 
-    def _store(self, xp, noisy, clean, p: dict, sensor, out_noisy, out_clean):
-        """A pair's (planes, H, W) DN written into the batch's slots ``out_noisy``, ``out_clean`` in the source's
-        domain; returns its record (None in ``dn``)."""
+    def _pair_sensor(self, p: dict):
+        """A pair's sensor: its camera's (:meth:`_sensor`) at the pair's exposure (:meth:`_exposure_s`)."""
+        sensor = self._sensor(p["preset"], p["iso"], p["_overrides"])
+        exposure = self._exposure_s(sensor, p["illuminant"], p["intensity_factor"])
+        if exposure != sensor.exposure_s:
+            sensor = with_checked_values(sensor, exposure_s=_SENSOR_PARAMS["exposure_s"].coerce(exposure, "pair"))
+        return sensor
+
+    def _tail(self, sensor) -> tuple:
+        """The shape of one pair's arrays in the source's domain."""
+        width, height = self.crop
+        if self.domain == "raw" and sensor.cfa is not None:
+            return (4, height // 2, width // 2)
+        if self.domain == "srgb" or sensor.cfa is None:
+            return (3, height, width)
+        return (1, height, width)
+
+    # ------------------------------------------------------------------------------------------------ domains
+    def _in_domain(self, xp, noisy, clean, params: list, sensors: list):
+        """Frames' (M, planes, H, W) DN (``xp``'s) in the source's domain: ``(noisy, clean, records)`` (records
+        None in ``dn``). The conversion is the ISP's, on the host, frame by frame: on the CPU into the batch's
+        arrays (``srgb`` by the compiled pass where it applies), on a device after one copy of the batch to the host
+        and before one copy back."""
+        if self.domain == "dn":
+            return noisy, clean, None
+        host = xp is np
+        noisy_h, clean_h = (noisy, clean) if host else (to_host(noisy), to_host(clean))
+        shape = (len(params),) + self._tail(sensors[0])
+        out_noisy, out_clean = np.empty(shape, dtype=np.float32), np.empty(shape, dtype=np.float32)
+        records = [self._store(host, noisy_h[i], clean_h[i], p, sensor, out_noisy[i], out_clean[i])
+                   for i, (p, sensor) in enumerate(zip(params, sensors))]
+        if host:
+            return out_noisy, out_clean, records
+        return xp.asarray(out_noisy), xp.asarray(out_clean), records
+
+    def _store(self, fused: bool, noisy: np.ndarray, clean: np.ndarray, p: dict, sensor, out_noisy, out_clean):
+        """A pair's (planes, H, W) DN on the host written into the batch's host slots ``out_noisy``, ``out_clean``
+        in the source's domain (``srgb`` by the compiled pass where ``fused`` and it applies); returns its record
+        (None in ``dn``)."""
         if self.domain == "dn":
             out_noisy[...], out_clean[...] = noisy, clean
             return None
-        if self.domain == "srgb" and xp is np:  # developed straight into the batch
+        if self.domain == "srgb" and fused:  # developed straight into the batch
             return self._develop(noisy, clean, self._facts(p, sensor), out_noisy, out_clean)
-        pair_noisy, pair_clean, record = self._to_domain(to_host(noisy), to_host(clean), self._facts(p, sensor))
-        out_noisy[...], out_clean[...] = xp.asarray(pair_noisy), xp.asarray(pair_clean)
+        pair_noisy, pair_clean, record = self._to_domain(noisy, clean, self._facts(p, sensor))
+        out_noisy[...], out_clean[...] = pair_noisy, pair_clean
         return record
 
-    # ------------------------------------------------------------------------------------------------ domains
     def _facts(self, p: dict, sensor):
         """What the ISP knows of a pair (:class:`camsim.isp.IspFacts`): its DN's black level before the ADC, the
         white level in the same units (:func:`adc_white_dn`), the camera's Qe and neutral under the pair's
@@ -600,75 +645,138 @@ class PairSource:
                                          out_clean)
         return {"domain": "srgb", "path": path, **record}
 
-    def _render_pair(self, xp, rng, p: dict, sensor):
-        """One pair's (noisy, clean, digital) planes."""
+    # ------------------------------------------------------------------------------------------------ drawing
+    def _crops(self, params: list) -> list:
+        """The pairs' crops of their photographs (with their flips), linear sRGB (H, W, 3) float32 views on the
+        source's device."""
         width, height = self.crop
-        x, y = p["crop_x"], p["crop_y"]
-        rgb = self._rgb(p["image_index"])[y : y + height, x : x + width]
-        if p["flip_vertical"]:
-            rgb = rgb[::-1]
-        if p["flip_horizontal"]:
-            rgb = rgb[:, ::-1]
-        return self._draw(xp, rng, self._signal(xp, rgb, p, sensor), sensor)
+        views = []
+        for p in params:
+            x, y = p["crop_x"], p["crop_y"]
+            rgb = self._rgb(p["image_index"])[y : y + height, x : x + width]
+            if p["flip_vertical"]:
+                rgb = rgb[::-1]
+            if p["flip_horizontal"]:
+                rgb = rgb[:, ::-1]
+            views.append(rgb)
+        return views
 
-    def _signal(self, xp, rgb, p: dict, sensor):
-        """S̄ (3, H, W) float64 of a crop's linear sRGB ``rgb`` (H, W, 3): rgb times the illuminant's and camera's
-        matrix times T · F. Unit: e⁻."""
-        scale = sensor.exposure_s * p["intensity_factor"] * self._electrons_per_rgb(p["illuminant"])
-        return xp.ascontiguousarray(xp.moveaxis(rgb.astype(xp.float64) @ xp.asarray(scale), 2, 0))  # (3, H, W)
+    def _signals(self, xp, rgb, params: list, sensors: list):
+        """S̄ (M, 3, H, W) float64 of M crops' linear sRGB ``rgb`` (M, H, W, 3) float32: each pixel's rgb times its
+        frame's 3 × 3 matrix of the illuminant and camera times T · F, one batched product. Unit: e⁻."""
+        scale = np.stack([sensor.exposure_s * p["intensity_factor"] * self._electrons_per_rgb(p["illuminant"])
+                          for p, sensor in zip(params, sensors)])[:, None]  # (M, 1, 3, 3): rgb × channels
+        return xp.ascontiguousarray(xp.moveaxis(rgb.astype(xp.float64) @ xp.asarray(scale), 3, 1))  # (M, 3, H, W)
 
-    def _draw(self, xp, rng, signal, sensor, noise: bool = True):
-        """(noisy, clean, digital) planes of the per-pixel signal ``signal`` (3, H, W) e⁻ with the sensor's dark
-        charge and fixed pattern (the sensor's maps for the crop's size: the same for every frame of a burst);
-        without ``noise``, (None, clean, None) and nothing drawn from ``rng``."""
-        height, width = signal.shape[1:]
-        dark = np.asarray(sensor.dark_mean_e, dtype=np.float64)
-        maps = device_maps(xp, sensor, (height, width))
-        offset = gain = dark_gain = None
-        if maps is not None:
-            offset, gain, dark_gain = maps.offset_e, maps.gain, maps.dark_gain
-        dark_planes = xp.broadcast_to(xp.asarray(dark.reshape(3, 1, 1)), signal.shape)
-        if sensor.cfa is not None:  # each site its own channel
-            signal = mosaic(xp, sensor.cfa, signal)
-            dark_planes = mosaic(xp, sensor.cfa, dark_planes)
-            offset, gain, dark_gain = (None if m is None else mosaic(xp, sensor.cfa, m)
-                                       for m in (offset, gain, dark_gain))
+    def _draw_frames(self, xp, rng, rgb: list, params: list, sensors: list, noise: bool = True):
+        """``(noisy, clean, digital)`` (M, planes, H, W) of M frames of linear sRGB ``rgb`` (M arrays (H, W, 3) on
+        ``xp``'s device), each frame's signal (:meth:`_signals`) with its sensor's dark charge and fixed pattern (the
+        sensor's maps for the crop's size: the same for every frame of a burst); without ``noise``, (None, clean,
+        None) and nothing drawn from ``rng``.
+
+        The frames are drawn together (:meth:`_draw_group`): all of them in one chain of array calls on a device;
+        on the CPU in chunks of at most :data:`_CPU_CHUNK_PIXELS` pixels (a chunk's arrays stay in the caches:
+        32 × 32 crops are drawn 64 at a time, 512 × 512 ones one by one). Frames whose sensors differ in what cannot
+        broadcast (:data:`camsim.sensor.params.BATCH_SHARED`: the Bayer pattern, the stage switches, the read-noise
+        law) are drawn in separate chunks, in the order of their first frame, and put back in place."""
+        height, width = rgb[0].shape[:2]
+        limit = max(1, (_CPU_CHUNK_PIXELS if xp is np else _DEVICE_CHUNK_PIXELS) // (height * width))
+        groups: dict = {}
+        for i, sensor in enumerate(sensors):
+            groups.setdefault(SensorBatch.key(sensor), []).append(i)
+        chunks = [items[start : start + limit] for items in groups.values() for start in range(0, len(items), limit)]
+        out = [None, None, None]
+        for items in chunks:
+            if len(chunks) == 1:
+                return self._draw_group(xp, rng, self._signals(xp, xp.stack(rgb), params, sensors), sensors, noise)
+            chunk_params, chunk_sensors = [params[i] for i in items], [sensors[i] for i in items]
+            signal = self._signals(xp, xp.stack([rgb[i] for i in items]), chunk_params, chunk_sensors)
+            arrays = self._draw_group(xp, rng, signal, chunk_sensors, noise)
+            together = items == list(range(items[0], items[-1] + 1))
+            where = slice(items[0], items[-1] + 1) if together else xp.asarray(np.array(items, dtype=np.intp))
+            for k, (array, dtype) in enumerate(zip(arrays, (xp.float32, xp.float32, xp.uint16))):
+                if array is not None:
+                    if out[k] is None:
+                        out[k] = xp.zeros((len(sensors),) + array.shape[1:], dtype=dtype)
+                    out[k][where] = array
+        return tuple(out)
+
+    def _draw_group(self, xp, rng, signal, sensors: list, noise: bool = True):
+        """:meth:`_draw_frames` for frames whose sensors share :data:`~camsim.sensor.params.BATCH_SHARED`: one chain
+        of array calls, the sensors' figures broadcast per frame (:class:`~camsim.sensor.params.SensorBatch`)."""
+        m, _, height, width = signal.shape
+        batch = SensorBatch.of(sensors)
+        dark = np.array([sensor.dark_mean_e for sensor in sensors], dtype=np.float64)  # (M, 3)
+        maps = [device_maps(xp, sensor, (height, width)) for sensor in sensors]
+        offset, gain, dark_gain = _stacked_maps(xp, maps)
+        dark_planes = None
+        if dark_gain is not None or np.any(dark != 0):
+            dark_planes = xp.broadcast_to(xp.asarray(dark.reshape(m, 3, 1, 1)), signal.shape)
+        if batch.cfa is not None:  # each site its own channel
+            signal = mosaic(xp, batch.cfa, signal)
+            dark_planes = None if dark_planes is None else mosaic(xp, batch.cfa, dark_planes)
+            offset, gain, dark_gain = (None if v is None else mosaic(xp, batch.cfa, v)
+                                       for v in (offset, gain, dark_gain))
         # the Poisson mean of each pixel (g S̄ + d D̄; d D̄ alone without photon noise) and what it holds besides
         signal_mean = signal if gain is None else signal * gain
-        dark_mean = dark_planes if dark_gain is None else dark_planes * dark_gain
-        if sensor.photon_noise:
-            poisson_mean, base = signal_mean + dark_mean, 0.0
+        dark_mean = dark_planes if dark_planes is None or dark_gain is None else dark_planes * dark_gain
+        if batch.photon_noise:
+            poisson_mean = signal_mean if dark_mean is None else signal_mean + dark_mean
+            base = 0.0
         else:
-            poisson_mean, base = dark_mean, signal_mean
+            poisson_mean = xp.zeros_like(signal_mean) if dark_mean is None else dark_mean
+            base = signal_mean
         if offset is not None:
             base = base + offset
         noisy = digital = None
         if noise:
             # issue 28's black-level error: one offset per channel and frame, from the noise stream (only when on)
-            error = None if not sensor.black_level_error_dn > 0 else [
-                float(v) * sensor.black_level_error_dn for v in to_host(rng.standard_normal(3))]
-            if gain is None and dark_gain is None:
-                noisy, digital = draw_planes(rng, signal + dark_planes, sensor, offset_e=offset,
-                                             black_level_error_dn=error)
-            else:
-                noisy, digital = draw_planes(rng, signal, sensor, dark_e=dark_planes, gain=gain, dark_gain=dark_gain,
-                                             offset_e=offset, black_level_error_dn=error)
+            error = None
+            if np.any(batch.black_level_error_dn > 0):
+                error = rng.standard_normal((m, 3)) * on_device(xp, batch.black_level_error_dn.reshape(m, 1))
+            noisy, digital = draw_planes(rng, signal, batch, dark_e=0.0 if dark_planes is None else dark_planes,
+                                         gain=gain, dark_gain=dark_gain, offset_e=offset, black_level_error_dn=error)
         from camsim.sensor.expected import clean_charge_e
 
-        clean = (clean_charge_e(poisson_mean, sensor, base) * sensor.dn_per_electron).astype(xp.float32)
-        if maps is not None and maps.stuck_index is not None:  # the crop's stuck pixels, target and input alike
-            from camsim.render.frame import write_stuck
+        clean = (clean_charge_e(poisson_mean, batch, base) * on_device(xp, batch.dn_per_electron)).astype(xp.float32)
+        for i, (frame_maps, sensor) in enumerate(zip(maps, sensors)):  # a crop's stuck pixels, target and input alike
+            if frame_maps is not None and frame_maps.stuck_index is not None:
+                from camsim.render.frame import write_stuck
 
-            if noise:
-                write_stuck(maps, sensor, noisy, digital)
-            write_stuck(maps, sensor, clean, None)
+                if noise:
+                    write_stuck(frame_maps, sensor, noisy[i], None if digital is None else digital[i])
+                write_stuck(frame_maps, sensor, clean[i], None)
         return noisy, clean, digital
 
-    def _render_burst(self, xp, rng, p: dict, sensor, motion_seed: int, out_noisy, out_frames_clean, out_clean,
-                      out_digital, out_homographies) -> dict | None:
-        """One burst item (module docstring) written into the batch's slots: ``out_noisy``, ``out_frames_clean``,
-        ``out_digital`` (N, …), ``out_clean`` (the reference), ``out_homographies`` (N, 3, 3); sets the item's
-        ``crop_x``, ``crop_y`` and ``burst`` record; returns the domain's record (None in ``dn``)."""
+    # ------------------------------------------------------------------------------------------------ bursts
+    def _bursts(self, xp, rng, children: list, params: list, sensors: list) -> tuple:
+        """A burst batch (module docstring): ``(noisy, clean, digital, frames_clean, homographies, records)``. Each
+        item's motion and moved crops on the host (:meth:`_burst_crops`), then every frame of every item drawn
+        together (:meth:`_draw_frames`), and the references' expectations together."""
+        n, b = int(self.burst_frames), len(params)
+        seeds = np.random.default_rng(children[_MOTION]).integers(2**63, size=b)
+        moved, static, homographies = zip(*(self._burst_crops(p, sensor, int(seed))
+                                            for p, sensor, seed in zip(params, sensors, seeds)))
+        frame_params = [p for p in params for _ in range(n)]
+        frame_sensors = [sensor for sensor in sensors for _ in range(n)]
+        noisy, frames_clean, digital = self._draw_frames(xp, rng, [frame for item in moved for frame in item],
+                                                         frame_params, frame_sensors)
+        _, reference, _ = self._draw_frames(xp, rng, list(static), params, sensors, noise=False)
+        noisy, frames_clean, records = self._in_domain(xp, noisy, frames_clean, frame_params, frame_sensors)
+        clean, _, _ = self._in_domain(xp, reference, reference, params, sensors)
+        if records is not None:
+            records = records[n - 1 :: n]  # each item's (its frames' are alike)
+        split = (b, n)
+        noisy = noisy.reshape(split + noisy.shape[1:])
+        frames_clean = frames_clean.reshape(split + frames_clean.shape[1:])
+        if digital is not None:
+            digital = digital.reshape(split + digital.shape[1:])
+        return noisy, clean, digital, frames_clean, np.stack(homographies), records
+
+    def _burst_crops(self, p: dict, sensor, motion_seed: int) -> tuple:
+        """One burst item's motion (module docstring): its frames' moved crops (N, H, W, 3), the static crop
+        (H, W, 3) (linear sRGB, float32, on the host) and each frame's homography (N, 3, 3); sets the item's
+        ``crop_x``, ``crop_y`` and ``burst`` record."""
         from camsim.render.warp import average_warp
         from camsim.scene.sequence import Motion
 
@@ -705,24 +813,32 @@ class PairSource:
         inside = (slice(my, my + height), slice(mx, mx + width))
         shift, unshift = np.eye(3), np.eye(3)
         shift[:2, 2], unshift[:2, 2] = (mx, my), (-mx, -my)
-        scratch = np.empty(out_clean.shape, dtype=np.float32)
-        record = None
-        for j, inv in enumerate(inverses):
-            weights = np.full((len(inv), 1), 1 / len(inv))
-            moved = average_warp(rgb, (shift @ inv @ unshift)[:, None], weights, workers=1)[inside]
-            noisy, frame_clean, digital = self._draw(xp, rng, self._signal(xp, moved, p, sensor), sensor)
-            record = self._store(xp, noisy, frame_clean, p, sensor, out_noisy[j], out_frames_clean[j])
-            if out_digital is not None:
-                out_digital[j] = digital
-            out_homographies[j] = motion.mid_homography(j, exposure)
-        _, reference, _ = self._draw(xp, rng, self._signal(xp, rgb[inside], p, sensor), sensor, noise=False)
-        self._store(xp, reference, reference, p, sensor, out_clean, scratch)
+        moved = np.stack([average_warp(rgb, (shift @ inv @ unshift)[:, None], np.full((len(inv), 1), 1 / len(inv)),
+                                       workers=1)[inside] for inv in inverses])
+        homographies = np.stack([motion.mid_homography(j, exposure) for j in range(seq.frames)])
         p["burst"] = {"frames": seq.frames, "frame_interval_s": seq.frame_interval_s,
                       "time_s": [motion.start_s(j) for j in range(seq.frames)], "shake_px": seq.shake_px,
                       "shake_deg": seq.shake_deg, "pan_px_per_s": list(seq.pan_px_per_s), "motion_seed": motion_seed,
                       "blur_subsamples_used": [len(inv) for inv in inverses], "margin_px": [mx, my],
                       "reach_px": reach, "clamped": bool(mx < need or my < need)}
-        return record
+        return moved, np.ascontiguousarray(rgb[inside]), homographies
+
+
+def _stacked_maps(xp, maps: list) -> tuple:
+    """The frames' fixed-pattern maps stacked (offset, PRNU gain, dark-current factor, each (M, 3, H, W) or None
+    where no frame has it): a frame without a map takes the neutral one (offset 0, factor 1)."""
+    if all(frame_maps is None for frame_maps in maps):
+        return None, None, None
+    out = []
+    for name, neutral in (("offset_e", 0.0), ("gain", 1.0), ("dark_gain", 1.0)):
+        planes = [None if frame_maps is None else getattr(frame_maps, name) for frame_maps in maps]
+        like = next((v for v in planes if v is not None), None)
+        if like is None:
+            out.append(None)
+            continue
+        fill = xp.full(like.shape, neutral, dtype=like.dtype)
+        out.append(xp.stack([fill if v is None else v for v in planes]))
+    return tuple(out)
 
 
 def adc_white_dn(sensor) -> float:

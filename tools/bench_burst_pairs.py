@@ -84,10 +84,10 @@ def profile(source) -> list[tuple[str, float]]:
 
     moved = timed(f"{seq.frames} warps ({sum(len(i) for i in inverses)} sub-samples)", warps)
     rng = device_generator(np, 0)
-    timed(f"{seq.frames} draws with their expectations",
-          lambda: [source._draw(np, rng, source._signal(np, m, p, sensor), sensor) for m in moved])
+    timed(f"{seq.frames} draws with their expectations (together)",
+          lambda: source._draw_frames(np, rng, moved, [p] * len(moved), [sensor] * len(moved)))
     timed("the reference (expectation only)",
-          lambda: source._draw(np, rng, source._signal(np, rgb[inside], p, sensor), sensor, noise=False))
+          lambda: source._draw_frames(np, rng, [np.ascontiguousarray(rgb[inside])], [p], [sensor], noise=False))
     return steps
 
 

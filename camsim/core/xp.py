@@ -3,6 +3,10 @@
 The stages (:mod:`camsim.sensor.stages`) and the device path (:mod:`camsim.render.backends.array_path`) are written once, against
 what numpy and CuPy share: the module functions (``xp.minimum``, ``xp.where``, …) and the methods of their random
 generators that take the same arguments (``poisson(lam)``, ``standard_normal(size, dtype)``, ``random(size, dtype)``).
+A stage's per-frame parameter (a gain, a read-noise σ, a full well) is a number for one frame, or, for a batch of
+frames drawn together, a numpy array on the host that broadcasts against the values (one value per frame: shape
+(B, 1, 1, 1) for (B, planes, H, W)): the conditions on it are read on the host, and :func:`on_device` copies it to the
+values' device once where it enters the arithmetic (no per-frame transfer, no implicit one).
 The namespace of an array is found from its type, so CuPy is imported only by code that already holds a CuPy array
 or generator: importing camsim never imports CuPy (nor does this module import any camsim module).
 """
@@ -56,6 +60,17 @@ def fft_namespace(xp):
     return fft
 
 
+def on_device(xp, value, dtype=None):
+    """``value`` ready to combine with ``xp``'s arrays: a number as it is (cast to ``dtype``'s scalar type when
+    given), an array copied to ``xp``'s device (one explicit transfer; an array already there is not copied unless
+    ``dtype`` asks for a cast)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]  # a numpy scalar: CuPy takes those, not 0-d numpy arrays
+    if not hasattr(value, "shape") or (isinstance(value, np.generic)):
+        return value if dtype is None else np.dtype(dtype).type(value)
+    return xp.asarray(value, dtype=dtype)
+
+
 def to_host(array) -> np.ndarray | None:
     """``array`` as a numpy array (a copy from the device for CuPy; numpy arrays and None as they are)."""
     if array is None or isinstance(array, np.ndarray):
@@ -71,4 +86,5 @@ def synchronize(xp) -> None:
         xp.cuda.get_current_stream().synchronize()
 
 
-__all__ = ["fft_namespace", "generator_namespace", "namespace_of", "special_namespace", "synchronize", "to_host"]
+__all__ = ["fft_namespace", "generator_namespace", "namespace_of", "on_device", "special_namespace", "synchronize",
+           "to_host"]

@@ -20,7 +20,7 @@ from scipy import stats
 from camsim.core.errors import CamsimError
 from camsim.light.rates import FactoredSpectra, all_finite
 from camsim.sensor.params import SensorParams
-from camsim.core.xp import namespace_of, special_namespace
+from camsim.core.xp import namespace_of, on_device, special_namespace
 
 
 @dataclass(frozen=True)
@@ -190,7 +190,9 @@ def clean_charge_e(poisson_mean_e, sensor: SensorParams, base_e=0.0):
     poisson_mean_e : array
         λ, the mean of the pixel's Poisson charge: g S̄ + d D̄ under ``pixel`` statistics (PRNU gain g, dark-current
         factor d), d D̄ alone without photon noise. Unit: e⁻.
-    sensor : SensorParams
+    sensor : SensorParams or SensorBatch
+        Its ``saturation`` and ``full_well_e`` (a :class:`~camsim.sensor.params.SensorBatch`'s, one per frame,
+        broadcasting against ``poisson_mean_e``).
     base_e : float or array
         What the pixel holds besides the Poisson count: its DSNU offset o, plus S̄ without photon noise. Unit: e⁻.
 
@@ -203,7 +205,8 @@ def clean_charge_e(poisson_mean_e, sensor: SensorParams, base_e=0.0):
     xp = namespace_of(poisson_mean_e, base_e)
     if not sensor.saturation:
         return poisson_mean_e + base_e
-    c = float(sensor.full_well_e)
+    well = sensor.full_well_e  # a number, or a batch's host array, one per frame (camsim.sensor.params.SensorBatch)
+    c = float(well) if np.ndim(well) == 0 else on_device(xp, well, xp.float64)
     room = c - xp.asarray(base_e, dtype=xp.float64)
     lam = xp.asarray(poisson_mean_e, dtype=xp.float64)
     room = xp.broadcast_to(room, lam.shape)

@@ -18,7 +18,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from camsim.core.xp import generator_namespace
+from camsim.core.xp import generator_namespace, on_device
 
 #: numpy's Poisson sampler refuses means above about 9.2e18; beyond this the Poisson law is a Gaussian to
 #: within a relative skew of 1e-9, and a rounded normal draw is used.
@@ -176,12 +176,25 @@ def tukey_lambda(rng: np.random.Generator, out: np.ndarray, lam: float, std: flo
     Inverse-CDF sampling on float64 uniforms in (0, 1); heavier tails than the Gaussian for λ < 0.14. ``rng`` and
     ``out`` are numpy's or CuPy's (CuPy's uniforms come from 32-bit cuRAND draws, single precision near 1: the
     upper tail is cut where 1 − u < 2⁻²⁴, about 20 σ at λ = −0.1, a probability of 6e-8).
+
+    ``lam`` and ``std`` are numbers, or host arrays broadcasting against ``out`` (one shape and σ per frame of a
+    batch drawn at once).
     """
     xp = generator_namespace(rng)
     u = rng.random(out.shape)
     u[u == 0] = np.finfo(float).tiny
-    x = xp.log(u / (1 - u)) if abs(lam) < 1e-9 else (u**lam - (1 - u) ** lam) / lam
-    out[...] = x * (std / np.sqrt(tukey_lambda_variance(lam)))
+    if np.ndim(lam) == 0 and np.ndim(std) == 0:
+        x = xp.log(u / (1 - u)) if abs(lam) < 1e-9 else (u**lam - (1 - u) ** lam) / lam
+        out[...] = x * (std / np.sqrt(tukey_lambda_variance(lam)))
+        return out
+    lam, std = np.broadcast_arrays(np.asarray(lam, dtype=np.float64), np.asarray(std, dtype=np.float64))
+    variance = np.array([tukey_lambda_variance(float(v)) for v in lam.ravel()]).reshape(lam.shape)
+    logistic = np.abs(lam) < 1e-9
+    shape = on_device(xp, np.where(logistic, 1.0, lam))
+    x = (u**shape - (1 - u) ** shape) / shape
+    if logistic.any():  # λ = 0: the logistic law, where the frames have it
+        x = xp.where(on_device(xp, logistic), xp.log(u / (1 - u)), x)
+    out[...] = x * on_device(xp, std / np.sqrt(variance))
     return out
 
 

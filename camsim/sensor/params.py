@@ -359,6 +359,80 @@ PRESETS = {
 }
 
 
+#: The figures a batch of frames drawn together may not mix (:class:`SensorBatch`): its Bayer pattern (the planes'
+#: layout) and the switches and read-noise law that pick which stages and draws run.
+BATCH_SHARED = ("cfa", "saturation", "photon_noise", "read_noise", "read_noise_model", "quantisation")
+#: The figures a :class:`SensorBatch` holds per frame, as arrays.
+BATCH_PER_FRAME = ("full_well_e", "read_noise_e", "tukey_lambda", "dn_per_electron", "row_noise_e", "bits",
+                   "pedestal_dn", "black_level_error_dn")
+
+
+@dataclass(frozen=True)
+class SensorBatch:
+    """The sensors of B frames drawn together in one chain of array calls (:mod:`camsim.pairs`): what the stages of
+    :mod:`camsim.sensor.stages` read of a :class:`SensorParams`, with the figures that differ per frame as host
+    numpy arrays of shape (B, 1, 1, 1), broadcasting against the frames' (B, planes, H, W) values.
+
+    The stages take such arrays where they take a number (:func:`camsim.core.xp.on_device` copies each to the
+    values' device where it enters the arithmetic); the figures of :data:`BATCH_SHARED` are one for the batch —
+    frames that differ there are drawn as separate batches (:meth:`key` groups them).
+
+    Attributes
+    ----------
+    cfa, saturation, photon_noise, read_noise, read_noise_model, quantisation
+        As :class:`SensorParams`'s, shared by the frames.
+    full_well_e, read_noise_e, tukey_lambda, dn_per_electron, row_noise_e, black_level_error_dn : numpy.ndarray
+        (B, 1, 1, 1) float64, each frame's (units as :class:`SensorParams`'s: e⁻, e⁻, —, DN/e⁻, e⁻, DN).
+    bits, pedestal_dn : numpy.ndarray
+        (B, 1, 1, 1) int64, each frame's ADC.
+    """
+
+    cfa: str | None
+    saturation: bool
+    photon_noise: bool
+    read_noise: bool
+    read_noise_model: str
+    quantisation: bool
+    full_well_e: np.ndarray
+    read_noise_e: np.ndarray
+    tukey_lambda: np.ndarray
+    dn_per_electron: np.ndarray
+    row_noise_e: np.ndarray
+    bits: np.ndarray
+    pedestal_dn: np.ndarray
+    black_level_error_dn: np.ndarray
+
+    @staticmethod
+    def key(sensor: SensorParams) -> tuple:
+        """What frames drawn in one batch must share (:data:`BATCH_SHARED`)."""
+        return tuple(getattr(sensor, name) for name in BATCH_SHARED)
+
+    @classmethod
+    def of(cls, sensors) -> SensorBatch:
+        """The batch of ``sensors`` (one per frame, all of one :meth:`key`).
+
+        Raises
+        ------
+        ValueError
+            Sensors that differ in a figure of :data:`BATCH_SHARED`, or none.
+        """
+        sensors = list(sensors)
+        keys = {cls.key(s) for s in sensors}
+        if len(keys) != 1:
+            raise ValueError(f"a sensor batch needs one {'/'.join(BATCH_SHARED)} for all its frames, got {keys}")
+        shared = dict(zip(BATCH_SHARED, keys.pop()))
+
+        def column(name, dtype):
+            return np.array([getattr(s, name) for s in sensors], dtype=dtype).reshape(-1, 1, 1, 1)
+
+        per_frame = {name: column(name, np.int64 if name in ("bits", "pedestal_dn") else np.float64)
+                     for name in BATCH_PER_FRAME}
+        return cls(**shared, **per_frame)
+
+    def __len__(self) -> int:
+        return self.full_well_e.shape[0]
+
+
 def preset(name: str, **overrides) -> SensorParams:
     """A named preset, optionally with fields overridden."""
     if name not in PRESETS:

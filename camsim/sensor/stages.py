@@ -5,7 +5,10 @@ fused per channel, straight to digital numbers; ``spectral`` runs them in sequen
 electrons until :func:`electrons_to_dn`.
 
 The functions take numpy or CuPy arrays (:mod:`camsim.core.xp`: the namespace follows the arrays, the random draws the
-generator): the device path (:mod:`camsim.render.backends.array_path`) composes the same functions on a GPU. Two CPU
+generator): the device path (:mod:`camsim.render.backends.array_path`) composes the same functions on a GPU. A
+frame's parameters (full well, read-noise σ and Tukey shape, gain, row-noise σ, bits, pedestal) are numbers, or, for a
+batch of frames drawn at once (:mod:`camsim.pairs`), host arrays broadcasting against the values, one value per
+frame (:func:`camsim.core.xp.on_device`); a number gives exactly the result it always gave. Two CPU
 kernels are used only where the CPU's block renderer asks for them — the histogram sampler of one mean over a
 rectangle (``size`` with a scalar mean) and float32 Box–Muller (``work`` scratch) — and two numpy calls that CuPy
 does not take with the same keywords (a casting rule) have a CuPy form with the same casts.
@@ -43,7 +46,7 @@ import numpy as np
 
 from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.kernels import poisson, poisson_run, standard_normal_f32, tukey_lambda
-from camsim.core.xp import namespace_of
+from camsim.core.xp import namespace_of, on_device
 
 #: ε of the saturation cap: a pixel whose mean charge is at or above :func:`saturating_mean_e` stays below its
 #: full well with probability at most ε, and drawing it at that mean changes the law of its value by at most ε in
@@ -97,18 +100,23 @@ def cap_mean_e(mean_e, level_e, step_e=1.0):
     """
     cap = saturating_mean_e(level_e, step_e)
     xp = namespace_of(mean_e, cap)
+    cap = on_device(xp, cap)
     if bool(xp.all(xp.asarray(mean_e) <= cap)):
         return mean_e
     return xp.minimum(mean_e, cap)
 
 
-def saturation_level_e(full_well_e: float, offset_e=None) -> float:
+def saturation_level_e(full_well_e, offset_e=None):
     """The charge at and above which every pixel is saturated: the full well minus the most negative of the pixels'
     DSNU offsets ``offset_e`` (None: no offsets). The level of :func:`collect_charge_e`'s saturation cap. Unit: e⁻.
+
+    ``full_well_e`` a number gives a float; a host array (a batch's full wells, one per frame) gives that array less
+    the batch's most negative offset (a level at least each pixel's own: the cap stays as exact).
     """
+    full_well_e = float(full_well_e) if np.ndim(full_well_e) == 0 else np.asarray(full_well_e, dtype=np.float64)
     if offset_e is None:
-        return float(full_well_e)
-    return float(full_well_e) - min(0.0, float(namespace_of(offset_e).min(offset_e)))
+        return full_well_e
+    return full_well_e - min(0.0, float(namespace_of(offset_e).min(offset_e)))
 
 
 def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_var_e2=None, *,
@@ -185,8 +193,11 @@ def saturate_e(electrons: np.ndarray, full_well_e: float, out: np.ndarray | None
     """f_sat: clip the collected charge at the full well (Eq. 8). Unit: e⁻ in, e⁻ out.
 
     Float arrays keep their type; an integer count array becomes float64 (a full well may be fractional).
+    ``full_well_e``: a number, or a host array broadcasting against ``electrons`` (one per frame of a batch).
     """
-    return namespace_of(electrons).minimum(electrons, float(full_well_e), out=out)
+    xp = namespace_of(electrons)
+    well = float(full_well_e) if np.ndim(full_well_e) == 0 else on_device(xp, full_well_e, np.float64)
+    return xp.minimum(electrons, well, out=out)
 
 
 def draw_read_noise_e(rng: np.random.Generator, out: np.ndarray, read_noise_e: float, model: str = "gaussian",
@@ -197,14 +208,15 @@ def draw_read_noise_e(rng: np.random.Generator, out: np.ndarray, read_noise_e: f
     (float32 of at least half the size: the CPU block renderer's scratch) float32 arrays draw with
     :func:`camsim.sensor.kernels.standard_normal_f32` (Box–Muller); otherwise the generator's own normals
     (``standard_normal(size, dtype)``: numpy's ziggurat, CuPy's cuRAND normals). ``tukey-lambda``: the Tukey λ law
-    of shape ``tukey_shape``, scaled to the same σ (heavier tails), by inverse CDF. Unit: e⁻.
+    of shape ``tukey_shape``, scaled to the same σ (heavier tails), by inverse CDF. ``read_noise_e`` and
+    ``tukey_shape`` are numbers, or host arrays broadcasting against ``out`` (one per frame of a batch). Unit: e⁻.
     """
     if model == "tukey-lambda":
         return tukey_lambda(rng, out, tukey_shape, read_noise_e)
     if work is not None and out.dtype == np.float32:
         return standard_normal_f32(rng, out, work, read_noise_e)
     out[...] = rng.standard_normal(out.shape, dtype=out.dtype)
-    out *= out.dtype.type(read_noise_e)
+    out *= on_device(namespace_of(out), read_noise_e, out.dtype)
     return out
 
 
@@ -225,19 +237,23 @@ def add_row_noise(values: np.ndarray, row_noise: float, rng: np.random.Generator
     planes (…, h, w), one per row of each plane.
 
     Unit: that of ``values`` (σ_row in the same unit: e⁻ on charge, σ_row · G · G_Ve⁻ on digital numbers).
+    ``row_noise``: a number, or a host array broadcasting against ``values`` (one per frame of a batch).
     """
-    values += rng.standard_normal(values.shape[:-1] + (1,), dtype=values.dtype) * values.dtype.type(row_noise)
+    sigma = on_device(namespace_of(values), row_noise, values.dtype)
+    values += rng.standard_normal(values.shape[:-1] + (1,), dtype=values.dtype) * sigma
     return values
 
 
 def electrons_to_dn(electrons: np.ndarray, dn_per_electron: float, out: np.ndarray | None = None) -> np.ndarray:
     """Readout and gain: I = G · G_Ve⁻ · e (Eqs. 8, 11 before quantisation). Unit: e⁻ in, DN out.
 
-    Float arrays keep their type; integer counts are converted to float64 first.
+    Float arrays keep their type; integer counts are converted to float64 first. ``dn_per_electron``: a number,
+    or a host array broadcasting against ``electrons`` (one per frame of a batch).
     """
     if not np.issubdtype(electrons.dtype, np.floating):
         electrons = electrons.astype(np.float64)
-    return namespace_of(electrons).multiply(electrons, electrons.dtype.type(dn_per_electron), out=out)
+    xp = namespace_of(electrons)
+    return xp.multiply(electrons, on_device(xp, dn_per_electron, electrons.dtype), out=out)
 
 
 def draw_black_level_error_dn(rng: np.random.Generator, sigma_dn: float) -> np.ndarray:
@@ -251,17 +267,27 @@ def add_black_level_error_dn(values, error_dn, cfa: str | None = None, channel: 
 
     Parameters
     ----------
-    values : array, shape (h, w), float
+    values : array, shape (h, w) or (B, h, w), float
         One plane of a block or frame: channel ``channel``'s of a three-chip sensor, or (``cfa`` given) a Bayer
-        mosaic whose first row is an even row of the frame, each site taking its channel's offset. Unit: DN.
-    error_dn : sequence of 3 floats
-        The offsets of R, G and B (:func:`draw_black_level_error_dn`). Unit: DN.
+        mosaic whose first row is an even row of the frame, each site taking its channel's offset; or that plane of
+        each of B frames. Unit: DN.
+    error_dn : sequence of 3 floats, or array of shape (B, 3)
+        The offsets of R, G and B (:func:`draw_black_level_error_dn`); for B frames, each frame's (numpy, or on
+        ``values``' device). Unit: DN.
     """
+    if np.ndim(error_dn) == 1:
+        if cfa is None:
+            values += values.dtype.type(error_dn[channel])
+            return values
+        for dy, dx, c in cfa_sites(cfa):
+            values[dy::2, dx::2] += values.dtype.type(error_dn[c])
+        return values
+    per_frame = on_device(namespace_of(values), error_dn, values.dtype)[..., None, None]  # (B, 3, 1, 1)
     if cfa is None:
-        values += values.dtype.type(error_dn[channel])
+        values += per_frame[:, channel]
         return values
     for dy, dx, c in cfa_sites(cfa):
-        values[dy::2, dx::2] += values.dtype.type(error_dn[c])
+        values[..., dy::2, dx::2] += per_frame[:, c]
     return values
 
 
@@ -317,6 +343,9 @@ def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None, pedest
         Black-level pedestal P: the ADC's output is clip(floor(dn + ½) + P, 0, 2^nb − 1) for P > 0 (see
         :func:`adc_offset_dn`), clip(floor(dn), 0, 2^nb − 1) for P = 0. Computed exactly in the array's float type.
 
+    ``bits`` and ``pedestal_dn`` are numbers, or host integer arrays broadcasting against ``dn`` (one per frame of
+    a batch; the output's type then holds the most bits).
+
     Returns
     -------
     numpy.ndarray
@@ -325,7 +354,9 @@ def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None, pedest
     # clip straight into the integer output: for values in [0, 2^nb − 1] the cast's truncation is the floor
     xp = namespace_of(dn)
     if out is None:
-        out = xp.empty(dn.shape, dtype=dn_dtype(bits))
+        out = xp.empty(dn.shape, dtype=dn_dtype(int(np.max(bits))))
+    if np.ndim(bits) or np.ndim(pedestal_dn):  # one ADC per frame of a batch
+        return _quantise_frames(xp, dn, np.asarray(bits), np.asarray(pedestal_dn), out)
     if pedestal_dn:  # floor(dn + ½) + P, exactly: dn − floor(dn) has no rounding error (Sterbenz), dn + ½ may
         whole = xp.floor(dn)
         up = (dn - whole) >= 0.5
@@ -336,6 +367,25 @@ def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None, pedest
         np.clip(dn, 0, 2**bits - 1, out=out, casting="unsafe")
     else:  # CuPy's clip takes no casting rule: clip, then the assignment's cast (the same truncation)
         out[...] = xp.clip(dn, 0, 2**bits - 1)
+    return out
+
+
+def _quantise_frames(xp, dn, bits: np.ndarray, pedestal_dn: np.ndarray, out):
+    """:func:`quantise_dn` with a bit depth and pedestal per frame (host arrays broadcasting against ``dn``): the
+    same arithmetic, P and 2^nb − 1 taken per frame; frames without a pedestal take ⌊dn⌋."""
+    top = on_device(xp, (2 ** bits.astype(np.int64) - 1).astype(dn.dtype))
+    if np.any(pedestal_dn):
+        whole = xp.floor(dn)
+        up = (dn - whole) >= 0.5
+        whole += on_device(xp, pedestal_dn.astype(dn.dtype))
+        if not np.all(pedestal_dn):  # frames without a pedestal: no ½ (their P adds 0)
+            up &= on_device(xp, pedestal_dn != 0)
+        whole += up
+        dn = whole
+    if isinstance(dn, np.ndarray):
+        np.clip(dn, 0, top, out=out, casting="unsafe")
+    else:
+        out[...] = xp.clip(dn, 0, top)
     return out
 
 

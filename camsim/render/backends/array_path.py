@@ -88,16 +88,19 @@ def draw_planes(rng, mean_e, sensor: SensorParams, *, dark_e=0.0, gain=None, dar
     Parameters
     ----------
     rng : numpy.random.Generator or cupy.random.Generator
-    mean_e : array, shape (planes, H, W), float64
-        S̄ per pixel, or S̄ + D̄ where there are no dark-current DSNU factors and ``dark_e`` is 0. Unit: e⁻.
-    sensor : SensorParams
+    mean_e : array, shape (planes, H, W) or (B, planes, H, W), float64
+        S̄ per pixel, or S̄ + D̄ where there are no dark-current DSNU factors and ``dark_e`` is 0; for B frames drawn
+        together, each frame's. Unit: e⁻.
+    sensor : SensorParams or SensorBatch
+        One frame's sensor, or B frames' (:class:`camsim.sensor.params.SensorBatch`: its per-frame figures
+        broadcast against ``mean_e``; one chain of array calls for the batch, each frame its own law).
     dark_e : float or array broadcasting to ``mean_e``
         D̄ where it is not in ``mean_e``. Unit: e⁻.
     gain, dark_gain, offset_e : array like ``mean_e``, optional
         PRNU gain on S̄, dark-current DSNU factor on D̄, offset DSNU (e⁻), per pixel.
-    black_level_error_dn : sequence of 3 floats, optional
+    black_level_error_dn : sequence of 3 floats, or array (B, 3), optional
         The frame's black-level error (R, G, B), added after the gain and row noise, before the ADC (each plane its
-        channel's; a Bayer mosaic, one plane, each site its channel's). Unit: DN.
+        channel's; a Bayer mosaic, one plane, each site its channel's); B frames': each its own. Unit: DN.
 
     Returns
     -------
@@ -115,16 +118,16 @@ def draw_planes(rng, mean_e, sensor: SensorParams, *, dark_e=0.0, gain=None, dar
         charge = saturate_e(charge, sensor.full_well_e)
     noisy = charge.astype(xp.float32)
     read = sensor.read_noise_e if sensor.read_noise else 0.0
-    if read > 0:
+    if np.any(read > 0):  # (a batch: each frame its σ, 0 adding nothing)
         noise = draw_read_noise_e(rng, xp.empty(noisy.shape, dtype=xp.float32), read, sensor.read_noise_model,
                                   sensor.tukey_lambda)
         noisy = add_read_noise_e(noisy, noise)
     electrons_to_dn(noisy, sensor.dn_per_electron, out=noisy)
-    if sensor.row_noise_e > 0:  # one offset per row of each plane (a Bayer mosaic's rows whatever their colours)
+    if np.any(sensor.row_noise_e > 0):  # one offset per row of each plane (a Bayer mosaic's rows, whatever colours)
         add_row_noise(noisy, sensor.row_noise_e * sensor.dn_per_electron, rng)
     if black_level_error_dn is not None:
-        for p in range(noisy.shape[0]):
-            add_black_level_error_dn(noisy[p], black_level_error_dn, sensor.cfa, p)
+        for p in range(noisy.shape[-3]):
+            add_black_level_error_dn(noisy[..., p, :, :], black_level_error_dn, sensor.cfa, p)
     digital = quantise_dn(noisy, sensor.bits, pedestal_dn=sensor.pedestal_dn) if sensor.quantisation else None
     return noisy, digital
 
@@ -132,10 +135,17 @@ def draw_planes(rng, mean_e, sensor: SensorParams, *, dark_e=0.0, gain=None, dar
 def mosaic(xp, cfa: str, planes) -> object:
     """The Bayer mosaic (1, H, W) of per-channel planes: each 2 × 2 site of ``cfa`` takes its channel's values.
 
-    ``planes`` is an array (3, H, W), or a function ``(channel, site) -> that site's values`` (an array of the
-    site's shape). The frame's sizes are even (:func:`camsim.render.frame.block_rows` checks).
+    ``planes`` is an array (3, H, W) — or (B, 3, H, W), B frames' planes, giving their mosaics (B, 1, H, W) — or a
+    function ``(channel, site) -> that site's values`` (an array of the site's shape). The frame's sizes are even
+    (:func:`camsim.render.frame.block_rows` checks).
     """
-    pick = planes if callable(planes) else (lambda c, site: planes[c][site])
+    if not callable(planes):  # four copies, whatever the number of frames
+        planes = xp.asarray(planes)
+        out = xp.empty(planes.shape[:-3] + (1,) + planes.shape[-2:], dtype=planes.dtype)
+        for dy, dx, c in cfa_sites(cfa):
+            out[..., 0, dy::2, dx::2] = planes[..., c, dy::2, dx::2]
+        return out
+    pick = planes
     out = None
     for dy, dx, c in cfa_sites(cfa):
         site = (slice(dy, None, 2), slice(dx, None, 2))
@@ -230,13 +240,21 @@ def device_maps(xp, sensor: SensorParams, shape) -> FixedPattern | None:
     shape = tuple(shape)
     if sensor.dark_offsets or sensor.hot_pixels or sensor.dead_pixel_fraction > 0 or sensor.stuck_pixel_fraction > 0:
         return _device_effect_maps(xp, fixed_pattern(sensor, shape))
+    return _device_scaled_maps(xp, sensor.sensor_seed, shape, sensor.dsnu_e, sensor.prnu_percent,
+                               sensor.dsnu_dark_current_percent)
+
+
+@lru_cache(maxsize=4)
+def _device_scaled_maps(xp, sensor_seed: int, shape: tuple, dsnu_e: float, prnu_percent: float,
+                        dark_percent: float) -> FixedPattern:
+    """The offset DSNU, PRNU and dark-current DSNU maps of :func:`device_maps`, kept for the figures they depend on
+    (the same camera at another ISO or exposure: the same maps, no new arrays)."""
     offset = gain = None
-    if sensor.dsnu_e > 0 or sensor.prnu_percent > 0:
-        unit_offset, unit_gain = _device_unit_maps(xp, sensor.sensor_seed, shape)
-        offset = unit_offset * np.float32(sensor.dsnu_e) if sensor.dsnu_e > 0 else None
-        gain = prnu_gain(xp, unit_gain, sensor.prnu_percent) if sensor.prnu_percent > 0 else None
-    p = sensor.dsnu_dark_current_percent
-    dark_gain = _device_dark_gain(xp, sensor.sensor_seed, shape, p / 100) if p > 0 else None
+    if dsnu_e > 0 or prnu_percent > 0:
+        unit_offset, unit_gain = _device_unit_maps(xp, sensor_seed, shape)
+        offset = unit_offset * np.float32(dsnu_e) if dsnu_e > 0 else None
+        gain = prnu_gain(xp, unit_gain, prnu_percent) if prnu_percent > 0 else None
+    dark_gain = _device_dark_gain(xp, sensor_seed, shape, dark_percent / 100) if dark_percent > 0 else None
     return FixedPattern(offset, gain, dark_gain)
 
 
