@@ -577,3 +577,14 @@ def test_the_optics_on_a_device_give_the_cpus_expectation(cfa, device):
     k = frame.sensor.dn_per_electron
     dark = frame.expected.dark_e.reshape(3, 1, 1)
     np.testing.assert_allclose(frame.clean_dn(), (reference + dark) * k, rtol=1e-5, atol=1e-3 * k)
+
+
+@pytest.mark.parametrize("size,before,after", [(7, 3, 5), (4, 9, 2), (1, 2, 3), (5, 0, 11), (3000, 33, 39)])
+def test_symmetric_indices_are_numpys_symmetric_pad(size, before, after):
+    """The GPU's padding (two gathers by symmetric_indices) is numpy's pad(mode='symmetric'), margins wider than the
+    axis included."""
+    from camsim.optics.stages import symmetric_indices
+
+    axis = np.arange(size) * 1.5 + 2
+    expected = np.pad(axis, (before, after), mode="symmetric")
+    np.testing.assert_array_equal(axis[symmetric_indices(size, before, size + before + after)], expected)

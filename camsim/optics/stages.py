@@ -287,8 +287,29 @@ def padded_spectrum(plane, margin: int, shape: tuple[int, int], *, workers: int 
     plane = xp.asarray(plane, dtype=xp.float32)
     height, width = plane.shape
     pad = ((margin, shape[0] - height - margin), (margin, shape[1] - width - margin))
-    padded = xp.pad(plane, pad, mode="symmetric")
-    return fft_namespace(xp).rfft2(padded, overwrite_x=True, **_fft_threads(xp, workers))
+    return fft_namespace(xp).rfft2(reflect_padded(plane, pad), overwrite_x=True, **_fft_threads(xp, workers))
+
+
+def reflect_padded(plane, pad):
+    """``plane`` (H, W) extended by reflection about its edges (numpy's ``symmetric``: the edge pixel repeated, any
+    width, repeating the reflection) by ``pad`` ((top, bottom), (left, right)), on its device: numpy's pad on the
+    CPU, two gathers by :func:`symmetric_indices` on a GPU (where CuPy's pad, copying margins piece by piece, took
+    0.21 ms for W1's padded plane against the FFT's 0.16 ms)."""
+    xp = namespace_of(plane)
+    if xp is np:
+        return np.pad(plane, pad, mode="symmetric")
+    (top, bottom), (left, right) = pad
+    height, width = plane.shape
+    rows = xp.asarray(symmetric_indices(height, top, height + top + bottom))
+    cols = xp.asarray(symmetric_indices(width, left, width + left + right))
+    return xp.take(xp.take(plane, rows, axis=0), cols, axis=1)
+
+
+def symmetric_indices(size: int, before: int, total: int) -> np.ndarray:
+    """The indices (total,) into an axis of ``size`` that extend it by ``before`` before and the rest after, by
+    reflection about its edges (numpy's ``symmetric``): i ↦ i mod 2·size, folded back from 2·size − 1."""
+    i = np.mod(np.arange(total) - before, 2 * size)
+    return np.where(i < size, i, 2 * size - 1 - i)
 
 
 def plane_of_spectrum(spectrum, margin: int, shape: tuple[int, int], size: tuple[int, int], *,

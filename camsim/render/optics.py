@@ -425,7 +425,8 @@ def _clipped(out: np.ndarray, clip: dict | None) -> np.ndarray:
     """``out`` clipped at 0 (:func:`camsim.optics.stages.clip_negative`), its record into ``clip``."""
     added = clip_negative(out)
     if clip is not None:
-        totals = to_host(out.sum(axis=(1, 2), dtype=np.float64)) - added
+        # each plane's sum on its own (a GPU reduces a whole plane fast, three outputs of 12 M values each slowly)
+        totals = np.array([float(plane.sum(dtype=np.float64)) for plane in out]) - added
         clip["negative_clipped_e"] = [float(v) for v in added]
         clip["negative_clipped_fraction"] = [float(a / t) if t > 0 else 0.0 for a, t in zip(added, totals)]
     return out
