@@ -481,7 +481,7 @@ def test_colour_edge_approximation_is_measured():
     off by of order 1 % at f/8, the per-spectrum OTFs by less than their 1e-3 bound."""
     import importlib.util
 
-    from tests.helpers import small_scene, ROOT
+    from tests.helpers import ROOT
 
     spec = importlib.util.spec_from_file_location("optics_colour_edge", ROOT / "tools" / "optics_colour_edge.py")
     tool = importlib.util.module_from_spec(spec)
