@@ -3,6 +3,7 @@ its closed form written here (the DFT of the PSF the code makes, on the grid), H
 numerical pupil autocorrelation, the noise after the optics against the exact per-pixel law (χ²), the scene table,
 ``--optics`` overrides and one-line errors, the sidecar's record and same seed ⇒ same files."""
 
+import dataclasses
 import hashlib
 import json
 
@@ -588,3 +589,30 @@ def test_symmetric_indices_are_numpys_symmetric_pad(size, before, after):
     axis = np.arange(size) * 1.5 + 2
     expected = np.pad(axis, (before, after), mode="symmetric")
     np.testing.assert_array_equal(axis[symmetric_indices(size, before, size + before + after)], expected)
+
+
+def test_a_devices_otf_grids_are_kept_per_frame_and_remade_for_another():
+    """_grids on a device (here numpy behind another module object, as CuPy is told from numpy by identity) keeps the
+    last GRIDS_KEPT channels' grids: the same tables give the kept grids (equal to numpy's own), other tables or
+    another OLPF new ones, and the oldest is dropped."""
+    import types
+
+    import camsim.render.optics as optics_module
+
+    device = types.ModuleType("device")
+    device.__getattr__ = lambda name: getattr(np, name)
+    optics = parse_optics({"f_number": 4.0, "pixel_pitch_um": 4.0, "diffraction": True, "olpf": True})
+    rho, step = optics_module.radial_samples()
+    tables = [np.vstack([np.exp(-rho * (1 + c)), np.exp(-rho * (2 + c)) * rho]) for c in range(4)]
+    optics_module._DEVICE_GRIDS.clear()
+    first = optics_module._grids(optics, tables[0], step, (24, 32), device)
+    again = optics_module._grids(optics, tables[0], step, (24, 32), device)
+    assert all(a is b for a, b in zip(first, again))
+    for grid, own in zip(first, optics_module._grids(optics, tables[0], step, (24, 32), np)):
+        np.testing.assert_array_equal(grid, own)
+    other = optics_module._grids(dataclasses.replace(optics, olpf=False), tables[0], step, (24, 32), device)
+    assert not any(a is b for a, b in zip(first, other))
+    for table in tables[1:]:
+        optics_module._grids(optics, table, step, (24, 32), device)
+    assert len(optics_module._DEVICE_GRIDS) == optics_module.GRIDS_KEPT
+    assert not any(a is b for a, b in zip(first, optics_module._grids(optics, tables[0], step, (24, 32), device)))

@@ -327,11 +327,19 @@ def _grids(optics: OpticsParams, radial, step: float, shape: tuple[int, int], xp
     radial = np.ascontiguousarray(radial, dtype=np.float64)
     key = (xp, tuple(shape), step, optics.olpf, optics.olpf_shift_px, optics.fill_factor, radial.shape,
            radial.tobytes())
-    grids = _DEVICE_GRIDS.pop(key, None)
-    _DEVICE_GRIDS[key] = grids = made() if grids is None else grids
-    while len(_DEVICE_GRIDS) > GRIDS_KEPT:
-        _DEVICE_GRIDS.pop(next(iter(_DEVICE_GRIDS)))
-    return list(grids)
+    return list(_kept(_DEVICE_GRIDS, key, GRIDS_KEPT, made))
+
+
+def _kept(cache: dict, key, most: int, made, valid=lambda value: True):
+    """``cache[key]``, made by ``made()`` where it is missing or not ``valid``; the entry moved to the end and the
+    oldest beyond ``most`` dropped (a small LRU cache in a dict)."""
+    value = cache.pop(key, None)
+    if value is None or not valid(value):
+        value = made()
+    cache[key] = value
+    while len(cache) > most:
+        cache.pop(next(iter(cache)))
+    return value
 
 
 def apply_optics(signal_e, optics: OpticsParams, wavelengths_nm, weights, *, spectral: SpectralOtf | None = None,
@@ -465,21 +473,15 @@ def optics_plan(lit, signal_e, optics: OpticsParams, labels=None) -> tuple[np.nd
     (:func:`spectral_basis`, the weights) is made once per lit scene and optics (kept for the last
     :data:`PLANS_KEPT`); ``labels``: the label map on a device, where its pixels are counted (a GPU counts 12 MP in
     well under a millisecond, numpy in about 60 ms)."""
-    key = (id(lit), optics)
-    kept = _PLANS.get(key)
-    if kept is None or kept[0]() is not lit:
-        labels = lit.labels if labels is None else labels
-        count = lit.photon_rate.shape[0]
-        counts = np.asarray(to_host(namespace_of(labels).bincount(labels.ravel(), minlength=count)))
+    def made():
+        on = lit.labels if labels is None else labels
+        counts = np.asarray(to_host(namespace_of(on).bincount(on.ravel(), minlength=lit.photon_rate.shape[0])))
         weights = channel_weights(lit, counts)
         basis = spectral_basis(lit.photon_rate, lit.qe, counts > 0, weights, lit.grid.wavelengths_nm, optics)
         weights.flags.writeable = False
-        kept = (weakref.ref(lit), (weights, basis))
-        _PLANS.pop(key, None)
-        _PLANS[key] = kept
-        while len(_PLANS) > PLANS_KEPT:
-            _PLANS.pop(next(iter(_PLANS)))
-    weights, basis = kept[1]
+        return weakref.ref(lit), (weights, basis)
+
+    _, (weights, basis) = _kept(_PLANS, (id(lit), optics), PLANS_KEPT, made, lambda kept: kept[0]() is lit)
     return weights, basis.otf(lit.labels, signal_e)
 
 
