@@ -353,38 +353,21 @@ def quantise_dn(dn: np.ndarray, bits: int, out: np.ndarray | None = None, pedest
     """
     # clip straight into the integer output: for values in [0, 2^nb − 1] the cast's truncation is the floor
     xp = namespace_of(dn)
+    bits, pedestal = np.asarray(bits), np.asarray(pedestal_dn)  # 0-d for one frame, or one per frame of a batch
     if out is None:
-        out = xp.empty(dn.shape, dtype=dn_dtype(int(np.max(bits))))
-    if np.ndim(bits) or np.ndim(pedestal_dn):  # one ADC per frame of a batch
-        return _quantise_frames(xp, dn, np.asarray(bits), np.asarray(pedestal_dn), out)
-    if pedestal_dn:  # floor(dn + ½) + P, exactly: dn − floor(dn) has no rounding error (Sterbenz), dn + ½ may
-        whole = xp.floor(dn)
-        up = (dn - whole) >= 0.5
-        whole += dn.dtype.type(pedestal_dn)
-        whole += up
-        dn = whole
-    if isinstance(dn, np.ndarray):
-        np.clip(dn, 0, 2**bits - 1, out=out, casting="unsafe")
-    else:  # CuPy's clip takes no casting rule: clip, then the assignment's cast (the same truncation)
-        out[...] = xp.clip(dn, 0, 2**bits - 1)
-    return out
-
-
-def _quantise_frames(xp, dn, bits: np.ndarray, pedestal_dn: np.ndarray, out):
-    """:func:`quantise_dn` with a bit depth and pedestal per frame (host arrays broadcasting against ``dn``): the
-    same arithmetic, P and 2^nb − 1 taken per frame; frames without a pedestal take ⌊dn⌋."""
+        out = xp.empty(dn.shape, dtype=dn_dtype(int(bits.max())))
     top = on_device(xp, (2 ** bits.astype(np.int64) - 1).astype(dn.dtype))
-    if np.any(pedestal_dn):
+    if np.any(pedestal):  # floor(dn + ½) + P, exactly: dn − floor(dn) has no rounding error (Sterbenz), dn + ½ may
         whole = xp.floor(dn)
         up = (dn - whole) >= 0.5
-        whole += on_device(xp, pedestal_dn.astype(dn.dtype))
-        if not np.all(pedestal_dn):  # frames without a pedestal: no ½ (their P adds 0)
-            up &= on_device(xp, pedestal_dn != 0)
+        whole += on_device(xp, pedestal.astype(dn.dtype))
+        if not np.all(pedestal):  # frames of a batch without a pedestal: ⌊dn⌋, no ½ (their P adds 0)
+            up &= on_device(xp, pedestal != 0)
         whole += up
         dn = whole
     if isinstance(dn, np.ndarray):
         np.clip(dn, 0, top, out=out, casting="unsafe")
-    else:
+    else:  # CuPy's clip takes no casting rule: clip, then the assignment's cast (the same truncation)
         out[...] = xp.clip(dn, 0, top)
     return out
 
