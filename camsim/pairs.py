@@ -864,7 +864,8 @@ class PairSource:
         # a rolling shutter's rows of the crop with its margin: the margin's rows repeat the crop's first and last
         padded = np.concatenate([np.zeros(my, np.intp), np.arange(height), np.full(my, height - 1)]) \
             if seq.rolling else slice(None)
-        moved = np.stack([average_warp(rgb, (shift @ inv @ unshift)[:, padded], weights[:, padded], workers=1)[inside]
+        moved = np.stack([average_warp(rgb, (shift @ inv @ unshift)[:, padded],
+                                       weights if weights.shape[1] == 1 else weights[:, padded], workers=1)[inside]
                           for inv, weights in samples])
         homographies = np.stack([motion.mid_homography(j, exposure) for j in range(seq.frames)])
         row_homographies = light = None
