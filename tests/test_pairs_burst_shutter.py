@@ -103,22 +103,24 @@ def test_a_rolling_shutter_skews_a_panned_edge_row_by_row(tmp_path, frame_interv
 
 def test_flicker_row_means_follow_the_light_integrated_over_each_rows_exposure(tmp_path):
     """A flat image, T = 2 ms, a rolling shutter of Δ = 0.1 ms, 100 Hz flicker of depth 0.8 and phase 30° and a dark
-    current of 400 e⁻/s (0.8 e⁻ a frame, not modulated): each row of each frame's clean layer is k · (S̄ · Lᵣ + D̄),
+    current of 4000 e⁻/s (8 e⁻ a frame, not modulated): each row of each frame's clean layer is k · (S̄ · Lᵣ + D̄),
     Lᵣ = (1/T) ∫ L over the row's exposure in closed form, S̄ from the reference (k · (S̄ + D̄)) and D̄ the record's
-    dark charge: within 1e-4 relative; the noisy rows' means within 5 standard errors of it. A global shutter's rows
+    dark charge: within 1e-4 relative; the noisy rows' means within 5 standard errors of it (and their z-scores'
+    mean, over all rows and frames, within 5 of its standard errors of 0). A global shutter's rows
     share the frame's Lᵢ, and the batch's flicker_factor is Lᵣ."""
     hz, depth, phase = 100.0, 0.8, 30.0
     png = _flat_png(tmp_path, 80, 60)
-    sensor = {"exposure_s": 0.002, "dark_current_e_per_s": 400.0}
+    sensor = {"exposure_s": 0.002, "dark_current_e_per_s": 4000.0}
     light = dict(flicker_hz=hz, flicker_depth=depth, flicker_phase_deg=phase, frame_interval_s=0.0113,
-                 intensity=(2.0, 4.0), burst_frames=4, sensor=sensor)
+                 intensity=(400.0, 800.0), burst_frames=4, sensor=sensor)
     width, height = CROP
     for delta in (1e-4, 0.0):
         batch = _source(png, rolling_shutter_row_s=delta, **light).batch(1)
         assert batch.flicker_factor.shape == (2, 4, height) and (batch.row_homographies is None) == (delta == 0)
+        z = []
         for i, p in enumerate(batch.params):
             k, dark = p["dn_per_electron"], np.array(p["dark_e"])[:, None]
-            assert p["exposure_s"] == 0.002 and dark.min() > 0.5
+            assert p["exposure_s"] == 0.002 and dark.min() > 7.9
             reference = batch.clean[i].astype(np.float64).mean(axis=2)  # (3, H): k (S̄ + D̄) per row
             signal = reference / k - dark
             for j in range(4):
@@ -133,6 +135,9 @@ def test_flicker_row_means_follow_the_light_integrated_over_each_rows_exposure(t
                 residual = residual.transpose(1, 0, 2).reshape(height, -1)  # a row's every channel and column
                 error = residual.std(axis=1, ddof=1) / np.sqrt(residual.shape[1])
                 assert np.all(np.abs(residual.mean(axis=1)) < 5 * error), np.max(np.abs(residual.mean(axis=1)) / error)
+                z.append(residual.mean(axis=1) / error)
+        z = np.concatenate(z)  # every row of every frame: independent, each of mean 0 and variance ≈ 1
+        assert abs(z.mean()) < 5 / np.sqrt(z.size), z.mean()
 
 
 def test_a_rolling_flickering_burst_is_its_seeds_and_its_frames_noise_independent(tmp_path):
