@@ -56,13 +56,29 @@ the crop's pixel coordinates, rotation about its centre), drawn from the item's 
 batch's seed sequence); frame j exposes [j · interval, j · interval + T] and its expected signal is the static
 crop's averaged along the path over the exposure (:func:`camsim.render.warp.average_warp`: bilinear, sub-sampled by
 :meth:`~camsim.scene.sequence.Motion.subsample_times`). The crop is cut with a **margin** of the photograph around it,
-as wide as the item's path reaches (its corners followed at every sub-sample), so that the moving frames see real
-scene; where the photograph is too small for that margin, the scene beyond it is clamped to its edge (as the sequence
-renderer does at the frame's edge) and the item's ``burst`` record says ``clamped``. Each frame is drawn with the
+as wide as the item's path reaches (its corners followed at every sub-sample; under a rolling shutter each row's ends
+at its own), so that the moving frames see real scene; where the photograph is too small for that margin, the scene
+beyond it is clamped to its edge (as the sequence renderer does at the frame's edge) and the item's ``burst`` record
+says ``clamped``. Each frame is drawn with the
 same fixed-pattern maps (the sensor's) and its own temporal noise (the batch's noise stream: every frame of every
 item drawn together); the batch gives each frame's own expectation (``frames_clean``) and each frame's homography
-from the reference crop to the frame at its exposure's middle (``homographies``, as a sequence sidecar's). Bursts
-render on the CPU only (the warp is numpy's; ``device="cuda"`` with ``burst_frames`` is refused).
+from the reference crop to the frame at its exposure's middle (``homographies``, as a sequence sidecar's).
+
+A burst may also have a **rolling shutter** and a **flickering light**, the settings of a scene's ``[sequence]``
+with the same names and meaning (:class:`~camsim.scene.sequence.SequenceParams`, which checks them):
+``rolling_shutter_row_s`` Δ (row r of frame j exposed over [tⱼ + r·Δ, tⱼ + r·Δ + T]; the crop's readout, height · Δ,
+within the frame interval), ``flicker_hz``, ``flicker_depth``, ``flicker_phase_deg`` (L(t) = 1 + m cos(2π f t + φ),
+t from the first frame's start, on the signal only, never the dark current). Each row is drawn by the sequence's
+law: the sub-sample times and weights of its own exposure (:meth:`~camsim.scene.sequence.Motion.exposure_samples`:
+each part weighted by the exact integral of L over it), the inverse homographies at those times, one weighted
+average (``average_warp`` with per-row inverses and weights; the margin's rows take the nearest crop row's). What a
+burst denoiser's trainer needs of them, and no more: the item's ``burst`` record holds the four settings (0 when
+off); the batch's ``row_homographies`` (B, N, H, 3, 3) float32, each row's at its exposure's middle (a sidecar's
+``row_homographies``; 36 bytes a row and frame), only with a rolling shutter; ``flicker_factor`` (B, N, H) float64,
+each row's share of the light (1/T) ∫ L dt over its exposure (a sidecar's ``flicker_row_factor``; one value
+repeated over the rows for a global shutter), only with flicker; both None otherwise. ``homographies`` stays row
+0's, at its exposure's middle. Bursts render on the CPU only (the warp is numpy's; ``device="cuda"`` with
+``burst_frames`` is refused).
 
 :class:`WrittenPairs` reads the pairs of a dataset written by ``camsim dataset`` (files or a Zarr store) in the same
 domains, one frame at a time as numpy arrays (:func:`camsim.pairs_torch.written_pairs` wraps it as a torch
@@ -158,14 +174,20 @@ class PairBatch:
     frames_clean : array or None, shape (B, N, planes, H, W), float32
         Bursts only: each frame's own expectation (the moving crop's, blurred by the motion within the exposure), in
         the batch's domain, as ``clean`` is the static crop's.
+    row_homographies : numpy.ndarray or None, shape (B, N, H, 3, 3), float32
+        Bursts with a rolling shutter only: each row's homography at the middle of its exposure,
+        tⱼ + r · Δ + T / 2 (row 0's is ``homographies``'). On the host.
+    flicker_factor : numpy.ndarray or None, shape (B, N, H), float64
+        Bursts with flicker only: each row's share of the light over its exposure, (1/T) ∫ L(t) dt (the same for
+        every row of a global shutter's frame). On the host.
 
     Notes
     -----
     A burst batch (``burst_frames = N``) has ``noisy`` and ``digital`` of shape (B, N, planes, H, W) (in ``"raw"``
     (B, N, 4, H/2, W/2) for a Bayer camera, in ``"srgb"`` (B, N, 3, H, W)), ``clean`` (B, planes, H, W) the static
     crop's expectation, and per item a ``burst`` record in ``params`` (``frames``, ``frame_interval_s``, ``time_s``,
-    ``shake_px``, ``shake_deg``, ``pan_px_per_s``, ``motion_seed``, ``blur_subsamples_used``, ``margin_px``,
-    ``reach_px``, ``clamped``).
+    ``shake_px``, ``shake_deg``, ``pan_px_per_s``, ``rolling_shutter_row_s``, ``flicker_hz``, ``flicker_depth``,
+    ``flicker_phase_deg``, ``motion_seed``, ``blur_subsamples_used``, ``margin_px``, ``reach_px``, ``clamped``).
     """
 
     index: int

@@ -154,7 +154,8 @@ def main(argv=None) -> int:
         items = sources[name].batch(0).params
         print(f"{name} (batch 0): sub-samples per frame {items[0]['burst']['blur_subsamples_used']} (item 0); "
               f"reach {[round(p['burst']['reach_px'], 1) for p in items]} px; margins (x, y) "
-              f"{[tuple(p['burst']['margin_px']) for p in items]} px; clamped {sum(p['burst']['clamped'] for p in items)}")
+              f"{[tuple(p['burst']['margin_px']) for p in items]} px; "
+              f"clamped {sum(p['burst']['clamped'] for p in items)}")
     if args.profile:
         print("one moving burst item, stage by stage (best of 3):")
         for name, seconds in profile(sources["burst moving"]):
