@@ -190,3 +190,17 @@ def test_bad_shutter_and_light_settings_are_refused_on_one_line(tmp_path, monkey
     with pytest.raises(CamsimError, match=match) as info:
         _source(images, **settings)
     assert "\n" not in str(info.value) and not lit
+
+
+def test_the_torch_batch_hands_over_the_rows_ground_truth(tmp_path):
+    """camsim.pairs_torch.batch_tensors: ``row_homographies`` and ``flicker_factor`` as tensors sharing the batch's
+    memory with both on, None with neither."""
+    torch = pytest.importorskip("torch")
+    from camsim.pairs_torch import batch_tensors
+
+    png = _flat_png(tmp_path, 80, 60)
+    on = batch_tensors(_source(png, rolling_shutter_row_s=0.01, flicker_hz=50.0, flicker_depth=0.3).batch(0))
+    assert tuple(on["row_homographies"].shape) == (2, 2, 48, 3, 3) and on["row_homographies"].dtype == torch.float32
+    assert tuple(on["flicker_factor"].shape) == (2, 2, 48) and on["flicker_factor"].dtype == torch.float64
+    off = batch_tensors(_source(png, pan_px_per_s=(1.0, 0.0)).batch(0))
+    assert off["row_homographies"] is None and off["flicker_factor"] is None and off["homographies"] is not None
