@@ -56,13 +56,29 @@ the crop's pixel coordinates, rotation about its centre), drawn from the item's 
 batch's seed sequence); frame j exposes [j · interval, j · interval + T] and its expected signal is the static
 crop's averaged along the path over the exposure (:func:`camsim.render.warp.average_warp`: bilinear, sub-sampled by
 :meth:`~camsim.scene.sequence.Motion.subsample_times`). The crop is cut with a **margin** of the photograph around it,
-as wide as the item's path reaches (its corners followed at every sub-sample), so that the moving frames see real
-scene; where the photograph is too small for that margin, the scene beyond it is clamped to its edge (as the sequence
-renderer does at the frame's edge) and the item's ``burst`` record says ``clamped``. Each frame is drawn with the
+as wide as the item's path reaches (its corners followed at every sub-sample; under a rolling shutter each row's ends
+at its own), so that the moving frames see real scene; where the photograph is too small for that margin, the scene
+beyond it is clamped to its edge (as the sequence renderer does at the frame's edge) and the item's ``burst`` record
+says ``clamped``. Each frame is drawn with the
 same fixed-pattern maps (the sensor's) and its own temporal noise (the batch's noise stream: every frame of every
 item drawn together); the batch gives each frame's own expectation (``frames_clean``) and each frame's homography
-from the reference crop to the frame at its exposure's middle (``homographies``, as a sequence sidecar's). Bursts
-render on the CPU only (the warp is numpy's; ``device="cuda"`` with ``burst_frames`` is refused).
+from the reference crop to the frame at its exposure's middle (``homographies``, as a sequence sidecar's).
+
+A burst may also have a **rolling shutter** and a **flickering light**, the settings of a scene's ``[sequence]``
+with the same names and meaning (:class:`~camsim.scene.sequence.SequenceParams`, which checks them):
+``rolling_shutter_row_s`` Δ (row r of frame j exposed over [tⱼ + r·Δ, tⱼ + r·Δ + T]; the crop's readout, height · Δ,
+within the frame interval), ``flicker_hz``, ``flicker_depth``, ``flicker_phase_deg`` (L(t) = 1 + m cos(2π f t + φ),
+t from the first frame's start, on the signal only, never the dark current). Each row is drawn by the sequence's
+law: the sub-sample times and weights of its own exposure (:meth:`~camsim.scene.sequence.Motion.exposure_samples`:
+each part weighted by the exact integral of L over it), the inverse homographies at those times, one weighted
+average (``average_warp`` with per-row inverses and weights; the margin's rows take the nearest crop row's). What a
+burst denoiser's trainer needs of them, and no more: the item's ``burst`` record holds the four settings (0 when
+off); the batch's ``row_homographies`` (B, N, H, 3, 3) float32, each row's at its exposure's middle (a sidecar's
+``row_homographies``; 36 bytes a row and frame), only with a rolling shutter; ``flicker_factor`` (B, N, H) float64,
+each row's share of the light (1/T) ∫ L dt over its exposure (a sidecar's ``flicker_row_factor``; one value
+repeated over the rows for a global shutter), only with flicker; both None otherwise. ``homographies`` stays row
+0's, at its exposure's middle. Bursts render on the CPU only (the warp is numpy's; ``device="cuda"`` with
+``burst_frames`` is refused).
 
 :class:`WrittenPairs` reads the pairs of a dataset written by ``camsim dataset`` (files or a Zarr store) in the same
 domains, one frame at a time as numpy arrays (:func:`camsim.pairs_torch.written_pairs` wraps it as a torch
@@ -105,6 +121,9 @@ _NOISE, _IMAGES, _LIGHT, _CAMERA, _ISO = 0, 1, 2, 3, 4
 _MOTION = 9
 #: Slack added to a burst's reach before its margin is rounded up (float32 sampling coordinates). Unit: px.
 _REACH_SLACK_PX = 0.01
+#: A burst's rolling shutter and flickering light: the settings of :class:`camsim.scene.sequence.SequenceParams` of
+#: the same names and meaning.
+_LIGHT_AND_SHUTTER = ("rolling_shutter_row_s", "flicker_hz", "flicker_depth", "flicker_phase_deg")
 _VIRTUAL_STREAMS = {"camera": 3, "k": 4, "shape": 5, "tukey_scale_dn": 6, "gaussian_sigma_dn": 7, "row_sigma_dn": 8}
 
 
@@ -155,14 +174,20 @@ class PairBatch:
     frames_clean : array or None, shape (B, N, planes, H, W), float32
         Bursts only: each frame's own expectation (the moving crop's, blurred by the motion within the exposure), in
         the batch's domain, as ``clean`` is the static crop's.
+    row_homographies : numpy.ndarray or None, shape (B, N, H, 3, 3), float32
+        Bursts with a rolling shutter only: each row's homography at the middle of its exposure,
+        tⱼ + r · Δ + T / 2 (row 0's is ``homographies``'). On the host.
+    flicker_factor : numpy.ndarray or None, shape (B, N, H), float64
+        Bursts with flicker only: each row's share of the light over its exposure, (1/T) ∫ L(t) dt (the same for
+        every row of a global shutter's frame). On the host.
 
     Notes
     -----
     A burst batch (``burst_frames = N``) has ``noisy`` and ``digital`` of shape (B, N, planes, H, W) (in ``"raw"``
     (B, N, 4, H/2, W/2) for a Bayer camera, in ``"srgb"`` (B, N, 3, H, W)), ``clean`` (B, planes, H, W) the static
     crop's expectation, and per item a ``burst`` record in ``params`` (``frames``, ``frame_interval_s``, ``time_s``,
-    ``shake_px``, ``shake_deg``, ``pan_px_per_s``, ``motion_seed``, ``blur_subsamples_used``, ``margin_px``,
-    ``reach_px``, ``clamped``).
+    ``shake_px``, ``shake_deg``, ``pan_px_per_s``, ``rolling_shutter_row_s``, ``flicker_hz``, ``flicker_depth``,
+    ``flicker_phase_deg``, ``motion_seed``, ``blur_subsamples_used``, ``margin_px``, ``reach_px``, ``clamped``).
     """
 
     index: int
@@ -174,6 +199,8 @@ class PairBatch:
     isp: list | None = None
     homographies: np.ndarray | None = None
     frames_clean: object = None
+    row_homographies: np.ndarray | None = None
+    flicker_factor: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -234,6 +261,12 @@ class PairSource:
         (frames back to back). Unit: s.
     blur_subsamples : int or None
         Bursts: sub-samples of the motion per exposure; None: as many as keep every pixel's step ≤ 0.25 px.
+    rolling_shutter_row_s : float
+        Bursts: the line time Δ of a rolling shutter, row r of a frame exposed from r · Δ after row 0 (the crop's
+        readout, height · Δ, within the frame interval); 0: a global shutter. Unit: s.
+    flicker_hz, flicker_depth, flicker_phase_deg : float
+        Bursts: the light's modulation L(t) = 1 + m cos(2π f t + φ), f (Hz; 0: steady), m (0 … 1), φ (degrees), t
+        from the first frame's start; the signal only, never the dark current.
     """
 
     scene: object
@@ -256,6 +289,10 @@ class PairSource:
     pan_px_per_s: tuple = (0.0, 0.0)
     frame_interval_s: float | None = None
     blur_subsamples: int | None = None
+    rolling_shutter_row_s: float = 0.0
+    flicker_hz: float = 0.0
+    flicker_depth: float = 0.0
+    flicker_phase_deg: float = 0.0
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
@@ -315,7 +352,8 @@ class PairSource:
         still = isinstance(pan, (tuple, list)) and tuple(pan) == (0.0, 0.0)
         motion = {"shake_px": self.shake_px != 0.0, "shake_deg": self.shake_deg != 0.0, "pan_px_per_s": not still,
                   "frame_interval_s": self.frame_interval_s is not None,
-                  "blur_subsamples": self.blur_subsamples is not None}
+                  "blur_subsamples": self.blur_subsamples is not None,
+                  **{name: getattr(self, name) != 0.0 for name in _LIGHT_AND_SHUTTER}}
         frames = self.burst_frames
         if frames is None:
             given = [name for name, on in motion.items() if on]
@@ -343,6 +381,7 @@ class PairSource:
         if n is not None and (isinstance(n, bool) or not isinstance(n, (int, np.integer))
                               or not 1 <= n <= MAX_SUBSAMPLES):
             raise CamsimError(f"blur_subsamples must be an integer from 1 to {MAX_SUBSAMPLES} or None, got {n!r}")
+        self._sequence_params(None)  # the shutter's and the light's values, by the sequence's own rules
         if self.scene.exposure == "fixed":  # (auto: each pair's T is checked when it is known)
             for name in self.cameras:
                 self._burst_sequence(self._sensor(name, None, {}).exposure_s)
@@ -353,25 +392,40 @@ class PairSource:
         Raises
         ------
         CamsimError
-            The exposure is longer than ``frame_interval_s``, or the motion leaves every scene (the sequence's
-            bound).
+            The exposure is longer than ``frame_interval_s``, a rolling shutter's readout (the crop's height × Δ)
+            longer than it, or the motion leaves every scene (the sequence's bound).
         """
-        from camsim.scene.sequence import SequenceParams
+        from camsim.scene.sequence import check_timing
 
         key = ("sequence", exposure_s)
         if key not in self._cache:
             interval = exposure_s if self.frame_interval_s is None else float(self.frame_interval_s)
-            if exposure_s > interval * (1 + 1e-12):
-                raise CamsimError(f"burst pairs: the exposure {exposure_s:g} s is longer than frame_interval_s "
-                                  f"{interval:g} s")
+            seq = self._sequence_params(interval)
             try:
-                self._cache[key] = SequenceParams(
-                    frames=int(self.burst_frames), frame_interval_s=interval, shake_px=float(self.shake_px),
-                    shake_deg=float(self.shake_deg), pan_px_per_s=self.pan_px_per_s,
-                    blur_subsamples=None if self.blur_subsamples is None else int(self.blur_subsamples))
+                check_timing(seq, exposure_s, self.crop[1])
             except CamsimError as exc:
                 raise CamsimError(f"burst pairs: {str(exc).removeprefix('[sequence]: ')}") from None
+            self._cache[key] = seq
         return self._cache[key]
+
+    def _sequence_params(self, interval: float | None):
+        """The bursts' :class:`~camsim.scene.sequence.SequenceParams` at frame interval ``interval`` (s), checked by
+        its own rules (one line, ``burst pairs:`` for ``[sequence]:``); None: only the rolling shutter's and the
+        light's values checked (one still frame, before the exposure is known), nothing returned."""
+        from camsim.scene.sequence import SequenceParams
+
+        light_and_shutter = {name: getattr(self, name) for name in _LIGHT_AND_SHUTTER}
+        try:
+            if interval is None:
+                SequenceParams(frames=1, frame_interval_s=1.0, **light_and_shutter)
+                return None
+            return SequenceParams(
+                frames=int(self.burst_frames), frame_interval_s=interval, shake_px=float(self.shake_px),
+                shake_deg=float(self.shake_deg), pan_px_per_s=self.pan_px_per_s,
+                blur_subsamples=None if self.blur_subsamples is None else int(self.blur_subsamples),
+                **light_and_shutter)
+        except CamsimError as exc:
+            raise CamsimError(f"burst pairs: {str(exc).removeprefix('[sequence]: ')}") from None
 
     @classmethod
     def from_scene(cls, scene, images, **settings) -> PairSource:
@@ -536,19 +590,20 @@ class PairSource:
         rng = device_generator(xp, children[_NOISE])
         sensors = [self._pair_sensor(p) for p in params]
         quantised = sensors[0].quantisation and self.domain == "dn"
-        homographies = frames_clean = None
+        homographies = frames_clean = row_homographies = flicker_factor = None
         if self.burst_frames is None:
             noisy, clean, digital = self._draw_frames(xp, rng, self._crops(params), params, sensors)
             noisy, clean, records = self._in_domain(xp, noisy, clean, params, sensors)
         else:
-            noisy, clean, digital, frames_clean, homographies, records = self._bursts(xp, rng, children, params,
-                                                                                     sensors)
+            noisy, clean, digital, frames_clean, homographies, row_homographies, flicker_factor, records = \
+                self._bursts(xp, rng, children, params, sensors)
         if digital is not None:
             digital = digital.astype(xp.uint16, copy=False) if quantised else None
         for p, sensor in zip(params, sensors):
             del p["_overrides"], p["_u"]
             p.update(_sensor_record(sensor))
-        return PairBatch(int(index), noisy, clean, digital, params, self.domain, records, homographies, frames_clean)
+        return PairBatch(int(index), noisy, clean, digital, params, self.domain, records, homographies, frames_clean,
+                         row_homographies, flicker_factor)
 
     def _pair_sensor(self, p: dict):
         """A pair's sensor: its camera's (:meth:`_sensor`) at the pair's exposure (:meth:`_exposure_s`)."""
@@ -750,13 +805,14 @@ class PairSource:
 
     # ------------------------------------------------------------------------------------------------ bursts
     def _bursts(self, xp, rng, children: list, params: list, sensors: list) -> tuple:
-        """A burst batch (module docstring): ``(noisy, clean, digital, frames_clean, homographies, records)``. Each
+        """A burst batch (module docstring): ``(noisy, clean, digital, frames_clean, homographies, row_homographies,
+        flicker_factor, records)``. Each
         item's motion and moved crops on the host (:meth:`_burst_crops`), then every frame of every item drawn
         together (:meth:`_draw_frames`), and the references' expectations together."""
         n, b = int(self.burst_frames), len(params)
         seeds = np.random.default_rng(children[_MOTION]).integers(2**63, size=b)
-        moved, static, homographies = zip(*(self._burst_crops(p, sensor, int(seed))
-                                            for p, sensor, seed in zip(params, sensors, seeds)))
+        moved, static, homographies, rows, light = zip(*(self._burst_crops(p, sensor, int(seed))
+                                                         for p, sensor, seed in zip(params, sensors, seeds)))
         frame_params = [p for p in params for _ in range(n)]
         frame_sensors = [sensor for sensor in sensors for _ in range(n)]
         noisy, frames_clean, digital = self._draw_frames(xp, rng, [frame for item in moved for frame in item],
@@ -771,12 +827,21 @@ class PairSource:
         frames_clean = frames_clean.reshape(split + frames_clean.shape[1:])
         if digital is not None:
             digital = digital.reshape(split + digital.shape[1:])
-        return noisy, clean, digital, frames_clean, np.stack(homographies), records
+        rows = None if rows[0] is None else np.stack(rows)
+        light = None if light[0] is None else np.stack(light)
+        return noisy, clean, digital, frames_clean, np.stack(homographies), rows, light, records
 
     def _burst_crops(self, p: dict, sensor, motion_seed: int) -> tuple:
-        """One burst item's motion (module docstring): its frames' moved crops (N, H, W, 3), the static crop
-        (H, W, 3) (linear sRGB, float32, on the host) and each frame's homography (N, 3, 3); sets the item's
-        ``crop_x``, ``crop_y`` and ``burst`` record."""
+        """One burst item's motion and light (module docstring): its frames' moved crops (N, H, W, 3), the static
+        crop (H, W, 3) (linear sRGB, float32, on the host), each frame's homography (N, 3, 3) at its exposure's
+        middle, its rows' (N, H, 3, 3) float32 with a rolling shutter (else None) and its rows' shares of the light
+        (N, H) with flicker (else None); sets the item's ``crop_x``, ``crop_y`` and ``burst`` record.
+
+        Each frame is the sequence's law (:func:`camsim.render.sequence.moving_expectation`'s): the sub-sample times
+        and weights of each row's exposure (:meth:`camsim.scene.sequence.Motion.exposure_samples`: its own times
+        under a rolling shutter, each part weighted by the light's exact integral over it), the inverse homographies
+        at those times, one weighted bilinear average (:func:`camsim.render.warp.average_warp`) of the crop with its
+        margin (the margin's rows take the nearest crop row's times; they are cut away)."""
         from camsim.render.warp import average_warp
         from camsim.scene.sequence import Motion
 
@@ -784,17 +849,22 @@ class PairSource:
         exposure = sensor.exposure_s
         seq = self._burst_sequence(exposure)
         motion = Motion.of(seq, width, height, motion_seed)
-        # each frame's inverse homographies (crop pixel -> reference crop pixel) at its sub-sample times, and how far
-        # beyond the crop they reach (a rectangle's extremes under a homography are at its corners)
-        corners = np.array([[0, width - 1, 0, width - 1], [0, 0, height - 1, height - 1], [1.0, 1.0, 1.0, 1.0]])
-        inverses, reach = [], 0.0
+        # each frame's inverse homographies (crop pixel -> reference crop pixel) at its rows' sub-sample times, and
+        # how far beyond the crop they reach: the ends of each row (of the first and last row for a global shutter,
+        # whose rows share their times: the corners), a straight row staying straight under a homography
+        rows = np.arange(height) if seq.rolling else np.array([0, height - 1])
+        ends = np.stack([np.concatenate([np.zeros(len(rows)), np.full(len(rows), width - 1.0)]),
+                         np.concatenate([rows, rows]).astype(np.float64), np.ones(2 * len(rows))])  # (3, 2R)
+        columns = np.tile(np.arange(len(rows)), 2) if seq.rolling else np.zeros(2 * len(rows), np.intp)
+        samples, reach = [], 0.0
         for j in range(seq.frames):
-            inv = np.linalg.inv(motion.homographies(motion.subsample_times(j, exposure), j))
-            q = inv @ corners
-            q = q[:, :2] / q[:, 2:]
-            reach = max(reach, float(np.max(-q)), float(np.max(q[:, 0] - (width - 1))),
-                        float(np.max(q[:, 1] - (height - 1))))
-            inverses.append(inv)
+            times, weights = motion.exposure_samples(j, exposure)  # (n, R): R = height, or 1 for a global shutter
+            inv = np.linalg.inv(motion.homographies(times, j)).reshape(times.shape + (3, 3))
+            q = np.einsum("srij,jr->sri", inv[:, columns], ends)  # (n, 2R, 3): each end at its row's times
+            q = q[..., :2] / q[..., 2:]
+            reach = max(reach, float(np.max(-q)), float(np.max(q[..., 0] - (width - 1))),
+                        float(np.max(q[..., 1] - (height - 1))))
+            samples.append((inv, weights))
         need = max(0, math.ceil(reach + _REACH_SLACK_PX)) if reach > 0 else 0
         # the crop with a margin of the photograph (as wide as the path reaches, the photograph permitting)
         photo = self._photos[p["image_index"]]
@@ -813,15 +883,27 @@ class PairSource:
         inside = (slice(my, my + height), slice(mx, mx + width))
         shift, unshift = np.eye(3), np.eye(3)
         shift[:2, 2], unshift[:2, 2] = (mx, my), (-mx, -my)
-        moved = np.stack([average_warp(rgb, (shift @ inv @ unshift)[:, None], np.full((len(inv), 1), 1 / len(inv)),
-                                       workers=1)[inside] for inv in inverses])
+        # a rolling shutter's rows of the crop with its margin: the margin's rows repeat the crop's first and last
+        padded = np.concatenate([np.zeros(my, np.intp), np.arange(height), np.full(my, height - 1)]) \
+            if seq.rolling else slice(None)
+        moved = np.stack([average_warp(rgb, (shift @ inv @ unshift)[:, padded],
+                                       weights if weights.shape[1] == 1 else weights[:, padded], workers=1)[inside]
+                          for inv, weights in samples])
         homographies = np.stack([motion.mid_homography(j, exposure) for j in range(seq.frames)])
+        row_homographies = light = None
+        if seq.rolling:
+            row_homographies = np.stack([motion.row_homographies(j, exposure) for j in range(seq.frames)])
+            row_homographies = row_homographies.astype(np.float32)
+        if seq.flickers:
+            light = np.stack([np.broadcast_to(motion.light_factor(j, exposure), (height,))
+                              for j in range(seq.frames)])
         p["burst"] = {"frames": seq.frames, "frame_interval_s": seq.frame_interval_s,
                       "time_s": [motion.start_s(j) for j in range(seq.frames)], "shake_px": seq.shake_px,
-                      "shake_deg": seq.shake_deg, "pan_px_per_s": list(seq.pan_px_per_s), "motion_seed": motion_seed,
-                      "blur_subsamples_used": [len(inv) for inv in inverses], "margin_px": [mx, my],
+                      "shake_deg": seq.shake_deg, "pan_px_per_s": list(seq.pan_px_per_s),
+                      **{name: getattr(seq, name) for name in _LIGHT_AND_SHUTTER}, "motion_seed": motion_seed,
+                      "blur_subsamples_used": [len(inv) for inv, _ in samples], "margin_px": [mx, my],
                       "reach_px": reach, "clamped": bool(mx < need or my < need)}
-        return moved, np.ascontiguousarray(rgb[inside]), homographies
+        return moved, np.ascontiguousarray(rgb[inside]), homographies, row_homographies, light
 
 
 def _stacked_maps(xp, maps: list) -> tuple:

@@ -41,12 +41,16 @@ def batch_tensors(batch: PairBatch) -> dict:
     A burst batch (``burst_frames = N``) adds ``homographies`` (B, N, 3, 3) float64 (reference crop pixel → frame
     pixel) and ``frames_clean`` (B, N, planes, H, W) float32 (each frame's own expectation); its ``noisy`` and
     ``digital`` are (B, N, planes, H, W), its ``clean`` (B, planes, H, W) the static crop's expectation. Both keys
-    are None for single pairs."""
+    are None for single pairs. With a rolling shutter ``row_homographies`` (B, N, H, 3, 3) float32 (each row's, at its
+    exposure's middle), with flicker ``flicker_factor`` (B, N, H) float64 (each row's share of the light); None
+    otherwise."""
     digital = None
     if batch.digital is not None:
         digital = to_torch(batch.digital.astype(batch.noisy.dtype))
     burst = {"homographies": None if batch.homographies is None else to_torch(batch.homographies),
-             "frames_clean": None if batch.frames_clean is None else to_torch(batch.frames_clean)}
+             "frames_clean": None if batch.frames_clean is None else to_torch(batch.frames_clean),
+             "row_homographies": None if batch.row_homographies is None else to_torch(batch.row_homographies),
+             "flicker_factor": None if batch.flicker_factor is None else to_torch(batch.flicker_factor)}
     return {"noisy": to_torch(batch.noisy), "clean": to_torch(batch.clean), "digital": digital,
             "params": batch.params, "index": batch.index, "domain": batch.domain, "isp": batch.isp, **burst}
 
