@@ -856,16 +856,18 @@ class PairSource:
         ends = np.stack([np.concatenate([np.zeros(len(rows)), np.full(len(rows), width - 1.0)]),
                          np.concatenate([rows, rows]).astype(np.float64), np.ones(2 * len(rows))])  # (3, 2R)
         columns = np.tile(np.arange(len(rows)), 2) if seq.rolling else np.zeros(2 * len(rows), np.intp)
-        samples, reach = [], 0.0
+        samples, reach_xy = [], np.zeros(2)  # how far beyond the crop's columns and rows
         for j in range(seq.frames):
             times, weights = motion.exposure_samples(j, exposure)  # (n, R): R = height, or 1 for a global shutter
             inv = np.linalg.inv(motion.homographies(times, j)).reshape(times.shape + (3, 3))
             q = np.einsum("srij,jr->sri", inv[:, columns], ends)  # (n, 2R, 3): each end at its row's times
             q = q[..., :2] / q[..., 2:]
-            reach = max(reach, float(np.max(-q)), float(np.max(q[..., 0] - (width - 1))),
-                        float(np.max(q[..., 1] - (height - 1))))
+            beyond = np.maximum(np.max(-q, axis=(0, 1)), np.max(q - [width - 1, height - 1], axis=(0, 1)))
+            reach_xy = np.maximum(reach_xy, beyond)
             samples.append((inv, weights))
+        reach = float(reach_xy.max())
         need = max(0, math.ceil(reach + _REACH_SLACK_PX)) if reach > 0 else 0
+        need_x, need_y = (max(0, math.ceil(r + _REACH_SLACK_PX)) if r > 0 else 0 for r in reach_xy)
         # the crop with a margin of the photograph (as wide as the path reaches, the photograph permitting)
         photo = self._photos[p["image_index"]]
         u_x, u_y = p["_u"]
@@ -902,7 +904,7 @@ class PairSource:
                       "shake_deg": seq.shake_deg, "pan_px_per_s": list(seq.pan_px_per_s),
                       **{name: getattr(seq, name) for name in _LIGHT_AND_SHUTTER}, "motion_seed": motion_seed,
                       "blur_subsamples_used": [len(inv) for inv, _ in samples], "margin_px": [mx, my],
-                      "reach_px": reach, "clamped": bool(mx < need or my < need)}
+                      "reach_px": reach, "clamped": bool(mx < need_x or my < need_y)}
         return moved, np.ascontiguousarray(rgb[inside]), homographies, row_homographies, light
 
 

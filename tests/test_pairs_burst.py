@@ -267,6 +267,12 @@ def test_a_photograph_too_small_for_the_motion_is_clamped_and_said():
         burst_frames=2, pan_px_per_s=(15.0, 0.0), flips=False)
     p = src.batch(0).params[0]
     assert p["burst"]["margin_px"] == [16, 4] and p["burst"]["clamped"] and p["burst"]["reach_px"] > 29
+    # a pan across that its 16 px cover: the 4 px down the frame are no clamp, as nothing moves that way
+    src = PairSource.from_scene(
+        "macbeth_26", IMAGES / "coffee.png", crop=(400, 280), batch_size=1, cameras=("sony-imx174",), seed=1,
+        burst_frames=2, pan_px_per_s=(5.0, 0.0), flips=False)
+    p = src.batch(0).params[0]
+    assert 9 < p["burst"]["reach_px"] < 10 and p["burst"]["margin_px"] == [10, 4] and not p["burst"]["clamped"]
 
 
 @pytest.mark.parametrize("settings, match", [
