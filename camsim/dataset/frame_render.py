@@ -124,9 +124,10 @@ def render_burst_files(frame: FrameSpec, directory: Path, threads: int = 1,
         if index == "ref":
             development = burst_development(rendered, info)
             images, record = develop_burst_reference(rendered, srgb, development)
-        else:
-            images, _ = develop_frame(rendered, info, srgb, development.settings, development.facts)
-        written = _write_srgb(name, Path(directory), {}, images, record)
+            own = record
+        else:  # (its record, the one it carries, is the reference's: one development)
+            images, own = develop_frame(rendered, info, srgb, development.settings, development.facts)
+        written = _write_srgb(name, Path(directory), {}, images, own)
         names.update({f"{suffix}.{layer}": value for layer, value in written.items()})
     return names, {"frames": suffixes, "reference": "ref"}, None if record is None else burst_srgb_record(record)
 
