@@ -1005,9 +1005,10 @@ class WrittenPairs:
     with a crop, of the crop's pixels: T(−x, −y) · H · T(x, y), one crop window for the reference and every frame),
     so that frame n's pixel p shows the reference at H[n]⁻¹ p; ``meta["time_s"]`` (N,) the exposures' starts,
     ``meta["frames"]`` the frames' ids. Domains ``dn`` and ``raw``, from files or a Zarr store (its ``noisy`` (frame,
-    burst_frame, …) and ``reference`` arrays); ``srgb`` from files written with ``--srgb``: ``noisy`` (N, 3, H, W)
-    each frame's ``ID_fNNN_srgb_noisy.png``, ``clean`` (3, H, W) ``ID_ref_srgb_clean.png``, all developed with the
-    burst's one development (its reference's; ``meta["isp"]``). A burst dataset read without ``burst=True`` (or a
+    burst_frame, …) and ``reference`` arrays); ``srgb`` from a dataset written with ``--srgb``: ``noisy`` (N, 3, H,
+    W) each frame's ``ID_fNNN_srgb_noisy.png`` (the store's ``srgb_noisy``), ``clean`` (3, H, W)
+    ``ID_ref_srgb_clean.png`` (the store's ``srgb_reference``), all developed with the burst's one development (its
+    reference's; ``meta["isp"]``). A burst dataset read without ``burst=True`` (or a
     single-frame one with it) is refused.
 
     Raises
@@ -1038,8 +1039,6 @@ class WrittenPairs:
         if burst and (bursts < len(self.records) or not self.records):
             raise CamsimError(f"{path} holds {len(self.records) - bursts} single frame(s) and {bursts} burst(s): "
                               "burst=True reads a dataset of bursts (burst_frames)")
-        if burst and domain == "srgb" and self.store is not None:  # (camsim dataset refuses to write them)
-            raise CamsimError("a Zarr store of bursts has no sRGB outputs: read it in the dn or raw domain")
         if crop is not None:
             width, height = crop
             if not (isinstance(width, int) and isinstance(height, int) and width >= 1 and height >= 1):
@@ -1164,7 +1163,14 @@ class WrittenPairs:
             import json
 
             group, index = self._zarr(), record["index"]
-            noisy, clean = np.asarray(group["noisy"][index]), np.asarray(group["reference"][index])
+            if self.domain == "srgb":  # every frame's noisy and the reference's clean, developed one way
+                from camsim.dataset.zarr_store import SRGB_REFERENCE
+
+                scale = np.float32(2 ** record["srgb"]["bits"] - 1)
+                noisy = np.asarray(group["srgb_noisy"][index]).astype(np.float32) / scale
+                clean = np.asarray(group[SRGB_REFERENCE][index]).astype(np.float32) / scale
+            else:
+                noisy, clean = np.asarray(group["noisy"][index]), np.asarray(group["reference"][index])
             sidecars = json.loads(str(group["sidecar"][index]))["frames"]
             from camsim.render.sequence import frame_digits
 

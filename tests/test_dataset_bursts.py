@@ -191,7 +191,6 @@ def test_each_frames_homography_moves_the_reference_onto_it(tmp_path):
     ("shake_px = 1.0", (), "shake_px set a burst's motion, but burst_frames is not set"),
     ("burst_frames = 3\nframe_interval_s = 0.001", (), "longer than frame_interval_s"),
     ("burst_frames = 3\nstatistics = \"paper\"", (), "statistics = 'pixel'"),
-    ("burst_frames = 3", ("--srgb", "png", "--format", "zarr"), "not in a Zarr store yet"),
     ("burst_frames = 3\nrolling_shutter_row_s = 0.001", (), "the rolling shutter's readout, 48 rows"),
     ("burst_frames = 3\nflicker_depth = 1.5", (), "flicker_depth must be"),
 ])
@@ -436,7 +435,7 @@ def test_a_static_bursts_srgb_frames_are_developed_as_its_reference(tmp_path):
         assert line["files"][kind]["name"] == f"frames/{line['id']}_{suffix}_{layer}.png"
         assert (out / line["files"][kind]["name"]).is_file()
     assert line["srgb"]["output"] == "png16" and line["srgb"]["bits"] == 16
-    assert line["srgb"]["files"] == {"frames": ["srgb_noisy", "srgb_clean"], "reference": ["srgb_clean"]}
+    assert line["srgb"]["layers"] == {"frames": ["srgb_noisy", "srgb_clean"], "reference": ["srgb_clean"]}
     images, records = _burst_pngs(out, line)
     for kind, record in records.items():  # one development, recorded in every PNG and in the line
         assert record["isp"] == line["srgb"]["isp"] and record["layer"] == kind.partition(".")[2], kind
@@ -517,3 +516,43 @@ def test_a_burst_dataset_gains_its_srgb_outputs_when_run_again_with_srgb(tmp_pat
         f"{load_spec(spec).frames[0].id}_{name}.png" for name in
         ("f000_srgb_noisy", "f000_srgb_clean", "f001_srgb_noisy", "f001_srgb_clean", "ref_srgb_clean"))
     assert run_dataset(spec, out, workers=1, progress=False, echo=None, srgb="png")["skipped"] == 1
+
+
+def test_a_burst_store_with_srgb_holds_the_files_pngs(tmp_path):
+    """--format zarr --srgb png with Bayer bursts: the store's srgb_noisy and srgb_clean (frame, burst_frame, channel,
+    y, x) hold each frame's PNG codes of the file layout, srgb_reference the reference's, and the records the same
+    srgb record; WrittenPairs reads the same srgb bursts from both; a re-run skips the complete bursts."""
+    import zarr
+
+    from camsim.isp import read_png_record
+    from camsim.pairs import _read_png_planes
+
+    spec = write_spec(tmp_path, fixed="burst_frames = 3\nframe_interval_s = 0.02\ncfa = \"RGGB\"",
+                      grid="shake_px = [0.0, 1.2]", top='srgb = "png"', w=32, h=24, scene=TEXTURED)
+    run_dataset(spec, tmp_path / "files", workers=1, progress=False, echo=None)
+    run_dataset(spec, tmp_path / "zarr", workers=1, progress=False, echo=None, output="zarr")
+    group = zarr.open_group(tmp_path / "zarr" / "dataset.zarr", mode="r")
+    assert group["srgb_noisy"].shape == (2, 3, 3, 24, 32) and group["srgb_reference"].shape == (2, 3, 24, 32)
+    assert group["srgb_reference"].dtype == np.uint8
+    files = [json.loads(t) for t in (tmp_path / "files" / "manifest.jsonl").read_text().splitlines()]
+    stored = [json.loads(t) for t in (tmp_path / "zarr" / "manifest.jsonl").read_text().splitlines()]
+    for i, (line, record) in enumerate(zip(files, stored)):
+        assert record["srgb"] == line["srgb"]
+        for n in range(3):
+            for layer in ("srgb_noisy", "srgb_clean"):
+                path = tmp_path / "files" / line["files"][f"f00{n}.{layer}"]["name"]
+                assert np.array_equal(group[layer][i, n], _read_png_planes(path))
+                assert read_png_record(path)["isp"] == record["srgb"]["isp"]
+        reference = _read_png_planes(tmp_path / "files" / line["files"]["ref.srgb_clean"]["name"])
+        assert np.array_equal(group["srgb_reference"][i], reference)
+        if i == 1:  # the shaken burst: its frames' clean layers are not the reference's
+            assert not np.array_equal(group["srgb_clean"][i, 2], reference)
+        for a, b in zip(WrittenPairs(tmp_path / "files", burst=True, domain="srgb", crop=(16, 12), seed=4)[i],
+                        WrittenPairs(tmp_path / "zarr", burst=True, domain="srgb", crop=(16, 12), seed=4)[i]):
+            if isinstance(a, dict):
+                assert a["crop"] == b["crop"] and a["isp"] == b["isp"] and np.array_equal(a["homography"],
+                                                                                           b["homography"])
+            else:
+                assert np.array_equal(a, b) and a.dtype == np.float32
+    summary = run_dataset(spec, tmp_path / "zarr", workers=1, progress=False, echo=None, output="zarr")
+    assert summary["skipped"] == 2

@@ -108,7 +108,7 @@ def render_burst_files(frame: FrameSpec, directory: Path, threads: int = 1,
         The manifest's ``burst``: ``frames`` (the frames' suffixes, ``f000`` …, in order) and ``reference``
         (``ref``); a frame's files are ``<id>_<suffix>.<kind>``.
     srgb_record : dict or None
-        What the sRGB files hold (:func:`burst_srgb_record`), None without them.
+        What the sRGB files hold (:func:`camsim.dataset.srgb.burst_srgb_record`), None without them.
     """
     names, suffixes, development, record = {}, [], None, None
     for index, name, rendered, info, _ in render_burst(frame, threads):
@@ -119,7 +119,7 @@ def render_burst_files(frame: FrameSpec, directory: Path, threads: int = 1,
             suffixes.append(suffix)
         if srgb == "none":
             continue
-        from camsim.dataset.srgb import burst_development, develop_burst_reference, develop_frame
+        from camsim.dataset.srgb import burst_development, burst_srgb_record, develop_burst_reference, develop_frame
 
         if index == "ref":
             development = burst_development(rendered, info)
@@ -130,15 +130,6 @@ def render_burst_files(frame: FrameSpec, directory: Path, threads: int = 1,
         written = _write_srgb(name, Path(directory), {}, images, own)
         names.update({f"{suffix}.{layer}": value for layer, value in written.items()})
     return names, {"frames": suffixes, "reference": "ref"}, None if record is None else burst_srgb_record(record)
-
-
-def burst_srgb_record(record: dict) -> dict:
-    """A burst's ``srgb`` record: the output's (``output``, ``bits``, ``isp``: the one development's record, its
-    reference's and every frame's), what the files hold (``files``) and how the burst was developed
-    (``development``)."""
-    return {**record, "development": "one per burst, from its reference's ISP facts and settings (white balance, "
-                                     "colour matrix, gain, tone curve), applied to every frame",
-            "files": {"frames": ["srgb_noisy", "srgb_clean"], "reference": ["srgb_clean"]}}
 
 
 def render_files(frame: FrameSpec, directory: Path, threads: int = 1,

@@ -27,7 +27,8 @@ import numpy as np
 from camsim.core.errors import CamsimError
 
 __all__ = ["SRGB_LAYERS", "dataset_isp", "srgb_bits", "srgb_dtype", "develop_frame", "develop_raw_frame", "quantise",
-           "mosaic_clean", "BurstDevelopment", "burst_development", "develop_burst_reference"]
+           "mosaic_clean", "BurstDevelopment", "burst_development", "develop_burst_reference",
+           "burst_srgb_record"]
 
 #: The developed layers, as the file layout names its PNGs (``ID_<layer>.png``) and a Zarr store its arrays.
 SRGB_LAYERS = ("srgb_noisy", "srgb_clean")
@@ -173,3 +174,12 @@ def _develop(noisy: np.ndarray, clean: np.ndarray, facts, output: str, settings)
     developed_noisy, developed_clean = develop_pair(noisy, clean, facts, settings)
     images = {"srgb_noisy": developed_noisy.image, "srgb_clean": developed_clean.image}
     return images, {"output": output, "bits": bits, "isp": developed_noisy.record}
+
+
+def burst_srgb_record(record: dict) -> dict:
+    """A burst's ``srgb`` record: the output's (``output``, ``bits``, ``isp``: the one development's record, its
+    reference's and every frame's), what the files or arrays hold (``layers``) and how the burst was developed
+    (``development``)."""
+    return {**record, "development": "one per burst, from its reference's ISP facts and settings (white balance, "
+                                     "colour matrix, gain, tone curve), applied to every frame",
+            "layers": {"frames": ["srgb_noisy", "srgb_clean"], "reference": ["srgb_clean"]}}
