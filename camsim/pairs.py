@@ -1007,8 +1007,11 @@ class WrittenPairs:
     with a crop, of the crop's pixels: T(−x, −y) · H · T(x, y), one crop window for the reference and every frame),
     so that frame n's pixel p shows the reference at H[n]⁻¹ p; ``meta["time_s"]`` (N,) the exposures' starts,
     ``meta["frames"]`` the frames' ids. Domains ``dn`` and ``raw``, from files or a Zarr store (its ``noisy`` (frame,
-    burst_frame, …) and ``reference`` arrays); a burst dataset read without ``burst=True`` (or a single-frame one with
-    it) is refused.
+    burst_frame, …) and ``reference`` arrays); ``srgb`` from a dataset written with ``--srgb``: ``noisy`` (N, 3, H,
+    W) each frame's ``ID_fNNN_srgb_noisy.png`` (the store's ``srgb_noisy``), ``clean`` (3, H, W)
+    ``ID_ref_srgb_clean.png`` (the store's ``srgb_reference``), all developed with the burst's one development (its
+    reference's; ``meta["isp"]``). A burst dataset read without ``burst=True`` (or a
+    single-frame one with it) is refused.
 
     Raises
     ------
@@ -1038,8 +1041,6 @@ class WrittenPairs:
         if burst and (bursts < len(self.records) or not self.records):
             raise CamsimError(f"{path} holds {len(self.records) - bursts} single frame(s) and {bursts} burst(s): "
                               "burst=True reads a dataset of bursts (burst_frames)")
-        if burst and domain == "srgb":
-            raise CamsimError("bursts have no sRGB outputs: read them in the dn or raw domain")
         if crop is not None:
             width, height = crop
             if not (isinstance(width, int) and isinstance(height, int) and width >= 1 and height >= 1):
@@ -1164,12 +1165,28 @@ class WrittenPairs:
             import json
 
             group, index = self._zarr(), record["index"]
-            noisy, clean = np.asarray(group["noisy"][index]), np.asarray(group["reference"][index])
+            if self.domain == "srgb":  # every frame's noisy and the reference's clean, developed one way
+                from camsim.dataset.zarr_store import SRGB_REFERENCE
+
+                scale = np.float32(2 ** record["srgb"]["bits"] - 1)
+                noisy = np.asarray(group["srgb_noisy"][index]).astype(np.float32) / scale
+                clean = np.asarray(group[SRGB_REFERENCE][index]).astype(np.float32) / scale
+            else:
+                noisy, clean = np.asarray(group["noisy"][index]), np.asarray(group["reference"][index])
             sidecars = json.loads(str(group["sidecar"][index]))["frames"]
             from camsim.render.sequence import frame_digits
 
             digits = frame_digits(len(sidecars))
             suffixes = [f"f{meta['frame_index']:0{digits}d}" for meta in sidecars]
+        elif self.domain == "srgb":  # the developed PNGs: every frame's noisy, the reference's clean
+            files, burst = record["files"], record["burst"]
+            suffixes = burst["frames"]
+            sidecars = [read_frame_meta(self.path / files[f"{suffix}.exr"]["name"]) for suffix in suffixes]
+            scale = np.float32(2 ** record["srgb"]["bits"] - 1)
+            noisy = np.stack([_read_png_planes(self.path / files[f"{suffix}.srgb_noisy"]["name"])
+                              for suffix in suffixes]).astype(np.float32) / scale
+            clean = _read_png_planes(self.path / files[f"{burst['reference']}.srgb_clean"]["name"]).astype(
+                np.float32) / scale
         else:
             files, burst = record["files"], record["burst"]
             noisy, sidecars, suffixes = [], [], burst["frames"]
@@ -1180,8 +1197,8 @@ class WrittenPairs:
             clean = read_exr_clean(self.path / files[f"{burst['reference']}.exr"]["name"])[0]
             noisy = np.stack(noisy)
         cfa = sidecars[0].get("cfa_pattern") or None
-        bayer = cfa is not None
-        if bayer:
+        bayer = cfa is not None  # (even crop offsets in every domain: the same crop of item i in each)
+        if bayer and self.domain != "srgb":  # (sRGB: demosaiced)
             from camsim.dataset.srgb import mosaic_clean
 
             clean = mosaic_clean(clean, cfa)[None]
@@ -1200,6 +1217,8 @@ class WrittenPairs:
             into[:2, 2], out_of[:2, 2] = (x, y), (-x, -y)
             homography = out_of @ homography @ into  # crop pixels: T(−x, −y) · H · T(x, y)
         meta["homography"] = homography
+        if self.domain == "srgb":
+            meta["isp"] = record["srgb"]["isp"]  # the burst's one development, its reference's
         if self.domain == "raw":
             from camsim.isp import facts_from_meta, normalise, pack_rggb
 

@@ -191,7 +191,6 @@ def test_each_frames_homography_moves_the_reference_onto_it(tmp_path):
     ("shake_px = 1.0", (), "shake_px set a burst's motion, but burst_frames is not set"),
     ("burst_frames = 3\nframe_interval_s = 0.001", (), "longer than frame_interval_s"),
     ("burst_frames = 3\nstatistics = \"paper\"", (), "statistics = 'pixel'"),
-    ("burst_frames = 3", ("--srgb", "png"), "no sRGB outputs yet"),
     ("burst_frames = 3\nrolling_shutter_row_s = 0.001", (), "the rolling shutter's readout, 48 rows"),
     ("burst_frames = 3\nflicker_depth = 1.5", (), "flicker_depth must be"),
 ])
@@ -220,6 +219,9 @@ def test_raws_crops_make_bursts_and_thin_with_shake_is_refused_on_one_line(tmp_p
     assert frame.burst.frames == 4 and frame.burst.shake_px == 1.0 and frame.record["burst_frames"] == 4
     assert main(["dataset", str(tmp_path / "spec.toml"), "--dry-run"]) == 0
     assert "1 bursts of 32x32" in capsys.readouterr().out
+    code = main(["dataset", str(tmp_path / "spec.toml"), "--dry-run", "--srgb", "png"])
+    err = capsys.readouterr().err
+    assert code == 2 and "bursts of [raws] crops have no sRGB outputs yet" in err and err.count("\n") == 1, err
     (tmp_path / "spec.toml").write_text(text.format(law='photon_law = "thin"\n'))
     code = main(["dataset", str(tmp_path / "spec.toml"), "--dry-run"])
     err = capsys.readouterr().err
@@ -258,12 +260,13 @@ def _hashes(folder):
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted((folder / "frames").iterdir())}
 
 
-def check_resuming_after_a_death_in_the_second_burst(spec, tmp_path, monkeypatch, owner, writer: str) -> None:
+def check_resuming_after_a_death_in_the_second_burst(spec, tmp_path, monkeypatch, owner, writer: str,
+                                                    damage: str = "f001.exr") -> None:
     """Render ``spec`` (two bursts) whole; then again with ``owner.writer`` (the function that writes a frame's
     files) raising KeyboardInterrupt on its 6th call, inside the second burst after its reference: the first burst
     complete, the second without its record, the manifest listing the first only; a re-run renders the second
     only and the files equal the whole run's byte for byte; a damaged frame file of the first burst is rendered
-    again, the same bytes."""
+    again, the same bytes (``damage``: which, ``<id>_<damage>``)."""
     whole = tmp_path / "whole"
     run_dataset(spec, whole, workers=1, progress=False, echo=None)
     expected = _hashes(whole)
@@ -289,7 +292,7 @@ def check_resuming_after_a_death_in_the_second_burst(spec, tmp_path, monkeypatch
     summary = run_dataset(spec, out, workers=1, progress=False, echo=None)
     assert (summary["skipped"], summary["rendered"]) == (1, 1)
     assert _hashes(out) == expected
-    damaged = out / "frames" / f"{first.id}_f001.exr"
+    damaged = out / "frames" / f"{first.id}_{damage}"
     data = damaged.read_bytes()
     damaged.write_bytes(data[:-1] + bytes([data[-1] ^ 0xFF]))
     summary = run_dataset(spec, out, workers=1, progress=False, echo=None)
@@ -383,3 +386,173 @@ def test_a_bursts_rolling_shutter_and_flicker_reach_its_frames(tmp_path):
                                                                                                   > 0.005]
         assert np.ptp(factor) > 0.05 and signal.size > 20
         assert np.allclose(signal, signal.mean(), rtol=0.01) and signal.mean() > 0
+
+
+# --- sRGB outputs of bursts: one development per burst, its reference's ---------------------------------------------
+
+#: A flat field at moderate light (F = 0.8: 4× the shot-noise SNR of F = 0.05 at the same developed brightness, so
+#: that the sRGB curve's bias on a noisy mean, about ½ |f''/f'| σ² ≈ 1 standard error here, stays well inside 5).
+BRIGHT = FLAT.replace("reference_electrons = 8000", "reference_electrons = 300000").replace("[0.05]", "[0.8]")
+
+
+def _srgb_to_linear(code: np.ndarray) -> np.ndarray:
+    """The inverse of the IEC 61966-2-1 curve (this test's own), on values in [0, 1]."""
+    code = code.astype(np.float64)
+    return np.where(code <= 0.04045, code / 12.92, ((code + 0.055) / 1.055) ** 2.4)
+
+
+def _burst_pngs(out, line) -> tuple[dict, dict]:
+    """Every sRGB PNG of a burst by kind (``f000.srgb_noisy`` …, ``ref.srgb_clean``): values in [0, 1], and the ISP
+    record each carries."""
+    from camsim.isp import read_png_record
+    from camsim.pairs import _read_png_planes
+
+    images, records = {}, {}
+    for kind, entry in line["files"].items():
+        if ".srgb_" in kind:
+            path = out / entry["name"]
+            bits = line["srgb"]["bits"]
+            images[kind] = _read_png_planes(path).astype(np.float64) / (2 ** bits - 1)
+            records[kind] = read_png_record(path)
+    return images, records
+
+
+def test_a_static_bursts_srgb_frames_are_developed_as_its_reference(tmp_path):
+    """A static burst (no motion, no flicker) with --srgb png16: files ID_fNNN_srgb_noisy.png, ID_fNNN_srgb_clean.png
+    and ID_ref_srgb_clean.png listed in the manifest; every PNG carries the same ISP record (one development: the
+    same white balance, matrix, gain 1/F and tone curve), the line's srgb record; each frame's noisy sRGB mean per
+    channel over a flat region equals the reference's clean sRGB within 5 standard errors; each frame's own clean
+    sRGB is the reference's (no motion: the same expectation); WrittenPairs reads the burst in the srgb domain."""
+    spec = write_spec(tmp_path, fixed="burst_frames = 4\nframe_interval_s = 0.02", top='srgb = "png16"', w=96, h=64,
+                      scene=BRIGHT)
+    out = tmp_path / "out"
+    run_dataset(spec, out, workers=1, progress=False, echo=None)
+    line, = [json.loads(t) for t in (out / "manifest.jsonl").read_text().splitlines()]
+    kinds = {f"f00{i}.srgb_{layer}" for i in range(4) for layer in ("noisy", "clean")} | {"ref.srgb_clean"}
+    assert {k for k in line["files"] if ".srgb_" in k} == kinds
+    for kind in kinds:
+        suffix, _, layer = kind.partition(".")
+        assert line["files"][kind]["name"] == f"frames/{line['id']}_{suffix}_{layer}.png"
+        assert (out / line["files"][kind]["name"]).is_file()
+    assert line["srgb"]["output"] == "png16" and line["srgb"]["bits"] == 16
+    assert line["srgb"]["layers"] == {"frames": ["srgb_noisy", "srgb_clean"], "reference": ["srgb_clean"]}
+    images, records = _burst_pngs(out, line)
+    for kind, record in records.items():  # one development, recorded in every PNG and in the line
+        assert record["isp"] == line["srgb"]["isp"] and record["layer"] == kind.partition(".")[2], kind
+    isp = line["srgb"]["isp"]
+    assert isp["stages"]["gain"]["value"] == pytest.approx(1 / 0.8) and isp["facts"]["intensity_factor"] == 0.8
+    reference = images["ref.srgb_clean"]
+    assert 0.2 < reference.mean() < 0.7 and reference.min() > 0.05 and reference.max() < 0.95  # no clipping
+    region = (slice(None), slice(8, -8), slice(8, -8))  # away from the borders
+    for i in range(4):
+        assert np.allclose(images[f"f00{i}.srgb_clean"], reference, atol=2 / 65535)  # no motion, one development
+        difference = (images[f"f00{i}.srgb_noisy"] - reference)[region].reshape(3, -1)
+        standard_error = difference.std(axis=1) / np.sqrt(difference.shape[1])
+        assert np.all(np.abs(difference.mean(axis=1)) < 5 * standard_error), (i, difference.mean(axis=1),
+                                                                             standard_error)
+        assert np.all(difference.std(axis=1) > 0.005)  # noisy indeed
+    noisy, clean, meta = WrittenPairs(out, burst=True, domain="srgb")[0]
+    assert noisy.shape == (4, 3, 64, 96) and clean.shape == (3, 64, 96) and meta["isp"] == isp
+    assert np.array_equal(clean, reference.astype(np.float32)) and meta["domain"] == "srgb"
+    assert np.array_equal(noisy[3], images["f003.srgb_noisy"].astype(np.float32))
+    noisy, clean, meta = WrittenPairs(out, burst=True, domain="srgb", crop=(32, 16), seed=1)[0]
+    x, y, _, _ = meta["crop"]
+    assert noisy.shape == (4, 3, 16, 32) and np.array_equal(clean, reference[:, y:y + 16, x:x + 32].astype(np.float32))
+
+
+def test_a_flickering_bursts_srgb_frames_differ_as_their_light(tmp_path):
+    """A burst under a flickering light (global shutter: frame i's light is F_i = 1 + m/(ωT) (sin(ω(tᵢ + T)) −
+    sin(ω tᵢ)) of the steady light, this test's closed form), developed once, the reference's way: every PNG's ISP
+    record is the same, and the frames' clean sRGB, back to linear (this test's inverse of the sRGB curve), differ
+    from the reference's as their light does: mean(linᵢ − lin_ref) / mean(linⱼ − lin_ref) = (Fᵢ − 1) / (Fⱼ − 1) (the
+    unmodulated dark charge cancels in the differences; white balance, matrix and gain are linear)."""
+    f_hz, m, interval, exposure = 55.0, 0.5, 0.013, 0.01  # F_i: 0.955, 1.285, 0.920, 0.750
+    spec = write_spec(tmp_path, fixed=f"burst_frames = 4\nframe_interval_s = {interval}\nflicker_hz = {f_hz}\n"
+                      f"flicker_depth = {m}", top='srgb = "png16"', w=64, h=48, scene=BRIGHT)
+    out = tmp_path / "out"
+    run_dataset(spec, out, workers=1, progress=False, echo=None)
+    line, = [json.loads(t) for t in (out / "manifest.jsonl").read_text().splitlines()]
+    images, records = _burst_pngs(out, line)
+    assert len(records) == 9 and all(r["isp"] == line["srgb"]["isp"] for r in records.values())
+    omega = 2 * np.pi * f_hz
+    t = np.arange(4) * interval
+    factor = 1 + m / (omega * exposure) * (np.sin(omega * (t + exposure)) - np.sin(omega * t))
+    assert np.all(np.abs(factor - 1) > 0.04)
+    assert max(images[f"f00{i}.srgb_clean"].max() for i in range(4)) < 0.99  # no clipping
+    reference = _srgb_to_linear(images["ref.srgb_clean"])
+    change = np.array([(_srgb_to_linear(images[f"f00{i}.srgb_clean"]) - reference).mean(axis=(1, 2))
+                       for i in range(4)])  # (frame, channel)
+    last = int(np.argmax(np.abs(factor - 1)))
+    for i in range(4):
+        assert np.allclose(change[i] / change[last], (factor[i] - 1) / (factor[last] - 1), rtol=2e-3), i
+    assert np.all(np.abs(change) > 0.005)  # the frames do differ
+
+
+def test_resuming_a_half_written_srgb_burst_dataset(tmp_path, monkeypatch):
+    """As test_resuming_a_half_written_burst_dataset with --srgb: the resumed run's files, the PNGs among them,
+    equal an uninterrupted run's byte for byte; a damaged PNG of a complete burst is rendered again."""
+    import camsim.dataset.frame_render as frame_render
+
+    spec = write_spec(tmp_path, fixed="burst_frames = 3\nframe_interval_s = 0.02", grid="shake_px = [0.0, 0.7]",
+                      top='srgb = "png"', w=32, h=24)
+    check_resuming_after_a_death_in_the_second_burst(spec, tmp_path, monkeypatch, frame_render, "write_frame",
+                                                     damage="f001_srgb_noisy.png")
+    assert sum(1 for p in (tmp_path / "out" / "frames").glob("*_srgb_*.png")) == 2 * 7
+
+
+def test_a_burst_dataset_gains_its_srgb_outputs_when_run_again_with_srgb(tmp_path):
+    """A burst dataset written without --srgb gets its sRGB PNGs when run again with it: the bursts are rendered
+    again, their EXRs the same bytes."""
+    spec = write_spec(tmp_path, fixed="burst_frames = 2\nframe_interval_s = 0.02", w=32, h=24)
+    out = tmp_path / "out"
+    run_dataset(spec, out, workers=1, progress=False, echo=None)
+    before = _hashes(out)
+    summary = run_dataset(spec, out, workers=1, progress=False, echo=None, srgb="png")
+    assert summary["rendered"] == 1
+    after = _hashes(out)
+    assert {k: v for k, v in after.items() if k in before and not k.endswith(".done")} == \
+        {k: v for k, v in before.items() if not k.endswith(".done")}
+    assert sorted(k for k in after if k not in before) == sorted(
+        f"{load_spec(spec).frames[0].id}_{name}.png" for name in
+        ("f000_srgb_noisy", "f000_srgb_clean", "f001_srgb_noisy", "f001_srgb_clean", "ref_srgb_clean"))
+    assert run_dataset(spec, out, workers=1, progress=False, echo=None, srgb="png")["skipped"] == 1
+
+
+def test_a_burst_store_with_srgb_holds_the_files_pngs(tmp_path):
+    """--format zarr --srgb png with Bayer bursts: the store's srgb_noisy and srgb_clean (frame, burst_frame, channel,
+    y, x) hold each frame's PNG codes of the file layout, srgb_reference the reference's, and the records the same
+    srgb record; WrittenPairs reads the same srgb bursts from both; a re-run skips the complete bursts."""
+    import zarr
+
+    from camsim.isp import read_png_record
+    from camsim.pairs import _read_png_planes
+
+    spec = write_spec(tmp_path, fixed="burst_frames = 3\nframe_interval_s = 0.02\ncfa = \"RGGB\"",
+                      grid="shake_px = [0.0, 1.2]", top='srgb = "png"', w=32, h=24, scene=TEXTURED)
+    run_dataset(spec, tmp_path / "files", workers=1, progress=False, echo=None)
+    run_dataset(spec, tmp_path / "zarr", workers=1, progress=False, echo=None, output="zarr")
+    group = zarr.open_group(tmp_path / "zarr" / "dataset.zarr", mode="r")
+    assert group["srgb_noisy"].shape == (2, 3, 3, 24, 32) and group["srgb_reference"].shape == (2, 3, 24, 32)
+    assert group["srgb_reference"].dtype == np.uint8
+    files = [json.loads(t) for t in (tmp_path / "files" / "manifest.jsonl").read_text().splitlines()]
+    stored = [json.loads(t) for t in (tmp_path / "zarr" / "manifest.jsonl").read_text().splitlines()]
+    for i, (line, record) in enumerate(zip(files, stored)):
+        assert record["srgb"] == line["srgb"]
+        for n in range(3):
+            for layer in ("srgb_noisy", "srgb_clean"):
+                path = tmp_path / "files" / line["files"][f"f00{n}.{layer}"]["name"]
+                assert np.array_equal(group[layer][i, n], _read_png_planes(path))
+                assert read_png_record(path)["isp"] == record["srgb"]["isp"]
+        reference = _read_png_planes(tmp_path / "files" / line["files"]["ref.srgb_clean"]["name"])
+        assert np.array_equal(group["srgb_reference"][i], reference)
+        if i == 1:  # the shaken burst: its frames' clean layers are not the reference's
+            assert not np.array_equal(group["srgb_clean"][i, 2], reference)
+        for a, b in zip(WrittenPairs(tmp_path / "files", burst=True, domain="srgb", crop=(16, 12), seed=4)[i],
+                        WrittenPairs(tmp_path / "zarr", burst=True, domain="srgb", crop=(16, 12), seed=4)[i]):
+            if isinstance(a, dict):
+                assert a["crop"] == b["crop"] and a["isp"] == b["isp"] and np.array_equal(a["homography"],
+                                                                                           b["homography"])
+            else:
+                assert np.array_equal(a, b) and a.dtype == np.float32
+    summary = run_dataset(spec, tmp_path / "zarr", workers=1, progress=False, echo=None, output="zarr")
+    assert summary["skipped"] == 2

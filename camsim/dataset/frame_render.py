@@ -90,28 +90,46 @@ def render_burst(frame: FrameSpec, threads: int = 1):
 
 
 def render_burst_files(frame: FrameSpec, directory: Path, threads: int = 1,
-                       exr_compression: str = DEFAULT_EXR_COMPRESSION) -> tuple[dict, dict]:
+                       exr_compression: str = DEFAULT_EXR_COMPRESSION, srgb: str = "none") -> tuple[dict, dict, dict | None]:
     """Render a burst item (:func:`render_burst`) and write its files into ``directory``, as ``camsim render``
     writes a ``[sequence]``'s: ``<id>_ref.exr/.json`` (the clean reference: the static scene), then
-    ``<id>_fNNN.dng/.exr/.json`` per frame, each atomically.
+    ``<id>_fNNN.dng/.exr/.json`` per frame, each atomically. With ``srgb`` (``png``, ``png16``) also
+    ``<id>_ref_srgb_clean.png`` and per frame ``<id>_fNNN_srgb_noisy.png`` and ``<id>_fNNN_srgb_clean.png``, all
+    developed with one development, the reference's (:func:`camsim.dataset.srgb.burst_development`: the same white
+    balance, matrix, gain and tone curve for every frame, whose light, flicker included, shows as it is).
 
     Returns
     -------
     names : dict
         File names by kind ``<frame>.<kind>``: ``ref.exr``, ``ref.json``, ``f000.dng`` (None without
-        quantisation), ``f000.exr``, ``f000.json`` (and ``f000.xmp`` beside a three-chip DNG) …
+        quantisation), ``f000.exr``, ``f000.json`` (and ``f000.xmp`` beside a three-chip DNG) …; with ``srgb``
+        ``ref.srgb_clean``, ``f000.srgb_noisy``, ``f000.srgb_clean`` …
     burst : dict
         The manifest's ``burst``: ``frames`` (the frames' suffixes, ``f000`` …, in order) and ``reference``
         (``ref``); a frame's files are ``<id>_<suffix>.<kind>``.
+    srgb_record : dict or None
+        What the sRGB files hold (:func:`camsim.dataset.srgb.burst_srgb_record`), None without them.
     """
-    names, suffixes = {}, []
+    names, suffixes, development, record = {}, [], None, None
     for index, name, rendered, info, _ in render_burst(frame, threads):
         suffix = name[len(frame.id) + 1:]
         written = write_frame(Path(directory), name, rendered, info, exr_compression=exr_compression)
         names.update({f"{suffix}.{kind}": value for kind, value in written.items()})
         if index != "ref":
             suffixes.append(suffix)
-    return names, {"frames": suffixes, "reference": "ref"}
+        if srgb == "none":
+            continue
+        from camsim.dataset.srgb import burst_development, burst_srgb_record, develop_burst_reference, develop_frame
+
+        if index == "ref":
+            development = burst_development(rendered, info)
+            images, record = develop_burst_reference(rendered, srgb, development)
+            own = record
+        else:  # (its record, the one it carries, is the reference's: one development)
+            images, own = develop_frame(rendered, info, srgb, development.settings, development.facts)
+        written = _write_srgb(name, Path(directory), {}, images, own)
+        names.update({f"{suffix}.{layer}": value for layer, value in written.items()})
+    return names, {"frames": suffixes, "reference": "ref"}, None if record is None else burst_srgb_record(record)
 
 
 def render_files(frame: FrameSpec, directory: Path, threads: int = 1,
@@ -143,10 +161,10 @@ def render_files(frame: FrameSpec, directory: Path, threads: int = 1,
         from camsim.dataset.srgb import develop_raw_frame
 
         images, record = develop_raw_frame(draw, meta, srgb)
-        return _write_srgb(frame, Path(directory), names, images, record), record
-    if frame.burst is not None:  # a burst: its frames and reference (no sRGB outputs: refused when planned)
-        names, burst = render_burst_files(frame, Path(directory), threads, exr_compression)
-        return {**names, "burst": burst}, None
+        return _write_srgb(frame.id, Path(directory), names, images, record), record
+    if frame.burst is not None:  # a burst: its frames and reference (and their sRGB outputs, one development)
+        names, burst, record = render_burst_files(frame, Path(directory), threads, exr_compression, srgb)
+        return {**names, "burst": burst}, record
     rendered, info = render_frame(frame, threads)
     names = write_frame(Path(directory), frame.id, rendered, info, exr_compression=exr_compression)
     if srgb == "none":
@@ -154,15 +172,15 @@ def render_files(frame: FrameSpec, directory: Path, threads: int = 1,
     from camsim.dataset.srgb import develop_frame
 
     images, record = develop_frame(rendered, info, srgb)
-    return _write_srgb(frame, Path(directory), names, images, record), record
+    return _write_srgb(frame.id, Path(directory), names, images, record), record
 
 
-def _write_srgb(frame: FrameSpec, directory: Path, names: dict, images: dict, record: dict) -> dict:
-    """Write the developed ``images`` (by layer) as ``<id>_<layer>.png``; ``names`` with them."""
+def _write_srgb(stem: str, directory: Path, names: dict, images: dict, record: dict) -> dict:
+    """Write the developed ``images`` (by layer) as ``<stem>_<layer>.png``; ``names`` with them."""
     from camsim.isp import write_png
 
     for layer, image in images.items():
-        names[layer] = f"{frame.id}_{layer}.png"
+        names[layer] = f"{stem}_{layer}.png"
         write_png(Path(directory) / names[layer], image, bits=record["bits"],
-                  record={"layer": layer, "frame": frame.id, **record})
+                  record={"layer": layer, "frame": stem, **record})
     return names

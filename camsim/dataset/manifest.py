@@ -9,6 +9,8 @@ Layout of ``OUT``::
                                                reference and frames (camsim.dataset.frame_render.render_burst_files;
                                                a [raws] crop's: camsim.dataset.raws.render_raw_burst_files, with
                                                <id>_<frame>_mask.png where masked)
+    OUT/frames/<id>_ref_srgb_clean.png, <id>_fNNN_srgb_noisy.png, <id>_fNNN_srgb_clean.png   a burst's with
+                                               ``--srgb``: one development per burst, its reference's
     OUT/frames/<id>.done                       the frame's record, written (atomically) after all its files
     OUT/manifest.jsonl                         one line per complete frame, in frame order
 
@@ -89,7 +91,7 @@ def verified_record(out_dir: Path, frame: FrameSpec, verify: str = "sha256", srg
     if not isinstance(files, dict) or not all(files.get(kind) for kind in required_files(record, frame)):
         return None
     if srgb != "none" and ((record.get("srgb") or {}).get("output") != srgb
-                           or not files.get("srgb_noisy") or not files.get("srgb_clean")):
+                           or not all(files.get(kind) for kind in srgb_files(record, frame))):
         return None
     for kind, entry in files.items():
         if entry is None or kind.rpartition(".")[2] in READER_OWNED:  # a burst frame's: f000.xmp
@@ -117,6 +119,19 @@ def required_files(record: dict, frame: FrameSpec) -> tuple:
             or len(burst["frames"]) != frame.burst.frames or not all(isinstance(s, str) for s in burst["frames"])):
         return ("burst",)
     return tuple(f"{suffix}.{kind}" for suffix in (*burst["frames"], "ref") for kind in ("exr", "json"))
+
+
+def srgb_files(record: dict, frame: FrameSpec) -> tuple:
+    """The kinds of sRGB file a complete frame's record must list with an sRGB output: ``srgb_noisy`` and
+    ``srgb_clean``, or a burst's: each frame's ``fNNN.srgb_noisy`` and ``fNNN.srgb_clean`` and the reference's
+    ``ref.srgb_clean`` (:func:`camsim.dataset.frame_render.render_burst_files`)."""
+    if frame.burst is None:
+        return ("srgb_noisy", "srgb_clean")
+    burst = required_files(record, frame)
+    if burst == ("burst",):
+        return burst
+    return (*(f"{suffix}.{layer}" for suffix in record["burst"]["frames"] for layer in ("srgb_noisy", "srgb_clean")),
+            "ref.srgb_clean")
 
 
 def write_manifest(out_dir: Path, records: dict) -> Path:

@@ -245,13 +245,14 @@ def check_settings(*, workers: int | None = None, threads: int = 1, scheduler: s
 def check_output_of(spec, output: str, srgb: str | None = None) -> None:
     """Refuse an output format a spec's frames cannot be written in (``spec``: a :class:`DatasetSpec` or its
     plan): a ``[raws]`` spec's frames are raw scenes' files, not a Zarr store's arrays (yet); bursts
-    (``burst_frames``) have no sRGB outputs (yet)."""
+    (``burst_frames``) have sRGB outputs of scenes, not of ``[raws]`` crops (yet)."""
     if output != "files" and spec.axes.get("raw_file") == "raws":
         raise CamsimError(f"{spec.name}: a [raws] dataset is written as files (a raw scene's DNG, EXR and sidecar "
                           "per frame): --format zarr is not made for it yet")
     if _has_bursts(spec) and srgb not in (None, "none"):
-        raise CamsimError(f"{spec.name}: bursts (burst_frames) have no sRGB outputs yet: drop --srgb (or the "
-                          "spec's srgb)")
+        if spec.axes.get("raw_file") == "raws":
+            raise CamsimError(f"{spec.name}: bursts of [raws] crops have no sRGB outputs yet: drop --srgb (or the "
+                              "spec's srgb)")
 
 
 def _has_bursts(spec) -> bool:

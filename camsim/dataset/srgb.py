@@ -20,12 +20,15 @@ whose exposure times already make up for F).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from camsim.core.errors import CamsimError
 
 __all__ = ["SRGB_LAYERS", "dataset_isp", "srgb_bits", "srgb_dtype", "develop_frame", "develop_raw_frame", "quantise",
-           "mosaic_clean"]
+           "mosaic_clean", "BurstDevelopment", "burst_development", "develop_burst_reference",
+           "burst_srgb_record"]
 
 #: The developed layers, as the file layout names its PNGs (``ID_<layer>.png``) and a Zarr store its arrays.
 SRGB_LAYERS = ("srgb_noisy", "srgb_clean")
@@ -73,10 +76,11 @@ def mosaic_clean(clean: np.ndarray, cfa_pattern: str) -> np.ndarray:
     return mosaic_of(clean, cfa_pattern)
 
 
-def develop_frame(rendered, info, output: str, settings=None) -> tuple[dict, dict]:
+def develop_frame(rendered, info, output: str, settings=None, facts=None) -> tuple[dict, dict]:
     """Develop a rendered frame (:class:`camsim.render.frame.Frame` and its ``FrameInfo``) for the sRGB output
     ``output`` (``png`` or ``png16``): its noisy and clean layers through one ISP (``settings``, default
-    :func:`dataset_isp`).
+    :func:`dataset_isp`) with ``facts`` (:class:`camsim.isp.IspFacts`; default the frame's own: a burst frame takes
+    its reference's, :func:`burst_development`).
 
     Returns
     -------
@@ -90,13 +94,61 @@ def develop_frame(rendered, info, output: str, settings=None) -> tuple[dict, dic
 
     if settings is None:
         settings = dataset_isp((info.exposure or {}).get("exposure", "fixed"))
-    facts = facts_from_info(rendered, info, quantised=False)  # noisy_dn and clean_dn: the level before the ADC
+    if facts is None:
+        facts = facts_from_info(rendered, info, quantised=False)  # noisy_dn and clean_dn: the level before the ADC
     noisy = rendered.noisy_dn
-    clean = rendered.clean_dn()
+    clean = _clean_layer(rendered, facts)
     if facts.cfa_pattern is not None:
         noisy = noisy[0]
-        clean = mosaic_clean(clean, facts.cfa_pattern)
     return _develop(noisy, clean, facts, output, settings)
+
+
+def _clean_layer(rendered, facts) -> np.ndarray:
+    """A rendered frame's clean layer as it is developed: (3, H, W), or a Bayer frame's at its mosaic's sites."""
+    clean = rendered.clean_dn()
+    return clean if facts.cfa_pattern is None else mosaic_clean(clean, facts.cfa_pattern)
+
+
+@dataclass(frozen=True, eq=False)
+class BurstDevelopment:
+    """The one development of a burst's sRGB outputs: the ISP's facts and settings of its reference frame,
+    applied to every frame.
+
+    Attributes
+    ----------
+    facts : camsim.isp.IspFacts
+        The reference's facts (:func:`camsim.isp.facts_from_info`, the levels before the ADC): its white balance
+        (as-shot neutral), colour matrix (the camera's curves), intensity factor F and white level.
+    settings : camsim.isp.IspSettings
+        :func:`dataset_isp` of the burst's exposure mode: the gain 1 / F (or 1), the tone curve and demosaicing.
+    """
+
+    facts: object
+    settings: object
+
+
+def burst_development(reference, info) -> BurstDevelopment:
+    """The development of a burst (:class:`BurstDevelopment`) from its reference frame (``reference``: the
+    :class:`camsim.render.raw_frame.ExpectationFrame` of ``ref``, and its ``FrameInfo``). Every decision of the ISP
+    (the white-balance gains, the matrix, the gain) comes from these facts and settings, none from a frame's numbers:
+    developing each frame with them develops the burst consistently, whatever its frames' noise, motion or flicker."""
+    from camsim.isp import facts_from_info
+
+    return BurstDevelopment(facts_from_info(reference, info, quantised=False),
+                            dataset_isp((info.exposure or {}).get("exposure", "fixed")))
+
+
+def develop_burst_reference(reference, output: str, development: BurstDevelopment) -> tuple[dict, dict]:
+    """Develop a burst's reference (its clean layer, as :func:`develop_frame` develops a clean layer) with the
+    burst's ``development``. Returns ``{"srgb_clean": (3, H, W) float32 in [0, 1]}`` and the output's record (as
+    :func:`develop_frame`'s: the same ISP record as every frame of the burst)."""
+    from camsim.isp import develop
+
+    bits = srgb_bits(output)
+    if bits is None:
+        raise CamsimError("no sRGB output asked for (srgb = none)")
+    developed = develop(_clean_layer(reference, development.facts), development.facts, development.settings)
+    return {"srgb_clean": developed.image}, {"output": output, "bits": bits, "isp": developed.record}
 
 
 def develop_raw_frame(draw, meta: dict, output: str) -> tuple[dict, dict]:
@@ -122,3 +174,12 @@ def _develop(noisy: np.ndarray, clean: np.ndarray, facts, output: str, settings)
     developed_noisy, developed_clean = develop_pair(noisy, clean, facts, settings)
     images = {"srgb_noisy": developed_noisy.image, "srgb_clean": developed_clean.image}
     return images, {"output": output, "bits": bits, "isp": developed_noisy.record}
+
+
+def burst_srgb_record(record: dict) -> dict:
+    """A burst's ``srgb`` record: the output's (``output``, ``bits``, ``isp``: the one development's record, its
+    reference's and every frame's), what the files or arrays hold (``layers``) and how the burst was developed
+    (``development``)."""
+    return {**record, "development": "one per burst, from its reference's ISP facts and settings (white balance, "
+                                     "colour matrix, gain, tone curve), applied to every frame",
+            "layers": {"frames": ["srgb_noisy", "srgb_clean"], "reference": ["srgb_clean"]}}

@@ -76,12 +76,12 @@ def zarr_task(frame: FrameSpec, out_dir: str | None, threads: int = 1, *, layout
         for index, _, rendered, info, extra in render_burst(frame, threads):
             meta = sidecar(rendered, info, None)
             if index == "ref":
-                reference, reference_meta = rendered, meta | {"zarr": where}
+                reference, reference_info, reference_meta = rendered, info, meta | {"zarr": where}
             else:
                 frames.append(rendered)
                 extras.append(extra)
                 metas.append(meta | {"zarr": where | {"burst_frame": index}})
-        data = burst_arrays(frames, reference, layout, extras)
+        data, srgb_record = burst_arrays(frames, reference, layout, extras, reference_info)
         meta = {"reference": reference_meta, "frames": metas}
     else:
         rendered, info = render_frame(frame, threads)

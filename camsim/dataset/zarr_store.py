@@ -23,6 +23,10 @@ Layout of ``OUT``::
         homography (frame, burst_frame, 3, 3) float64   each frame's, reference pixel → frame pixel
         time_s     (frame, burst_frame) float64     each frame's exposure start
         sidecar    (frame,) str                     {"reference": ID_ref.json, "frames": [ID_f000.json, …]}
+        srgb_reference (frame, channel, y, x) uint8/16   with ``--srgb``: the reference developed (the file
+                                                   layout's ID_ref_srgb_clean.png); srgb_noisy and srgb_clean are
+                                                   then (frame, burst_frame, …), every frame developed one way, its
+                                                   burst's reference's
     OUT/records/<id>.done        each complete frame's record (atomic, written after its chunks)
     OUT/manifest.jsonl           one line per complete frame, in frame order (as for the file layout)
 
@@ -57,17 +61,20 @@ from camsim.dataset.srgb import SRGB_LAYERS
 from camsim.core.errors import CamsimError, output_error
 from camsim.io import atomic  # atomic.fsync_path: one flush, which tests can fail as a full disk does
 
-__all__ = ["STORE_NAME", "RECORDS_DIR", "LAYERS", "BURST_LAYERS", "COMPRESSORS", "StoreLayout", "store_layout",
-           "open_store", "burst_arrays", "write_frame_arrays", "verified_record", "store_result", "write_done", "frame_arrays", "record_path",
-           "held_srgb"]
+__all__ = ["STORE_NAME", "RECORDS_DIR", "LAYERS", "BURST_LAYERS", "SRGB_REFERENCE", "COMPRESSORS", "StoreLayout",
+           "store_layout", "open_store", "burst_arrays", "write_frame_arrays", "verified_record", "store_result",
+           "write_done", "frame_arrays", "record_path", "held_srgb"]
 
 STORE_NAME = "dataset.zarr"
 RECORDS_DIR = "records"
 #: The arrays of a store of bursts besides the frame arrays (which gain a ``burst_frame`` dimension): each item's
 #: clean reference, its frames' homographies and start times.
 BURST_LAYERS = ("reference", "homography", "time_s")
+#: The array of a store of bursts with an sRGB output: each item's reference, developed (the file layout's
+#: ``ID_ref_srgb_clean.png``).
+SRGB_REFERENCE = "srgb_reference"
 #: The frame arrays of the store, one chunk per frame (per item of a store of bursts) each.
-LAYERS = ("noisy", "clean", "digital", *SRGB_LAYERS, *BURST_LAYERS)
+LAYERS = ("noisy", "clean", "digital", *SRGB_LAYERS, *BURST_LAYERS, SRGB_REFERENCE)
 #: Arrays that are not parameters of the records (their names are taken).
 _RESERVED = frozenset({*LAYERS, "sidecar", "done", "records", "channel", "cfa", "frame", "y", "x", "srgb",
                        "burst_frame", "row", "column"})
@@ -126,7 +133,7 @@ class StoreLayout:
             return (self.frames, *burst, 3, 3)
         if layer == "time_s":
             return (self.frames, *burst)
-        if layer == "reference":
+        if layer in ("reference", SRGB_REFERENCE):
             return (self.frames, 3, self.height, self.width)
         planes = 3 if layer == "clean" or layer in SRGB_LAYERS else self.planes
         return (self.frames, *burst, planes, self.height, self.width)
@@ -137,7 +144,7 @@ class StoreLayout:
             return ("frame", *burst, "row", "column")
         if layer == "time_s":
             return ("frame", *burst)
-        if layer == "reference":
+        if layer in ("reference", SRGB_REFERENCE):
             return ("frame", "channel", "y", "x")
         plane = "channel" if layer == "clean" or layer in SRGB_LAYERS or self.planes == 3 else "cfa"
         return ("frame", *burst, plane, "y", "x")
@@ -146,7 +153,8 @@ class StoreLayout:
         """The frame arrays of this layout's store."""
         return tuple(name for name in LAYERS if not (name == "digital" and self.digital is None)
                      and not (name in SRGB_LAYERS and self.srgb is None)
-                     and not (name in BURST_LAYERS and self.burst_frames is None))
+                     and not (name in BURST_LAYERS and self.burst_frames is None)
+                     and not (name == SRGB_REFERENCE and (self.srgb is None or self.burst_frames is None)))
 
     def dtype(self, layer: str) -> str:
         from camsim.dataset.srgb import srgb_dtype
@@ -155,7 +163,7 @@ class StoreLayout:
             return self.digital
         if layer in ("homography", "time_s"):
             return "float64"
-        return srgb_dtype(self.srgb) if layer in SRGB_LAYERS else "float32"
+        return srgb_dtype(self.srgb) if layer in (*SRGB_LAYERS, SRGB_REFERENCE) else "float32"
 
     def describe(self) -> dict:
         """The layout as the store's attributes record it (without its path; ``srgb`` and ``burst_frames`` only
@@ -239,7 +247,8 @@ def open_store(layout: StoreLayout, spec, echo=None):
     coordinates = " ".join(columns)
     for layer in layout.layers():
         dtype = layout.dtype(layer)
-        units = ("DN" if layer not in SRGB_LAYERS else f"sRGB (IEC 61966-2-1) code values, 0 to {np.iinfo(dtype).max}")
+        units = ("DN" if layer not in (*SRGB_LAYERS, SRGB_REFERENCE)
+                 else f"sRGB (IEC 61966-2-1) code values, 0 to {np.iinfo(dtype).max}")
         units = {"homography": "", "time_s": "s"}.get(layer, units)
         attributes = {"units": units, "description": _DESCRIPTIONS[layer], "coordinates": coordinates}
         _frame_array(group, members, layer, layout.shape(layer), (1, *layout.shape(layer)[1:]), dtype,
@@ -280,6 +289,8 @@ _DESCRIPTIONS = {
                   "the file layout's ID_srgb_clean.png), 0 until rendered",
     "reference": "a burst's clean reference: the static scene's expectation, no motion, no noise (the file layout's "
                  "ID_ref.exr clean layer), NaN until rendered",
+    SRGB_REFERENCE: "a burst's clean reference developed, the burst's one development for all its frames (the file "
+                    "layout's ID_ref_srgb_clean.png), 0 until rendered",
     "homography": "each burst frame's homography, reference pixel → frame pixel at the exposure's middle, NaN until "
                   "rendered",
     "time_s": "each burst frame's exposure start, from the burst's first frame's, NaN until rendered",
@@ -368,22 +379,40 @@ def _remove_partials(root: Path) -> None:
 # --- a worker: one frame's chunks ------------------------------------------------------------------------------
 
 
-def burst_arrays(frames: list, reference, layout: StoreLayout, extras: list) -> dict:
+def burst_arrays(frames: list, reference, layout: StoreLayout, extras: list,
+                 reference_info=None) -> tuple[dict, dict | None]:
     """A rendered burst as the store's layers: its frames (:class:`camsim.render.frame.Frame`, in order) stacked,
     the ``reference`` frame's clean layer, and each frame's ``homography`` and ``time_s`` from its sidecar keys
-    ``extras`` (:func:`camsim.render.sequence.render_sequence_frames`)."""
-    layers = [frame_arrays(frame, layout)[0] for frame in frames]
+    ``extras`` (:func:`camsim.render.sequence.render_sequence_frames`); where the layout has an sRGB output (which
+    needs the reference's ``reference_info``), every frame's ``srgb_noisy`` and ``srgb_clean`` and the reference's
+    ``srgb_reference``, developed one way, the reference's (:func:`camsim.dataset.srgb.burst_development`), and
+    what those hold (the file layout's burst ``srgb`` record; None without)."""
+    development = record = None
+    if layout.srgb is not None:
+        from camsim.dataset.srgb import burst_development, develop_burst_reference, quantise
+
+        development = burst_development(reference, reference_info)
+        images, record = develop_burst_reference(reference, layout.srgb, development)
+    layers = [frame_arrays(frame, layout, development=development)[0] for frame in frames]
     digital = None if layers[0]["digital"] is None else np.stack([d["digital"] for d in layers])
-    return {"noisy": np.stack([d["noisy"] for d in layers]), "clean": np.stack([d["clean"] for d in layers]),
+    data = {"noisy": np.stack([d["noisy"] for d in layers]), "clean": np.stack([d["clean"] for d in layers]),
             "digital": digital, "reference": np.asarray(reference.clean_dn(), dtype=np.float32),
             "homography": np.array([e["homography"] for e in extras], dtype=np.float64),
             "time_s": np.array([e["time_s"] for e in extras], dtype=np.float64)}
+    if record is None:
+        return data, None
+    from camsim.dataset.srgb import burst_srgb_record
+
+    data.update({layer: np.stack([d[layer] for d in layers]) for layer in SRGB_LAYERS})
+    data[SRGB_REFERENCE] = quantise(images["srgb_clean"], record["bits"])
+    return data, burst_srgb_record(record)
 
 
-def frame_arrays(rendered, layout: StoreLayout, info=None) -> tuple[dict, dict | None]:
+def frame_arrays(rendered, layout: StoreLayout, info=None, development=None) -> tuple[dict, dict | None]:
     """A rendered :class:`camsim.render.frame.Frame` as the store's layers (``digital`` None where not quantised),
     with the developed ``srgb_noisy`` and ``srgb_clean`` where the layout has an sRGB output (which needs the
-    frame's ``info``); and what those hold (:func:`camsim.dataset.srgb.develop_frame`'s record, None without)."""
+    frame's ``info``, or a burst frame's ``development``: its burst's, :func:`camsim.dataset.srgb.burst_development`);
+    and what those hold (:func:`camsim.dataset.srgb.develop_frame`'s record, None without)."""
     digital = rendered.digital_dn
     data = {"noisy": rendered.noisy_dn, "clean": rendered.clean_dn(),
             "digital": None if digital is None else digital.astype(layout.digital, copy=False)}
@@ -391,7 +420,8 @@ def frame_arrays(rendered, layout: StoreLayout, info=None) -> tuple[dict, dict |
         return data, None
     from camsim.dataset.srgb import develop_frame, quantise
 
-    images, record = develop_frame(rendered, info, layout.srgb)
+    images, record = (develop_frame(rendered, info, layout.srgb) if development is None else
+                      develop_frame(rendered, info, layout.srgb, development.settings, development.facts))
     data.update({layer: quantise(image, record["bits"]) for layer, image in images.items()})
     return data, record
 
@@ -464,7 +494,7 @@ def verified_record(out_dir: Path, group, frame, verify: str = "sha256") -> dict
     entries = record.get("arrays")
     if not isinstance(entries, dict) or not entries.get("noisy") or not entries.get("sidecar"):
         return None
-    if any(layer in group and not entries.get(layer) for layer in (*SRGB_LAYERS, *BURST_LAYERS)):
+    if any(layer in group and not entries.get(layer) for layer in (*SRGB_LAYERS, *BURST_LAYERS, SRGB_REFERENCE)):
         return None  # the store has sRGB (or bursts') arrays, which this frame's record does not list
     root = Path(str(group.store.root))
     for name, entry in entries.items():

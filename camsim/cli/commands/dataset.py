@@ -55,8 +55,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="also each frame's noisy and clean layers developed through one camera ISP (the same "
                              "white balance, colour matrix, gain 1/F (1 with auto exposure) and sRGB curve for "
                              "both): png = 8-bit, png16 = 16-bit, as OUT/frames/ID_srgb_noisy.png and "
-                             "ID_srgb_clean.png, or the arrays srgb_noisy and srgb_clean of a Zarr store (default: "
-                             "the spec's srgb, else a store's own, else none)")
+                             "ID_srgb_clean.png, or the arrays srgb_noisy and srgb_clean of a Zarr store; a burst's "
+                             "frames all with its reference's development, as ID_fNNN_srgb_noisy.png, "
+                             "ID_fNNN_srgb_clean.png and ID_ref_srgb_clean.png (a store: srgb_reference; not bursts "
+                             "of [raws] crops yet) (default: the spec's srgb, else a store's own, else none)")
     parser.add_argument("--verify", choices=("sha256", "size"), default="sha256",
                         help="how a re-run checks the files of complete frames: size and SHA-256 (default) or "
                              "size only")
