@@ -163,3 +163,26 @@ def cupy_or_skip():
         return cuda_module()
     except CamsimError as exc:
         pytest.skip(f"no GPU: {exc}")
+
+
+def chi2_p_counts(observed, expected) -> float:
+    """Pearson's χ² p of counts ``observed`` against ``expected`` over the same bins, in order: the bins pooled from
+    the first until each pooled bin expects at least 5 (what is left joins the last); 1 where fewer than two pooled
+    bins remain (no degree of freedom)."""
+    import numpy as np
+    from scipy import stats
+
+    obs, exp, o_acc, e_acc = [], [], 0.0, 0.0
+    for o, e in zip(observed, expected):
+        o_acc, e_acc = o_acc + o, e_acc + e
+        if e_acc >= 5:
+            obs.append(o_acc)
+            exp.append(e_acc)
+            o_acc = e_acc = 0.0
+    if obs:
+        obs[-1] += o_acc
+        exp[-1] += e_acc
+    if len(obs) < 2:
+        return 1.0
+    obs, exp = np.array(obs), np.array(exp)
+    return float(stats.chi2.sf(float(np.sum((obs - exp) ** 2 / exp)), obs.size - 1))

@@ -20,7 +20,7 @@ from camsim.sensor.kernels import poisson, tukey_lambda_variance
 from camsim.render.frame import clean_dn
 from camsim.sensor.params import PRESETS, SensorParams
 from camsim.core.xp import to_host
-from tests.helpers import cupy_or_skip, patch_pixels, small_scene
+from tests.helpers import chi2_p_counts, cupy_or_skip, patch_pixels, small_scene
 
 TABLE1 = PRESETS["paper-table1"]
 #: χ² and KS tests must not reject at this level (many tests run: a false alarm stays rare).
@@ -34,30 +34,13 @@ def xp(request):
 
 
 def chi2_p(values, first: int, pmf: np.ndarray) -> float:
-    """p of Pearson's χ² test of integer ``values`` against P(first + j) = pmf[j], bins of expected count < 5 pooled
-    (from both tails inwards, and the rest of the window with them)."""
+    """p of Pearson's χ² test of integer ``values`` against P(first + j) = pmf[j], the bins pooled until each expects
+    at least 5 (:func:`tests.helpers.chi2_p_counts`)."""
     values = np.asarray(values).ravel().astype(np.int64)
     n = values.size
     inside = (values >= first) & (values < first + pmf.size)
     assert np.all(inside), f"values outside the law's window: {np.unique(values[~inside])[:10]}"
-    observed = np.bincount(values - first, minlength=pmf.size).astype(float)
-    expected = pmf * n
-    # pool the sparse tails: merge bins until each pooled bin expects at least 5
-    obs, exp, o_acc, e_acc = [], [], 0.0, 0.0
-    for o, e in zip(observed, expected):
-        o_acc, e_acc = o_acc + o, e_acc + e
-        if e_acc >= 5:
-            obs.append(o_acc)
-            exp.append(e_acc)
-            o_acc = e_acc = 0.0
-    if e_acc > 0 or o_acc > 0:
-        obs[-1] += o_acc
-        exp[-1] += e_acc
-    obs, exp = np.array(obs), np.array(exp)
-    if obs.size < 2:
-        return 1.0
-    chi2 = float(np.sum((obs - exp) ** 2 / exp))
-    return float(stats.chi2.sf(chi2, obs.size - 1))
+    return chi2_p_counts(np.bincount(values - first, minlength=pmf.size).astype(float), pmf * n)
 
 
 def poisson_pmf_window(lam: float):

@@ -9,7 +9,6 @@ import json
 
 import numpy as np
 import pytest
-from scipy import stats
 
 from camsim.cli import main
 from camsim.core.errors import CamsimError
@@ -24,7 +23,7 @@ from camsim.optics.stages import (
     table_falloff,
 )
 from camsim.render.optics import apply_optics
-from tests.helpers import cupy_or_skip, small_scene
+from tests.helpers import chi2_p_counts, cupy_or_skip, small_scene
 
 WAVELENGTHS = np.arange(400.0, 701.0, 10.0)
 
@@ -330,26 +329,11 @@ def test_noise_after_optics_follows_the_exact_per_pixel_law(cfa, device):
             first, expected = _summed_law(lams[mask], sensor)
             assert values.min() >= first and values.max() < first + expected.size
             observed = np.bincount(values - first, minlength=expected.size).astype(float)
-            assert _chi2_p_counts(observed, expected) > 1e-4, (side, c)
+            assert chi2_p_counts(observed, expected) > 1e-4, (side, c)
             levels = first + np.arange(expected.size)
             mean = expected @ levels / expected.sum()
             sd = np.sqrt(expected @ (levels - mean) ** 2 / expected.sum() / values.size)
             assert abs(values.mean() - mean) < 5 * sd, (side, c)
-
-
-def _chi2_p_counts(observed, expected):
-    """Pearson's χ² p of observed against expected counts, bins expecting fewer than 5 pooled."""
-    obs, exp, o_acc, e_acc = [], [], 0.0, 0.0
-    for o, e in zip(observed, expected):
-        o_acc, e_acc = o_acc + o, e_acc + e
-        if e_acc >= 5:
-            obs.append(o_acc)
-            exp.append(e_acc)
-            o_acc = e_acc = 0.0
-    obs[-1] += o_acc
-    exp[-1] += e_acc
-    obs, exp = np.array(obs), np.array(exp)
-    return float(stats.chi2.sf(np.sum((obs - exp) ** 2 / exp), obs.size - 1))
 
 
 def test_the_edge_is_blurred_as_the_otf_says():
