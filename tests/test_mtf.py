@@ -301,6 +301,15 @@ def _rows(path):
         return list(csv.DictReader(handle))
 
 
+def _check_against_the_pixel_box(rows, channel: dict, mtf50_rel: float) -> None:
+    """A channel of mtf.csv within 0.03 of the 5° edge's pixel box up to Nyquist, its MTF50 within ``mtf50_rel``."""
+    f = np.array([float(r["frequency_cy_per_px"]) for r in rows if r["channel"] == channel["channel"]])
+    m = np.array([float(r["mtf_measured"]) for r in rows if r["channel"] == channel["channel"]])
+    model = pixel_box_mtf(f, 5.0)
+    assert np.max(np.abs(m - model)[f <= 0.5]) < 0.03
+    assert channel["mtf50_cy_per_px"] == pytest.approx(M.mtf50(f, model), rel=mtf50_rel)
+
+
 def test_analyze_writes_mtf_csv_of_a_rendered_slanted_edge(edge_frames, tmp_path, capsys):
     """``camsim analyze`` on the built-in slanted edge (noise on): mtf.csv with exactly the four columns, every
     channel within 0.03 of the target's pixel box up to Nyquist (no optics: the model column empty), MTF50 and
@@ -315,11 +324,7 @@ def test_analyze_writes_mtf_csv_of_a_rendered_slanted_edge(edge_frames, tmp_path
     record = json.loads((tmp_path / "a" / "analysis.json").read_text())["frames"][0]["mtf"]
     assert "curves" not in record and record["csv"] == "mtf.csv" and record["model"] is None
     for channel in record["channels"]:
-        f = np.array([float(r["frequency_cy_per_px"]) for r in rows if r["channel"] == channel["channel"]])
-        m = np.array([float(r["mtf_measured"]) for r in rows if r["channel"] == channel["channel"]])
-        model = pixel_box_mtf(f, 5.0)
-        assert np.max(np.abs(m - model)[f <= 0.5]) < 0.03
-        assert channel["mtf50_cy_per_px"] == pytest.approx(M.mtf50(f, model), rel=0.02)
+        _check_against_the_pixel_box(rows, channel, mtf50_rel=0.02)
         assert abs(channel["angle_deg"] - 5.0) < 0.1
     assert (tmp_path / "a" / "mtf.png").stat().st_size > 0
     # the EXR: noisy and clean layers
@@ -338,11 +343,7 @@ def test_analyze_measures_a_rendered_bayer_frame_per_colour(edge_frames, tmp_pat
     record = json.loads((tmp_path / "a" / "analysis.json").read_text())["frames"][0]["mtf"]
     assert "own sites" in record["method"]
     for channel in record["channels"]:
-        f = np.array([float(r["frequency_cy_per_px"]) for r in rows if r["channel"] == channel["channel"]])
-        m = np.array([float(r["mtf_measured"]) for r in rows if r["channel"] == channel["channel"]])
-        model = pixel_box_mtf(f, 5.0)
-        assert np.max(np.abs(m - model)[f <= 0.5]) < 0.03
-        assert channel["mtf50_cy_per_px"] == pytest.approx(M.mtf50(f, model), rel=0.03)
+        _check_against_the_pixel_box(rows, channel, mtf50_rel=0.03)
 
 
 def test_the_model_column_follows_the_sidecars_optics_record(edge_frames, tmp_path):
