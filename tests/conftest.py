@@ -1,10 +1,10 @@
-"""Shared fixtures. Helpers are in :mod:`tests.helpers` and the closed forms in :mod:`tests.theory`."""
+"""Shared fixtures. Helpers are in :mod:`tests.support.helpers` and the closed forms in :mod:`tests.support.theory`."""
 
 import pytest
 
 from camsim.sensor.camera import AnchorScale, load_camera
 from camsim.scene.radiance import scene_radiance
-from tests.helpers import small_scene
+from tests.support.helpers import small_scene
 
 
 @pytest.fixture(scope="session")

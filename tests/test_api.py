@@ -9,7 +9,7 @@ import sys
 import numpy as np
 
 import camsim
-from tests.helpers import ROOT
+from tests.support.helpers import ROOT
 
 
 def test_import_camsim_loads_nothing_heavy():

@@ -9,7 +9,7 @@ import pytest
 from camsim.core.errors import CamsimError
 from camsim.pairs import PairBatches, PairSource
 from camsim.core.xp import to_host
-from tests.helpers import ROOT
+from tests.support.helpers import ROOT
 
 IMAGES = ROOT / "scenes" / "images"
 

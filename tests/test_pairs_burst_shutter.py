@@ -179,7 +179,7 @@ def test_a_rolling_flickering_burst_is_its_seeds_and_its_frames_noise_independen
 def test_bad_shutter_and_light_settings_are_refused_on_one_line(tmp_path, monkeypatch, settings, match):
     """Refused when the source is made (the macbeth_26 scene's fixed exposure of 1 s, a 48-row crop), before any
     photograph is lit; a readout that fits its interval is taken."""
-    from tests.helpers import ROOT
+    from tests.support.helpers import ROOT
 
     lit = []
     monkeypatch.setattr(PairSource, "_lit", lambda self, *args: lit.append(args))

@@ -10,7 +10,7 @@ import pytest
 
 from camsim.core.errors import CamsimError
 from camsim.pairs import PAIR_DOMAINS, PairSource, pair_isp
-from tests.helpers import ROOT
+from tests.support.helpers import ROOT
 
 IMAGES = ROOT / "scenes" / "images"
 

@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from tests.helpers import ROOT
+from tests.support.helpers import ROOT
 
 
 def test_importing_the_wrapper_does_not_import_torch():

@@ -140,7 +140,7 @@ def poisson_chi2(xp, draws: int) -> dict:
     from camsim.render.backends import device_generator
     from camsim.sensor.kernels import poisson
     from camsim.core.xp import to_host
-    from tests.helpers import chi2_p_counts  # the tests' χ² (ROOT is on the path)
+    from tests.support.helpers import chi2_p_counts  # the tests' χ² (ROOT is on the path)
 
     rng = device_generator(xp, np.random.SeedSequence(SEED, spawn_key=(0xC412,)))
     out = {}

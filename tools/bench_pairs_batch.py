@@ -8,7 +8,7 @@ runs in its own process (its ``camsim`` imported first, from its folder); the ch
 rounds, each rate its best round (after a warm-up batch).
 
 ``calls`` is the number of array-library calls one batch makes on a device (the ``--count-crop`` crop, default 32:
-the count does not depend on the size), counted by running the batch on :mod:`tests.fake_cupy` — numpy behind
+the count does not depend on the size), counted by running the batch on :mod:`tests.support.fake_cupy` — numpy behind
 CuPy's rules — as ``device="cuda"``: ``calls`` (what launches a kernel on a GPU: ufuncs, functions, reductions,
 copies, gathers, random draws), ``views`` (Python only), ``to_device`` and ``to_host`` (transfers; ``to_host``
 includes the synchronising ``bool``/``float`` of an array). Each CuPy call costs ~10–20 µs of launch and Python
@@ -61,7 +61,7 @@ def _worker(args) -> dict:
 
     out = {"rates": {}}
     if args.count:
-        fake_cupy = load("fake_cupy", ROOT / "tests" / "fake_cupy.py")
+        fake_cupy = load("fake_cupy", ROOT / "tests" / "support" / "fake_cupy.py")
         with fake_cupy.installed():
             counted = source(args.count_crop, "cuda")
             counted.batch(0)

@@ -1,7 +1,7 @@
 """The long fuzz run of the ``camsim`` command line (issue 24): mutated scene files, dataset specs, sidecars, preset
 files and DNG, EXR, PNG and cube files through the real CLI, with totals per kind and outcome.
 
-The mutators and the runner are :mod:`tests.fuzz` (the suite ``tests/test_fuzz_cli.py`` runs a few hundred of the
+The mutators and the runner are :mod:`tests.support.fuzz` (the suite ``tests/cli/test_fuzz.py`` runs a few hundred of the
 same cases). The cases are Hypothesis's, drawn from ``--seed``: the same command gives the same cases on any
 machine. Each runs in a forked copy of this process with a time and an address-space limit.
 
@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from hypothesis import HealthCheck, Phase, given, settings  # noqa: E402
 from hypothesis import seed as hypothesis_seed  # noqa: E402
 
-from tests import fuzz  # noqa: E402
+from tests.support import fuzz  # noqa: E402
 
 EXAMPLES_PER_FINDING = 3
 

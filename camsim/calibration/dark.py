@@ -80,7 +80,7 @@ def sheppard_read_variance_dn2(variance_dn2: float, step_dn: float = 1.0) -> flo
 
     For a noise X of density f and a pixel level m, the ADC's output floor(X + m) has a variance that differs from
     σ² + Δ²/12 by terms of the order of f's characteristic function at 2π/Δ, periodic in m. Measured against the
-    exact variance of the integer law (``tests/test_calibrate.py``), relative to σ²:
+    exact variance of the integer law (``tests/calibration/test_calibrate.py``), relative to σ²:
 
     ==================  ===========================  ===============================
     read noise          worst pixel level m          averaged over levels m

@@ -10,7 +10,7 @@ number of an unlit pixel, clipped below the WhiteLevel) as BlackLevel: RATIONAL,
 without BlackLevelRepeatDim: its default 1 x 1) or per CFA position (Bayer, BlackLevelRepeatDim 2 x 2), within
 1 / (2 D) of the value with the largest denominator D it allows (:func:`rational_bound`: below 7.63e-6 DN for any
 level up to 65535 DN, 1e-9 DN for 8-bit levels). What the raw readers make of the files, measured
-(``tools/raw_readers.py``, ``tests/test_raw_readers.py``; docs, reference 'File formats'): LibRaw takes a
+(``tools/raw_readers.py``, ``tests/end_to_end/test_raw_readers.py``; docs, reference 'File formats'): LibRaw takes a
 LinearRaw file's three levels, rounded; RawTherapee 5.9 takes the three too (its pictures match LibRaw's), but only
 without BlackLevelRepeatDim: with the tag it sets red's level from the per-position value, which a file of three
 per-sample values does not have, to 0; dcraw 9.28 reads
@@ -23,7 +23,7 @@ in an EXIF IFD (with ExifVersion 0230), where EXIF puts them and LibRaw looks fo
 ``other.iso_speed`` (65535 for a higher ISO) and ``other.shutter_speed``; ExifTool validates the files without a
 warning; :func:`shot_metadata` reads both.
 
-What LibRaw 0.22 (rawpy 0.28) makes of these files, measured and pinned by ``tests/test_io_dng.py``:
+What LibRaw 0.22 (rawpy 0.28) makes of these files, measured and pinned by ``tests/io/test_dng.py``:
 
 * ``raw_type`` is ``RawType.Stack`` and ``raw_image`` (and ``raw_image_visible``) is an ``(H, W, 4)`` uint16 array:
   LibRaw always stores colour-stacked images with four channels. Channels 0..2 are exactly the written R, G, B
@@ -37,7 +37,7 @@ What LibRaw 0.22 (rawpy 0.28) makes of these files, measured and pinned by ``tes
 An ADC of 9 to 16 bits is stored in a 16-bit container (BitsPerSample 16, uint16 samples, unpacked) whose
 WhiteLevel is the ADC's top code 2^nb − 1 (16383 for 14 bits): LibRaw takes the WhiteLevel as ``white_level`` and
 returns the samples unchanged (no scaling to 16 bits), for every nb from 9 to 16, LinearRaw and CFA alike, pinned by
-``tests/test_dng_noise_profile.py``. Samples above the WhiteLevel are not refused (a reader clips them).
+``tests/sensor/test_noise_profile.py``. Samples above the WhiteLevel are not refused (a reader clips them).
 
 The DNG NoiseProfile (tag 51041, DNG 1.3; the files say DNGVersion 1.4.0.0, DNGBackwardVersion 1.1.0.0, as a
 reader that ignores the tag still renders them) is written when a ``noise_profile`` is given: pairs (S, O), one per
@@ -48,7 +48,7 @@ ExifTool shows it as ``NoiseProfile``.
 
 A Bayer sensor's mosaic (one digital number per pixel) is stored by :func:`write_dng_cfa` as an uncompressed
 1-sample CFA DNG (PhotometricInterpretation 32803, a 2x2 CFAPattern). What LibRaw 0.22 makes of these files, pinned
-by ``tests/test_io_dng_cfa.py``:
+by ``tests/io/test_dng_cfa.py``:
 
 * ``raw_type`` is ``RawType.Flat``, ``num_colors`` is 3, ``color_desc`` is ``b"RGBG"`` and ``raw_image`` (and
   ``raw_image_visible``) is the ``(H, W)`` mosaic exactly (as uint16). LibRaw numbers the colours R = 0, G = 1,

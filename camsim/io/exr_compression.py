@@ -13,7 +13,7 @@ __all__ = ["EXR_COMPRESSIONS", "DEFAULT_EXR_COMPRESSION", "LOSSLESS_EXR_COMPRESS
 
 #: Every compression of OpenEXR 3.5, by camsim's name: (the bindings' constant, lossless for float32, note).
 #: Lossless for float32: every bit of every FLOAT value (NaN payloads, -0, subnormals) reads back as written
-#: (``tests/test_io_exr.py`` checks it through OpenEXR and OpenImageIO for each one offered).
+#: (``tests/io/test_exr.py`` checks it through OpenEXR and OpenImageIO for each one offered).
 EXR_COMPRESSIONS = {
     "none": ("NO_COMPRESSION", True, "uncompressed"),
     "rle": ("RLE_COMPRESSION", True, "run-length"),

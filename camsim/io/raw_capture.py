@@ -26,7 +26,7 @@ disagree): the pattern exactly, the white level exactly, the black level of each
 truncates fractional levels). The DNG specification anchors the CFA pattern and the black-level pattern at the
 ActiveArea's top-left corner; LibRaw starts its visible area at even offsets (an odd ActiveArea origin is moved to
 the next even row or column) and anchors the black pattern there, the CFA pattern at the ActiveArea: camsim follows
-the specification for both (measured with LibRaw 0.22, ``tests/test_raw_capture.py``). BlackLevelDeltaH/V (per
+the specification for both (measured with LibRaw 0.22, ``tests/io/test_raw_capture.py``). BlackLevelDeltaH/V (per
 column and per row black offsets) are refused: the black level is one value per site of the 2 × 2 cell here.
 
 Limits of what rawpy exposes: a non-DNG camera's black-level pattern larger than 2 × 2 (LibRaw's ``cblack[6:]``

@@ -180,7 +180,7 @@ def render_raw_frame(source_e, sensor: SensorParams, fraction: float, *, law: st
         with p = f · g < 1 is approximated there: its X = Binomial(n, p) + Poisson(D̄ d) by the shifted Poisson
         n p² + Poisson(n p (1 − p) + D̄ d) of the same mean and variance, in the same closed form (within 5e-5 of
         the exact value, summed over the binomial, for a full well of 1000 e⁻ and p from 0.1 to 0.99:
-        ``tests/test_raw_laws.py``).
+        ``tests/sensor/test_raw_laws.py``).
 
     Raises
     ------

@@ -36,7 +36,7 @@ Var(n)), a share f² Var(s) / (f E s + f² Var s) ≈ f / (1 + f) of a frame's s
 by its photon noise (``thin``: ≈ p). So the frames' temporal independence holds for the noise the frames add, not for
 the source's: averaging N frames converges to the clean layer (the source made dark, its noise in), never to the
 scene. :func:`raw_sequence_warnings` says so where that share is above :data:`COMMON_SHARE_WARNING`
-(``tests/test_raw_sequence.py`` measures it).
+(``tests/render/test_raw_sequence.py`` measures it).
 
 Saturated (masked) source sites move with the scene: the mask's indicator goes down the same path as the electrons
 (:func:`mask_planes`: clean_planes of the 0/1 mosaic, warped with the electrons; :func:`mask_share`: its sites' own

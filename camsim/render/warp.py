@@ -12,7 +12,7 @@ at integer coordinates, x the column, y the row); a point outside the image is *
 (the scene beyond the frame continues its edge). Coordinates are float32 (at 4000 px, steps of 2.4e-4 px); an
 affine inverse (last row 0, 0, 1) skips the perspective division.
 
-Two implementations of the one law, which agree to float32 rounding (``tests/test_warp.py``):
+Two implementations of the one law, which agree to float32 rounding (``tests/render/test_warp.py``):
 
 - **compiled** (numba, the default where numba can be imported): :func:`average_warp` in one nogil kernel per row
   block. Each output row's sums stay in a row buffer (in cache) while every sub-sample, in order, adds its bilinear

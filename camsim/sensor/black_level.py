@@ -13,7 +13,7 @@ frame's pixels, which is what a raw reader subtracts as the black level.
 :func:`unlit_mean_dn` computes E[I] = Σ_{j=1}^{2^nb−1} P(k X ≥ j), X = min(D + o, FW) + R + W: the atoms of D's
 probability function, each against the noise's survival function, with closed forms (normal CDFs, Owen's T for
 the DSNU at the full well) or quadratures (Tukey λ, the log-normal factor, DSNU at the full well with Tukey noise)
-where none exists. :mod:`tests.test_black_level` checks it against separate closed forms to 1e-8 DN (1e-7 against
+where none exists. :mod:`tests.sensor.test_black_level` checks it against separate closed forms to 1e-8 DN (1e-7 against
 a quadrature for the log-normal factor) and against Monte Carlo; halving the quadrature steps moves the Tukey
 cases by < 2e-12 DN. Cost per channel, cached: under 2 ms with Gaussian read noise, 10–300 ms with Tukey noise,
 about 10 s in the rarest case (a dark charge at the full well with DSNU and Tukey noise).

@@ -230,7 +230,7 @@ def alias_columns(probabilities, columns: int | None = None) -> tuple:
     ones by their excesses on another; a light column is aliased to the heavy whose excess interval holds the start
     of its deficit, and a heavy column exhausted by the light that straddles the end of its interval gives its own
     overshoot to the next heavy (its alias). Every column then holds mass 1/m in all, and item i's total mass,
-    own part plus the alias parts pointing to it, is p_i (to float64 rounding; ``tests/test_table_method.py``).
+    own part plus the alias parts pointing to it, is p_i (to float64 rounding; ``tests/methods/test_table.py``).
 
     Parameters
     ----------

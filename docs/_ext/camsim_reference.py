@@ -16,7 +16,7 @@ Each directive reads the code at build time, so the pages cannot drift from it:
 The module paths below ``camsim.`` are resolved through public names where there is one
 (``camsim.load_scene.__module__``), so that moving a module does not break the docs. Each directive is a thin
 layer over a function that returns docutils nodes (``cli_nodes``, ``scene_key_nodes``, …), which
-``tests/test_docs_reference.py`` calls without Sphinx.
+``tests/docs/test_reference.py`` calls without Sphinx.
 """
 
 from __future__ import annotations

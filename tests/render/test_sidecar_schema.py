@@ -1,0 +1,252 @@
+"""Hostile sidecars (issue 24, point 2): a real rendered frame's sidecar, each key in turn set to null, a string,
+NaN, ±Infinity, 1e308 or a 5000-digit integer, or deleted, and JSON nested 100 000 deep; beside a good frame,
+through ``main(["analyze", ...])`` in process. Each case: exit 0 with the good frame analysed and the bad frame
+either measured or skipped on one warning line (or with --strict exit 2 on one error line), no traceback,
+``analysis.json`` strict JSON (no NaN), in well under two seconds. The same edits in an EXR header's embedded
+sidecar (``camsim:metadata``)."""
+
+import json
+import shutil
+import signal
+import time
+from contextlib import contextmanager
+
+import numpy as np
+import pytest
+
+from camsim.analysis.analyze import non_finite
+from camsim.cli import main
+from camsim.io.exr import read_exr, write_exr
+from camsim.render.run import render_scene
+from tests.support.helpers import small_scene
+
+GOOD = "test_D65_F1"
+LIMIT_S = 2.0  # per case: well under it in practice (measured: about 0.1–0.3 s)
+SENTINEL = "@@hostile@@"
+#: Single-value edits: name → the JSON text that replaces the value (None: the key is deleted).
+EDITS = {
+    "null": "null",
+    "string": '"x"',
+    "nan": "NaN",
+    "infinity": "Infinity",
+    "-infinity": "-Infinity",
+    "1e308": "1e308",
+    "5000-digit": "9" * 5000,
+    "deleted": None,
+}
+DEEP = "[" * 100_000 + "]" * 100_000
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory):
+    root = tmp_path_factory.mktemp("hostile")
+    render_scene(small_scene(width=64, height=48, intensity_factors=(1.0,)), root, progress=False)
+    return root
+
+
+def key_paths(meta: dict) -> list[tuple]:
+    """Every key of the sidecar: the top level's, and inside objects and the first element of lists of objects
+    (``("patches", 0, "signal_e")``, ``("stages", "read_noise")``)."""
+    paths = []
+
+    def walk(value, prefix):
+        if isinstance(value, dict):
+            for key, item in value.items():
+                paths.append((*prefix, key))
+                walk(item, (*prefix, key))
+        elif isinstance(value, list) and value and isinstance(value[0], dict):
+            walk(value[0], (*prefix, 0))
+
+    walk(meta, ())
+    return paths
+
+
+def edited_text(meta: dict, path: tuple, replacement: str | None) -> str:
+    """The sidecar's JSON text with the value at ``path`` replaced by the raw JSON ``replacement`` (or deleted)."""
+    meta = json.loads(json.dumps(meta))
+    parent = meta
+    for key in path[:-1]:
+        parent = parent[key]
+    if replacement is None:
+        del parent[path[-1]]
+        return json.dumps(meta)
+    parent[path[-1]] = SENTINEL
+    return json.dumps(meta).replace(json.dumps(SENTINEL), replacement)
+
+
+def _reject_constant(name):
+    raise ValueError(f"analysis.json holds {name}")
+
+
+@contextmanager
+def _deadline(seconds):
+    """Fail a case that runs away (e.g. ``2**int(1e308)``) instead of hanging the suite."""
+    def stop(signum, frame):
+        raise TimeoutError(f"ran past {seconds} s")
+
+    previous = signal.signal(signal.SIGALRM, stop)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def _frame_folder(rendered, folder, kinds=(".dng", ".json", ".exr")):
+    """``folder`` with the good frame as ``a_good`` and a copy as ``b_bad`` (sidecars claiming their names)."""
+    folder.mkdir()
+    for stem in ("a_good", "b_bad"):
+        for kind in kinds:
+            shutil.copy(rendered / f"{GOOD}{kind}", folder / f"{stem}{kind}")
+        meta = json.loads((folder / f"{stem}.json").read_text())
+        meta["files"] = {"dng": f"{stem}.dng", "exr": f"{stem}.exr", "json": f"{stem}.json"}
+        (folder / f"{stem}.json").write_text(json.dumps(meta))
+    return json.loads((folder / "b_bad.json").read_text())
+
+
+def run_case(folder, out, capsys, source="dng", strict=False):
+    """Analyse ``folder``; returns (exit status, stderr lines, seconds), after checking the common properties."""
+    argv = ["analyze", str(folder), "--out", str(out), "--source", source, "-q", "--no-figures"]
+    start = time.perf_counter()
+    with _deadline(20):
+        status = main(argv + (["--strict"] if strict else []))
+    seconds = time.perf_counter() - start
+    captured = capsys.readouterr()
+    err = [line for line in captured.err.splitlines() if line]
+    assert "Traceback" not in captured.err + captured.out
+    if strict:
+        assert status in (0, 2), status
+        if status == 2:
+            assert len(err) == 1 and err[0].startswith("camsim: error: ") and "b_bad" in err[0], err
+            assert not out.exists()
+    else:
+        assert status == 0, err
+        summary = json.loads((out / "analysis.json").read_text(), parse_constant=_reject_constant)
+        files = {f["frame_file"].rsplit("/", 1)[-1] for f in summary["frames"]}
+        assert f"a_good.{source}" in files
+        if f"b_bad.{source}" in files:  # measured: the edit was harmless (e.g. a string scene name)
+            assert err == [], err
+        elif err and err[0].startswith("camsim: warning: ignored "):  # its sidecar no longer claims it (files)
+            assert len(err) == 1 and "b_bad" in err[0], err
+            assert [p.rsplit("/", 1)[-1] for p in summary["uncommitted"]] == [f"b_bad.{source}"]
+        else:  # skipped, on one line that names it
+            assert len(err) == 1 and err[0].startswith("camsim: warning: skipped ") and "b_bad" in err[0], err
+            assert [s["file"].rsplit("/", 1)[-1] for s in summary["skipped"]] == [err[0].split()[3].split("/")[-1]
+                                                                                   .rstrip(":")]
+    return status, err, seconds
+
+
+def _cases(meta):
+    cases = [(f"{'.'.join(map(str, path))}={edit}", edited_text(meta, path, text))
+             for path in key_paths(meta) for edit, text in EDITS.items()]
+    cases.append(("whole-file=deep", DEEP))
+    cases.append(("patches=deep", edited_text(meta, ("patches",), DEEP)))
+    cases.append(("scale=deep", edited_text(meta, ("scale",), DEEP)))
+    cases.append(("scale=900-deep", edited_text(meta, ("scale",), "[" * 900 + "]" * 900)))
+    return cases
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("strict", [False, True], ids=["skip", "strict"])
+def test_every_single_field_edit_of_a_sidecar_is_measured_or_skipped_cleanly(rendered, tmp_path, capsys, strict):
+    cases = _cases(_frame_folder(rendered, tmp_path / "first", kinds=(".dng", ".json")))
+    assert len(cases) > 400  # every key of a real sidecar, 8 edits each
+    slow, skipped = [], 0
+    for index, (name, text) in enumerate(cases):
+        folder = tmp_path / f"case{index}"
+        _frame_folder(rendered, folder, kinds=(".dng", ".json"))
+        (folder / "b_bad.json").write_text(text)
+        try:
+            status, err, seconds = run_case(folder, tmp_path / f"out{index}", capsys, strict=strict)
+        except AssertionError as exc:
+            raise AssertionError(f"case {name}: {exc}") from None
+        skipped += bool(err)
+        if seconds > LIMIT_S:
+            slow.append((name, seconds))
+    assert slow == []
+    assert skipped > len(cases) // 2  # most edits make a bad frame
+
+
+#: Edits the issue names, each of which must make the frame bad (skipped with a warning, or --strict's error).
+BAD_EDITS = [
+    (("bits",), "1e308"),
+    (("patches",), "null"),
+    (("patches", 0, "signal_e"), None),
+    (("stages",), "null"),
+    (("read_noise_e",), "null"),
+    (("read_noise_e",), '"4"'),
+    (("dn_per_electron",), "9" * 5000),
+    (("patches", 0, "signal_e"), "[NaN, 1, 2]"),
+    (("intensity_factor",), "Infinity"),
+    (("black_level_dn",), "[NaN, 0, 0]"),
+    (("patches", 0, "rect_xywh"), "[60, 40, 9, 10]"),  # outside the 64 x 48 frame
+    (("width_px",), "64.0"),
+    (("qe_e_m2_sr_per_photon",), "[[1, 2], [3, 4], [5, 6]]"),
+]
+
+
+@pytest.mark.parametrize("source", ["dng", "exr"])
+@pytest.mark.parametrize("path, replacement", BAD_EDITS,
+                         ids=[f"{'.'.join(map(str, p))}={'long' if r and len(r) > 20 else r}" for p, r in BAD_EDITS])
+def test_the_issues_sidecar_edits_skip_the_frame_on_one_line(rendered, tmp_path, capsys, path, replacement, source):
+    meta = _frame_folder(rendered, tmp_path / "frames")
+    text = edited_text(meta, path, replacement)
+    if source == "dng":
+        (tmp_path / "frames" / "b_bad.json").write_text(text)
+    else:  # the EXR header's copy of the sidecar (an EXR is read on its own)
+        noisy, clean, header = read_exr(tmp_path / "frames" / "b_bad.exr")
+        (tmp_path / "frames" / "b_bad.exr").unlink()
+        write_exr(tmp_path / "frames" / "b_bad.exr", noisy, clean, {**header, "camsim:metadata": text})
+    status, err, seconds = run_case(tmp_path / "frames", tmp_path / "out", capsys, source=source)
+    assert status == 0 and len(err) == 1 and "b_bad" in err[0], err
+    assert seconds < LIMIT_S
+    status, err, _ = run_case(tmp_path / "frames", tmp_path / "out_strict", capsys, source=source, strict=True)
+    assert status == 2 and len(err) == 1, err
+
+
+def test_nesting_100000_deep_is_one_warning_line(rendered, tmp_path, capsys):
+    _frame_folder(rendered, tmp_path / "frames")
+    (tmp_path / "frames" / "b_bad.json").write_text('{"files": {"dng": "b_bad.dng"}, "x": ' + DEEP + "}")
+    status, err, seconds = run_case(tmp_path / "frames", tmp_path / "out", capsys)
+    assert status == 0 and len(err) == 1 and "nested too deeply" in err[0], err
+    assert seconds < LIMIT_S
+
+
+@pytest.mark.parametrize("value, refused", [("1e300", True), ("1e-300", True), ("1e60", False), ("1e-60", False)])
+def test_gains_at_the_sidecars_bounds_give_finite_results_and_beyond_them_a_skip(rendered, tmp_path, capsys, value,
+                                                                                refused):
+    """Finite values whose products overflow float64 (a gain of 1e300 DN/e⁻, squared; 1 / 1e-300²) are refused
+    by the sidecar's bounds (±1e60, positive ≥ 1e-60); at the bounds, in every gain and noise at once, the
+    measurement stays finite: analysis.json is strict JSON either way, on at most one warning line."""
+    meta = _frame_folder(rendered, tmp_path / "frames")
+    for key in ("dn_per_electron", "read_noise_e", "row_noise_e", "full_well_e", "exposure_s"):
+        meta[key] = SENTINEL
+    (tmp_path / "frames" / "b_bad.json").write_text(json.dumps(meta).replace(json.dumps(SENTINEL), value))
+    status, err, _ = run_case(tmp_path / "frames", tmp_path / "out", capsys)
+    assert status == 0 and len(err) == int(refused), err
+    if refused:
+        assert "sidecar key dn_per_electron must be" in err[0]
+
+
+def test_non_finite_names_the_first_place_of_a_nan_or_infinity():
+    assert non_finite({"a": [1.0, {"b": 2}], "c": None}) is None
+    assert non_finite({"a": [1.0, {"b": float("nan")}], "c": float("inf")}) == "a[1].b"
+    assert non_finite([0, np.float32("-inf")]) == "[1]"
+
+
+@pytest.mark.parametrize("edit", ["iso=Infinity", "iso=huge", "exposure_s=NaN", "exposure_s=string", "deep"])
+def test_calibrate_reads_a_raw_file_beside_a_hostile_sidecar_by_its_own_tags(rendered, tmp_path, edit):
+    """``camsim calibrate``'s raw reader takes ISO and exposure from a camsim sidecar beside the file where the
+    file has none: a sidecar value that is no finite number says nothing, and unparsable JSON is no sidecar."""
+    from camsim.calibration.rawfiles import read_raw
+
+    meta = _frame_folder(rendered, tmp_path / "frames", kinds=(".dng", ".json"))
+    key, _, value = edit.partition("=")
+    text = {"Infinity": "Infinity", "huge": "9" * 400, "NaN": "NaN", "string": '"1"'}.get(value)
+    sidecar = tmp_path / "frames" / "b_bad.json"
+    sidecar.write_text(DEEP if edit == "deep" else edited_text(meta, (key,), text) if key in meta
+                       else edited_text({**meta, key: None}, (key,), text))
+    own = read_raw(tmp_path / "frames" / "a_good.dng")
+    raw = read_raw(tmp_path / "frames" / "b_bad.dng")
+    assert (raw.iso, raw.exposure_s) == (own.iso, own.exposure_s)
