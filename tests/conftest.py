@@ -1,10 +1,14 @@
-"""Shared fixtures. Helpers are in :mod:`tests.support.helpers` and the closed forms in :mod:`tests.support.theory`."""
+"""Shared fixtures and the Hypothesis profile (:mod:`tests.support.profiles`). Helpers are in
+:mod:`tests.support.helpers` and the closed forms in :mod:`tests.support.theory`."""
 
 import pytest
 
-from camsim.sensor.camera import AnchorScale, load_camera
 from camsim.scene.radiance import scene_radiance
+from camsim.sensor.camera import AnchorScale, load_camera
+from tests.support import profiles
 from tests.support.helpers import small_scene
+
+profiles.load()  # HYPOTHESIS_PROFILE=ci (default) or dev
 
 
 @pytest.fixture(scope="session")

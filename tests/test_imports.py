@@ -3,11 +3,12 @@ a program has chosen. Each check runs in a fresh interpreter, since the test ses
 
 import json
 import os
-import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+
+from tests.support import clock
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -32,8 +33,7 @@ PRELOAD = "camsim.dataset._preload"
 def _run(setup: str, check: str, skip: tuple = ()) -> None:
     code = IMPORT_ALL.replace("SETUP", setup).replace("CHECK", check).replace("SKIP", repr(skip))
     env = {k: v for k, v in os.environ.items() if k != "MPLBACKEND"}
-    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True,
-                          timeout=300)
+    done = clock.run([sys.executable, "-c", code], cpu_s=120, cwd=ROOT, env=env, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
 
 
@@ -67,7 +67,7 @@ print(json.dumps({"status": status, "heavy": sorted(m for m in HEAVY if m in sys
 
 def _heavy_imported(args: list[str]) -> tuple[int, list[str]]:
     code = RUN_CLI.replace("ARGS", repr(args)).replace("HEAVY", repr(HEAVY))
-    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    done = clock.run([sys.executable, "-c", code], cpu_s=60, cwd=ROOT, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stderr.strip().splitlines()[-1])
     return report["status"], report["heavy"]
@@ -99,8 +99,7 @@ def test_the_names_camsim_list_prints_are_colour_sciences():
     assert list(colour_names.ILLUMINANTS) == illuminant_names()
     assert list(colour_names.CAMERAS) == camera_names()
     assert list(colour_names.REFLECTANCE_SETS) == reflectance_set_names()
-    done = subprocess.run([sys.executable, "-m", "camsim", "list"], cwd=ROOT, capture_output=True, text=True,
-                          timeout=120)
+    done = clock.run([sys.executable, "-m", "camsim", "list"], cpu_s=60, cwd=ROOT, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     lines = dict(line.split(": ", 1) for line in done.stdout.splitlines() if line.startswith(("illuminants",
                                                                                               "cameras")))

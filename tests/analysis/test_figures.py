@@ -13,6 +13,7 @@ import sys
 import numpy as np
 import pytest
 
+from tests.support import clock
 from tests.support.helpers import ROOT
 
 F_VALUES = ("1", "0.1", "0.01")
@@ -20,8 +21,8 @@ F_VALUES = ("1", "0.1", "0.01")
 
 def _camsim(*args) -> subprocess.CompletedProcess:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.run([sys.executable, "-m", "camsim", *args], capture_output=True, text=True, env=env,
-                          cwd=ROOT, timeout=600)
+    return clock.run([sys.executable, "-m", "camsim", *args], cpu_s=120, capture_output=True, text=True, env=env,
+                     cwd=ROOT)
 
 
 @pytest.fixture(scope="module")

@@ -6,12 +6,12 @@ import os
 import subprocess
 import sys
 import textwrap
-import time
 
 import numpy as np
 
 import pytest
 
+from tests.support import clock
 from tests.support.helpers import ROOT
 
 SCENE = (ROOT / "scenes" / "macbeth_26.toml").as_posix()
@@ -22,9 +22,8 @@ def _camsim(argv, tmp_path, pythonpath=()):
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([*map(str, pythonpath), str(ROOT)])}
     err_path = tmp_path / "stderr.txt"
     with open(err_path, "w") as err:  # a file, not a pipe: what the resource tracker writes after the exit counts
-        status = subprocess.run([sys.executable, "-m", "camsim", *argv], cwd=tmp_path, env=env, stderr=err,
-                                stdout=subprocess.DEVNULL, timeout=300).returncode
-    time.sleep(1.0)  # the tracker reports after the last process of the run has exited
+        status = clock.run([sys.executable, "-m", "camsim", *argv], cpu_s=120, cwd=tmp_path, env=env, stderr=err,
+                           stdout=subprocess.DEVNULL, wait_descendants=True).returncode
     return status, err_path.read_text()
 
 

@@ -16,6 +16,7 @@ from camsim.sensor.presets import CAMERA_PRESETS
 from camsim.cli import main
 from camsim.io.dng import MIN_SIZE
 from camsim.sensor.params import PRESETS, preset
+from tests.support import clock
 from tests.support.helpers import ROOT
 
 SMALL = ["--illuminant", "D65", "-F", "1", "--size", "32x24", "-q"]
@@ -78,8 +79,8 @@ def test_render_counts_the_frames_of_earlier_runs(tmp_path, capsys):
 def _render(args, tmp_path):
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
     env.pop("PYTHONWARNINGS", None)
-    return subprocess.run([sys.executable, "-m", "camsim", "render", *args], cwd=tmp_path, env=env,
-                          capture_output=True, text=True, timeout=300)
+    return clock.run([sys.executable, "-m", "camsim", "render", *args], cpu_s=120, cwd=tmp_path, env=env,
+                     capture_output=True, text=True)
 
 
 @pytest.mark.slow

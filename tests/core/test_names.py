@@ -13,12 +13,17 @@ from hypothesis import strategies as st
 
 from camsim.cli import main
 from camsim.core.errors import CamsimError, OutputError
-from camsim.render.frame_files import frame_stem
+from camsim.core.names import (
+    FORBIDDEN_CHARACTERS,
+    MAX_NAME_BYTES,
+    name_problem,
+    safe_component,
+)
 from camsim.io.atomic import write_text_atomic
 from camsim.io.output_folder import make_folder, output_folder
-from camsim.core.names import FORBIDDEN_CHARACTERS, MAX_NAME_BYTES, name_problem, safe_component
-
+from camsim.render.frame_files import frame_stem
 from tests.support.helpers import flat_scene_toml, preset_toml, write_text_file
+from tests.support.profiles import examples
 
 #: The issue's names (as TOML string literals), and a few more of the kinds the rule refuses.
 BAD_NAMES = {
@@ -153,7 +158,7 @@ def test_the_rule_accepts(name):
     assert safe_component(name, "name") == name
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(st.text(min_size=0, max_size=140) | st.sampled_from(["..", ".", "../x", "a/..", "/", "\\", "a\\..\\b"]))
 def test_an_accepted_name_joined_to_a_folder_stays_in_it(name):
     folder = Path("/some/output/folder")

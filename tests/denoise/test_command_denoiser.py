@@ -4,13 +4,13 @@ timeout, a failure or a normal exit, no child it started (a shell script's ``sle
 import os
 import sys
 import textwrap
-import time
 
 import numpy as np
 import pytest
 
 from camsim.denoise.denoisers import resolve_denoiser
 from camsim.core.errors import CamsimError
+from tests.support import clock
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="process groups are POSIX")
 
@@ -30,13 +30,22 @@ def _running(pid: int) -> bool:
         return True
 
 
+#: How long the script's background child sleeps before it leaves its mark. A denoiser call that waited for it would
+#: return only after the mark; an orphan would still be running long after the call. Unit: s.
+SLEEP_S = 600
+#: The file the background child writes when its sleep has ended: its absence after the call shows the call did not
+#: wait for the child (no clock involved).
+MARK = "the-background-child-ended"
+
+
 def _script(tmp_path, tail: str):
-    """A shell-script denoiser that starts ``sleep 60`` in the background, writes its PID, then runs ``tail``."""
+    """A shell-script denoiser that starts a background child (``sleep SLEEP_S``, then it writes :data:`MARK`),
+    writes the child's PID, then runs ``tail``."""
     pid_file = tmp_path / "sleep.pid"
     script = tmp_path / "hang.sh"
     script.write_text(textwrap.dedent(f"""\
         #!/bin/sh
-        sleep 60 &
+        ( sleep {SLEEP_S}; touch '{tmp_path / MARK}' ) &
         echo $! > '{pid_file}'
         {tail}
         """))
@@ -50,24 +59,19 @@ def _child_pid(pid_file) -> int:
     return pid
 
 
-def _gone(pid: int, within_s: float = 2.0) -> bool:
-    """Whether ``pid`` is gone within ``within_s`` seconds (a SIGKILL is delivered asynchronously: the kill call
-    returns before the process is dead). An orphan would run for the sleep's 60 s."""
-    deadline = time.monotonic() + within_s
-    while _running(pid):
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.01)
-    return True
+def _gone(pid: int) -> bool:
+    """Whether ``pid`` is gone, given the time a killed process needs to die however busy the machine
+    (:data:`tests.support.clock.EXIT_BACKSTOP_S`; a SIGKILL is delivered asynchronously: the kill call returns
+    before the process is dead). An orphan would run for the rest of its ``SLEEP_S``."""
+    return clock.eventually(lambda: not _running(pid))
 
 
 def test_timeout_kills_the_commands_children(tmp_path):
     script, pid_file = _script(tmp_path, "wait")
     denoiser = resolve_denoiser(f"cmd:{script} {{input}} {{output}}", timeout_s=1.0)
-    start = time.monotonic()
     with pytest.raises(CamsimError, match="did not finish within 1 s"):
         denoiser(np.ones((8, 8, 3), np.float32))
-    assert time.monotonic() - start < 10
+    assert not (tmp_path / MARK).exists()  # it did not wait for the background child
     assert _gone(_child_pid(pid_file))
 
 
@@ -75,11 +79,10 @@ def test_timeout_kills_the_commands_children(tmp_path):
                                            ("exit 0", "wrote no")])
 def test_failure_and_exit_kill_the_commands_children(tmp_path, tail, message):
     script, pid_file = _script(tmp_path, tail)
-    denoiser = resolve_denoiser(f"cmd:{script} {{input}} {{output}}", timeout_s=30.0)
-    start = time.monotonic()
+    denoiser = resolve_denoiser(f"cmd:{script} {{input}} {{output}}", timeout_s=SLEEP_S / 2)
     with pytest.raises(CamsimError, match=message):
         denoiser(np.ones((8, 8, 3), np.float32))
-    assert time.monotonic() - start < 10  # not waiting for the sleep to close its end of the pipes
+    assert not (tmp_path / MARK).exists()  # not waiting for the child to close its end of the pipes
     assert _gone(_child_pid(pid_file))
 
 
@@ -91,7 +94,7 @@ def test_an_interrupt_kills_the_commands_children(tmp_path):
         raise KeyboardInterrupt
 
     script, pid_file = _script(tmp_path, "wait")
-    denoiser = resolve_denoiser(f"cmd:{script} {{input}} {{output}}", timeout_s=30.0)
+    denoiser = resolve_denoiser(f"cmd:{script} {{input}} {{output}}", timeout_s=SLEEP_S / 2)
     previous = signal.signal(signal.SIGALRM, interrupt)
     try:
         signal.setitimer(signal.ITIMER_REAL, 1.0)

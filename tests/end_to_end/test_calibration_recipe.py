@@ -14,7 +14,6 @@ import json
 import os
 import re
 import shlex
-import subprocess
 import sys
 import tomllib
 
@@ -26,6 +25,7 @@ from camsim.cli import main
 from camsim.core.errors import CamsimError
 from camsim.render.frame_files import load_frame
 from camsim.scene.scene_file import load_scene
+from tests.support import clock
 from tests.support.helpers import ROOT
 
 SIZE = "384x256"
@@ -113,7 +113,7 @@ def test_the_readme_recipe_calibrates_back_the_preset(tmp_path):
                        + [line + (f" --size {SIZE}" if " render " in line else "") + " -q" for line in lines])
     env = {**os.environ, "PYTHON": sys.executable, "PYTHONPATH": os.pathsep.join(
         [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
-    done = subprocess.run(["bash", "-c", script], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    done = clock.run(["bash", "-c", script], cpu_s=60, cwd=tmp_path, env=env, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     out = tmp_path / "cal" / "out"
     preset = tomllib.loads((out / "preset.toml").read_text(encoding="utf-8"))

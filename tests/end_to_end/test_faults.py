@@ -16,7 +16,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -24,6 +23,7 @@ import pytest
 from camsim.cli import main
 from camsim.render.frame_manifest import MANIFEST_NAME
 
+from tests.support import clock
 from tests.support.helpers import ROOT
 
 pytestmark = [pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals"), pytest.mark.slow]
@@ -74,12 +74,21 @@ POINTS = {
 }
 
 
-def wait_until(proc: subprocess.Popen, ready, out: Path, timeout_s: float = 120.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not ready(out):
-        assert proc.poll() is None, f"camsim ended ({proc.returncode}) before the point: {proc.stderr.read()}"
-        assert time.monotonic() < deadline, "the point was never reached"
-        time.sleep(0.001)
+#: The CPU time a render may use before it reaches the point (its whole run takes about 3 s). Unit: s.
+POINT_CPU_S = 60.0
+#: The CPU time a render may go on using after it was told to stop. Unit: s.
+STOP_CPU_S = 30.0
+
+
+def wait_until(proc: subprocess.Popen, ready, out: Path) -> None:
+    """Wait for ``ready(out)`` while ``proc`` renders: judged by its CPU time (:mod:`tests.support.clock`)."""
+    clock.wait_for(lambda: ready(out), proc, cpu_s=POINT_CPU_S, what="the point")
+
+
+def finish(proc: subprocess.Popen) -> str:
+    """Wait for ``proc`` to exit after a signal (judged by its CPU time) and return its stderr."""
+    clock.wait_exit(proc, cpu_s=STOP_CPU_S, what="the exit after the signal")
+    return proc.stderr.read()
 
 
 def interrupt(point: str, signum: int, out: Path, attempts: int = 3) -> tuple[subprocess.Popen, str]:
@@ -94,7 +103,7 @@ def interrupt(point: str, signum: int, out: Path, attempts: int = 3) -> tuple[su
         proc = start(RENDER, out)
         wait_until(proc, POINTS[point], out)
         proc.send_signal(signum)
-        _, err = proc.communicate(timeout=60)
+        err = finish(proc)
         late = proc.returncode in (0, -signum) and len(committed(out)) == len(FACTORS) and not err.strip()
         if signum == signal.SIGKILL or not late:
             break
@@ -144,19 +153,17 @@ def test_two_renders_into_one_folder(tmp_path):
     out = tmp_path / "out"
     long_render = [*RENDER, "--intensity", *(f"{2.0 ** -k:g}" for k in range(2, 40))]
     runs = [start(long_render, out), start(long_render, out)]
-    deadline = time.monotonic() + 120
-    while all(run.poll() is None for run in runs):
-        assert time.monotonic() < deadline
-        time.sleep(0.01)
+    clock.wait_for(lambda: any(run.poll() is not None for run in runs), runs[0], cpu_s=POINT_CPU_S,
+                   what="one of the two runs refused", poll_s=0.01, exited_ok=True)
     refused, = [run for run in runs if run.poll() is not None]
     winner, = [run for run in runs if run is not refused]
-    _, err = refused.communicate(timeout=60)
+    err = refused.stderr.read()
     assert refused.returncode == 2
     assert err.strip().splitlines() == [f"camsim: error: another camsim run is writing to {out}; wait for it to "
                                         "finish or choose another --out"]
     assert winner.poll() is None, "the first run ended before the second was refused: make it longer"
     winner.send_signal(signal.SIGTERM)
-    winner.communicate(timeout=60)
+    finish(winner)
     assert winner.returncode == 143
     assert partials(out) == []
     assert not (out / MANIFEST_NAME).exists() or listed(out) == committed(out)
@@ -171,10 +178,10 @@ def test_ctrl_c_while_colour_science_imports():
         "threading.Timer(0.02, os.kill, (os.getpid(), signal.SIGINT)).start()\n"
         "try:\n"
         "    import_colour()\n"
-        "    threading.Event().wait(5)\n"
+        "    threading.Event().wait(60)\n"
         "except KeyboardInterrupt:\n"
         "    print('interrupted after the import:', 'OpenImageIO' in sys.modules)\n"
     )
-    done = subprocess.run([sys.executable, "-c", code], env=env(), capture_output=True, text=True, timeout=60)
+    done = clock.run([sys.executable, "-c", code], cpu_s=60, env=env(), capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "interrupted after the import: True"

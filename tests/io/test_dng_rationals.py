@@ -7,7 +7,6 @@ D = floor((2^32 − 1) / 65536) = 65535 for the largest black level: below 7.63e
 
 import json
 import math
-import subprocess
 import sys
 from fractions import Fraction
 
@@ -18,7 +17,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from camsim.io.dng import write_dng, write_dng_cfa
+from tests.support import clock
 from tests.support.helpers import ROOT, libraw_black_levels
+from tests.support.profiles import examples
 
 BLACK_BOUND_DN = 1 / (2 * 65535)  # the writer's bound for any value up to 65535 (docs reference "File formats", camsim.io.dng)
 SIZE = 22  # LibRaw's smallest frame
@@ -29,7 +30,7 @@ XYZ_TO_SRGB = np.array([[3.2406, -1.5372, -0.4986], [-0.9689, 1.8758, 0.0415], [
 blacks = st.floats(min_value=0.0, max_value=65534.0, allow_nan=False, allow_infinity=False)
 # the same 60 examples on every run and machine (derandomize; no example database): a fresh clone's suite is
 # reproducible
-FILES = settings(max_examples=60, deadline=None, derandomize=True, database=None,
+FILES = settings(max_examples=examples(60), deadline=None, derandomize=True, database=None,
                  suppress_health_check=[HealthCheck.function_scoped_fixture])
 
 
@@ -132,10 +133,10 @@ def test_the_cli_writes_a_5000_dn_pedestal_of_a_16_bit_adc(tmp_path):
     """``render … --sensor bits=16 --sensor pedestal_dn=5000`` (a black level of about 5005 DN) is written, and
     rawpy reads it as the sidecar's level rounded (a LinearRaw file)."""
     out = tmp_path / "out"
-    done = subprocess.run(
+    done = clock.run(
         [sys.executable, "-m", "camsim", "render", "macbeth_26", "--illuminant", "D65", "--intensity", "1",
          "--sensor", "bits=16", "--sensor", "pedestal_dn=5000", "--size", "66x44", "--out", str(out), "-q"],
-        cwd=ROOT, capture_output=True, text=True, timeout=300)
+        cpu_s=60, cwd=ROOT, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     path = out / "macbeth_26_D65_F1.dng"
     meta = json.loads(path.with_suffix(".json").read_text())

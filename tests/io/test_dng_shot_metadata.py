@@ -1,14 +1,14 @@
 """A DNG says which camera, ISO and exposure made it, and ``camsim calibrate`` reads them back (real subprocesses).
 
 Darks and flat pairs of the ``sony-a7s2`` preset at ISO 3200 are rendered by ``camsim render`` (black and grey
-pictures as scenes), calibrated by ``camsim calibrate``, and the preset it writes is used again at ISO 3200. The
+pictures as scenes; in this process: the files are what is tested), calibrated by ``camsim calibrate`` (a real
+subprocess, as a user runs it), and the preset it writes is used again at ISO 3200. The
 tags (the ISO and exposure in an EXIF IFD) are checked with ExifTool (skipped where it is not installed: its tag
 values and its validation) and LibRaw (``rawpy``'s ``other.iso_speed`` and ``other.shutter_speed``).
 """
 
 import json
 import shutil
-import subprocess
 import sys
 import tomllib
 
@@ -22,6 +22,7 @@ from camsim.sensor.presets.data import build_presets
 from camsim.cli import main
 from camsim.render.frame_files import camera_identity
 from camsim.io.dng import read_dng, write_dng, write_dng_cfa
+from tests.support import clock
 from tests.support.helpers import ROOT
 
 SCENE = """name = "{name}"
@@ -35,9 +36,9 @@ intensity_factors = [1.0]
 """
 
 
-def _camsim(*argv, timeout=300):
-    done = subprocess.run([sys.executable, "-m", "camsim", *map(str, argv)], cwd=ROOT, capture_output=True,
-                          text=True, timeout=timeout)
+def _camsim(*argv, cpu_s=120):
+    done = clock.run([sys.executable, "-m", "camsim", *map(str, argv)], cpu_s=cpu_s, cwd=ROOT, capture_output=True,
+                     text=True)
     assert done.returncode == 0, done.stderr
     return done
 
@@ -52,15 +53,18 @@ def sony_3200(tmp_path_factory):
         iio.imwrite(folder / f"{name}.png", np.full((64, 64, 3), code, np.uint8))
         (folder / f"{name}.toml").write_text(SCENE.format(name=name))
     camera = ("--preset", "sony-a7s2", "--iso", "3200", "-q")
-    _camsim("render", folder / "dark.toml", "--intensity", 1, 2, 3, 4, "--out", folder / "darks", *camera)
+
+    def render(*argv):
+        assert main([str(a) for a in ("render", *argv, *camera)]) == 0
+
+    render(folder / "dark.toml", "--intensity", 1, 2, 3, 4, "--out", folder / "darks")
     for seed in (1, 2):
-        _camsim("render", folder / "flat.toml", "--intensity", 0.1, 0.3, 0.6, 1, "--seed", seed, "--out",
-                folder / f"flats{seed}", *camera)
+        render(folder / "flat.toml", "--intensity", 0.1, 0.3, 0.6, 1, "--seed", seed, "--out", folder / f"flats{seed}")
     return {"folder": folder, "dark": sorted((folder / "darks").glob("*.dng")),
             "flat": sorted((folder / "flats1").glob("*.dng")) + sorted((folder / "flats2").glob("*.dng"))}
 
 
-@pytest.mark.slow  # the rendered darks and flats (about 10 s, once)
+@pytest.mark.slow  # the rendered darks and flats (once)
 def test_the_files_carry_the_camera_iso_and_exposure(sony_3200):
     path = sony_3200["dark"][0]
     meta = json.loads(path.with_suffix(".json").read_text())
@@ -74,22 +78,22 @@ def test_the_files_carry_the_camera_iso_and_exposure(sony_3200):
 
 
 @pytest.mark.skipif(shutil.which("exiftool") is None, reason="exiftool is not installed")
-@pytest.mark.slow  # the rendered darks and flats (about 10 s, once)
+@pytest.mark.slow  # the rendered darks and flats (once)
 def test_exiftool_reads_the_camera_iso_and_exposure(sony_3200):
     path = sony_3200["flat"][0]
     meta = json.loads(path.with_suffix(".json").read_text())
-    done = subprocess.run(["exiftool", "-j", "-n", "-Make", "-Model", "-UniqueCameraModel", "-ISO", "-ExposureTime",
-                           str(path)], capture_output=True, text=True, timeout=60, check=True)
+    done = clock.run(["exiftool", "-j", "-n", "-Make", "-Model", "-UniqueCameraModel", "-ISO", "-ExposureTime",
+                      str(path)], cpu_s=60, capture_output=True, text=True, check=True)
     tags = json.loads(done.stdout)[0]
     assert tags["Make"] == "Sony" and tags["Model"] == "ILCE-7SM2" and tags["UniqueCameraModel"] == "Sony ILCE-7SM2"
     assert tags["ISO"] == 3200
     assert tags["ExposureTime"] == pytest.approx(meta["exposure_s"], rel=1e-6)
-    done = subprocess.run(["exiftool", "-validate", "-warning", "-a", "-s3", str(path)], capture_output=True,
-                          text=True, timeout=60, check=True)
+    done = clock.run(["exiftool", "-validate", "-warning", "-a", "-s3", str(path)], cpu_s=60, capture_output=True,
+                     text=True, check=True)
     assert done.stdout.strip() == "OK", done.stdout
 
 
-@pytest.mark.slow  # the rendered darks and flats (about 10 s, once)
+@pytest.mark.slow  # the rendered darks and flats (once)
 def test_calibrate_takes_the_files_iso_and_its_preset_renders_at_that_iso(sony_3200, tmp_path):
     out = tmp_path / "cal"
     _camsim("calibrate", "--dark", *sony_3200["dark"], "--flat", *sony_3200["flat"], "--out", out, "-q")
@@ -97,13 +101,13 @@ def test_calibrate_takes_the_files_iso_and_its_preset_renders_at_that_iso(sony_3
     assert preset["iso"][0]["iso"] == 3200
     assert preset["preset"]["name"] == "Sony ILCE-7SM2"
     again = tmp_path / "again"
-    _camsim("render", "macbeth_26", "--illuminant", "D65", "--intensity", 1, "--size", "64x44", "--preset",
-            out / "preset.toml", "--iso", 3200, "--out", again, "-q")
+    assert main(["render", "macbeth_26", "--illuminant", "D65", "--intensity", "1", "--size", "64x44", "--preset",
+                 str(out / "preset.toml"), "--iso", "3200", "--out", str(again), "-q"]) == 0
     _, info = read_dng(again / "macbeth_26_D65_F1.dng")
     assert info["iso"] == 3200 and info["make"] == "Sony"
 
 
-@pytest.mark.slow  # the rendered darks and flats (about 10 s, once)
+@pytest.mark.slow  # the rendered darks and flats (once)
 def test_a_sidecar_that_disagrees_with_its_file_is_refused(sony_3200, tmp_path, capsys):
     darks = []
     for i, path in enumerate(sony_3200["dark"]):  # copies with their sidecars; the last sidecar says ISO 100
@@ -121,7 +125,7 @@ def test_a_sidecar_that_disagrees_with_its_file_is_refused(sony_3200, tmp_path, 
     assert not out.exists()
 
 
-@pytest.mark.slow  # the rendered darks and flats (about 10 s, once)
+@pytest.mark.slow  # the rendered darks and flats (once)
 def test_a_flat_pair_of_two_exposures_is_refused(sony_3200, tmp_path, capsys):
     flats = list(sony_3200["flat"])
     partner = flats[4]  # seed 2's F = 0.1: the pair of flats[0]; rewritten, tagged 2 s, without a sidecar
@@ -180,14 +184,14 @@ def test_iso_tags_hold_any_speed(tmp_path, iso):
         assert raw.other.shutter_speed == pytest.approx(1 / 8000, rel=1e-6)
     assert read_dng(path)[1]["iso"] == iso
     if shutil.which("exiftool"):
-        done = subprocess.run(["exiftool", "-j", "-n", "-ISO", "-ISOSpeed", "-ExposureTime", "-Validate", str(path)],
-                              capture_output=True, text=True, timeout=60, check=True)
+        done = clock.run(["exiftool", "-j", "-n", "-ISO", "-ISOSpeed", "-ExposureTime", "-Validate", str(path)],
+                         cpu_s=60, capture_output=True, text=True, check=True)
         tags = json.loads(done.stdout)[0]
         assert tags.get("ISOSpeed", tags["ISO"]) == iso and tags["ExposureTime"] == pytest.approx(1 / 8000)
         assert tags["Validate"] == "0 0 0"  # -n: errors, warnings, minor warnings
 
 
-@pytest.mark.slow  # the rendered darks and flats (about 10 s, once), calibrated
+@pytest.mark.slow  # the rendered darks and flats (once), calibrated
 def test_files_without_the_tags_take_iso_and_exposure_from_their_sidecars(sony_3200, tmp_path):
     """DNGs of an older camsim (no ISO, no ExposureTime) with their sidecars calibrate at the sidecars' ISO."""
     def untagged(path, folder):
@@ -204,5 +208,5 @@ def test_files_without_the_tags_take_iso_and_exposure_from_their_sidecars(sony_3
     darks = [untagged(p, tmp_path / "d") for p in sony_3200["dark"]]
     flats = [untagged(p, tmp_path / f"f{i // 4}") for i, p in enumerate(sony_3200["flat"])]
     out = tmp_path / "cal"
-    _camsim("calibrate", "--dark", *darks, "--flat", *flats, "--out", out, "-q")
+    assert main(["calibrate", "--dark", *darks, "--flat", *flats, "--out", str(out), "-q"]) == 0
     assert tomllib.loads((out / "preset.toml").read_text())["iso"][0]["iso"] == 3200

@@ -20,9 +20,15 @@ from hypothesis import strategies as st
 
 from camsim.core.errors import CamsimError
 from camsim.io.dng import read_dng, write_dng, write_dng_cfa
-from camsim.io.raw_capture import RawCapture, libraw_orientation, raw_header, read_raw_capture
+from camsim.io.raw_capture import (
+    RawCapture,
+    libraw_orientation,
+    raw_header,
+    read_raw_capture,
+)
 from camsim.sensor.cfa import CFA_PATTERNS
 from tests.support.phone_dng import BLACK_LEVEL_DELTA_H, write_phone_dng
+from tests.support.profiles import examples
 
 H, W = 40, 56
 CM1 = np.array([[0.6722, -0.1882, -0.0712], [-0.4131, 1.2493, 0.1813], [-0.0667, 0.2111, 0.6166]])
@@ -171,7 +177,7 @@ def one_phone_file(tmp_path_factory):
     return phone(tmp_path_factory.mktemp("hyp") / "p.dng", "GBRG", m), m
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=examples(60), deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_random_crops(one_phone_file, data):
     """Any crop inside the frame gives the mosaic's slice, the pattern and black levels of its top-left cell."""

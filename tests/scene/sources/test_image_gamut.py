@@ -4,13 +4,13 @@ frame, with the share of pixels outside (issue 23, point 12). Real ``camsim rend
 import json
 import os
 import re
-import subprocess
 import sys
 
 import imageio.v3 as iio
 import numpy as np
 import pytest
 
+from tests.support import clock
 from tests.support.helpers import ROOT
 
 WIDTH, HEIGHT = 160, 120
@@ -33,9 +33,8 @@ def _render(tmp_path, colourspace, *extra):
                      '[light]\nilluminants = ["D65"]\n', encoding="utf-8")
     out = tmp_path / f"out-{colourspace.replace(' ', '_')}{''.join(extra)}"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    done = subprocess.run([sys.executable, "-m", "camsim", "render", str(scene), "--intensity", "1", "0.5",
-                           "--out", str(out), *extra], capture_output=True, text=True, env=env, cwd=ROOT,
-                          timeout=600)
+    done = clock.run([sys.executable, "-m", "camsim", "render", str(scene), "--intensity", "1", "0.5",
+                      "--out", str(out), *extra], cpu_s=120, capture_output=True, text=True, env=env, cwd=ROOT)
     assert done.returncode == 0, done.stderr
     warnings = [line for line in done.stderr.replace("\r", "\n").splitlines() if line.startswith("camsim: warning")]
     return out, warnings
