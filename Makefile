@@ -4,12 +4,13 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 DOCS_STAMP := $(VENV)/.installed-docs
+LINT_STAMP := $(VENV)/.installed-lint
 # The versions the test suite was last run with (make constraints re-resolves them): a fresh clone gets these
 CONSTRAINTS := constraints.txt
 # pytest-xdist workers: both cores by default (make test JOBS=1 for one process)
 JOBS ?= 2
 
-.PHONY: setup run test test-fast bench bench-gpu docs constraints clean
+.PHONY: setup run test test-fast test-under-load lint bench bench-gpu docs constraints clean
 
 $(STAMP): pyproject.toml $(CONSTRAINTS)
 	$(PYTHON) -m venv $(VENV)
@@ -27,13 +28,26 @@ setup: $(STAMP)
 run: $(STAMP)
 	$(BIN)/camsim render scenes/macbeth_26.toml
 
-## Set up, then run the test suite
+## Set up, then run the test suite (Hypothesis's ci profile)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n $(JOBS)
 
-## Set up, then run the test suite without the tests marked slow (about a quarter of the time)
+## Set up, then run the test suite without the tests marked slow, with a fifth of the Hypothesis examples (dev)
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -n $(JOBS) -m "not slow"
+	HYPOTHESIS_PROFILE=dev $(BIN)/python -m pytest -q -n $(JOBS) -m "not slow"
+
+## Set up, then run make test with one CPU-bound burner per core (BURNERS=N): it must pass on a busy machine too
+test-under-load: $(STAMP)
+	tools/test_under_load.sh
+
+# The lint extra (ruff), on top of the set-up
+$(LINT_STAMP): $(STAMP)
+	$(BIN)/python -m pip install --quiet -c $(CONSTRAINTS) -e '.[lint]'
+	touch $(LINT_STAMP)
+
+## Set up, then check the code with ruff: pyflakes, import order, lines of at most 120 ([tool.ruff] in pyproject.toml)
+lint: $(LINT_STAMP)
+	$(BIN)/ruff check camsim tests tools docs
 
 # The docs extra (Sphinx and its extensions), on top of the set-up
 $(DOCS_STAMP): $(STAMP)
@@ -59,7 +73,7 @@ constraints:
 	rm -rf .venv-resolve
 	$(PYTHON) -m venv .venv-resolve
 	.venv-resolve/bin/python -m pip install --quiet --upgrade pip
-	.venv-resolve/bin/python -m pip install --quiet '.[test,docs]'
+	.venv-resolve/bin/python -m pip install --quiet '.[test,docs,lint]'
 	{ echo "# The versions camsim's test suite was run with, on $$($(PYTHON) --version); made by make constraints."; \
 	  echo "# make installs with pip -c constraints.txt; pyproject.toml's bounds say what camsim supports."; \
 	  .venv-resolve/bin/python -m pip freeze --all | grep -v -E '^(pip|camsim-lowlight)[= @]'; } > $(CONSTRAINTS)

@@ -11,12 +11,12 @@ sequence, so a batch depends on the seed and its index only: whichever process d
 
 Per pair, each pixel's mean signal is its photograph's linear sRGB (Mallett 2019's three basis spectra) times one
 3 × 3 matrix of the illuminant and camera — the scene's lit photograph (:func:`camsim.render.pipeline.light_scene` of an
-:class:`~camsim.scene.sources.image.ImageSource`, computed once per image and illuminant) — times T · F. The noise is the
-array path's exact per-pixel law (:func:`camsim.render.backends.array_path.draw_planes`); the clean target is each pixel's
-exact expectation before quantisation, k · E[min(X + o, full well)] (:func:`camsim.sensor.expected.clean_charge_e`), so that
-``noisy − clean`` has mean zero at every pixel. Everything per pixel stays on the device: with ``device="cuda"`` the
-arrays are CuPy's (a torch training loop takes them without a copy through the host: :mod:`camsim.pairs_torch`),
-with ``device="cpu"`` numpy's.
+:class:`~camsim.scene.sources.image.ImageSource`, computed once per image and illuminant) — times T · F. The noise is
+the array path's exact per-pixel law (:func:`camsim.render.backends.array_path.draw_planes`); the clean target is each
+pixel's exact expectation before quantisation, k · E[min(X + o, full well)]
+(:func:`camsim.sensor.expected.clean_charge_e`), so that ``noisy − clean`` has mean zero at every pixel. Everything per
+pixel stays on the device: with ``device="cuda"`` the arrays are CuPy's (a torch training loop takes them without a copy
+through the host: :mod:`camsim.pairs_torch`), with ``device="cpu"`` numpy's.
 
 The pairs of a batch are drawn together: signals, Poisson means, draws, full well, read noise, gain, ADC and clean
 targets on (B, planes, H, W) arrays in one chain of array calls per batch (about 60 for any B, where a pair made about
@@ -94,11 +94,11 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.render.backends import array_module, device_generator
-from camsim.render.backends.array_path import device_maps, draw_planes, mosaic
 from camsim.core.errors import CamsimError
 from camsim.core.seeding import pair_batch_seed_sequence
 from camsim.core.xp import on_device, to_host
+from camsim.render.backends import array_module, device_generator
+from camsim.render.backends.array_path import device_maps, draw_planes, mosaic
 from camsim.sensor.params import SENSOR_PARAMS, SensorBatch, with_checked_values
 
 #: The most pixels a chunk of frames drawn together holds on the CPU (its arrays stay in the caches), and on a device
@@ -296,8 +296,8 @@ class PairSource:
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
-        from camsim.sensor.presets import CAMERA_PRESETS
         from camsim.scene.scene_file import Scene
+        from camsim.sensor.presets import CAMERA_PRESETS
 
         if not isinstance(self.scene, Scene):
             raise CamsimError(f"a pair source needs a camsim Scene (camsim.load_scene), got {self.scene!r}")
@@ -429,8 +429,8 @@ class PairSource:
 
     @classmethod
     def from_scene(cls, scene, images, **settings) -> PairSource:
-        """A source from a scene file or built-in name (:func:`camsim.scene.scene_file.load_scene`) and ``images``: a folder
-        (every .png, .jpg, .jpeg, .tif, .tiff, .exr file in it, in name order) or a list of files."""
+        """A source from a scene file or built-in name (:func:`camsim.scene.scene_file.load_scene`) and ``images``: a
+        folder (every .png, .jpg, .jpeg, .tif, .tiff, .exr file in it, in name order) or a list of files."""
         from camsim.dataset.spec import IMAGE_SUFFIXES
         from camsim.scene.scene_file import Scene, load_scene
 
@@ -461,8 +461,8 @@ class PairSource:
 
     def _lit(self, path: str, illuminant: str):
         """The photograph ``path`` lit by ``illuminant`` through the scene's camera (cached)."""
-        from camsim.render.pipeline import light_scene
         from camsim.light.rates import FactoredSpectra
+        from camsim.render.pipeline import light_scene
         from camsim.scene.sources.image import ImageSource
 
         key = ("lit", path, illuminant)

@@ -13,7 +13,8 @@ from tests.support.helpers import ROOT
 
 
 def test_import_camsim_loads_nothing_heavy():
-    code = "import sys, camsim; print(sorted(m for m in ('numpy', 'colour', 'scipy', 'matplotlib') if m in sys.modules))"
+    code = ("import sys, camsim; print(sorted(m for m in ('numpy', 'colour', 'scipy', 'matplotlib') "
+            "if m in sys.modules))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
     assert done.stdout.strip() == "[]"
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from camsim.core.errors import CamsimError
-from camsim.pairs import PairBatches, PairSource
 from camsim.core.xp import to_host
+from camsim.pairs import PairBatches, PairSource
 from tests.support.helpers import ROOT
 
 IMAGES = ROOT / "scenes" / "images"
@@ -83,10 +83,10 @@ def test_bad_settings_are_refused():
 def test_the_clean_target_is_the_scene_frames_clean_layer(device):
     """A pair's clean planes equal the clean layer of the same crop rendered as a scene (an [images] dataset frame's
     scene: the photograph cropped, lit, seen by the camera), site by site for a Bayer camera."""
-    from camsim.sensor.presets import sensor_preset
-    from camsim.render.pipeline import light_scene
     from camsim.render.frame import clean_dn
+    from camsim.render.pipeline import light_scene
     from camsim.scene.sources.image import ImageSource
+    from camsim.sensor.presets import sensor_preset
 
     src = source(device, flips=False, cameras=("canon-eos-70d",), iso=(100.0, 6400.0), intensity=(0.05, 2.0))
     batch = src.batch(2)

@@ -2,8 +2,8 @@
 broadcast). Checked against theory written here: in a batch mixing very different virtual cameras, each pair's
 noisy DN has its own camera's mean k·λ and variance k²(λ + σ_read²) + (k σ_row)² (λ the crop's mean signal from the
 scene renderer, k, σ_read, σ_row the pair's recorded figures), and the pairs' noise is independent (correlations
-within ±3/√N); and on a stand-in for CuPy (tests/support/fake_cupy.py: numpy behind CuPy's rules) a batch makes no implicit
-transfer and as many array calls for 8 pairs as for 2."""
+within ±3/√N); and on a stand-in for CuPy (tests/support/fake_cupy.py: numpy behind CuPy's rules) a batch makes no
+implicit transfer and as many array calls for 8 pairs as for 2."""
 
 import numpy as np
 

@@ -300,7 +300,8 @@ def test_bad_burst_settings_are_refused_on_one_line(settings, match):
 
 
 def test_the_docs_burst_example_runs_and_prints_what_they_say(monkeypatch, capsys):
-    """The python block of "Burst pairs on the fly" (docs/guides/denoiser-datasets.md) prints the text block after it."""
+    """The python block of "Burst pairs on the fly" (docs/guides/denoiser-datasets.md) prints
+    the text block after it."""
     import re
 
     text = (ROOT / "docs" / "guides" / "denoiser-datasets.md").read_text(encoding="utf-8")

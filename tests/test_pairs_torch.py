@@ -74,9 +74,9 @@ def test_workers_split_the_batches_and_change_nothing():
 
 def test_cuda_batches_reach_torch_on_the_gpu_without_a_copy():
     torch = pytest.importorskip("torch")
-    from camsim.render.backends import cuda_module
     from camsim.core.errors import CamsimError
     from camsim.pairs_torch import batch_tensors
+    from camsim.render.backends import cuda_module
 
     try:
         cuda_module()

@@ -26,11 +26,11 @@ def main() -> int:
     sys.path.insert(0, str(ROOT))
     from scipy import stats
 
-    from camsim.sensor.camera import load_camera
-    from camsim.scene.chart import parse_size
     from camsim.methods.plan import KIND_NAMES
     from camsim.render.pipeline import light_scene, make_frame
+    from camsim.scene.chart import parse_size
     from camsim.scene.scene_file import load_scene
+    from camsim.sensor.camera import load_camera
     from camsim.sensor.params import PRESETS
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

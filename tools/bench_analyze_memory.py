@@ -2,9 +2,9 @@
 
 The frames: the ColorChecker of ``scenes/macbeth_26.toml`` (default sensor, method ``poisson``, D65) at
 ``--size`` (default 4000 × 3000 = 12 MP), ``max(--counts)`` distinct intensity factors (F = 1, 0.9, 0.81, …,
-0.9^(n−1): the first n frames are the same whatever the largest count), rendered once into a cache folder (``--cache``, default under /tmp) and reused by
-later runs. A 12 MP frame takes about 36 MB as DNG and 150 MB as EXR. For each count n, a folder of hard links
-to the first n frames' files (DNG, EXR, sidecar) is analysed.
+0.9^(n−1): the first n frames are the same whatever the largest count), rendered once into a cache folder (``--cache``,
+default under /tmp) and reused by later runs. A 12 MP frame takes about 36 MB as DNG and 150 MB as EXR. For each count
+n, a folder of hard links to the first n frames' files (DNG, EXR, sidecar) is analysed.
 
 Each case runs ``python -m camsim analyze FOLDER [--source exr] -q`` in a fresh process, started by a small
 wrapper process that reports the child's peak resident set size (``resource.getrusage(RUSAGE_CHILDREN)``,
@@ -146,7 +146,8 @@ def main() -> None:
     parser.add_argument("--sources", nargs="+", choices=("dng", "exr"), default=["dng", "exr"],
                         help="which file of each frame to analyse (default both)")
     parser.add_argument("--cache", type=Path, help="folder of the rendered frames (default under /tmp, reused)")
-    parser.add_argument("--repo", type=lambda p: Path(p).resolve(), default=ROOT, help="camsim source tree to measure (default this one)")
+    parser.add_argument("--repo", type=lambda p: Path(p).resolve(), default=ROOT,
+                        help="camsim source tree to measure (default this one)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     args = parser.parse_args()
     if min(args.counts) < 1:

@@ -2,8 +2,9 @@
 against an earlier checkout in the same run; and the Zarr store's figures.
 
 The dataset: the ColorChecker of ``scenes/macbeth_26.toml`` at 1152 × 864 (0.995 MP), the ``emva-12bit`` sensor
-(12-bit, DSNU and PRNU on; ``--preset`` to change), method ``poisson``, 3 illuminants × ``--frames / 3`` random draws of F (log-uniform 1e-3 … 1) and read
-noise (uniform 1.5 … 6 e⁻); every frame written as DNG + EXR + JSON and recorded (SHA-256) in the manifest.
+(12-bit, DSNU and PRNU on; ``--preset`` to change), method ``poisson``, 3 illuminants × ``--frames / 3`` random draws of
+F (log-uniform 1e-3 … 1) and read noise (uniform 1.5 … 6 e⁻); every frame written as DNG + EXR + JSON and recorded
+(SHA-256) in the manifest.
 
 Configurations, each run as a fresh ``camsim dataset``-like process (as a user would run it), into its own folder:
 

@@ -120,7 +120,8 @@ def main() -> None:
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeats", type=int, default=5, help="rounds over every compression (default 5)")
-    parser.add_argument("--markdown", action="store_true", help="print the table as Markdown (the docs' benchmarks page)")
+    parser.add_argument("--markdown", action="store_true",
+                        help="print the table as Markdown (the docs' benchmarks page)")
     args = parser.parse_args()
     OpenEXR.set_global_thread_count(1)
     offered = {name: entry for name, entry in EXR_COMPRESSIONS.items() if hasattr(OpenEXR, entry[0])}

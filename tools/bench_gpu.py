@@ -79,8 +79,8 @@ def w1_setup(width: int, height: int) -> dict:
 
 def w1_device(xp, w: dict, repeats: int) -> tuple[float, float]:
     """(render, transfer) seconds of W1 on ``xp``'s device."""
-    from camsim.render.backends.array_path import render_frame_xp
     from camsim.core.xp import to_host
+    from camsim.render.backends.array_path import render_frame_xp
 
     labels = xp.asarray(w["lit"].labels)
     sensor = w["scene"].sensor
@@ -114,11 +114,11 @@ def make_image(folder: Path, size: int) -> Path:
 
 
 def pairs_per_s(device: str, image: Path, crop: int, batch: int, batches: int) -> float:
-    from camsim.sensor.presets import CAMERA_PRESETS
-    from camsim.sensor.presets.virtual import cameras_with_fits
+    from camsim.core.xp import synchronize
     from camsim.pairs import PairSource
     from camsim.scene.scene_file import load_scene
-    from camsim.core.xp import synchronize
+    from camsim.sensor.presets import CAMERA_PRESETS
+    from camsim.sensor.presets.virtual import cameras_with_fits
 
     scene = load_scene(SCENE).replace(illuminants=(ILLUMINANT,))
     source = PairSource(scene, (str(image),), crop=(crop, crop), batch_size=batch, intensity=(1e-3, 1.0),
@@ -137,9 +137,9 @@ def poisson_chi2(xp, draws: int) -> dict:
     """χ² p of ``draws`` Poisson draws per λ of :data:`LAMBDAS` on ``xp``'s generator against the exact pmf."""
     from scipy import stats
 
+    from camsim.core.xp import to_host
     from camsim.render.backends import device_generator
     from camsim.sensor.kernels import poisson
-    from camsim.core.xp import to_host
     from tests.support.helpers import chi2_p_counts  # the tests' χ² (ROOT is on the path)
 
     rng = device_generator(xp, np.random.SeedSequence(SEED, spawn_key=(0xC412,)))
@@ -168,8 +168,8 @@ def main() -> None:
     repeats = 1 if args.quick else args.repeats
     draws = args.draws or (100_000 if args.quick else 1_000_000)
 
-    from camsim.render.backends import cuda_module, device_name
     from camsim.core.errors import CamsimError
+    from camsim.render.backends import cuda_module, device_name
 
     result = {"device": device_name(), "w1_size": [width, height], "pair_size": crop, "batch": args.batch}
     try:

@@ -257,8 +257,8 @@ def chart(rows, path: Path) -> None:
     handles += [Line2D([], [], color="0.2", ls=styles[z], label=f"{z} pixels") for z in sizes]
     handles += [Line2D([], [], color="0.3", lw=6, alpha=0.25, label="exact sampler's floor E[TV]")]
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
-    fig.suptitle("Sampling methods against the exact law (camsim.sensor.dn_law) of the digital numbers (Table I) or of the "
-                 "electrons binned to 1 e⁻ (ideal)\nColorChecker under D65, pixel statistics")
+    fig.suptitle("Sampling methods against the exact law (camsim.sensor.dn_law) of the digital numbers (Table I) or of "
+                 "the electrons binned to 1 e⁻ (ideal)\nColorChecker under D65, pixel statistics")
     fig.tight_layout(rect=(0, 0.03, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -266,10 +266,10 @@ def chart(rows, path: Path) -> None:
 
 def main() -> int:
     sys.path.insert(0, str(ROOT))
-    from camsim.sensor.camera import load_camera
-    from camsim.scene.chart import parse_size
     from camsim.render.pipeline import light_scene, make_frame
+    from camsim.scene.chart import parse_size
     from camsim.scene.scene_file import load_scene
+    from camsim.sensor.camera import load_camera
     from camsim.sensor.params import PRESETS as SENSORS
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

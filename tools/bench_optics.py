@@ -8,9 +8,9 @@ as ``camsim render`` makes them (:func:`camsim.render.pipeline.scene_frame`, and
 :func:`camsim.render.frame.render_frame`) and with ``[optics]`` f/4, 4 µm pixels, diffraction and the 4-spot OLPF
 (:mod:`camsim.render.optics`: the per-pixel expectation, per channel the FFT convolutions of the mean OTF and of
 each spectrum's components, the per-pixel draw). The medians of the same run give the ratio; where the optics
-frame's time goes (the expectation's gather, the optics, the draw, the clean layer) is measured on its last repeat. Peak memory: the peak RSS of a fresh child process that
-sets up and makes one frame of each kind (imports included). No files are written (their cost is the same for
-both). Targets: time and peak memory ≤ 1.5× without optics.
+frame's time goes (the expectation's gather, the optics, the draw, the clean layer) is measured on its last repeat. Peak
+memory: the peak RSS of a fresh child process that sets up and makes one frame of each kind (imports included). No files
+are written (their cost is the same for both). Targets: time and peak memory ≤ 1.5× without optics.
 
 On a device (``--device cuda``: an NVIDIA GPU through CuPy; ``numpy``: the same array code on the CPU) the two frames
 are the array path's (:func:`camsim.render.backends.array_path.render_frame_xp`, the label map already on the device,
@@ -158,9 +158,10 @@ def main(argv=None) -> None:
         return child(args.child, width, height, args.workers)
     if args.device != "cpu":
         result = device_run(args.device, width, height, args.repeats)
-        print(f"W1 {result['size']} on {result['device_name']}: without optics median {result['median_off_s'] * 1e3:.1f} "
-              f"ms, with diffraction + OLPF {result['median_on_s'] * 1e3:.1f} ms (ratio {result['ratio_time']:.2f}; "
-              f"a light's first frame {result['on_cold_s'] * 1e3:.1f} ms, ratio {result['ratio_time_cold']:.2f}); parts "
+        print(f"W1 {result['size']} on {result['device_name']}: without optics median "
+              f"{result['median_off_s'] * 1e3:.1f} ms, with diffraction + OLPF {result['median_on_s'] * 1e3:.1f} ms "
+              f"(ratio {result['ratio_time']:.2f}; a light's first frame {result['on_cold_s'] * 1e3:.1f} ms, ratio "
+              f"{result['ratio_time_cold']:.2f}); parts "
               + ", ".join(
                   f"{k} {v * 1e3:.1f} ms" for k, v in result["on_parts_s"].items()))
         print(json.dumps(result))

@@ -172,9 +172,8 @@ def child_pyxel(args) -> dict:
     t0 = time.perf_counter()
     import dask.utils  # noqa: F401  (the first run_mode imports these lazily: count them as import, not run)
     import numpy as np
-    import xarray  # noqa: F401
-
     import pyxel
+    import xarray  # noqa: F401
 
     p = json.loads(Path(args.params).read_text())
     yaml = Path(args.tmp) / "w1_pyxel.yaml"

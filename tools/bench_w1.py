@@ -84,9 +84,9 @@ def peak_rss_mb() -> float:
 
 def setup(width: int, height: int) -> dict:
     """W1's scene lit by D65 through its camera, and its expected signal (imports camsim and colour-science)."""
-    from camsim.sensor.camera import load_camera
     from camsim.render.pipeline import light_scene
     from camsim.scene.scene_file import load_scene
+    from camsim.sensor.camera import load_camera
 
     scene = load_scene(SCENE).replace(width=width, height=height, illuminants=(ILLUMINANT,),
                                       intensity_factors=(FACTOR,), preset_name="paper-table1", statistics="pixel")
@@ -115,10 +115,10 @@ def child_make_image(args) -> dict:
 def image_setup(path: Path) -> dict:
     """W1's camera, light and sensor looking at the photograph ``path`` (:func:`child_make_image`): the keys of
     :func:`setup`, plus ``recovery_s`` (reading, distinct colours and Mallett's recovery) and ``colours``."""
-    from camsim.sensor.camera import load_camera
     from camsim.render.pipeline import light_scene
     from camsim.scene.scene_file import load_scene
     from camsim.scene.sources import ImageSource
+    from camsim.sensor.camera import load_camera
 
     scene = load_scene(SCENE).replace(source=ImageSource(path=path), illuminants=(ILLUMINANT,),
                                       intensity_factors=(FACTOR,), preset_name="paper-table1", statistics="pixel")
@@ -133,8 +133,8 @@ def image_setup(path: Path) -> dict:
 
 def render(w: dict, method: str, workers: int = 2, rng=None):
     """W1 by ``method`` through camsim's frame pipeline (the frame's own seed unless ``rng`` is given)."""
-    from camsim.render.pipeline import make_frame
     from camsim.core.seeding import frame_seed_sequence
+    from camsim.render.pipeline import make_frame
 
     rng = frame_seed_sequence(SEED, ILLUMINANT, FACTOR) if rng is None else rng
     return make_frame(w["lit"], w["scene"].sensor, FACTOR, statistics="pixel", method=method, rng=rng,
@@ -216,8 +216,8 @@ def child_timing(args) -> dict:
     """Interleaved floor/render timings, then file writing, then the spectral method on a small chart."""
     import numpy as np
 
-    from camsim.render.frame_files import frame_stem, write_frame
     from camsim.methods import METHOD_NAMES
+    from camsim.render.frame_files import frame_stem, write_frame
 
     w = setup(args.width, args.height)
     ex, labels = w["expected"], w["radiance"].labels
@@ -346,7 +346,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3, help="repeats of each timing (default 3)")
     parser.add_argument("--quick", action="store_true", help=f"{QUICK_SIZE[0]}x{QUICK_SIZE[1]} frame (smoke test)")
     parser.add_argument("--pyxel", action="store_true",
-                        help="also run tools/bench_pyxel.py (installs Pyxel into its own venv; minutes) and add its keys")
+                        help="also run tools/bench_pyxel.py (installs Pyxel into its own venv; minutes) "
+                             "and add its keys")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     parser.add_argument("--method", default="poisson", help=argparse.SUPPRESS)
     parser.add_argument("--width", type=int, help=argparse.SUPPRESS)
@@ -401,8 +402,8 @@ def main() -> None:
               f"auto/floor {med['auto_2t'] / med['floor_2t']:.2f}x (target ≤ 0.5); first call in a process "
               f"{t['auto_first_s']:.2f} s (it tabulates the Gaussian's KS distance once)")
     p = rss["poisson"]
-    print(f"   memory (fresh process, render on 2 workers): python at start {p['rss_start_mb']:.0f} MB, after imports and "
-          f"setup {p['rss_setup_mb']:.0f} MB, peak {p['rss_peak_mb']:.0f} MB "
+    print(f"   memory (fresh process, render on 2 workers): python at start {p['rss_start_mb']:.0f} MB, after "
+          f"imports and setup {p['rss_setup_mb']:.0f} MB, peak {p['rss_peak_mb']:.0f} MB "
           f"(render adds {p['rss_peak_mb'] - p['rss_setup_mb']:.0f} MB)")
     if has_auto:
         print(f"   memory, method auto: peak {rss['auto']['rss_peak_mb']:.0f} MB")
@@ -410,8 +411,9 @@ def main() -> None:
     print(f"   write                {fmt(t['write'])}")
     print(f"   sizes: DNG {t['sizes']['dng']:.1f} MB, EXR {t['sizes']['exr']:.1f} MB, JSON {t['sizes']['json']:.2f} MB")
     print("   analysis of the written frame (DNG + sidecar; statistics, ellipses, ΔE, SNR of all 24 patches)")
-    print(f"   analyze              {fmt(t['analysis'])}   = {statistics.median(t['analysis']) / med['poisson_2t']:.2f}x "
-          f"the 2-worker render, {statistics.median(t['analysis']) / med['poisson_1t']:.2f}x the 1-worker render")
+    print(f"   analyze              {fmt(t['analysis'])}   = "
+          f"{statistics.median(t['analysis']) / med['poisson_2t']:.2f}x the 2-worker render, "
+          f"{statistics.median(t['analysis']) / med['poisson_1t']:.2f}x the 1-worker render")
     print(f"4. method spectral (per-bin draws) on {SPECTRAL_SIZE[0]} x {SPECTRAL_SIZE[1]}, workers=2")
     print(f"   render               {fmt(t['spectral'])}   = {spectral_s_per_mpix:.1f} s/MP")
     print(f"   EXTRAPOLATED to W1 ({full_mpix:g} MP): {spectral_s_per_mpix * full_mpix:.0f} s (not measured)")
@@ -448,7 +450,8 @@ def main() -> None:
     rss_img = rss["image"]["rss_peak_mb"]
     print(f"\n5. Image scene: astronaut resized to {args.width} x {args.height}, 8-bit sRGB, {img['colours']} distinct "
           "colours, Mallett 2019, same camera, light, F and sensor")
-    print(f"   recovery             {img['recovery_s']:.3f} s (read, distinct colours, Mallett; one 3 x 3 matrix a frame)")
+    print(f"   recovery             {img['recovery_s']:.3f} s (read, distinct colours, Mallett; one 3 x 3 "
+          "matrix a frame)")
     print(f"   floor, 2 threads     {fmt(img['times']['floor_image_2t'])}")
     print(f"   poisson, workers=2   {fmt(img['times']['image_poisson_2t'])}   render/floor {ratio_img:.2f}x")
     print(f"   memory (fresh process, setup + render on 2 workers): peak {rss_img:.0f} MB "
@@ -466,7 +469,8 @@ def main() -> None:
         "peak_rss_mb_poisson": p["rss_peak_mb"], "peak_rss_mb_setup": p["rss_setup_mb"],
         "peak_rss_mb_auto": rss["auto"]["rss_peak_mb"] if has_auto else None, "auto_max_ks": t["auto_max_ks"],
         "ratio_auto_2t": med["auto_2t"] / med["floor_2t"] if has_auto else None, "auto_first_s": t["auto_first_s"],
-        "write_s": statistics.median(t["write"]), "analysis_s": statistics.median(t["analysis"]), "dng_mb": t["sizes"]["dng"], "exr_mb": t["sizes"]["exr"],
+        "write_s": statistics.median(t["write"]), "analysis_s": statistics.median(t["analysis"]),
+        "dng_mb": t["sizes"]["dng"], "exr_mb": t["sizes"]["exr"],
         "image_poisson_2t_s": med_img["image_poisson_2t"], "floor_image_poisson_2t_s": med_img["floor_image_2t"],
         "ratio_image_poisson_2t": ratio_img, "peak_rss_mb_image": rss_img, "image_recovery_s": img["recovery_s"],
         "image_colours": img["colours"],

@@ -21,10 +21,11 @@ import time
 
 import numpy as np
 
-from camsim.sensor.cfa import cfa_sites
-from camsim.render.pipeline import LitScene, make_frame
-from camsim.sensor.params import PRESETS
 from camsim.light.spectra import WavelengthGrid
+from camsim.render.pipeline import LitScene, make_frame
+from camsim.sensor.cfa import cfa_sites
+from camsim.sensor.params import PRESETS
+
 
 def dark_means(sensor, size: int, seed: int = 1):
     """Per channel (mean DN, standard error) of a dark frame of ``sensor``."""

@@ -6,8 +6,9 @@ one labelled PNG:
 
 * row 1, D65 and row 2, A: the preview's default exposure (``"scene"``): the perfect white at F = 1 is sRGB
   white, so the frames darken with F as the light does — the PNGs ``camsim render --preview`` writes;
-* row 3, D65 with the preview's ``exposure="auto"`` (a display gain 1 / F, not the sensor's auto exposure): every F shown like F = 1, so the low-light noise
-  (shot noise, dark current, read noise and the 8-bit quantisation steps) is amplified with the signal.
+* row 3, D65 with the preview's ``exposure="auto"`` (a display gain 1 / F, not the sensor's auto exposure): every F
+  shown like F = 1, so the low-light noise (shot noise, dark current, read noise and the 8-bit quantisation steps) is
+  amplified with the signal.
 
 The frames are those of ``camsim render scenes/macbeth_26.toml --illuminant D65 A --intensity ... --size WxH``
 (same seeds).
@@ -51,9 +52,8 @@ def contact_sheet(rows, factors, tile_shape, path):
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     import imageio.v3 as iio
+    import matplotlib.pyplot as plt
 
     from camsim.io.atomic import atomic_path
 

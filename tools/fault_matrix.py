@@ -1,6 +1,6 @@
 """Fault × sub-command → outcome, with real processes: what each ``camsim`` sub-command does when its output is
-under a file, the disk is full (a real tmpfs with 64 kB left; needs root on Linux, else reported as not run), another run holds
-the folder, or it is sent SIGINT, SIGTERM or SIGKILL while it works.
+under a file, the disk is full (a real tmpfs with 64 kB left; needs root on Linux, else reported as not run), another
+run holds the folder, or it is sent SIGINT, SIGTERM or SIGKILL while it works.
 
 For each case: the exit status, seconds from start to exit, the first line of stderr, whether a traceback was
 printed, what was left in the output folder (temporary ``.partial`` files, pixel files no sidecar claims) and

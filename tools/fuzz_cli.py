@@ -1,18 +1,19 @@
 """The long fuzz run of the ``camsim`` command line (issue 24): mutated scene files, dataset specs, sidecars, preset
 files and DNG, EXR, PNG and cube files through the real CLI, with totals per kind and outcome.
 
-The mutators and the runner are :mod:`tests.support.fuzz` (the suite ``tests/cli/test_fuzz.py`` runs a few hundred of the
-same cases). The cases are Hypothesis's, drawn from ``--seed``: the same command gives the same cases on any
-machine. Each runs in a forked copy of this process with a time and an address-space limit.
+The mutators and the runner are :mod:`tests.support.fuzz` (the suite ``tests/cli/test_fuzz.py`` runs a few hundred of
+the same cases). The cases are Hypothesis's, drawn from ``--seed``: the same command gives the same cases on any
+machine. Each runs in a forked copy of this process with a CPU-time and an address-space limit.
 
     python tools/fuzz_cli.py --cases 3000 --seed 1 --json /tmp/fuzz.json
     python tools/fuzz_cli.py --cases 200 --seed 2 --kinds sidecar,png -v
 
 Prints a table (cases per kind and outcome: ok = exit 0; refused = exit 2 with one ``camsim: error:`` line; hang =
-over --time-limit; memory = over --memory-limit; crash = killed by a signal; traceback; outside = a file written,
-changed or removed outside the output folder; partial = a ``*.partial`` file left; multiline = a failure with more
-than one stderr line; bad_exit = another exit status, or exit 2 without the error line), a few examples of each
-finding, and a JSON line last (also written to --json).
+over --time-limit of CPU time, or as long without any progress; busy = still working after 20 × --time-limit of
+wall-clock time, no finding (the machine was too busy to judge); memory = over --memory-limit; crash = killed by a
+signal; traceback; outside = a file written, changed or removed outside the output folder; partial = a ``*.partial``
+file left; multiline = a failure with more than one stderr line; bad_exit = another exit status, or exit 2 without the
+error line), a few examples of each finding, and a JSON line last (also written to --json).
 """
 
 from __future__ import annotations
@@ -57,7 +58,7 @@ def run_kind(seeds, kind: str, cases: int, seed: int, work: Path, args, totals, 
                          ("partial", bool(result.partial)), ("noisy_success", fuzz.noisy_success(result)),
                          ("multiline", result.rc not in (0, None) and len(result.stderr) > 1)):
             flags[kind][flag] += on
-        if result.outcome not in fuzz.GOOD and len(examples[kind][result.outcome]) < EXAMPLES_PER_FINDING:
+        if result.outcome not in (*fuzz.GOOD, "busy") and len(examples[kind][result.outcome]) < EXAMPLES_PER_FINDING:
             examples[kind][result.outcome].append(f"{case!r} -> {result.summary()}")
         if args.verbose:
             print(f"{kind} {count[0]}: {case!r} -> {result.summary()}", file=sys.stderr, flush=True)
@@ -70,7 +71,8 @@ def main(argv=None) -> int:
     parser.add_argument("--cases", type=int, default=800, help="cases in all, shared evenly by the kinds")
     parser.add_argument("--seed", type=int, default=0, help="Hypothesis seed: the same seed, the same cases")
     parser.add_argument("--kinds", default=",".join(fuzz.KINDS), help=f"comma-separated, of {', '.join(fuzz.KINDS)}")
-    parser.add_argument("--time-limit", type=float, default=10.0, help="seconds per case before it counts as a hang")
+    parser.add_argument("--time-limit", type=float, default=10.0,
+                        help="seconds of CPU time per case (and of no progress at all) before it counts as a hang")
     parser.add_argument("--memory-limit", type=float, default=2048.0,
                         help="MB of address space a case may add (RLIMIT_AS) before it counts as memory")
     parser.add_argument("--json", type=Path, help="also write the totals JSON here")

@@ -28,7 +28,7 @@ import warnings
 
 import numpy as np
 
-from camsim.colour.recovery import (RECOVERY_METHODS, basis_matrix, clear_cache, mallett_basis, rgb_to_distinct_spectra)
+from camsim.colour.recovery import RECOVERY_METHODS, basis_matrix, clear_cache, mallett_basis, rgb_to_distinct_spectra
 from camsim.light.spectra import CMFS_NAME, WavelengthGrid, camera_sensitivities, illuminant_spd, import_colour
 
 CHART = "ColorChecker N Ohta"

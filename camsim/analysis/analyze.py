@@ -10,17 +10,23 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from camsim.render.frame_files import (LoadedFrame, load_frame, no_frames_message, read_frame_meta, search_frames,
-                                uncommitted_lines)
 from camsim.analysis.dark import DarkFrame, load_dark
 from camsim.analysis.figures import analysis_figures
 from camsim.analysis.frame_stats import FRAME_STAT_COLUMNS, frame_statistics
 from camsim.analysis.grouping import group_key
 from camsim.analysis.patches import AnalysisSettings, analyse_frame, frame_matrix
 from camsim.core.errors import CamsimError
-from camsim.io.atomic import write_json_atomic, write_text_atomic
 from camsim.core.optional_numbers import mean_of_defined
+from camsim.io.atomic import write_json_atomic, write_text_atomic
 from camsim.io.output_folder import make_folder
+from camsim.render.frame_files import (
+    LoadedFrame,
+    load_frame,
+    no_frames_message,
+    read_frame_meta,
+    search_frames,
+    uncommitted_lines,
+)
 
 CSV_NAME = "analysis.csv"
 FRAME_CSV_NAME = "frame_statistics.csv"
@@ -30,8 +36,8 @@ GUIDE_NAME = "README.txt"
 FRAME_COLUMNS = ("frame_file", "source", "scene", "illuminant", "intensity_factor", "photon_statistics", "method",
                  "seed")
 PATCH_COLUMNS = ("patch_index", "patch_name", "n_xy_valid", "n_xy_undefined", "ellipse_status", "center_x",
-                 "center_y", "semi_major_xy", "semi_minor_xy", "angle_deg", "size_xy", "frac_in_2sigma", "n_distinct_values", "delta_e_ab_mean",
-                 "delta_e_ab_std", "n_y_nonpositive", "delta_e_status")
+                 "center_y", "semi_major_xy", "semi_minor_xy", "angle_deg", "size_xy", "frac_in_2sigma",
+                 "n_distinct_values", "delta_e_ab_mean", "delta_e_ab_std", "n_y_nonpositive", "delta_e_status")
 CHANNEL_COLUMNS = ("channel", "n_pixels", "black_dn", "mean_dn", "var_dn2", "std_dn", "mean_e", "var_e2", "std_e",
                    "saturated_pixels", "constant", "snr_model", "snr_model_db", "snr_model_eq13", "snr_model_eq13_db",
                    "snr_empirical", "snr_empirical_db",

@@ -108,10 +108,12 @@ FRAME_STATISTICS_COLUMNS = _FRAME | {
     "clip_low_fraction": "share of values at or below 0 DN",
     "clip_high_fraction": "share of values at or above the white level (an EXR: what the ADC would clip)",
     "residual_status": "ok, or why there is no residual: no-clean-layer (no EXR beside the frame), "
-                       "exr-unreadable (there, but truncated or corrupt: a warning names it), exr-of-another-frame, paper-statistics (no prediction), no-pixel-clear-of-clipping",
+                       "exr-unreadable (there, but truncated or corrupt: a warning names it), exr-of-another-frame, "
+                       "paper-statistics (no prediction), no-pixel-clear-of-clipping",
     "n_residual": "pixels in the residual noisy − clean (those clear of clipping)",
     "n_near_clip": "pixels left out of the residual: clean value within 5 σ of 0, the white level or the full well",
-    "residual_mean_dn": "mean of noisy − clean (a DNG: I + ½ − clean; with a pedestal P: I − P − clean), the bias, DN (~0 expected)",
+    "residual_mean_dn": "mean of noisy − clean (a DNG: I + ½ − clean; with a pedestal P: I − P − clean), the bias, DN "
+                        "(~0 expected)",
     "residual_mean_se_dn": "standard error of residual_mean_dn (over rows), DN",
     "residual_var_dn2": "variance of the residual, DN²",
     "residual_var_se_dn2": "standard error of residual_var_dn2, DN²",
@@ -188,8 +190,8 @@ MTF_COLUMNS = {
     "frequency_cy_per_px": "spatial frequency along the edge normal, cycles per sensor pixel (Nyquist 0.5)",
     "mtf_measured": "the measured SFR, 1 at frequency 0",
     "mtf_model": "the closed-form MTF from the sidecar's optics record (diffraction / defocus per wavelength weighted "
-                 "by the channel, OLPF, the pixel: a box of side sqrt(fill_factor), the source's full-pixel sampling and "
-                 "the aperture together); empty without optics",
+                 "by the channel, OLPF, the pixel: a box of side sqrt(fill_factor), the source's full-pixel sampling "
+                 "and the aperture together); empty without optics",
 }
 
 

@@ -20,7 +20,6 @@ import numpy as np
 from camsim.light.spectra import CMFS_NAME, import_colour
 
 
-
 def d65_white_xy() -> np.ndarray:
     """xy of the CIE 1931 2° D65 white point (``colour.CCS_ILLUMINANTS``), shape (2,)."""
     return np.asarray(import_colour().CCS_ILLUMINANTS[CMFS_NAME]["D65"], dtype=np.float64)

@@ -17,13 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.render.frame_files import load_frame
 from camsim.analysis.patches import AnalysisSettings, demosaiced_samples, frame_matrix, patch_samples
 from camsim.colour.colorimetry import CHANNELS, chromaticity_xy, xyz_from_camera
 from camsim.core.errors import CamsimError
 from camsim.core.optional_numbers import finite_or_none as _num
 from camsim.io.figures import new_figure, save_png
 from camsim.io.output_folder import make_folder
+from camsim.render.frame_files import load_frame
 
 MAX_SAMPLES = 300
 UNDEF = "undefined, not plotted"

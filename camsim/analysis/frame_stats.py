@@ -35,9 +35,9 @@ import numpy as np
 
 from camsim.colour.colorimetry import CHANNELS
 from camsim.core.errors import CamsimError
+from camsim.core.optional_numbers import finite_or_none
 from camsim.io.exr import read_exr_clean
 from camsim.render.frame_files import EXR_METADATA_KEY, LoadedFrame
-from camsim.core.optional_numbers import finite_or_none
 from camsim.sensor.stages import adc_offset_dn
 
 #: A pixel whose clean value lies within this many predicted σ of a clip (0, the white level, the full well) is
@@ -226,9 +226,9 @@ def frame_statistics(frame: LoadedFrame, black_dn, problems: list | None = None)
         One record per channel with the keys :data:`FRAME_STAT_COLUMNS`: ``n_pixels``; ``mean_dn`` (black-level
         subtracted) and ``std_dn``; ``clip_low_fraction`` (values ≤ 0) and ``clip_high_fraction`` (values ≥ the
         white level; for an EXR, what the ADC would clip); ``residual_status`` (``ok``, ``no-clean-layer``,
-        ``exr-unreadable``, ``exr-of-another-frame``, ``paper-statistics``, ``no-pixel-clear-of-clipping``) and, when ``ok``, the
-        residual noisy − clean over the ``n_residual`` pixels clear of clipping: its mean (the bias, ~0 within
-        ``residual_mean_se_dn``), its variance with standard error, the model's ``predicted_var_dn2`` (the
+        ``exr-unreadable``, ``exr-of-another-frame``, ``paper-statistics``, ``no-pixel-clear-of-clipping``) and, when
+        ``ok``, the residual noisy − clean over the ``n_residual`` pixels clear of clipping: its mean (the bias, ~0
+        within ``residual_mean_se_dn``), its variance with standard error, the model's ``predicted_var_dn2`` (the
         mean of each pixel's predicted variance) and their ratio. Unit: DN, DN².
     """
     clean, status = load_clean_dn(frame, problems)

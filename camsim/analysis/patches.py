@@ -8,11 +8,11 @@ import numpy as np
 
 from camsim.analysis.delta_e import delta_e_5step, reference_lab
 from camsim.analysis.ellipse import fit_ellipse
-from camsim.render.frame_files import LoadedFrame
 from camsim.analysis.snr import snr_from_moments, snr_model
 from camsim.colour.colorimetry import CHANNELS, camera_to_xyz_matrix, chromaticity_xy, xyz_from_camera
 from camsim.core.errors import CamsimError
 from camsim.core.optional_numbers import finite_or_none
+from camsim.render.frame_files import LoadedFrame
 
 BLACK_MODES = ("none", "sidecar", "dark-frame")
 

@@ -21,8 +21,8 @@ from camsim.calibration import fixed_pattern as fp
 from camsim.calibration.estimate import Estimate, ratio, sqrt_estimate
 from camsim.calibration.rawfiles import Layout, check_same_exposure, check_same_layout, read_raw
 from camsim.core.errors import CamsimError
-from camsim.sensor.kernels import tukey_lambda_variance
 from camsim.core.names import name_problem, safe_component
+from camsim.sensor.kernels import tukey_lambda_variance
 
 #: Fewest dark frames: the per-pixel mean needs two to leave a residual.
 MIN_DARKS = 2
@@ -601,7 +601,8 @@ def _warnings(planes, read_all: Estimate, k: Estimate, levels: int, darks: int) 
             out.append(f"plane {pl.name}: the photon transfer fit has R² = {fit.r_squared:.4f}: the response is "
                        "not linear over the fit range, or the light changed between the frames of a pair")
         c = fit.intercept_dn2
-        if c.standard_error and abs(c.value) > 5 * c.standard_error and abs(c.value) > 0.05 * pl.dark_variance_dn2.value:
+        if (c.standard_error and abs(c.value) > 5 * c.standard_error
+                and abs(c.value) > 0.05 * pl.dark_variance_dn2.value):
             out.append(f"plane {pl.name}: the photon transfer line meets μ = 0 at {c.value:.3g} DN², not 0 "
                        f"(± {c.standard_error:.2g}): the darks' noise differs from the flats' at zero signal (an "
                        "exposure or ISO that differs, or a dark current of the longer flats)")

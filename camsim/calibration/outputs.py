@@ -26,8 +26,8 @@ from camsim.calibration.estimate import Estimate, ratio
 from camsim.calibration.measure import GAUSSIAN_LAMBDA_TOLERANCE, Calibration
 from camsim.calibration.ptc import FIT_FRACTION
 from camsim.calibration.tukey import GAUSSIAN_LAMBDA
-from camsim.io.atomic import atomic_path, write_json_atomic, write_text_atomic
 from camsim.core.optional_numbers import finite_or_none
+from camsim.io.atomic import atomic_path, write_json_atomic, write_text_atomic
 
 FILES = {
     "preset": "preset.toml",

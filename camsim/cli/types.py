@@ -101,7 +101,8 @@ def file_name(what: str):
 
 
 def schema_value(param):
-    """The argparse type of a :class:`camsim.core.schema.Param`: its text parsed, typed and range-checked by the schema."""
+    """The argparse type of a :class:`camsim.core.schema.Param`: its text parsed, typed and range-checked by the
+    schema."""
     from camsim.core.errors import CamsimError
 
     def parse(text: str):

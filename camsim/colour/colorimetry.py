@@ -1,7 +1,7 @@
 """Camera RGB → CIE XYZ → xy chromaticity (the paper's Eqs. 15–16).
 
-A core module (it imports only :mod:`camsim.light.photons` and :mod:`camsim.light.spectra`): the preview, the analysis and
-its consumers (experiments, denoise-eval) all take their colorimetry from here.
+A core module (it imports only :mod:`camsim.light.photons` and :mod:`camsim.light.spectra`): the preview, the analysis
+and its consumers (experiments, denoise-eval) all take their colorimetry from here.
 
 Conventions
 -----------

@@ -3,8 +3,8 @@
 Importing colour-science takes about half a second (it imports scipy, matplotlib and OpenImageIO), which
 ``camsim list`` does not need: these are the names of colour-science 0.4.7's ``SDS_ILLUMINANTS``,
 ``MSDS_CAMERA_SENSITIVITIES`` and ``SDS_COLOURCHECKERS``, sorted. ``tests/test_imports.py`` checks them against the
-installed colour-science (:func:`camsim.light.spectra.illuminant_names` and its siblings), which stays the authority when
-a scene names a spectrum.
+installed colour-science (:func:`camsim.light.spectra.illuminant_names` and its siblings), which stays the authority
+when a scene names a spectrum.
 """
 
 __all__ = ["CAMERAS", "ILLUMINANTS", "REFLECTANCE_SETS"]

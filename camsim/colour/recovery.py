@@ -530,7 +530,8 @@ def rgb_to_distinct_spectra(rgb, method: str = DEFAULT_METHOD, colourspace: str 
     if max_delta_e is not None and count and np.max(delta_e) > max_delta_e:
         bad = int(np.sum(delta_e > max_delta_e))
         raise CamsimError(f"{method}: {bad} of {count} colours are recovered with ΔE00 above {max_delta_e:g} "
-                          f"(worst {np.max(delta_e):.3g}, at linear RGB {colours[np.argmax(delta_e)].round(4).tolist()})")
+                          f"(worst {np.max(delta_e):.3g}, at linear RGB "
+                          f"{colours[np.argmax(delta_e)].round(4).tolist()})")
     return RecoveredSpectra(spectra=spectra, labels=labels, colours=colours, outside=outside, delta_e=delta_e,
                             method=method, colourspace=space.name, grid=grid, bits=bits, computed=len(missing),
                             seconds=seconds)

@@ -1,9 +1,9 @@
 """The one parameter schema: each parameter's name, type, unit, default, range and help, declared once.
 
 A parameter is declared where its dataclass is (``SensorParams`` in :mod:`camsim.sensor.params`, the render settings of
-:class:`camsim.scene.scene_file.Scene`) with :func:`param`, which stores a :class:`Param` in the field's metadata. Everything
-else is derived from it: the dataclass's own validation (:func:`validate`), the scene-file reader's ``[sensor]``
-and ``[render]`` tables, the dataset spec's parameter types and choices, the command line's choices and its
+:class:`camsim.scene.scene_file.Scene`) with :func:`param`, which stores a :class:`Param` in the field's metadata.
+Everything else is derived from it: the dataclass's own validation (:func:`validate`), the scene-file reader's
+``[sensor]`` and ``[render]`` tables, the dataset spec's parameter types and choices, the command line's choices and its
 ``--sensor NAME=VALUE`` option, the sidecar's keys and the analysis's grouping keys. So a new sensor parameter is
 one field in :class:`camsim.sensor.params.SensorParams` (plus the physics that uses it).
 """
@@ -214,7 +214,8 @@ def typed(table: dict, key: str, kind, default, where: str):
 
 
 def check_frame_size(width, height, where: str) -> None:
-    """Refuse a frame size that is not two positive integers (pixels) of at most :data:`camsim.core.pixel_limit.MAX_PIXELS` in all.
+    """Refuse a frame size that is not two positive integers (pixels) of at most
+    :data:`camsim.core.pixel_limit.MAX_PIXELS` in all.
 
     Raises
     ------

@@ -4,32 +4,35 @@ All randomness comes from numpy ``SeedSequence`` objects built here from a user'
 used anywhere. The namespaces (``spawn_key`` prefixes) keep consumers apart, so that no two ever draw the same
 stream:
 
-==========================  ===========================================================  ==================
-consumer                    seed sequence                                                function
-==========================  ===========================================================  ==================
-a scene frame               ``SeedSequence(seed, spawn_key=(crc32(label), crc32(repr(F))))``  :func:`frame_seed_sequence`
-  (``render``, ``dataset``,   ``label`` is the illuminant (render, dataset) or the
-  experiments)               experiment's series name
-a row block of a frame      child *b* of the frame's sequence (``spawn``)                :func:`block_generators`
-a sensor's fixed pattern    ``SeedSequence(sensor_seed, spawn_key=(0x46504E,))``,        :func:`fixed_pattern_generators`
+==========================  =======================================================  ==================
+consumer                    seed sequence                                            function
+==========================  =======================================================  ==================
+a scene frame               ``SeedSequence(seed, spawn_key=(crc32(label), c))``      :func:`frame_seed_sequence`
+  (``render``, ``dataset``, with c = ``crc32(repr(F))``; ``label`` is the
+  experiments)              illuminant (render, dataset) or the experiment's
+                            series name
+a row block of a frame      child *b* of the frame's sequence (``spawn``)            :func:`block_generators`
+a sensor's fixed pattern    ``SeedSequence(sensor_seed, spawn_key=(0x46504E,))``,    :func:`fixed_pattern_generators`
                             children 0 (DSNU offset), 1 (PRNU) and 2 (dark-current
                             DSNU)
-  (issue 28's maps)         children 3 (defect population), 4 (hot pixels' dark         :func:`fixed_pattern_generator`
+  (issue 28's maps)         children 3 (defect population), 4 (hot pixels' dark      :func:`fixed_pattern_generator`
                             current), 5 (stuck levels), 6 (dark shading), 7 (column
                             FPN)
-a frame's black-level       the frame's sequence extended by the word ``0xB1AC0`` and     :func:`frame_effect_generator`
-  error                     the number of children it has spawned (its blocks are
-                            children 0, 1, … of the frame's sequence)
-a dataset frame's seed      ``SeedSequence(spec seed, spawn_key=sha256(id)[:16] as 4      :func:`dataset_frame_seed`
-                            words)``, its first 64-bit word >> 11 (< 2^53)
-a dataset random parameter  ``SeedSequence(spec seed, spawn_key=(0xDA7A5E7, crc32(name)))`` :func:`dataset_parameter_generator`
-an EMVA 1288 frame          ``SeedSequence(seed, spawn_key=(kind, step, frame))``        :func:`emva_frame_seed_sequence`
-a synthetic target's        ``SeedSequence(target seed, spawn_key=(0x7A263E7,))``         :func:`target_generator`
+a frame's black-level       the frame's sequence extended by the word ``0xB1AC0``    :func:`frame_effect_generator`
+  error                     and the number of children it has spawned (its blocks
+                            are children 0, 1, … of the frame's sequence)
+a dataset frame's seed      ``SeedSequence(spec seed, spawn_key=sha256(id)[:16] as   :func:`dataset_frame_seed`
+                            4 words)``, its first 64-bit word >> 11 (< 2^53)
+a dataset random parameter  ``SeedSequence(spec seed, spawn_key=(0xDA7A5E7,          :func:`dataset_parameter_generator`
+                            crc32(name)))``
+an EMVA 1288 frame          ``SeedSequence(seed, spawn_key=(kind, step, frame))``    :func:`emva_frame_seed_sequence`
+a synthetic target's        ``SeedSequence(target seed, spawn_key=(0x7A263E7,))``    :func:`target_generator`
   pattern (dead leaves)
-a batch of training pairs   ``SeedSequence(seed, spawn_key=(0x9A125, b >> 32, b & ``     :func:`pair_batch_seed_sequence`
-  (:mod:`camsim.pairs`)     ``0xFFFFFFFF))`` for batch b; children 0 (noise), 1 (images
-                            and crops), 2 (light), 3–8 (cameras)
-==========================  ===========================================================  ==================
+a batch of training pairs   ``SeedSequence(seed, spawn_key=(0x9A125, hi, lo))`` for  :func:`pair_batch_seed_sequence`
+  (:mod:`camsim.pairs`)     batch b, hi = ``b >> 32``, lo = ``b & 0xFFFFFFFF``;
+                            children 0 (noise), 1 (images and crops), 2 (light),
+                            3–8 (cameras)
+==========================  =======================================================  ==================
 
 Frame keys have two words, dataset frame-seed keys four, parameter keys start with ``0xDA7A5E7`` and the fixed
 pattern's with ``0x46504E`` (neither a CRC-32 collision with a frame key in practice nor a small EMVA kind), so
@@ -233,7 +236,8 @@ def emva_frame_seed_sequence(seed: int, kind: int, step: int, frame: int) -> np.
 
 
 def target_generator(seed: int) -> np.random.Generator:
-    """The stream of a synthetic target's pattern (:mod:`camsim.scene.sources.target`): a function of its ``seed`` alone."""
+    """The stream of a synthetic target's pattern (:mod:`camsim.scene.sources.target`): a function of its ``seed``
+    alone."""
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(TARGET_KEY,)))
 
 

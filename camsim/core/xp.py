@@ -1,8 +1,9 @@
 """Array namespaces: numpy on the CPU, CuPy on an NVIDIA GPU — the one switch of camsim's array code.
 
-The stages (:mod:`camsim.sensor.stages`) and the device path (:mod:`camsim.render.backends.array_path`) are written once, against
-what numpy and CuPy share: the module functions (``xp.minimum``, ``xp.where``, …) and the methods of their random
-generators that take the same arguments (``poisson(lam)``, ``standard_normal(size, dtype)``, ``random(size, dtype)``).
+The stages (:mod:`camsim.sensor.stages`) and the device path (:mod:`camsim.render.backends.array_path`) are written
+once, against what numpy and CuPy share: the module functions (``xp.minimum``, ``xp.where``, …) and the methods of
+their random generators that take the same arguments (``poisson(lam)``, ``standard_normal(size, dtype)``,
+``random(size, dtype)``).
 A stage's per-frame parameter (a gain, a read-noise σ, a full well) is a number for one frame, or, for a batch of
 frames drawn together, a numpy array on the host that broadcasts against the values (one value per frame: shape
 (B, 1, 1, 1) for (B, planes, H, W)): the conditions on it are read on the host, and :func:`on_device` copies it to the

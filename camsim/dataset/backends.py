@@ -16,9 +16,9 @@ import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 
+from camsim.core.errors import CamsimError
 from camsim.dataset._pool import pool_context, worker_init
 from camsim.dataset.manifest import FRAMES_DIR
-from camsim.core.errors import CamsimError
 from camsim.io.exr import restore_exr_threads, set_exr_threads
 
 __all__ = ["run_serial", "run_pool", "run_dask"]
@@ -133,7 +133,8 @@ def run_dask(task, todo, address, threads, on_done) -> None:
     cancelled on the cluster and the client is closed, so that the cluster is left idle and usable.
     """
     try:
-        from distributed import Client, as_completed as dask_completed
+        from distributed import Client
+        from distributed import as_completed as dask_completed
     except ImportError:
         raise CamsimError("--scheduler needs dask.distributed: pip install 'dask[distributed]'") from None
     try:

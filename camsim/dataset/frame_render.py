@@ -11,12 +11,12 @@ import dataclasses
 from functools import lru_cache
 from pathlib import Path
 
-from camsim.sensor.camera import load_camera
 from camsim.dataset.spec_parts import FrameSpec
-from camsim.render.frame_files import write_frame
 from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION
+from camsim.render.frame_files import write_frame
 from camsim.render.pipeline import light_scene, scene_frame
 from camsim.scene.scene_file import load_scene
+from camsim.sensor.camera import load_camera
 
 __all__ = ["render_frame", "render_files", "render_burst", "render_burst_files"]
 
@@ -90,7 +90,8 @@ def render_burst(frame: FrameSpec, threads: int = 1):
 
 
 def render_burst_files(frame: FrameSpec, directory: Path, threads: int = 1,
-                       exr_compression: str = DEFAULT_EXR_COMPRESSION, srgb: str = "none") -> tuple[dict, dict, dict | None]:
+                       exr_compression: str = DEFAULT_EXR_COMPRESSION,
+                       srgb: str = "none") -> tuple[dict, dict, dict | None]:
     """Render a burst item (:func:`render_burst`) and write its files into ``directory``, as ``camsim render``
     writes a ``[sequence]``'s: ``<id>_ref.exr/.json`` (the clean reference: the static scene), then
     ``<id>_fNNN.dng/.exr/.json`` per frame, each atomically. With ``srgb`` (``png``, ``png16``) also

@@ -34,8 +34,8 @@ import json
 import os
 from pathlib import Path
 
-from camsim.dataset.spec_parts import FrameSpec
 from camsim.core.errors import output_error
+from camsim.dataset.spec_parts import FrameSpec
 from camsim.io.atomic import atomic_path, write_json_atomic, write_text_atomic
 
 __all__ = ["FRAMES_DIR", "MANIFEST_NAME", "DONE_SUFFIX", "VERIFY_MODES", "sha256_file", "done_path", "frame_record",

@@ -22,8 +22,9 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from camsim.dataset._pool import start_fork_server
+from camsim.core.errors import CamsimError
 from camsim.dataset import zarr_store  # light: zarr itself is imported when a store is opened
+from camsim.dataset._pool import start_fork_server
 from camsim.dataset.backends import run_dask, run_pool, run_serial
 from camsim.dataset.manifest import (
     DONE_SUFFIX,
@@ -37,7 +38,6 @@ from camsim.dataset.spec import check_srgb, load_spec
 from camsim.dataset.spec_parts import DatasetSpec, FrameSpec
 from camsim.dataset.srgb import srgb_bits
 from camsim.dataset.task import render_task, zarr_task
-from camsim.core.errors import CamsimError
 from camsim.io.exr_compression import DEFAULT_EXR_COMPRESSION, check_exr_compression
 from camsim.io.output_folder import output_folder
 from camsim.render.frame import default_workers

@@ -54,7 +54,8 @@ files, in name order), the crop's offset (x, y uniform over every position insid
 (:func:`camsim.core.seeding.dataset_parameter_generator` of ``images.file``, ``images.x``, ``images.y``,
 ``images.flip_horizontal``, ``images.flip_vertical``). The frame's record holds them
 (:data:`camsim.dataset.spec_parts.IMAGE_KEYS`: the file name relative to the folder, its SHA-256, ``crop_x``,
-``crop_y``, ``flip_horizontal``, ``flip_vertical``), so that the id changes with the image's bytes. A crop is of the file as stored; a flip mirrors the cropped frame.
+``crop_y``, ``flip_horizontal``, ``flip_vertical``), so that the id changes with the image's bytes. A crop is of the
+file as stored; a flip mirrors the cropped frame.
 
 Scenes may also be crops of a folder of a real camera's raw files (a ``[raws]`` table: ``folder``, ``pattern``,
 ``crop``, ``flips``, ``photon_law``, ``preset``), which need no ``scene`` file: the light and colour are each file's
@@ -90,9 +91,10 @@ from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 
-from camsim.scene.builtin_scenes import resolve_scene_file, resolve_spec_file
-from camsim.sensor.camera import load_camera
 from camsim.core.errors import CamsimError
+from camsim.core.names import safe_component
+from camsim.core.schema import INT64_MAX, check_frame_size
+from camsim.core.seeding import dataset_parameter_generator
 from camsim.dataset.raws import plan_raws
 from camsim.dataset.spec_parts import (
     FACTOR_INDEX,
@@ -117,17 +119,16 @@ from camsim.dataset.spec_parts import (
     spec_table,
     virtual_camera_draws,
 )
-from camsim.render.pipeline import check_frame, exposure_record, frame_sensor, light_scene
-from camsim.render.run import check_scene
 from camsim.io.dng import MIN_SIZE
 from camsim.io.exr_compression import check_exr_compression
-from camsim.core.names import safe_component
-from camsim.core.schema import INT64_MAX, check_frame_size
+from camsim.render.pipeline import check_frame, exposure_record, frame_sensor, light_scene
+from camsim.render.run import check_scene
+from camsim.scene.builtin_scenes import resolve_scene_file, resolve_spec_file
 from camsim.scene.scene_file import Scene, check_intensity_factor, load_scene, read_toml
 from camsim.scene.sequence import check_timing
-from camsim.core.seeding import dataset_parameter_generator
-from camsim.sensor.params import SENSOR_PARAMS, with_checked_values
 from camsim.scene.sources.image import ImageSource
+from camsim.sensor.camera import load_camera
+from camsim.sensor.params import SENSOR_PARAMS, with_checked_values
 from camsim.sensor.presets.virtual import VIRTUAL_KEYS
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT = 256, 192
@@ -447,8 +448,8 @@ def _frame_values(job: _Job) -> Iterator[tuple]:
 class _FrameCheck:
     """Checks the frames of one group as drawing each checks it first (:func:`camsim.render.pipeline.check_frame`: its
     expected signal finite, its values within float32, its exposure within a DNG's), so that a frame the run would
-    refuse is refused when the spec is planned, by the dry run too. The group's lit scene stands for its frames' (an ``[images]`` spec's first
-    crop for every crop, as in the other checks).
+    refuse is refused when the spec is planned, by the dry run too. The group's lit scene stands for its frames' (an
+    ``[images]`` spec's first crop for every crop, as in the other checks).
 
     With a fixed exposure every mean grows with F, so a frame with the same own sensor values as the last one
     checked, at no larger F, passes as that one did: a spec that varies only the light checks a handful of frames.

@@ -56,9 +56,9 @@ from pathlib import Path
 
 import numpy as np
 
+from camsim.core.errors import CamsimError, output_error
 from camsim.dataset.manifest import DONE_SUFFIX, append_manifest, frame_record, manifest_line
 from camsim.dataset.srgb import SRGB_LAYERS
-from camsim.core.errors import CamsimError, output_error
 from camsim.io import atomic  # atomic.fsync_path: one flush, which tests can fail as a full disk does
 
 __all__ = ["STORE_NAME", "RECORDS_DIR", "LAYERS", "BURST_LAYERS", "SRGB_REFERENCE", "COMPRESSORS", "StoreLayout",

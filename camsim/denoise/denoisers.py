@@ -562,7 +562,8 @@ def _command_denoiser(target: str, timeout_s: float | None) -> Denoiser:
     for placeholder in (INPUT_PLACEHOLDER, OUTPUT_PLACEHOLDER):
         if not any(placeholder in arg for arg in argv):
             raise CamsimError(f"denoiser {target!r}: the command must contain {placeholder} (replaced by the path "
-                              f"of the {'noisy EXR it reads' if placeholder == INPUT_PLACEHOLDER else 'EXR it writes'})")
+                              "of the "
+                              f"{'noisy EXR it reads' if placeholder == INPUT_PLACEHOLDER else 'EXR it writes'})")
     program = argv[0]
     if shutil.which(program) is None and not Path(program).is_file():
         raise CamsimError(f"denoiser {target!r}: program {program!r} not found")

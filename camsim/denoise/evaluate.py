@@ -36,19 +36,39 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from camsim.analysis.grouping import group_key
-from camsim.render.frame_files import load_frame
 from camsim.analysis.patches import frame_matrix, patch_samples
 from camsim.colour.colorimetry import CHANNELS
-from camsim.denoise.bayer import (BAYER_INPUTS, BAYER_PLANES, DEFAULT_ISP_GAIN, MOSAIC, PACKED, bayer_frame,
-                                  developed_image, from_packed, raw_scores, srgb_lab, srgb_scores, to_packed)
+from camsim.core.errors import CamsimError
+from camsim.denoise.bayer import (
+    BAYER_INPUTS,
+    BAYER_PLANES,
+    DEFAULT_ISP_GAIN,
+    MOSAIC,
+    PACKED,
+    bayer_frame,
+    developed_image,
+    from_packed,
+    raw_scores,
+    srgb_lab,
+    srgb_scores,
+    to_packed,
+)
 from camsim.denoise.colour_fidelity import frame_white_xyz, mean_delta_e00
 from camsim.denoise.denoisers import SIGMA_MODEL, Denoiser, estimate_noise_sigma, model_noise_sigma
 from camsim.denoise.frames import Dataset, DatasetFrame, find_dataset
 from camsim.denoise.image_scores import image_scores
 from camsim.denoise.patch_colour import patch_colour, patch_row, reference_labs
-from camsim.denoise.summary import (NOISY, Criterion, band_verdicts, f_band, summarise, summarise_bands,
-                                    undefined_counts, verdict)
-from camsim.core.errors import CamsimError
+from camsim.denoise.summary import (
+    NOISY,
+    Criterion,
+    band_verdicts,
+    f_band,
+    summarise,
+    summarise_bands,
+    undefined_counts,
+    verdict,
+)
+from camsim.render.frame_files import load_frame
 
 __all__ = ["EvalSettings", "FrameResult", "Evaluation", "evaluate", "evaluate_frame"]
 
@@ -203,7 +223,8 @@ def evaluate_frame(frame: DatasetFrame, denoisers: list[Denoiser], settings: Eva
         result.denoised_rows[denoiser.name] = {
             "psnr_denoised_db": psnr, "ssim_denoised": ssim, "sigma_given": denoiser.sigma_source,
             "seconds": result.seconds[denoiser.name],
-            "delta_e00_denoised": mean_delta_e00(denoised.astype(np.float64) - model_black, clean_signal, matrix, white),
+            "delta_e00_denoised": mean_delta_e00(denoised.astype(np.float64) - model_black, clean_signal, matrix,
+                                                 white),
             "psnr_gain_db": None if psnr is None or psnr_noisy is None else psnr - psnr_noisy,
             "ssim_gain": None if ssim is None or ssim_noisy is None else ssim - ssim_noisy,
         }

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.render.frame_files import load_frame, search_frames
 from camsim.core.errors import CamsimError
+from camsim.render.frame_files import load_frame, search_frames
 
 #: Why an EXR in a folder that no sidecar claims is not scored.
 UNCOMMITTED = "uncommitted: no sidecar claims it (a frame being written, or left by an interrupted writer)"

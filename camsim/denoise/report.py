@@ -43,8 +43,8 @@ BAYER_FRAME_COLUMNS = (
     *(f"raw_ssim_{p}_{label}" for p in BAYER_PLANES for label in ("noisy", "denoised")),
     *(f"raw_sigma_est_{p}" for p in BAYER_PLANES), *(f"raw_sigma_model_{p}" for p in BAYER_PLANES),
     *(f"raw_noise_std_{p}" for p in BAYER_PLANES),
-    "isp_gain", "srgb_psnr_noisy_db", "srgb_psnr_denoised_db", "srgb_ssim_noisy", "srgb_ssim_denoised", "srgb_delta_e00_noisy",
-    "srgb_delta_e00_denoised")
+    "isp_gain", "srgb_psnr_noisy_db", "srgb_psnr_denoised_db", "srgb_ssim_noisy", "srgb_ssim_denoised",
+    "srgb_delta_e00_noisy", "srgb_delta_e00_denoised")
 FRAME_COLUMNS = ("denoiser", "file", "scene", "illuminant", "intensity_factor", "width_px", "height_px",
                  "data_range_dn", "data_range_source", "sigma_est_R_dn", "sigma_est_G_dn", "sigma_est_B_dn",
                  "sigma_model_R_dn", "sigma_model_G_dn", "sigma_model_B_dn", "sigma_given",
@@ -226,8 +226,8 @@ def crops_by_band_figure(ev: Evaluation, path: Path) -> Path:
     """The crops figure: per half-decade band of F (rows, brightest first) a centre crop of one frame in the band
     (the one closest to the band's centre in log F) — noisy, then each denoiser, then clean (columns). Three-chip
     frames: black level subtracted, each row scaled to its clean crop's maximum, γ 1/2.2; Bayer frames: developed
-    by :func:`camsim.isp.develop` (:func:`camsim.denoise.bayer.isp_settings`, the run's ``isp_gain``). Written as a PNG with matplotlib's Agg
-    canvas, chosen here for this figure alone (no process-wide backend)."""
+    by :func:`camsim.isp.develop` (:func:`camsim.denoise.bayer.isp_settings`, the run's ``isp_gain``). Written as a PNG
+    with matplotlib's Agg canvas, chosen here for this figure alone (no process-wide backend)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     bands = sorted(ev.band_crops, reverse=True)
@@ -287,7 +287,8 @@ def _example_plot(ev: Evaluation, path: Path) -> None:
     fig = new_figure(figsize=(2.3 * len(columns), 1.9 * len(factors) + 0.5), layout="constrained")
     _crop_grid(fig, [ev.examples[factor] for factor in factors], columns, [f"F = {_f(f)}" for f in factors], 9)
     fig.suptitle("Clean, noisy and denoised\n"
-                 + _crop_note([ev.examples[factor] for factor in factors], _gain_word(ev.settings.isp_gain)), fontsize=9)
+                 + _crop_note([ev.examples[factor] for factor in factors], _gain_word(ev.settings.isp_gain)),
+                 fontsize=9)
     save_png(fig, path)
 
 
@@ -720,7 +721,8 @@ def report_text(ev: Evaluation) -> str:
               "`camsim.analysis.grouping.group_key`), so that it is noise-free and the same for every denoiser.",
               *([f"* **Bayer frames**: a user's denoiser got {bayer_input_text(s.bayer_input)} "
                  f"(`--bayer-input {s.bayer_input}`), the built-ins the packed planes; developed for the scores after "
-                 f"the ISP by {isp_text(s.isp_gain)}{_gain_note(ev)}. The PSNR/SSIM bullet below is for three-chip frames; a Bayer frame's "
+                 f"the ISP by {isp_text(s.isp_gain)}{_gain_note(ev)}. The PSNR/SSIM bullet below is for three-chip "
+                 "frames; a Bayer frame's "
                  "frame-level PSNR, SSIM and ΔE00 are those after the ISP (data range 1)."] if _bayer_rows(ev) else []),
               "* **Denoisers**: " + "; ".join(f"`{d.target}` — {d.description}" for d in ev.denoisers) + ".",
               ]

@@ -416,7 +416,8 @@ def _dark_vs_temperature(result: EmvaResult) -> list:
         "|---|---|---|---|",
     ]
     lines += [f"| {r['temperature_c']:g} °C | {_fmt(r['slope_dn_per_s'])} ± "
-              f"{_fmt(r['slope_standard_error_dn_per_s'], 2)} DN/s | {_fmt(r['dark_current_e_per_s'])} e⁻/s | {_fmt(r['configured_e_per_s'])} e⁻/s |"
+              f"{_fmt(r['slope_standard_error_dn_per_s'], 2)} DN/s | {_fmt(r['dark_current_e_per_s'])} e⁻/s | "
+              f"{_fmt(r['configured_e_per_s'])} e⁻/s |"
               for r in table]
     clipped = [r for r in table if r["clip_bias"] is not None and abs(r["clip_bias"]) > 1e-3]
     if clipped:

@@ -47,15 +47,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from camsim.sensor.camera import DEFAULT_CAMERA, PhysicalScale, absolute_qe, load_camera
 from camsim.core.errors import CamsimError
-from camsim.sensor.fixed_pattern import fixed_pattern
 from camsim.core.optional_numbers import finite_or_none
-from camsim.render.pipeline import LitScene, make_frame
 from camsim.core.seeding import emva_frame_seed_sequence
-from camsim.sensor.cfa import cfa_sites
-from camsim.sensor.params import SensorParams
-from camsim.light.spectra import WavelengthGrid
 from camsim.emva.configured import (  # noqa: F401 (re-exported)
     CHANNEL,
     DEFAULT_PRESET,
@@ -65,6 +59,12 @@ from camsim.emva.configured import (  # noqa: F401 (re-exported)
     predicted_saturation_e,
     sensor_for,
 )
+from camsim.light.spectra import WavelengthGrid
+from camsim.render.pipeline import LitScene, make_frame
+from camsim.sensor.camera import DEFAULT_CAMERA, PhysicalScale, absolute_qe, load_camera
+from camsim.sensor.cfa import cfa_sites
+from camsim.sensor.fixed_pattern import fixed_pattern
+from camsim.sensor.params import SensorParams
 
 #: Wavelength grid of the monochromatic test light (5 nm bins, so that 550 nm is a bin centre).
 GRID = WavelengthGrid(380.0, 780.0, 5.0)

@@ -20,10 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from camsim.scene.chart import ChartGeometry
 from camsim.light.photons import scale_to_luminance
-from camsim.scene.radiance import SceneRadiance
 from camsim.light.spectra import WavelengthGrid, cmfs_on_grid, illuminant_spd, reflectance_set
+from camsim.scene.chart import ChartGeometry
+from camsim.scene.radiance import SceneRadiance
 
 N_HULL, N_INSIDE = 13, 7
 

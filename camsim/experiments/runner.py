@@ -11,15 +11,15 @@ from tqdm import tqdm
 
 from camsim.analysis.analyze import analyse_paths
 from camsim.analysis.patches import AnalysisSettings
-from camsim.sensor.camera import AnchorScale, absolute_qe, load_camera
+from camsim.core.seeding import frame_seed_sequence
 from camsim.experiments.datapoints import data_points, points_radiance
-from camsim.render.frame_files import FrameInfo, write_frame
-from camsim.render.frame_manifest import FrameManifest
 from camsim.io.output_folder import make_folder
 from camsim.light.photons import photon_radiance
+from camsim.render.frame_files import FrameInfo, write_frame
+from camsim.render.frame_manifest import FrameManifest
 from camsim.render.pipeline import LitScene, make_frame
-from camsim.core.seeding import frame_seed_sequence
 from camsim.scene.scene_file import load_scene
+from camsim.sensor.camera import AnchorScale, absolute_qe, load_camera
 from camsim.sensor.params import SensorParams
 
 #: The photon statistics every experiment runs under, and the sampling method used for each: ``paper`` draws

@@ -10,15 +10,15 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-from camsim.scene.builtin_scenes import builtin_scene_path
 from camsim.core.errors import CamsimError
 from camsim.experiments import findings as fd
 from camsim.experiments.datapoints import incident_photons
 from camsim.experiments.report import Finding, write_csv, write_numbers, write_report
 from camsim.experiments.runner import STATISTICS_METHODS, Setup, analyse_series, black_point_xy, prepare, run_conditions
 from camsim.experiments.snr_sensitivity import run_snr_sensitivity
-from camsim.sensor.params import PRESETS
 from camsim.io.output_folder import make_folder
+from camsim.scene.builtin_scenes import builtin_scene_path
+from camsim.sensor.params import PRESETS
 
 #: The experiments' scene: the built-in ``macbeth_26`` (shipped in the package, so that an installed camsim finds it).
 DEFAULT_SCENE = builtin_scene_path("macbeth_26")

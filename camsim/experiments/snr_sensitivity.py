@@ -39,11 +39,11 @@ import numpy as np
 
 from camsim.analysis.snr import delta_snr_percent, quantised_signal_dn, snr_model
 from camsim.colour.colorimetry import CHANNELS
+from camsim.core.optional_numbers import finite_or_none
 from camsim.experiments import findings as fd
 from camsim.experiments.report import Finding, write_csv, write_report
 from camsim.experiments.runner import STATISTICS_METHODS, Setup, analyse_series, prepare, run_conditions
 from camsim.render.frame_files import read_frame_meta
-from camsim.core.optional_numbers import finite_or_none
 from camsim.sensor.params import PRESETS, SensorParams
 
 SNR_FACTORS = (0.1, 0.05, 0.01, 0.005, 0.001)

@@ -250,8 +250,8 @@ def read_npy(path: Path, *, variable: str | None = None) -> _Stored:
 
 
 def _check_npy_header(path: Path) -> None:
-    """Check the (H, W) of a ``.npy`` file's header against :data:`camsim.core.pixel_limit.MAX_PIXELS` before the file is
-    mapped (a header may claim any shape: :func:`camsim.core.npy_header.npy_header`); other problems are left to
+    """Check the (H, W) of a ``.npy`` file's header against :data:`camsim.core.pixel_limit.MAX_PIXELS` before the file
+    is mapped (a header may claim any shape: :func:`camsim.core.npy_header.npy_header`); other problems are left to
     ``np.load``, which reports them."""
     from camsim.core.npy_header import npy_header
 

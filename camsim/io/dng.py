@@ -77,10 +77,10 @@ from typing import Any
 import numpy as np
 import tifffile
 
-from camsim.sensor.cfa import CFA_PATTERNS
 from camsim.core.errors import CamsimError
-from camsim.io.atomic import atomic_path
 from camsim.core.pixel_limit import check_pixel_count
+from camsim.io.atomic import atomic_path
+from camsim.sensor.cfa import CFA_PATTERNS
 
 __all__ = ["write_dng", "write_dng_cfa", "read_dng", "shot_metadata", "rational_bound", "darktable_xmp",
            "DARKTABLE_XMP_SUFFIX", "MIN_SIZE", "CFA_PATTERNS"]

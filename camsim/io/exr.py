@@ -15,10 +15,11 @@ extra string header attributes and a lossless compression (:data:`EXR_COMPRESSIO
 OpenImageIO, an independent reader used by the tests to cross-check pixels and metadata.
 
 Compression choice, measured on a 1152 x 864 frame (``python tools/bench_exr_compression.py``, whose table is in
-the docs' benchmarks page; one OpenEXR thread, as a dataset worker writes; OpenEXR 3.5.3): the noisy layer is noise down to the
-last bits of the mantissa, and no lossless method takes much off it (ZIP 4 %, ZSTD 19 %, HTJ2K 27 %), while ZIP
+the docs' benchmarks page; one OpenEXR thread, as a dataset worker writes; OpenEXR 3.5.3): the noisy layer is noise down
+to the last bits of the mantissa, and no lossless method takes much off it (ZIP 4 %, ZSTD 19 %, HTJ2K 27 %), while ZIP
 spends 4 to 6 times the time of an uncompressed write on a frame (0.27 to 0.44 s against 0.07 to 0.08 s) and reads
-2 to 3 times slower; a dataset on two processes makes about half the frames per second with it. The clean layer compresses only without PRNU and DSNU (piecewise constant: ZIP makes it 1 % of its size);
+2 to 3 times slower; a dataset on two processes makes about half the frames per second with it. The clean layer
+compresses only without PRNU and DSNU (piecewise constant: ZIP makes it 1 % of its size);
 with them it is as incompressible as the noisy one. ``none`` is the default: a dataset is then bound by the noise
 draws and the disk, not by the encoder, and every EXR reader reads the files. Each lossless name of
 :data:`EXR_COMPRESSIONS` that the installed OpenEXR offers can be chosen (``--exr-compression``: ``zip`` halves
@@ -42,13 +43,13 @@ import OpenEXR
 
 from camsim.core.errors import CamsimError, output_error
 from camsim.io.atomic import atomic_path
-from camsim.io.library_stderr import library_stderr
 from camsim.io.exr_compression import (
     DEFAULT_EXR_COMPRESSION,
     EXR_COMPRESSIONS,
     check_exr_compression,
     exr_compressions,
 )
+from camsim.io.library_stderr import library_stderr
 
 __all__ = ["write_exr", "read_exr", "read_exr_header", "read_exr_oiio", "VIEW_CHANNELS", "NOISY_CHANNELS",
            "MOSAIC_CHANNELS", "CLEAN_CHANNELS",

@@ -61,8 +61,8 @@ from camsim.core.pixel_limit import check_pixel_count
 from camsim.io import dng as _dng
 from camsim.sensor.cfa import CFA_PATTERNS
 
-__all__ = ["RawCapture", "RawHeader", "raw_header", "read_raw_capture", "crop_capture", "TiffShot", "tiff_shot", "camera_name",
-           "libraw_cfa", "libraw_orientation"]
+__all__ = ["RawCapture", "RawHeader", "raw_header", "read_raw_capture", "crop_capture", "TiffShot", "tiff_shot",
+           "camera_name", "libraw_cfa", "libraw_orientation"]
 
 #: LibRaw's (dcraw's) ``flip`` → TIFF Orientation: dcraw reads Orientation o as flip ``"50132467"[o % 8]``.
 _FLIP_TO_ORIENTATION = {0: 1, 1: 2, 3: 3, 2: 4, 4: 5, 6: 6, 7: 7, 5: 8}

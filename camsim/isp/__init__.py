@@ -15,9 +15,21 @@ with the same gains and matrix. :func:`pack_rggb` / :func:`unpack_rggb` pack a m
 from camsim.isp.develop import GAIN_MODES, STAGE_NAMES, Developed, IspSettings, develop, develop_pair, develop_stages
 from camsim.isp.facts import IspFacts, facts_from_dng_tags, facts_from_info, facts_from_meta, facts_of, float_white_dn
 from camsim.isp.pack import PACKED_PLANES, pack_rggb, unpack_rggb
-from camsim.isp.stages import (DEMOSAIC_METHODS, MATRICES, TONE_CURVES, WHITE_BALANCE_MODES, apply_gain,
-                               apply_matrix, apply_white_balance, camera_to_xyz, demosaic, normalise, srgb_matrix,
-                               tone_curve, white_balance_gains)
+from camsim.isp.stages import (
+    DEMOSAIC_METHODS,
+    MATRICES,
+    TONE_CURVES,
+    WHITE_BALANCE_MODES,
+    apply_gain,
+    apply_matrix,
+    apply_white_balance,
+    camera_to_xyz,
+    demosaic,
+    normalise,
+    srgb_matrix,
+    tone_curve,
+    white_balance_gains,
+)
 from camsim.isp.writers import read_png_record, write_jpeg, write_png
 
 __all__ = [

@@ -10,11 +10,29 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.isp.stages import (CHROMATIC_ADAPTATION, DEMOSAIC_METHODS, DEMOSAIC_SOURCES, MATRICES,
-                               DEMOSAIC_PAD, PER_CHANNEL_LINEAR, TONE_CURVES, WHITE_BALANCE_MODES, _bilinear,
-                               _bilinear_padded, _normalise_into, _srgb, _srgb_matrix, _workspace,
-                               apply_gain, apply_matrix, apply_white_balance, demosaic, normalise, tone_curve,
-                               white_balance_gains)
+from camsim.isp.stages import (
+    CHROMATIC_ADAPTATION,
+    DEMOSAIC_METHODS,
+    DEMOSAIC_PAD,
+    DEMOSAIC_SOURCES,
+    MATRICES,
+    PER_CHANNEL_LINEAR,
+    TONE_CURVES,
+    WHITE_BALANCE_MODES,
+    _bilinear,
+    _bilinear_padded,
+    _normalise_into,
+    _srgb,
+    _srgb_matrix,
+    _workspace,
+    apply_gain,
+    apply_matrix,
+    apply_white_balance,
+    demosaic,
+    normalise,
+    tone_curve,
+    white_balance_gains,
+)
 
 __all__ = ["IspSettings", "Developed", "develop", "develop_stages", "develop_pair", "STAGE_NAMES", "GAIN_MODES"]
 

@@ -77,6 +77,7 @@ def photon_radiance(radiance: np.ndarray, wavelengths_nm: np.ndarray, step_nm: f
     """
     wavelengths_m = np.asarray(wavelengths_nm) * 1e-9
     # a radiance beyond ~1e289 W / (m² sr nm) (a luminance_cd_m2 of 1e300) overflows to inf: expected, and refused
-    # with its reason before any frame is drawn (camsim.sensor.expected.expected_signal checks that the rates are finite)
+    # with its reason before any frame is drawn (camsim.sensor.expected.expected_signal checks that the rates are
+    # finite)
     with np.errstate(over="ignore"):
         return np.asarray(radiance) * (wavelengths_m * step_nm / (PLANCK_J_S * LIGHT_SPEED_M_S))

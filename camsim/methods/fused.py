@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from camsim.methods.plan import BINS, EXACT, GAUSSIAN, GAUSSIAN_CLIPPED, SATURATED, TABLE, DrawPlan
+from camsim.methods.spectral import draw_bins
+from camsim.methods.table import charge_table
+from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.expected import ExpectedSignal
 from camsim.sensor.kernels import alias_draw_words, alias_words, label_runs, standard_normal_f32
-from camsim.methods.plan import BINS, EXACT, GAUSSIAN, GAUSSIAN_CLIPPED, SATURATED, TABLE, DrawPlan
-from camsim.methods.table import charge_table
-from camsim.methods.spectral import draw_bins
-from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.params import SensorParams
 from camsim.sensor.stages import (
     add_black_level_error_dn,
@@ -45,7 +45,8 @@ def fill_channel(out_c, labels, plan: DrawPlan, expected: ExpectedSignal, sensor
     noise, draw their own normals. ``offset`` (offset DSNU, e⁻), ``gain`` (PRNU) and ``dark_gain`` (dark-current
     DSNU) are this block's fixed-pattern maps, (h, w), or None. ``bins`` (h, w): this channel's per-bin signal
     (:func:`bins_signal`, e⁻) where the plan has :data:`~camsim.methods.plan.BINS`, else None. ``runs``:
-    :func:`camsim.sensor.kernels.label_runs` of ``labels``, when the caller has it (the three channels of a block share it).
+    :func:`camsim.sensor.kernels.label_runs` of ``labels``, when the caller has it (the three channels of a block share
+    it).
     """
     k = sensor.dn_per_electron
     read = sensor.read_noise_e if sensor.read_noise else 0.0

@@ -28,17 +28,16 @@ the full well plus read noise).
 from __future__ import annotations
 
 import dataclasses
-
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 
 import numpy as np
 from scipy import special, stats
 
-from camsim.sensor.expected import ExpectedSignal
 from camsim.light.rates import FactoredSpectra
-from camsim.sensor.fixed_pattern import dark_gain_at, map_file_extreme
 from camsim.methods.tolerance import DEFAULT_TOLERANCE
+from camsim.sensor.expected import ExpectedSignal
+from camsim.sensor.fixed_pattern import dark_gain_at, map_file_extreme
 from camsim.sensor.params import SensorParams
 
 #: Saturation cannot act on a spectrum whose mean is this many standard deviations below the full well.

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.expected import ExpectedSignal
 from camsim.sensor.kernels import label_runs, poisson
-from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.params import SensorParams
 from camsim.sensor.stages import (
     add_black_level_error_dn,
@@ -38,8 +38,8 @@ def draw_bins(labels, expected: ExpectedSignal, sensor: SensorParams, statistics
 
     ``saturation_e``: with a full well, the charge at and above which every pixel is saturated (the full well
     minus the most negative DSNU offset); a spectrum whose mean charge is far above it has its bins' means scaled
-    down to the saturation cap (:func:`camsim.sensor.stages.cap_mean_e`, :func:`bin_scale`), and the dark mean is capped.
-    ``dark_gain``: the dark-current DSNU map d of these pixels, (3, h, w), or None: the dark charge is then
+    down to the saturation cap (:func:`camsim.sensor.stages.cap_mean_e`, :func:`bin_scale`), and the dark mean is
+    capped. ``dark_gain``: the dark-current DSNU map d of these pixels, (3, h, w), or None: the dark charge is then
     Poisson(D̄ d), one draw per pixel and channel.
     ``dark`` False: the signal S alone (``auto``'s Eq. 4 path adds the dark charge itself, per channel).
     """

@@ -4,9 +4,9 @@ alias table (the docs' model page, Sampling methods; issue 14).
 Under ``pixel`` statistics a pixel of a spectrum collects min(N, c) electrons, N ~ Poisson(S̄ + D̄), c the full well
 (where saturation can act): one law per spectrum and channel, :func:`camsim.sensor.dn_law.charge_pmf` (its support
 λ ± (13 √λ + 20) and the full-well atom; the tails beyond hold < 1e-36). :func:`charge_table` turns it into a
-:class:`camsim.sensor.kernels.AliasTable` (cached by mean and well), and every pixel of a rectangle of that spectrum draws
-its charge with one 64-bit word (:func:`camsim.sensor.kernels.alias_draw`, about 9 ns against numpy's Poisson's 50); the
-read noise, row noise, gain and ADC then follow as for ``poisson`` (:mod:`camsim.methods.fused`), so the EXR's
+:class:`camsim.sensor.kernels.AliasTable` (cached by mean and well), and every pixel of a rectangle of that spectrum
+draws its charge with one 64-bit word (:func:`camsim.sensor.kernels.alias_draw`, about 9 ns against numpy's Poisson's
+50); the read noise, row noise, gain and ADC then follow as for ``poisson`` (:mod:`camsim.methods.fused`), so the EXR's
 noisy layer and the digital numbers keep their exact laws.
 
 Where a pixel's law is its own — PRNU, dark-current DSNU or an offset DSNU (every pixel a different mean or

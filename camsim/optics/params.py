@@ -54,7 +54,8 @@ class OpticsParams:
                               "(2/π)(acos ν − ν√(1−ν²)), ν = f / f_c)")
     defocus_waves: float = param(0.0, "float", "defocus: W020, the peak wavefront error at 550 nm (at λ: "
                                  "W020·0.55/λ_µm waves); the OTF is the pupil's autocorrelation with that phase "
-                                 "(Hopkins); at most one of defocus_waves and defocus_um non-zero; |W020| ≤ 20", "waves")
+                                 "(Hopkins); at most one of defocus_waves and defocus_um non-zero; |W020| ≤ 20",
+                                 "waves")
     defocus_um: float = param(0.0, "float", "defocus as the image-plane focus shift Δz: W020 = Δz / (8 N²) µm", "µm")
     olpf: bool = param(False, "bool", "a birefringent optical low-pass filter: 4 equal spots at (±s/2, ±s/2) px, "
                        "OTF cos(π fx s) cos(π fy s)")

@@ -9,7 +9,8 @@ deviation D_c(λ, ρ) = OTF(ρ; λ) − Ō_c(ρ), the deviation over the grid's 
 
 B_j the first r right singular vectors of diag(u_c) D_c (from its N × N Gram matrix), u_c(λ) = max_k w_{k,c}(λ)
 (the wavelengths a channel's spectra weigh most are fitted best), a_j(λ) = Σ_ρ D_c(λ, ρ) B_j(ρ) (least squares:
-the B_j are orthonormal over the samples). Then OTF_{k,c} ≈ Ō_c + Σ_j (Σ_λ w_{k,c}(λ) a_j(λ)) B_j, with the error at every frequency at most
+the B_j are orthonormal over the samples). Then OTF_{k,c} ≈ Ō_c + Σ_j (Σ_λ w_{k,c}(λ) a_j(λ)) B_j, with the error at
+every frequency at most
 
     ε_c(r) = max_k max_ρ |Σ_λ w_{k,c}(λ) (D_c(λ, ρ) − Σ_{j<r} a_j(λ) B_j(ρ))|
 

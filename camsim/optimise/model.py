@@ -48,7 +48,8 @@ class SensorAtIso:
                    dark_current_e_per_s=np.asarray(sensor.dark_current_effective_e_per_s) if sensor.dark_current
                    else np.zeros(3),
                    full_well_e=sensor.full_well_e if sensor.saturation else None,
-                   adc_range_e=(sensor.max_dn - adc_offset_dn(sensor.pedestal_dn)) / k if sensor.quantisation else np.inf,
+                   adc_range_e=(sensor.max_dn - adc_offset_dn(sensor.pedestal_dn)) / k if sensor.quantisation
+                   else np.inf,
                    quantisation=sensor.quantisation)
 
     @property

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from camsim.io.atomic import write_text_atomic
-from camsim.optimise.search import OptimiseResult
 from camsim.io.figures import new_figure, save_png
+from camsim.optimise.search import OptimiseResult
 
 
 def _csv(rows: list) -> str:
@@ -50,8 +50,8 @@ def iso_rules(result: OptimiseResult, dual_gain_iso: float | None) -> list:
             below = [k for k, iso in enumerate(isos) if iso < dual_gain_iso]
             above = [k for k, iso in enumerate(isos) if iso >= dual_gain_iso]
             if below and above and np.isfinite(row[below[-1]]) and np.isfinite(row[above[0]]):
-                lines.append(f"  at the dual-gain step: ISO {isos[above[0]]:g} gives {row[above[0]] - row[below[-1]]:+.2f} "
-                             f"dB over ISO {isos[below[-1]]:g}")
+                lines.append(f"  at the dual-gain step: ISO {isos[above[0]]:g} gives "
+                             f"{row[above[0]] - row[below[-1]]:+.2f} dB over ISO {isos[below[-1]]:g}")
     return lines
 
 

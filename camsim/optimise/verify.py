@@ -3,8 +3,8 @@ and one ISO point either way), their measured SNR and ΔE against the model's, a
 choice beyond noise.
 
 Measured per patch and channel from the frame's digital numbers less the exact black level
-(:attr:`camsim.sensor.params.SensorParams.black_level_dn`): SNR = mean² / variance, in dB, with its standard error by the
-delta method, 10 / ln 10 · √(4 var / (n mean²) + 2 / (n − 1)); ΔE of every pixel by the paper's procedure against
+(:attr:`camsim.sensor.params.SensorParams.black_level_dn`): SNR = mean² / variance, in dB, with its standard error by
+the delta method, 10 / ln 10 · √(4 var / (n mean²) + 2 / (n − 1)); ΔE of every pixel by the paper's procedure against
 the patch's noise-free colour, the mean over pixels with its standard error. The scene's figures are the means
 over patches (and channels), their standard errors √(Σ SE²) / count.
 """

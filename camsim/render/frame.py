@@ -16,10 +16,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from camsim.core.errors import CamsimError
+from camsim.core.seeding import block_generators, frame_effect_generator
+from camsim.core.xp import namespace_of
+from camsim.methods import get_method
 from camsim.sensor.expected import ExpectedSignal
 from camsim.sensor.fixed_pattern import FixedPattern, dark_gain_at, fixed_pattern
-from camsim.methods import get_method
-from camsim.core.seeding import block_generators, frame_effect_generator
 from camsim.sensor.params import SensorParams
 from camsim.sensor.stages import (
     dn_dtype,
@@ -29,7 +30,6 @@ from camsim.sensor.stages import (
     set_stuck_dn,
     stuck_float_dn,
 )
-from camsim.core.xp import namespace_of
 
 if TYPE_CHECKING:  # the plan's module imports scipy: only its type is needed here
     from camsim.methods.plan import DrawPlan

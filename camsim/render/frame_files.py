@@ -30,19 +30,18 @@ from pathlib import Path
 import numpy as np
 
 import camsim
-from camsim.io.atomic import undo_on_failure, write_json_atomic, write_text_atomic
+from camsim.colour.rawcolour import CALIBRATION_ILLUMINANT_D65
 from camsim.core.errors import CamsimError, output_error
+from camsim.core.names import MAX_STEM_BYTES, safe_component
+from camsim.io.atomic import undo_on_failure, write_json_atomic, write_text_atomic
 from camsim.io.dng import DARKTABLE_XMP_SUFFIX, darktable_xmp, read_dng, write_dng, write_dng_cfa
 from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression, read_exr, read_exr_header, write_exr
 from camsim.io.output_folder import make_folder
-from camsim.colour.rawcolour import CALIBRATION_ILLUMINANT_D65
-from camsim.scene.regions import weighted_rows
 from camsim.methods import get_method
-from camsim.core.names import MAX_STEM_BYTES, safe_component
-from camsim.sensor.noise_profile import frame_noise_profile
 from camsim.render.frame import Frame
 from camsim.render.sidecar_schema import check_sidecar, parse_sidecar
-
+from camsim.scene.regions import weighted_rows
+from camsim.sensor.noise_profile import frame_noise_profile
 
 #: The sidecar file's suffix, beside the DNG and EXR of the same stem.
 SIDECAR_SUFFIX = ".json"
@@ -330,8 +329,8 @@ def exr_view(frame: Frame, info: FrameInfo) -> tuple[np.ndarray, dict[str, str]]
     """The picture a frame's EXR holds in ``R, G, B`` for image viewers, and the header attributes saying what it is.
 
     Linear sRGB, 1 = the perfect white at F = 1, from the values before quantisation
-    (:func:`camsim.render.preview.linear_srgb`: the ``--preview`` PNG's picture before its clip and transfer function), so
-    that a viewer shows the scene in its colours, at its light level (a frame at F is F times darker), with black at
+    (:func:`camsim.render.preview.linear_srgb`: the ``--preview`` PNG's picture before its clip and transfer function),
+    so that a viewer shows the scene in its colours, at its light level (a frame at F is F times darker), with black at
     0. The camera → XYZ matrix is fitted on the chart's patches; where that fit cannot be made (a frame without
     patches, or patches that do not span the colours, such as a dark or a flat frame) Eq. 15's matrix is taken; where
     that cannot white-balance either, the camera's own R, G, B scaled so that the dark level is 0 and the white level

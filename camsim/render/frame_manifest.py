@@ -21,8 +21,8 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from camsim.core.errors import CamsimError
-from camsim.render.frame_files import SIDECAR_SUFFIX, FrameInfo
 from camsim.io.atomic import write_json_atomic
+from camsim.render.frame_files import SIDECAR_SUFFIX, FrameInfo
 
 __all__ = ["MANIFEST_NAME", "FrameManifest", "manifest_entry"]
 

@@ -50,8 +50,8 @@ from camsim.optics.stages import (
     RADIAL_SAMPLES_PER_CY,
     channel_otfs,
     clip_negative,
-    cos4_falloff,
     convolve_plane,
+    cos4_falloff,
     field_angle_rad,
     lens_otf_radial,
     magnification_inverse,
@@ -68,8 +68,8 @@ from camsim.optics.stages import (
 OTF_TOLERANCE = 1e-3
 
 #: The sidecar's statement of the OTF applied (the model MTF of the analysis is its magnitude, with the frame's
-#: mean weights ``channel_wavelength_weights``; its pixel factor in all sinc(sqrt(ff) f) per axis); :func:`otf_model` appends the
-#: frame's ranks and bounds.
+#: mean weights ``channel_wavelength_weights``; its pixel factor in all sinc(sqrt(ff) f) per axis); :func:`otf_model`
+#: appends the frame's ranks and bounds.
 OTF_MODEL = ("OTF_kc(fx, fy) = [sum_lambda w_kc(lambda) * OTF_lens(rho / f_c(lambda); W020(lambda))] * "
              "cos(pi fx s) cos(pi fy s) [olpf] * [sinc(sqrt(ff) fx) / sinc(fx)] [sinc(sqrt(ff) fy) / sinc(fy)] "
              "[ff = fill_factor < 1: the pixel aperture relative to the source's full-pixel area sampling, so the "

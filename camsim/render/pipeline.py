@@ -21,22 +21,22 @@ from functools import cached_property
 
 import numpy as np
 
-from camsim.sensor.camera import Camera, absolute_qe, load_camera
+from camsim.colour.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
 from camsim.core.errors import CamsimError
-from camsim.sensor.expected import ExpectedSignal, expected_signal
-from camsim.sensor.fixed_pattern import dark_gain_at
-from camsim.render.frame_files import FrameInfo
+from camsim.core.seeding import frame_seed_sequence
 from camsim.io.dng import MAX_EXPOSURE_S
 from camsim.light.photons import KM_LM_PER_W, photon_radiance
-from camsim.scene.radiance import SceneRadiance, scene_radiance
 from camsim.light.rates import FactoredSpectra, all_finite
-from camsim.colour.rawcolour import as_shot_neutral, color_matrix_xyz_to_camera
-from camsim.scene.regions import weighted_rows
-from camsim.render.frame import Frame, check_frame_values, render_frame
-from camsim.scene.scene_file import Scene
-from camsim.core.seeding import frame_seed_sequence
-from camsim.sensor.params import SensorParams
 from camsim.light.spectra import WavelengthGrid, cmfs_on_grid
+from camsim.render.frame import Frame, check_frame_values, render_frame
+from camsim.render.frame_files import FrameInfo
+from camsim.scene.radiance import SceneRadiance, scene_radiance
+from camsim.scene.regions import weighted_rows
+from camsim.scene.scene_file import Scene
+from camsim.sensor.camera import Camera, absolute_qe, load_camera
+from camsim.sensor.expected import ExpectedSignal, expected_signal
+from camsim.sensor.fixed_pattern import dark_gain_at
+from camsim.sensor.params import SensorParams
 
 
 @dataclass(frozen=True)
@@ -174,8 +174,8 @@ def make_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, *, 
     workers : int, optional
         Threads (default: every core).
     device : {'cpu', 'cuda', 'numpy'}
-        ``cpu``: the block renderer (:func:`camsim.render.frame.render_frame`). ``cuda``: the array path on an NVIDIA GPU
-        with CuPy; ``numpy``: the same code on the CPU (:mod:`camsim.render.backends`). On a device every method but
+        ``cpu``: the block renderer (:func:`camsim.render.frame.render_frame`). ``cuda``: the array path on an NVIDIA
+        GPU with CuPy; ``numpy``: the same code on the CPU (:mod:`camsim.render.backends`). On a device every method but
         ``spectral`` draws the exact per-pixel law, ``pixel`` statistics only; the frame's pixels are copied to
         the host (its ``plan`` is None). The same seed, device and library version give the same frame; the
         devices agree in distribution, not in bits.
@@ -214,8 +214,8 @@ def scene_frame_info(scene: Scene, lit: LitScene, camera_name: str, intensity_fa
     """The :class:`FrameInfo` of one frame of ``scene`` under ``lit``: what its files say besides its pixels.
 
     On a device (``device`` other than ``cpu``) the method is the one drawn there
-    (:func:`camsim.render.backends.device_method`) and the sidecar records the device (:func:`camsim.render.backends.device_record`)
-    and, where it differs, the scene's method as ``method_requested``.
+    (:func:`camsim.render.backends.device_method`) and the sidecar records the device
+    (:func:`camsim.render.backends.device_record`) and, where it differs, the scene's method as ``method_requested``.
     """
     radiance, grid = lit.radiance, scene.grid
     method, record = scene.method, None
@@ -411,8 +411,8 @@ def frame_warnings(sensor: SensorParams) -> list[str]:
     pixels (which collect no dark charge) the warning says "most", never "every". Both may put the black level (the
     mean digital number of an unlit pixel,
     :attr:`camsim.sensor.params.SensorParams.black_level_dn`) above the white level − 1; the DNG's BlackLevel is then
-    written as the white level − 1 (:attr:`camsim.sensor.params.SensorParams.black_level_tag_dn`), which the warning says
-    too, as it does when only that clip applies (the black level within 1 DN of the white level).
+    written as the white level − 1 (:attr:`camsim.sensor.params.SensorParams.black_level_tag_dn`), which the warning
+    says too, as it does when only that clip applies (the black level within 1 DN of the white level).
 
     Returns
     -------

@@ -155,8 +155,9 @@ def preview_srgb(frame, info, *, exposure: str | float = "scene", matrix: str = 
         A rendered frame: three-chip (3, H, W) or Bayer (1, H, W) numbers; ``digital_dn`` is used when the frame
         is quantised, ``noisy_dn`` otherwise.
     info : camsim.render.frame_files.FrameInfo or dict
-        The frame's FrameInfo, or its sidecar (the dict :func:`camsim.render.frame_files.sidecar` returns): the intensity
-        factor F, the scene's reference luminance, the wavelength grid, ``as_shot_neutral`` and the patches' XYZ.
+        The frame's FrameInfo, or its sidecar (the dict :func:`camsim.render.frame_files.sidecar` returns): the
+        intensity factor F, the scene's reference luminance, the wavelength grid, ``as_shot_neutral`` and the patches'
+        XYZ.
     exposure : {"scene", "auto"} or float
         ``"scene"`` (default): the perfect white at F = 1 (the scene's ``luminance_cd_m2``) maps to sRGB white
         (a ColorChecker white, reflectance 0.9, to about 241 of 255) and a frame at F is F times darker — a

@@ -180,8 +180,8 @@ def check_raw_scene(scene) -> None:
 
 def raw_frame_warnings(scene) -> list[str]:
     """:func:`camsim.render.pipeline.frame_warnings` of a raw scene's sensor (after :func:`check_raw_scene`); a
-    ``[sequence]`` adds :func:`camsim.render.raw_sequence.raw_sequence_warnings` (:func:`camsim.render.run.scene_warnings`
-    dispatches)."""
+    ``[sequence]`` adds :func:`camsim.render.raw_sequence.raw_sequence_warnings`
+    (:func:`camsim.render.run.scene_warnings` dispatches)."""
     from camsim.render.pipeline import frame_warnings
 
     check_raw_scene(scene)
@@ -209,8 +209,8 @@ def clean_planes(clean_mosaic: np.ndarray, pattern: str) -> np.ndarray:
 
     The kernels of colour-demosaicing's ``demosaicing_CFA_Bayer_bilinear`` ([1 2 1]ᵀ[1 2 1] / 4 on R and B, the
     cross [0 1 0; 1 4 1; 0 1 0] / 4 on G), in float32 by shifted slices: 24 MP in 1.6 s against its 6.4 s in float64
-    (2026-11-26, this machine). They agree inside the frame (``tests/render/test_raw_render.py``); at the edges the mosaic
-    is mirrored about its outer sites here, which keeps each site's colour, where colour-demosaicing repeats the
+    (2026-11-26, this machine). They agree inside the frame (``tests/render/test_raw_render.py``); at the edges the
+    mosaic is mirrored about its outer sites here, which keeps each site's colour, where colour-demosaicing repeats the
     edge row and column."""
     from camsim.sensor.cfa import cfa_sites
 

@@ -6,17 +6,17 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from camsim.sensor.camera import load_camera
 from camsim.core.errors import CamsimError
-from camsim.render.frame_files import frame_stem, write_frame
-from camsim.render.frame_manifest import MANIFEST_NAME, FrameManifest
 from camsim.io.dng import MIN_SIZE
 from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression
 from camsim.io.output_folder import output_folder
+from camsim.light.spectra import illuminant_spd
 from camsim.methods import get_method
+from camsim.render.frame_files import frame_stem, write_frame
+from camsim.render.frame_manifest import MANIFEST_NAME, FrameManifest
 from camsim.render.pipeline import light_scene, scene_frame
 from camsim.scene.scene_file import Scene
-from camsim.light.spectra import illuminant_spd
+from camsim.sensor.camera import load_camera
 
 
 def check_scene(scene: Scene) -> None:
@@ -76,9 +76,9 @@ def render_scene(scene: Scene, out_dir: str | Path, *, workers: int | None = Non
     checked writable, locked against other camsim runs, swept of temporaries left by killed runs). Each frame
     commits on its own (:func:`camsim.render.frame_files.write_frame`) and the manifest follows each commit, adding to
     the frames of earlier runs in the folder (:class:`camsim.render.frame_manifest.FrameManifest`). With ``preview``,
-    each frame also gets an sRGB PNG (:mod:`camsim.render.preview`), listed in its ``files``. ``device`` draws the frames
-    on the CPU (default) or a device (:func:`camsim.render.pipeline.make_frame`; checked before the folder is touched).
-    ``exr_compression``: a lossless name of :data:`camsim.io.exr.EXR_COMPRESSIONS` (checked before anything is
+    each frame also gets an sRGB PNG (:mod:`camsim.render.preview`), listed in its ``files``. ``device`` draws the
+    frames on the CPU (default) or a device (:func:`camsim.render.pipeline.make_frame`; checked before the folder is
+    touched). ``exr_compression``: a lossless name of :data:`camsim.io.exr.EXR_COMPRESSIONS` (checked before anything is
     written). ``warn``, if given, is called with one line (no prefix) per frame of an image scene whose colours
     fell partly outside the recovery method's gamut (:func:`camsim.scene.sources.image.recovery_warning`: the share of
     the pixels; the sidecar's ``recovery`` records it either way).

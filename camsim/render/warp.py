@@ -32,7 +32,6 @@ Two implementations of the one law, which agree to float32 rounding (``tests/ren
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from camsim.core.compiled import CompiledOnce

@@ -7,7 +7,8 @@ way (``camsim dataset denoise_small``: :func:`resolve_spec_file`). In a checkout
 ``scenes/`` at the repository root is a symbolic link to this folder, so ``scenes/macbeth_26.toml`` keeps
 working.
 
-This module imports nothing from camsim except :mod:`camsim.core.errors`, so that :mod:`camsim.scene.scene_file` can use it.
+This module imports nothing from camsim except :mod:`camsim.core.errors`, so that :mod:`camsim.scene.scene_file` can use
+it.
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """From a scene and one illuminant to spectral radiance: a label map plus K spectra.
 
 The scene's source gives its spectra (:mod:`camsim.scene.sources`): a chart K = patches + 1 (the surround), a synthetic
-target its K (:mod:`camsim.scene.sources.target`), a cube one per pixel, so the renderer has a single path; but nothing per
-pixel is spectral for a chart or a target. Reflectances are
+target its K (:mod:`camsim.scene.sources.target`), a cube one per pixel, so the renderer has a single path; but nothing
+per pixel is spectral for a chart or a target. Reflectances are
 lit by the illuminant and scaled to the scene's luminance; an emissive source keeps its own radiance.
 """
 
@@ -15,9 +15,9 @@ import numpy as np
 from camsim.core.errors import CamsimError
 from camsim.light.photons import scale_to_luminance
 from camsim.light.rates import FactoredSpectra
+from camsim.light.spectra import cmfs_on_grid, illuminant_spd
 from camsim.scene.regions import check_regions, region_weights
 from camsim.scene.scene_file import Scene
-from camsim.light.spectra import cmfs_on_grid, illuminant_spd
 
 
 @dataclass(frozen=True)
@@ -44,11 +44,11 @@ class SceneRadiance:
     target : dict or None
         A synthetic target's geometry (:class:`camsim.scene.sources.SourceSpectra`), for the sidecar.
     patch_weights : tuple or None
-        For patches that are the scene file's regions (:mod:`camsim.scene.regions`): per patch ``(indices, counts)``, the
-        spectra inside its rectangle and their pixel counts. None: patch i is spectrum i (a chart's patches).
+        For patches that are the scene file's regions (:mod:`camsim.scene.regions`): per patch ``(indices, counts)``,
+        the spectra inside its rectangle and their pixel counts. None: patch i is spectrum i (a chart's patches).
     recovery : dict or None
-        An image's RGB → spectrum recovery and what fell outside its gamut (:class:`camsim.scene.sources.SourceSpectra`),
-        for the sidecar.
+        An image's RGB → spectrum recovery and what fell outside its gamut
+        (:class:`camsim.scene.sources.SourceSpectra`), for the sidecar.
     """
 
     labels: np.ndarray

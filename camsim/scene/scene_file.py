@@ -18,18 +18,18 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from camsim.scene.builtin_scenes import resolve_scene_file
-from camsim.sensor.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
 from camsim.core.errors import CamsimError
-from camsim.methods import METHOD_NAMES
-from camsim.methods.tolerance import DEFAULT_TOLERANCE
-from camsim.scene.regions import Region, check_regions, parse_regions
 from camsim.core.names import safe_component
 from camsim.core.schema import Param, check_frame_size, finite_float, param, params_of, read_toml, typed, validate
-from camsim.sensor.presets import camera_preset, sensor_preset
-from camsim.sensor.params import MAP_FILE_PARAMS, SENSOR_PARAMS, SensorParams
-from camsim.scene.sources import SOURCES, ChartSource, SceneSource
 from camsim.light.spectra import WavelengthGrid
+from camsim.methods import METHOD_NAMES
+from camsim.methods.tolerance import DEFAULT_TOLERANCE
+from camsim.scene.builtin_scenes import resolve_scene_file
+from camsim.scene.regions import Region, check_regions, parse_regions
+from camsim.scene.sources import SOURCES, ChartSource, SceneSource
+from camsim.sensor.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
+from camsim.sensor.params import MAP_FILE_PARAMS, SENSOR_PARAMS, SensorParams
+from camsim.sensor.presets import camera_preset, sensor_preset
 
 if TYPE_CHECKING:  # the annotation only: camsim.scene.sequence is imported where a scene has a sequence
     from camsim.optics.params import OpticsParams

@@ -15,8 +15,18 @@ The names of :mod:`camsim.sensor.params` that programs import are also here, so 
 :mod:`camsim.sensor.params`.
 """
 
-from camsim.sensor.params import (EXPOSURE_KEYS, PRESETS, READ_NOISE_MODELS, SENSOR_PARAMS, STAGES, SensorBatch,
-                                  SensorParams, preset, with_checked_values, with_overrides)
+from camsim.sensor.params import (
+    EXPOSURE_KEYS,
+    PRESETS,
+    READ_NOISE_MODELS,
+    SENSOR_PARAMS,
+    STAGES,
+    SensorBatch,
+    SensorParams,
+    preset,
+    with_checked_values,
+    with_overrides,
+)
 
 __all__ = ["EXPOSURE_KEYS", "PRESETS", "READ_NOISE_MODELS", "SENSOR_PARAMS", "STAGES", "SensorBatch", "SensorParams",
            "preset", "with_checked_values", "with_overrides"]

@@ -11,8 +11,8 @@ e⁻ · m² · sr / photon (electrons per pixel per unit photon radiance), in on
 
 Either way Qe is a property of the camera: the same for every illuminant, F and frame of a run. Under
 another light at the same luminance the electrons differ, and may saturate; a run that wants every light exposed
-to the same level changes the exposure time per frame (``exposure = "auto"``, :func:`camsim.render.pipeline.frame_sensor`),
-never Qe.
+to the same level changes the exposure time per frame (``exposure = "auto"``,
+:func:`camsim.render.pipeline.frame_sensor`), never Qe.
 """
 
 from __future__ import annotations

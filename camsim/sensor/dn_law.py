@@ -102,7 +102,8 @@ def charge_pmf(mean_e: float, full_well_e: float | None = None):
 def dn_pmf(mean_e: float, dn_per_electron: float, read_noise_e: float = 0.0, full_well_e: float | None = None,
            bits: int | None = None, pedestal_dn: int = 0) -> DnPmf:
     """The pmf of I = clip(floor(k (min(N, c) + R) + h) + P, 0, 2^nb − 1), N ~ Poisson(λ), R ~ N(0, σ²), P the
-    pedestal and h = ½ with a pedestal, 0 without (:func:`camsim.sensor.stages.quantise_dn`, :func:`camsim.sensor.stages.adc_offset_dn`).
+    pedestal and h = ½ with a pedestal, 0 without (:func:`camsim.sensor.stages.quantise_dn`,
+    :func:`camsim.sensor.stages.adc_offset_dn`).
 
     Parameters
     ----------

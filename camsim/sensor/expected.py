@@ -18,9 +18,9 @@ import numpy as np
 from scipy import stats
 
 from camsim.core.errors import CamsimError
+from camsim.core.xp import namespace_of, on_device, special_namespace
 from camsim.light.rates import FactoredSpectra, all_finite
 from camsim.sensor.params import SensorParams
-from camsim.core.xp import namespace_of, on_device, special_namespace
 
 
 @dataclass(frozen=True)

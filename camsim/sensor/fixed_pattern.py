@@ -49,10 +49,9 @@ import math
 import threading
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
-
-from pathlib import Path
 
 from camsim.core.errors import CamsimError
 from camsim.core.seeding import fixed_pattern_generator, fixed_pattern_generators

@@ -10,8 +10,8 @@ has the noise variance S · x + O. The noise meant is the random, temporal noise
 read noise; fixed-pattern effects are left out (the specification's model, and what a raw developer's denoiser uses
 the profile for: a fixed pattern is not removed by averaging over frames or over neighbours).
 
-camsim's ADC gives DN = clip(floor(k · (min(S + D + o, FW) + R + W) + h) + P, 0, 2^nb − 1) (:mod:`camsim.sensor.stages`; h = ½
-with a pedestal, 0 without), with
+camsim's ADC gives DN = clip(floor(k · (min(S + D + o, FW) + R + W) + h) + P, 0, 2^nb − 1) (:mod:`camsim.sensor.stages`;
+h = ½ with a pedestal, 0 without), with
 k = G · G_Ve⁻ the gain in DN / e⁻, S the signal charge, D ~ Poisson(D̄ · d) the dark charge, o the DSNU offset, R
 the read noise (σ_read), W the row noise (σ_row) and P the pedestal. Below saturation and above the ADC's zero, a
 pixel's temporal variance in DN² is

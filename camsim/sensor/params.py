@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camsim.sensor.cfa import CFA_PATTERNS
 from camsim.core.errors import CamsimError
 from camsim.core.schema import param, params_of, record, validate
+from camsim.sensor.cfa import CFA_PATTERNS
 
 READ_NOISE_MODELS = ("gaussian", "tukey-lambda")
 #: The least dark current of the ordinary pixels where hot pixels are on
@@ -239,7 +239,9 @@ class SensorParams:
         return self.dark_current_effective_e_per_s * self.exposure_s
 
     def _unlit_mean_dn(self, quantisation: bool) -> np.ndarray:
-        from camsim.sensor.black_level import unlit_mean_dn  # imports scipy: here, so that the command line starts without
+        from camsim.sensor.black_level import (
+            unlit_mean_dn,  # imports scipy: here, so that the command line starts without
+        )
 
         return unlit_mean_dn(
             self.dark_mean_e, dn_per_electron=self.dn_per_electron, bits=self.bits, quantisation=quantisation,
@@ -263,8 +265,8 @@ class SensorParams:
         """The true black level: the exact mean digital number of an unlit pixel, per channel, shape (3,). Unit: DN.
 
         E[clip(floor(k (min(D + o, FW) + read + row)), 0, 2^nb − 1)] over the dark charge, the noise and the
-        fixed-pattern maps' law (:func:`camsim.sensor.black_level.unlit_mean_dn`): what a dark frame's mean converges to,
-        and so what a raw reader must subtract. Eq. 11's floor puts it about ½ DN below :attr:`dark_level_dn`
+        fixed-pattern maps' law (:func:`camsim.sensor.black_level.unlit_mean_dn`): what a dark frame's mean converges
+        to, and so what a raw reader must subtract. Eq. 11's floor puts it about ½ DN below :attr:`dark_level_dn`
         (Table I: 5.025, 6.018, 5.683 DN against 5.525, 6.517, 6.177). Without quantisation it is :attr:`dark_level_dn`.
 
         Issue 28's effects: the temperature is in (through :attr:`dark_mean_e`); the column FPN and dark shading as

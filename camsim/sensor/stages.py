@@ -44,9 +44,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from camsim.core.xp import namespace_of, on_device
 from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.kernels import poisson, poisson_run, standard_normal_f32, tukey_lambda
-from camsim.core.xp import namespace_of, on_device
 
 #: ε of the saturation cap: a pixel whose mean charge is at or above :func:`saturating_mean_e` stays below its
 #: full well with probability at most ε, and drawing it at that mean changes the law of its value by at most ε in
@@ -138,7 +138,8 @@ def collect_charge_e(rng: np.random.Generator, signal_e, dark_e: float, signal_v
     photon_noise : bool
         Off: S = S̄ exactly, plus D ~ Poisson(D̄).
     size : tuple, optional
-        Shape of the draws when ``signal_e`` is one value (drawn as a histogram, :func:`camsim.sensor.kernels.poisson_run`).
+        Shape of the draws when ``signal_e`` is one value (drawn as a histogram,
+        :func:`camsim.sensor.kernels.poisson_run`).
     gain : numpy.ndarray, optional
         PRNU: a per-pixel factor on S̄ (and Var S), shape ``size``; the draws then have one mean per pixel.
     dark_gain : numpy.ndarray, optional

@@ -722,8 +722,9 @@ def _exported_data_doc(app, what, name, obj, options, lines):
     package, _, attr = name.rpartition(".")
     if what != "data" or package != "camsim":
         return
-    import camsim
     from sphinx.pycode import ModuleAnalyzer
+
+    import camsim
 
     module = getattr(camsim, "_EXPORTS", {}).get(attr)
     if module is None:

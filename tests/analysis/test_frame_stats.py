@@ -19,10 +19,10 @@ import pytest
 from camsim.cli import main
 from camsim.core.errors import CamsimError
 from camsim.render.pipeline import light_scene
-from camsim.sensor.camera import load_camera
-from camsim.scene.regions import Region
 from camsim.render.run import render_scene
+from camsim.scene.regions import Region
 from camsim.scene.sources import CubeSource, ImageSource
+from camsim.sensor.camera import load_camera
 from tests.support.helpers import small_scene
 
 with warnings.catch_warnings():

@@ -10,7 +10,8 @@ offset per colour (R, G, B; the two greens share it), ρ row noise and ε Gaussi
 import numpy as np
 import pytest
 
-from camsim.calibration import dark, fixed_pattern as fp
+from camsim.calibration import dark
+from camsim.calibration import fixed_pattern as fp
 
 
 def draw_darks(rng, *, frames=16, shape=(128, 256), black=512.0, shading=3.0, dsnu=1.5, column=0.0, hot=0.0,

@@ -1,5 +1,6 @@
 """``camsim develop --noise-report``: the per-stage noise table and figure beside the developed picture, its raw
-rows (noisy minus clean: mean zero within the standard error), and a DNG without its EXR refused on one line with nothing written."""
+rows (noisy minus clean: mean zero within the standard error), and a DNG without its EXR refused on one line with
+nothing written."""
 
 import csv
 import math

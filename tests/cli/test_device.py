@@ -9,9 +9,9 @@ import types
 import numpy as np
 import pytest
 
-from camsim.render.backends import check_device, device_method
 from camsim.cli import main
 from camsim.core.errors import CamsimError
+from camsim.render.backends import check_device, device_method
 
 RENDER = ["render", "macbeth_26", "--size", "120x80", "--illuminant", "D65", "--intensity", "1", "-q"]
 

@@ -12,7 +12,6 @@ import pytest
 
 from camsim.cli import main
 from camsim.core.schema import INT64_MAX, INT64_MIN
-
 from tests.support.helpers import flat_scene_toml, preset_toml, write_text_file
 
 SCENE = flat_scene_toml('"extreme"')
@@ -86,7 +85,8 @@ CASES = {
     "luminance_cd_m2 = inf": ({"scene.toml": edit(SCENE, "luminance_cd_m2", "inf")}, RENDER, "finite"),
     "reference_electrons = 1e-308": ({"scene.toml": SCENE + "[camera.scale]\nreference_electrons = 1e-308\n"},
                                      RENDER, "Qe is zero"),
-    "a gain product beyond float64": ({"scene.toml": SCENE, "spec.toml": SPEC + "[fixed]\nconversion_gain_v_per_e = 1e308\n"},
+    "a gain product beyond float64": ({"scene.toml": SCENE,
+                                       "spec.toml": SPEC + "[fixed]\nconversion_gain_v_per_e = 1e308\n"},
                                       DRY_RUN, "outside float64's range"),
     "reflectance = 10^400": ({"scene.toml": edit(SCENE, "reflectance", "1" + "0" * 400)}, RENDER, "reflectance"),
     "reference_electrons = 1e308 on a dark frame at F = 8": (

@@ -1,8 +1,8 @@
 """Hostile inputs through the real command line (issue 24, "Tests"): Hypothesis mutates the built-in scene files,
 the dataset spec ``denoise_small``, a rendered sidecar, a camera preset file and tiny DNG, EXR, PNG and ``.npy``
-cube files (:mod:`tests.support.fuzz`), runs ``camsim.cli.main(argv)`` on each in a forked, limited copy of this process,
-and asserts for every case: exit 0, or exit 2 with exactly one ``camsim: error:`` line on stderr; no traceback; no
-file written, changed or removed outside the output folder; no ``*.partial`` file left; done within
+cube files (:mod:`tests.support.fuzz`), runs ``camsim.cli.main(argv)`` on each in a forked, limited copy of this
+process, and asserts for every case: exit 0, or exit 2 with exactly one ``camsim: error:`` line on stderr; no traceback;
+no file written, changed or removed outside the output folder; no ``*.partial`` file left; done within
 :data:`TIME_LIMIT` seconds of CPU time and :data:`MEMORY_LIMIT_MB` MB of address space more than this process. A
 case still working at the runner's wall-clock backstop (20 × the CPU limit) skips the test: the machine was too
 busy to judge it.
@@ -128,7 +128,8 @@ def test_the_runner_kills_a_case_over_its_cpu_time_limit(tmp_path):
     case = fuzz.make_case(seeds(), "scene", [], 0)
     result = fuzz.run_case(case, tmp_path / "case", time_limit=1, main=_compute_forever)
     assert result.outcome == "hang", result.summary()
-    assert 1.0 <= result.cpu_s < 2.5  # the kernel's SIGXCPU at 1 s (SIGKILL at 2 s), whatever the wall time was
+    # the kernel's SIGXCPU at 1 s (SIGKILL at 2 s; its accounting lags by a clock tick), whatever the wall time was
+    assert 0.9 <= result.cpu_s < 2.5
 
 
 @pytest.mark.slow

@@ -8,7 +8,6 @@ import sys
 import textwrap
 
 import numpy as np
-
 import pytest
 
 from tests.support import clock

@@ -11,11 +11,11 @@ import tomllib
 import pytest
 
 import camsim.render.pipeline
-from camsim.scene.builtin_scenes import SCENES_DIR
-from camsim.sensor.presets import CAMERA_PRESETS
 from camsim.cli import main
 from camsim.io.dng import MIN_SIZE
+from camsim.scene.builtin_scenes import SCENES_DIR
 from camsim.sensor.params import PRESETS, preset
+from camsim.sensor.presets import CAMERA_PRESETS
 from tests.support import clock
 from tests.support.helpers import ROOT
 
@@ -73,7 +73,8 @@ def test_render_counts_the_frames_of_earlier_runs(tmp_path, capsys):
     assert main(["render", "macbeth_26", *SMALL, "--illuminant", "A", "--out", str(out)]) == 0
     assert main(["render", "macbeth_26", *SMALL, "--out", str(out)]) == 0
     said = capsys.readouterr().out.strip().splitlines()[-1]
-    assert said.startswith("wrote 1 frame (DNG, darktable XMP, EXR, JSON) to") and said.endswith("(with 1 frame of earlier runs)")
+    assert (said.startswith("wrote 1 frame (DNG, darktable XMP, EXR, JSON) to")
+            and said.endswith("(with 1 frame of earlier runs)"))
 
 
 def _render(args, tmp_path):

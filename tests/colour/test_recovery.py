@@ -4,9 +4,15 @@ import numpy as np
 import pytest
 
 from camsim.colour import recovery
+from camsim.colour.recovery import (
+    RECOVERY_METHODS,
+    basis_matrix,
+    clear_cache,
+    mallett_basis,
+    rgb_to_distinct_spectra,
+    rgb_to_spectra,
+)
 from camsim.core.errors import CamsimError
-from camsim.colour.recovery import (RECOVERY_METHODS, basis_matrix, clear_cache, mallett_basis, rgb_to_distinct_spectra,
-                             rgb_to_spectra)
 from camsim.light.spectra import CMFS_NAME, WavelengthGrid, camera_sensitivities, illuminant_spd, import_colour
 
 GRID = WavelengthGrid()  # 380–780 nm every 4 nm

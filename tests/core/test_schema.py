@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from camsim.analysis.grouping import GROUP_KEYS
-from camsim.dataset.spec_parts import PARAMETERS
 from camsim.core.errors import CamsimError
+from camsim.core.schema import Param
+from camsim.dataset.spec_parts import PARAMETERS
 from camsim.methods import METHOD_NAMES, METHODS, get_method
 from camsim.scene.scene_file import RENDER_PARAMS, load_scene
-from camsim.core.schema import Param
 from camsim.sensor.params import SENSOR_PARAMS, STAGES, SensorParams
 
 #: A valid value different from the default, for each kind of parameter.

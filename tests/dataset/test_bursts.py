@@ -353,7 +353,8 @@ def test_burst_store_equals_the_files(tmp_path):
             else:
                 assert np.array_equal(a, b)
     ds = xr.open_zarr(tmp_path / "zarr" / "dataset.zarr")
-    assert ds["noisy"].dims == ("frame", "burst_frame", "cfa", "y", "x") and ds["shake_px"].values.tolist() == [0.0, 1.2]
+    assert (ds["noisy"].dims == ("frame", "burst_frame", "cfa", "y", "x")
+            and ds["shake_px"].values.tolist() == [0.0, 1.2])
     summary = run_dataset(spec, tmp_path / "zarr", workers=1, progress=False, echo=None, output="zarr")
     assert summary["skipped"] == 2  # resumed: complete and verified
     mixed = write_spec(tmp_path, fixed="frame_interval_s = 0.02", grid="burst_frames = [2, 3]", w=32, h=24)

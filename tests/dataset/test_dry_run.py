@@ -8,7 +8,6 @@ from __future__ import annotations
 import pytest
 
 from camsim.cli import main
-
 from tests.support.helpers import flat_scene_toml, write_text_file
 
 SCENE = flat_scene_toml('"agree"')
@@ -32,7 +31,8 @@ CASES = {
         "float32"),
     "auto exposure that cannot reach its target": (
         "[fixed]\nexposure = \"auto\"\nexposure_target_e = 1e300\n", [], "exposure"),
-    "a later frame's bits below its pedestal": ("[fixed]\npedestal_dn = 100\n[grid]\nbits = [12, 6]\n", [], "pedestal_dn"),
+    "a later frame's bits below its pedestal": (
+        "[fixed]\npedestal_dn = 100\n[grid]\nbits = [12, 6]\n", [], "pedestal_dn"),
     "an exposure longer than a DNG records": ("[grid]\nexposure_s = [1.0, 1e10]\n", [], "DNG"),
     "an unknown EXR compression": ("", ["--exr-compression", "bogus"], "bogus"),
     "an EXR compression for a Zarr store": ("", ["--exr-compression", "zip", "--format", "zarr"], "--exr-compression"),

@@ -12,10 +12,9 @@ import pytest
 
 import camsim.dataset.runner as runner
 from camsim.cli import main
-from camsim.dataset import load_spec, read_manifest, run_dataset
-from camsim.dataset import _pool
-from camsim.dataset.zarr_store import RECORDS_DIR, STORE_NAME
 from camsim.core.errors import CamsimError
+from camsim.dataset import _pool, load_spec, read_manifest, run_dataset
+from camsim.dataset.zarr_store import RECORDS_DIR, STORE_NAME
 from camsim.io.dng import read_dng
 from camsim.io.exr import read_exr
 from tests.support.helpers import ROOT, file_tree, write_text_file

@@ -1,9 +1,10 @@
 """Bursts of ``[raws]`` crops (issue 29, point 4, for real raws): ``burst_frames`` with ``ratio`` and shake makes each
 item a raw scene's burst (camsim.render.raw_sequence's frames), written ID_fNNN.dng/.exr/.json and ID_ref.exr/.json,
-read back by WrittenPairs(burst=True). Checked against our own closed forms on phone-style DNGs (tests/support/phone_dng.py):
-the reference is the flipped crop of the file made dark by the ratio, each frame's homography moves the reference
-onto its clean layer in the files' own (flipped) pixels (our own phase correlation), the frames' noise about their
-clean layers is independent (pairwise correlation within 3/√N); ``thin`` with motion refused on one line; resuming."""
+read back by WrittenPairs(burst=True). Checked against our own closed forms on phone-style DNGs
+(tests/support/phone_dng.py): the reference is the flipped crop of the file made dark by the ratio, each frame's
+homography moves the reference onto its clean layer in the files' own (flipped) pixels (our own phase correlation), the
+frames' noise about their clean layers is independent (pairwise correlation within 3/√N); ``thin`` with motion refused
+on one line; resuming."""
 
 import json
 from pathlib import Path
@@ -15,9 +16,9 @@ from camsim.cli import main
 from camsim.dataset.runner import run_dataset
 from camsim.io.exr import read_exr
 from camsim.pairs import WrittenPairs
-from tests.support.phone_dng import write_phone_dng
 from tests.dataset.test_bursts import check_resuming_after_a_death_in_the_second_burst
 from tests.render.test_sequence import _phase_shift
+from tests.support.phone_dng import write_phone_dng
 
 T_SOURCE = 0.5  # the source files' exposure (s)
 BLACK_SOURCE = 512.0

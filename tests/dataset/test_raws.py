@@ -1,7 +1,7 @@
 """camsim dataset with a [raws] folder: planning (ids, determinism, crops inside the files and aligned to the CFA,
 flips that keep the pattern), frames rendered from a folder of phone-style DNGs written by an independent writer
-(tests/support/phone_dng.py) against the closed form of their means, read back by rawpy, byte-identical on the same seed,
-the SID-style pairs read by camsim.pairs and scored by denoise-eval, and one-line errors through the CLI."""
+(tests/support/phone_dng.py) against the closed form of their means, read back by rawpy, byte-identical on the same
+seed, the SID-style pairs read by camsim.pairs and scored by denoise-eval, and one-line errors through the CLI."""
 
 import hashlib
 import json

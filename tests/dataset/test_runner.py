@@ -11,9 +11,8 @@ import pytest
 
 import camsim.dataset.runner as runner
 from camsim.cli.commands.dataset import add_parser, run
-from camsim.dataset import _pool
-from camsim.dataset import load_spec, read_manifest, run_dataset
 from camsim.core.errors import CamsimError
+from camsim.dataset import _pool, load_spec, read_manifest, run_dataset
 from tests.support.helpers import ROOT, file_tree, write_text_file
 
 SCENE = (ROOT / "scenes" / "macbeth_26.toml").as_posix()

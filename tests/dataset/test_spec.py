@@ -13,11 +13,11 @@ from pathlib import Path
 import pytest
 
 from camsim.cli.commands.dataset import print_plan
+from camsim.core.errors import CamsimError
+from camsim.core.seeding import dataset_frame_seed, dataset_frame_seeds
 from camsim.dataset import spec_parts
 from camsim.dataset.spec import load_spec, plan_spec
 from camsim.dataset.spec_parts import OWN_VALUE_PARAMS
-from camsim.core.errors import CamsimError
-from camsim.core.seeding import dataset_frame_seed, dataset_frame_seeds
 
 # a scene file of its own (not scenes/macbeth_26.toml, which may change), named relative to the spec, so that the
 # records and ids below do not depend on the repository or its path

@@ -233,7 +233,8 @@ def test_processes_give_the_serial_runs_bytes(written, tmp_path):
 
 
 def test_frames_with_auto_exposure_are_developed_with_a_gain_of_one(tmp_path):
-    text = spec_text("auto", cfa='["RGGB"]').replace('preset = "emva-12bit"', 'preset = "emva-12bit"\nexposure = "auto"')
+    text = spec_text("auto", cfa='["RGGB"]').replace('preset = "emva-12bit"',
+                                                     'preset = "emva-12bit"\nexposure = "auto"')
     spec = write_text_file(tmp_path, "auto.toml", text)
     run_dataset(spec, tmp_path / "out", workers=1, progress=False, echo=None)
     records = read_manifest(tmp_path / "out")

@@ -8,8 +8,8 @@ import textwrap
 import numpy as np
 import pytest
 
-from camsim.denoise.denoisers import resolve_denoiser
 from camsim.core.errors import CamsimError
+from camsim.denoise.denoisers import resolve_denoiser
 from tests.support import clock
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="process groups are POSIX")

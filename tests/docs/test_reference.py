@@ -136,7 +136,7 @@ def test_scene_key_reference_has_every_schema_key(reference):
     keys = _declared(camsim.SensorParams) | _declared(camsim.Scene)
     keys |= {"preset", "iso"} | {key for cls in SOURCES.values() for key in cls.keys}
     keys |= {f"[{name}]" for name in SOURCES}
-    from camsim.optics.params import OpticsParams, TABLE_ONLY_KEYS
+    from camsim.optics.params import TABLE_ONLY_KEYS, OpticsParams
 
     keys |= _declared(OpticsParams) | set(TABLE_ONLY_KEYS)  # [optics]
     missing = sorted(k for k in keys if k not in shown)
@@ -145,7 +145,6 @@ def test_scene_key_reference_has_every_schema_key(reference):
 
 def test_dataset_key_reference_has_every_parameter(reference):
     import camsim.dataset
-
     from camsim.dataset import raws, spec_parts
 
     spec = sys.modules[camsim.dataset.load_spec.__module__]

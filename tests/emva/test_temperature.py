@@ -101,7 +101,7 @@ def test_optimise_scores_the_dark_current_at_the_sensors_temperature(temperature
 
 
 def test_optimise_caps_the_exposure_sooner_when_the_sensor_is_warmer():
-    from camsim.optimise.search import exposure_axis, optimise, PatchRates
+    from camsim.optimise.search import PatchRates, exposure_axis, optimise
 
     # one grey patch, 100 e⁻/s at F = 1; the well fills with dark charge faster at 40 °C than at 25 °C
     rates = PatchRates(["grey"], np.full((1, 3), 100.0), np.eye(3), np.array([0.3127, 0.3290]),

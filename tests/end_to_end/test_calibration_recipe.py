@@ -1,8 +1,8 @@
 """The built-in ``dark`` and ``flat`` scenes and the calibration recipe of the docs (camera guide) (issue 23, point 8).
 
-The recipe is read from the README or the docs' pages (the ``sh`` block after the ``calibration recipe`` marker) and run as written,
-each line in a real ``camsim`` process, the renders at 384 × 256 instead of the scenes' 600 × 400. The preset it
-renders with is ``sony-a7s2`` at ISO 3200 (K = 3.06 DN/e⁻, read noise 1.288 e⁻ Tukey λ = −0.0349, row noise
+The recipe is read from the README or the docs' pages (the ``sh`` block after the ``calibration recipe`` marker) and run
+as written, each line in a real ``camsim`` process, the renders at 384 × 256 instead of the scenes' 600 × 400. The
+preset it renders with is ``sony-a7s2`` at ISO 3200 (K = 3.06 DN/e⁻, read noise 1.288 e⁻ Tukey λ = −0.0349, row noise
 0.1454 e⁻, no DSNU, PRNU or dark current), so the calibration must give back those numbers. Margins at 384 × 256
 (N = 24 576 pixels per Bayer plane, 8 darks, 5 flat pairs), from the standard errors ``calibration.json`` reported
 in a run: K 0.31 % (tolerance 2 %), read σ 0.09 % (3 %), row σ 2.0 % (10 %), λ 0.0009 (0.03), black level
@@ -20,11 +20,11 @@ import tomllib
 import numpy as np
 import pytest
 
-from camsim.sensor.presets import sensor_preset
 from camsim.cli import main
 from camsim.core.errors import CamsimError
 from camsim.render.frame_files import load_frame
 from camsim.scene.scene_file import load_scene
+from camsim.sensor.presets import sensor_preset
 from tests.support import clock
 from tests.support.helpers import ROOT
 

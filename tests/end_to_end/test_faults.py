@@ -22,7 +22,6 @@ import pytest
 
 from camsim.cli import main
 from camsim.render.frame_manifest import MANIFEST_NAME
-
 from tests.support import clock
 from tests.support.helpers import ROOT
 

@@ -134,7 +134,8 @@ def test_the_sidecar_records_the_source(frames):
             "black_dn": [[512.0, 512.0], [512.0, 512.0]], "white_dn": 16383.0, "iso": ISO,
             "exposure_s": pytest.approx(EXPOSURE_S), "make": "SONY", "model": "ILCE-7SM2",
             "unique_camera_model": "SONY ILCE-7SM2", "preset": "sony-a7s2", "k_dn_per_e": pytest.approx(k),
-            "photon_law": "add", "photon_law_formula": "Poisson(f·max(s, 0)·g + D̄·d): the source as noise-free (ELD/PMN)",
+            "photon_law": "add",
+            "photon_law_formula": "Poisson(f·max(s, 0)·g + D̄·d): the source as noise-free (ELD/PMN)",
             "fraction": pytest.approx(factor), "masked_px": 0, "masked_fraction": 0.0}
 
 
@@ -287,7 +288,8 @@ def _bad_sources(folder: Path) -> dict:
     (folder / "garbage.dng").write_bytes(b"not a raw file at all " * 20)
     assert main(["render", "macbeth_26", "-F", "1", "--illuminant", "D65", "--size", "64x48", "-q", "--out",
                  str(folder / "tc")]) == 0  # a camsim three-chip (LinearRaw) DNG
-    xtrans = (1, 1, 0, 1, 1, 2, 1, 1, 2, 1, 1, 0, 2, 0, 1, 0, 2, 1, 1, 1, 2, 1, 1, 0, 1, 1, 0, 1, 1, 2, 0, 2, 1, 2, 0, 1)
+    xtrans = (1, 1, 0, 1, 1, 2, 1, 1, 2, 1, 1, 0, 2, 0, 1, 0, 2, 1,
+              1, 1, 2, 1, 1, 0, 1, 1, 0, 1, 1, 2, 0, 2, 1, 2, 0, 1)
     tiff_dng(folder / "mono.dng", 34892)  # LinearRaw, one sample
     tiff_dng(folder / "xtrans.dng", 32803, cfa_tags((6, 6), xtrans))
     tiff_dng(folder / "cygm.dng", 32803, cfa_tags((2, 2), (3, 4, 1, 5), (3, 4, 1, 5)))

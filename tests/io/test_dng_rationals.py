@@ -21,7 +21,8 @@ from tests.support import clock
 from tests.support.helpers import ROOT, libraw_black_levels
 from tests.support.profiles import examples
 
-BLACK_BOUND_DN = 1 / (2 * 65535)  # the writer's bound for any value up to 65535 (docs reference "File formats", camsim.io.dng)
+# the writer's bound for any value up to 65535 (docs reference "File formats", camsim.io.dng)
+BLACK_BOUND_DN = 1 / (2 * 65535)
 SIZE = 22  # LibRaw's smallest frame
 SRGB_TO_XYZ = np.array([[0.412453, 0.357580, 0.180423], [0.212671, 0.715160, 0.072169],
                         [0.019334, 0.119193, 0.950227]])  # dcraw's and LibRaw's xyz_rgb

@@ -17,11 +17,11 @@ import pytest
 import rawpy
 import tifffile
 
+from camsim.cli import main
+from camsim.io.dng import read_dng, write_dng, write_dng_cfa
+from camsim.render.frame_files import camera_identity
 from camsim.sensor.presets import camera_preset
 from camsim.sensor.presets.data import build_presets
-from camsim.cli import main
-from camsim.render.frame_files import camera_identity
-from camsim.io.dng import read_dng, write_dng, write_dng_cfa
 from tests.support import clock
 from tests.support.helpers import ROOT
 

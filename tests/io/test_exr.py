@@ -19,7 +19,6 @@ from camsim.io.exr import (
     read_exr_oiio,
     write_exr,
 )
-
 from tests.support.helpers import FullDiskExrFile
 
 H, W = 48, 64

@@ -13,8 +13,8 @@ import OpenEXR
 import OpenImageIO as oiio
 import pytest
 
-from camsim.render.frame_files import exr_view, load_frame
 from camsim.io.exr import read_exr, read_exr_oiio
+from camsim.render.frame_files import exr_view, load_frame
 from camsim.render.pipeline import scene_frame
 from camsim.render.run import render_scene
 from camsim.scene.scene_file import load_scene

@@ -18,10 +18,9 @@ import pytest
 import camsim.io.atomic as atomic
 from camsim.cli import main
 from camsim.core.errors import OutputError
-from camsim.render.frame_manifest import MANIFEST_NAME
 from camsim.io.atomic import atomic_path, undo_on_failure, write_text_atomic
 from camsim.io.output_folder import FolderBusyError, output_folder
-
+from camsim.render.frame_manifest import MANIFEST_NAME
 from tests.support.helpers import ROOT, FullDiskExrFile, full_disk
 
 SMALL = ["--size", "64x48", "--illuminant", "D65", "-q"]
@@ -334,8 +333,8 @@ def test_a_frame_committed_but_not_yet_recorded_is_listed(tmp_path, monkeypatch)
 @pytest.mark.parametrize("frames_before", [0, 1])
 def test_a_signal_inside_the_manifests_write_is_undone(frames_before, tmp_path, monkeypatch):
     """A signal inside the manifest's own write (the frame's entry made, the manifest not yet renamed into place;
-    the race that made tests/end_to_end/test_faults.py's two-renders test fail now and then): the run's unwinding writes it
-    again, so the manifest equals the committed frames."""
+    the race that made tests/end_to_end/test_faults.py's two-renders test fail now and then): the run's unwinding writes
+    it again, so the manifest equals the committed frames."""
     import camsim.render.frame_manifest as frame_manifest
 
     real = frame_manifest.write_json_atomic

@@ -1,6 +1,6 @@
 """Reading real cameras' raw files (camsim.io.raw_capture): every RawCapture field read back from phone-style DNGs
-written by an independent writer (tests/support/phone_dng.py, tifffile) and from DNGs camsim writes, crops that shift the
-pattern, ActiveArea, orientation, and the one-line errors.
+written by an independent writer (tests/support/phone_dng.py, tifffile) and from DNGs camsim writes, crops that shift
+the pattern, ActiveArea, orientation, and the one-line errors.
 
 The expected values are computed here from what was written: the pattern of a crop is read off a colour map tiled
 from the written cell (not by rolling the cell, as the reader does), the black level of each site likewise.

@@ -6,15 +6,15 @@ import warnings
 import numpy as np
 import pytest
 
-from camsim.sensor.camera import AnchorScale, PhysicalScale, absolute_qe, load_camera
-from camsim.scene.chart import ChartGeometry
 from camsim.core.errors import CamsimError
-from camsim.sensor.expected import expected_signal
 from camsim.light.photons import LIGHT_SPEED_M_S, PLANCK_J_S, photon_radiance
-from camsim.scene.radiance import scene_radiance
-from camsim.render.pipeline import frame_sensor, light_scene, lit_scene
-from camsim.sensor.params import PRESETS
 from camsim.light.spectra import WavelengthGrid, illuminant_spd
+from camsim.render.pipeline import frame_sensor, light_scene, lit_scene
+from camsim.scene.chart import ChartGeometry
+from camsim.scene.radiance import scene_radiance
+from camsim.sensor.camera import AnchorScale, PhysicalScale, absolute_qe, load_camera
+from camsim.sensor.expected import expected_signal
+from camsim.sensor.params import PRESETS
 from tests.support.helpers import ROOT, WHITE, small_scene
 from tests.support.theory import white_response
 

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 from scipy import special, stats
 
-from camsim.sensor.camera import load_camera
 from camsim.methods import DEFAULT_TOLERANCE
 from camsim.methods.plan import BINS, GAUSSIAN, ks_gaussian, ks_normals, paper_ks_bounds, plan_methods
-from camsim.render.pipeline import light_scene
 from camsim.render.frame import render_frame
+from camsim.render.pipeline import light_scene
+from camsim.sensor.camera import load_camera
 from camsim.sensor.params import PRESETS
 from tests.support.helpers import WHITE, patch_pixels, small_scene
 from tests.support.theory import compound_poisson_cdf_bounds, ks_to_normal_bounds

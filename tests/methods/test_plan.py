@@ -4,17 +4,17 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.sensor.expected import expected_signal
 from camsim.methods.plan import (
     DEFAULT_TOLERANCE,
     EXACT,
-    TABLE,
     GAUSSIAN,
     SATURATED,
+    TABLE,
     ks_gaussian,
     plan_methods,
     predicted_ks,
 )
+from camsim.sensor.expected import expected_signal
 from camsim.sensor.params import PRESETS, preset
 from tests.support.helpers import ROOT, WHITE, patch_pixels, render, small_scene
 from tests.support.theory import assert_mean_var, digital_pmf, pmf_moments
@@ -137,11 +137,11 @@ def test_spectral_method_with_bins_of_zero_radiance(scene):
     grid = scene.grid
     cube = np.zeros((40, 60, grid.size))
     cube[:, :30, grid.wavelengths_nm >= 500] = 0.5  # left half: half-grey above 500 nm only; right: black
-    from camsim.sensor.camera import load_camera
-    from camsim.scene.radiance import SceneRadiance
     from camsim.light.photons import photon_radiance, scale_to_luminance
-    from camsim.render.pipeline import lit_scene, make_frame
     from camsim.light.spectra import cmfs_on_grid, illuminant_spd
+    from camsim.render.pipeline import lit_scene, make_frame
+    from camsim.scene.radiance import SceneRadiance
+    from camsim.sensor.camera import load_camera
 
     white = scale_to_luminance(illuminant_spd("D65", grid), cmfs_on_grid(grid)[1], grid.step_nm, 100.0)
     labels = np.zeros((40, 60), np.uint8)

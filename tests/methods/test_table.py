@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from scipy import special, stats
 
+from camsim.methods.table import charge_table
 from camsim.sensor.dn_law import charge_pmf, dn_pmf
 from camsim.sensor.kernels import alias_columns, alias_draw, alias_table
-from camsim.methods.table import charge_table
 from camsim.sensor.params import PRESETS, SensorParams
 from tests.support.helpers import render, small_scene
 

@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from camsim.sensor.presets import camera_preset, sensor_preset
 from camsim.cli import main
 from camsim.optimise.model import CLIP_SIGMAS, SensorAtIso, snr_db
 from camsim.optimise.search import exposure_axis, iso_axis, optimise, patch_rates
 from camsim.optimise.verify import three_chip, verify_choice
 from camsim.render.pipeline import light_scene
 from camsim.scene.scene_file import load_scene
+from camsim.sensor.presets import camera_preset, sensor_preset
 
 FACTORS = [1.0, 0.1, 0.01, 0.001]
 

@@ -7,11 +7,11 @@ import pytest
 import rawpy
 
 import camsim.render.frame as render_module
+from camsim.core.seeding import frame_seed_sequence
 from camsim.io.dng import read_dng
 from camsim.io.exr import read_exr, read_exr_oiio
-from camsim.sensor.noise_profile import frame_noise_profile
-from camsim.core.seeding import frame_seed_sequence
 from camsim.render.run import render_scene
+from camsim.sensor.noise_profile import frame_noise_profile
 from tests.support.helpers import libraw_black_levels, render, small_scene
 
 FACTORS = (1.0, 0.02)
@@ -128,10 +128,10 @@ def test_no_dng_without_quantisation(scene, tmp_path):
 
 
 def test_render_frame_accepts_a_generator_seed_or_seed_sequence(scene):
-    from camsim.sensor.camera import load_camera
-    from camsim.scene.radiance import scene_radiance
-    from camsim.render.pipeline import lit_scene
     from camsim.render.frame import render_frame
+    from camsim.render.pipeline import lit_scene
+    from camsim.scene.radiance import scene_radiance
+    from camsim.sensor.camera import load_camera
 
     radiance = scene_radiance(scene, "D65")
     camera = load_camera(scene.camera, scene.grid)

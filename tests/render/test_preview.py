@@ -1,4 +1,5 @@
-"""The sRGB preview (camsim.render.preview, render_scene(..., preview=True)): colours, white balance, exposure, files."""
+"""The sRGB preview (camsim.render.preview, render_scene(..., preview=True)):
+colours, white balance, exposure, files."""
 
 import dataclasses
 import json
@@ -8,9 +9,9 @@ import numpy as np
 import pytest
 
 from camsim.core.errors import CamsimError
+from camsim.core.seeding import frame_seed_sequence
 from camsim.io.exr import read_exr
 from camsim.render.preview import preview_srgb, write_preview_png
-from camsim.core.seeding import frame_seed_sequence
 from camsim.render.run import render_scene
 from camsim.scene.scene_file import load_scene
 from tests.support.helpers import ROOT, render
@@ -157,8 +158,9 @@ def test_bayer_frame(scene, tmp_path):
 
 @pytest.mark.parametrize("cfa", [None, "BGGR"])
 def test_row_blocks_do_not_change_the_picture(scene, monkeypatch, cfa):
-    import camsim.render.preview as preview_module
     from colour_demosaicing import demosaicing_CFA_Bayer_bilinear
+
+    import camsim.render.preview as preview_module
 
     one = scene if cfa is None else scene.with_sensor(cfa=cfa)
     frame, _ = render(one, one.sensor, factor=0.1, seed=5)

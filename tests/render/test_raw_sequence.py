@@ -1,8 +1,8 @@
 """Raw scenes in motion (issue 29, point 1 for ``[raw]`` scenes): a raw scene's ``[sequence]`` through ``camsim
 render``, against expectations computed here.
 
-The sources are DNGs written by the tests' own writer (:mod:`tests.support.phone_dng`, which does not import camsim). The
-closed forms are this file's own:
+The sources are DNGs written by the tests' own writer (:mod:`tests.support.phone_dng`, which does not import camsim).
+The closed forms are this file's own:
 
 * a static sequence under ``add`` at F (the source's exposure, f = F): at each site of a constant-per-site source
   s, each frame's DN is floor(P + ½ + K · Poisson(f s) + read + row), so over the frames, per pixel,
@@ -30,8 +30,8 @@ from camsim.cli import main
 from camsim.io.exr import read_exr
 from camsim.render.sidecar_schema import check_sidecar
 from camsim.sensor.presets import camera_preset
-from tests.support.phone_dng import write_phone_dng
 from tests.end_to_end.test_raw_scene import BLACK, EXPOSURE_S, ISO, SITE_E, WHITE, write_source
+from tests.support.phone_dng import write_phone_dng
 
 SIGMAS = 5.0
 

@@ -214,8 +214,7 @@ def test_per_pixel_draw_variance_matches_the_closed_form(cfa):
     sensor = SensorParams(exposure_s=2.0, read_noise_e=4.0, row_noise_e=1.5, dark_current_e_per_s=(5.0, 20.0, 60.0),
                           black_level_error_dn=30.0, quantisation=False, saturation=False, cfa=cfa)
     planes = np.broadcast_to(levels[:, None, None], (3, h, w)).astype(np.float32)
-    from camsim.sensor.cfa import mosaic_of
-    from camsim.sensor.cfa import cfa_sites
+    from camsim.sensor.cfa import cfa_sites, mosaic_of
 
     source = planes if cfa is None else mosaic_of(planes, cfa)[None]
     draw = render_expectation_frame(source, sensor, rng=7, workers=2)

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from camsim.render import warp
-from camsim.render.raw_frame import render_expectation_frame
 from camsim.render.pipeline import frame_sensor, light_scene
+from camsim.render.raw_frame import render_expectation_frame
 from camsim.render.sequence import render_sequence_frames
+from camsim.scene.scene_file import load_scene
 from camsim.scene.sequence import SequenceParams
 from camsim.sensor.params import SensorParams
-from camsim.scene.scene_file import load_scene
 
 ROOT = Path(__file__).resolve().parents[2]
 

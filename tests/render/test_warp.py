@@ -5,7 +5,8 @@ The closed form: bilinear interpolation between pixel centres reproduces exactly
 cell's four corners determine it), so the warp of an image sampled from such an f is Σ_s w_s f(clamp(H⁻¹_s p)),
 computed here in float64 from the homographies (the edge clamp written out). The implementations compute the
 coordinates in float32 (module docstring), so they meet that value to the coordinates' float32 rounding (≈ 1e-7 of
-the largest coordinate term, times f's gradient) plus the float32 rounding of the sums: about 2e-7 of the largest value here, the bound 2e-6.
+the largest coordinate term, times f's gradient) plus the float32 rounding of the sums: about 2e-7 of the largest value
+here, the bound 2e-6.
 
 Kernel against numpy: the same float32 operations on the same values in the same order, so within a few float32
 units in the last place of the values (here they agree bit for bit; the tests allow 4 ulp of the largest value).

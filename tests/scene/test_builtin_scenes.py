@@ -1,10 +1,10 @@
 """Built-in scenes: shipped as package data, addressable by name from any directory, and in the wheel."""
 
 import hashlib
-import json
-import re
 import importlib.metadata
+import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -14,11 +14,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from camsim.scene.builtin_scenes import SCENES_DIR, builtin_scene_names, builtin_scene_path, resolve_scene_file
 from camsim.cli import main
-from camsim.dataset import load_spec
 from camsim.core.errors import CamsimError
+from camsim.dataset import load_spec
 from camsim.experiments.scenarios import DEFAULT_SCENE
+from camsim.scene.builtin_scenes import SCENES_DIR, builtin_scene_names, builtin_scene_path, resolve_scene_file
 from camsim.scene.scene_file import load_scene
 from camsim.scene.sources import ImageSource
 from tests.support.helpers import ROOT
@@ -204,7 +204,8 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
     with zipfile.ZipFile(wheel) as archive:
         names = set(archive.namelist())
         for scene in ("macbeth_26.toml", "denoise_small.toml", "dead_leaves.toml", "slanted_edge.toml",
-                      "slanted_edge_lens.toml", "astronaut.toml", "chelsea.toml", "coffee.toml", "dark.toml", "flat.toml"):
+                      "slanted_edge_lens.toml", "astronaut.toml", "chelsea.toml", "coffee.toml", "dark.toml",
+                      "flat.toml"):
             assert archive.read(f"camsim/scenes/{scene}") == (SCENES_DIR / scene).read_bytes()
         for image in ("astronaut.png", "chelsea.png", "coffee.png", "README.md"):  # denoise_small's [images]
             assert archive.read(f"camsim/scenes/images/{image}") == (SCENES_DIR / "images" / image).read_bytes()
@@ -217,7 +218,8 @@ def test_wheel_ships_the_scenes_and_resolves_them_without_a_checkout(tmp_path):
     # installed as pip installs it (into a folder of its own: the console script too), away from any checkout
     subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "--no-index", "-q", "--target",
                     str(tmp_path / "site"), str(wheel)], check=True, capture_output=True, cwd=tmp_path)
-    code = ("import camsim, camsim.scene.builtin_scenes as b, camsim.scene.scene_file as s, camsim.experiments.scenarios as e\n"
+    code = ("import camsim, camsim.scene.builtin_scenes as b, camsim.scene.scene_file as s, "
+            "camsim.experiments.scenarios as e\n"
             "print(camsim.__file__); print(b.builtin_scene_names()); print(s.load_scene('macbeth_26').name)\n"
             "print(e.DEFAULT_SCENE.is_file(), e.DEFAULT_SCENE.relative_to(b.SCENES_DIR.parent.parent))\n"
             "from camsim.dataset import load_spec; print(len(load_spec(b.SCENES_DIR / 'denoise_small.toml')))\n")
@@ -281,7 +283,8 @@ def test_a_crop_of_each_builtin_photograph_renders(tmp_path, name):
     from camsim.io.exr import read_exr
 
     x, y, w, h = 100, 60, 64, 48
-    text = builtin_scene_path(name).read_text().replace("# crop = [x, y, width, height]", f"crop = [{x}, {y}, {w}, {h}]")
+    text = builtin_scene_path(name).read_text().replace("# crop = [x, y, width, height]",
+                                                        f"crop = [{x}, {y}, {w}, {h}]")
     assert f"crop = [{x}" in text
     scene = tmp_path / f"{name}.toml"
     scene.write_text(text)

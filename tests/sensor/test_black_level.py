@@ -1,5 +1,5 @@
-"""The true black level (camsim.sensor.black_level): the exact mean digital number of an unlit pixel, against closed forms
-computed here by other routes (tail sums, the Owen-free integral over the DSNU, scipy's Tukey CDF), Monte Carlo
+"""The true black level (camsim.sensor.black_level): the exact mean digital number of an unlit pixel, against closed
+forms computed here by other routes (tail sums, the Owen-free integral over the DSNU, scipy's Tukey CDF), Monte Carlo
 where no closed form exists, rendered dark frames, and what the DNG and the sidecar say."""
 
 import dataclasses

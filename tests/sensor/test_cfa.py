@@ -8,8 +8,8 @@ import rawpy
 
 from camsim.analysis.analyze import analyse_paths
 from camsim.analysis.patches import AnalysisSettings
-from camsim.io.exr import read_exr, read_exr_oiio
 from camsim.core.seeding import frame_seed_sequence
+from camsim.io.exr import read_exr, read_exr_oiio
 from camsim.render.run import render_scene
 from camsim.sensor.cfa import CFA_PATTERNS, cfa_sites
 from camsim.sensor.params import preset

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from camsim.render.frame import render_frame
 from camsim.sensor.dn_law import charge_pmf, dn_pmf
 from camsim.sensor.expected import expected_signal
-from camsim.render.frame import render_frame
 from camsim.sensor.params import PRESETS, preset
 from tests.support.theory import digital_pmf, digital_pmf_without_read_noise
 

@@ -182,7 +182,8 @@ def test_the_parameter_is_recorded_only_when_on(tmp_path):
     for value, present in ((0, False), (7.5, True)):
         out = tmp_path / f"p{value}"
         assert main(["render", str(ROOT / "scenes" / "macbeth_26.toml"), "--size", "48x32", "--illuminant", "D65",
-                     "--intensity", "1", "-q", "--sensor", f"dsnu_dark_current_percent={value}", "--out", str(out)]) == 0
+                     "--intensity", "1", "-q", "--sensor", f"dsnu_dark_current_percent={value}",
+                     "--out", str(out)]) == 0
         sidecar = json.loads(next(out.rglob("*.json")).read_text())
         assert ("dsnu_dark_current_percent" in sidecar) == present
         if present:

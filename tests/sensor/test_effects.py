@@ -394,8 +394,8 @@ def test_a_black_level_error_beyond_a_frames_range_is_named(capsys):
 def test_frames_drawn_one_after_another_from_one_generator_get_their_own_black_level_errors():
     """A caller that draws frames from one numpy Generator (or SeedSequence) gets a new black-level error per frame,
     as it gets new noise; a fresh seed gives the same error again."""
-    from camsim.render.frame import black_level_error
     from camsim.core.seeding import block_generators
+    from camsim.render.frame import black_level_error
 
     sensor = SensorParams(black_level_error_dn=2.0)
     for make in (lambda: np.random.default_rng(5), lambda: np.random.SeedSequence(5)):

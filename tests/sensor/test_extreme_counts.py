@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 from scipy import special, stats
 
-from camsim.sensor.camera import load_camera
 from camsim.cli import main
 from camsim.core.errors import CamsimError
 from camsim.render.pipeline import check_frames, frame_warnings, light_scene, make_frame
+from camsim.sensor.camera import load_camera
 from camsim.sensor.params import PRESETS, SensorParams
 from camsim.sensor.stages import SATURATION_CAP_TAIL, cap_mean_e, collect_charge_e, saturating_mean_e
 from tests.support.helpers import small_scene

@@ -85,7 +85,8 @@ def test_tukey_lambda_read_noise_has_the_right_spread_and_tails(scene):
     assert abs(noise.mean()) < 5 * 4 / np.sqrt(n)
     assert abs(noise.var() / 16 - 1) < 5 * np.sqrt((2 + kurt) / n)
     assert kurt > 1 and stats.kurtosis(noise) > 1  # heavy tails (the sample kurtosis itself converges too slowly)
-    assert stats.kstest(noise / (4 / np.sqrt(float(stats.tukeylambda.var(lam)))), "tukeylambda", args=(lam,)).pvalue > 1e-3
+    assert stats.kstest(noise / (4 / np.sqrt(float(stats.tukeylambda.var(lam)))), "tukeylambda",
+                        args=(lam,)).pvalue > 1e-3
     gauss = preset("paper-table1", read_noise_e=4.0, **(OFF | {"read_noise": True}))
     frame_g, _ = render(scene, gauss, factor=0.5, seed=6)
     xg = patch_pixels(frame_g.noisy_dn, radiance.patch_rects[WHITE]).astype(float) / gauss.dn_per_electron

@@ -11,13 +11,13 @@ import pytest
 import rawpy
 import tifffile
 
+from camsim.core.errors import CamsimError
+from camsim.io.dng import read_dng, write_dng, write_dng_cfa
+from camsim.render.frame_files import write_frame
+from camsim.render.pipeline import light_scene, scene_frame
 from camsim.sensor.camera import load_camera
 from camsim.sensor.dn_law import dn_pmf
-from camsim.core.errors import CamsimError
-from camsim.render.frame_files import write_frame
-from camsim.io.dng import read_dng, write_dng, write_dng_cfa
 from camsim.sensor.noise_profile import dng_noise_profile, frame_noise_profile, shot_step_e
-from camsim.render.pipeline import light_scene, scene_frame
 from camsim.sensor.params import SensorParams
 from tests.support import clock
 from tests.support.helpers import libraw_black_levels, small_scene

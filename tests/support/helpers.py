@@ -4,12 +4,12 @@ closed forms in ``tests.support.theory``."""
 
 from pathlib import Path
 
-from camsim.sensor.camera import load_camera
-from camsim.scene.chart import ChartGeometry
+from camsim.light.spectra import WavelengthGrid
 from camsim.render.pipeline import light_scene, make_frame
+from camsim.scene.chart import ChartGeometry
 from camsim.scene.scene_file import Scene
 from camsim.scene.sources import ChartSource
-from camsim.light.spectra import WavelengthGrid
+from camsim.sensor.camera import load_camera
 
 ROOT = Path(__file__).resolve().parents[2]
 WHITE = 18  # "white 9.5 (.05 D)" in ColorChecker order

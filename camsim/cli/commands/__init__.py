@@ -57,4 +57,5 @@ def exr_compression_argument(parser, spec_key: bool = False) -> None:
                         help="compression of the EXR files, one of OpenEXR's lossless ones: "
                              f"{', '.join(LOSSLESS_EXR_COMPRESSIONS)} (zstd and htj2k* need OpenEXR >= 3.5 / 3.4 "
                              f"to read them). Default: {default} (noisy float32 barely compresses: docs, "
-                             "reference 'File formats'). The lossy ones (pxr24, b44, b44a, dwaa, dwab, lj2k) are refused")
+                             "reference 'File formats'). The lossy ones (pxr24, b44, b44a, dwaa, dwab, lj2k) are "
+                             "refused")

@@ -7,8 +7,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from camsim.cli.types import non_negative_int
 from camsim.cli.commands import DEFAULT_OUT, writing_to
+from camsim.cli.types import non_negative_int
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -26,7 +26,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "patch × channel), OUT/frame_statistics.csv (one row per frame × channel), OUT/analysis.json, "
             "OUT/README.txt (every column explained; SNR is signal² / variance, a power ratio) and PNG figures. "
             "Frames of one static scene and sensor that differ only in their noise (seed or frame_index: a "
-            "sequence of N ≥ 2) also get their temporal and spatial noise separated (EMVA 1288: the pixels' variance over the frames, "
+            "sequence of N ≥ 2) also get their temporal and spatial noise separated (EMVA 1288: the pixels' variance "
+            "over the frames, "
             "the mean image's variance less temporal / N), per patch and for the whole frame, against the model's: "
             "OUT/temporal.csv. "
             "Frames with a slanted edge (a slanted-edge target's sidecar, or --edge-region) also get their edge-SFR "
@@ -98,8 +99,15 @@ def _warn(line: str) -> None:
 
 def run(args) -> int:
     """Carry out ``camsim analyze``; returns the exit status (0)."""
-    from camsim.analysis.analyze import (FRAME_CSV_NAME, GUIDE_NAME, analyse, frame_table, mtf_lines, table,
-                                         write_outputs)
+    from camsim.analysis.analyze import (
+        FRAME_CSV_NAME,
+        GUIDE_NAME,
+        analyse,
+        frame_table,
+        mtf_lines,
+        table,
+        write_outputs,
+    )
     from camsim.analysis.patches import AnalysisSettings
     from camsim.analysis.temporal import TEMPORAL_CSV_NAME, analyse_sequences, summary_lines
 

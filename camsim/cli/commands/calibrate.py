@@ -1,4 +1,5 @@
-"""``camsim calibrate``: estimate a camera's noise parameters from its raw dark frames and flat pairs; write a preset."""
+"""``camsim calibrate``: estimate a camera's noise parameters from its raw dark frames and flat pairs; write a
+preset."""
 
 from __future__ import annotations
 
@@ -6,8 +7,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from camsim.cli.types import file_name, positive_float
 from camsim.cli.commands import DEFAULT_OUT, writing_to
+from camsim.cli.types import file_name, positive_float
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:

@@ -8,8 +8,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from camsim.cli.types import positive_int
 from camsim.cli.commands import DEFAULT_OUT, exr_compression_argument
+from camsim.cli.types import positive_int
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -49,7 +49,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "OUT/dataset.zarr, with arrays noisy, clean (float32) and digital (uint8/uint16) of "
                              "shape (frame, channel, y, x) (bursts: (frame, burst_frame, channel, y, x) with the "
                              "reference, homographies and start times), one chunk per frame, plus the sidecars, done "
-                             "flags and the parameters (docs, guide 'Datasets for denoisers'); every frame must have the same size")
+                             "flags and the parameters (docs, guide 'Datasets for denoisers'); every frame must have "
+                             "the same size")
     exr_compression_argument(parser, spec_key=True)
     parser.add_argument("--srgb", choices=("none", "png", "png16"),
                         help="also each frame's noisy and clean layers developed through one camera ISP (the same "

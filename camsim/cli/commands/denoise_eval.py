@@ -12,8 +12,8 @@ import sys
 import textwrap
 from pathlib import Path
 
-from camsim.cli.types import non_negative_int, positive_float, positive_float_or
 from camsim.cli.commands import DEFAULT_OUT, writing_to
+from camsim.cli.types import non_negative_int, positive_float, positive_float_or
 from camsim.core.errors import CamsimError
 
 #: Longest default output folder name (the denoisers' names joined by '+'); beyond it, "comparison".
@@ -154,8 +154,8 @@ def run(args) -> int:
     """Handle ``camsim denoise-eval``; returns the exit status (0). User errors raise CamsimError."""
     from camsim.denoise.denoisers import resolve_denoiser
     from camsim.denoise.evaluate import EvalSettings, evaluate
-    from camsim.denoise.summary import NOISY, Criterion
     from camsim.denoise.report import band_verdict_sentence, verdict_sentence, write_outputs
+    from camsim.denoise.summary import NOISY, Criterion
 
     denoisers = _unique_names([resolve_denoiser(t, timeout_s=args.timeout) for t in args.denoiser])
     settings = EvalSettings(border_px=args.border, subtract_black=not args.keep_black, bayer_input=args.bayer_input,
@@ -172,7 +172,8 @@ def run(args) -> int:
         for aspect in ("detail", "colour"):
             print(f"  {band_verdict_sentence(evaluation, name, aspect).replace('**', '')}")
         if name != NOISY:
-            print(f"    [{evaluation.seconds.get(name, 0.0):.1f} s, {evaluation.seconds.get(name, 0.0) / n:.3g} s/frame]")
+            print(f"    [{evaluation.seconds.get(name, 0.0):.1f} s, "
+                  f"{evaluation.seconds.get(name, 0.0) / n:.3g} s/frame]")
     if any(v["status"] != "undetermined" for v in evaluation.verdicts.values()) and evaluation.patch_rows:
         print(f"chart (criterion: {settings.criterion.text()}):")
         for name in [*(d.name for d in denoisers), NOISY]:

@@ -6,8 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from camsim.cli.types import integer_between, non_negative_int, positive_float, sensor_setting
 from camsim.cli.commands import DEFAULT_OUT, preset_argument, writing_to
+from camsim.cli.types import integer_between, non_negative_int, positive_float, sensor_setting
 
 #: ``--size``: the range :class:`camsim.emva.EmvaSetup` accepts for the side of the region of interest.
 ROI_SIDE_PX = integer_between(16, 4096, "the side of the EMVA region of interest in pixels")

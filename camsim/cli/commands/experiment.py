@@ -6,8 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from camsim.cli.types import non_negative_int
 from camsim.cli.commands import DEFAULT_OUT, camera_argument, writing_to
+from camsim.cli.types import non_negative_int
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -43,11 +43,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     """Carry out ``camsim experiment``; returns the exit status (0)."""
-    from camsim.scene.chart import parse_size
     from camsim.core.errors import CamsimError
     from camsim.experiments.runner import Setup
     from camsim.experiments.scenarios import DEFAULT_SCENE, run_experiment
     from camsim.io.dng import MIN_SIZE
+    from camsim.scene.chart import parse_size
 
     width, height = parse_size(args.size) if args.size else (None, None)
     if args.size and min(width, height) < MIN_SIZE:  # its frames are DNGs too: refused before any work

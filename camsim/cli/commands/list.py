@@ -15,9 +15,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     """Carry out ``camsim list``; returns the exit status (0). Imports neither scipy nor colour-science."""
-    from camsim.scene.builtin_scenes import builtin_scene_names, builtin_spec_names
+    from camsim.colour.colour_names import (  # colour-science's, without importing it
+        CAMERAS,
+        ILLUMINANTS,
+        REFLECTANCE_SETS,
+    )
     from camsim.methods import METHOD_NAMES
-    from camsim.colour.colour_names import CAMERAS, ILLUMINANTS, REFLECTANCE_SETS  # colour-science's, without importing it
+    from camsim.scene.builtin_scenes import builtin_scene_names, builtin_spec_names
 
     print("built-in scenes:", ", ".join(builtin_scene_names()))
     print("built-in dataset specs (camsim dataset NAME):", ", ".join(builtin_spec_names()))

@@ -6,8 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from camsim.cli.types import positive_float, sensor_setting
 from camsim.cli.commands import DEFAULT_OUT, preset_argument, writing_to
+from camsim.cli.types import positive_float, sensor_setting
 from camsim.core.errors import CamsimError
 
 DEFAULT_FACTORS = (1.0, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)
@@ -55,14 +55,14 @@ def run(args) -> int:
     """Carry out ``camsim optimise``; returns the exit status (0)."""
     import dataclasses
 
-    from camsim.sensor.presets import camera_preset, sensor_preset
-    from camsim.scene.chart import parse_size
     from camsim.optimise.model import SensorAtIso
     from camsim.optimise.report import write_report
     from camsim.optimise.search import exposure_axis, iso_axis, optimise, patch_rates
     from camsim.optimise.verify import three_chip, verify_choice
     from camsim.render.pipeline import light_scene
+    from camsim.scene.chart import parse_size
     from camsim.scene.scene_file import load_scene
+    from camsim.sensor.presets import camera_preset, sensor_preset
 
     if not args.max_exposure > 0:
         raise CamsimError(f"--max-exposure must be a positive number of seconds, got {args.max_exposure:g}")

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from camsim.render.backends import DEVICES
+from camsim.cli.commands import DEFAULT_OUT, camera_argument, exr_compression_argument, preset_argument
 from camsim.cli.types import (
     exposure_setting,
     optics_setting,
@@ -15,10 +15,10 @@ from camsim.cli.types import (
     schema_value,
     sensor_setting,
 )
-from camsim.cli.commands import DEFAULT_OUT, camera_argument, exr_compression_argument, preset_argument
 from camsim.core.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS
 from camsim.optics.params import OPTICS_PARAMS
+from camsim.render.backends import DEVICES
 from camsim.scene.scene_file import RENDER_PARAMS
 from camsim.sensor.params import SENSOR_PARAMS, STAGES
 
@@ -63,7 +63,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "by camsim calibrate")
     parser.add_argument("--iso", metavar="ISO", type=positive_float,
                         help="ISO of a camera preset (default: ISO 100 where published); between published ISO "
-                             "points the figures are interpolated (docs, guide 'Characterising and calibrating a camera')")
+                             "points the figures are interpolated (docs, guide "
+                             "'Characterising and calibrating a camera')")
     parser.add_argument("--sensor", metavar="NAME=VALUE", type=sensor_setting, action="append", default=[],
                         help="set any sensor parameter, after the preset and the scene file (repeatable; VALUE as "
                              "in a scene file: 2.5, [1, 2, 3], true, RGGB, none): "
@@ -89,7 +90,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--exposure-max", metavar="SECONDS", type=schema_value(_RENDER["exposure_max_s"]),
                         help=f"{_RENDER['exposure_max_s'].doc} (s)")
     parser.add_argument("--camera", metavar="NAME_OR_CSV",
-                        help="colour-science camera name (default 'Nikon 5100 (NPL)') or a CSV of wavelength_nm, R, G, B")
+                        help="colour-science camera name (default 'Nikon 5100 (NPL)') or a CSV of "
+                             "wavelength_nm, R, G, B")
     parser.add_argument("--seed", type=schema_value(_RENDER["seed"]), help="random seed (integer ≥ 0); same seed ⇒ "
                         "identical files")
     parser.add_argument("--size", metavar="WxH", help="frame size in pixels for chart scenes, e.g. 4000x3000")

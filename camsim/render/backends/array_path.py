@@ -18,8 +18,8 @@ draws the exact law of ``pixel`` statistics per pixel and plane:
 with g, d, o the sensor's fixed-pattern maps (PRNU, dark-current DSNU, offset DSNU, with issue 28's dark shading,
 column FPN, hot and dead pixels folded in; drawn on the CPU from
 ``sensor_seed`` as for every frame, and copied to the device once). A Bayer sensor draws one plane, each site its own
-channel. The law is the CPU's (:func:`camsim.render.frame.render_frame`): the two agree in distribution, not in bits (the
-CPU draws in row blocks, each from its own generator, with its own fast kernels).
+channel. The law is the CPU's (:func:`camsim.render.frame.render_frame`): the two agree in distribution, not in bits
+(the CPU draws in row blocks, each from its own generator, with its own fast kernels).
 
 :func:`draw_planes` draws from per-pixel means (an image's crops, :mod:`camsim.pairs`); :func:`render_frame_xp`
 gathers them from a label map and a frame's :class:`~camsim.sensor.expected.ExpectedSignal`.
@@ -32,11 +32,12 @@ from functools import lru_cache
 
 import numpy as np
 
+from camsim.core.xp import generator_namespace, namespace_of, to_host
 from camsim.render.backends import device_generator, device_method
+from camsim.render.frame import Frame, black_level_error, block_rows, check_frame_values, write_stuck
 from camsim.sensor.cfa import cfa_sites
 from camsim.sensor.expected import ExpectedSignal
 from camsim.sensor.fixed_pattern import FixedPattern, _dark_gain_map, _unit_maps, fixed_pattern, prnu_gain
-from camsim.render.frame import Frame, black_level_error, block_rows, check_frame_values, write_stuck
 from camsim.sensor.params import SensorParams
 from camsim.sensor.stages import (
     add_black_level_error_dn,
@@ -50,7 +51,6 @@ from camsim.sensor.stages import (
     saturate_e,
     saturation_level_e,
 )
-from camsim.core.xp import generator_namespace, namespace_of, to_host
 
 
 @dataclass(frozen=True)
@@ -232,8 +232,8 @@ _DEVICE_EFFECT: dict = {}
 
 
 def device_maps(xp, sensor: SensorParams, shape) -> FixedPattern | None:
-    """The sensor's fixed-pattern maps on ``xp``'s device: :func:`camsim.sensor.fixed_pattern.fixed_pattern`'s values (the
-    same float32 arithmetic on the same unit maps, which are copied to the device once per sensor seed and size:
+    """The sensor's fixed-pattern maps on ``xp``'s device: :func:`camsim.sensor.fixed_pattern.fixed_pattern`'s values
+    (the same float32 arithmetic on the same unit maps, which are copied to the device once per sensor seed and size:
     the maps belong to the sensor, not the frame)."""
     if not sensor.fixed_pattern:
         return None

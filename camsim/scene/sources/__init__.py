@@ -6,7 +6,8 @@
 RGB picture whose distinct colours are recovered as spectra, kept factored on a three-spectrum basis) and
 ``[target]`` (:class:`TargetSource`, a synthetic dead-leaves chart, slanted edge or flat field: a label map plus K
 spectra) and ``[raw]`` (:class:`RawSource`, a real camera's raw file: per site the electrons it recorded, drawn
-by :mod:`camsim.render.raw_render`, not from spectra). A new kind of scene is one module with one class, added to :data:`SOURCES`.
+by :mod:`camsim.render.raw_render`, not from spectra). A new kind of scene is one module with one class, added to
+:data:`SOURCES`.
 """
 
 from camsim.scene.sources.base import SceneSource, SourceSpectra

@@ -6,10 +6,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from camsim.scene.chart import ChartGeometry
 from camsim.core.errors import CamsimError
-from camsim.scene.sources.base import SceneSource, SourceSpectra, typed
 from camsim.light.spectra import reflectance_set
+from camsim.scene.chart import ChartGeometry
+from camsim.scene.sources.base import SceneSource, SourceSpectra, typed
 
 
 @dataclass(frozen=True)

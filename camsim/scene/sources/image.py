@@ -53,13 +53,18 @@ from pathlib import Path
 
 import numpy as np
 
+from camsim.colour.recovery import (
+    RECOVERY_METHODS,
+    linear_srgb,
+    mallett_basis,
+    recovery_delta_e,
+    rgb_to_distinct_spectra,
+)
 from camsim.core.errors import CamsimError
 from camsim.light.photons import scale_to_luminance
 from camsim.light.rates import FactoredSpectra
-from camsim.scene.sources.base import SceneSource, SourceSpectra, typed
-from camsim.colour.recovery import (RECOVERY_METHODS, linear_srgb, mallett_basis, recovery_delta_e,
-                              rgb_to_distinct_spectra)
 from camsim.light.spectra import WavelengthGrid, cmfs_on_grid, illuminant_spd, import_colour
+from camsim.scene.sources.base import SceneSource, SourceSpectra, typed
 
 IMAGE_KINDS = ("reflectance", "radiance")
 #: The prefix of a ``path`` that names a photograph shipped with scikit-image (``"skimage:astronaut"``).
@@ -362,8 +367,8 @@ def _open_image(path: str):
     """OpenImageIO's ``ImageInput`` for ``path``, its header read and its size checked against
     :data:`camsim.core.pixel_limit.MAX_PIXELS`, before any pixel is decoded; the library's own messages on standard
     error (``libpng error: ...``) become the reason of the one-line error."""
-    from camsim.io.library_stderr import library_stderr
     from camsim.core.pixel_limit import check_pixel_count
+    from camsim.io.library_stderr import library_stderr
 
     oiio = _oiio()
     with library_stderr() as chatter:

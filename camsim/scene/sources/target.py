@@ -30,10 +30,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.core.seeding import target_generator
 from camsim.core.schema import finite_float
-from camsim.scene.sources.base import SceneSource, SourceSpectra, typed
+from camsim.core.seeding import target_generator
 from camsim.light.spectra import reflectance_set
+from camsim.scene.sources.base import SceneSource, SourceSpectra, typed
 
 TARGET_KINDS = ("dead-leaves", "slanted-edge", "flat")
 _COMMON_KEYS = frozenset({"kind", "reflectances"})

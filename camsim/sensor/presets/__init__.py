@@ -10,11 +10,11 @@ from __future__ import annotations
 from functools import lru_cache
 from pathlib import Path
 
+from camsim.core.errors import CamsimError
+from camsim.sensor.params import PRESETS, SensorParams, preset, with_overrides
 from camsim.sensor.presets.data import build_presets
 from camsim.sensor.presets.files import read_preset_file
 from camsim.sensor.presets.model import CameraPreset, IsoPoint, NoiseFit
-from camsim.core.errors import CamsimError
-from camsim.sensor.params import PRESETS, SensorParams, preset, with_overrides
 
 #: The built-in camera presets, by name.
 CAMERA_PRESETS = build_presets()

@@ -10,7 +10,6 @@ colour-science's ``Nikon 5100 (NPL)`` by default).
 from __future__ import annotations
 
 import dataclasses
-
 import math
 
 from camsim.sensor.presets.model import NOT_PUBLISHED, CameraPreset, IsoPoint, NoiseFit
@@ -144,9 +143,9 @@ def _eld_preset(name: str, camera: str, source: str, black: int, shapes: tuple, 
                                **{q: float(f.at(k)) for q, f in fits.items()}))
     notes = (ELD_ISO_NOTE.format(n=n), _levels_note(black, 14, black_published), WELL_NOTE, NO_DARK_NOTE,
              CURVES_NOTE)
-    return CameraPreset(name=name, title=title or camera, source=source, iso_points=tuple(points), bits=14, pedestal_dn=black,
-                        fits=fits, k_range_dn_per_e=(k_min, k_max), tukey_shapes=tuple(shapes), notes=notes,
-                        published_effects=ELD_EFFECTS)
+    return CameraPreset(name=name, title=title or camera, source=source, iso_points=tuple(points), bits=14,
+                        pedestal_dn=black, fits=fits, k_range_dn_per_e=(k_min, k_max), tukey_shapes=tuple(shapes),
+                        notes=notes, published_effects=ELD_EFFECTS)
 
 
 def _a7s2_pmn() -> CameraPreset:

@@ -41,12 +41,12 @@ from pathlib import Path
 
 import numpy as np
 
-from camsim.sensor.presets.model import CameraPreset, IsoPoint
-from camsim.sensor.cfa import CFA_PATTERNS
 from camsim.core.errors import CamsimError
 from camsim.core.names import safe_component
 from camsim.core.schema import read_toml, typed
+from camsim.sensor.cfa import CFA_PATTERNS
 from camsim.sensor.params import SensorParams, with_overrides
+from camsim.sensor.presets.model import CameraPreset, IsoPoint
 
 _PRESET_KEYS = {"name": str, "title": str, "source": str, "bits": int, "pedestal_dn": int, "cfa": str,
                 "read_noise_model": str, "full_well_e": float, "conversion_gain_v_per_e": float,

@@ -216,7 +216,8 @@ class CameraPreset:
             raise CamsimError(f"camera preset {self.name!r}: unknown effect(s) {', '.join(sorted(unknown))}; "
                               f"effects: {', '.join(EFFECTS)}")
         if self.dual_gain_iso is not None and not (math.isfinite(self.dual_gain_iso) and self.dual_gain_iso > 0):
-            raise CamsimError(f"camera preset {self.name!r}: dual_gain_iso must be positive, got {self.dual_gain_iso!r}")
+            raise CamsimError(f"camera preset {self.name!r}: dual_gain_iso must be positive, "
+                              f"got {self.dual_gain_iso!r}")
         if self.full_well_e is None:  # the charge that fills the raw at the default ISO: K · FW = white − black
             well = (2**self.bits - 1 - self.pedestal_dn) / self.point_at(self.default_iso).k_dn_per_e
             object.__setattr__(self, "full_well_e", float(well))

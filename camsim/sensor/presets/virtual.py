@@ -15,8 +15,8 @@ import math
 
 import numpy as np
 
-from camsim.sensor.presets.model import CameraPreset, IsoPoint
 from camsim.core.errors import CamsimError
+from camsim.sensor.presets.model import CameraPreset, IsoPoint
 
 #: What ``k_range`` may be: each camera's own range, or the union of the listed cameras' ranges.
 K_RANGES = ("camera", "union")
@@ -50,7 +50,8 @@ def virtual_point(camera: CameraPreset, k_dn_per_e: float, scatter: dict, shape_
     if not camera.fits:
         raise CamsimError(f"camera preset {camera.name} has no noise fits to draw virtual cameras from; cameras "
                           "with fits: ELD's and LED's")
-    sigmas = {q: float(fit.at(k_dn_per_e) * math.exp(fit.residual_sigma * scatter[q])) for q, fit in camera.fits.items()}
+    sigmas = {q: float(fit.at(k_dn_per_e) * math.exp(fit.residual_sigma * scatter[q]))
+              for q, fit in camera.fits.items()}
     shapes = camera.tukey_shapes
     if camera.name == "sony-a7m4":  # LED gives the span only
         shape = shapes[0] + (shapes[-1] - shapes[0]) * shape_u

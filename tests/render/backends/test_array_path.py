@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from camsim.core.errors import CamsimError
+from camsim.core.xp import to_host
 from camsim.render.backends import device_generator
 from camsim.render.backends.array_path import render_frame_xp
+from camsim.render.frame import clean_dn
 from camsim.sensor.dn_law import dn_pmf
-from camsim.core.errors import CamsimError
 from camsim.sensor.expected import expected_signal
 from camsim.sensor.kernels import poisson, tukey_lambda_variance
-from camsim.render.frame import clean_dn
 from camsim.sensor.params import PRESETS, SensorParams
-from camsim.core.xp import to_host
 from tests.support.helpers import chi2_p_counts, cupy_or_skip, patch_pixels, small_scene
 
 TABLE1 = PRESETS["paper-table1"]
@@ -51,8 +51,8 @@ def poisson_pmf_window(lam: float):
 
 @pytest.mark.parametrize("lam", [0.5, 3.0, 30.0, 500.0, 3000.0, 10000.0])
 def test_poisson_draws_follow_the_exact_pmf(xp, lam):
-    """The stage's Poisson sampler (camsim.sensor.kernels.poisson, the device's generator) against Poisson's pmf: χ², the
-    mean and the variance (the issue's check, which torch.poisson fails on CUDA at λ = 3000)."""
+    """The stage's Poisson sampler (camsim.sensor.kernels.poisson, the device's generator) against Poisson's pmf: χ²,
+    the mean and the variance (the issue's check, which torch.poisson fails on CUDA at λ = 3000)."""
     n = 400_000
     draws = to_host(poisson(device_generator(xp, 11), xp.full(n, lam)))
     first, pmf = poisson_pmf_window(lam)

@@ -14,13 +14,13 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from camsim.sensor.camera import load_camera
-from camsim.light.rates import FactoredSpectra
-from camsim.scene.chart import ChartGeometry
 from camsim.cli import main
+from camsim.light.rates import FactoredSpectra
 from camsim.render.pipeline import light_scene, make_frame
-from camsim.sensor.params import PRESETS, SensorParams
+from camsim.scene.chart import ChartGeometry
 from camsim.scene.sources import ChartSource, ImageSource
+from camsim.sensor.camera import load_camera
+from camsim.sensor.params import PRESETS, SensorParams
 from tests.support.helpers import small_scene
 from tests.support.theory import digital_pmf, pmf_moments
 

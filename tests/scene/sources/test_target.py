@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.scene.builtin_scenes import builtin_scene_names
 from camsim.cli import main
 from camsim.core.errors import CamsimError
+from camsim.light.spectra import WavelengthGrid
+from camsim.scene.builtin_scenes import builtin_scene_names
 from camsim.scene.radiance import scene_radiance
 from camsim.scene.scene_file import load_scene
 from camsim.scene.sources import SOURCES, TargetSource
@@ -22,7 +23,6 @@ from camsim.scene.sources.target import (
     dead_leaves,
     edge_coverage,
 )
-from camsim.light.spectra import WavelengthGrid
 
 GRID = WavelengthGrid()
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from camsim.sensor.presets import CAMERA_PRESETS, camera_preset, read_preset_file, sensor_preset
 from camsim.core.errors import CamsimError
+from camsim.sensor.presets import CAMERA_PRESETS, camera_preset, read_preset_file, sensor_preset
 from tests.support.helpers import render, small_scene
 
 DATA = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "cameras"
@@ -284,7 +284,8 @@ def test_a_preset_render_writes_a_14_bit_bayer_dng_raw_readers_understand(tmp_pa
     assert main(["render", "macbeth_26", "--preset", "sony-a7s2", "--iso", "3200", "--illuminant", "D65",
                  "--intensity", "0.01", "--size", "96x64", "--out", str(out), "-q"]) == 0
     sidecar = json.loads((out / "macbeth_26_D65_F0.01.json").read_text())
-    assert (sidecar["preset"], sidecar["iso"], sidecar["bits"], sidecar["pedestal_dn"]) == ("sony-a7s2", 3200.0, 14, 512)
+    assert (sidecar["preset"], sidecar["iso"], sidecar["bits"],
+            sidecar["pedestal_dn"]) == ("sony-a7s2", 3200.0, 14, 512)
     assert sidecar["dn_per_electron"] == pytest.approx(3.06)
     with rawpy.imread(str(out / "macbeth_26_D65_F0.01.dng")) as raw:
         assert raw.white_level == 16383

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from camsim.core.errors import CamsimError
+from camsim.dataset.spec import load_spec
 from camsim.sensor.presets import CAMERA_PRESETS, sensor_preset
 from camsim.sensor.presets.virtual import draw_virtual_cameras
-from camsim.dataset.spec import load_spec
-from camsim.core.errors import CamsimError
 
 N = 4000
 QUANTITIES = ("tukey_scale_dn", "gaussian_sigma_dn", "row_sigma_dn")
