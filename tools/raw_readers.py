@@ -38,10 +38,13 @@ READERS = ("rawpy", "dcraw", "darktable", "RawTherapee")
 
 
 def render(out: Path, intensity: float, extra: tuple, size: str | None) -> Path:
-    """One frame of the default scene (D65) rendered by ``camsim render`` into ``out``; its DNG."""
-    argv = [sys.executable, "-m", "camsim", "render", "macbeth_26", "--illuminant", "D65", "--intensity",
-            str(intensity), "--out", str(out), "-q", *extra, *(("--size", size) if size else ())]
-    subprocess.run(argv, cwd=ROOT, check=True, capture_output=True, text=True, timeout=600)
+    """One frame of the default scene (D65) rendered by ``camsim render`` (in this process) into ``out``; its DNG."""
+    from camsim.cli import main
+
+    argv = ["render", "macbeth_26", "--illuminant", "D65", "--intensity", str(intensity), "--out", str(out), "-q",
+            *extra, *(("--size", size) if size else ())]
+    if main(argv) != 0:
+        raise RuntimeError(f"camsim {' '.join(argv)} failed")
     return next(out.glob("*.dng"))
 
 

@@ -23,16 +23,16 @@ import numpy as np
 import pytest
 from scipy import optimize, special, stats
 
-from camsim.sensor.presets import sensor_preset
 from camsim.calibration import dark, flats, ptc, tukey
 from camsim.calibration.estimate import Estimate
 from camsim.cli import main
 from camsim.core.errors import CamsimError
 from camsim.io.dng import write_dng, write_dng_cfa
-from camsim.sensor.kernels import tukey_lambda, tukey_lambda_variance
-from camsim.render.pipeline import LitScene, make_frame
-from camsim.sensor.params import SensorParams
 from camsim.light.spectra import WavelengthGrid
+from camsim.render.pipeline import LitScene, make_frame
+from camsim.sensor.kernels import tukey_lambda, tukey_lambda_variance
+from camsim.sensor.params import SensorParams
+from camsim.sensor.presets import sensor_preset
 
 #: Round trip: frame height and width (pixels), dark frames, flat levels (fractions of the ADC's range above the
 #: pedestal; two frames each).

@@ -10,11 +10,11 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from camsim.scene.builtin_scenes import SCENES_DIR, builtin_scene_names
 from camsim.cli import main
-from camsim.dataset import load_spec, read_manifest, run_dataset
 from camsim.core.errors import CamsimError
+from camsim.dataset import load_spec, read_manifest, run_dataset
 from camsim.io.exr import read_exr
+from camsim.scene.builtin_scenes import SCENES_DIR, builtin_scene_names
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = (ROOT / "scenes" / "macbeth_26.toml").as_posix()

@@ -12,11 +12,16 @@ import numpy as np
 import pytest
 
 from camsim.cli.commands.denoise_eval import add_parser, run
-from camsim.denoise.denoisers import (DENOISERS, bm3d_available, estimate_noise_sigma, model_noise_sigma,
-                                     resolve_denoiser)
+from camsim.core.errors import CamsimError
+from camsim.denoise.denoisers import (
+    DENOISERS,
+    bm3d_available,
+    estimate_noise_sigma,
+    model_noise_sigma,
+    resolve_denoiser,
+)
 from camsim.denoise.evaluate import EvalSettings, evaluate
 from camsim.denoise.summary import Criterion, verdict
-from camsim.core.errors import CamsimError
 from camsim.render.run import render_scene
 from camsim.scene.scene_file import load_scene
 from tests.support.helpers import ROOT
@@ -426,8 +431,8 @@ def test_bm3d_lowers_the_error_of_a_noisy_frame():
 
 
 def test_model_sigma_matches_the_true_noise(dataset):
-    from camsim.render.frame_files import load_frame
     from camsim.io.exr import read_exr
+    from camsim.render.frame_files import load_frame
 
     for f in FACTORS:
         path = dataset / "three_chip" / f"macbeth_26_D65_F{f:g}.exr"

@@ -1,5 +1,6 @@
 """The experiment's figure makers write legible PNGs from small real frames, and skip undefined values."""
 
+import contextlib
 import copy
 from pathlib import Path
 
@@ -30,6 +31,17 @@ def analysed(tmp_path_factory):
     return results, points
 
 
+@contextlib.contextmanager
+def pyplot_left_alone():
+    """The figures drawn within open no figure in pyplot (colour-science's plots draw on ours). Each test's own
+    call of a maker is checked, so the check draws nothing of its own."""
+    import matplotlib.pyplot as plt
+
+    plt.close("all")  # pyplot's current figure, if any, would hide a figure opened through it
+    yield
+    assert plt.get_fignums() == []
+
+
 def assert_pngs(out_dir, figures, keys):
     assert set(figures) == set(keys)
     for name in figures.values():
@@ -48,8 +60,9 @@ def test_scenario_figures(analysed, tmp_path):
                                   semi_minor_xy=None, angle_deg=None, size_xy=None)
     pixel[1]["patches"][1].update(delta_e_ab_mean=None, size_xy=float("nan"))
     pixel[1]["frame_file"] = str(tmp_path / "gone.dng")
-    figures = scenario_figures("scenario1", {"paper": results, "pixel": pixel}, points,
-                               {"paper": (0.31, 0.33), "pixel": None}, tmp_path, magnified_point=3)
+    with pyplot_left_alone():
+        figures = scenario_figures("scenario1", {"paper": results, "pixel": pixel}, points,
+                                   {"paper": (0.31, 0.33), "pixel": None}, tmp_path, magnified_point=3)
     assert figures == {key: f"scenario1_{key}.png"
                        for key in ("samples", "centres", "magnified", "angle", "size", "delta_e")}
     assert_pngs(tmp_path, figures, figures)
@@ -58,7 +71,8 @@ def test_scenario_figures(analysed, tmp_path):
 @pytest.mark.slow
 def test_scenario_figures_without_results(analysed, tmp_path):
     _, points = analysed
-    figures = scenario_figures("scenario2", {"paper": [], "pixel": []}, points, {}, tmp_path, magnified_point=99)
+    with pyplot_left_alone():
+        figures = scenario_figures("scenario2", {"paper": [], "pixel": []}, points, {}, tmp_path, magnified_point=99)
     assert_pngs(tmp_path, figures, ("samples", "centres", "magnified", "angle", "size", "delta_e"))
 
 
@@ -81,18 +95,8 @@ def test_snr_figures(tmp_path):
     rows[0]["delta_snr_eq13_pct"] = None
     rows[1]["delta_snr_eq13_pct"] = float("nan")
     rows[2]["delta_snr_empirical_pct"] = 1e6  # beyond the axes: counted, not drawn
-    figures = snr_figures(rows, tmp_path)
+    with pyplot_left_alone():
+        figures = snr_figures(rows, tmp_path)
     assert figures == {f"snr_{noise}_{protocol}": f"snr_{noise}_{protocol}.png"
                        for noise in ("read", "dark", "quantisation") for protocol in ("one_at_a_time", "all_on")}
     assert_pngs(tmp_path, figures, figures)
-
-
-@pytest.mark.slow
-def test_figures_leave_pyplot_alone(analysed, tmp_path):
-    import matplotlib.pyplot as plt
-
-    results, points = analysed
-    plt.close("all")  # pyplot's current figure, if any, would hide a figure opened through it
-    scenario_figures("scenario1", {"paper": results, "pixel": results}, points, {}, tmp_path)
-    snr_figures([], tmp_path)
-    assert plt.get_fignums() == []  # no figure opened in pyplot (colour-science's plots draw on ours)

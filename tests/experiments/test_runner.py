@@ -15,9 +15,9 @@ from camsim.experiments import findings as fd
 from camsim.experiments.datapoints import colour_signals, data_points, select_points
 from camsim.experiments.runner import Setup, prepare
 from camsim.experiments.scenarios import SCENARIOS, _photon_figure, run_experiment
+from camsim.light.spectra import cmfs_on_grid
 from camsim.scene.scene_file import load_scene
 from camsim.sensor.params import PRESETS
-from camsim.light.spectra import cmfs_on_grid
 from tests.support.helpers import ROOT
 
 SCENE = ROOT / "scenes" / "macbeth_26.toml"

@@ -4,6 +4,7 @@ numerical pupil autocorrelation, the noise after the optics against the exact pe
 ``--optics`` overrides and one-line errors, the sidecar's record and same seed ⇒ same files."""
 
 import dataclasses
+import functools
 import hashlib
 import json
 
@@ -272,15 +273,22 @@ def test_defocus_um_is_w020_over_8_n_squared():
 # ---------------------------------------------------------------------------------------------------- noise
 
 
+@functools.cache
+def _dn_law(lam, dn_per_electron, read_noise_e, full_well_e, bits, pedestal_dn):
+    """:func:`camsim.sensor.dn_law.dn_pmf`, each law computed once: it is most of the noise test's time, and the
+    frames of its devices and colour filter arrays share most of their pixels' charges."""
+    from camsim.sensor.dn_law import dn_pmf
+
+    return dn_pmf(lam, dn_per_electron, read_noise_e, full_well_e, bits, pedestal_dn)
+
+
 def _summed_law(lams, sensor):
     """The expected histogram of digital numbers of pixels with charges ``lams`` (each its own law,
     :func:`camsim.sensor.dn_law.dn_pmf`; pixels grouped by λ to 0.1 e⁻, which moves a mean by ≤ 0.05 k DN, a
     fifth of the test's standard error): (first level, counts)."""
-    from camsim.sensor.dn_law import dn_pmf
-
     keys, counts = np.unique(np.round(np.asarray(lams, dtype=np.float64), 1), return_counts=True)
-    laws = [dn_pmf(float(lam), sensor.dn_per_electron, sensor.read_noise_e, sensor.full_well_e, sensor.bits,
-                   sensor.pedestal_dn) for lam in keys]
+    laws = [_dn_law(float(lam), sensor.dn_per_electron, sensor.read_noise_e, sensor.full_well_e, sensor.bits,
+                    sensor.pedestal_dn) for lam in keys]
     first = min(law.first for law in laws)
     total = np.zeros(max(law.first + law.pmf.size for law in laws) - first)
     for law, n in zip(laws, counts):
