@@ -76,8 +76,29 @@ class Terminated(BaseException):
     """Raised in the main thread when the process receives SIGTERM, so that it unwinds like Ctrl-C."""
 
 
+#: The stop signals (SIGINT, SIGTERM) the current run of :func:`main` has received, in order.
+_stops: list[int] = []
+
+
+def _raise_interrupted(signum, frame):
+    _stops.append(signum)
+    raise KeyboardInterrupt
+
+
 def _raise_terminated(signum, frame):
+    _stops.append(signum)
     raise Terminated
+
+
+def _stop_signal(exc: BaseException) -> int | None:
+    """The stop signal that ended the run, if one did: the exception it raised, or any exception once it was
+    received — a C library can turn the KeyboardInterrupt raised inside a call it makes into another error on its
+    way out (numpy's ``tofile``, which tifffile writes with, reports a ``TypeError``)."""
+    if isinstance(exc, KeyboardInterrupt):
+        return signal.SIGINT
+    if isinstance(exc, Terminated):
+        return signal.SIGTERM
+    return _stops[0] if _stops and isinstance(exc, Exception) else None
 
 
 def _os_error_text(exc: OSError) -> str:
@@ -106,26 +127,33 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
+    _stops.clear()
     try:
-        with handlers_installed({signal.SIGTERM: _raise_terminated}), warnings.catch_warnings():
+        with handlers_installed({signal.SIGINT: _raise_interrupted, signal.SIGTERM: _raise_terminated}), \
+                warnings.catch_warnings():
             if getattr(args, "quiet", False):  # -q: no library chatter either
                 warnings.filterwarnings("ignore", module=QUIET_MODULES)
             return COMMANDS[args.command].run(args)
-    except CamsimError as exc:
-        print(f"camsim: error: {_one_line(exc)}", file=sys.stderr)
-        return 2
-    except OSError as exc:  # the environment's: a file or folder that cannot be read or written
-        print(f"camsim: error: {_one_line(_os_error_text(exc))}", file=sys.stderr)
-        return 2
-    except MemoryError:
-        print("camsim: error: out of memory (try a smaller --size, or fewer --workers)", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"camsim: interrupted; {_STOPPED}", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except Terminated:
-        print(f"camsim: terminated (SIGTERM); {_STOPPED}", file=sys.stderr)
-        return EXIT_TERMINATED
+    except BaseException as exc:
+        stop = _stop_signal(exc)
+        if stop == signal.SIGINT:
+            print(f"camsim: interrupted; {_STOPPED}", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        if stop == signal.SIGTERM:
+            print(f"camsim: terminated (SIGTERM); {_STOPPED}", file=sys.stderr)
+            return EXIT_TERMINATED
+        if isinstance(exc, CamsimError):
+            print(f"camsim: error: {_one_line(exc)}", file=sys.stderr)
+            return 2
+        if isinstance(exc, OSError):  # the environment's: a file or folder that cannot be read or written
+            print(f"camsim: error: {_one_line(_os_error_text(exc))}", file=sys.stderr)
+            return 2
+        if isinstance(exc, MemoryError):
+            print("camsim: error: out of memory (try a smaller --size, or fewer --workers)", file=sys.stderr)
+            return 2
+        raise
+    finally:
+        _stops.clear()
 
 
 def main_entry() -> None:

@@ -1,6 +1,7 @@
 """The command line, in-process through ``main([...])``: end to end, help, and one-line errors with exit 2."""
 
 import json
+import signal
 
 import numpy as np
 import pytest
@@ -194,3 +195,33 @@ def test_an_error_message_with_line_breaks_is_printed_on_one_line(monkeypatch, c
     monkeypatch.setattr(cli.COMMANDS["list"], "run", fail)
     assert cli.main(["list"]) == 2
     assert capsys.readouterr().err == "camsim: error: a value: [1, 2, 3]\n"
+
+
+@pytest.mark.parametrize("signum, status, line", [
+    (signal.SIGINT, 130, "camsim: interrupted; "),
+    (signal.SIGTERM, 143, "camsim: terminated (SIGTERM); "),
+])
+def test_a_stop_signal_whose_exception_a_library_turned_into_another_is_still_a_stop(monkeypatch, capsys, signum,
+                                                                                     status, line):
+    """A signal that lands inside a C library's call can come out as another exception: numpy's ``tofile`` (which
+    tifffile writes DNGs with) turns the KeyboardInterrupt raised inside it into ``TypeError: expected str, bytes
+    or os.PathLike object, not BufferedWriter``. The run was stopped all the same: one line and 130 or 143."""
+    from camsim import cli
+
+    def stopped_inside_a_library(args):
+        try:
+            signal.raise_signal(signum)  # the handler raises in this frame, as it would inside the library's call
+        except BaseException:
+            raise TypeError("expected str, bytes or os.PathLike object, not BufferedWriter") from None
+        raise AssertionError("the signal's handler did not run")
+
+    before = signal.getsignal(signal.SIGINT)
+    monkeypatch.setattr(cli.COMMANDS["list"], "run", stopped_inside_a_library)
+    assert cli.main(["list"]) == status
+    err = capsys.readouterr().err
+    assert err.startswith(line) and err.count("\n") == 1, err
+    # the next run starts afresh: a genuine error is not taken for a stop
+    monkeypatch.setattr(cli.COMMANDS["list"], "run", lambda args: 1 / 0)
+    with pytest.raises(ZeroDivisionError):
+        cli.main(["list"])
+    assert signal.getsignal(signal.SIGINT) is before  # the handlers are put back
