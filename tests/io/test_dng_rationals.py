@@ -7,7 +7,6 @@ D = floor((2^32 − 1) / 65536) = 65535 for the largest black level: below 7.63e
 
 import json
 import math
-import sys
 from fractions import Fraction
 
 import numpy as np
@@ -16,9 +15,9 @@ import tifffile
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from camsim.cli import main
 from camsim.io.dng import write_dng, write_dng_cfa
-from tests.support import clock
-from tests.support.helpers import ROOT, libraw_black_levels
+from tests.support.helpers import libraw_black_levels
 from tests.support.profiles import examples
 
 # the writer's bound for any value up to 65535 (docs reference "File formats", camsim.io.dng)
@@ -134,11 +133,8 @@ def test_the_cli_writes_a_5000_dn_pedestal_of_a_16_bit_adc(tmp_path):
     """``render … --sensor bits=16 --sensor pedestal_dn=5000`` (a black level of about 5005 DN) is written, and
     rawpy reads it as the sidecar's level rounded (a LinearRaw file)."""
     out = tmp_path / "out"
-    done = clock.run(
-        [sys.executable, "-m", "camsim", "render", "macbeth_26", "--illuminant", "D65", "--intensity", "1",
-         "--sensor", "bits=16", "--sensor", "pedestal_dn=5000", "--size", "66x44", "--out", str(out), "-q"],
-        cpu_s=60, cwd=ROOT, capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
+    assert main(["render", "macbeth_26", "--illuminant", "D65", "--intensity", "1", "--sensor", "bits=16",
+                 "--sensor", "pedestal_dn=5000", "--size", "66x44", "--out", str(out), "-q"]) == 0
     path = out / "macbeth_26_D65_F1.dng"
     meta = json.loads(path.with_suffix(".json").read_text())
     black = meta.get("black_level_tag_dn", meta["black_level_dn"])

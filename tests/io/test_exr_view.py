@@ -4,8 +4,6 @@ read) and OpenEXR, independently of camsim's readers."""
 
 import dataclasses
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +11,7 @@ import OpenEXR
 import OpenImageIO as oiio
 import pytest
 
+from camsim.cli import main
 from camsim.io.exr import read_exr, read_exr_oiio
 from camsim.render.frame_files import exr_view, load_frame
 from camsim.render.pipeline import scene_frame
@@ -70,10 +69,10 @@ def bits(a):
 
 @pytest.fixture(scope="module")
 def default_frame(tmp_path_factory):
-    """``camsim render scenes/macbeth_26.toml --illuminant D65 --intensity 1``, in a subprocess."""
+    """``camsim render scenes/macbeth_26.toml --illuminant D65 --intensity 1``."""
     out = tmp_path_factory.mktemp("default")
-    subprocess.run([sys.executable, "-m", "camsim", "render", str(DEFAULT_SCENE), "--illuminant", "D65",
-                    "--intensity", "1", "--out", str(out), "-q"], check=True, cwd=out)
+    assert main(["render", str(DEFAULT_SCENE), "--illuminant", "D65", "--intensity", "1", "--out", str(out),
+                 "-q"]) == 0
     path = out / "macbeth_26_D65_F1.exr"
     return path, json.loads(path.with_suffix(".json").read_text())
 

@@ -1,17 +1,15 @@
 """Image scenes: colours outside the recovery method's gamut are recorded in the sidecar and warned about, once per
-frame, with the share of pixels outside (issue 23, point 12). Real ``camsim render`` subprocesses."""
+frame, with the share of pixels outside (issue 23, point 12). ``camsim render`` through ``main``, its stderr as a
+user sees it."""
 
 import json
-import os
 import re
-import sys
 
 import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from tests.support import clock
-from tests.support.helpers import ROOT
+from camsim.cli import main
 
 WIDTH, HEIGHT = 160, 120
 GREEN_COLUMNS = 37  # P3 green (outside sRGB): 37 / 160 of the pixels
@@ -26,17 +24,17 @@ def _picture() -> np.ndarray:
     return picture
 
 
-def _render(tmp_path, colourspace, *extra):
+def _render(tmp_path, capsys, colourspace, *extra):
     iio.imwrite(tmp_path / "picture.png", _picture())
     scene = tmp_path / f"{colourspace.replace(' ', '_')}.toml"
     scene.write_text(f'name = "pic"\n[image]\npath = "picture.png"\ncolourspace = "{colourspace}"\n'
                      '[light]\nilluminants = ["D65"]\n', encoding="utf-8")
     out = tmp_path / f"out-{colourspace.replace(' ', '_')}{''.join(extra)}"
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    done = clock.run([sys.executable, "-m", "camsim", "render", str(scene), "--intensity", "1", "0.5",
-                      "--out", str(out), *extra], cpu_s=120, capture_output=True, text=True, env=env, cwd=ROOT)
-    assert done.returncode == 0, done.stderr
-    warnings = [line for line in done.stderr.replace("\r", "\n").splitlines() if line.startswith("camsim: warning")]
+    capsys.readouterr()
+    status = main(["render", str(scene), "--intensity", "1", "0.5", "--out", str(out), *extra])
+    stderr = capsys.readouterr().err
+    assert status == 0, stderr
+    warnings = [line for line in stderr.replace("\r", "\n").splitlines() if line.startswith("camsim: warning")]
     return out, warnings
 
 
@@ -56,10 +54,10 @@ def _independent_loss_de00(colour) -> tuple[float, float]:
     return clip, float(colour.delta_E(wanted, colour.XYZ_to_Lab(xyz, d65), method="CIE 2000"))
 
 
-def test_a_p3_image_outside_srgb_is_recorded_and_warned_once_per_frame(tmp_path):
+def test_a_p3_image_outside_srgb_is_recorded_and_warned_once_per_frame(tmp_path, capsys):
     import colour
 
-    out, warnings = _render(tmp_path, "Display P3")
+    out, warnings = _render(tmp_path, capsys, "Display P3")
     assert len(warnings) == 2  # one per frame (F = 1 and 0.5)
     for factor, line in zip(("1", "0.5"), warnings):
         assert line.startswith(f"camsim: warning: pic_D65_F{factor}: ")
@@ -82,16 +80,16 @@ def test_a_p3_image_outside_srgb_is_recorded_and_warned_once_per_frame(tmp_path)
     assert read_frame_meta(out / "pic_D65_F1.exr")["recovery"]["out_of_gamut_fraction"] == pytest.approx(SHARE)
 
 
-def test_quiet_keeps_the_warning_and_the_record(tmp_path):
+def test_quiet_keeps_the_warning_and_the_record(tmp_path, capsys):
     """-q silences the progress bar and colour-science, not camsim's own warnings."""
-    out, warnings = _render(tmp_path, "Display P3", "-q")
+    out, warnings = _render(tmp_path, capsys, "Display P3", "-q")
     assert len(warnings) == 2 and all("23.12 %" in w for w in warnings)
     record = json.loads((out / "pic_D65_F1.json").read_text())["recovery"]
     assert record["out_of_gamut_fraction"] == pytest.approx(SHARE, rel=1e-12)
 
 
-def test_an_srgb_image_is_inside_no_warning_and_fraction_zero(tmp_path):
-    out, warnings = _render(tmp_path, "sRGB")
+def test_an_srgb_image_is_inside_no_warning_and_fraction_zero(tmp_path, capsys):
+    out, warnings = _render(tmp_path, capsys, "sRGB")
     assert warnings == []
     for factor in ("1", "0.5"):
         record = json.loads((out / f"pic_D65_F{factor}.json").read_text())["recovery"]
