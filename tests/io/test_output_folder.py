@@ -290,7 +290,7 @@ def test_readers_skip_uncommitted_frames_with_one_warning(frames, tmp_path, caps
     shutil.copytree(frames, folder)
     (folder / "macbeth_26_D65_F0.5.json").unlink()
     (folder / ".macbeth_26_D65_F1.exr.999.partial").write_bytes(b"half")  # hidden temporaries: passed over
-    assert main(["analyze", str(folder), "-q", "--out", str(tmp_path / "a")]) == 0
+    assert main(["analyze", str(folder), "-q", "--no-figures", "--out", str(tmp_path / "a")]) == 0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("camsim: warning: ignored 2 uncommitted frame file(s)"), err
     assert err[0].endswith(": macbeth_26_D65_F0.5.dng, macbeth_26_D65_F0.5.exr")
