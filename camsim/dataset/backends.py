@@ -17,6 +17,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 
 from camsim.core.errors import CamsimError
+from camsim.core.signals import signals_deferred
 from camsim.dataset._pool import pool_context, worker_init
 from camsim.dataset.manifest import FRAMES_DIR
 from camsim.io.exr import restore_exr_threads, set_exr_threads
@@ -34,6 +35,8 @@ EXIT_S = 1.0
 #: Frames submitted to the pool ahead of the results, per worker: enough to keep every worker busy, few enough
 #: that a spec of 10⁵ frames does not become 10⁵ queued tasks (and that an interruption has little to cancel).
 AHEAD_PER_WORKER = 2
+#: How long the pool's loop waits for a result before it looks at the signals noted meanwhile. Unit: s.
+POLL_S = 0.1
 
 
 def run_serial(task, todo, out_dir, threads, on_done) -> None:
@@ -58,22 +61,26 @@ def run_pool(task, todo, out_dir, workers, threads, on_done) -> None:
     """
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=pool_context(), initializer=worker_init)
     pending = {}  # future -> frame, until its result is handed to on_done
-    try:
-        frames = iter(todo)
-        _submit(pool, pending, frames, workers * AHEAD_PER_WORKER, task, out_dir, threads)
-        while pending:
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for future in done:
-                on_done(pending[future], future.result())
-                del pending[future]
-            _submit(pool, pending, frames, workers * AHEAD_PER_WORKER, task, out_dir, threads)
-    except BaseException:
+    # Ctrl-C and SIGTERM act between two waits, never inside one: raised inside concurrent.futures.wait, their
+    # exception can leave a future's lock held, and the pool's management thread, then the process, never ends
+    with signals_deferred() as deferred:
         try:
-            _keep_finished(pending, on_done)
-        finally:
-            _remove_partials(Path(out_dir), _stop(pool))
-        raise
-    pool.shutdown(wait=True)
+            frames = iter(todo)
+            _submit(pool, pending, frames, workers * AHEAD_PER_WORKER, task, out_dir, threads)
+            while pending:
+                done, _ = wait(pending, timeout=POLL_S, return_when=FIRST_COMPLETED)
+                deferred.act()
+                for future in done:
+                    on_done(pending[future], future.result())
+                    del pending[future]
+                _submit(pool, pending, frames, workers * AHEAD_PER_WORKER, task, out_dir, threads)
+            pool.shutdown(wait=True)
+        except BaseException:  # a second Ctrl-C meanwhile is noted and dropped: the clean-up is not cut short
+            try:
+                _keep_finished(pending, on_done)
+            finally:
+                _remove_partials(Path(out_dir), _stop(pool))
+            raise
 
 
 def _submit(pool, pending: dict, frames, ahead: int, task, out_dir, threads) -> None:
