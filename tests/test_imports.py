@@ -41,6 +41,7 @@ def test_no_module_imports_matplotlib():
     _run("", 'assert "matplotlib" not in sys.modules, "matplotlib was imported"', skip=(PRELOAD,))
 
 
+@pytest.mark.slow
 def test_the_backend_a_program_chose_is_kept():
     _run('import matplotlib; matplotlib.use("svg")',
          'assert matplotlib.get_backend() == "svg", f"the backend is now {matplotlib.get_backend()}"')
@@ -82,6 +83,7 @@ def test_the_command_line_starts_without_the_heavy_modules(args):
     assert heavy == [], f"camsim {' '.join(args)} imported {heavy}"
 
 
+@pytest.mark.slow
 def test_a_command_that_works_imports_them(tmp_path):
     """The check above sees the imports when they happen: a render needs colour-science, scipy and OpenEXR."""
     status, heavy = _heavy_imported(["render", "macbeth_26", "--size", "24x24", "-F", "1", "--illuminant", "D65",

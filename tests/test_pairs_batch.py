@@ -6,6 +6,7 @@ within ±3/√N); and on a stand-in for CuPy (tests/support/fake_cupy.py: numpy 
 implicit transfer and as many array calls for 8 pairs as for 2."""
 
 import numpy as np
+import pytest
 
 from camsim.pairs import PairSource
 from tests.support import fake_cupy
@@ -75,6 +76,7 @@ def test_each_pair_of_a_mixed_batch_has_its_own_cameras_mean_and_variance_and_th
     assert np.all(np.abs(correlations) < 3 / np.sqrt(n)), correlations
 
 
+@pytest.mark.slow
 def test_a_batch_on_a_stand_in_for_cupy_makes_no_implicit_transfer_and_its_calls_do_not_grow_with_its_size():
     """On fake CuPy (numpy behind CuPy's rules) batches render in every domain and with every kind of camera —
     Bayer and three-chip (KAF-3200ME), fixed-pattern maps (IMX363's PRNU), a black-level error (KAF-3200ME's),

@@ -88,6 +88,7 @@ def _render(tmp_path, scene, name="f"):
     return tmp_path / name
 
 
+@pytest.mark.slow
 def test_undefined_cases_are_counted_not_nan(tmp_path):
     # 1. black-subtracted, almost no light: X+Y+Z ≤ 0 and Y ≤ 0 samples
     dark = _render(tmp_path, small_scene(intensity_factors=(1.0, 1e-3)), "dark")
@@ -130,6 +131,7 @@ def test_undefined_cases_are_counted_not_nan(tmp_path):
     assert totals["xy_undefined_samples"] > 0 and totals["y_nonpositive_samples"] > 0
 
 
+@pytest.mark.slow
 def test_analyze_cli_on_moved_and_renamed_frames(frames, tmp_path, capsys):
     moved = tmp_path / "elsewhere"
     moved.mkdir()

@@ -71,6 +71,7 @@ def _err_lines(capsys):
     return captured.out, [line for line in captured.err.splitlines() if line]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("source", ["dng", "exr"])
 def test_bad_files_are_skipped_each_on_one_line_and_the_rest_analysed(rendered, tmp_path, capfd, source):
     folder = _damaged_folder(rendered, tmp_path)
@@ -126,6 +127,7 @@ def test_nothing_analysable_is_one_error_line(rendered, tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_folders_give_committed_frames_only(rendered, tmp_path, capsys):
     folder = tmp_path / "frames"
     good = rendered / "good"

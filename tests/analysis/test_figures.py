@@ -49,6 +49,7 @@ def _guide_sections(text: str) -> dict:
     return sections
 
 
+@pytest.mark.slow
 def test_the_figures_are_written_as_valid_pngs_of_sane_size(run):
     from PIL import Image
 

@@ -311,6 +311,7 @@ def _check_against_the_pixel_box(rows, channel: dict, mtf50_rel: float) -> None:
     assert channel["mtf50_cy_per_px"] == pytest.approx(M.mtf50(f, model), rel=mtf50_rel)
 
 
+@pytest.mark.slow
 def test_analyze_writes_mtf_csv_of_a_rendered_slanted_edge(edge_frames, tmp_path, capsys):
     """``camsim analyze`` on the built-in slanted edge (noise on): mtf.csv with exactly the four columns, every
     channel within 0.03 of the target's pixel box up to Nyquist (no optics: the model column empty), MTF50 and
@@ -424,6 +425,7 @@ def test_a_malformed_edge_region_is_refused(text, tmp_path, capsys):
 
 
 # ------------------------------------------------------------------------ the optics' frames (camsim.optics)
+@pytest.mark.slow
 @pytest.mark.parametrize("f_number, defocus", [(2.8, 0.0), (5.6, 0.0), (11.0, 0.0), (4.0, 0.5)])
 @pytest.mark.parametrize("olpf", [False, True])
 def test_rendered_optics_measure_their_closed_form(f_number, defocus, olpf, tmp_path):

@@ -157,6 +157,7 @@ photon_noise = false
 """
 
 
+@pytest.mark.slow
 def test_each_frames_homography_moves_the_reference_onto_it(tmp_path):
     """A pure pan: the clean layer of frame n is the reference shifted by the translation of meta["homography"][n]
     (our own phase correlation, within 0.05 px), the full frame and a crop alike."""

@@ -381,6 +381,7 @@ def test_size_is_refused_with_a_pointer_to_the_crop(tmp_path, capsys):
     assert err.count("\n") == 1 and "[raw] crop = [x, y, width, height]" in err and not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_the_exr_clean_layer_is_the_scaled_source(frames):
     """The EXR's clean layer holds each site's expectation above black, K · F · s, in its own colour exactly, and
     in the two others the bilinear interpolation of the neighbouring sites': away from the border, at an R site, G is

@@ -130,6 +130,7 @@ def test_gains_and_matrices_kept_per_camera_and_illuminant_are_the_fresh_ones():
             == isp.srgb_matrix(narrow, "as-shot", "camera").tolist())
 
 
+@pytest.mark.slow
 def test_srgb_pairs_developed_into_the_batch_are_develop_pairs():
     """The CPU batch writes each pair's images into its slots; they are develop_pair's: bit for bit where the numpy
     stages made them, within 5e-6 where the compiled kernel did (camsim.isp.fused: the matrix and the curve rounded

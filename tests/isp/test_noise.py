@@ -647,6 +647,7 @@ def test_noise_through_isp_regions_and_margin(bayer):
             noise_through_isp(noisy, clean, facts, settings, margin=margin)
 
 
+@pytest.mark.slow
 def test_write_noise_report(tmp_path, three_chip):
     """The CSV has a header of NOISE_COLUMNS and the NPS bins, one line per row, the numbers of the rows; the
     figure is a PNG; both appear together, and a folder that is not there leaves no file."""

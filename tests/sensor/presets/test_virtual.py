@@ -46,6 +46,7 @@ def test_k_is_log_uniform_and_the_scales_scatter_about_their_fits(name):
     assert abs(np.corrcoef(z, z_row)[0, 1]) < 4 / math.sqrt(N)  # independent scatters
 
 
+@pytest.mark.slow
 def test_tukey_draws_convert_to_the_laws_standard_deviation():
     camera = CAMERA_PRESETS["canon-eos-70d"]
     draws = draw_virtual_cameras([camera], N, _streams(2))
