@@ -816,23 +816,38 @@ def _vm_bytes(field: str) -> int:
 
 
 def _group_progress(pgid: int) -> tuple[float, bool]:
-    """(CPU time, any thread runnable) of the living processes of process group ``pgid``, the CPU time including
+    """(CPU time, any thread runnable) of the case's processes: the living members of process group ``pgid`` and
+    the descendants of its leader ``pgid`` (a ``cmd:`` denoiser runs in a group of its own), the CPU time including
     what they reaped of their children. Unit: s. Read from ``/proc``; a process that exits meanwhile is skipped."""
     tick = os.sysconf("SC_CLK_TCK")
-    cpu, runnable = 0.0, False
+    stats, children = {}, {}
     for entry in os.scandir("/proc"):
         if not entry.name.isdigit():
             continue
         try:
             with open(f"/proc/{entry.name}/stat", "rb") as handle:
                 fields = handle.read().rsplit(b")", 1)[1].split()
-            if int(fields[2]) != pgid:
-                continue
-            cpu += sum(int(f) for f in fields[11:15]) / tick  # utime, stime, cutime, cstime
-            for task in os.scandir(f"/proc/{entry.name}/task"):
+            pid, ppid, group = int(entry.name), int(fields[1]), int(fields[2])
+        except (OSError, ValueError, IndexError):
+            continue
+        stats[pid] = (group, sum(int(f) for f in fields[11:15]) / tick)  # utime, stime, cutime, cstime
+        children.setdefault(ppid, []).append(pid)
+    members = {pid for pid, (group, _) in stats.items() if group == pgid}
+    seen, todo = {pgid}, [pgid]
+    while todo:  # the leader's descendants, whatever their group
+        for child in children.get(todo.pop(), ()):
+            if child not in seen:
+                seen.add(child)
+                todo.append(child)
+    members |= seen
+    cpu, runnable = 0.0, False
+    for pid in members & stats.keys():
+        cpu += stats[pid][1]
+        try:
+            for task in os.scandir(f"/proc/{pid}/task"):
                 with open(f"{task.path}/stat", "rb") as handle:
                     runnable = runnable or handle.read().rsplit(b")", 1)[1].split()[0] == b"R"
-        except (OSError, ValueError, IndexError):
+        except OSError:
             continue
     return cpu, runnable
 
