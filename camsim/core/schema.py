@@ -51,6 +51,9 @@ class Param:
         The value must be greater than this.
     below : float, optional
         The value must be less than this.
+    high : float, optional
+        Largest allowed value (inclusive): the physics' bound where the parameter has one (no full well holds
+        more, no exposure lasts longer), so that nothing derived from an accepted value overflows.
     choices : tuple of str, optional
         Allowed names (``kind = 'str'``).
     optional : bool
@@ -74,6 +77,7 @@ class Param:
     low: float | None = None
     above: float | None = None
     below: float | None = None
+    high: float | None = None
     choices: tuple | None = None
     optional: bool = False
     stage: bool = False
@@ -128,14 +132,19 @@ class Param:
         return value
 
     def _check_range(self, v, bad) -> None:
-        if self.above == 0 and self.below is None and not v > 0:
-            raise bad("a positive number")
-        if self.low is not None and not v >= self.low:
-            raise bad(f"≥ {self.low:g}")
-        if (self.above is not None and not v > self.above) or (self.below is not None and not v < self.below):
+        unit = f" {self.unit}" if self.unit else ""
+        if self.above == 0 and self.below is None and not (v > 0 and (self.high is None or v <= self.high)):
+            raise bad("a positive number" + ("" if self.high is None else f" ≤ {self.high:g}{unit}"))
+        if self.low is not None and not v >= self.low and self.high is None:
+            raise bad(f"≥ {self.low:g}{unit}")
+        if ((self.above is not None and not v > self.above) or (self.below is not None and not v < self.below)
+                or (self.high is not None and not v <= self.high)
+                or (self.low is not None and not v >= self.low)):
             low = "" if self.above is None else f"> {self.above:g}"
+            low = low if self.low is None else f"≥ {self.low:g}"
             high = "" if self.below is None else f"< {self.below:g}"
-            raise bad(" and ".join(filter(None, (low, high))))
+            high = high if self.high is None else f"≤ {self.high:g}"
+            raise bad(" and ".join(filter(None, (low, high))) + unit)
 
     def parse_text(self, text: str, where: str = ""):
         """A command-line value (a TOML literal such as ``2.5``, ``[1, 2, 3]``, ``true``, or a bare name)."""

@@ -30,6 +30,13 @@ MAX_FIELD_ANGLE_DEG = 89.0
 MAX_DEFOCUS_WAVES = 20.0
 #: The largest OLPF spot separation. Unit: px.
 MAX_OLPF_SHIFT_PX = 64.0
+#: The f-number's range: N = 1 / (2 NA) is at least 0.5 in air; 10⁴ is far slower than any pinhole camera's (f/500)
+#: and keeps the diffraction cut-off pitch / (λ N) a normal float64.
+F_NUMBER_RANGE = (0.5, 1e4)
+#: The longest focal length: 1 km (the largest telescopes' are under 1 km). Unit: mm.
+MAX_FOCAL_LENGTH_MM = 1e6
+#: The widest pixel pitch: 1 cm. Unit: µm.
+MAX_PIXEL_PITCH_UM = 1e4
 
 
 @dataclass(frozen=True)
@@ -45,11 +52,12 @@ class OpticsParams:
     """
 
     f_number: float = param(4.0, "float", "the lens's f-number N (working, image side): the diffraction cut-off "
-                            "is pitch / (λ N) cycles per pixel", above=0)
+                            "is pitch / (λ N) cycles per pixel", low=F_NUMBER_RANGE[0], high=F_NUMBER_RANGE[1])
     focal_length_mm: float = param(50.0, "float", "the lens's focal length: a pixel's field angle is "
                                    "atan(distance from the centre × pitch / focal length) (cos⁴ vignetting)", "mm",
-                                   above=0)
-    pixel_pitch_um: float = param(4.0, "float", "the sensor's pixel pitch (the frame's pixel grid)", "µm", above=0)
+                                   above=0, high=MAX_FOCAL_LENGTH_MM)
+    pixel_pitch_um: float = param(4.0, "float", "the sensor's pixel pitch (the frame's pixel grid)", "µm", above=0,
+                                  high=MAX_PIXEL_PITCH_UM)
     diffraction: bool = param(True, "bool", "diffraction of a circular pupil (the Airy pattern per wavelength, OTF "
                               "(2/π)(acos ν − ν√(1−ν²)), ν = f / f_c)")
     defocus_waves: float = param(0.0, "float", "defocus: W020, the peak wavefront error at 550 nm (at λ: "

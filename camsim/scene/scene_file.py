@@ -28,7 +28,7 @@ from camsim.scene.builtin_scenes import resolve_scene_file
 from camsim.scene.regions import Region, check_regions, parse_regions
 from camsim.scene.sources import SOURCES, ChartSource, SceneSource
 from camsim.sensor.camera import DEFAULT_CAMERA, AnchorScale, PhysicalScale
-from camsim.sensor.params import MAP_FILE_PARAMS, SENSOR_PARAMS, SensorParams
+from camsim.sensor.params import CHARGE_MAX_E, EXPOSURE_MAX_S, MAP_FILE_PARAMS, SENSOR_PARAMS, SensorParams
 from camsim.sensor.presets import camera_preset, sensor_preset
 
 if TYPE_CHECKING:  # the annotation only: camsim.scene.sequence is imported where a scene has a sequence
@@ -93,10 +93,10 @@ class Scene:
                           "illuminant, at its F, reaches exposure_target_e in the strongest channel (dark current "
                           "scales with T; Qe never changes)", choices=EXPOSURE_MODES)
     exposure_target_e: float = param(8000.0, "float", "auto exposure: signal electrons of the perfect white in the "
-                                     "strongest channel", "e⁻", above=0)
+                                     "strongest channel", "e⁻", above=0, high=CHARGE_MAX_E)
     exposure_max_s: float | None = param(None, "float", "auto exposure: the longest exposure time allowed (frames "
                                          "that need more are exposed this long, and darker); none = no limit", "s",
-                                         above=0, optional=True)
+                                         above=0, high=EXPOSURE_MAX_S, optional=True)
     base_dir: Path | None = None
     regions: tuple = ()
     sequence: SequenceParams | None = None  # a [sequence] table: frames with camera motion (camsim.scene.sequence)

@@ -24,6 +24,27 @@ READ_NOISE_MODELS = ("gaussian", "tukey-lambda")
 #: something to scale (a float32 factor holds h / 10⁻¹² for any h up to 10²⁶ e⁻/s). Unit: e⁻/s.
 HOT_PIXEL_BASE_E_PER_S = 1e-12
 
+# The physics' bounds of the schema: what no sensor reaches, far enough beyond every real one that no camera is
+# refused, and near enough that nothing derived from an accepted value (a square, a sum of squares, a Poisson mean,
+# an exposure's charge) leaves float64's range.
+#: The most charge any figure in electrons may be (a full well, a noise or fixed-pattern σ): 10⁸ e⁻, a thousand
+#: times the largest full well of the sensors in ``../shared/data/cameras`` (70 000 e⁻) and a hundred times a
+#: large-pixel scientific CCD's (~10⁶ e⁻). Unit: e⁻.
+CHARGE_MAX_E = 1e8
+#: The largest dark current (of a pixel, hot or not): 10¹⁰ e⁻/s fills the largest full well in 10 ms. Unit: e⁻/s.
+DARK_CURRENT_MAX_E_PER_S = 1e10
+#: The longest exposure: 10⁶ s (11.6 days). Unit: s.
+EXPOSURE_MAX_S = 1e6
+#: The widest σ of a per-frame black-level error: a 16-bit ADC's range. Unit: DN.
+BLACK_LEVEL_ERROR_MAX_DN = 65535.0
+#: The overall gain's range: 10⁻⁶ to 10⁶ DN/e⁻ (real cameras: 0.01 – 20 DN/e⁻; ``ideal`` counts electrons, 1).
+DN_PER_ELECTRON_RANGE = (1e-6, 1e6)
+#: The hottest sensor: silicon melts at 1414 °C. Unit: °C.
+TEMPERATURE_MAX_C = 1414.0
+#: The most dark charge a pixel may collect in an exposure: 2⁵³ e⁻, beyond which float64 no longer counts single
+#: electrons (the Poisson draws' means are float64). Unit: e⁻.
+DARK_CHARGE_MAX_E = 2.0**53
+
 
 def _layout_record(sensor) -> dict:
     return {"sensor_layout": "three-chip" if sensor.cfa is None else "bayer", "cfa_pattern": sensor.cfa}
@@ -58,15 +79,16 @@ class SensorParams:
         choices=CFA_PATTERNS, optional=True, sidecar=_layout_record)
     bits: int = param(8, "int", "ADC resolution nb: digital numbers lie in [0, 2^nb − 1]", "bits", low=1, below=17,
                       sidecar=_adc_record)
-    full_well_e: float = param(9000.0, "float", "full-well capacity", "e⁻", above=0)
-    read_noise_e: float = param(4.0, "float", "σ_read, standard deviation of the read noise", "e⁻", low=0)
-    exposure_s: float = param(1.0, "float", "exposure (integration) time T", "s", above=0)
+    full_well_e: float = param(9000.0, "float", "full-well capacity", "e⁻", above=0, high=CHARGE_MAX_E)
+    read_noise_e: float = param(4.0, "float", "σ_read, standard deviation of the read noise", "e⁻", low=0,
+                                high=CHARGE_MAX_E)
+    exposure_s: float = param(1.0, "float", "exposure (integration) time T", "s", above=0, high=EXPOSURE_MAX_S)
     conversion_gain_v_per_e: float = param(0.0002, "float", "G_Ve⁻, charge-to-voltage conversion", "V/e⁻",
                                            above=0)
     analog_gain_dn_per_v: float = param(141.67, "float", "G, the gain in front of the ADC", "DN/V", above=0)
     dark_current_e_per_s: tuple = param(
         (195.0, 230.0, 218.0), "rgb", "(σ_dark^κ)², mean dark electrons per pixel per second for R, G, B "
-        "(one number or three)", "e⁻/s", low=0)
+        "(one number or three)", "e⁻/s", low=0, high=DARK_CURRENT_MAX_E_PER_S)
     photon_noise: bool = param(True, "bool", "photon (shot) noise; off gives the mean signal exactly", stage=True)
     dark_current: bool = param(True, "bool", "dark current; off removes the dark electrons (mean and noise)",
                                stage=True)
@@ -76,7 +98,7 @@ class SensorParams:
                                stage=True)
     dsnu_e: float = param(0.0, "float", "dark signal non-uniformity: spatial σ of a fixed per-pixel dark offset "
                           "(Gaussian map fixed for a sensor_seed) added to the charge before saturation; 0 = off",
-                          "e⁻", low=0)
+                          "e⁻", low=0, high=CHARGE_MAX_E)
     dsnu_dark_current_percent: float = param(
         0.0, "float", "dark-current DSNU: spatial σ of a fixed per-pixel factor d on the dark-current rate "
         "(log-normal map of mean 1 fixed for a sensor_seed), so that a pixel collects Poisson(σ²_dark · T · d) dark "
@@ -90,7 +112,7 @@ class SensorParams:
                              "the EXR's values (before the ADC) do not; 0 = off (and not written to records)", "DN",
                              low=0, omit_default=True)
     row_noise_e: float = param(0.0, "float", "temporal row noise: one Gaussian offset per row, channel and frame, "
-                               "added at readout; 0 = off", "e⁻", low=0)
+                               "added at readout; 0 = off", "e⁻", low=0, high=CHARGE_MAX_E)
     read_noise_model: str = param("gaussian", "str", "law of the read noise (its σ is read_noise_e either way); "
                                   "Tukey lambda has heavier tails, as in the ELD low-light noise model",
                                   choices=READ_NOISE_MODELS)
@@ -102,10 +124,10 @@ class SensorParams:
     temperature_c: float | None = param(
         None, "float", "the sensor's temperature: the dark current (and its DSNU, hot pixels included) is "
         "dark_current_e_per_s · 2^((T − dark_current_reference_c) / dark_current_doubling_c); none: as given",
-        "°C", low=-273.15, optional=True, omit_default=True)
+        "°C", low=-273.15, optional=True, omit_default=True, high=TEMPERATURE_MAX_C)
     dark_current_reference_c: float = param(
         25.0, "float", "the temperature at which dark_current_e_per_s (and hot_pixel_dark_e_per_s) holds", "°C",
-        low=-273.15, omit_default=True)
+        low=-273.15, omit_default=True, high=TEMPERATURE_MAX_C)
     dark_current_doubling_c: float = param(
         6.0, "float", "doubling temperature T_d of the dark current (EMVA 1288 Release 4.0's law "
         "D(T) = D_ref · 2^((T − T_ref)/T_d); about 6 °C for silicon near room temperature)", "°C", above=0,
@@ -117,7 +139,7 @@ class SensorParams:
     hot_pixel_dark_e_per_s: float = param(
         2000.0, "float", "mean extra dark current of a hot pixel at dark_current_reference_c (exponential law; "
         "the default, ten times Table I's dark current, is a choice, not a measurement)",
-        "e⁻/s", above=0, omit_default=True)
+        "e⁻/s", above=0, omit_default=True, high=DARK_CURRENT_MAX_E_PER_S)
     dead_pixel_fraction: float = param(
         0.0, "float", "share of pixels that collect nothing (no signal, no dark charge: PRNU gain and dark factor "
         "0) yet are read out (offset, read and row noise, black level): they read black; a fixed population from "
@@ -128,18 +150,19 @@ class SensorParams:
         "fixed population from sensor_seed; 0 = off", "", low=0, below=1, omit_default=True)
     black_level_error_dn: float = param(
         0.0, "float", "σ of a per-frame, per-channel offset N(0, σ²) added to the DN before the ADC (ELD's colour "
-        "bias), drawn from the frame's seed on a stream of its own; 0 = off", "DN", low=0, omit_default=True)
+        "bias), drawn from the frame's seed on a stream of its own; 0 = off", "DN", low=0, omit_default=True,
+        high=BLACK_LEVEL_ERROR_MAX_DN)
     dark_shading_e: float = param(
         0.0, "float", "RMS of a fixed pattern of the dark level (a row profile, a column profile and a smooth 2-D "
         "shading, from sensor_seed) added to each pixel's charge like the offset DSNU; 0 = off", "e⁻", low=0,
-        omit_default=True)
+        omit_default=True, high=CHARGE_MAX_E)
     dark_shading_map: str | None = param(
         None, "str", "a .npy file of the dark-shading pattern per pixel (e⁻; (H, W), or (3, H, W) for a three-chip "
         "sensor), e.g. from camsim calibrate; added to dark_shading_e's pattern; none = off", "e⁻", optional=True,
         omit_default=True)
     column_fpn_e: float = param(
         0.0, "float", "σ of a fixed per-column offset (column fixed-pattern noise, from sensor_seed) added to the "
-        "charge like the offset DSNU; 0 = off", "e⁻", low=0, omit_default=True)
+        "charge like the offset DSNU; 0 = off", "e⁻", low=0, omit_default=True, high=CHARGE_MAX_E)
     hot_pixel_map: str | None = param(
         None, "str", "a .npy file of the extra dark current per pixel at dark_current_reference_c (e⁻/s; 0 where "
         "not hot; (H, W), or (3, H, W) for a three-chip sensor), e.g. from camsim calibrate; added to "
@@ -153,16 +176,24 @@ class SensorParams:
 
     def _check_across(self) -> None:
         """The checks that involve more than one field (each field is checked by its schema entry)."""
-        if not 0 < self.dn_per_electron < math.inf:  # each gain is finite and positive, their product may not be
+        low, high = DN_PER_ELECTRON_RANGE
+        if not low <= self.dn_per_electron <= high:  # each gain is in range, their product may not be
             raise CamsimError(f"sensor parameters analog_gain_dn_per_v = {self.analog_gain_dn_per_v:g} and "
                               f"conversion_gain_v_per_e = {self.conversion_gain_v_per_e:g} give a gain of "
-                              f"{self.dn_per_electron:g} DN/e⁻, outside float64's range")
+                              f"{self.dn_per_electron:g} DN/e⁻, outside [{low:g}, {high:g}] DN/e⁻")
         if self.temperature_c is not None and (
                 self.temperature_c - self.dark_current_reference_c) / self.dark_current_doubling_c > 1000:
             raise CamsimError(f"sensor parameter temperature_c = {self.temperature_c:g} °C is more than 1000 doublings "
                               f"(dark_current_doubling_c = {self.dark_current_doubling_c:g} °C) above "
                               f"dark_current_reference_c = {self.dark_current_reference_c:g} °C: the dark current "
                               f"would overflow")
+        dark = float(np.max(self.dark_mean_e))
+        if self.hot_pixels:  # a hot pixel's mean (the law's) counts too
+            dark += self.hot_pixel_dark_e_per_s * self.temperature_factor * self.exposure_s
+        if not dark <= DARK_CHARGE_MAX_E:
+            raise CamsimError(f"sensor parameters dark_current_e_per_s, hot_pixel_dark_e_per_s, temperature_c and "
+                              f"exposure_s give a dark charge of {dark:.3g} e⁻ in an exposure, over "
+                              f"{DARK_CHARGE_MAX_E:.3g} e⁻ (2⁵³, beyond which float64 no longer counts electrons)")
         defects = self.hot_pixel_fraction + self.dead_pixel_fraction + self.stuck_pixel_fraction
         if defects > 1:
             raise CamsimError(f"sensor parameters hot_pixel_fraction + dead_pixel_fraction + stuck_pixel_fraction "
@@ -258,7 +289,7 @@ class SensorParams:
         moves the mean only through the ADC's floor and clip) in quadrature. Unit: e⁻."""
         if not (self.column_fpn_e > 0 or self.dark_shading_e > 0):
             return self.dsnu_e
-        return math.sqrt(self.dsnu_e**2 + self.column_fpn_e**2 + self.dark_shading_e**2)
+        return math.hypot(self.dsnu_e, self.column_fpn_e, self.dark_shading_e)
 
     @property
     def black_level_dn(self) -> np.ndarray:

@@ -393,6 +393,8 @@ def bounds_text(p) -> str:
         parts.append(f"> {p.above:g}")
     if p.below is not None:
         parts.append(f"< {p.below:g}")
+    if p.high is not None:
+        parts.append(f"≤ {p.high:g}")
     return ", ".join(parts)
 
 

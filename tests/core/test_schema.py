@@ -96,7 +96,7 @@ def test_ranges_come_from_the_schema():
         SensorParams(exposure_s=0.0)
     with pytest.raises(CamsimError, match="read_noise_e must be ≥ 0"):
         SensorParams(read_noise_e=-1.0)
-    with pytest.raises(CamsimError, match="prnu_percent must be < 30"):
+    with pytest.raises(CamsimError, match="prnu_percent must be ≥ 0 and < 30 %"):
         SensorParams(prnu_percent=30.0)
     with pytest.raises(CamsimError, match="bits must be"):
         SensorParams(bits=17)

@@ -341,8 +341,10 @@ def test_black_level_includes_the_column_fpn():
 
 def test_an_absurd_temperature_is_refused_in_one_line():
     with pytest.raises(CamsimError, match="1000 doublings") as info:
-        SensorParams(temperature_c=1e300)
+        SensorParams(temperature_c=1414.0, dark_current_doubling_c=1.0)  # the hottest sensor, doubling each °C
     assert "\n" not in str(info.value)
+    with pytest.raises(CamsimError, match=r"temperature_c must be ≥ -273\.15 and ≤ 1414 °C, got 1e\+300"):
+        SensorParams(temperature_c=1e300)
     with pytest.raises(CamsimError, match="temperature_c"):
         SensorParams(temperature_c=-300.0)
 
@@ -388,7 +390,7 @@ def test_a_black_level_error_beyond_a_frames_range_is_named(capsys):
     rc = main(["render", "macbeth_26", "--size", "96x64", "--illuminant", "D65", "-F", "1", "-q",
                "--sensor", "black_level_error_dn=1e300", "--out", "/nonexistent-never-written"])
     err = capsys.readouterr().err
-    assert rc == 2 and "black-level error" in err and err.count("\n") == 1
+    assert rc == 2 and "black_level_error_dn must be ≥ 0 and ≤ 65535 DN, got 1e+300" in err and err.count("\n") == 1
 
 
 def test_frames_drawn_one_after_another_from_one_generator_get_their_own_black_level_errors():
