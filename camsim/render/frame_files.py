@@ -22,6 +22,7 @@ fails removes the files it had written.
 from __future__ import annotations
 
 import json
+import os
 import re
 from dataclasses import dataclass
 from functools import partial
@@ -32,6 +33,7 @@ import numpy as np
 import camsim
 from camsim.colour.rawcolour import CALIBRATION_ILLUMINANT_D65
 from camsim.core.errors import CamsimError, output_error
+from camsim.core.input_files import read_input
 from camsim.core.names import MAX_STEM_BYTES, safe_component
 from camsim.io.atomic import undo_on_failure, write_json_atomic, write_text_atomic
 from camsim.io.dng import DARKTABLE_XMP_SUFFIX, darktable_xmp, read_dng, write_dng, write_dng_cfa
@@ -39,7 +41,7 @@ from camsim.io.exr import DEFAULT_EXR_COMPRESSION, check_exr_compression, read_e
 from camsim.io.output_folder import make_folder
 from camsim.methods import get_method
 from camsim.render.frame import Frame
-from camsim.render.sidecar_schema import check_sidecar, parse_sidecar
+from camsim.render.sidecar_schema import MAX_SIDECAR_BYTES, check_sidecar, parse_sidecar
 from camsim.scene.regions import weighted_rows
 from camsim.sensor.noise_profile import frame_noise_profile
 
@@ -445,11 +447,12 @@ class LoadedFrame:
 
 
 def _read_sidecar(path: Path) -> dict:
+    if not os.path.lexists(path):
+        raise CamsimError(f"sidecar not found: {path} (a DNG is analysed with its .json sidecar)")
+    data = read_input(path, "sidecar", MAX_SIDECAR_BYTES)  # a regular file, refused before parsing when too large
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise CamsimError(f"sidecar not found: {path} (a DNG is analysed with its .json sidecar)") from None
-    except (OSError, UnicodeDecodeError) as exc:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
         raise CamsimError(f"cannot read sidecar {path}: {exc}") from None
     return parse_sidecar(text, path)
 
@@ -551,13 +554,13 @@ class FrameSearch:
 
 def _claims(sidecar: Path) -> dict | str | None:
     """The ``files`` record of ``sidecar``: None when there is no such file, the reason when it is unreadable."""
-    if not sidecar.is_file():
+    if not os.path.lexists(sidecar):
         return None
-    try:
-        meta = json.loads(sidecar.read_text(encoding="utf-8"))
-    except RecursionError:
-        return "unreadable sidecar (JSON nested too deeply)"
-    except (OSError, UnicodeDecodeError, ValueError) as exc:  # ValueError: JSONDecodeError, int()'s digit limit
+    try:  # a FIFO or device named STEM.json is refused, not read; a sidecar over the limit is not parsed
+        meta = parse_sidecar(read_input(sidecar, "sidecar", MAX_SIDECAR_BYTES).decode("utf-8"), sidecar)
+    except CamsimError as exc:
+        return f"unreadable sidecar ({str(exc).removeprefix(f'cannot read sidecar {sidecar}: ')[:200]})"
+    except UnicodeDecodeError as exc:
         return f"unreadable sidecar ({type(exc).__name__}: {str(exc).splitlines()[0][:200]})"
     files = meta.get("files") if isinstance(meta, dict) else None
     return files if isinstance(files, dict) else "not a camsim sidecar (no 'files' record)"

@@ -30,6 +30,10 @@ _SHOWN = 60  # characters of a bad value shown in a message
 #: Largest magnitude of a sidecar's number, and smallest of one that must be positive: products and quotients of a
 #: few of them stay finite in float64 (far outside any physical value a frame records).
 MAX_MAGNITUDE, MIN_POSITIVE = 1e60, 1e-60
+#: The largest sidecar camsim parses (a file, or an EXR header's ``camsim:metadata``): a frame's own sidecar is a
+#: few kB, a 200-megapixel rolling-shutter frame's (a homography per row) about 0.5 GB of pixels' 0.02 %; 64 MB
+#: parses in about a second. Unit: bytes.
+MAX_SIDECAR_BYTES = 64_000_000
 
 
 class _Bad(Exception):
@@ -337,6 +341,40 @@ def _too_deep(value, limit: int = MAX_DEPTH) -> bool:
     return False
 
 
+def _check_sizes(meta: dict) -> None:
+    """The sidecar's lists bounded by the frame it describes, before any item is looked at: a frame of at most
+    :data:`camsim.core.pixel_limit.MAX_PIXELS`, one entry per row where a key has one, no more patches than the frame
+    has pixels (each covers at least one), no more wavelength weights than :data:`MAX_WAVELENGTHS`."""
+    from camsim.core.pixel_limit import MAX_PIXELS
+
+    for key in ("width_px", "height_px"):
+        _bounded(meta[key], key, lambda v: _integer(v, low=1))
+    width, height = meta["width_px"], meta["height_px"]
+    if width * height > MAX_PIXELS:
+        raise _Bad(f"a frame of at most {MAX_PIXELS // 1_000_000} megapixels with height_px {height}",
+                   "width_px", width)
+    for key in PER_ROW_KEYS:
+        if isinstance(meta.get(key), list) and len(meta[key]) != height:
+            raise _Bad(f"one entry per row (height_px {height}), not {len(meta[key])}", key, meta[key])
+    patches = meta["patches"]
+    if isinstance(patches, list) and len(patches) > width * height:
+        raise _Bad(f"at most one patch per pixel of the {width}x{height} frame ({width * height}), not "
+                   f"{len(patches)}", "patches", f"a list of {len(patches)}")
+    weights = meta.get("optics", {}).get("channel_wavelength_weights") if isinstance(meta.get("optics"), dict) \
+        else None
+    grid = weights.get("wavelength_nm") if isinstance(weights, dict) else None
+    if isinstance(grid, list) and len(grid) > MAX_WAVELENGTHS:
+        raise _Bad(f"at most {MAX_WAVELENGTHS} wavelengths, not {len(grid)}",
+                   "optics.channel_wavelength_weights.wavelength_nm", f"a list of {len(grid)}")
+
+
+def _bounded(value, key, check):
+    try:
+        check(value)
+    except _Bad as exc:
+        raise _Bad(str(exc), key, value) from None
+
+
 def check_sidecar(meta, where) -> dict:
     """``meta`` if it is a camsim frame's sidecar whose every key the readers use is of the right type, shape and
     range, and finite; else :class:`~camsim.core.errors.CamsimError`.
@@ -366,6 +404,7 @@ def check_sidecar(meta, where) -> dict:
     if missing:
         raise CamsimError(f"{where}: metadata lacks {', '.join(missing)} (not a camsim frame?)")
     try:
+        _check_sizes(meta)
         for key, check in FRAME_KEYS.items():
             if key in meta:
                 try:
@@ -387,9 +426,6 @@ def check_sidecar(meta, where) -> dict:
                             _number(v, above=0 if p.above == 0 else None)
                         except _Bad as exc:
                             raise _Bad(str(exc), p.name, meta[p.name]) from None
-        for key in PER_ROW_KEYS:
-            if meta.get(key) is not None and len(meta[key]) != meta["height_px"]:
-                raise _Bad(f"one entry per row (height_px {meta['height_px']}), not {len(meta[key])}", key, meta[key])
         if meta.get("cfa_pattern") is not None:
             from camsim.sensor.cfa import CFA_PATTERNS
 
@@ -419,9 +455,15 @@ def parse_sidecar(text: str, where) -> object:
     Raises
     ------
     CamsimError
-        Text that is not JSON, JSON nested deeper than Python's recursion limit, or an integer of more digits
-        than Python converts (4300).
+        Text over :data:`MAX_SIDECAR_BYTES`, text that is not JSON, JSON nested deeper than Python's recursion
+        limit, or an integer of more digits than Python converts (4300).
     """
+    from camsim.core.input_files import size_text
+
+    size = len(text.encode("utf-8", "surrogatepass")) if len(text) * 4 > MAX_SIDECAR_BYTES else len(text)
+    if size > MAX_SIDECAR_BYTES:  # before the parser spends seconds and gigabytes on it
+        raise CamsimError(f"cannot read sidecar {where}: it is {size_text(size)}, over the limit of "
+                          f"{size_text(MAX_SIDECAR_BYTES)} for a frame's sidecar")
     try:
         return json.loads(text)
     except RecursionError:

@@ -334,10 +334,15 @@ def test_gains_at_the_sidecars_bounds_give_finite_results_and_beyond_them_a_skip
                                                                                 refused):
     """Finite values whose products overflow float64 (a gain of 1e300 DN/e⁻, squared; 1 / 1e-300²) are refused
     by the sidecar's bounds (±1e60, positive ≥ 1e-60); at the bounds, in every gain and noise at once, the
-    measurement stays finite: analysis.json is strict JSON either way, on at most one warning line."""
+    measurement stays finite: analysis.json is strict JSON either way, on at most one warning line. The sensor's
+    keys have the schema's own ranges (a full well of at most 10⁸ e⁻, an exposure of at most 10⁶ s): at 1e60 they
+    take their largest instead."""
+    from camsim.sensor.params import SENSOR_PARAMS
+
+    highest = {p.name: p.high for p in SENSOR_PARAMS}
     meta = _frame_folder(rendered, tmp_path / "frames")
     for key in ("dn_per_electron", "read_noise_e", "row_noise_e", "full_well_e", "exposure_s"):
-        meta[key] = SENTINEL
+        meta[key] = highest[key] if value == "1e60" and key in highest else SENTINEL
     (tmp_path / "frames" / "b_bad.json").write_text(json.dumps(meta).replace(json.dumps(SENTINEL), value))
     status, err, _ = run_case(tmp_path / "frames", tmp_path / "out", capsys)
     assert status == 0 and len(err) == int(refused), err
@@ -366,3 +371,90 @@ def test_calibrate_reads_a_raw_file_beside_a_hostile_sidecar_by_its_own_tags(ren
     own = read_raw(tmp_path / "frames" / "a_good.dng")
     raw = read_raw(tmp_path / "frames" / "b_bad.dng")
     assert (raw.iso, raw.exposure_s) == (own.iso, own.exposure_s)
+
+
+def _lists(meta, prefix=()):
+    """The path of every list in ``meta`` (lists inside lists excepted: a row of a matrix is the matrix's)."""
+    for key, value in meta.items():
+        if isinstance(value, list):
+            yield (*prefix, key)
+        elif isinstance(value, dict):
+            yield from _lists(value, (*prefix, key))
+
+
+@pytest.mark.slow
+def test_every_list_of_a_sidecar_repeated_is_skipped_in_moments(rendered, tmp_path, capsys):
+    """A crafted sidecar whose list is its own items many times over (the patches 10⁵ times: 2.4 M of them, as
+    the fuzz run's sidecars have; each other list of the frame's sidecar 10³ times, past every bound, so that the
+    suite does not spend its time writing 200 MB of JSON — ``tools/fuzz_cli.py`` repeats them 10⁵ times): bounded
+    by the frame it describes before any item is looked at, so the frame is skipped on one line within the case's
+    CPU budget, not analysed for minutes. A list the readers do not use (``channels``, a record's) costs only its
+    parse, and the frame is measured as it was. Every case is a frame of one folder, analysed once."""
+    meta = _frame_folder(rendered, tmp_path / "frames")
+    paths = list(_lists(meta))
+    bad = {}
+    for index, path in enumerate(paths):
+        stem = f"c{index:02d}"
+        edited = json.loads(json.dumps(meta))
+        edited["files"] = {kind: f"{stem}.{kind}" for kind in ("dng", "exr", "json")}
+        target = edited
+        for key in path[:-1]:
+            target = target[key]
+        items = json.dumps(target[path[-1]])[1:-1]  # the list's text repeated, not the list: a second, not twenty
+        target[path[-1]] = SENTINEL
+        repeated = "[" + ", ".join([items] * (100_000 if path == ("patches",) else 1000)) + "]"
+        for kind in ("dng", "exr"):
+            shutil.copy(rendered / f"{GOOD}.{kind}", tmp_path / "frames" / f"{stem}.{kind}")
+        (tmp_path / "frames" / f"{stem}.json").write_text(json.dumps(edited).replace(json.dumps(SENTINEL), repeated))
+        bad[path] = tmp_path / "frames" / f"{stem}.dng"
+    status, err, seconds, summary = analyse(tmp_path / "frames", tmp_path / "out", capsys)
+    assert status == 0, err
+    outcomes = {"measured": [], "skipped": [], "ignored": []}
+    for path, frame in bad.items():
+        said = [line for line in err if f"{frame.stem}." in line]
+        outcomes[check_bad_frame(summary, said, frame)].append(path)
+    assert ("patches",) in outcomes["skipped"] and ("wavelengths_nm",) in outcomes["skipped"], outcomes
+    assert seconds < len(paths) * LIMIT_S, seconds
+
+
+def test_a_patch_list_longer_than_the_frame_has_pixels_is_named(rendered, tmp_path, capsys):
+    meta = _frame_folder(rendered, tmp_path / "frames")
+    meta["patches"] = meta["patches"] * (64 * 48 // len(meta["patches"]) + 1)
+    (tmp_path / "frames" / "b_bad.json").write_text(json.dumps(meta))
+    status, err, _, _ = analyse(tmp_path / "frames", tmp_path / "out", capsys)
+    assert status == 0 and len(err) == 1, err
+    assert f"sidecar key patches must be at most one patch per pixel of the 64x48 frame (3072), not " \
+           f"{len(meta['patches'])}" in err[0], err
+
+
+def test_a_sidecar_over_the_limit_is_refused_before_it_is_read(rendered, tmp_path, capsys):
+    """A sidecar of 64 MB and one byte (a sparse file: its size is what is judged, from the file system, before
+    a byte is read) is skipped on one line; in its EXR header's copy the same limit holds for the text."""
+    from camsim.core.errors import CamsimError
+    from camsim.render.sidecar_schema import MAX_SIDECAR_BYTES, parse_sidecar
+
+    _frame_folder(rendered, tmp_path / "frames")
+    bad = tmp_path / "frames" / "b_bad.json"
+    with open(bad, "r+b") as handle:
+        handle.truncate(MAX_SIDECAR_BYTES + 1)
+    start = time.process_time()
+    status, err, seconds, summary = analyse(tmp_path / "frames", tmp_path / "out", capsys)
+    assert status == 0 and len(err) == 1 and "over the limit of 64 MB" in err[0], err
+    assert time.process_time() - start < LIMIT_S
+    with pytest.raises(CamsimError, match="over the limit of 64 MB"):
+        parse_sidecar(" " * (MAX_SIDECAR_BYTES + 1), "x.exr")
+
+
+@pytest.mark.parametrize("kind", ["fifo", "directory", "device"])
+def test_a_sidecar_that_is_not_a_regular_file_is_refused_not_read(rendered, tmp_path, capsys, kind):
+    """A FIFO by a frame's sidecar's name would block the reader forever (no writer ever comes), a device never
+    ends: the frame is not taken (its files are uncommitted: no sidecar claims them), on one line."""
+    import os
+
+    _frame_folder(rendered, tmp_path / "frames")
+    bad = tmp_path / "frames" / "b_bad.json"
+    bad.unlink()
+    {"fifo": lambda: os.mkfifo(bad), "directory": bad.mkdir, "device": lambda: bad.symlink_to("/dev/zero")}[kind]()
+    status, err, seconds, summary = analyse(tmp_path / "frames", tmp_path / "out", capsys, deadline_s=10)
+    assert status == 0 and len(err) == 1 and "b_bad" in err[0], err
+    assert str(tmp_path / "frames" / "a_good.dng") in {f["frame_file"] for f in summary["frames"]}
