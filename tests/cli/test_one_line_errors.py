@@ -84,10 +84,12 @@ _CHART = 'name = "x"\n[chart]\n[light]\nilluminants = ["D65"]\nintensity_factors
 @pytest.mark.parametrize("extra, status, phrase", [
     ("[light]\nluminance_cd_m2 = 1e300\n", 2, "photon rates are not finite under this light"),  # photons.py
     ("[camera.scale]\nreference_exposure_s = 1e-308\n", 2, "overflows float64 at any F"),  # expected.py
-    ("[sensor]\nconversion_gain_v_per_e = 1e-300\n", 2, "too small for the EXR's linear sRGB view"),
+    ("[sensor]\nconversion_gain_v_per_e = 1e-300\n", 2, "outside [1e-06, 1e+06] DN/e⁻"),
     ("[light]\nluminance_cd_m2 = 1e-308\n", 2, "too small for the EXR's linear sRGB view"),
-    ("[sensor]\nread_noise_e = 1e30\n", 0, None),  # σ² beyond float32 in the normal draws (kernels.py)
-    ("[sensor]\ndsnu_e = 1e30\n", 0, None),  # a correlation of 1 in the black level's bivariate normal
+    ("[sensor]\nread_noise_e = 1e30\n", 2, "read_noise_e must be ≥ 0 and ≤ 1e+08 e⁻"),  # beyond any full well
+    ("[sensor]\ndsnu_e = 1e30\n", 2, "dsnu_e must be ≥ 0 and ≤ 1e+08 e⁻"),
+    ("[sensor]\nread_noise_e = 1e8\n", 0, None),  # the largest σ: σ² = 1e16, in the normal draws (kernels.py)
+    ("[sensor]\ndsnu_e = 1e8\n", 0, None),  # a correlation near 1 in the black level's bivariate normal
     ("[camera.scale]\nreference_electrons = 1e308\n", 0, None),  # the DNG colour matrix's responses (rawcolour.py)
     ('[camera.scale]\nkind = "physical"\npixel_pitch_um = 1e150\n', 0, None),
 ])

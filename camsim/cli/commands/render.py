@@ -19,6 +19,7 @@ from camsim.core.errors import CamsimError
 from camsim.methods import METHOD_NAMES, METHODS
 from camsim.optics.params import OPTICS_PARAMS
 from camsim.render.backends import DEVICES
+from camsim.render.estimate import CONFIRM_BYTES, CONFIRM_FRAMES
 from camsim.scene.scene_file import RENDER_PARAMS
 from camsim.sensor.params import SENSOR_PARAMS, STAGES
 
@@ -116,6 +117,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--preview", action="store_true",
                         help="also write an sRGB PNG of each frame (camera RGB → XYZ → sRGB, white-balanced from the "
                              "illuminant; the perfect white at F = 1 is sRGB white, so low light looks dark)")
+    parser.add_argument("--yes", "-y", action="store_true",
+                        help=f"render even when the scene asks for more than {CONFIRM_FRAMES} frames or "
+                             f"{CONFIRM_BYTES / 1e9:g} GB, or more than the output folder's free space "
+                             "(without it such a render is refused before it starts: the command says up front "
+                             "how many frames and bytes it writes)")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no colour-science warnings")
     return parser
 
@@ -206,6 +212,13 @@ def run(args) -> int:
 
     scene = apply_overrides(load_scene(args.scene), args)
     check_scene(scene)  # names and sizes (a DNG's 22 x 22 minimum, an image's own size too): before any work
+    out = args.out if args.out is not None else DEFAULT_OUT / scene.name
+    from camsim.render.estimate import check_render_size, estimate_render
+
+    estimate = estimate_render(scene, preview=args.preview)  # before each frame is checked: there may be thousands
+    check_render_size(estimate, out, confirmed=args.yes)
+    if not args.quiet:
+        print(f"camsim render: {estimate.text()}, to {out}/", file=sys.stderr)
     device = getattr(args, "device", "cpu")
     if device != "cpu":  # one line and exit 2 before anything is written: no CuPy, no GPU, a method it cannot draw
         from camsim.render.backends import check_device, device_method
@@ -224,7 +237,6 @@ def run(args) -> int:
             raise CamsimError("a sequence's frames are drawn per pixel on the CPU and have no preview")
     for warning in scene_warnings(scene):
         print(f"camsim: warning: {warning}", file=sys.stderr)
-    out = args.out if args.out is not None else DEFAULT_OUT / scene.name
     if output == "zarr":
         from camsim.dataset.sequence_store import render_sequence_store
 
