@@ -355,17 +355,24 @@ def _check_sizes(meta: dict) -> None:
                    "width_px", width)
     for key in PER_ROW_KEYS:
         if isinstance(meta.get(key), list) and len(meta[key]) != height:
-            raise _Bad(f"one entry per row (height_px {height}), not {len(meta[key])}", key, meta[key])
+            raise _Bad(f"one entry per row (height_px {height})", key, _Length(len(meta[key])))
     patches = meta["patches"]
     if isinstance(patches, list) and len(patches) > width * height:
-        raise _Bad(f"at most one patch per pixel of the {width}x{height} frame ({width * height}), not "
-                   f"{len(patches)}", "patches", f"a list of {len(patches)}")
+        raise _Bad(f"at most one patch per pixel of the {width}x{height} frame ({width * height})", "patches",
+                   _Length(len(patches)))
     weights = meta.get("optics", {}).get("channel_wavelength_weights") if isinstance(meta.get("optics"), dict) \
         else None
     grid = weights.get("wavelength_nm") if isinstance(weights, dict) else None
     if isinstance(grid, list) and len(grid) > MAX_WAVELENGTHS:
-        raise _Bad(f"at most {MAX_WAVELENGTHS} wavelengths, not {len(grid)}",
-                   "optics.channel_wavelength_weights.wavelength_nm", f"a list of {len(grid)}")
+        raise _Bad(f"at most {MAX_WAVELENGTHS} wavelengths", "optics.channel_wavelength_weights.wavelength_nm",
+                   _Length(len(grid)))
+
+
+class _Length(int):
+    """A list's length, shown as what it is in a message (the list itself is too long to show)."""
+
+    def __repr__(self):
+        return f"a list of {int(self)}"
 
 
 def _bounded(value, key, check):

@@ -423,7 +423,7 @@ def test_a_patch_list_longer_than_the_frame_has_pixels_is_named(rendered, tmp_pa
     (tmp_path / "frames" / "b_bad.json").write_text(json.dumps(meta))
     status, err, _, _ = analyse(tmp_path / "frames", tmp_path / "out", capsys)
     assert status == 0 and len(err) == 1, err
-    assert f"sidecar key patches must be at most one patch per pixel of the 64x48 frame (3072), not " \
+    assert f"sidecar key patches must be at most one patch per pixel of the 64x48 frame (3072), got a list of " \
            f"{len(meta['patches'])}" in err[0], err
 
 
