@@ -78,6 +78,7 @@ import numpy as np
 import tifffile
 
 from camsim.core.errors import CamsimError
+from camsim.core.input_files import check_input
 from camsim.core.pixel_limit import check_pixel_count
 from camsim.io.atomic import atomic_path
 from camsim.sensor.cfa import CFA_PATTERNS
@@ -715,14 +716,15 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
     Raises
     ------
     CamsimError
-        Naming ``path``, if the file is missing, unreadable, truncated, not a DNG, or neither 3-sample LinearRaw
+        Naming ``path``, if the file is missing, not a regular file (a FIFO, a device, a directory), unreadable,
+        truncated, not a DNG, or neither 3-sample LinearRaw
         nor 1-sample 2x2 Bayer CFA of 8 or 16 bits, or its header declares a storage this reader does not decode
         (compressed, planar, byte counts that do not fit the dimensions: :func:`_check_storage`), before any
         pixel is decoded.
     """
     import rawpy  # imported lazily: only readers of DNGs need LibRaw
 
-    name = os.fspath(path)
+    name = os.fspath(check_input(path, "DNG"))  # a FIFO or a device would block tifffile and LibRaw
     try:
         with _tifffile_quiet(), tifffile.TiffFile(name) as tif:
             page = tif.pages.first

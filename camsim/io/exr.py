@@ -42,6 +42,8 @@ import numpy as np
 import OpenEXR
 
 from camsim.core.errors import CamsimError, output_error
+from camsim.core.input_files import check_input
+from camsim.core.pixel_limit import check_pixel_count
 from camsim.io.atomic import atomic_path
 from camsim.io.exr_compression import (
     DEFAULT_EXR_COMPRESSION,
@@ -304,11 +306,12 @@ def read_exr(path: str | os.PathLike[str], *, clean: bool = True) \
     CamsimError
         Naming ``path``, for a missing, unreadable, truncated or non-EXR file, or missing/partial channels.
     """
-    name = os.fspath(path)
+    name = _checked_name(path)
     _configure_threads()
     try:
         if not clean:
             return _read_noisy(name)
+        _header(name)  # the size from the header, before OpenEXR.File decodes every channel
         with OpenEXR.File(name, separate_channels=True) as exr:
             # Copy everything before the file closes: closing empties the dict header() returned (measured with
             # the 3.5.3 bindings). _assemble's np.stack copies the pixel planes.
@@ -370,7 +373,7 @@ def read_exr_clean(path: str | os.PathLike[str]) -> tuple[np.ndarray | None, dic
     """
     import Imath  # the older bindings' types, installed with OpenEXR
 
-    name = os.fspath(path)
+    name = _checked_name(path)
     _configure_threads()
     try:
         header, (_, height, width) = _header(name)
@@ -431,9 +434,10 @@ def read_exr_header(path: str | os.PathLike[str]) -> tuple[dict[str, str], tuple
     Raises
     ------
     CamsimError
-        Naming ``path``, for a missing, unreadable or non-EXR file or one without the noisy channels.
+        Naming ``path``, for a missing, unreadable or non-EXR file, one without the noisy channels, or one whose
+        data window is over the pixel limit (:func:`camsim.core.pixel_limit.check_pixel_count`).
     """
-    name = os.fspath(path)
+    name = _checked_name(path)
     try:
         return _header(name)
     except CamsimError:
@@ -442,13 +446,22 @@ def read_exr_header(path: str | os.PathLike[str]) -> tuple[dict[str, str], tuple
         raise CamsimError(f"cannot read EXR {name}: {type(exc).__name__}: {exc}") from exc
 
 
+def _checked_name(path) -> str:
+    """``path`` as a string once it names a regular file (:func:`camsim.core.input_files.check_input`): OpenEXR
+    and OpenImageIO open a FIFO or a device by name and wait on it, or read it without end."""
+    return os.fspath(check_input(path, "EXR"))
+
+
 def _header(name: str) -> tuple[dict[str, str], tuple[int, int, int]]:
-    """:func:`read_exr_header` without the translation of the bindings' exceptions."""
+    """:func:`read_exr_header` without the translation of the bindings' exceptions; the data window's size is
+    checked against the pixel limit, so that every reader refuses a header that declares more pixels than camsim
+    decodes before it allocates or reads them."""
     with OpenEXR.File(name, header_only=True) as exr:
         raw = exr.header()
         header = _string_attributes(raw)
         names = _present_channels(name, [c.name for c in raw["channels"]])
         (x0, y0), (x1, y1) = ((int(v) for v in corner) for corner in raw["dataWindow"])
+    check_pixel_count(x1 - x0 + 1, y1 - y0 + 1, f"EXR {name}")
     return header, (len(names), y1 - y0 + 1, x1 - x0 + 1)
 
 
@@ -461,17 +474,20 @@ def read_exr_oiio(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray 
     """
     import OpenImageIO as oiio  # imported lazily: only the cross-check needs it
 
-    name = os.fspath(path)
+    name = _checked_name(path)
     inp = oiio.ImageInput.open(name)
-    if inp is None:
-        raise CamsimError(f"cannot read EXR {name}: {oiio.geterror().strip() or 'OpenImageIO could not open it'}")
+    if inp is None:  # OpenImageIO's reasons run over several lines ("Uncompressed image size … exceeds …")
+        reason = "; ".join(line.strip() for line in oiio.geterror().splitlines() if line.strip())
+        raise CamsimError(f"cannot read EXR {name}: {reason or 'OpenImageIO could not open it'}")
     try:
         if inp.format_name() != "openexr":
             raise CamsimError(f"cannot read EXR {name}: OpenImageIO reads it as {inp.format_name()}, not OpenEXR")
         spec = inp.spec()
+        check_pixel_count(spec.width, spec.height, f"EXR {name}")  # from the header, before the pixels
         pixels = inp.read_image(0, 0, 0, spec.nchannels, "float")  # (H, W, C) float32
         if pixels is None:
-            raise CamsimError(f"cannot read EXR {name}: {inp.geterror().strip() or 'pixel data unreadable'}")
+            reason = "; ".join(line.strip() for line in inp.geterror().splitlines() if line.strip())
+            raise CamsimError(f"cannot read EXR {name}: {reason or 'pixel data unreadable'}")
         pixels = np.asarray(pixels).reshape(spec.height, spec.width, spec.nchannels)
         planes = {c: pixels[..., i] for i, c in enumerate(spec.channelnames)}
         header = {a.name: a.value for a in spec.extra_attribs

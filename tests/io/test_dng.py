@@ -12,6 +12,7 @@ import tifffile
 from camsim.core.errors import CamsimError, OutputError
 from camsim.io import dng as dng_mod
 from camsim.io.dng import read_dng, write_dng
+from tests.support.hostile_files import HUGE_SIZES, no_hang, not_regular, one_error_line, with_tiff_size
 
 H, W = 48, 64
 # XYZ -> linear sRGB (D65); a camera whose XYZ -> camera matrix is diag(GAINS) @ this sees D65 white as GAINS.
@@ -242,3 +243,43 @@ def test_the_darktable_sidecar_holds_the_mean_black_level_and_the_white_point(bl
         struct.unpack("<4i4HHxxi", bytes.fromhex(item[d + "params"])))
     assert crop == (0, 0, 0, 0) and flat_field == 0 and white_point == white
     assert abs(sum(levels) / 4 - float(np.mean(black))) <= 1 / 8 and max(levels) - min(levels) <= 1
+
+
+# --- hostile headers and paths -------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "directory"])
+def test_a_path_that_is_no_regular_file_is_refused_not_waited_on(tmp_path, kind):
+    """tifffile and LibRaw open a FIFO by name and wait for a writer that never comes; /dev/zero never ends."""
+    path = not_regular(tmp_path / "frame.dng", kind)
+    with no_hang(f"read_dng of a {kind}"), pytest.raises(CamsimError) as exc:
+        read_dng(path)
+    assert f"cannot read DNG {path}: it is a" in str(exc.value) and "not a regular file" in str(exc.value)
+
+
+@pytest.mark.parametrize("size", [*HUGE_SIZES, (10000, 10001)])
+def test_a_huge_declared_size_is_refused_from_the_tags_and_libraw_stays_quiet(tmp_path, capfd, size):
+    """ImageWidth × ImageLength of 10⁸ to 10¹⁰ pixels over a 48 × 64 frame's strips: over the pixel limit, or (10⁸
+    pixels) more than the strips hold; refused on one line from the tags, before LibRaw allocates or reads."""
+    good = write(tmp_path / "good.dng", random_dn(7)).read_bytes()
+    bad = tmp_path / "huge.dng"
+    bad.write_bytes(with_tiff_size(good, *size))
+    capfd.readouterr()
+    with pytest.raises(CamsimError) as exc:
+        read_dng(bad)
+    message = str(exc.value)
+    assert "\n" not in message and str(bad) in message
+    assert ("over camsim's limit" if size[0] * size[1] > 200_000_000 else "strip(s) hold") in message, message
+    assert capfd.readouterr() == ("", "")
+
+
+@pytest.mark.parametrize("size", [*HUGE_SIZES, (10000, 10001)])
+def test_develop_refuses_a_huge_dng_header_on_one_line(tmp_path, capfd, size):
+    from camsim.cli import main
+
+    good = write(tmp_path / "good.dng", random_dn(7)).read_bytes()
+    bad = tmp_path / "huge.dng"
+    bad.write_bytes(with_tiff_size(good, *size))
+    capfd.readouterr()
+    assert main(["develop", str(bad), "--out", str(tmp_path / "out"), "-q"]) == 2
+    out, err = capfd.readouterr()
+    assert str(bad) in one_error_line(err) and out == ""

@@ -2,6 +2,7 @@
 
 import json
 import re
+import time
 
 import numpy as np
 import OpenEXR
@@ -20,6 +21,7 @@ from camsim.io.exr import (
     write_exr,
 )
 from tests.support.helpers import FullDiskExrFile
+from tests.support.hostile_files import HUGE_SIZES, no_hang, not_regular, one_error_line, with_exr_window
 
 H, W = 48, 64
 READERS = [read_exr, read_exr_oiio]
@@ -385,3 +387,61 @@ def test_render_writes_the_chosen_compression_and_records_it(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("camsim: error: EXR compression 'dwab' is refused: lossy")
     assert not (tmp_path / "lossy").exists()  # refused before the folder is made
+
+
+# --- hostile headers and paths -------------------------------------------------------------------------------
+
+def read_clean(path):
+    """read_exr_clean, shaped like the readers' returns."""
+    clean, header = exr_mod.read_exr_clean(path)
+    return None, clean, header
+
+
+ALL_READERS = [*ERROR_READERS, read_header, read_clean]
+
+
+@pytest.mark.parametrize("reader", ALL_READERS)
+@pytest.mark.parametrize("size", HUGE_SIZES)
+def test_a_data_window_over_the_pixel_limit_is_refused_from_the_header(tmp_path, capfd, reader, size):
+    """A header that declares 2 × 10⁸ + 10⁴ to 10¹⁰ pixels (a few bytes changed in a real frame) is refused on one
+    line before a pixel is allocated or read, and OpenEXR says nothing on the terminal. OpenImageIO refuses such a
+    header itself when it opens the file, in its own (several-line) words: one line here too."""
+    noisy, clean = frames(7)
+    write_exr(tmp_path / "good.exr", noisy, clean, HEADER)
+    bad = tmp_path / "huge.exr"
+    bad.write_bytes(with_exr_window((tmp_path / "good.exr").read_bytes(), *size))
+    capfd.readouterr()
+    start = time.process_time()
+    with pytest.raises(CamsimError) as exc:
+        reader(bad)
+    message = str(exc.value)
+    assert "\n" not in message and str(bad) in message, message
+    if reader is not read_exr_oiio:
+        assert f"{size[0]} × {size[1]} pixels, over camsim's limit" in message
+    assert time.process_time() - start < 5
+    assert capfd.readouterr() == ("", "")
+
+
+@pytest.mark.parametrize("reader", ALL_READERS)
+@pytest.mark.parametrize("kind", ["fifo", "device", "directory"])
+def test_a_path_that_is_no_regular_file_is_refused_not_waited_on(tmp_path, reader, kind):
+    """OpenEXR and OpenImageIO open a FIFO by name and wait for a writer that never comes; /dev/zero never ends."""
+    path = not_regular(tmp_path / "frame.exr", kind)
+    with no_hang(f"{reader.__name__} of a {kind}"), pytest.raises(CamsimError) as exc:
+        reader(path)
+    assert f"cannot read EXR {path}: it is a" in str(exc.value) and "not a regular file" in str(exc.value)
+
+
+@pytest.mark.parametrize("size", HUGE_SIZES)
+def test_develop_refuses_a_huge_exr_header_on_one_line(tmp_path, capfd, size):
+    from camsim.cli import main
+
+    noisy, clean = frames(7)
+    write_exr(tmp_path / "good.exr", noisy, clean, HEADER)
+    bad = tmp_path / "huge.exr"
+    bad.write_bytes(with_exr_window((tmp_path / "good.exr").read_bytes(), *size))
+    capfd.readouterr()
+    assert main(["develop", str(bad), "--out", str(tmp_path / "out"), "-q"]) == 2
+    out, err = capfd.readouterr()
+    assert "over camsim's limit" in one_error_line(err) and out == ""
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
