@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from camsim.core.errors import CamsimError
-from camsim.io.raw_capture import camera_name, libraw_cfa, tiff_shot
+from camsim.io.raw_capture import camera_name, libraw_cfa, tiff_shot, unpacked_raw
 
 #: What ``camsim calibrate`` reads, for the messages refusing other mosaics.
 _ACCEPTS = "camsim calibrate reads 2x2 Bayer, 3-colour stacked and monochrome raws"
@@ -148,9 +148,12 @@ def _with_sidecar(name: str, iso: float | None, exposure_s: float | None) -> tup
     import json
     from pathlib import Path
 
+    from camsim.core.input_files import read_input
+    from camsim.render.sidecar_schema import MAX_SIDECAR_BYTES
+
     sidecar = Path(name).with_suffix(".json")
-    try:
-        meta = json.loads(sidecar.read_text(encoding="utf-8"))
+    try:  # CamsimError: a FIFO, device or folder by that name, or a file over the sidecar's limit
+        meta = json.loads(read_input(sidecar, "sidecar", MAX_SIDECAR_BYTES).decode("utf-8"))
     except (OSError, UnicodeDecodeError, ValueError, RecursionError):  # ValueError: also int()'s digit limit
         return iso, exposure_s  # no sidecar (a camera's raw), or not one camsim can read: the file's tags stand alone
     if not isinstance(meta, dict) or "camsim_version" not in meta:
@@ -188,14 +191,14 @@ def read_raw(path, *, metadata: bool = False) -> RawFrame:
     Raises
     ------
     CamsimError
-        Naming the file, if it is missing, unreadable or not a raw LibRaw decodes, or not one of the layouts
-        (2 × 2 Bayer, 3-colour stack, monochrome).
+        Naming the file, on one line, if it is missing, not a regular file (a FIFO, a device), unreadable or not a
+        raw LibRaw decodes, if its header declares more pixels than camsim's limit or than its data holds (both
+        refused before LibRaw decodes: :func:`camsim.io.raw_capture.unpacked_raw`), or if it is not one of the
+        layouts (2 × 2 Bayer, 3-colour stack, monochrome).
     """
-    import rawpy
-
     name = str(os.fspath(path))
     try:
-        with rawpy.imread(name) as raw:
+        with unpacked_raw(name) as raw:
             image = raw.raw_image_visible
             if image.ndim == 3:
                 if raw.num_colors != 3 or image.shape[2] < 3:
@@ -214,7 +217,7 @@ def read_raw(path, *, metadata: bool = False) -> RawFrame:
             shutter = float(raw.other.shutter_speed) if raw.other.shutter_speed > 0 else None
     except CamsimError:
         raise
-    except Exception as exc:  # rawpy.LibRawError (unsupported, truncated, I/O), OSError
+    except Exception as exc:  # rawpy.LibRawError on reading an unpacked file's fields, OSError
         reason = str(exc) or type(exc).__name__
         raise CamsimError(f"cannot read raw file {name}: {reason}") from None
     h, w = image.shape[:2]

@@ -35,9 +35,10 @@ and a raw outside a TIFF container (CR3, RAF, RW2, ORF, ...) has no Make or Mode
 LibRaw's ``idata.make``/``model``), so a preset must be named for it. A DNG's AsShotWhiteXY is not read (LibRaw does
 not read it either): ``as_shot_neutral`` is then None.
 
-Threads: a DNG, checked with tifffile first, is decoded in parallel with other threads (rawpy releases the GIL); any
-other file is read with LibRaw's stderr captured (it prints data errors there; camsim's errors are one line), which
-redirects the process's descriptor 2, so those reads take turns.
+Threads: an uncompressed DNG, checked with tifffile first (its strips hold the pixels its dimensions declare, and the
+file holds its strips), is decoded in parallel with other threads (rawpy releases the GIL); any other file, a
+compressed DNG among them, is read with LibRaw's stderr captured (it prints data errors there, "Unexpected end of
+file"; camsim's errors are one line), which redirects the process's descriptor 2, so those reads take turns.
 
 The size is checked against :data:`camsim.core.pixel_limit.MAX_PIXELS` from the header alone, before any pixel is
 decoded: the DNG raw IFD's dimensions (tifffile), then LibRaw's (``open_file`` parses the header only; rawpy
@@ -57,12 +58,13 @@ from typing import Any
 import numpy as np
 
 from camsim.core.errors import CamsimError
+from camsim.core.input_files import open_input
 from camsim.core.pixel_limit import check_pixel_count
 from camsim.io import dng as _dng
 from camsim.sensor.cfa import CFA_PATTERNS
 
 __all__ = ["RawCapture", "RawHeader", "raw_header", "read_raw_capture", "crop_capture", "TiffShot", "tiff_shot",
-           "camera_name", "libraw_cfa", "libraw_orientation"]
+           "camera_name", "libraw_cfa", "libraw_orientation", "unpacked_raw"]
 
 #: LibRaw's (dcraw's) ``flip`` → TIFF Orientation: dcraw reads Orientation o as flip ``"50132467"[o % 8]``.
 _FLIP_TO_ORIENTATION = {0: 1, 1: 2, 3: 3, 2: 4, 4: 5, 6: 6, 7: 7, 5: 8}
@@ -290,6 +292,7 @@ class _DngRaw:
     black: np.ndarray  # (2, 2) float64 at the ActiveArea's origin
     white: float
     colour: dict        # ColorMatrix1/2, CalibrationIlluminant1/2, AsShotNeutral (IFD0)
+    checked: bool = False  # uncompressed, its strips holding every pixel: LibRaw decodes it without a complaint
 
 
 def _numbers(tag: Any) -> np.ndarray | None:
@@ -401,10 +404,37 @@ def _read_tiff(name: str) -> tuple:
             raise CamsimError(f"cannot read raw file {name}: damaged DNG tags ({type(exc).__name__}: {exc})") from None
 
 
-def _dng_raw(tif: Any, ifd0: Any, name: str) -> _DngRaw:
-    """The raw IFD's size (checked against the pixel limit), pattern, levels and ActiveArea, and IFD0's colour."""
+def _holds_its_pixels(page: Any, name: str) -> bool:
+    """Whether the raw IFD ``page`` is uncompressed (Compression 1), once its strips or tiles are known to hold at
+    least the bytes its dimensions take; False for a compressed one, whose decoded size only LibRaw knows.
+
+    LibRaw reads an uncompressed image by its dimensions from the first strip on: a header that declares more
+    rows or columns than the strips hold makes it read past them to the file's end, print "Unexpected end of file"
+    on stderr and fail. Refused here from the header instead, on one line.
+    """
+    if int(page.compression) != 1:
+        return False
+    needed = page.imagewidth * page.imagelength * page.samplesperpixel * page.bitspersample // 8
+    held = sum(int(count) for count in page.databytecounts)
+    if held < needed:
+        raise CamsimError(f"cannot read raw file {name}: its header declares a {page.imagewidth}x{page.imagelength} "
+                          f"image of {page.samplesperpixel} sample(s) of {page.bitspersample} bits ({needed} bytes), "
+                          f"but its uncompressed pixel data holds {held} bytes")
+    return True
+
+
+def _checked_raw_page(tif: Any, name: str) -> tuple:
+    """(the DNG's raw IFD, whether LibRaw decodes it without a complaint): its size checked against the pixel
+    limit, the file holding its pixel data and, uncompressed, that data holding its pixels; all from the header."""
     page = _raw_page(tif, name)
     check_pixel_count(page.imagewidth, page.imagelength, f"raw file {name}")
+    _dng._check_complete(page, tif.filehandle.size, name)
+    return page, _holds_its_pixels(page, name)
+
+
+def _dng_raw(tif: Any, ifd0: Any, name: str) -> _DngRaw:
+    """The raw IFD's size (checked against the pixel limit), pattern, levels and ActiveArea, and IFD0's colour."""
+    page, checked = _checked_raw_page(tif, name)
     if int(page.photometric) != _PHOTOMETRIC_CFA or page.samplesperpixel != 1:
         what = ("a monochrome image" if page.samplesperpixel == 1 else
                 f"a {page.samplesperpixel}-sample LinearRaw image, a three-chip or demosaiced raw")
@@ -417,9 +447,8 @@ def _dng_raw(tif: Any, ifd0: Any, name: str) -> _DngRaw:
         2 ** int(page.bitspersample) - 1)
     area = _numbers(page.tags.get(_ACTIVE_AREA))
     top, left = (int(area[0]), int(area[1])) if area is not None and area.size == 4 else (0, 0)
-    _dng._check_complete(page, tif.filehandle.size, name)
     colour = _dng_colour(ifd0, name)
-    return _DngRaw(page.imagewidth, page.imagelength, top, left, pattern, black, white, colour)
+    return _DngRaw(page.imagewidth, page.imagelength, top, left, pattern, black, white, colour, checked)
 
 
 # ------------------------------------------------------------------------------------------------ LibRaw
@@ -449,9 +478,10 @@ def _stderr_of(capture: bool):
 
 
 @contextlib.contextmanager
-def _libraw(name: str, capture: bool):
+def _libraw(name: str, capture: bool, bayer: bool = True):
     """The file opened by LibRaw (header parsed, nothing decoded), its size checked; LibRaw's errors (and what it
-    prints on stderr, with ``capture``) as one CamsimError line naming the file."""
+    prints on stderr, with ``capture``) as one CamsimError line naming the file. ``bayer``: refuse a file of fewer
+    than three colours or colours other than R, G, B."""
     import rawpy
 
     raw = rawpy.RawPy()
@@ -468,7 +498,7 @@ def _libraw(name: str, capture: bool):
             raise CamsimError(f"cannot read raw file {name}: its visible image is {sizes.width}x{sizes.height} "
                               "pixels, smaller than one 2x2 cell")
         desc = raw.color_desc.decode("ascii", "replace")
-        if raw.num_colors < 3 or not all(c in "RGB" for c in desc[:raw.num_colors]):
+        if bayer and (raw.num_colors < 3 or not all(c in "RGB" for c in desc[:raw.num_colors])):
             raise CamsimError(f"cannot read raw file {name}: LibRaw sees {raw.num_colors} colour(s) "
                               f"({raw.color_desc.decode('ascii', 'replace')!r}); {_ACCEPTS}")
         yield raw
@@ -494,19 +524,21 @@ def _unpack(raw: Any, name: str, capture: bool) -> None:
 
 
 def _check_name(path: Any) -> str:
+    """``path`` as a string once it names a non-empty regular file (a FIFO or a device would block tifffile and
+    LibRaw, which open it by name: :func:`camsim.core.input_files.open_input`)."""
     try:
         name = str(os.fspath(path))
     except TypeError:
         raise CamsimError(f"a raw file's path must be a string or path, got {type(path).__name__}") from None
-    if not os.path.isfile(name):
-        what = "no such file" if not os.path.exists(name) else "not a file"
-        raise CamsimError(f"cannot read raw file {name}: {what}")
-    try:
-        with open(name, "rb") as fh:
-            if not fh.read(1):
-                raise CamsimError(f"cannot read raw file {name}: the file is empty")
-    except OSError as exc:
-        raise CamsimError(f"cannot read raw file {name}: {exc.strerror or exc}") from None
+    if "\x00" not in name and not os.path.exists(name):
+        raise CamsimError(f"cannot read raw file {name}: no such file")
+    with open_input(name, "raw file") as fh:
+        try:
+            empty = not fh.read(1)
+        except OSError as exc:
+            raise CamsimError(f"cannot read raw file {name}: {exc.strerror or exc}") from None
+    if empty:
+        raise CamsimError(f"cannot read raw file {name}: the file is empty")
     return name
 
 
@@ -558,20 +590,73 @@ def raw_header(path) -> RawHeader:
     """
     name = _check_name(path)
     shot, dng = _read_tiff(name)
-    with _libraw(name, dng is None) as raw:
+    capture = dng is None or not dng.checked
+    with _libraw(name, capture) as raw:
         sizes = raw.sizes
         if dng is not None:
             dy, dx = _dng_origin(raw, dng, name)
             cfa = _pattern_shift(dng.cfa, dy, dx)
             values = _shot_values(shot, None)
             if values["iso"] is None or values["exposure_s"] is None:
-                _unpack(raw, name, False)
+                _unpack(raw, name, capture)
                 values = _shot_values(shot, raw)
         else:
             _unpack(raw, name, True)  # rawpy gives the pattern (and ``other``) only after unpack
             cfa = libraw_cfa(raw, f"cannot read raw file {name}", _ACCEPTS)
             values = _shot_values(shot, raw)
         return RawHeader(path=name, size=(int(sizes.width), int(sizes.height)), cfa=cfa, **values)
+
+
+def _dng_checked(name: str) -> bool:
+    """Whether ``name`` is a DNG that LibRaw decodes without a complaint (:func:`_checked_raw_page`), its raw IFD
+    of any layout (Bayer, colour stack, monochrome); False for any other file (LibRaw then decides, its stderr
+    captured)."""
+    import tifffile
+
+    with contextlib.ExitStack() as stack:
+        try:
+            stack.enter_context(_dng._tifffile_quiet())
+            tif = stack.enter_context(tifffile.TiffFile(name))
+            is_dng = tif.pages.first.tags.get(_dng._DNG_VERSION) is not None
+        except Exception:  # not a TIFF container (CR3, RAF, a PNG, text): LibRaw decides
+            return False
+        if not is_dng:
+            return False
+        try:
+            return _checked_raw_page(tif, name)[1]
+        except CamsimError as exc:
+            raise CamsimError(str(exc).replace(f"cannot read DNG {name}:", f"cannot read raw file {name}:")) from None
+        except Exception as exc:  # a damaged IFD or tag
+            raise CamsimError(f"cannot read raw file {name}: damaged DNG tags ({type(exc).__name__}: {exc})") from None
+
+
+@contextlib.contextmanager
+def unpacked_raw(path):
+    """Any raw file LibRaw reads (a Bayer mosaic, a colour stack, a monochrome image), opened and unpacked as a
+    ``rawpy.RawPy`` for the block, after the checks that need no pixel: a regular, non-empty file; a DNG's raw IFD
+    within the pixel limit and holding its pixel data (from its tags); any file's size in LibRaw's header within
+    the limit (before ``unpack``).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Yields
+    ------
+    rawpy.RawPy
+        Unpacked (``raw_image_visible`` and the levels are there); closed when the block ends.
+
+    Raises
+    ------
+    CamsimError
+        One line naming the file: missing, not a regular file, empty, not a raw LibRaw reads, a size above the
+        pixel limit, truncated or damaged pixel data (what LibRaw prints on stderr goes into the line).
+    """
+    name = _check_name(path)
+    capture = not _dng_checked(name)
+    with _libraw(name, capture, bayer=False) as raw:
+        _unpack(raw, name, capture)
+        yield raw
 
 
 def _check_crop(crop: Any, size: tuple, name: str) -> tuple:
@@ -619,12 +704,13 @@ def read_raw_capture(path, crop=None) -> RawCapture:
     """
     name = _check_name(path)
     shot, dng = _read_tiff(name)
-    with _libraw(name, dng is None) as raw:
+    capture = dng is None or not dng.checked
+    with _libraw(name, capture) as raw:
         sizes = raw.sizes
         full = (int(sizes.width), int(sizes.height))
         box = _check_crop(crop, full, name) if crop is not None else None
         origin = _dng_origin(raw, dng, name) if dng is not None else (0, 0)
-        _unpack(raw, name, dng is None)
+        _unpack(raw, name, capture)
         libraw_pattern = libraw_cfa(raw, f"cannot read raw file {name}", _ACCEPTS)
         cell_index = np.asarray(raw.raw_colors_visible[:2, :2], dtype=np.intp)
         per_channel = np.asarray(raw.black_level_per_channel, dtype=np.float64)

@@ -33,6 +33,7 @@ from camsim.render.pipeline import LitScene, make_frame
 from camsim.sensor.kernels import tukey_lambda, tukey_lambda_variance
 from camsim.sensor.params import SensorParams
 from camsim.sensor.presets import sensor_preset
+from tests.support.hostile_files import HUGE_SIZES, no_hang, not_regular, one_error_line, with_tiff_size
 
 #: Round trip: frame height and width (pixels), dark frames, flat levels (fractions of the ADC's range above the
 #: pedestal; two frames each).
@@ -474,4 +475,36 @@ def test_a_full_disk_at_the_last_file_leaves_no_file(small_set, tmp_path, capsys
     err = capsys.readouterr().err
     assert err.startswith("camsim: error: cannot write ") and "No space left on device" in err
     assert err.count("\n") == 1
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("case", ["fifo", "device", *(f"{w}x{h}" for w, h in (*HUGE_SIZES, (10000, 10001))),
+                                  "three-chip 30000x30000"])
+def test_a_hostile_raw_is_refused_on_one_line_before_libraw_decodes(small_set, tmp_path, capfd, case):
+    """A FIFO or a device among the raws is refused, not waited on; a raw whose tags declare 10⁸ to 10¹⁰ pixels
+    over a 64 × 64 frame's data is refused from its tags, before LibRaw allocates (over the pixel limit) or reads
+    past its strip (under it: LibRaw would print "Unexpected end of file"); one line, LibRaw silent."""
+    darks = list(small_set["dark"])
+    bad = tmp_path / "bad.dng"
+    if case in ("fifo", "device"):
+        not_regular(bad, case)
+        expect = "not a regular file"
+    elif case.startswith("three-chip"):
+        write_dng(tmp_path / "stack.dng", np.zeros((3, 24, 24), np.uint8), black_level_dn=16, white_level=255,
+                  unique_camera_model="cam", color_matrix1=np.eye(3), as_shot_neutral=[1, 1, 1])
+        bad.write_bytes(with_tiff_size((tmp_path / "stack.dng").read_bytes(), 30000, 30000))
+        expect = "over camsim's limit"
+    else:
+        width, height = map(int, case.split("x"))
+        bad.write_bytes(with_tiff_size(open(darks[1], "rb").read(), width, height))
+        expect = "over camsim's limit" if width * height > 200_000_000 else "uncompressed pixel data holds"
+    darks[1] = str(bad)
+    out = tmp_path / "o"
+    capfd.readouterr()
+    with no_hang(f"calibrate with a {case} raw"):
+        status = main(["calibrate", "--dark", *darks, "--flat", *small_set["flat"], "--out", str(out), "-q"])
+    captured = capfd.readouterr()
+    assert status == 2 and captured.out == ""
+    line = one_error_line(captured.err)
+    assert str(bad) in line and expect in line, line
     assert not out.exists()

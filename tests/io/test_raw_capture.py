@@ -9,6 +9,7 @@ from the written cell (not by rolling the cell, as the reader does), the black l
 import hashlib
 import os
 import struct
+import time
 import zlib
 
 import numpy as np
@@ -25,8 +26,17 @@ from camsim.io.raw_capture import (
     libraw_orientation,
     raw_header,
     read_raw_capture,
+    unpacked_raw,
 )
 from camsim.sensor.cfa import CFA_PATTERNS
+from tests.support.hostile_files import (
+    COMPRESSION,
+    HUGE_SIZES,
+    no_hang,
+    not_regular,
+    one_error_line,
+    with_tiff_size,
+)
 from tests.support.phone_dng import BLACK_LEVEL_DELTA_H, write_phone_dng
 from tests.support.profiles import examples
 
@@ -313,7 +323,8 @@ def patch_raw_size(path, width, height):
                                   "three-chip", "mono", "not bayer", "x-trans", "huge", "black deltas", "empty"])
 def test_errors(tmp_path, case):
     path = tmp_path / "bad.dng"
-    expect = {"missing": "no such file", "directory": "not a file", "text": "not a raw file LibRaw reads",
+    expect = {"missing": "no such file", "directory": "it is a directory, not a regular file",
+              "text": "not a raw file LibRaw reads",
               "png": "not a raw file LibRaw reads", "truncated": "truncated", "truncated header": "cannot read",
               "three-chip": "no 2x2 colour filter array", "huge": "over camsim's limit",
               "black deltas": "BlackLevelDeltaH", "empty": "the file is empty",
@@ -486,3 +497,117 @@ def test_libraw_route_refuses_x_trans(tmp_path, monkeypatch):
         with pytest.raises(CamsimError) as exc:
             read(path)
         assert "(pattern (6, 6)) is not a 2x2 Bayer mosaic" in one_line_error(exc, path)
+
+
+# ------------------------------------------------------------------------------------------ hostile headers, paths
+READS = {"read_raw_capture": read_raw_capture, "raw_header": raw_header,
+         "unpacked_raw": lambda path: unpacked_raw(path).__enter__()}
+
+
+@pytest.mark.parametrize("read", READS)
+@pytest.mark.parametrize("kind", ["fifo", "device", "directory"])
+def test_a_path_that_is_no_regular_file_is_refused_not_waited_on(tmp_path, read, kind):
+    """tifffile and LibRaw open a FIFO by name and wait for a writer that never comes; /dev/zero never ends."""
+    path = not_regular(tmp_path / "raw.dng", kind)
+    with no_hang(f"{read} of a {kind}"), pytest.raises(CamsimError) as exc:
+        READS[read](path)
+    assert f"cannot read raw file {path}: it is a" in one_line_error(exc, path)
+
+
+@pytest.mark.parametrize("read", READS)
+@pytest.mark.parametrize("size", [*HUGE_SIZES, (10000, 10001)])
+def test_a_huge_declared_size_is_refused_from_the_tags_and_libraw_stays_quiet(tmp_path, capfd, read, size):
+    """A phone DNG's raw IFD (and thumbnail) declaring 10⁸ to 10¹⁰ pixels over 56 × 40 pixels of data: over the
+    pixel limit, or (10⁸ pixels, under it) more than the uncompressed strip holds, which LibRaw would read past
+    to the file's end and print "Unexpected end of file" about. One line, from the tags, LibRaw silent."""
+    path = tmp_path / "huge.dng"
+    path.write_bytes(with_tiff_size(open(phone(tmp_path / "good.dng"), "rb").read(), *size))
+    capfd.readouterr()
+    start = time.process_time()
+    with pytest.raises(CamsimError) as exc:
+        READS[read](path)
+    message = one_line_error(exc, path)
+    assert (f"{size[0]} × {size[1]} pixels, over camsim's limit" if size[0] * size[1] > 200_000_000 else
+            f"declares a {size[0]}x{size[1]} image of 1 sample(s) of 16 bits") in message, message
+    assert time.process_time() - start < 5
+    assert capfd.readouterr() == ("", "")
+
+
+@pytest.mark.parametrize("read", READS)
+def test_libraws_complaint_about_compressed_data_goes_into_the_one_line(tmp_path, capfd, read):
+    """A DNG whose raw IFD says Deflate (8) over uncompressed data: only LibRaw can tell, by decoding; what it
+    prints on stderr is captured into camsim's one line."""
+    path = tmp_path / "deflate.dng"
+    good = open(phone(tmp_path / "good.dng", thumbnail=False), "rb").read()
+    path.write_bytes(with_tiff_size(good, W, H, {COMPRESSION: 8}))
+    capfd.readouterr()
+    if read == "raw_header":  # the header alone (no pixels decoded) does not see it
+        READS[read](path)
+    else:
+        with pytest.raises(CamsimError) as exc:
+            READS[read](path)
+        assert "LibRaw cannot decode its pixels" in one_line_error(exc, path)
+    assert capfd.readouterr() == ("", "")
+
+
+def test_unpacked_raw_reads_stacks_and_mosaics(tmp_path):
+    """The route of ``camsim calibrate``: any layout LibRaw decodes, a three-chip LinearRaw DNG included."""
+    m = mosaic(3)
+    with unpacked_raw(phone(tmp_path / "p.dng", m=m)) as raw:
+        np.testing.assert_array_equal(raw.raw_image_visible, m)
+    stack = np.random.default_rng(2).integers(0, 256, (3, 24, 24)).astype(np.uint8)
+    write_dng(tmp_path / "s.dng", stack, black_level_dn=16, white_level=255, unique_camera_model="cam",
+              color_matrix1=CM1, as_shot_neutral=NEUTRAL)
+    with unpacked_raw(tmp_path / "s.dng") as raw:
+        np.testing.assert_array_equal(raw.raw_image_visible[..., :3], stack.transpose(1, 2, 0))
+
+
+@pytest.fixture(scope="module")
+def camera_dng(tmp_path_factory):
+    """A Bayer DNG of a camera preset camsim knows (Sony ILCE-7SM2), 48 × 32: a [raw] scene's file."""
+    from camsim.cli import main
+
+    out = tmp_path_factory.mktemp("camera") / "frames"
+    assert main(["render", "macbeth_26", "--size", "48x32", "--illuminant", "D65", "--intensity", "1", "--preset",
+                 "sony-a7s2", "--iso", "100", "-q", "--workers", "1", "--out", str(out)]) == 0
+    (dng,) = out.glob("*.dng")
+    return dng.read_bytes()
+
+
+def raw_scene(folder, raw: bytes | None):
+    """A [raw] scene file in ``folder`` over ``src.dng`` holding ``raw`` (None: leave what is there)."""
+    from tests.support.fuzz import RAW_SCENE, to_toml
+
+    folder.mkdir(exist_ok=True)
+    if raw is not None:
+        (folder / "src.dng").write_bytes(raw)
+    (folder / "scene.toml").write_text(to_toml(RAW_SCENE), encoding="utf-8")
+    return folder / "scene.toml"
+
+
+@pytest.mark.parametrize("size", [*HUGE_SIZES, (10000, 10001)])
+def test_render_of_a_raw_scene_with_a_huge_header_is_one_line(tmp_path, capfd, camera_dng, size):
+    from camsim.cli import main
+
+    scene = raw_scene(tmp_path / "scene", with_tiff_size(camera_dng, *size))
+    capfd.readouterr()
+    assert main(["render", str(scene), "--out", str(tmp_path / "out"), "-q"]) == 2
+    out, err = capfd.readouterr()
+    line = one_error_line(err)
+    assert "src.dng" in line and ("over camsim's limit" in line or "uncompressed pixel data holds" in line), line
+    assert not (tmp_path / "out").exists()
+
+
+def test_render_of_a_raw_scene_whose_raw_is_a_fifo_is_one_line(tmp_path):
+    """End to end, in a process of its own (a reader blocked in C on the FIFO would not notice an alarm): refused
+    at once, on one line, nothing written."""
+    import sys
+
+    from tests.support import clock
+
+    scene = raw_scene(tmp_path / "scene", None)
+    not_regular(tmp_path / "scene" / "src.dng", "fifo")
+    done = clock.run([sys.executable, "-m", "camsim", "render", str(scene), "--out", str(tmp_path / "out"), "-q"],
+                     cpu_s=60, capture_output=True, text=True)
+    assert done.returncode == 2 and "it is a FIFO (named pipe)" in one_error_line(done.stderr), done.stderr
+    assert not (tmp_path / "out").exists()
