@@ -34,12 +34,15 @@ import json
 import os
 from pathlib import Path
 
-from camsim.core.errors import output_error
-from camsim.dataset.spec_parts import FrameSpec
+from camsim.core.errors import CamsimError, output_error
+from camsim.core.input_files import open_input, read_input, size_text
+from camsim.dataset.spec_parts import MAX_FRAMES, FrameSpec
 from camsim.io.atomic import atomic_path, write_json_atomic, write_text_atomic
+from camsim.scene.sequence import MAX_FRAMES as MAX_BURST_FRAMES
 
 __all__ = ["FRAMES_DIR", "MANIFEST_NAME", "DONE_SUFFIX", "VERIFY_MODES", "sha256_file", "done_path", "frame_record",
-           "verified_record", "write_manifest", "append_manifest", "read_manifest", "store_result"]
+           "verified_record", "write_manifest", "append_manifest", "read_manifest", "store_result",
+           "MAX_RECORD_BYTES", "MAX_MANIFEST_BYTES"]
 
 FRAMES_DIR = "frames"
 MANIFEST_NAME = "manifest.jsonl"
@@ -50,12 +53,25 @@ VERIFY_MODES = ("sha256", "size")
 READER_OWNED = ("xmp",)
 #: Keys of a record that say how the frame was written, not which frame it is (``burst``: a burst's frames).
 _OUTPUT_KEYS = ("files", "exr_compression", "srgb", "burst")
+#: A frame's record but for a burst's frames: its parameters, seed and files (measured: 1.8 kB). Unit: bytes.
+_FRAME_RECORD_BYTES = 64_000
+#: What each frame of a burst adds to its record: up to seven files (DNG, EXR, JSON, XMP, two sRGB PNGs, a mask),
+#: each a name, a size and a SHA-256 (about 170 bytes). Unit: bytes.
+_BURST_FRAME_BYTES = 2_000
+#: The largest ``.done`` record, or line of the manifest, read: a frame's, with a burst of the most frames a
+#: ``[sequence]`` has (20 MB). Unit: bytes.
+MAX_RECORD_BYTES = _FRAME_RECORD_BYTES + MAX_BURST_FRAMES * _BURST_FRAME_BYTES
+#: A manifest line of a single frame with room for longer names and parameters (measured: 1.5 kB). Unit: bytes.
+_LINE_BYTES = 4_000
+#: The largest manifest read: the lines of the most frames a spec declares (4 GB). A record of a burst is longer,
+#: but its line counts as many frames only as the dataset's items. Unit: bytes.
+MAX_MANIFEST_BYTES = MAX_FRAMES * _LINE_BYTES
 
 
 def sha256_file(path: Path) -> str:
     """SHA-256 of a file's bytes, as hex, read into one reused buffer (:func:`hashlib.file_digest`: 17 ms for a
     24 MB file in the page cache, against 22 ms read in 4 MB chunks)."""
-    with open(path, "rb") as handle:
+    with open_input(path, "frame file") as handle:  # a FIFO or a device in its place is refused, not waited on
         return hashlib.file_digest(handle, "sha256").hexdigest()
 
 
@@ -66,10 +82,10 @@ def done_path(out_dir: Path, frame_id: str) -> Path:
 def frame_record(path: Path, frame: FrameSpec, output_keys) -> dict | None:
     """The record (a ``.done`` file's JSON object) at ``path`` if it describes this very frame — every parameter
     and the seed, the keys ``output_keys`` aside, which say how the frame was written — else None (no record, or
-    not one of this frame)."""
+    not one of this frame; a FIFO, a device or a file over :data:`MAX_RECORD_BYTES` in its place is none)."""
     try:
-        record = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        record = json.loads(read_input(path, "frame record", MAX_RECORD_BYTES).decode("utf-8"))
+    except (CamsimError, OSError, ValueError, RecursionError):  # ValueError: UnicodeDecodeError, JSONDecodeError
         return None
     if not isinstance(record, dict) or {k: v for k, v in record.items() if k not in output_keys} != frame.record:
         return None
@@ -102,7 +118,7 @@ def verified_record(out_dir: Path, frame: FrameSpec, verify: str = "sha256", srg
                 return None
             if verify == "sha256" and sha256_file(path) != entry["sha256"]:
                 return None
-        except (OSError, KeyError, TypeError):
+        except (CamsimError, OSError, KeyError, TypeError):  # CamsimError: not a regular file, rendered again
             return None
     return record
 
@@ -175,9 +191,36 @@ def append_manifest(out_dir: Path, line: bytes) -> None:
 
 
 def read_manifest(out_dir: Path) -> list[dict]:
-    """The manifest's records, in frame order."""
-    text = (Path(out_dir) / MANIFEST_NAME).read_text(encoding="utf-8")
-    return [json.loads(line) for line in text.splitlines() if line.strip()]
+    """The manifest's records, in frame order, read line by line.
+
+    Raises
+    ------
+    CamsimError
+        One line naming the manifest: missing, not a regular file (a FIFO, a device), over
+        :data:`MAX_MANIFEST_BYTES`, a line over :data:`MAX_RECORD_BYTES`, more lines than a dataset has frames
+        (:data:`camsim.dataset.spec_parts.MAX_FRAMES`), or a line that is not a JSON object.
+    """
+    path = Path(out_dir) / MANIFEST_NAME
+    records = []
+    with open_input(path, "dataset manifest", MAX_MANIFEST_BYTES) as handle:
+        for number, line in enumerate(iter(lambda: handle.readline(MAX_RECORD_BYTES + 1), b""), start=1):
+            if len(line) > MAX_RECORD_BYTES:
+                raise CamsimError(f"dataset manifest {path}: line {number} is over the limit of "
+                                  f"{size_text(MAX_RECORD_BYTES)} for a frame's record")
+            if not line.strip():
+                continue
+            if len(records) == MAX_FRAMES:
+                raise CamsimError(f"dataset manifest {path} lists more than {MAX_FRAMES} frames, the most a dataset "
+                                  "has")
+            try:
+                record = json.loads(line.decode("utf-8"))
+            except (ValueError, RecursionError) as exc:  # UnicodeDecodeError, JSONDecodeError, int()'s digit limit
+                raise CamsimError(f"dataset manifest {path}: line {number} is not a frame's record "
+                                  f"({type(exc).__name__}: {str(exc).splitlines()[0][:200]})") from None
+            if not isinstance(record, dict):
+                raise CamsimError(f"dataset manifest {path}: line {number} is not a frame's record (a JSON object)")
+            records.append(record)
+    return records
 
 
 def store_result(out_dir: Path, frame: FrameSpec, result: dict) -> dict:

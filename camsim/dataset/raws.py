@@ -89,6 +89,7 @@ from pathlib import Path
 import numpy as np
 
 from camsim.core.errors import CamsimError
+from camsim.core.input_files import open_input
 from camsim.core.seeding import dataset_parameter_generator
 from camsim.dataset.spec_parts import (
     FACTOR_INDEX,
@@ -199,7 +200,9 @@ class _RawFolder:
 
 
 def _sha256(path: Path) -> str:
-    with open(path, "rb") as handle:
+    """SHA-256 of a raw file's bytes, as hex; a path that no longer names a regular file (replaced by a FIFO since
+    its header was read) is refused on one line rather than waited on."""
+    with open_input(path, "raw file") as handle:
         return hashlib.file_digest(handle, "sha256").hexdigest()
 
 

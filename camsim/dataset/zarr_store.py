@@ -57,6 +57,7 @@ from pathlib import Path
 import numpy as np
 
 from camsim.core.errors import CamsimError, output_error
+from camsim.core.input_files import read_input
 from camsim.dataset.manifest import DONE_SUFFIX, append_manifest, frame_record, manifest_line
 from camsim.dataset.srgb import SRGB_LAYERS
 from camsim.io import atomic  # atomic.fsync_path: one flush, which tests can fail as a full disk does
@@ -66,6 +67,9 @@ __all__ = ["STORE_NAME", "RECORDS_DIR", "LAYERS", "BURST_LAYERS", "SRGB_REFERENC
            "write_done", "frame_arrays", "record_path", "held_srgb"]
 
 STORE_NAME = "dataset.zarr"
+#: The largest root ``zarr.json`` read for what a store holds: the consolidated metadata of its arrays (the layers
+#: and one table per frame parameter: a few hundred of about 2 kB each), with room to spare. Unit: bytes.
+MAX_STORE_METADATA_BYTES = 16_000_000
 RECORDS_DIR = "records"
 #: The arrays of a store of bursts besides the frame arrays (which gain a ``burst_frame`` dimension): each item's
 #: clean reference, its frames' homographies and start times.
@@ -174,11 +178,13 @@ class StoreLayout:
 
 def held_srgb(out_dir: Path) -> str | None:
     """The sRGB output (``png``, ``png16``) of the store in ``out_dir``, read from its metadata; None where there is
-    no store, or one without sRGB arrays."""
+    no store, or one without sRGB arrays (a metadata file that is no regular file of at most
+    :data:`MAX_STORE_METADATA_BYTES` holding JSON counts as none)."""
     try:
-        meta = json.loads((Path(out_dir) / STORE_NAME / "zarr.json").read_text(encoding="utf-8"))
+        path = Path(out_dir) / STORE_NAME / "zarr.json"
+        meta = json.loads(read_input(path, "Zarr store metadata", MAX_STORE_METADATA_BYTES).decode("utf-8"))
         return meta["attributes"]["camsim"]["layout"].get("srgb")
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+    except (CamsimError, OSError, ValueError, RecursionError, KeyError, TypeError, AttributeError):
         return None
 
 

@@ -59,6 +59,8 @@ from pathlib import Path
 import numpy as np
 
 from camsim.core.errors import CamsimError
+from camsim.core.input_files import check_input, open_input
+from camsim.core.pixel_limit import check_pixel_count
 
 __all__ = ["DENOISERS", "Denoiser", "estimate_noise_sigma", "model_noise_sigma", "resolve_denoiser", "COMMAND_PREFIX",
            "SIGMA_BLIND", "SIGMA_MODEL"]
@@ -486,7 +488,7 @@ def _run_in_own_group(args: list[str], timeout_s: float | None, folder: Path) ->
     out_path, err_path = folder / "command.stdout", folder / "command.stderr"
 
     def captured(path):  # the end of what the command wrote (a chatty command may write megabytes)
-        with open(path, "rb") as file:
+        with open_input(path, "denoiser command's output") as file:  # the command may have put a FIFO there
             file.seek(max(0, file.seek(0, os.SEEK_END) - 4 * STDERR_TAIL_CHARS))
             return file.read().decode("utf-8", errors="replace")
 
@@ -535,9 +537,15 @@ def _read_planes_exr(path: Path, template: str) -> np.ndarray:
     """The (h, w, 4) planes of channels R, G1, G2, B of an EXR a ``cmd:`` denoiser wrote."""
     import OpenEXR
 
+    check_input(path, f"EXR the denoiser command {template!r} wrote")  # a FIFO there would block OpenEXR
     try:
+        with OpenEXR.File(str(path), header_only=True) as exr:  # the size, before the pixels are decoded
+            (x0, y0), (x1, y1) = ((int(v) for v in corner) for corner in exr.header()["dataWindow"])
+        check_pixel_count(x1 - x0 + 1, y1 - y0 + 1, f"EXR the denoiser command {template!r} wrote")
         with OpenEXR.File(str(path), separate_channels=True) as exr:
             found = {k: np.array(v.pixels) for k, v in exr.channels().items()}
+    except CamsimError:
+        raise
     except Exception as exc:
         raise CamsimError(f"denoiser command {template!r} wrote an unreadable EXR: {type(exc).__name__}: "
                           f"{exc}") from None

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from camsim.core.errors import CamsimError
+from camsim.core.input_files import open_input
 from camsim.io.atomic import atomic_path
 
 __all__ = ["PNG_TEXT_KEY", "PNG_COMPRESS_LEVEL", "JPEG_SUBSAMPLING", "write_png", "write_jpeg", "encode_image",
@@ -95,19 +96,39 @@ def write_png(path, image, bits: int = 8, record: dict | None = None, compress_l
         Path(tmp).write_bytes(data)
 
 
+#: The longest tEXt chunk :func:`read_png_record` reads (a development's record is a few kB). Unit: bytes.
+MAX_RECORD_TEXT_BYTES = 16_000_000
+
+
 def read_png_record(path) -> dict | None:
-    """The record a PNG written by :func:`write_png` carries (None when it has none)."""
-    data = Path(path).read_bytes()
-    pos = 8
+    """The record a PNG written by :func:`write_png` carries (None when it has none).
+
+    The chunks are walked in the file, the pixels' skipped over (not read): a developed 200-megapixel PNG is not
+    read into memory to find its record.
+
+    Raises
+    ------
+    CamsimError
+        A path that is not a regular file (a FIFO, a device), or a ``camsim:develop`` chunk over
+        :data:`MAX_RECORD_TEXT_BYTES`.
+    """
     key = PNG_TEXT_KEY.encode("latin-1") + b"\0"
-    while pos + 8 <= len(data):
-        (length,), kind = struct.unpack(">I", data[pos:pos + 4]), data[pos + 4:pos + 8]
-        body = data[pos + 8:pos + 8 + length]
-        if kind == b"tEXt" and body.startswith(key):
-            return json.loads(body[len(key):].decode("latin-1"))
-        if kind == b"IEND":
-            break
-        pos += 12 + length
+    with open_input(path, "PNG") as handle:
+        handle.seek(8)
+        while len(head := handle.read(8)) == 8:
+            (length,), kind = struct.unpack(">I", head[:4]), head[4:]
+            if kind == b"tEXt" and length > MAX_RECORD_TEXT_BYTES:
+                raise CamsimError(f"PNG {path}: a tEXt chunk of {length} bytes, over the limit of "
+                                  f"{MAX_RECORD_TEXT_BYTES} for a development's record")
+            if kind == b"tEXt":
+                body = handle.read(length)
+                if body.startswith(key):
+                    return json.loads(body[len(key):].decode("latin-1"))
+                handle.seek(4, 1)  # its CRC
+            elif kind == b"IEND":
+                break
+            else:
+                handle.seek(length + 4, 1)
     return None
 
 

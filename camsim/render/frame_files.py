@@ -33,7 +33,7 @@ import numpy as np
 import camsim
 from camsim.colour.rawcolour import CALIBRATION_ILLUMINANT_D65
 from camsim.core.errors import CamsimError, output_error
-from camsim.core.input_files import read_input
+from camsim.core.input_files import check_input, read_input
 from camsim.core.names import MAX_STEM_BYTES, safe_component
 from camsim.io.atomic import undo_on_failure, write_json_atomic, write_text_atomic
 from camsim.io.dng import DARKTABLE_XMP_SUFFIX, darktable_xmp, read_dng, write_dng, write_dng_cfa
@@ -592,6 +592,18 @@ def _search_folder(folder: Path, found: dict, bad: list, uncommitted: list) -> N
             uncommitted.append(path)
 
 
+def _not_a_file(path: Path) -> str:
+    """Why ``path``, neither a folder nor a regular file, is no frame: it does not exist, or what it is (a FIFO, a
+    device, a socket; :func:`camsim.core.input_files.check_input` says, without waiting on it)."""
+    if not os.path.exists(path):
+        return "no such file or folder"
+    try:
+        check_input(path, "frame file")
+    except CamsimError as exc:
+        return str(exc).removeprefix(f"cannot read frame file {path}: ")
+    return "not a regular file"  # it has become one since it was looked at: judged as it was then
+
+
 def search_frames(paths, source: str = "dng") -> FrameSearch:
     """The frame files named by ``paths``: files, or folders searched recursively for committed frames.
 
@@ -609,7 +621,7 @@ def search_frames(paths, source: str = "dng") -> FrameSearch:
         if entry.is_dir():
             _search_folder(entry, found, bad, uncommitted)
         elif not entry.is_file():
-            bad.append((entry, "no such file or folder"))
+            bad.append((entry, _not_a_file(entry)))
         elif entry.suffix.lower().lstrip(".") not in PIXEL_FILE_KINDS:
             bad.append((entry, "not a frame file (.dng or .exr)"))
         else:

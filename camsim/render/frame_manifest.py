@@ -21,12 +21,23 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from camsim.core.errors import CamsimError
+from camsim.core.input_files import read_input
 from camsim.io.atomic import write_json_atomic
 from camsim.render.frame_files import SIDECAR_SUFFIX, FrameInfo
+from camsim.render.sidecar_schema import MAX_SIDECAR_BYTES
 
-__all__ = ["MANIFEST_NAME", "FrameManifest", "manifest_entry"]
+__all__ = ["MANIFEST_NAME", "MAX_MANIFEST_BYTES", "FrameManifest", "manifest_entry"]
 
 MANIFEST_NAME = "manifest.json"
+#: The most bytes of one frame's entry: six keys, its scene's and illuminant's names and up to five file names of
+#: up to 200-byte stems (measured: 0.4 kB). Unit: bytes.
+_ENTRY_BYTES = 2_000
+#: The most frames an earlier manifest is read for: a ``[sequence]`` of its most frames (10 000) and its reference,
+#: twice over. Unit: frames.
+_LISTED_FRAMES = 20_000
+#: The largest earlier manifest read (40 MB); a larger one (or a FIFO, a device in its place) is passed over as an
+#: unreadable one is, and the manifest is made again from the committed frames' sidecars. Unit: bytes.
+MAX_MANIFEST_BYTES = _ENTRY_BYTES * _LISTED_FRAMES
 _ENTRY_KEYS = ("scene", "illuminant", "intensity_factor", "seed", "photon_statistics", "method")
 
 
@@ -41,16 +52,17 @@ def manifest_entry(meta: dict) -> dict:
             **{key: meta[key] for key in _SEQUENCE_ENTRY_KEYS if key in meta}, "files": meta["files"]}
 
 
-def _read_json(path: Path):
+def _read_json(path: Path, what: str, max_bytes: int):
+    """The JSON value in ``path``, or None where it is not a regular file of at most ``max_bytes`` holding JSON."""
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
+        return json.loads(read_input(path, what, max_bytes).decode("utf-8"))
+    except (CamsimError, OSError, ValueError, RecursionError):  # ValueError: UnicodeDecodeError, JSONDecodeError
         return None
 
 
 def _committed_sidecar(path: Path) -> dict | None:
     """The sidecar at ``path`` if it is a camsim frame's commit record naming itself, else None."""
-    meta = _read_json(path)
+    meta = _read_json(path, "sidecar", MAX_SIDECAR_BYTES)
     if not isinstance(meta, dict) or "camsim_version" not in meta or not isinstance(meta.get("files"), dict):
         return None
     return meta if meta["files"].get("json") == path.name else None
@@ -72,7 +84,7 @@ class FrameManifest:
         self.scene = scene
         self.entries: dict[str, dict | None] = {}  # sidecar name → entry (None: being re-written), in order
         self._unwritten = False  # whether the entries changed since the manifest was last written in full
-        earlier = _read_json(self.out_dir / MANIFEST_NAME)
+        earlier = _read_json(self.out_dir / MANIFEST_NAME, "manifest", MAX_MANIFEST_BYTES)
         listed = earlier.get("frames") if isinstance(earlier, dict) else None
         for entry in listed if isinstance(listed, list) else ():
             name = entry.get("files", {}).get("json") if isinstance(entry, dict) else None

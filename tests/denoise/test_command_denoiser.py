@@ -120,3 +120,23 @@ def test_an_interrupt_kills_the_commands_children(tmp_path):
         watcher.join()
         signal.signal(signal.SIGALRM, previous)
     assert _gone(_child_pid(pid_file))
+
+
+@pytest.mark.parametrize("planes", [3, 4])
+def test_an_output_exr_over_the_pixel_limit_is_refused_from_its_header(tmp_path, capfd, planes):
+    """The EXR a command writes is input too: one whose dataWindow declares 10¹⁰ pixels is refused from its header,
+    on one line, before OpenEXR decodes (or allocates) a pixel; OpenEXR says nothing on the terminal."""
+    from camsim.io.exr import write_exr
+    from tests.support.hostile_files import with_exr_window
+
+    small = tmp_path / "small.exr"
+    write_exr(small, np.zeros((3, 8, 8), np.float32), None, None)
+    big = tmp_path / "big.exr"
+    big.write_bytes(with_exr_window(small.read_bytes(), 100000, 100000))
+    denoiser = resolve_denoiser(f"cmd:sh -c 'cp \"$0\" \"$1\"' {big} {{output}} {{input}}")
+    capfd.readouterr()
+    with pytest.raises(CamsimError) as exc:
+        denoiser.function(np.zeros((8, 8, planes), np.float32), None)
+    message = str(exc.value)
+    assert "\n" not in message and "100000 × 100000 pixels, over camsim's limit" in message, message
+    assert capfd.readouterr() == ("", "")

@@ -429,3 +429,33 @@ def test_encoding_clips_and_takes_nan_as_black():
     image = np.array([np.nan, np.inf, -np.inf, -0.2, 0.5, 1.7], dtype=np.float32).reshape(1, 1, 6).repeat(3, axis=0)
     assert encode_image(image, 8)[0, :, 0].tolist() == [0, 255, 0, 0, 128, 255]
     assert encode_image(image, 16)[0, :, 1].tolist() == [0, 65535, 0, 0, 32768, 65535]
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "directory"])
+def test_a_png_record_of_a_path_that_is_no_regular_file_is_refused_not_waited_on(tmp_path, kind):
+    from tests.support.hostile_files import no_hang, not_regular
+
+    path = not_regular(tmp_path / "x.png", kind)
+    with no_hang(f"read_png_record of a {kind}"), pytest.raises(CamsimError, match="not a regular file"):
+        isp.read_png_record(path)
+
+
+def test_a_png_record_is_found_past_the_pixels_and_bounded(tmp_path, monkeypatch):
+    """The chunks are walked (a record after the pixels is found, the pixels skipped over); a tEXt chunk over
+    the limit is refused from its length, before it is read."""
+    import struct
+    import zlib
+
+    from camsim.isp import writers
+
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    ihdr = struct.pack(">IIBBBBB", 2, 1, 8, 2, 0, 0, 0)
+    text = b"camsim:develop\0" + json.dumps({"a": 1}).encode()
+    body = chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(bytes(7) * 2)) + chunk(b"tEXt", b"other\0x")
+    (tmp_path / "x.png").write_bytes(b"\x89PNG\r\n\x1a\n" + body + chunk(b"tEXt", text) + chunk(b"IEND", b""))
+    assert isp.read_png_record(tmp_path / "x.png") == {"a": 1}
+    monkeypatch.setattr(writers, "MAX_RECORD_TEXT_BYTES", 10)
+    with pytest.raises(CamsimError, match="over the limit of 10"):
+        isp.read_png_record(tmp_path / "x.png")

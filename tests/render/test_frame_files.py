@@ -149,3 +149,55 @@ def test_sidecar_patch_xyz_is_the_lights_colour(rendered):
         white = np.array(sidecar["patches"][18]["xyz_cd_m2"])
         # the ColorChecker white reflects ~ 88–90 % of a 100 cd/m² perfect white, scaled by F
         assert 85 * entry["intensity_factor"] < white[1] < 92 * entry["intensity_factor"]
+
+
+# --- a frame folder with files that are not regular ---------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def two_frames(tmp_path_factory):
+    """A folder of two committed frames (DNG, EXR, JSON each) at F = 1 and 0.5."""
+    from camsim.cli import main
+
+    out = tmp_path_factory.mktemp("two") / "frames"
+    assert main(["render", "macbeth_26", "--size", "96x64", "--illuminant", "D65", "--intensity", "1", "0.5", "-q",
+                 "--workers", "1", "--out", str(out)]) == 0
+    return out
+
+
+@pytest.mark.parametrize("command", ["analyze", "develop", "denoise-eval"])
+@pytest.mark.parametrize("suffix", [".dng", ".exr"])
+def test_a_fifo_by_a_frame_files_name_in_a_folder_blocks_no_command(two_frames, tmp_path, capfd, command,
+                                                                   suffix):
+    """A FIFO named as a committed frame's DNG or EXR (its sidecar claims it) in a folder searched for frames: the
+    search takes regular files only, so no reader opens it (one would wait for a writer forever); the other frame
+    is read as usual."""
+    import shutil
+
+    from camsim.cli import main
+    from tests.support.hostile_files import no_hang, not_regular
+
+    folder = tmp_path / "frames"
+    shutil.copytree(two_frames, folder)
+    (victim,) = folder.glob(f"*F0.5{suffix}")
+    not_regular(victim, "fifo")
+    argv = {"analyze": ["analyze", str(folder), "--border", "0", "--out", str(tmp_path / "out")],
+            "develop": ["develop", str(folder), "--out", str(tmp_path / "out")],
+            "denoise-eval": ["denoise-eval", str(folder), "--denoiser", "identity", "--out", str(tmp_path / "out")]}
+    capfd.readouterr()
+    with no_hang(f"{command} of a folder with a FIFO {victim.name}", seconds=120):
+        status = main([*argv[command], "-q"])
+    _, err = capfd.readouterr()
+    assert status == 0, err
+    assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device"])
+def test_a_frame_named_that_is_no_regular_file_is_named_as_such(tmp_path, capfd, kind):
+    from camsim.cli import main
+    from tests.support.hostile_files import not_regular, one_error_line
+
+    path = not_regular(tmp_path / "x.dng", kind)
+    capfd.readouterr()
+    assert main(["develop", str(path), "--out", str(tmp_path / "out"), "-q"]) == 2
+    what = "a FIFO (named pipe)" if kind == "fifo" else "a character device"
+    assert one_error_line(capfd.readouterr().err) == f"camsim: error: {path}: it is {what}, not a regular file"
