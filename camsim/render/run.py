@@ -27,6 +27,7 @@ def check_scene(scene: Scene) -> None:
         from camsim.render.optics import check_optics_scene
 
         check_optics_scene(scene)
+    check_map_files(scene)
     if scene.source.table == "raw":
         from camsim.render.raw_render import check_raw_scene
 
@@ -46,6 +47,22 @@ def check_scene(scene: Scene) -> None:
             where = f"{scene.source.table} scene's frame" if own else "frame"
             raise CamsimError(f"{where} {width}x{height} is smaller than {MIN_SIZE}x{MIN_SIZE} pixels, which raw "
                               "readers (LibRaw) refuse")
+
+
+def check_map_files(scene: Scene) -> None:
+    """Load the sensor's map files (cached for the frames) and check them, their shape against the frame's and
+    their values against their parameters' bounds, before a frame's warning is said: a bad map is then the one line
+    a render prints."""
+    from camsim.sensor.fixed_pattern import load_pixel_map
+    from camsim.sensor.params import MAP_FILE_PARAMS
+
+    paths = {name: getattr(scene.sensor, name) for name in MAP_FILE_PARAMS}
+    if not any(paths.values()):
+        return
+    size = scene.source.own_size() if scene.source.has_own_size else (scene.width, scene.height)
+    for name, path in paths.items():
+        if path is not None:
+            load_pixel_map(path, scene.sensor, (size[1], size[0]), name)
 
 
 def scene_warnings(scene: Scene) -> list[str]:

@@ -46,6 +46,7 @@ Issue 28's fixed patterns, each from its own child of the sensor's fixed-pattern
 from __future__ import annotations
 
 import math
+import os
 import threading
 from dataclasses import dataclass
 from functools import lru_cache
@@ -55,7 +56,7 @@ import numpy as np
 
 from camsim.core.errors import CamsimError
 from camsim.core.seeding import fixed_pattern_generator, fixed_pattern_generators
-from camsim.sensor.params import SensorParams
+from camsim.sensor.params import CHARGE_MAX_E, DARK_CHARGE_MAX_E, DARK_CURRENT_MAX_E_PER_S, SensorParams
 
 
 @dataclass(frozen=True)
@@ -210,13 +211,19 @@ def _load_map(path: str, mtime_ns: int, what: str) -> np.ndarray:
     return array
 
 
+def _map_mtime(path, what: str) -> int:
+    """The modification time of a map file (the key of its cached load), once the path is known to name a regular
+    file (:func:`camsim.core.input_files.open_input`: not a FIFO, a device, a directory or a path with a NUL byte).
+    Unit: ns."""
+    from camsim.core.input_files import open_input
+
+    with open_input(path, what) as handle:
+        return os.fstat(handle.fileno()).st_mtime_ns
+
+
 def map_file_extreme(path: str, what: str) -> float:
     """The largest |value| of a map file (loaded once, as :func:`load_pixel_map` loads it). Unit: the map's."""
-    try:
-        mtime = Path(path).stat().st_mtime_ns
-    except OSError as exc:
-        raise CamsimError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
-    array = _load_map(str(path), mtime, what)
+    array = _load_map(str(path), _map_mtime(path, what), what)
     return float(np.max(np.abs(array), initial=0.0))
 
 
@@ -230,11 +237,8 @@ def load_pixel_map(path: str, sensor: SensorParams, shape: tuple, what: str) -> 
     CamsimError
         A file that cannot be read, holds non-finite or non-numbers, or whose shape does not match the frame's.
     """
-    try:
-        mtime = Path(path).stat().st_mtime_ns
-    except OSError as exc:
-        raise CamsimError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
-    array = _load_map(str(path), mtime, what)
+    array = _load_map(str(path), _map_mtime(path, what), what)
+    _check_map_values(array, path, sensor, what)
     height, width = shape
     if array.shape == (height, width):
         return array[None] if sensor.cfa is not None else np.broadcast_to(array, (3, height, width))
@@ -242,6 +246,30 @@ def load_pixel_map(path: str, sensor: SensorParams, shape: tuple, what: str) -> 
         return array
     wanted = f"({height}, {width})" + ("" if sensor.cfa is not None else f" or (3, {height}, {width})")
     raise CamsimError(f"{what} {path} has shape {array.shape}, the frame needs {wanted}")
+
+
+#: A map's values have the bounds of the parameter they add to (:mod:`camsim.sensor.params`): map name → (largest
+#: magnitude, unit).
+MAP_BOUNDS = {"dark_shading_map": (CHARGE_MAX_E, "e⁻"), "hot_pixel_map": (DARK_CURRENT_MAX_E_PER_S, "e⁻/s")}
+
+
+def _check_map_values(array: np.ndarray, path, sensor: SensorParams, what: str) -> None:
+    """Refuse a map whose values pass its parameter's bounds (:data:`MAP_BOUNDS`), or a hot-pixel map whose extra
+    dark charge in the exposure passes :data:`camsim.sensor.params.DARK_CHARGE_MAX_E`, as the parameters themselves
+    are refused: a value of 1e300 would overflow the float32 maps (and float64's squares)."""
+    bound, unit = MAP_BOUNDS.get(what, (None, ""))
+    if bound is None:
+        return
+    extreme = float(np.max(np.abs(array), initial=0.0))
+    if extreme > bound:
+        raise CamsimError(f"{what} {path} holds a value of magnitude {extreme:.3g} {unit}, beyond the {bound:g} {unit} "
+                          "its parameter allows")
+    if what == "hot_pixel_map":
+        charge = extreme * sensor.temperature_factor * sensor.exposure_s
+        if charge > DARK_CHARGE_MAX_E:
+            raise CamsimError(f"{what} {path} gives a dark charge of {charge:.3g} e⁻ in the {sensor.exposure_s:g} s "
+                              f"exposure, over {DARK_CHARGE_MAX_E:.3g} e⁻ (2⁵³, beyond which float64 no longer "
+                              "counts electrons)")
 
 
 def _defects(sensor: SensorParams, planes: int, shape: tuple):
@@ -291,7 +319,7 @@ def _effect_key(sensor: SensorParams) -> tuple:
 def _mtime(path) -> int | None:
     try:
         return None if path is None else Path(path).stat().st_mtime_ns
-    except OSError:
+    except (OSError, ValueError):  # ValueError: a NUL byte in the path
         return None  # refused where the map is loaded, with the reason
 
 

@@ -127,3 +127,37 @@ def test_a_prnu_beyond_20_percent_clips_its_gains_at_zero_and_renders(scene):
     share, n = np.mean(gain == 0), gain.size
     tail = stats.norm.cdf(-1 / 0.29)
     assert abs(share - tail) < 5 * np.sqrt(tail * (1 - tail) / n) + 1 / n
+
+
+@pytest.mark.parametrize("name, value, message", [
+    ("dark_shading_map", 1e300, "holds a value of magnitude 1e+300 e⁻, beyond the 1e+08 e⁻ its parameter allows"),
+    ("dark_shading_map", -1e300, "holds a value of magnitude 1e+300 e⁻, beyond the 1e+08 e⁻"),
+    ("hot_pixel_map", 1e300, "holds a value of magnitude 1e+300 e⁻/s, beyond the 1e+10 e⁻/s"),
+    ("hot_pixel_map", 1e10, "gives a dark charge of 1e+16 e⁻ in the 1e+06 s exposure, over 9.01e+15 e⁻"),
+])
+def test_a_maps_values_have_their_parameters_bounds(tmp_path, capsys, name, value, message):
+    """A map file adds to its parameter (dark_shading_e's pattern, hot pixels' dark current): its values are bounded
+    as the parameter is, on one line through the command line, instead of overflowing the float32 maps."""
+    from camsim.cli import main
+
+    np.save(tmp_path / "map.npy", np.full((40, 60), value))
+    out = tmp_path / "out"
+    rc = main(["render", "macbeth_26", "--size", "60x40", "-F", "1", "--illuminant", "D65", "-q", "--out", str(out),
+               "--sensor", f'{name}="{tmp_path / "map.npy"}"', "--sensor", "exposure_s=1e6"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1 and message in err, err
+    assert not list(out.glob("*.json")) if out.exists() else True
+
+
+def test_a_map_at_its_bounds_renders_finite_values(tmp_path):
+    from camsim.cli import main
+    from camsim.io.exr import read_exr
+
+    np.save(tmp_path / "shade.npy", np.full((40, 60), -1e8))
+    np.save(tmp_path / "hot.npy", np.full((40, 60), 1e9))
+    out = tmp_path / "out"
+    assert main(["render", "macbeth_26", "--size", "60x40", "-F", "1", "--illuminant", "D65", "-q", "--out", str(out),
+                 "--sensor", f'dark_shading_map="{tmp_path / "shade.npy"}"',
+                 "--sensor", f'hot_pixel_map="{tmp_path / "hot.npy"}"']) == 0
+    noisy, clean, _ = read_exr(out / "macbeth_26_D65_F1.exr")
+    assert np.all(np.isfinite(noisy)) and np.all(np.isfinite(clean))
