@@ -7,9 +7,15 @@ no file written, changed or removed outside the output folder; no ``*.partial`` 
 case still working at the runner's wall-clock backstop (20 × the CPU limit) skips the test: the machine was too
 busy to judge it.
 
+The second round of hostile inputs has one test per family (:data:`tests.support.fuzz.SECOND_ROUND`), run for
+each kind that has it: special files (FIFO, devices, folder, socket, self-link, sparse file) at every path camsim
+reads, control characters in every string that becomes a path, extreme numbers, huge sidecar lists, oversized
+sidecars, headers that declare huge images; fewer cases each (:data:`SECOND_ROUND_EXAMPLES`), as they are many.
+
 The cases are derandomized (the same on every machine). ``CAMSIM_FUZZ_EXAMPLES=N`` sets the cases per test
-(default :data:`EXAMPLES`); ``CAMSIM_FUZZ_SHRINK=1`` shrinks a failing case to its smallest edit (by default it is
-printed as drawn). The long run is ``tools/fuzz_cli.py``.
+(default :data:`EXAMPLES`, and :data:`SECOND_ROUND_EXAMPLES` for the second round's); ``CAMSIM_FUZZ_SHRINK=1``
+shrinks a failing case to its smallest edit (by default it is printed as drawn). The long run is
+``tools/fuzz_cli.py``.
 
 Tests that fail until a numbered point of issue 24 is fixed are marked ``@xfail(N, ...)`` (not strict) with that
 point; remove the line once the fix is merged.
@@ -36,6 +42,11 @@ from tests.support.profiles import examples
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the fuzz runner needs Linux")
 
 EXAMPLES = int(os.environ.get("CAMSIM_FUZZ_EXAMPLES", str(examples(20))))
+#: Cases per (kind, family) test of the second round: 28 of them; a huge-list or oversized sidecar case writes and
+#: reads tens of MB, so those families get fewer.
+SECOND_ROUND_EXAMPLES = {family: int(os.environ.get("CAMSIM_FUZZ_EXAMPLES", str(examples(n))))
+                         for family, n in (("special", 12), ("controls", 12), ("numbers", 12), ("lists", 6),
+                                           ("oversize", 4), ("headers", 12))}
 SHRINK = os.environ.get("CAMSIM_FUZZ_SHRINK") == "1"
 TIME_LIMIT = 10.0  # s of CPU time per case (a tiny case takes about 0.1 s, the slowest seed case about 2 s)
 MEMORY_LIMIT_MB = 1536
@@ -56,11 +67,11 @@ def cases(kind: str, family: str):
     return st.deferred(lambda: fuzz.case_strategy(seeds(), kind, family))
 
 
-def fuzz_settings():
+def fuzz_settings(max_examples: int = EXAMPLES):
     """Derandomized settings; no shrinking unless ``CAMSIM_FUZZ_SHRINK=1`` (a failing case is printed as drawn: its
     1 to 3 edits; shrinking it costs tens of runs, too many for an xfail test in every ``make test``)."""
     phases = [Phase.explicit, Phase.generate] + ([Phase.shrink] if SHRINK else [])
-    return settings(max_examples=EXAMPLES, derandomize=True, database=None, deadline=None, phases=phases,
+    return settings(max_examples=max_examples, derandomize=True, database=None, deadline=None, phases=phases,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                            HealthCheck.filter_too_much, HealthCheck.large_base_example])
 
@@ -140,6 +151,65 @@ def test_the_runner_calls_a_case_that_makes_no_progress_a_hang(tmp_path):
     assert result.cpu_s < 1.0
 
 
+def _open_a_fifo(argv):
+    """What a reader that trusts a path does with a FIFO: open it to read, which waits for a writer forever."""
+    with open("in/pipe", "rb") as handle:  # the case runs in its scratch folder
+        handle.read()
+
+
+@pytest.mark.slow
+def test_the_runner_calls_a_case_blocked_opening_a_fifo_a_hang(tmp_path):
+    """A case blocked in open() uses no CPU time: the runner's no-progress judge stops it (and so the fuzz run
+    itself never waits on a FIFO), long before the wall-clock backstop."""
+    case = fuzz.Case("scene", {}, [], specials={"pipe": "fifo"})
+    result = fuzz.run_case(case, tmp_path / "case", time_limit=1, main=_open_a_fifo)
+    assert result.outcome == "hang", result.summary()
+    assert result.cpu_s < 1.0 and result.seconds < fuzz.BACKSTOP_FACTOR
+
+
+def test_prepare_makes_each_special_file(tmp_path):
+    """Each special file is what it says, where it says (a name ``{OUT}/...`` in the output folder), and a sparse
+    one keeps the bytes written before its holes."""
+    import stat
+
+    specials = {"fifo": "fifo", "zero": "/dev/zero", "null": "/dev/null", "dir": "dir", "sock": "socket",
+                "loop": "loop", "big": "sparse", "text": "sparse:4096", "{OUT}/manifest.json": "fifo"}
+    case = fuzz.Case("scene", {"text": b"{}", "fifo": b"never written"}, [], specials=specials)
+    inp, out = fuzz.prepare(case, tmp_path / "case")
+    kinds = {name: (inp / name).lstat().st_mode for name in specials if not name.startswith("{OUT}")}
+    assert stat.S_ISFIFO(kinds["fifo"]) and stat.S_ISDIR(kinds["dir"]) and stat.S_ISSOCK(kinds["sock"])
+    assert os.readlink(inp / "zero") == "/dev/zero" and os.readlink(inp / "null") == "/dev/null"
+    assert os.readlink(inp / "loop") == "loop"
+    assert (inp / "big").stat().st_size == fuzz.SPARSE_BYTES and (inp / "big").stat().st_blocks < 64
+    assert (inp / "text").read_bytes()[:3] == b"{}\0" and (inp / "text").stat().st_size == 4096
+    assert stat.S_ISFIFO((out / "manifest.json").lstat().st_mode)
+
+
+@pytest.mark.parametrize("char", fuzz.CONTROL_CHARS)
+def test_toml_and_json_keep_control_characters_in_keys_and_paths(char):
+    """A control character reaches camsim as written: TOML's and JSON's escapes (``\\u0000``, ``\\u007f``), not
+    the raw character, which TOML forbids in a string."""
+    import json
+    import tomllib
+
+    doc = {"name" + char: {"path": "a" + char + "b.png"}}
+    assert tomllib.loads(fuzz.to_toml(doc)) == doc
+    assert json.loads(fuzz.to_json(doc)) == doc
+    assert char not in fuzz.to_toml(doc).removesuffix("\n")  # (the line's own end aside)
+
+
+def test_a_repeated_list_is_that_many_entries_within_its_budget():
+    import json
+
+    doc = fuzz.apply_tree_ops(seeds().sidecar, [("repeat", ("patches",), fuzz.LIST_REPEAT)])
+    text = fuzz.to_json(doc)
+    patches = json.loads(text)["patches"]
+    assert len(patches) % 24 == 0 and len(patches) > 10**5  # × 10⁵ cut to the budget: still over 10⁵ entries
+    assert fuzz.LIST_TEXT_BUDGET // 2 < len(text) < fuzz.LIST_TEXT_BUDGET + 2**20
+    filled = fuzz.apply_tree_ops(seeds().sidecar, [("fill", ("noise_profile",), 10**6, "[0, 0]")])
+    assert json.loads(fuzz.to_json(filled))["noise_profile"] == [[0, 0]] * 10**6
+
+
 @pytest.mark.slow
 def test_the_runner_calls_a_case_still_working_at_the_backstop_busy(tmp_path):
     """Busy is no finding: the suite skips such a case (the machine was too busy to judge it)."""
@@ -149,13 +219,17 @@ def test_the_runner_calls_a_case_still_working_at_the_backstop_busy(tmp_path):
     assert result.outcome not in fuzz.GOOD and result.seconds >= 3
 
 
+def _allocate_290_mb(argv):
+    """What a 12 MP float64 layer needs, allocated and touched: camsim itself now refuses such a frame up front when
+    the address-space limit cannot hold it, so the runner's limit is tested on a case that does not ask first."""
+    bytearray(290 * 2**20)
+
+
 @pytest.mark.slow
 def test_the_runner_limits_memory(tmp_path):
-    """A 4000 × 3000 render (three float64 layers of 12 MP: about 290 MB each) with 64 MB of address space to spare
-    cannot allocate its frame."""
-    case = fuzz.Case("scene", {}, ["render", "macbeth_26", "--size", "4000x3000", "--illuminant", "D65",
-                                   "--intensity", "1", "--out", "{OUT}", "-q", "--workers", "1"])
-    result = fuzz.run_case(case, tmp_path / "case", memory_limit_mb=64)
+    """A case that allocates 290 MB with 64 MB of address space to spare fails its allocation: ``memory``."""
+    case = fuzz.Case("scene", {}, [])
+    result = fuzz.run_case(case, tmp_path / "case", memory_limit_mb=64, main=_allocate_290_mb)
     assert result.outcome == "memory", result.summary()
 
 
@@ -286,3 +360,69 @@ def test_develop_on_a_dng_whose_as_shot_neutral_has_255_values_is_refused_on_one
     case = fuzz.make_case(seeds(), "dng", [("tag", (310, 50728), "count", 255)], choice=1)
     result = fuzz.run_case(case, tmp_path / "case", time_limit=TIME_LIMIT, memory_limit_mb=MEMORY_LIMIT_MB)
     assert result.outcome == "refused", f"{case!r}: {result.summary()}"
+
+
+# --------------------------------------------------------------------------------------------------------------
+# The second round: one test per family, for each kind that has it (tests.support.fuzz.SECOND_ROUND)
+# --------------------------------------------------------------------------------------------------------------
+
+
+def second_round(family: str, kind: str, data) -> None:
+    check(data.draw(fuzz.case_strategy(seeds(), kind, family), label=f"{kind} case"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", fuzz.kinds_of("special"))
+@fuzz_settings(SECOND_ROUND_EXAMPLES["special"])
+@given(data=st.data())
+def test_fuzz_special_files(kind, data):
+    """A FIFO, /dev/zero, /dev/null, a folder, a socket, a link to itself or an 8 GiB sparse file where camsim
+    reads a file: refused on one line, at once (a FIFO never blocks it, /dev/zero never feeds it)."""
+    second_round("special", kind, data)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", fuzz.kinds_of("controls"))
+@fuzz_settings(SECOND_ROUND_EXAMPLES["controls"])
+@given(data=st.data())
+def test_fuzz_control_characters(kind, data):
+    """NUL, \\x01, \\n, \\r, ESC or DEL in a name that becomes a file's or in a path (in a file or on the command
+    line): accepted, or refused on one line (a newline in a path printed as it is makes two)."""
+    second_round("controls", kind, data)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", fuzz.kinds_of("numbers"))
+@fuzz_settings(SECOND_ROUND_EXAMPLES["numbers"])
+@given(data=st.data())
+def test_fuzz_extreme_numbers(kind, data):
+    """±1e300, ±1e-300, 5e-324 and ±1.7976931348623157e308 in every number, or in one to three."""
+    second_round("numbers", kind, data)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", fuzz.kinds_of("lists"))
+@fuzz_settings(SECOND_ROUND_EXAMPLES["lists"])
+@given(data=st.data())
+def test_fuzz_huge_sidecar_lists(kind, data):
+    """A sidecar's list × 10⁵, or millions of entries, in a file under the 64 MB limit."""
+    second_round("lists", kind, data)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", fuzz.kinds_of("oversize"))
+@fuzz_settings(SECOND_ROUND_EXAMPLES["oversize"])
+@given(data=st.data())
+def test_fuzz_oversized_sidecars(kind, data):
+    """A sidecar over 64 MB: padded, one huge string, or followed by holes."""
+    second_round("oversize", kind, data)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", fuzz.kinds_of("headers"))
+@fuzz_settings(SECOND_ROUND_EXAMPLES["headers"])
+@given(data=st.data())
+def test_fuzz_huge_headers(kind, data):
+    """A DNG, TIFF, PNG, EXR, .npy, ENVI or .mat header that declares 10⁸ to 10¹⁰ pixels, in a tiny file or a
+    sparse one of the declared size."""
+    second_round("headers", kind, data)

@@ -6,13 +6,18 @@ Seeds
     :func:`build_seeds` renders tiny frames once (a 48 × 32 ColorChecker: DNG, EXR, sidecar JSON) and prepares the
     other seed inputs: the built-in scene files and the built-in dataset spec ``denoise_small`` shrunk to one tiny
     frame, a camera preset file, a 48 × 32 PNG (written here, chunk by chunk, so that header edits keep valid CRCs)
-    and a ``.npy`` reflectance cube.
+    and a ``.npy`` reflectance cube; a dark frame, and (made per case) a TIFF, the cube as ENVI and MATLAB v5
+    files and ``.npy`` pixel maps, also written here byte by byte, so that their headers can say anything.
 Mutators
     Hypothesis strategies (:func:`case_strategy`) edit a seed structurally: TOML and JSON trees (delete a key,
     replace a value by another type or an extreme number, add a key, nest 3 000 deep, path-like names), binary
     files (byte flips, truncations, DNG tag entries, PNG IHDR fields, EXR header attributes, the ``.npy`` header's
-    shape and dtype), so that a failure shrinks to a small edit. A :class:`Case` is the files of one run and its
-    ``argv``; ``{IN}``, ``{OUT}`` and ``{ROOT}`` in them stand for the case's input folder, output folder and
+    shape and dtype), so that a failure shrinks to a small edit. The second round's families
+    (:data:`SECOND_ROUND`) put a special file at each path camsim reads (a FIFO, ``/dev/zero``, a socket, ...),
+    control characters into each string that becomes a path, float64's extremes into every number, 10⁵ copies into
+    a sidecar's lists, a sidecar over its size limit, and headers that declare 10⁸ to 10¹⁰ pixels (TIFF, DNG, PNG,
+    EXR, ``.npy``, ENVI, ``.mat``) into tiny files. A :class:`Case` is the files of one run, its special files and
+    its ``argv``; ``{IN}``, ``{OUT}`` and ``{ROOT}`` in them stand for the case's input folder, output folder and
     scratch folder.
 Runner
     :func:`run_case` runs ``camsim.cli.main(argv)`` in a forked copy of the calling process (camsim already
@@ -20,9 +25,10 @@ Runner
     own process group, with ``RLIMIT_AS`` (address space) and ``RLIMIT_CPU`` (CPU time: a case that computes too
     long is killed by the kernel, however busy the machine), and its file descriptors 1 and 2 sent to files, so that
     what C libraries print (``libpng error: ...``) is seen too. A case that makes no progress at all (no CPU time,
-    nothing runnable) for as long as its CPU limit is blocked: a hang too. Wall-clock time only backstops: a case
-    still working after :data:`BACKSTOP_FACTOR` times its CPU limit is ``busy`` (the machine was too busy to judge
-    it), not a finding.
+    nothing runnable) for as long as its CPU limit is blocked: a hang too (a case waiting in ``open()`` on a FIFO;
+    the runner itself never opens a case's files, so no special file can block it). Wall-clock time only
+    backstops: a case still working after :data:`BACKSTOP_FACTOR` times its CPU limit is ``busy`` (the machine was
+    too busy to judge it), not a finding.
     It classifies the run (:data:`OUTCOMES`): every file under the case's scratch folder outside ``{OUT}`` is
     compared before and after (and in its parent folder), and no ``*.partial`` may remain anywhere in it.
 
@@ -34,13 +40,16 @@ relative ones climb at most 4 folders from ``{OUT}`` (which is ``{ROOT}/a/b/c/ou
 from __future__ import annotations
 
 import dataclasses
+import functools
 import io
+import itertools
 import json
 import math
 import os
 import resource
 import shutil
 import signal
+import socket
 import struct
 import sys
 import time
@@ -85,6 +94,30 @@ class Raw:
         return f"Raw({self.text[:24]!r}{'...' if len(self.text) > 24 else ''} len={len(self.text)})"
 
 
+@dataclasses.dataclass(frozen=True)
+class Repeat:
+    """Text written verbatim like :class:`Raw`, made only when written: ``unit`` ``count`` times joined by ``sep``,
+    between ``prefix`` and ``suffix`` (a list of 2.4 million entries, 65 MB of blanks), so that a drawn case holds
+    a few numbers, not the megabytes."""
+
+    unit: str
+    count: int
+    sep: str = ","
+    prefix: str = "["
+    suffix: str = "]"
+
+    @property
+    def text(self) -> str:
+        return self.prefix + self.sep.join(itertools.repeat(self.unit, self.count)) + self.suffix
+
+    def __repr__(self):
+        return f"Repeat({self.unit[:24]!r} x {self.count})"
+
+
+#: What is spliced into a TOML or JSON document as text.
+VERBATIM = (Raw, Repeat)
+
+
 def nested(depth: int, brackets: str = "[]") -> Raw:
     """``depth`` nested empty lists (or ``{"a": {...}}`` objects with ``brackets="{}"``), as text."""
     if brackets == "{}":
@@ -98,7 +131,7 @@ def _toml_key(key: str) -> str:
 
 def toml_value(value) -> str:
     """``value`` as an inline TOML value (strings JSON-escaped, which TOML's basic strings share)."""
-    if isinstance(value, Raw):
+    if isinstance(value, VERBATIM):
         return value.text
     if isinstance(value, bool):
         return "true" if value else "false"
@@ -131,7 +164,7 @@ def to_json(doc) -> str:
     raws: list[str] = []
 
     def swap(value):
-        if isinstance(value, Raw):
+        if isinstance(value, VERBATIM):
             raws.append(value.text)
             return f"\x00RAW{len(raws) - 1}\x00"
         if isinstance(value, dict):
@@ -193,12 +226,26 @@ def apply_tree_ops(doc, ops):
     """A deep copy of ``doc`` with ``ops`` applied in turn (an op whose path no longer exists is skipped).
 
     Ops: ``("delete", path)``, ``("set", path, value)``, ``("add", path, key, value)`` (a new key in the table at
-    ``path``, or the top level for ``()``).
+    ``path``, or the top level for ``()``); ``("every_number", value)`` (every number in ``doc`` set to ``value``);
+    ``("repeat", path, k)`` (the list at ``path`` repeated ``k`` times), ``("fill", path, n, element)`` (the list at
+    ``path`` replaced by ``n`` copies of the JSON text ``element``), ``("repeat_every", k)`` (every list that is a
+    table's value repeated ``k`` times): a list's text is kept under :data:`LIST_TEXT_BUDGET` characters.
     """
     doc = json.loads(json.dumps(doc, default=repr))  # a deep copy (seeds hold only JSON types)
     for op in ops:
         try:
-            if op[0] == "delete":
+            if op[0] == "every_number":
+                for path in number_paths(doc):
+                    _parent(doc, path)[path[-1]] = op[1]
+            elif op[0] == "repeat":
+                _parent(doc, op[1])[op[1][-1]] = repeated(_get(doc, op[1]), op[2])
+            elif op[0] == "fill":
+                _parent(doc, op[1])[op[1][-1]] = Repeat(op[3], op[2])
+            elif op[0] == "repeat_every":
+                paths = list_paths(doc)
+                for path in reversed(paths):  # children first: a repeated list's own lists are repeated inside it
+                    _parent(doc, path)[path[-1]] = repeated(_get(doc, path), op[1], share=len(paths))
+            elif op[0] == "delete":
                 parent = _parent(doc, op[1])
                 del parent[op[1][-1]]
             elif op[0] == "set":
@@ -214,6 +261,41 @@ def apply_tree_ops(doc, ops):
         except (KeyError, IndexError, TypeError):
             continue
     return doc
+
+
+#: The most characters a repeated list is written with (the sidecar's limit is 64 MB: a list under it reaches the
+#: code that reads the list, not the size check), and so the most a case's file holds. Unit: characters.
+LIST_TEXT_BUDGET = 48 * 2**20
+
+
+def number_paths(doc) -> list[tuple]:
+    """Every path to a number (not a bool) inside ``doc``."""
+    return [p for p in tree_paths(doc) if isinstance(_get(doc, p), (int, float)) and not isinstance(_get(doc, p), bool)]
+
+
+def list_paths(doc) -> list[tuple]:
+    """Every path to a non-empty list that is a table's value (not an element of another list) inside ``doc``."""
+    return [p for p in tree_paths(doc) if isinstance(_get(doc, p), list) and _get(doc, p)
+            and isinstance(_get(doc, p[:-1]), dict)]
+
+
+def repeated(items, k: int, share: int = 1):
+    """The list ``items`` × ``k`` as :class:`Repeat` text, ``k`` cut so that it stays within its ``1 / share`` of
+    :data:`LIST_TEXT_BUDGET`; anything but a non-empty list is returned as it is."""
+    if not isinstance(items, list) or not items:
+        return items
+    unit = ",".join(_compact(item) for item in items)
+    return Repeat(unit, max(1, min(k, LIST_TEXT_BUDGET // share // max(len(unit), 1))))
+
+
+def _compact(value) -> str:
+    if isinstance(value, VERBATIM):
+        return value.text
+    if isinstance(value, dict):
+        return "{" + ",".join(f"{json.dumps(str(k))}:{_compact(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, list):
+        return "[" + ",".join(_compact(v) for v in value) + "]"
+    return json.dumps(value)
 
 
 def tree_ops(doc, values=hostile_values, keys=None, max_ops=3):
@@ -481,6 +563,8 @@ class Seeds:
     raw_dng: bytes = b""  # a Bayer DNG of a camera preset (Sony ILCE-7SM2): a [raw] scene's file
     raw_entries: list = dataclasses.field(default_factory=list)
     exr_attributes: dict = dataclasses.field(default_factory=dict)
+    dark: dict = dataclasses.field(default_factory=dict)  # "dng", "json" → bytes of a dark frame (analyze --dark)
+    dataset_record: str = ""  # the seed spec's frame record's name (``<id>.done``), which a re-run reads
     _bomb: bytes | None = None
 
     @property
@@ -524,6 +608,11 @@ def build_seeds(folder: Path) -> Seeds:
                      "--intensity", "1", "--preset", "sony-a7s2", "--iso", "100", "-q", "--workers", "1",
                      "--out", str(raws)])
     (raw_dng,) = raws.glob("*.dng")
+    darks = folder / "darks"  # a dark frame of the seed frame's sensor: what analyze --dark reads
+    if not (darks / "manifest.json").exists():
+        _quiet_main(["render", "dark", "--size", "x".join(map(str, SEED_SIZE)), "--intensity", "1", "-q",
+                     "--workers", "1", "--out", str(darks)])
+    (dark,) = darks.glob("*.dng")
     scenes = {}
     for path in sorted(SCENES.glob("*.toml")):
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
@@ -547,6 +636,7 @@ def build_seeds(folder: Path) -> Seeds:
                   sidecar=json.loads(frame["json"]), png=png_bytes(*SEED_SIZE), cube_body=cube.tobytes())
     seeds.dng_entries = tiff_entries(frame["dng"])
     seeds.raw_dng = raw_dng.read_bytes()
+    seeds.dark = {"dng": dark.read_bytes(), "json": dark.with_suffix(".json").read_bytes()}
     seeds.raw_entries = tiff_entries(seeds.raw_dng)
     seeds.exr_attributes = exr_attributes(frame["exr"])
     _warm_up(seeds)
@@ -564,6 +654,8 @@ def _warm_up(seeds: Seeds) -> None:
             inp, out = prepare(case, root)
             _quiet_main([a.replace("{IN}", str(inp)).replace("{OUT}", str(out)).replace("{ROOT}", str(root))
                          for a in case.argv])
+            if kind == "spec" and choice == 0:
+                seeds.dataset_record = next((out / "frames").glob("*.done")).name
     quiesce()
 
 
@@ -583,19 +675,24 @@ def quiesce() -> None:
 
 @dataclasses.dataclass
 class Case:
-    """One run: the files written into ``{IN}`` (name → bytes or text) and the command line."""
+    """One run: the files written into ``{IN}`` (name → bytes or text), the special files made there (name → one
+    of :data:`SPECIAL_FILES`; a name ``{OUT}/...`` is made in the output folder, which then exists before the run)
+    and the command line."""
 
     kind: str
     files: dict
     argv: list
     label: str = ""
     ops: list = dataclasses.field(default_factory=list)
+    specials: dict = dataclasses.field(default_factory=dict)
+    family: str = ""
 
     def __repr__(self):
         sizes = {name: len(body) for name, body in self.files.items()}
         ops = repr(self.ops)
         ops = ops if len(ops) < 400 else ops[:400] + "..."
-        return f"Case({self.kind}, {self.label}, ops={ops}, argv={self.argv}, files={sizes})"
+        specials = f", specials={self.specials}" if self.specials else ""
+        return f"Case({self.kind}, {self.label}, ops={ops}, argv={self.argv}, files={sizes}{specials})"
 
     def _repr_pretty_(self, printer, cycle):  # Hypothesis prints a failing case with this
         printer.text(repr(self))
@@ -621,9 +718,20 @@ def seed_case(seeds: Seeds, kind: str) -> Case:
     return make_case(seeds, kind, ops=[], choice=0)
 
 
-def make_case(seeds: Seeds, kind: str, ops, choice=0, label="") -> Case:
+def make_case(seeds: Seeds, kind: str, ops, choice=0, label="", family="") -> Case:
     """The case of ``kind`` with the mutation ``ops`` (as the strategies draw them); ``choice`` picks the seed scene
-    (scene) or the command variant (sidecar, exr)."""
+    (scene) or the command variant (sidecar, exr); ``family`` says how ``ops`` are read (:data:`FAMILIES`; the
+    first round's and ``numbers``, ``lists``, ``oversize`` are tree, byte or header edits as ``kind`` has them)."""
+    if family in ("special", "controls", "headers"):
+        case = _second_round_case(seeds, kind, family, ops, choice)
+        case.label, case.family = label or family, family
+        return case
+    case = _make_case(seeds, kind, ops, choice, label)
+    case.family = family
+    return case
+
+
+def _make_case(seeds: Seeds, kind: str, ops, choice, label) -> Case:
     if kind == "scene":
         name = sorted(seeds.scenes)[choice % len(seeds.scenes)]
         doc = apply_tree_ops(seeds.scenes[name], ops)
@@ -636,7 +744,9 @@ def make_case(seeds: Seeds, kind: str, ops, choice=0, label="") -> Case:
     if kind == "sidecar":
         doc = apply_tree_ops(seeds.sidecar, ops)
         source = ["--source", "exr"] if choice % 2 else []
-        return Case(kind, _frame_files(seeds, json=to_json(doc)), ANALYZE + source, label)
+        # ("sparse_file", n): the sidecar's text, then holes up to n bytes
+        specials = {f"frames/{seeds.frame['stem']}.json": f"sparse:{op[1]}" for op in ops if op[0] == "sparse_file"}
+        return Case(kind, _frame_files(seeds, json=to_json(doc)), ANALYZE + source, label, specials=specials)
     if kind == "preset":
         doc = apply_tree_ops(seeds.preset, ops)
         iso = ["--iso", "400"] if choice % 2 else []
@@ -685,20 +795,41 @@ SIZE_KEYS = ("width", "height", "size", "crop", "count", "radius_max_px", "radiu
              "start_nm", "end_nm", "step_nm", "pixel_pitch_um", "levels", "repeats", "bits")
 
 #: Named families of mutations per kind: (kind, family) → what they edit. The suite has one test per family.
+#: The second round's (:data:`SECOND_ROUND`): ``special`` (a FIFO, device, folder, socket, self-link or sparse file
+#: where a file is read), ``controls`` (control characters in a string that becomes a path), ``numbers`` (±1e300,
+#: ±1e-300, 5e-324, ±1.7976931348623157e308 in every number), ``lists`` (a sidecar's lists × 10⁵, or millions of
+#: entries), ``oversize`` (a sidecar over 64 MB), ``headers`` (a header that declares 10⁸ to 10¹⁰ pixels).
 FAMILIES = {
-    "scene": ("names", "sizes", "values", "nesting"),
-    "spec": ("names", "values"),
-    "sidecar": ("values", "nesting"),
-    "preset": ("values",),
-    "dng": ("bytes",),
-    "exr": ("bytes",),
-    "png": ("bytes",),
-    "cube": ("bytes",),
-    "raw": ("bytes", "values"),
+    "scene": ("names", "sizes", "values", "nesting", "special", "controls", "numbers"),
+    "spec": ("names", "values", "special", "controls", "numbers"),
+    "sidecar": ("values", "nesting", "special", "controls", "numbers", "lists", "oversize"),
+    "preset": ("values", "special", "controls", "numbers"),
+    "dng": ("bytes", "special", "headers"),
+    "exr": ("bytes", "special", "headers"),
+    "png": ("bytes", "special", "controls", "headers"),
+    "cube": ("bytes", "special", "controls", "headers"),
+    "raw": ("bytes", "values", "special", "controls", "numbers", "headers"),
 }
 
 
+def kinds_of(family: str) -> tuple:
+    """The kinds that have ``family``, in :data:`KINDS` order."""
+    return tuple(kind for kind in KINDS if family in FAMILIES[kind])
+
+
 def _ops_for(seeds: Seeds, kind: str, family: str, doc=None):
+    if family == "special":
+        return special_ops(kind)
+    if family == "controls":
+        return control_ops(kind)
+    if family == "headers":
+        return header_ops(kind)
+    if family == "numbers":
+        return number_ops(doc)
+    if family == "lists":
+        return list_ops(doc)
+    if family == "oversize":
+        return oversize_ops()
     if kind == "dng":
         return dng_ops(seeds.dng_entries)
     if kind == "raw" and family == "bytes":
@@ -724,6 +855,11 @@ def _ops_for(seeds: Seeds, kind: str, family: str, doc=None):
 def case_strategy(draw, seeds: Seeds, kind: str, family: str | None = None) -> Case:
     """A strategy for one mutated :class:`Case` of ``kind`` (and of one of :data:`FAMILIES`, else any)."""
     family = family or draw(st.sampled_from(FAMILIES[kind]))
+    if family in ("special", "controls", "headers"):  # built from their ops alone
+        ops = draw(_ops_for(seeds, kind, family))
+        case = make_case(seeds, kind, ops, draw(st.integers(0, 5)), label=family, family=family)
+        case.ops = ops
+        return case
     if kind == "scene":
         choice = draw(st.integers(0, len(seeds.scenes) - 1))
         doc = seeds.scenes[sorted(seeds.scenes)[choice]]
@@ -739,9 +875,504 @@ def case_strategy(draw, seeds: Seeds, kind: str, family: str | None = None) -> C
     if family == "sizes" and not [p for p in tree_paths(doc) if p[-1] in SIZE_KEYS]:
         family = "values"
     ops = draw(_ops_for(seeds, kind, family, doc))
-    case = make_case(seeds, kind, ops, choice, label=family)
+    case = make_case(seeds, kind, ops, choice, label=family, family=family)
     case.ops = ops
     return case
+
+
+# --------------------------------------------------------------------------------------------------------------
+# The second round of hostile inputs: special files at every input path, control characters in every string that
+# becomes a path, extreme numbers everywhere, huge sidecar lists and files, headers that declare huge images
+# --------------------------------------------------------------------------------------------------------------
+
+#: The families of the second round, each of several kinds (:data:`FAMILIES`).
+SECOND_ROUND = ("special", "controls", "numbers", "lists", "oversize", "headers")
+
+#: Control characters put into the strings that become paths. NUL cannot be in a file name: such a path names a
+#: file that cannot exist (and the operating system's calls raise ``ValueError`` on it, not ``OSError``); the
+#: others can, and camsim must still say which file it means on one line.
+CONTROL_CHARS = ("\x00", "\x01", "\n", "\r", "\x1b", "\x7f")
+#: Where in the string the character goes (``middle``: in the stem, so that the extension still names the format).
+CONTROL_PLACES = ("prefix", "middle", "suffix", "only")
+
+#: Numbers at the ends of float64: huge, tiny, subnormal, the largest finite. Every number of a scene, spec,
+#: preset or sidecar may be any of them (none is NaN or infinite: those are the first round's).
+HUGE_NUMBERS = (1e300, -1e300, 1e-300, -1e-300, 5e-324, 1.7976931348623157e308, -1.7976931348623157e308)
+
+#: How many times a sidecar list is repeated (the text kept under :data:`LIST_TEXT_BUDGET`). Unit: 1.
+LIST_REPEAT = 10**5
+#: Entries of a list replaced by copies of one small element (a list of millions of entries in a few MB). Unit: 1.
+LIST_FILL = (10**5, 10**6, 24 * 10**5)
+#: The elements it is filled with, as JSON text.
+FILL_ELEMENTS = ("0", "[]", "{}", '""', "1e300", "null", "[0, 0, 0]")
+#: Size of an oversized sidecar: over the 64 MB that camsim reads of one (written for the case, removed after it).
+#: Unit: bytes.
+OVERSIZE_BYTES = 65 * 2**20
+
+#: (width, height) that headers declare: 10⁸ to 10¹⁰ pixels, and the largest sizes each field holds.
+PIXEL_DIMS = ((10000, 10000), (100000, 1000), (31623, 31623), (100000, 100000), (65536, 65536), (2**31 - 1, 4),
+              (4, 2**31 - 1))
+#: Bands a cube header declares beside its huge size.
+CUBE_BANDS = (101, 10**6)
+#: The largest sparse file a header case makes to be the size its header declares (holes only). Unit: bytes.
+SPARSE_LIMIT = 2**40
+
+#: Where each kind's special file goes: the slot names the path camsim reads (:func:`special_case`).
+SPECIAL_SLOTS = {
+    "scene": ("scene file", "dark_shading_map", "hot_pixel_map", "render manifest", "earlier sidecar"),
+    "spec": ("spec file", "spec's scene", "image", "images folder", "frame record"),
+    "preset": ("preset file", "dark_shading_map", "hot_pixel_map"),
+    "sidecar": ("sidecar", "frame folder"),
+    "dng": ("dng", "dark frame"),
+    "exr": ("exr",),
+    "png": ("image",),
+    "cube": ("npy", "ENVI header", "ENVI binary", "mat"),
+    "raw": ("raw",),
+}
+#: Which string of each kind gets a control character (:func:`controls_case`).
+CONTROL_SLOTS = {
+    "scene": ("name", "illuminant", "preset name", "scene file", "map path", "out"),
+    "spec": ("name", "illuminant", "preset name", "spec's scene", "images folder", "spec file", "out"),
+    "preset": ("name", "map path", "preset file"),
+    "sidecar": ("frame stem", "files entry", "frame folder"),
+    "png": ("image path",),
+    "cube": ("cube path",),
+    "raw": ("raw path",),
+}
+
+
+def with_control(text: str, char: str, place: str) -> str:
+    """``text`` with ``char`` put at ``place`` (one of :data:`CONTROL_PLACES`)."""
+    if place == "only":
+        return char
+    if place == "prefix":
+        return char + text
+    if place == "suffix":
+        return text + char
+    stem, dot, ext = text.rpartition(".")
+    stem, ext = (stem, dot + ext) if dot else (text, "")
+    return stem[:len(stem) // 2] + char + stem[len(stem) // 2:] + ext
+
+
+def map_npy(shape=(TINY[1], TINY[0])) -> bytes:
+    """A ``.npy`` pixel map of zeros (e⁻, or e⁻/s), the tiny frames' shape: what a ``*_map`` key names."""
+    return npy_bytes({"descr": "<f8", "fortran_order": False, "shape": shape}, bytes(8 * math.prod(shape)))
+
+
+def envi_header(samples: int, lines: int, bands: int, data_type: int = 5) -> str:
+    """An ENVI header of a band-interleaved-by-pixel cube (the ``.npy`` cube's layout), little-endian."""
+    return (f"ENVI\nsamples = {samples}\nlines = {lines}\nbands = {bands}\nheader offset = 0\n"
+            f"data type = {data_type}\ninterleave = bip\nbyte order = 0\n")
+
+
+def mat_bytes(name: str, dims, data: bytes, declared: int | None = None) -> bytes:
+    """A MATLAB v5 file (little-endian) of one double array ``name`` of ``dims`` whose real part is ``data``
+    (column-major), its byte count written as ``declared`` if given (a header that claims more than is there)."""
+    def element(kind, payload, size=None):
+        return struct.pack("<II", kind, len(payload) if size is None else size) + payload + bytes(-len(payload) % 8)
+
+    body = (element(6, struct.pack("<II", 6, 0))  # miUINT32 array flags: mxDOUBLE_CLASS
+            + element(5, struct.pack(f"<{len(dims)}i", *dims))  # miINT32 dimensions
+            + element(1, name.encode("ascii"))  # miINT8 name
+            + element(9, data, declared))  # miDOUBLE real part
+    header = b"MATLAB 5.0 MAT-file, written by the camsim fuzz seeds".ljust(116, b" ") + bytes(8)
+    return header + struct.pack("<H", 0x0100) + b"IM" + struct.pack("<II", 14, len(body)) + body
+
+
+def _pack_entries(entries: dict, at: int) -> bytes:
+    """A TIFF IFD placed at file offset ``at``: ``entries`` tag → the 12 bytes of an entry kept as it was, or
+    (type, values) for SHORT (3) or LONG (4) values, put after the IFD when they do not fit in it."""
+    ifd, extra = bytearray(struct.pack("<H", len(entries))), bytearray()
+    extra_at = at + 2 + 12 * len(entries) + 4
+    for tag in sorted(entries):
+        entry = entries[tag]
+        if isinstance(entry, bytes):
+            ifd += entry
+            continue
+        kind, values = entry
+        packed = struct.pack(f"<{len(values)}{'H' if kind == 3 else 'I'}", *values)
+        if len(packed) <= 4:
+            ifd += struct.pack("<HHI", tag, kind, len(values)) + packed.ljust(4, b"\0")
+        else:
+            ifd += struct.pack("<HHII", tag, kind, len(values), extra_at + len(extra))
+            extra += packed + bytes(len(packed) % 2)
+    return bytes(ifd + struct.pack("<I", 0) + extra)
+
+
+def tiff_with(data: bytes, edits: dict) -> bytes:
+    """The little-endian TIFF ``data`` with its first IFD's entries edited (tag → (type, values), or None to
+    remove it): a new IFD appended and the header pointed at it; the old bytes stay where their offsets point."""
+    ifd = struct.unpack_from("<I", data, 4)[0]
+    count = struct.unpack_from("<H", data, ifd)[0]
+    entries = {struct.unpack_from("<H", data, ifd + 2 + 12 * i)[0]: data[ifd + 2 + 12 * i: ifd + 14 + 12 * i]
+               for i in range(count)}
+    for tag, edit in edits.items():
+        if edit is None:
+            entries.pop(tag, None)
+        else:
+            entries[tag] = edit
+    out = bytearray(data + bytes(len(data) % 2))  # an IFD starts on a word boundary
+    at = len(out)
+    out += _pack_entries(entries, at)
+    struct.pack_into("<I", out, 4, at)
+    return bytes(out)
+
+
+def tiff_bytes(width: int = SEED_SIZE[0], height: int = SEED_SIZE[1]) -> bytes:
+    """An uncompressed 8-bit RGB TIFF, one strip (a gradient): the seed of the TIFF header cases."""
+    pixels = bytes((x * 5 + y * 7 + c * 60) & 255 for y in range(height) for x in range(width) for c in range(3))
+    data = b"II*\0" + struct.pack("<I", 8 + len(pixels)) + pixels
+    tags = {256: (4, [width]), 257: (4, [height]), 258: (3, [8, 8, 8]), 259: (3, [1]), 262: (3, [2]),
+            273: (4, [8]), 277: (3, [3]), 278: (4, [height]), 279: (4, [len(pixels)]), 284: (3, [1])}
+    return data + _pack_entries(tags, len(data))
+
+
+def _first_value(data: bytes, tag: int) -> int:
+    ifd = struct.unpack_from("<I", data, 4)[0]
+    for i in range(struct.unpack_from("<H", data, ifd)[0]):
+        at = ifd + 2 + 12 * i
+        if struct.unpack_from("<H", data, at)[0] == tag:
+            kind = struct.unpack_from("<H", data, at + 2)[0]
+            return struct.unpack_from("<H" if kind == 3 else "<I", data, at + 8)[0]
+    raise KeyError(tag)
+
+
+def dims_edits(data: bytes, width: int, height: int, layout: str) -> dict:
+    """:func:`tiff_with` edits that make the TIFF/DNG ``data`` (one strip) declare ``width`` × ``height``:
+    ``strips`` (ImageWidth, ImageLength, RowsPerStrip), ``tiles`` (one tile of the whole size: TileWidth,
+    TileLength, TileOffsets, TileByteCounts for the strip's bytes), ``small tiles`` (16 × 16 tiles, one offset
+    for all of them), ``crop`` (DefaultCropSize), ``active`` (ActiveArea)."""
+    size = {256: (4, [width]), 257: (4, [height])}
+    if layout == "strips":
+        return {**size, 278: (4, [height])}
+    if layout in ("tiles", "small tiles"):
+        tile = [min(-(-width // 16) * 16, 2**32 - 16), min(-(-height // 16) * 16, 2**32 - 16)] \
+            if layout == "tiles" else [16, 16]
+        return {**size, 273: None, 278: None, 279: None, 322: (4, [tile[0]]), 323: (4, [tile[1]]),
+                324: (4, [_first_value(data, 273)]), 325: (4, [_first_value(data, 279)])}
+    if layout == "crop":
+        return {50719: (4, [0, 0]), 50720: (4, [width, height])}
+    return {50829: (4, [0, 0, height, width])}  # active: top, left, bottom, right
+
+
+def _frame_base(seeds: Seeds, kind: str, choice: int) -> tuple[dict, list]:
+    """(files, argv) of the frame-folder commands: analyze (DNG or EXR source) or denoise-eval."""
+    files = _frame_files(seeds)
+    if kind == "exr":
+        argv = ANALYZE + ["--source", "exr"] if choice % 2 == 0 else \
+            ["denoise-eval", "{IN}/frames", "-d", "identity", "--out", "{OUT}", "-q", "--border", "1"]
+    elif kind == "sidecar" and choice % 2:
+        argv = ["denoise-eval", "{IN}/frames", "-d", "identity", "--out", "{OUT}", "-q", "--border", "1"]
+    else:
+        argv = list(ANALYZE)
+    return files, argv
+
+
+def _preset_argv(iso: str | None) -> list:
+    return ["render", "macbeth_26", "--preset", "{IN}/preset.toml", *(["--iso", iso] if iso else []), "--size",
+            "24x22", "--illuminant", "D65", "--intensity", "1", *RENDER]
+
+
+def _cube_base(seeds: Seeds, form: str) -> tuple[dict, str]:
+    """(files, the cube's file name) of a cube scene whose cube is a ``.npy``, ENVI (``.hdr`` + ``.img``) or
+    ``.mat`` file of the seed cube."""
+    if form == "npy":
+        files, name = {"c.npy": apply_npy_ops(seeds.cube_body, [])}, "c.npy"
+    elif form == "envi":
+        files, name = {"c.hdr": envi_header(TINY[0], TINY[1], 101), "c.img": seeds.cube_body}, "c.hdr"
+    else:
+        import numpy as np
+
+        cube = np.frombuffer(seeds.cube_body).reshape(TINY[1], TINY[0], 101)
+        files, name = {"c.mat": mat_bytes("cube", cube.shape, cube.tobytes(order="F"))}, "c.mat"
+    scene = {"name": "cube", "cube": {"path": name}, "light": {"illuminants": ["D65"]}}
+    return {**files, "scene.toml": to_toml(scene)}, name
+
+
+def special_case(seeds: Seeds, kind: str, slot: str, special: str, choice: int = 0) -> Case:
+    """The seed case of ``kind`` with the file at ``slot`` (one of :data:`SPECIAL_SLOTS`) made the special file
+    ``special`` (one of :data:`SPECIAL_FILES`); ``choice`` picks the command where a kind has two."""
+    argv = None
+    if kind == "scene":
+        doc = json.loads(json.dumps(seeds.scenes["macbeth_26"]))
+        files = {}
+        target = {"scene file": "scene.toml", "dark_shading_map": "map.npy", "hot_pixel_map": "map.npy",
+                  "render manifest": "{OUT}/manifest.json", "earlier sidecar": "{OUT}/earlier.json"}[slot]
+        if slot.endswith("_map"):
+            doc.setdefault("sensor", {})[slot] = "map.npy"
+            files["map.npy"] = map_npy()
+        files["scene.toml"] = to_toml(doc)
+        argv = scene_argv()
+    elif kind == "spec":
+        case = make_case(seeds, "spec", [])
+        files, argv = dict(case.files), case.argv
+        target = {"spec file": "spec.toml", "spec's scene": "macbeth_26.toml", "image": "images/tiny.png",
+                  "images folder": "images", "frame record": f"{{OUT}}/frames/{seeds.dataset_record}"}[slot]
+    elif kind == "preset":
+        doc = json.loads(json.dumps(seeds.preset))
+        files, target, argv = {}, "preset.toml", _preset_argv("400" if choice % 2 else None)
+        if slot.endswith("_map"):
+            doc["iso"][0][slot] = "map.npy"
+            files["map.npy"] = map_npy()
+            target, argv = "map.npy", _preset_argv("200")  # the ISO the map is stated at
+        files["preset.toml"] = to_toml(doc)
+    elif kind in ("sidecar", "dng", "exr"):
+        files, argv = _frame_base(seeds, kind, choice)
+        stem = seeds.frame["stem"]
+        target = {"sidecar": f"frames/{stem}.json", "frame folder": "frames", "dng": f"frames/{stem}.dng",
+                  "exr": f"frames/{stem}.exr", "dark frame": "dark.dng"}[slot]
+        if slot == "dng" and choice % 2:  # develop on the DNG alone
+            files, argv = {target: seeds.frame["dng"]}, ["develop", "{IN}/" + target, "--out", "{OUT}", "-q"]
+        if slot == "dark frame":
+            files.update({"dark.dng": seeds.dark["dng"], "dark.json": seeds.dark["json"]})
+            argv = argv + ["--dark", "{IN}/dark.dng"]
+    elif kind == "png":
+        case = make_case(seeds, "png", [])
+        files, argv, target = dict(case.files), case.argv, "img.png"
+    elif kind == "cube":
+        form = {"npy": "npy", "ENVI header": "envi", "ENVI binary": "envi", "mat": "mat"}[slot]
+        files, target = _cube_base(seeds, form)
+        target, argv = "c.img" if slot == "ENVI binary" else target, scene_argv()
+    elif kind == "raw":
+        case = make_case(seeds, "raw", [], 0)
+        files, argv, target = dict(case.files), case.argv, "src.dng"
+    else:
+        raise ValueError(kind)
+    files = {name: body for name, body in files.items() if not name.startswith(target + "/")}  # no folder there
+    return Case(kind, files, argv, specials={target: special})
+
+
+def controls_case(seeds: Seeds, kind: str, slot: str, char: str, place: str, choice: int = 0) -> Case:
+    """The seed case of ``kind`` with ``char`` (one of :data:`CONTROL_CHARS`) put at ``place`` into the string at
+    ``slot`` (one of :data:`CONTROL_SLOTS`): a name that becomes an output file's, or a path, in a file or on the
+    command line. A file the path names is written under that name, where a file can have it (no NUL)."""
+    mangle = functools.partial(with_control, char=char, place=place)
+
+    def renamed(files, old, new):  # the file ``old`` now at ``new``, if a file can be named so
+        return {(new if name == old and "\x00" not in new else name): body for name, body in files.items()}
+
+    if kind == "scene":
+        doc = json.loads(json.dumps(seeds.scenes["macbeth_26"]))
+        files, name, argv = {}, "scene.toml", scene_argv()
+        if slot == "name":
+            doc["name"] = mangle("macbeth_26")
+        elif slot == "illuminant":
+            doc["light"]["illuminants"] = [mangle("D65")]
+        elif slot == "preset name":
+            doc.setdefault("sensor", {})["preset"] = mangle("paper-table1")
+        elif slot == "map path":
+            doc.setdefault("sensor", {})["dark_shading_map"] = mangle("map.npy")
+            files = renamed({"map.npy": map_npy()}, "map.npy", mangle("map.npy"))
+        elif slot == "scene file":
+            name = mangle("scene.toml")
+            argv = scene_argv(name)
+        elif slot == "out":
+            argv = [a if a != "{OUT}" else "{OUT}/" + mangle("sub") for a in argv]
+        files = renamed({**files, "scene.toml": to_toml(doc)}, "scene.toml", name)
+        return Case(kind, files, argv)
+    if kind == "spec":
+        doc = json.loads(json.dumps(seeds.spec))
+        case = make_case(seeds, "spec", [])
+        files, argv = dict(case.files), list(case.argv)
+        if slot == "name":
+            doc["name"] = mangle(doc["name"])
+        elif slot == "illuminant":
+            doc["grid"]["illuminants"] = [mangle("D65")]
+        elif slot == "preset name":
+            doc["fixed"]["preset"] = mangle(doc["fixed"]["preset"])
+        elif slot == "spec's scene":
+            doc["scene"] = mangle("macbeth_26.toml")
+            files = renamed(files, "macbeth_26.toml", doc["scene"])
+        elif slot == "images folder":
+            doc["images"]["folder"] = mangle("images")
+            files = renamed(files, "images/tiny.png", doc["images"]["folder"] + "/tiny.png")
+        elif slot == "spec file":
+            argv[1] = "{IN}/" + mangle("spec.toml")
+        elif slot == "out":
+            argv = [a if a != "{OUT}" else "{OUT}/" + mangle("sub") for a in argv]
+        files["spec.toml"] = to_toml(doc)
+        if slot == "spec file":
+            files = renamed(files, "spec.toml", mangle("spec.toml"))
+        return Case(kind, files, argv)
+    if kind == "preset":
+        doc = json.loads(json.dumps(seeds.preset))
+        files, name, argv = {}, "preset.toml", _preset_argv(None)
+        if slot == "name":
+            doc["preset"]["name"] = mangle(doc["preset"]["name"])
+        elif slot == "map path":
+            doc["iso"][0]["dark_shading_map"] = mangle("map.npy")
+            files, argv = renamed({"map.npy": map_npy()}, "map.npy", mangle("map.npy")), _preset_argv("200")
+        elif slot == "preset file":
+            name = mangle("preset.toml")
+            argv = [a if a != "{IN}/preset.toml" else "{IN}/" + name for a in argv]
+        files = renamed({**files, "preset.toml": to_toml(doc)}, "preset.toml", name)
+        return Case(kind, files, argv)
+    if kind == "sidecar":
+        files, argv = _frame_base(seeds, kind, choice)
+        sidecar = json.loads(json.dumps(seeds.sidecar))
+        stem = seeds.frame["stem"]
+        if slot == "frame stem" and char != "\x00":
+            new = mangle(stem)
+            files = {name.replace(stem, new): body for name, body in files.items()}
+            sidecar["files"] = {k: v.replace(stem, new) for k, v in sidecar["files"].items()}
+        elif slot == "frame folder" and char != "\x00":
+            folder = mangle("frames")
+            files = {name.replace("frames/", folder + "/", 1): body for name, body in files.items()}
+            argv = [a.replace("{IN}/frames", "{IN}/" + folder) for a in argv]
+        else:  # the files entries (a stem or folder with NUL can only be named, not made)
+            key = ("dng", "exr", "json")[choice % 3] if slot == "files entry" else "json"
+            sidecar["files"][key] = mangle(sidecar["files"][key])
+        json_name = next(name for name in files if name.endswith(".json"))
+        files[json_name] = to_json(sidecar)
+        return Case(kind, files, argv)
+    if kind == "png":
+        case = make_case(seeds, "png", [])
+        scene = json.loads(json.dumps(seeds.scenes["astronaut"]))
+        scene["image"].update(path=mangle("img.png"), size=list(TINY))
+        files = renamed({**case.files, "scene.toml": to_toml(scene)}, "img.png", scene["image"]["path"])
+        return Case(kind, files, case.argv)
+    if kind == "cube":
+        files, name = _cube_base(seeds, ("npy", "envi", "mat")[choice % 3])
+        scene = {"name": "cube", "cube": {"path": mangle(name)}, "light": {"illuminants": ["D65"]}}
+        files = renamed({**files, "scene.toml": to_toml(scene)}, name, mangle(name))
+        if name == "c.hdr" and "\x00" not in mangle(name):  # the binary beside its header, by the header's stem
+            files = renamed(files, "c.img", mangle(name)[:-4] + ".img")
+        return Case(kind, files, scene_argv())
+    if kind == "raw":
+        scene = json.loads(json.dumps(RAW_SCENE))
+        scene["raw"]["path"] = mangle("src.dng")
+        files = renamed({"src.dng": seeds.raw_dng, "scene.toml": to_toml(scene)}, "src.dng", scene["raw"]["path"])
+        return Case(kind, files, scene_argv())
+    raise ValueError(kind)
+
+
+def headers_case(seeds: Seeds, kind: str, op: tuple) -> Case:
+    """The seed case of ``kind`` whose file's header declares a huge image (``op``: :func:`header_ops`'s) in a
+    tiny file, or in a sparse one of the declared size."""
+    if kind in ("dng", "raw"):
+        (width, height), layout = op[1], op[2]
+        if kind == "raw":
+            body = tiff_with(seeds.raw_dng, dims_edits(seeds.raw_dng, width, height, layout))
+            return Case(kind, {"src.dng": body, "scene.toml": to_toml(RAW_SCENE)}, scene_argv())
+        files, argv = _frame_base(seeds, kind, 0)
+        dng = f"frames/{seeds.frame['stem']}.dng"
+        files[dng] = tiff_with(seeds.frame["dng"], dims_edits(seeds.frame["dng"], width, height, layout))
+        if op[3] % 2:  # develop on the DNG alone: its own tags are all there is
+            files, argv = {dng: files[dng]}, ["develop", "{IN}/" + dng, "--out", "{OUT}", "-q"]
+        return Case(kind, files, argv)
+    if kind == "exr":
+        (width, height), which = op[1], op[2]
+        body = bytearray(seeds.frame["exr"])
+        for name in (("dataWindow", "displayWindow") if which == "both" else (f"{which}Window",)):
+            at, _ = seeds.exr_attributes[name]
+            struct.pack_into("<4i", body, at, 0, 0, width - 1, height - 1)
+        files, argv = _frame_base(seeds, kind, op[3])
+        files[f"frames/{seeds.frame['stem']}.exr"] = bytes(body)
+        return Case(kind, files, argv)
+    if kind == "png":
+        (width, height) = op[1]
+        scene = json.loads(json.dumps(seeds.scenes["astronaut"]))
+        if op[0] == "ihdr":
+            body, name = apply_png_ops(seeds.png, [("ihdr", width, height, 8, 2)], b""), "img.png"
+        else:
+            seed = tiff_bytes()
+            body, name = tiff_with(seed, dims_edits(seed, width, height, op[2])), "img.tif"
+        scene["image"].update(path=name, size=list(TINY))
+        return Case(kind, {name: body, "scene.toml": to_toml(scene)}, scene_argv())
+    if kind == "cube":
+        form, (width, height), bands, body = op
+        files, name = _cube_base(seeds, form)
+        specials = {}
+        declared = width * height * bands * 8
+        if form == "npy":
+            files[name] = npy_bytes({"descr": "<f8", "fortran_order": False, "shape": (height, width, bands)},
+                                    seeds.cube_body[:4096])
+            if body == "sparse" and declared <= SPARSE_LIMIT:
+                specials[name] = f"sparse:{len(files[name]) - 4096 + declared}"
+        elif form == "envi":
+            files[name] = envi_header(width, height, bands)
+            files["c.img"] = seeds.cube_body[:4096]
+            if body == "sparse" and declared <= SPARSE_LIMIT:
+                specials["c.img"] = f"sparse:{declared}"
+        else:
+            files[name] = mat_bytes("cube", (height, width, bands), seeds.cube_body[:4096],
+                                    declared=min(declared, 2**32 - 8) if body == "sparse" else None)
+        return Case(kind, files, scene_argv(), specials=specials)
+    raise ValueError(kind)
+
+
+def special_ops(kind: str):
+    """A strategy for one special-file edit of ``kind``: ``[("special", slot, special file)]``."""
+    return st.tuples(st.just("special"), st.sampled_from(SPECIAL_SLOTS[kind]),
+                     st.sampled_from(SPECIAL_FILES)).map(lambda op: [op])
+
+
+def control_ops(kind: str):
+    """A strategy for one control-character edit of ``kind``: ``[("control", slot, char, place)]``."""
+    return st.tuples(st.just("control"), st.sampled_from(CONTROL_SLOTS[kind]), st.sampled_from(CONTROL_CHARS),
+                     st.sampled_from(CONTROL_PLACES)).map(lambda op: [op])
+
+
+def number_ops(doc):
+    """A strategy for extreme numbers in ``doc``: every number set to one of :data:`HUGE_NUMBERS`, or 1 to 3 of
+    them, each to one."""
+    value = st.sampled_from(HUGE_NUMBERS)
+    every = st.tuples(st.just("every_number"), value).map(lambda op: [op])
+    some = st.lists(st.tuples(st.just("set"), st.sampled_from(number_paths(doc)), value), min_size=1, max_size=3)
+    return every | some
+
+
+def list_ops(doc):
+    """A strategy for a huge list in ``doc``: one list (a table's: ``patches`` and the other top-level ones more
+    often than a patch's own) × :data:`LIST_REPEAT`, or filled with millions of one small element, or every list
+    × :data:`LIST_REPEAT` (all within :data:`LIST_TEXT_BUDGET`)."""
+    top = [p for p in list_paths(doc) if len(p) == 1]
+    where = st.sampled_from(top) | st.sampled_from(list_paths(doc))
+    return st.one_of(
+        st.tuples(st.just("repeat"), where, st.just(LIST_REPEAT)),
+        st.tuples(st.just("fill"), where, st.sampled_from(LIST_FILL), st.sampled_from(FILL_ELEMENTS)),
+        st.just(("repeat_every", LIST_REPEAT)),
+    ).map(lambda op: [op])
+
+
+def oversize_ops():
+    """A strategy for a sidecar over 64 MB: valid JSON padded with blanks, a 65 MB string in it, or the sidecar's
+    text followed by holes (a sparse file of 65 MB or :data:`SPARSE_BYTES`)."""
+    return st.sampled_from((
+        [("add", (), "padding", Repeat(" ", OVERSIZE_BYTES, "", "", "0"))],
+        [("set", ("units", "signal_e"), Repeat("x", OVERSIZE_BYTES, "", '"', '"'))],
+        [("sparse_file", OVERSIZE_BYTES)],
+        [("sparse_file", SPARSE_BYTES)],
+    ))
+
+
+def header_ops(kind: str):
+    """A strategy for a header that declares :data:`PIXEL_DIMS` pixels: DNG tags (``raw``: the [raw] file's),
+    an EXR window, a PNG IHDR or TIFF tags, a ``.npy``, ENVI or ``.mat`` cube's dimensions. A cube's data is
+    ``tiny`` (4 kB) or ``sparse``: holes up to the declared size (``.npy``, ENVI binary; up to
+    :data:`SPARSE_LIMIT`), or for ``.mat`` a real part whose byte count claims it (the file stays tiny)."""
+    dims = st.sampled_from(PIXEL_DIMS)
+    if kind in ("dng", "raw"):
+        return st.tuples(st.just("dims"), dims, st.sampled_from(("strips", "tiles", "small tiles", "crop", "active")),
+                         st.integers(0, 1)).map(lambda op: [op])
+    if kind == "exr":
+        return st.tuples(st.just("window"), dims, st.sampled_from(("data", "display", "both")),
+                         st.integers(0, 1)).map(lambda op: [op])
+    if kind == "png":
+        return (st.tuples(st.just("ihdr"), dims)
+                | st.tuples(st.just("tiff"), dims, st.sampled_from(("strips", "tiles", "small tiles")))).map(
+                    lambda op: [op])
+    return st.tuples(st.sampled_from(("npy", "envi", "mat")), dims, st.sampled_from(CUBE_BANDS),
+                     st.sampled_from(("tiny", "sparse"))).map(lambda op: [op])
+
+
+def _second_round_case(seeds: Seeds, kind: str, family: str, ops, choice: int) -> Case:
+    op = ops[0]
+    if family == "special":
+        return special_case(seeds, kind, op[1], op[2], choice)
+    if family == "controls":
+        return controls_case(seeds, kind, op[1], op[2], op[3], choice)
+    return headers_case(seeds, kind, op)
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -775,18 +1406,64 @@ class Result:
 
 
 def prepare(case: Case, root: Path) -> tuple[Path, Path]:
-    """Write ``case``'s files into ``root/in`` (``{ROOT}`` and ``{IN}`` replaced); returns (input, output) folders.
-    The output folder, ``root/a/b/c/out``, is not made: the command makes it."""
+    """Write ``case``'s files into ``root/in`` (``{ROOT}`` and ``{IN}`` replaced) and make its special files;
+    returns (input, output) folders. The output folder, ``root/a/b/c/out``, is not made (the command makes it)
+    unless a special file goes into it."""
     inp = root / "in"
     out = root / "a" / "b" / "c" / "out"
     out.parent.mkdir(parents=True, exist_ok=True)
     for name, body in case.files.items():
+        special = case.specials.get(name)
+        if special is not None and not special.startswith("sparse"):  # the special file takes the file's place
+            continue
         path = inp / name
         path.parent.mkdir(parents=True, exist_ok=True)
         if isinstance(body, str):
             body = body.replace("{ROOT}", str(root)).replace("{IN}", str(inp)).encode("utf-8", "surrogatepass")
         path.write_bytes(body)
+    for name, kind in case.specials.items():
+        path = out / name.removeprefix("{OUT}/") if name.startswith("{OUT}/") else inp / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        make_special(path, kind)
     return inp, out
+
+
+#: The special files a case can name where camsim reads a file (:func:`make_special`): each blocks, never ends,
+#: cannot be read or is no file, and must be refused on one line before a byte is read.
+SPECIAL_FILES = ("fifo", "/dev/zero", "/dev/null", "dir", "socket", "loop", "sparse")
+#: Size of a ``sparse`` special file: holes, no disk blocks, 8 GiB to a reader that reads it. Unit: bytes.
+SPARSE_BYTES = 2**33
+
+
+def make_special(path: Path, kind: str) -> None:
+    """Make the special file ``kind`` at ``path``: ``fifo`` (a named pipe: opening it to read waits for a writer),
+    ``socket`` (a bound UNIX socket's file), ``dir`` (an empty folder), ``/dev/...`` (a symbolic link to that
+    character device: ``/dev/zero`` never ends, ``/dev/null`` is empty), ``loop`` (a symbolic link to itself),
+    ``sparse`` or ``sparse:N`` (the file, or an empty one, extended with holes to :data:`SPARSE_BYTES` or ``N``
+    bytes: huge to a reader, free on disk)."""
+    name, _, size = kind.partition(":")
+    if name == "fifo":
+        os.mkfifo(path)
+    elif name == "dir":
+        path.mkdir()
+    elif name == "socket":  # bound by a relative name: a socket's path may hold at most 107 bytes
+        here = os.getcwd()
+        server = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        try:
+            os.chdir(path.parent)
+            server.bind(path.name)
+        finally:
+            os.chdir(here)
+            server.close()  # the file stays; connecting to it is refused
+    elif name.startswith("/dev/"):
+        path.symlink_to(name)
+    elif name == "loop":
+        path.symlink_to(path.name)
+    elif name == "sparse":
+        with open(path, "ab") as handle:
+            handle.truncate(int(size) if size else SPARSE_BYTES)
+    else:
+        raise ValueError(kind)
 
 
 def snapshot(top: Path, skip: tuple[Path, ...]) -> dict:
@@ -1041,6 +1718,12 @@ def classify(result: Result, *, killed: bool, signalled: bool, memory_limit_mb: 
     if result.rc == 2 and len(result.stderr) == 1 and result.stderr[0].startswith("camsim: error: "):
         return "refused"
     return "bad_exit"
+
+
+def raw_controls(result: Result) -> bool:
+    """Whether stderr holds a control character as it is (NUL, ESC, DEL, ...; a tab aside): a path printed without
+    escaping, which a terminal may obey. Line ends split lines, so a ``\\n`` or ``\\r`` shows as ``multiline``."""
+    return any(ord(ch) < 32 and ch != "\t" or ord(ch) == 127 for line in result.stderr for ch in line)
 
 
 def noisy_success(result: Result) -> bool:
