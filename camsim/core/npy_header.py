@@ -12,30 +12,35 @@ def npy_header(path, what: str, check_shape=None) -> tuple | None:
     """(shape, dtype) from the header of the ``.npy`` file ``path``, checked against the file before any data is read.
 
     ``what`` names the file in messages (``"cube file"``, ``"dark_shading_map"``); ``check_shape(shape)``, where
-    given, checks the claimed shape (a size limit) before the file's length is. None where the file cannot be
-    opened or is of a format version numpy's header readers do not know: ``np.load`` then says what is wrong.
+    given, checks the claimed shape (a size limit) before the file's length is. None where the header cannot be read
+    to its end (a truncated file): ``np.load`` then says what is wrong.
 
     Raises
     ------
     CamsimError
-        A file without NumPy's magic string (not a ``.npy``), a malformed header, a dimension below 1, or a shape
-        whose data the file does not hold (an overflow in numpy's memory map otherwise).
+        A path that names no regular file (:func:`camsim.core.input_files.open_input`: missing, a directory, a FIFO,
+        a device, a NUL byte), a file without NumPy's magic string (not a ``.npy``), a malformed header, a dimension
+        below 1, a format version other than 1.0 and 2.0 (whose header numpy's public readers do not read), or a
+        shape whose data the file does not hold (an overflow in numpy's memory map otherwise).
     """
     from numpy.lib import format as npy_format
 
+    from camsim.core.input_files import open_input
+
     try:
-        with open(path, "rb") as file:
+        with open_input(path, what) as file:
             try:
                 version = npy_format.read_magic(file)
             except ValueError:
                 raise CamsimError(f"cannot read {what} {path}: not a .npy file (no NumPy magic string)") from None
             read = {(1, 0): npy_format.read_array_header_1_0, (2, 0): npy_format.read_array_header_2_0}.get(version)
-            if read is None:
-                return None
+            if read is None:  # 3.0 is for structured arrays with non-Latin-1 field names, which camsim refuses anyway
+                raise CamsimError(f"cannot read {what} {path}: its .npy format version {version[0]}.{version[1]} "
+                                  "is not one camsim reads (1.0 and 2.0, what numpy writes for arrays of numbers)")
             shape, _, dtype = read(file)
             data_bytes = os.fstat(file.fileno()).st_size - file.tell()
     except (OSError, EOFError):
-        return None  # np.load says what is wrong
+        return None  # a truncated header: np.load says what is wrong
     except CamsimError:
         raise
     except Exception as exc:  # numpy's header parser raises ValueError, SyntaxError or tokenize.TokenError

@@ -19,13 +19,17 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from camsim.core.errors import CamsimError
+from camsim.core.input_files import open_input
 from camsim.core.pixel_limit import check_pixel_count
 
 KINDS = ("float", "int", "bool", "str", "rgb")
 #: The integers camsim takes anywhere in its input: numpy's int64. A larger one (TOML has no bound) is refused where
 #: it is read, as a float beyond float64's range is (a float made from it would be infinite).
 INT64_MIN, INT64_MAX = -(2**63), 2**63 - 1
-#: The most pixels a frame may have (``[frame]`` of a scene file or a dataset spec, ``--size``, an ``[images]`` crop).
+#: The largest TOML file camsim reads (a scene file, a dataset spec, a camera preset file): the largest shipped is a
+#: few kilobytes, and a file of thousands of regions or ISO points is still under a megabyte, so a file over this
+#: is not one of them, and is refused before its parser holds it (with its tables) in memory. Unit: bytes.
+MAX_TOML_BYTES = 16_000_000
 _KIND_TEXT = {"float": "a number", "int": "an integer", "bool": "true or false", "str": "a string",
               "rgb": "a number or a list of three numbers (R, G, B)"}
 
@@ -243,16 +247,17 @@ def read_toml(path: str | Path, what: str) -> dict:
 
     Malformed includes what the parser itself cannot take: values nested so deeply that it runs out of stack
     (``RecursionError``), an integer of more than 4300 digits (Python's limit for a decimal string).
+
+    The file is opened by :func:`camsim.core.input_files.open_input`: a path with a NUL byte, a directory, a FIFO, a
+    device, a socket or a file over :data:`MAX_TOML_BYTES` is refused before a byte is read.
     """
-    try:
-        with open(path, "rb") as handle:
+    with open_input(path, what, MAX_TOML_BYTES) as handle:
+        try:
             return tomllib.load(handle)
-    except FileNotFoundError:
-        raise CamsimError(f"{what} not found: {path}") from None
-    except (OSError, ValueError) as exc:  # TOMLDecodeError and UnicodeDecodeError are ValueErrors
-        raise CamsimError(f"cannot read {what} {path}: {exc}") from None
-    except RecursionError:
-        raise CamsimError(f"cannot read {what} {path}: its values are nested too deeply") from None
+        except (OSError, ValueError) as exc:  # TOMLDecodeError and UnicodeDecodeError are ValueErrors
+            raise CamsimError(f"cannot read {what} {path}: {exc}") from None
+        except RecursionError:
+            raise CamsimError(f"cannot read {what} {path}: its values are nested too deeply") from None
 
 
 def param(default, kind: str, doc: str, unit: str = "", **checks):

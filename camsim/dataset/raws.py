@@ -111,6 +111,7 @@ from camsim.dataset.spec_parts import (
     frame_sensor_overrides,
     frames_with_ids,
     parameter_tables,
+    spec_path,
     virtual_camera_draws,
 )
 from camsim.io.dng import MAX_EXPOSURE_S, MIN_SIZE
@@ -447,7 +448,7 @@ def _resolve_raw(params: dict, file: _RawFile, job: _RawJob) -> tuple[FrameGroup
     raws = job.raws
     preset = params.get("preset", file.source_preset)
     if "preset" in params and preset.lower().endswith(".toml"):  # a preset file named in the spec is relative to it
-        preset = str((job.base / preset).resolve())
+        preset = str(spec_path(job.base, preset, "camera preset file"))
     if params.get("iso") is not None:
         iso = float(params["iso"])
     elif job.virtual or camera_preset(preset, job.base) is None:

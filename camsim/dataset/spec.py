@@ -92,6 +92,7 @@ from functools import partial
 from pathlib import Path
 
 from camsim.core.errors import CamsimError
+from camsim.core.input_files import open_input
 from camsim.core.names import safe_component
 from camsim.core.schema import INT64_MAX, check_frame_size
 from camsim.core.seeding import dataset_parameter_generator
@@ -116,6 +117,7 @@ from camsim.dataset.spec_parts import (
     frame_sensor_overrides,
     frames_with_ids,
     parameter_tables,
+    spec_path,
     spec_table,
     virtual_camera_draws,
 )
@@ -145,7 +147,13 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr")
 
 
 def _scene_sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+    """The SHA-256 of a file the spec names (a scene file, an image), read in chunks through
+    :func:`camsim.core.input_files.open_input` (a regular file, not a FIFO or a device)."""
+    with open_input(path, "dataset input file") as handle:
+        try:
+            return hashlib.file_digest(handle, "sha256").hexdigest()
+        except OSError as exc:
+            raise CamsimError(f"cannot read {path}: {exc.strerror or exc}") from None
 
 
 @dataclass(frozen=True)
@@ -481,10 +489,11 @@ def _resolve(params: dict, entry: _SceneEntry, job: _Job, checked: dict) -> tupl
             changes[key] = params[key]
     if "camera" in params:  # a camera CSV named in the spec is relative to the spec
         camera = params["camera"]
-        changes["camera"] = str((job.base / camera).resolve()) if camera.lower().endswith(".csv") else camera
+        changes["camera"] = str(spec_path(job.base, camera, "camera")) if camera.lower().endswith(".csv") else camera
     if "preset" in params:
         camera = params["preset"]  # a camera preset file named in the spec is relative to the spec
-        changes["preset_name"] = str((job.base / camera).resolve()) if camera.lower().endswith(".toml") else camera
+        changes["preset_name"] = (str(spec_path(job.base, camera, "camera preset file"))
+                                  if camera.lower().endswith(".toml") else camera)
     if params.get("iso") is not None:
         changes["iso"] = params["iso"]
     overrides = frame_sensor_overrides(params, job.base)

@@ -524,6 +524,14 @@ class FolderTable:
     flips: bool
 
 
+def spec_path(base: Path, text: str, what: str) -> Path:
+    """The absolute path that a spec's ``text`` names, relative to the spec's folder ``base``; a text with a NUL byte,
+    which no file name holds (and which ``resolve()`` raises ``ValueError`` for), is a :class:`CamsimError`."""
+    if "\x00" in text:
+        raise CamsimError(f"{what} path {text!r} holds a NUL byte, which no file name can")
+    return (base / text).resolve()
+
+
 def folder_table(table, base: Path, where: str, name: str, keys: tuple, suffixes: tuple, what: str,
                  example: str, even: bool = False) -> FolderTable:
     """Check the keys a folder table (``[name]``: ``[images]``, ``[raws]``) shares and list its files.
@@ -565,7 +573,7 @@ def folder_table(table, base: Path, where: str, name: str, keys: tuple, suffixes
     flips = table.get("flips", False)
     if not isinstance(flips, bool):
         raise CamsimError(f"{at} flips must be true or false, got {flips!r}")
-    folder = (base / text).resolve()
+    folder = spec_path(base, text, f"{at} folder")
     if not folder.is_dir():
         raise CamsimError(f"{at} folder {text!r} is not a folder ({folder})")
     if pattern is None:
@@ -737,7 +745,7 @@ def frame_sensor_overrides(params: dict, base: Path) -> dict:
     overrides = {p.name: params[p.name] for p in SENSOR_PARAMS if p.name in params}
     for key in MAP_FILE_PARAMS:
         if overrides.get(key) is not None:
-            overrides[key] = str((base / Path(overrides[key]).expanduser()).resolve())
+            overrides[key] = str(spec_path(base, str(Path(overrides[key]).expanduser()), key))
     return overrides
 
 
@@ -745,4 +753,5 @@ __all__ = ["MAX_FRAMES", "RAWS_PARAMS", "BURST_PARAMS", "PARAMETERS", "RENDER_KE
            "VIRTUAL_CAMERA_TABLE_KEYS", "IMAGE_KEYS", "RAW_KEYS", "ID_DIGITS", "OWN_VALUE_PARAMS", "FACTOR_INDEX",
            "FrameGroup", "FileCrop", "ImageCrop", "RawCrop", "FrameSpec", "DatasetSpec", "SpecPlan", "canonical_json",
            "draw_parameter", "frame_id_digits", "spec_table", "FolderTable", "folder_table", "parameter_tables",
-           "virtual_camera_draws", "frames_with_ids", "burst_sequence", "burst_record", "frame_sensor_overrides"]
+           "virtual_camera_draws", "frames_with_ids", "burst_sequence", "burst_record", "frame_sensor_overrides",
+           "spec_path"]

@@ -36,21 +36,36 @@ B → N matrix, built once from colour-science's interpolation of the B unit vec
 cube must cover the grid: camsim does not extrapolate (:mod:`camsim.light.spectra`).
 
 Values must be finite and non-negative (checked block by block when the cube is read).
+
+Every file is checked to be a regular file before a library opens it (:mod:`camsim.core.input_files`: a FIFO, a
+device, a directory or a path with a NUL byte is one line), and every header's size — ``.npy`` shape, ENVI
+``samples``, ``lines`` and ``bands``, the MAT file's directory — against
+:data:`camsim.core.pixel_limit.MAX_PIXELS` and :data:`MAX_BANDS` before any data is mapped or loaded.
 """
 
 from __future__ import annotations
 
 import mmap
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from camsim.core.errors import CamsimError
+from camsim.core.input_files import check_input, open_input, read_input
 from camsim.light.spectra import WavelengthGrid, align_to_grid
 
 #: Bytes of float64 values in one block (its B source bands or N grid bins, whichever is more): 32 MiB.
 BLOCK_BYTES = 32 * 2**20
+
+#: The most bands a cube may have. Hyperspectral imagers record a few hundred (AVIRIS 224, HySpex 400 to 500); a
+#: cube off the scene's grid is resampled through a B × B identity (:func:`read_cube`), so a header claiming a
+#: million bands would ask for terabytes before a value is read. Unit: bands.
+MAX_BANDS = 4096
+#: The largest ENVI header read (the text before the binary; a wavelength list of :data:`MAX_BANDS` values is tens
+#: of kilobytes). Unit: bytes.
+MAX_ENVI_HEADER_BYTES = 16_000_000
 
 #: ENVI ``data type`` codes camsim reads, as numpy dtypes (byte order set by the header).
 ENVI_DATA_TYPES = {1: "u1", 2: "i2", 3: "i4", 4: "f4", 5: "f8", 12: "u2", 13: "u4", 14: "i8", 15: "u8"}
@@ -250,19 +265,25 @@ def read_npy(path: Path, *, variable: str | None = None) -> _Stored:
 
 
 def _check_npy_header(path: Path) -> None:
-    """Check the (H, W) of a ``.npy`` file's header against :data:`camsim.core.pixel_limit.MAX_PIXELS` before the file
-    is mapped (a header may claim any shape: :func:`camsim.core.npy_header.npy_header`); other problems are left to
-    ``np.load``, which reports them."""
+    """Check the (H, W) of a ``.npy`` file's header against :data:`camsim.core.pixel_limit.MAX_PIXELS` and its bands
+    against :data:`MAX_BANDS` before the file is mapped (a header may claim any shape:
+    :func:`camsim.core.npy_header.npy_header`, which also refuses a path that is not a regular file); other problems
+    are left to ``np.load``, which reports them."""
     from camsim.core.npy_header import npy_header
 
     npy_header(path, "cube file",
-               check_shape=lambda shape: _check_size(shape[1], shape[0], path) if len(shape) == 3 else None)
+               check_shape=lambda shape: _check_size(shape[1], shape[0], path, shape[2]) if len(shape) == 3 else None)
 
 
-def _check_size(width, height, path: Path) -> None:
+def _check_size(width, height, path: Path, bands=None) -> None:
+    """Refuse a cube whose header claims more than :data:`camsim.core.pixel_limit.MAX_PIXELS` pixels or more than
+    :data:`MAX_BANDS` bands, before its data is read."""
     from camsim.core.pixel_limit import check_pixel_count
 
     check_pixel_count(int(width), int(height), f"cube {path}")
+    if bands is not None and int(bands) > MAX_BANDS:
+        raise CamsimError(f"cube {path} has {int(bands)} bands, over camsim's limit of {MAX_BANDS} (hyperspectral "
+                          "cameras record a few hundred)")
 
 
 # --- ENVI -----------------------------------------------------------------------------------------------------------
@@ -288,7 +309,7 @@ def read_envi(path: Path, *, variable: str | None = None) -> _Stored:
         return value
 
     samples, lines, bands = integer("samples", minimum=1), integer("lines", minimum=1), integer("bands", minimum=1)
-    _check_size(samples, lines, path)
+    _check_size(samples, lines, path, bands)
     code = integer("data type")
     if code not in ENVI_DATA_TYPES:
         raise CamsimError(f"{where}: data type {code} is not supported (camsim reads "
@@ -310,10 +331,8 @@ def read_envi(path: Path, *, variable: str | None = None) -> _Stored:
                               "apply them and write the calibrated cube")
 
     expected = offset + samples * lines * bands * dtype.itemsize
-    try:
-        size = binary_path.stat().st_size
-    except OSError as exc:
-        raise CamsimError(f"cannot read cube file {binary_path}: {exc.strerror or exc}") from None
+    with open_input(binary_path, "cube file") as handle:  # a regular file: a FIFO or a device cannot be mapped
+        size = os.fstat(handle.fileno()).st_size
     if size != expected:
         what = "is truncated" if size < expected else "is longer than its header describes"
         raise CamsimError(
@@ -356,15 +375,13 @@ def envi_files(path: Path) -> tuple[Path, Path]:
         stem = path.with_suffix("")
         candidates = [stem] + [stem.with_name(stem.name + ext) for ext in ENVI_BINARY_EXTENSIONS]
         candidates += [stem.with_name(stem.name + ext.upper()) for ext in ENVI_BINARY_EXTENSIONS]
-        if not path.is_file():
-            raise CamsimError(f"cube file not found: {path}")
+        check_input(path, "cube file")
         for candidate in candidates:
             if candidate.is_file():
                 return path, candidate
         raise CamsimError(f"ENVI header {path} has no binary beside it (looked for {stem.name} and {stem.name}"
                           f"{{{','.join(ENVI_BINARY_EXTENSIONS)}}})")
-    if not path.is_file():
-        raise CamsimError(f"cube file not found: {path}")
+    check_input(path, "cube file")
     for header in (path.with_suffix(".hdr"), path.with_name(path.name + ".hdr")):
         if header.is_file():
             return header, path
@@ -378,14 +395,10 @@ def parse_envi_header(path: Path) -> dict:
     Raises
     ------
     CamsimError
-        If the file is missing, does not start with ``ENVI``, or has an unclosed ``{``.
+        If the file is missing or not a regular file of at most :data:`MAX_ENVI_HEADER_BYTES`
+        (:func:`camsim.core.input_files.read_input`), does not start with ``ENVI``, or has an unclosed ``{``.
     """
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise CamsimError(f"cube file not found: {path}") from None
-    except OSError as exc:
-        raise CamsimError(f"cannot read ENVI header {path}: {exc.strerror or exc}") from None
+    raw = read_input(path, "header of an ENVI cube", MAX_ENVI_HEADER_BYTES)
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
@@ -449,8 +462,7 @@ def _mat_variables(path: Path, variable: str | None):
     import scipy.io
     from scipy.io.matlab import matfile_version
 
-    if not path.is_file():
-        raise CamsimError(f"cube file not found: {path}")
+    check_input(path, "cube file")  # a regular file: scipy would block on a FIFO and read a device forever
     try:
         major, _ = matfile_version(str(path))
     except Exception as exc:  # noqa: BLE001 — scipy raises several types for a file that is not a MAT file
@@ -478,7 +490,7 @@ def _mat_variables(path: Path, variable: str | None):
     else:
         raise CamsimError(f"cube file {path} has several 3-D variables ({', '.join(cubes)}): name one with "
                           "variable = \"…\" in [cube]")
-    _check_size(shapes[cube][1], shapes[cube][0], path)
+    _check_size(shapes[cube][1], shapes[cube][0], path, shapes[cube][2])
     bands = shapes[cube][2]
     wavelength = None
     wanted = {name.lower() for name in MAT_WAVELENGTH_NAMES}
@@ -511,6 +523,61 @@ def _reader(path: Path):
     return reader
 
 
+@dataclass(frozen=True)
+class CubeHeader:
+    """What a cube file's header says about its data, before any is read.
+
+    Attributes
+    ----------
+    width, height, bands : int
+        The cube's size: pixels, and bands per pixel.
+    itemsize : int
+        Bytes of one stored value. Unit: bytes.
+    mapped : bool
+        Whether the data is memory-mapped from the file (``.npy``, ENVI: it takes address space, not memory) or
+        loaded whole (``.mat``).
+    """
+
+    width: int
+    height: int
+    bands: int
+    itemsize: int
+    mapped: bool
+
+    @property
+    def data_bytes(self) -> int:
+        """Bytes of the stored values: width × height × bands × itemsize. Unit: bytes."""
+        return self.width * self.height * self.bands * self.itemsize
+
+
+#: Bytes of a value of each MATLAB class, as ``scipy.io.whosmat`` names them (a v4 file's are all ``double``).
+_MAT_ITEMSIZES = {"double": 8, "single": 4, "int8": 1, "uint8": 1, "int16": 2, "uint16": 2, "int32": 4,
+                  "uint32": 4, "int64": 8, "uint64": 8, "logical": 1}
+
+
+def cube_header(path, *, variable: str | None = None) -> CubeHeader:
+    """The size, value size and storage of a cube file, from its header alone (no data read), checked as
+    :func:`read_cube` checks it (:data:`camsim.core.pixel_limit.MAX_PIXELS`, :data:`MAX_BANDS`).
+
+    Raises
+    ------
+    CamsimError
+        For a missing, unreadable or malformed file.
+    """
+    import scipy.io
+
+    path = Path(path)
+    reader = _reader(path)
+    if reader is read_mat:
+        cube, _, (height, width, bands) = _mat_variables(path, variable)
+        kind = {name: mat_class for name, _, mat_class in scipy.io.whosmat(path)}.get(cube, "double")
+        return CubeHeader(int(width), int(height), int(bands), _MAT_ITEMSIZES.get(kind, 8), mapped=False)
+    check_input(path, "cube file")
+    array = reader(path, variable=variable).array
+    height, width, bands = array.shape
+    return CubeHeader(int(width), int(height), int(bands), int(array.dtype.itemsize), mapped=True)
+
+
 def cube_size(path, *, variable: str | None = None) -> tuple[int, int]:
     """(W, H) of a cube file, from its header alone (no data read).
 
@@ -524,8 +591,7 @@ def cube_size(path, *, variable: str | None = None) -> tuple[int, int]:
     if reader is read_mat:
         height, width, _ = mat_cube_shape(path, variable=variable)
     else:
-        if not path.exists():
-            raise CamsimError(f"cube file not found: {path}")
+        check_input(path, "cube file")
         height, width = reader(path, variable=variable).array.shape[:2]
     return int(width), int(height)
 
@@ -563,8 +629,8 @@ def read_cube(path, grid: WavelengthGrid, *, wavelengths_nm=None, variable: str 
     """
     path = Path(path)
     reader = _reader(path)
-    if reader is not read_mat and not path.exists():
-        raise CamsimError(f"cube file not found: {path}")
+    if reader is not read_mat:  # read_mat checks its file itself
+        check_input(path, "cube file")
     stored = reader(path, variable=variable)
     bands = stored.array.shape[2]
     wavelengths = stored.wavelengths_nm
@@ -614,5 +680,6 @@ def _no_variable(path: Path, variable) -> None:
         raise CamsimError(f"cube {path}: variable applies to .mat cubes only")
 
 
-__all__ = ["BLOCK_BYTES", "CUBE_READERS", "CubeData", "cube_size", "envi_files", "parse_envi_header", "read_cube",
+__all__ = ["BLOCK_BYTES", "CUBE_READERS", "CubeData", "CubeHeader", "MAX_BANDS", "MAX_ENVI_HEADER_BYTES", "cube_header",
+           "cube_size", "envi_files", "parse_envi_header", "read_cube",
            "read_envi", "read_mat", "read_npy"]

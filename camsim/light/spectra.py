@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import io
 import signal
 import sys
 import warnings
@@ -22,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from camsim.core.errors import CamsimError
+from camsim.core.input_files import check_input, read_input
 from camsim.core.signals import handlers_installed
 
 CMFS_NAME = "CIE 1931 2 Degree Standard Observer"
@@ -266,13 +268,15 @@ def cmfs_at(wavelengths_nm) -> np.ndarray:
     return out
 
 
+#: The largest spectra CSV read: a camera's or a set of spectra at 0.1 nm steps is well under a megabyte. Unit: bytes.
+MAX_SPECTRA_CSV_BYTES = 16_000_000
+
+
 def _resolve(path_text: str, base_dir: Path | None) -> Path:
     path = Path(path_text).expanduser()
     if not path.is_absolute() and base_dir is not None:
         path = base_dir / path
-    if not path.is_file():
-        raise CamsimError(f"spectra file not found: {path}")
-    return path
+    return check_input(path, "spectra file", MAX_SPECTRA_CSV_BYTES)  # a regular file: not a FIFO, no NUL byte
 
 
 def read_spectra_csv(path: Path):
@@ -282,10 +286,11 @@ def read_spectra_csv(path: Path):
     -------
     names : list of str, wavelengths : numpy.ndarray (M,) in nm, values : numpy.ndarray (M, C)
     """
+    data = read_input(path, "spectra file", MAX_SPECTRA_CSV_BYTES)
     try:
-        with open(path, newline="", encoding="utf-8") as handle:
-            rows = [row for row in csv.reader(handle) if row and not row[0].lstrip().startswith("#")]
-    except (OSError, UnicodeDecodeError) as exc:
+        text = io.StringIO(data.decode("utf-8"), newline="")
+        rows = [row for row in csv.reader(text) if row and not row[0].lstrip().startswith("#")]
+    except (csv.Error, UnicodeDecodeError) as exc:
         raise CamsimError(f"cannot read spectra file {path}: {exc}") from None
     if len(rows) < 3:
         raise CamsimError(f"spectra file {path}: needs a header row and at least 2 data rows")

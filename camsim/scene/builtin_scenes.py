@@ -7,18 +7,18 @@ way (``camsim dataset denoise_small``: :func:`resolve_spec_file`). In a checkout
 ``scenes/`` at the repository root is a symbolic link to this folder, so ``scenes/macbeth_26.toml`` keeps
 working.
 
-This module imports nothing from camsim except :mod:`camsim.core.errors`, so that :mod:`camsim.scene.scene_file` can use
-it.
+This module imports nothing from camsim but the foundation (:mod:`camsim.core`), so that
+:mod:`camsim.scene.scene_file` can use it.
 """
 
 from __future__ import annotations
 
 import functools
 import os
-import tomllib
 from pathlib import Path
 
 from camsim.core.errors import CamsimError
+from camsim.core.schema import read_toml
 
 __all__ = ["SCENES_DIR", "builtin_scene_names", "builtin_scene_path", "builtin_spec_names", "is_scene_name",
            "resolve_scene_file", "resolve_spec_file"]
@@ -33,8 +33,7 @@ def _builtin_files() -> dict[str, tuple[str, Path]]:
     """``{stem: (kind, path)}`` for every ``.toml`` file in :data:`SCENES_DIR`; kind ``scene`` or ``dataset``."""
     files = {}
     for path in sorted(SCENES_DIR.glob(f"*{SUFFIX}")):
-        with open(path, "rb") as handle:
-            doc = tomllib.load(handle)
+        doc = read_toml(path, "built-in scene file")  # one line for a file that is not one (a FIFO, a bad TOML)
         files[path.stem] = ("dataset" if "scene" in doc else "scene", path)
     return files
 
@@ -70,6 +69,14 @@ def is_scene_name(text: str | os.PathLike) -> bool:
     return bool(text) and "/" not in text and os.sep not in text and not text.lower().endswith(SUFFIX)
 
 
+def _no_nul(name_or_path, what: str) -> None:
+    """Refuse a name with a NUL byte, which no file name holds (and which the operating system's calls on a path,
+    ``resolve()`` among them, raise ``ValueError`` for), as :func:`camsim.core.input_files.open_input` does."""
+    name = os.fspath(name_or_path)
+    if "\x00" in (os.fsdecode(name) if isinstance(name, bytes) else name):
+        raise CamsimError(f"{what} path {name!r} holds a NUL byte, which no file name can")
+
+
 def resolve_scene_file(name_or_path: str | os.PathLike, base_dir: str | os.PathLike | None = None) -> Path:
     """The scene file that ``name_or_path`` designates.
 
@@ -86,8 +93,10 @@ def resolve_scene_file(name_or_path: str | os.PathLike, base_dir: str | os.PathL
     Raises
     ------
     CamsimError
-        For a name that is neither an existing file nor a built-in scene; the message lists the built-in names.
+        For a name that is neither an existing file nor a built-in scene (the message lists the built-in names), or
+        one with a NUL byte.
     """
+    _no_nul(name_or_path, "scene file")
     path = Path(name_or_path) if base_dir is None else Path(base_dir) / name_or_path
     if path.is_file() or not is_scene_name(name_or_path):
         return path
@@ -114,6 +123,7 @@ def resolve_spec_file(name_or_path: str | os.PathLike) -> Path:
         For a name that is neither an existing file nor a built-in dataset spec (a built-in scene's name is said to
         be one); the message lists the built-in specs.
     """
+    _no_nul(name_or_path, "dataset spec")
     path = Path(name_or_path)
     if path.is_file() or not is_scene_name(name_or_path):
         return path

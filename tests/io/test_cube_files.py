@@ -326,3 +326,48 @@ def test_cube_source_rows_are_each_pixels_resampled_spectrum(tmp_path, monkeypat
     np.testing.assert_allclose(spectra @ weights, expected @ weights, rtol=1e-12)
     y, x = 17, 23
     assert source.labels[y, x] == y * W + x
+
+
+# --- headers: sizes and bands checked before the data; what the header says for the memory estimate ------------
+
+@pytest.mark.parametrize("fmt", ["npy", "envi", "mat"])
+def test_a_header_claiming_more_bands_than_the_limit_is_refused_before_the_data(tmp_path, capsys, fmt):
+    """A cube of 1 × 2 pixels and MAX_BANDS + 1 bands (a few kilobytes): refused from the header or the MAT file's
+    directory, for every format, before it is mapped or loaded (a cube off the grid is resampled through a B × B
+    identity: a million bands would ask for terabytes)."""
+    bands = cube_files.MAX_BANDS + 1
+    cube = np.zeros((1, 2, bands), np.float32)
+    path = {"npy": tmp_path / "c.npy", "envi": tmp_path / "c.hdr", "mat": tmp_path / "c.mat"}[fmt]
+    if fmt == "npy":
+        np.save(path, cube)
+    elif fmt == "envi":
+        write_envi(path, cube)
+    else:
+        scipy.io.savemat(path, {"cube": cube})
+    with pytest.raises(CamsimError, match=f"has {bands} bands, over camsim's limit of {cube_files.MAX_BANDS}"):
+        read_cube(path, GRID)
+    assert main(["render", cube_scene(tmp_path, "bands", path.name), "--out", str(tmp_path / "out"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("camsim: error: ") and "bands, over camsim's limit" in err, err
+
+
+def test_an_envi_header_over_its_size_limit_is_refused_unread(tmp_path):
+    path = tmp_path / "c.hdr"
+    with open(path, "wb") as handle:  # sparse: no disk taken
+        handle.write(b"ENVI\n")
+        handle.truncate(cube_files.MAX_ENVI_HEADER_BYTES + 1)
+    (tmp_path / "c.img").write_bytes(bytes(16))
+    with pytest.raises(CamsimError, match="over the limit of 16 MB for a header of an ENVI cube"):
+        read_cube(path, GRID)
+
+
+def test_cube_header_says_size_value_size_and_storage(tmp_path):
+    from camsim.io.cube_files import cube_header
+
+    np.save(tmp_path / "c.npy", REF.astype(np.float32))
+    write_envi(tmp_path / "e.hdr", REF, dtype="<u2")
+    scipy.io.savemat(tmp_path / "m.mat", {"cube": REF.astype(np.float32), "wavelengths": np.arange(GRID.size)})
+    npy, envi, mat = (cube_header(tmp_path / name) for name in ("c.npy", "e.hdr", "m.mat"))
+    assert (npy.width, npy.height, npy.bands, npy.itemsize, npy.mapped) == (W, H, GRID.size, 4, True)
+    assert (envi.itemsize, envi.mapped) == (2, True) and envi.data_bytes == W * H * GRID.size * 2
+    assert (mat.width, mat.height, mat.bands, mat.itemsize, mat.mapped) == (W, H, GRID.size, 4, False)

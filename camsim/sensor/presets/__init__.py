@@ -7,6 +7,7 @@ ISO axis), a camera preset by name (``sony-a7s2``), or a camera preset file (a p
 
 from __future__ import annotations
 
+import os
 from functools import lru_cache
 from pathlib import Path
 
@@ -41,10 +42,10 @@ def camera_preset(name: str, base_dir: str | Path | None = None) -> CameraPreset
         path = Path(name)
         if not path.is_absolute() and base_dir is not None:
             path = Path(base_dir) / path
-        try:
-            mtime = path.stat().st_mtime_ns
-        except OSError:
-            raise CamsimError(f"camera preset file not found: {path}") from None
+        from camsim.core.input_files import open_input
+
+        with open_input(path, "camera preset file") as handle:  # a regular file (not a FIFO), no NUL byte
+            mtime = os.fstat(handle.fileno()).st_mtime_ns
         return _file_preset(str(path.resolve()), mtime)
     if name in CAMERA_PRESETS:
         return CAMERA_PRESETS[name]

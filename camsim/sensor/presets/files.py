@@ -100,22 +100,46 @@ class FilePreset(CameraPreset):
         return with_overrides(base, **values) if values else base
 
 
+#: Values of a map file checked at a time (:func:`_map_shape`): 64 MB of float64, whatever the map's size.
+_MAP_CHECK_VALUES = 8_000_000
+
+
 def _map_shape(path: Path, key: str, at: str) -> tuple:
-    """The shape of a map file, checked: a .npy array of finite numbers, ≥ 0 for the hot-pixel map."""
+    """The shape of a map file, checked: a .npy array of finite numbers, ≥ 0 for the hot-pixel map.
+
+    The path is checked first (:func:`camsim.core.input_files.check_input`: a regular file, no NUL byte), then the
+    header (:func:`camsim.core.npy_header.npy_header`: at most three planes of
+    :data:`camsim.core.pixel_limit.MAX_PIXELS`, and the data the file holds), then the values, memory-mapped a block
+    of rows at a time.
+    """
+    from camsim.core.input_files import check_input
+    from camsim.core.npy_header import npy_header
+    from camsim.core.pixel_limit import MAX_PIXELS
+
+    def check_shape(shape):  # before the data is mapped: a header may claim any shape
+        if math.prod(shape) > 3 * MAX_PIXELS:
+            raise CamsimError(f"{key} {path} holds {math.prod(shape)} values, more than a frame of {MAX_PIXELS} "
+                              "pixels (three planes) has")
+
+    try:
+        check_input(path, f"{key} file")
+        npy_header(path, key, check_shape)
+    except CamsimError as exc:
+        raise CamsimError(f"{at}: {exc}") from None
     try:
         array = np.load(path, mmap_mode="r", allow_pickle=False)
-    except FileNotFoundError:
-        raise CamsimError(f"{at}: {key} file not found: {path}") from None
     except (OSError, ValueError) as exc:
         raise CamsimError(f"{at}: {key} {path} is not a .npy array ({exc})") from None
     if array.ndim not in (2, 3) or (array.ndim == 3 and array.shape[0] != 3) or array.dtype.kind not in "fiu":
         raise CamsimError(f"{at}: {key} {path} must hold numbers of shape (H, W) or (3, H, W), got "
                           f"{array.dtype} {array.shape}")
-    values = np.asarray(array, np.float64)
-    if not np.all(np.isfinite(values)):
-        raise CamsimError(f"{at}: {key} {path} holds a NaN or an infinity")
-    if key == "hot_pixel_map" and np.any(values < 0):
-        raise CamsimError(f"{at}: {key} {path} holds a negative dark current")
+    flat = array.reshape(-1, order="A")  # a view of the file in its own order (C or Fortran)
+    for start in range(0, flat.size, _MAP_CHECK_VALUES):
+        values = np.asarray(flat[start:start + _MAP_CHECK_VALUES], np.float64)
+        if not np.all(np.isfinite(values)):
+            raise CamsimError(f"{at}: {key} {path} holds a NaN or an infinity")
+        if key == "hot_pixel_map" and np.any(values < 0):
+            raise CamsimError(f"{at}: {key} {path} holds a negative dark current")
     return tuple(array.shape)
 
 
@@ -131,9 +155,9 @@ def _effects(row: dict, base: Path, cfa: str | None, at: str) -> dict:
     for key in _MAP_KEYS:
         if key in values:
             path = Path(values[key])
-            path = (path if path.is_absolute() else base / path).resolve()
-            shapes[key] = _map_shape(path, key, at)
-            values[key] = str(path)
+            path = path if path.is_absolute() else base / path
+            shapes[key] = _map_shape(path, key, at)  # checks the path (a NUL byte) before it is resolved
+            values[key] = str(path.resolve())
     if len(set(shapes.values())) > 1:
         raise CamsimError(f"{at}: the maps' shapes differ: " + ", ".join(f"{k} {v}" for k, v in shapes.items()))
     for key, shape in shapes.items():
