@@ -98,6 +98,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--size", metavar="WxH", help="frame size in pixels for chart scenes, e.g. 4000x3000")
     parser.add_argument("--out", metavar="DIR", type=Path,
                         help="output directory (default: outputs/SCENE_NAME)")
+    parser.add_argument("--max-megapixels", metavar="MP", type=positive_float,
+                        help="the largest frame to render, in megapixels (an image's or a cube's from its file's "
+                             "header), whatever the memory free; default: what fits the memory free now (the "
+                             "smaller of the free physical memory and the room under ulimit -v), at about 45 bytes a "
+                             "pixel, and 185 more a distinct colour of an image; camsim's own limit of 200 "
+                             "megapixels stays")
     parser.add_argument("--workers", metavar="N", type=positive_int, help="threads per frame (default: all cores; "
                         "the output does not depend on it)")
     parser.add_argument("--device", choices=DEVICES, default="cpu",
@@ -212,6 +218,9 @@ def run(args) -> int:
 
     scene = apply_overrides(load_scene(args.scene), args)
     check_scene(scene)  # names and sizes (a DNG's 22 x 22 minimum, an image's own size too): before any work
+    from camsim.render.frame_memory import check_scene_memory
+
+    check_scene_memory(scene, getattr(args, "max_megapixels", None))  # from the header, before a pixel is decoded
     out = args.out if args.out is not None else DEFAULT_OUT / scene.name
     from camsim.render.estimate import check_render_size, estimate_render
 

@@ -330,30 +330,51 @@ def _oiio():
     return oiio
 
 
+#: What :func:`camsim.core.input_files.open_input` calls an image in its messages (``image file not found: …``).
+_WHAT = "image file"
+
+
 def _file_key(path: str) -> tuple:
-    """(path, modification time, size): a cache key that changes when the file does."""
-    try:
-        stat = Path(path).stat()
-    except FileNotFoundError:
-        raise CamsimError(f"image file not found: {path}") from None
-    except OSError as exc:
-        raise CamsimError(f"cannot read image {path}: {exc.strerror or exc}") from None
+    """(path, modification time, size): a cache key that changes when the file does, once the path is known to name
+    a regular file (:func:`camsim.core.input_files.open_input`: not a FIFO, a device, a directory, a socket or a
+    path with a NUL byte, which OpenImageIO would block on, read forever or fail on)."""
+    import os
+
+    from camsim.core.input_files import open_input
+
+    with open_input(path, _WHAT) as handle:
+        stat = os.fstat(handle.fileno())
     return path, stat.st_mtime_ns, stat.st_size
 
 
 def _image_header(path: str) -> tuple[int, int, int]:
     """(width, height, channels) of an image file, without reading its pixels."""
-    return _cached_header(*_file_key(path))
+    return _cached_header(*_file_key(path))[:3]
+
+
+def image_file_size(path: str) -> tuple[int, int]:
+    """(width, height) of an image file in pixels, from its header (checked against
+    :data:`camsim.core.pixel_limit.MAX_PIXELS`; no pixel decoded)."""
+    return _image_header(path)[:2]
+
+
+def image_colour_limit(path: str) -> int | None:
+    """The most distinct colours an image file can have, from its header: 2^(bits × channels) of its integer codes
+    (one channel for grey, three for colour: 2²⁴ for 8-bit RGB, 256 for 8-bit grey), None for a file read as floats
+    (half, float, and integer types other than 8- and 16-bit unsigned), whose colours are bounded by its pixels
+    only. What an image's colours cost to render follows (:mod:`camsim.render.frame_memory`)."""
+    _, _, channels, bits = _cached_header(*_file_key(path))
+    return None if bits == 0 else 2 ** (bits * (1 if channels == 1 else 3))
 
 
 @lru_cache(maxsize=8)
-def _cached_header(path: str, _mtime_ns: int, _size: int) -> tuple[int, int, int]:
-    if not Path(path).is_file():
-        raise CamsimError(f"image file not found: {path}")
-    image = _open_image(path)
+def _cached_header(path: str, _mtime_ns: int, _size: int) -> tuple[int, int, int, int]:
+    image = _open_image(path, checked=True)
     try:
         spec = image.spec()
-        return int(spec.width), int(spec.height), int(spec.nchannels)
+        oiio = _oiio()
+        bits = {oiio.UINT8: 8, oiio.UINT16: 16}.get(spec.format.basetype, 0)
+        return int(spec.width), int(spec.height), int(spec.nchannels), bits
     finally:
         image.close()
 
@@ -363,13 +384,21 @@ def _cached_header(path: str, _mtime_ns: int, _size: int) -> tuple[int, int, int
 ROWS_PER_READ = 1024
 
 
-def _open_image(path: str):
+def _open_image(path: str, checked: bool = False):
     """OpenImageIO's ``ImageInput`` for ``path``, its header read and its size checked against
     :data:`camsim.core.pixel_limit.MAX_PIXELS`, before any pixel is decoded; the library's own messages on standard
-    error (``libpng error: ...``) become the reason of the one-line error."""
+    error (``libpng error: ...``) become the reason of the one-line error.
+
+    The path is first checked to name a regular file (:func:`camsim.core.input_files.check_input`), unless
+    ``checked`` says the caller has just done so. A volume image (a header's depth above 1: a 3-D texture, whose
+    slices OpenImageIO would read whole) is refused: an image scene is a picture.
+    """
+    from camsim.core.input_files import check_input
     from camsim.core.pixel_limit import check_pixel_count
     from camsim.io.library_stderr import library_stderr
 
+    if not checked:
+        check_input(path, _WHAT)
     oiio = _oiio()
     with library_stderr() as chatter:
         image = oiio.ImageInput.open(path)
@@ -380,6 +409,9 @@ def _open_image(path: str):
     spec = image.spec()
     try:
         check_pixel_count(int(spec.width), int(spec.height), f"image {path}")
+        if int(spec.depth) != 1:
+            raise CamsimError(f"image {path} is a volume of {int(spec.depth)} slices: an image scene reads a 2-D "
+                              "picture")
     except CamsimError:
         image.close()
         raise
@@ -392,7 +424,8 @@ def read_image_codes(path: str, rows: tuple[int, int] | None = None) -> tuple[np
     Integer files keep their codes (uint8 / uint16); float files (half, float) come as float32. One channel is
     replicated to three; channels beyond three (alpha) are dropped. The size in the file's header is checked
     (:func:`camsim.core.pixel_limit.check_pixel_count`) before any pixel is decoded; the pixels are decoded
-    :data:`ROWS_PER_READ` rows at a time (scanline files), so that a signal stops the read between blocks.
+    :data:`ROWS_PER_READ` rows at a time (a tiled file's in whole rows of tiles), so that a signal stops the read
+    between blocks and a crop decodes its own rows only.
 
     Parameters
     ----------
@@ -418,23 +451,27 @@ def read_image_codes(path: str, rows: tuple[int, int] | None = None) -> tuple[np
         first, stop = (0, spec.height) if rows is None else rows
         dtype = {8: np.uint8, 16: np.uint16}[integer[1]] if integer else np.float32
         pixels = np.empty((stop - first, spec.width, 3), dtype)  # filled block by block: no second copy
-        if spec.tile_width:  # a tiled file: OpenImageIO reads it whole
-            steps = [(None, None)]
+        tile = int(spec.tile_height) if spec.tile_width else 0
+        if tile:  # a tiled file: whole rows of tiles, from the one that holds the first row wanted
+            band = tile * max(1, ROWS_PER_READ // tile)
+            steps = [(y, min(y + band, spec.height)) for y in range(first - first % tile, stop, band)]
         else:
             steps = [(y, min(y + ROWS_PER_READ, stop)) for y in range(first, stop, ROWS_PER_READ)]
         for start, end in steps:
             with library_stderr() as chatter:
-                if start is None:
-                    block = image.read_image(0, 0, 0, read_channels, kind)
+                if tile:
+                    block = image.read_tiles(0, 0, spec.x, spec.x + spec.width, spec.y + start, spec.y + end,
+                                             spec.z, spec.z + 1, 0, read_channels, kind)
                 else:
                     block = image.read_scanlines(0, 0, spec.y + start, spec.y + end, 0, 0, read_channels, kind)
-                error = oiio.geterror() if block is None else ""
+                error = (image.geterror() or oiio.geterror()) if block is None else ""
             if block is None:
                 reason = error or chatter.reason() or "the decoder gave no reason"
                 break
             block = np.asarray(block).reshape(-1, spec.width, read_channels)
-            if start is None:
-                block, start, end = block[first:stop], first, stop
+            if tile:  # the rows of the band that are wanted
+                block = block[max(first, start) - start:min(stop, end) - start]
+                start, end = max(first, start), min(stop, end)
             pixels[start - first:end - first] = block  # one channel broadcasts to three
     finally:
         image.close()

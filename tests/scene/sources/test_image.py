@@ -344,3 +344,103 @@ def test_paper_statistics_on_an_image_draw_eq4s_moments(tmp_path, method):
         m4 = np.mean((values - mean) ** 4)
         assert abs(mean - mean_ref[c]) <= 5 * np.sqrt(var_ref[c] / n), (c, mean, mean_ref[c])
         assert abs(var - var_ref[c]) <= 5 * np.sqrt(max(m4 - var**2, 0) / n), (c, var, var_ref[c])
+
+
+# --- headers and tiles ---------------------------------------------------------------------------------------------
+
+def _write_oiio(path: Path, pixels: np.ndarray, fmt, tile: int = 0) -> None:
+    import OpenImageIO as oiio
+
+    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2] if pixels.ndim == 3 else 1, fmt)
+    if tile:
+        spec.tile_width = spec.tile_height = tile
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), spec), out.geterror()
+    out.write_image(pixels)
+    out.close()
+
+
+@pytest.mark.parametrize("tile", [16, 64])
+def test_a_tiled_files_crop_decodes_its_rows_of_tiles(tmp_path, monkeypatch, tile):
+    """A tiled TIFF is read in whole rows of tiles from the one that holds the crop's first row (not whole), and
+    every crop's rows come back as stored."""
+    import OpenImageIO as oiio
+
+    from camsim.scene.sources import image
+
+    codes = (np.arange(70 * 100 * 3) % 251).astype(np.uint8).reshape(70, 100, 3)
+    path = tmp_path / "tiled.tif"
+    _write_oiio(path, codes, oiio.UINT8, tile)
+    monkeypatch.setattr(image, "ROWS_PER_READ", 20)
+    reads = []
+    real = oiio.ImageInput.read_tiles
+    monkeypatch.setattr(oiio.ImageInput, "read_tiles", lambda self, *a: reads.append(a[4:6]) or real(self, *a))
+    for rows in (None, (5, 9), (10, 50), (33, 70), (69, 70)):
+        reads.clear()
+        pixels, integer, bits = image.read_image_codes(str(path), rows)
+        first, stop = rows or (0, 70)
+        assert integer and bits == 8 and np.array_equal(pixels, codes[first:stop]), rows
+        assert reads[0][0] == first - first % tile and reads[-1][1] >= stop, (rows, reads)
+
+
+def test_the_colour_limit_comes_from_the_header(tmp_path):
+    """The most distinct colours a file's codes can make: what its colours may cost to render (a 1-bit PNG is read
+    as 8-bit grey codes)."""
+    import OpenImageIO as oiio
+
+    from camsim.scene.sources.image import image_colour_limit
+    from tests.core.test_pixel_limit import write_constant_png
+
+    write_constant_png(tmp_path / "bits1.png", 30, 20)
+    iio.imwrite(tmp_path / "grey.png", np.zeros((20, 30), np.uint8))
+    iio.imwrite(tmp_path / "rgb.png", np.zeros((20, 30, 3), np.uint8))
+    _write_oiio(tmp_path / "rgb16.png", np.zeros((20, 30, 3), np.uint16), oiio.UINT16)
+    _write_exr(tmp_path / "float.exr", np.zeros((20, 30, 3), np.float32))
+    limits = {name: image_colour_limit(str(tmp_path / name))
+              for name in ("bits1.png", "grey.png", "rgb.png", "rgb16.png", "float.exr")}
+    assert limits == {"bits1.png": 256, "grey.png": 256, "rgb.png": 2**24, "rgb16.png": 2**48, "float.exr": None}
+
+
+@pytest.mark.parametrize("side", [10_000, 14_000])
+def test_a_header_of_10_to_the_8_pixels_is_refused_under_max_megapixels_before_decoding(tmp_path, capsys, side):
+    """A 1-bit PNG of 10⁸ to 2 × 10⁸ pixels (tens of kilobytes): under camsim's 200-megapixel cap, refused by
+    --max-megapixels from its header, in far less CPU time than decoding it takes."""
+    import time
+
+    from tests.core.test_pixel_limit import write_constant_png
+
+    png = tmp_path / "large.png"
+    write_constant_png(png, side, side)
+    scene = tmp_path / "large.toml"
+    scene.write_text(f'name = "large"\n[image]\npath = "{png.as_posix()}"\n')
+    start = time.process_time()
+    assert main(["render", str(scene), "--max-megapixels", "50", "--out", str(tmp_path / "out"), "-q"]) == 2
+    assert time.process_time() - start < 3.0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"camsim: error: image {png} is {side} × {side} pixels"), err
+    assert "over --max-megapixels 50" in err and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("width, height", [(20_001, 10_000), (30_000, 30_000), (100_000, 100_000), (14_000, 14_000)])
+def test_a_tiff_header_claiming_a_large_size_is_refused_before_decoding(tmp_path, capsys, width, height):
+    """A 24 × 24 TIFF whose header claims 2 × 10⁸ to 10¹⁰ pixels: over camsim's cap (OpenImageIO's own checks of
+    a header against the file's size may say so first), or, under it, over --max-megapixels; one line, from the
+    header."""
+    import OpenImageIO as oiio
+
+    from tests.support.hostile_files import with_tiff_size
+
+    small = tmp_path / "small.tif"
+    _write_oiio(small, np.zeros((24, 24, 3), np.uint8), oiio.UINT8)
+    (tmp_path / "large.tif").write_bytes(with_tiff_size(small.read_bytes(), width, height))
+    scene = tmp_path / "large.toml"
+    scene.write_text('name = "large"\n[image]\npath = "large.tif"\n')
+    argv = ["render", str(scene), "--max-megapixels", "100", "--out", str(tmp_path / "out"), "-q"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("camsim: error: "), err
+    if width * height > 2 * 10**8:  # OpenImageIO's checks of a header against the file may come first
+        assert any(said in err for said in (f"{width} × {height} pixels, over camsim's limit of 200 megapixels",
+                                             "tiff header claims a", f"claimed to be {width}x{height}")), err
+    else:
+        assert f"{width} × {height} pixels (196 MP), over --max-megapixels 100" in err, err
