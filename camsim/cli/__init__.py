@@ -111,14 +111,28 @@ EXIT_INTERRUPTED, EXIT_TERMINATED = 128 + signal.SIGINT, 128 + signal.SIGTERM
 _STOPPED = "what was complete is kept, nothing half-written is left"
 
 
+#: Control characters (C0, DEL, C1) other than the line breaks and tabs that become spaces: written escaped
+#: (``\x00``, ``\r``, ``\x1b``), as a name from input may hold them and a terminal would act on them.
+_CONTROLS = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+
+
 def _one_line(message) -> str:
-    """An error message on one line: line breaks (a value's repr across lines, a library's text) become spaces."""
-    return re.sub(r"\s*\n\s*", " ", str(message)).strip()
+    """An error message on one line: line breaks (a value's repr across lines, a library's text) and tabs become
+    spaces; any other control character (a carriage return, a NUL, an escape sequence from a hostile file name) is
+    written escaped, so the message is one line that a terminal only shows."""
+    text = re.sub(r"[ \t]*(\r\n|\n)[ \t]*|\t", " ", str(message)).strip()
+    return _CONTROLS.sub(lambda match: match.group().encode("unicode_escape").decode("ascii"), text)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 2 error, 130 interrupted, 143 terminated)."""
     parser = build_parser()
+    given = sys.argv[1:] if argv is None else argv
+    nul = next((arg for arg in given if isinstance(arg, str) and "\x00" in arg), None)
+    if nul is not None:  # no process's argv can hold one (exec refuses it); a caller of main() can
+        print(f"camsim: error: {_one_line(f'argument {nul!r} holds a NUL byte, which no argument or file name can')}",
+              file=sys.stderr)
+        return 2
     try:
         args = parser.parse_args(argv)
     except _UsageError as exc:
@@ -147,6 +161,10 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         if isinstance(exc, OSError):  # the environment's: a file or folder that cannot be read or written
             print(f"camsim: error: {_one_line(_os_error_text(exc))}", file=sys.stderr)
+            return 2
+        if isinstance(exc, RuntimeError) and str(exc).startswith("Symlink loop from "):
+            # pathlib's resolve() (before Python 3.13) raises this where the system's calls give ELOOP
+            print(f"camsim: error: {_one_line(exc)} (a symbolic link that leads back to itself)", file=sys.stderr)
             return 2
         if isinstance(exc, MemoryError):
             print("camsim: error: out of memory (try a smaller --size, or fewer --workers)", file=sys.stderr)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 from camsim.core.errors import CamsimError
 
@@ -34,6 +35,11 @@ MAX_MAGNITUDE, MIN_POSITIVE = 1e60, 1e-60
 #: few kB, a 200-megapixel rolling-shutter frame's (a homography per row) about 0.5 GB of pixels' 0.02 %; 64 MB
 #: parses in about a second. Unit: bytes.
 MAX_SIDECAR_BYTES = 64_000_000
+#: The most values (counted by their separating commas, before parsing) a sidecar may hold: 2 × 10⁶, six times a
+#: 36 000-row rolling-shutter frame's per-row homographies (9 numbers a row); a chart's sidecar holds about 2 000.
+#: It keeps each of the few parses a command makes of a sidecar (``analyze``: up to 7) near half a second.
+#: Unit: values.
+MAX_SIDECAR_VALUES = 2_000_000
 
 
 class _Bad(Exception):
@@ -329,16 +335,28 @@ def _ks_distances(value) -> list:
 MAX_DEPTH = 16
 
 
+_JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
+_NOT_BRACKET = re.compile(r"[^\[\]{}]+")
+_INNERMOST = re.compile(r"\[\]|\{\}")
+
+
 def _too_deep(value, limit: int = MAX_DEPTH) -> bool:
-    """Whether ``value`` nests lists and objects more than ``limit`` deep (iteratively: no recursion limit)."""
-    stack = [(value, 0)]
-    while stack:
-        item, depth = stack.pop()
-        if isinstance(item, (dict, list)):
-            if depth >= limit:
-                return True
-            stack.extend((v, depth + 1) for v in (item.values() if isinstance(item, dict) else item))
-    return False
+    """Whether ``value`` nests lists and objects more than ``limit`` deep.
+
+    Judged on its JSON text, by the C code of ``json`` and ``re``, not by a walk of its items in Python (seconds for
+    a list of millions of empty lists): the strings dropped, then everything but the brackets, then the innermost
+    ``[]`` and ``{}`` pairs removed ``limit`` times over; whatever is left nests deeper.
+    """
+    try:
+        text = json.dumps(value, check_circular=False, allow_nan=True, default=str)
+    except RecursionError:
+        return True
+    brackets = _NOT_BRACKET.sub("", _JSON_STRING.sub("", text))
+    for _ in range(limit):
+        if not brackets:
+            return False
+        brackets = _INNERMOST.sub("", brackets)  # one level a pass
+    return bool(brackets)
 
 
 def _check_sizes(meta: dict) -> None:
@@ -462,7 +480,7 @@ def parse_sidecar(text: str, where) -> object:
     Raises
     ------
     CamsimError
-        Text over :data:`MAX_SIDECAR_BYTES`, text that is not JSON, JSON nested deeper than Python's recursion
+        Text over :data:`MAX_SIDECAR_BYTES` or :data:`MAX_SIDECAR_VALUES`, text that is not JSON, JSON nested deeper than Python's recursion
         limit, or an integer of more digits than Python converts (4300).
     """
     from camsim.core.input_files import size_text
@@ -471,6 +489,10 @@ def parse_sidecar(text: str, where) -> object:
     if size > MAX_SIDECAR_BYTES:  # before the parser spends seconds and gigabytes on it
         raise CamsimError(f"cannot read sidecar {where}: it is {size_text(size)}, over the limit of "
                           f"{size_text(MAX_SIDECAR_BYTES)} for a frame's sidecar")
+    values = text.count(",") + 1
+    if values > MAX_SIDECAR_VALUES:
+        raise CamsimError(f"cannot read sidecar {where}: it holds about {values} values, over the limit of "
+                          f"{MAX_SIDECAR_VALUES} for a frame's sidecar")
     try:
         return json.loads(text)
     except RecursionError:

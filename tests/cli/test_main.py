@@ -225,3 +225,36 @@ def test_a_stop_signal_whose_exception_a_library_turned_into_another_is_still_a_
     with pytest.raises(ZeroDivisionError):
         cli.main(["list"])
     assert signal.getsignal(signal.SIGINT) is before  # the handlers are put back
+
+
+def test_an_error_with_control_characters_is_one_line_a_terminal_only_shows(tmp_path, capsys):
+    """A path from input with a carriage return, an escape sequence and a DEL: the error names it escaped, on one
+    line (a raw CR would overwrite the line, an ESC recolour the terminal)."""
+    from camsim.cli import main
+
+    scene = tmp_path / "s.toml"
+    scene.write_text('name = "s"\n[cube]\npath = "c.npy\\r\\u001b[31m\\u007f"\n[light]\nilluminants = ["D65"]\n')
+    assert main(["render", str(scene), "--out", str(tmp_path / "o"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("camsim: error: "), repr(err)
+    assert "\r" not in err and "\x1b" not in err and "\x7f" not in err
+    assert "\\r\\x1b[31m\\x7f" in err, err
+
+
+def test_a_nul_byte_in_an_argument_is_refused_as_exec_would(tmp_path, capsys):
+    from camsim.cli import main
+
+    assert main(["render", "macbeth_26", "--out", str(tmp_path / "o\x00x"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "holds a NUL byte" in err and "\x00" not in err, repr(err)
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_symbolic_link_loop_is_one_line(tmp_path, capsys):
+    from camsim.cli import main
+
+    (tmp_path / "loop.toml").symlink_to(tmp_path / "loop.toml")
+    assert main(["render", "macbeth_26", "--preset", str(tmp_path / "loop.toml"), "--out", str(tmp_path / "o"),
+                 "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("camsim: error: ") and "loop" in err, err

@@ -458,3 +458,42 @@ def test_a_sidecar_that_is_not_a_regular_file_is_refused_not_read(rendered, tmp_
     status, err, seconds, summary = analyse(tmp_path / "frames", tmp_path / "out", capsys, deadline_s=10)
     assert status == 0 and len(err) == 1 and "b_bad" in err[0], err
     assert str(tmp_path / "frames" / "a_good.dng") in {f["frame_file"] for f in summary["frames"]}
+
+
+def test_a_sidecar_of_millions_of_values_is_refused_before_it_is_parsed(rendered, tmp_path, capsys):
+    """A list the readers do not use, filled with 2.4 × 10⁶ empty lists (7 MB, under the byte limit): refused by
+    its count of values before any parse (``analyze`` parses a sidecar up to 7 times), on one line."""
+    from camsim.render.sidecar_schema import MAX_SIDECAR_VALUES
+
+    meta = _frame_folder(rendered, tmp_path / "frames")
+    meta["channels"] = SENTINEL
+    text = json.dumps(meta).replace(json.dumps(SENTINEL), "[" + ", ".join(["[]"] * 2_400_000) + "]")
+    (tmp_path / "frames" / "b_bad.json").write_text(text)
+    status, err, seconds, summary = analyse(tmp_path / "frames", tmp_path / "out", capsys)
+    assert status == 0 and len(err) == 1, err
+    assert f"holds about {text.count(',') + 1} values, over the limit of {MAX_SIDECAR_VALUES}" in err[0], err
+    assert seconds < LIMIT_S
+
+
+def test_the_depth_of_a_sidecar_is_judged_as_its_walk_would():
+    """The depth judged on the JSON text against a walk of the object (the reference): every nesting of lists and
+    objects up to 20 deep, strings holding brackets, and a list of 10⁶ empty lists in well under a second."""
+    from camsim.render.sidecar_schema import _too_deep
+
+    def depth(value):
+        if isinstance(value, dict):
+            return 1 + max(map(depth, value.values()), default=0)
+        if isinstance(value, list):
+            return 1 + max(map(depth, value), default=0)
+        return 0
+
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        value = "x[{\"]"
+        for _ in range(int(rng.integers(0, 20))):
+            value = {"k": value, "s": "]]}"} if rng.random() < 0.5 else [value, 1, "[["]
+        for limit in (1, 4, 16):
+            assert _too_deep(value, limit) == (depth(value) > limit), (value, limit)
+    start = time.process_time()
+    assert not _too_deep({"a": [[]] * 1_000_000})
+    assert time.process_time() - start < 1.0
