@@ -480,8 +480,8 @@ def parse_sidecar(text: str, where) -> object:
     Raises
     ------
     CamsimError
-        Text over :data:`MAX_SIDECAR_BYTES` or :data:`MAX_SIDECAR_VALUES`, text that is not JSON, JSON nested deeper than Python's recursion
-        limit, or an integer of more digits than Python converts (4300).
+        Text over :data:`MAX_SIDECAR_BYTES` or :data:`MAX_SIDECAR_VALUES`, text that is not JSON, JSON nested
+        deeper than Python's recursion limit, or an integer of more digits than Python converts (4300).
     """
     from camsim.core.input_files import size_text
 
