@@ -637,6 +637,26 @@ def _check_complete(page: Any, size: int, name: str) -> None:
                           f"byte {end}")
 
 
+#: The ActiveArea tag (top, left, bottom, right): the part of the raw IFD that holds image pixels.
+ACTIVE_AREA_TAG = 50829
+
+
+def check_active_area(page: Any, name: str) -> None:
+    """Refuse an ActiveArea that is not a rectangle inside the raw IFD's image, from the header: LibRaw crops by it
+    and reads past the pixel data (printing "Unexpected end of file" on stderr besides failing)."""
+    tag = page.tags.get(ACTIVE_AREA_TAG)
+    if tag is None:
+        return
+    try:
+        top, left, bottom, right = (int(v) for v in np.ravel(tag.value))
+    except (TypeError, ValueError):
+        raise CamsimError(f"cannot read DNG {name}: its ActiveArea is not 4 numbers (top, left, bottom, right)") \
+            from None
+    if not (0 <= top < bottom <= page.imagelength and 0 <= left < right <= page.imagewidth):
+        raise CamsimError(f"cannot read DNG {name}: its ActiveArea ({top}, {left}, {bottom}, {right}) is not inside "
+                          f"its {page.imagewidth}x{page.imagelength} image")
+
+
 @contextlib.contextmanager
 def _tifffile_quiet():
     """tifffile's logger silenced: its complaints about a damaged header ("incorrect StripByteCounts count") would
@@ -747,6 +767,7 @@ def read_dng(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
             check_pixel_count(page.imagewidth, page.imagelength, f"DNG {name}")  # from the header, before decoding
             _check_storage(page, name)
             _check_complete(page, tif.filehandle.size, name)
+            check_active_area(page, name)
             cm = _floats(_tag(page, _COLOR_MATRIX1))
             cm2 = _floats(_tag(page, _COLOR_MATRIX2))
             info: dict[str, Any] = {

@@ -429,6 +429,7 @@ def _checked_raw_page(tif: Any, name: str) -> tuple:
     page = _raw_page(tif, name)
     check_pixel_count(page.imagewidth, page.imagelength, f"raw file {name}")
     _dng._check_complete(page, tif.filehandle.size, name)
+    _dng.check_active_area(page, name)
     return page, _holds_its_pixels(page, name)
 
 

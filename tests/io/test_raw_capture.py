@@ -611,3 +611,22 @@ def test_render_of_a_raw_scene_whose_raw_is_a_fifo_is_one_line(tmp_path):
                      cpu_s=60, capture_output=True, text=True)
     assert done.returncode == 2 and "it is a FIFO (named pipe)" in one_error_line(done.stderr), done.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("area", [(0, 0, 100000, 1000), (0, 0, 10, 100000), (8, 8, 4, 4), (-1, 0, 8, 8)])
+def test_an_active_area_outside_the_image_is_refused_from_the_header(tmp_path, capfd, area):
+    """LibRaw crops by the ActiveArea and reads past the pixel data (printing "Unexpected end of file"); a
+    rectangle that is not inside the raw image is refused from the header, on one line, by both readers."""
+    path = phone(tmp_path / "area.dng", active_area=(0, 0, 8, 8), thumbnail=False)  # read_dng reads IFD0
+    data = bytearray(open(path, "rb").read())
+    good = struct.pack("<4I", 0, 0, 8, 8)
+    at = data.find(good)
+    assert at > 0
+    data[at:at + 16] = struct.pack("<4i", *area)
+    (tmp_path / "bad.dng").write_bytes(bytes(data))
+    capfd.readouterr()
+    for read in (read_raw_capture, read_dng):
+        with pytest.raises(CamsimError, match=r"its ActiveArea .* is not inside its \d+x\d+ image") as exc:
+            read(tmp_path / "bad.dng")
+        assert "\n" not in str(exc.value)
+    assert capfd.readouterr() == ("", "")
