@@ -6,9 +6,8 @@ more memory than the machine has: a 14 000 × 14 000 PNG (196 megapixels, 24 kB 
 by the figures below. Under a 6 GB address-space limit such a render decodes for half a minute before it fails with
 "out of memory"; where the kernel's out-of-memory killer acts first, it ends the process with no message at all. So
 the memory a frame needs is estimated from its size, which the file's header gives before a pixel is decoded, and
-compared with the memory free now
-(:func:`free_memory`); a frame that does not fit is refused on one line, which says how to allow it anyway
-(``--max-megapixels``).
+compared with the memory free now (:func:`free_memory`); a frame that does not fit is refused on one line, which says
+how to allow it anyway (``--max-megapixels``).
 
 The figures are measured: ``camsim render`` of a scene at three or more sizes, one frame each (``-F 1``, one
 illuminant, ``--workers 2``), the peak of the process's resident memory (``VmHWM``, and ``/usr/bin/time -v``'s maximum
@@ -22,18 +21,19 @@ scene                                                      sizes (megapixels)   
 =========================================================  =======================  ======================
 ColorChecker chart, 24 spectra                             4, 16, 36                42
 photograph (8-bit PNG, about 10⁵ colours)                  1, 4, 9, 16, 36          45
-8-bit PNG of random colours (one colour per 1.6 pixels)    1, 4, 9, 16              127 resident, 141 mapped
-16-bit PNG of random colours (a colour per pixel)          2.25, 6.25               209 resident, 230 mapped
+8-bit PNG of random colours (one colour per 1.6 pixels)    1, 4, 9, 16              127 resident, 141 address
+16-bit PNG of random colours (a colour per pixel)          2.25, 6.25               209 resident, 230 address
 slanted edge through a lens (``[optics]``: FFTs)           1, 4, 9                  98
-31-band float32 ``.npy`` cube (a spectrum per pixel)       1, 2.25, 4               156 resident, 290 mapped
+31-band float32 ``.npy`` cube (a spectrum per pixel)       1, 2.25, 4               156 resident, 290 address
 photograph resampled to 400 × 400 (``[image] size``)       4, 16 (the file's)       48 per file pixel
 =========================================================  =======================  ======================
 
 A frame's pixel costs about :data:`FRAME_BYTES_PER_PIXEL`; each distinct colour of an image costs
 :data:`COLOUR_BYTES` more (the random images' excess over the photograph, divided by their colours: 150 to 185
-bytes); the cube's mapped figure is its file's 124 bytes a pixel plus :data:`CUBE_BYTES_PER_PIXEL`. The header does
-not say how many colours an image has, so the estimate takes the most it can have: one per pixel, or 2²⁴ for 8-bit
-codes — an upper bound for a photograph, within a few per cent for noise.
+bytes); the cube's address-space figure is its file's 124 bytes a pixel (mapped) plus :data:`CUBE_BYTES_PER_PIXEL`.
+The header does not say how many colours an image has, so the estimate takes the most its codes can make, at most one
+per pixel (:func:`camsim.scene.sources.image.image_colour_limit`: 2²⁴ for 8-bit RGB): an upper bound, three times
+the photograph's need at 36 megapixels and 1.5 times the 8-bit noise's at 16, within 5 % of the 16-bit noise's.
 """
 
 from __future__ import annotations
