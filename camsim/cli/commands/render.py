@@ -226,8 +226,6 @@ def run(args) -> int:
 
     estimate = estimate_render(scene, preview=args.preview)  # before each frame is checked: there may be thousands
     check_render_size(estimate, out, confirmed=args.yes)
-    if not args.quiet:
-        print(f"camsim render: {estimate.text()}, to {out}/", file=sys.stderr)
     device = getattr(args, "device", "cpu")
     if device != "cpu":  # one line and exit 2 before anything is written: no CuPy, no GPU, a method it cannot draw
         from camsim.render.backends import check_device, device_method
@@ -246,6 +244,8 @@ def run(args) -> int:
             raise CamsimError("a sequence's frames are drawn per pixel on the CPU and have no preview")
     for warning in scene_warnings(scene):
         print(f"camsim: warning: {warning}", file=sys.stderr)
+    if not args.quiet:  # once the scene's checks are past, so that a refusal stays the one line printed
+        print(f"camsim render: {estimate.text()}, to {out}/", file=sys.stderr)
     if output == "zarr":
         from camsim.dataset.sequence_store import render_sequence_store
 
