@@ -13,6 +13,10 @@ from camsim.core.errors import CamsimError
 
 #: The most pixels (width × height) camsim renders, or decodes from an image or cube file.
 MAX_PIXELS = 200_000_000
+#: The most bytes an input image file may have: :data:`MAX_PIXELS` of four float32 channels (RGBA, uncompressed),
+#: 3.2 GB, and 64 MB of header and metadata. A file larger than any image camsim may decode is refused before it is
+#: read (a dataset hashes its images whole). Unit: bytes.
+MAX_IMAGE_FILE_BYTES = MAX_PIXELS * 4 * 4 + 64_000_000
 
 
 def check_pixel_count(width, height, what: str) -> tuple[int, int]:

@@ -148,8 +148,11 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr")
 
 def _scene_sha256(path: Path) -> str:
     """The SHA-256 of a file the spec names (a scene file, an image), read in chunks through
-    :func:`camsim.core.input_files.open_input` (a regular file, not a FIFO or a device)."""
-    with open_input(path, "dataset input file") as handle:
+    :func:`camsim.core.input_files.open_input` (a regular file, not a FIFO or a device, of at most
+    :data:`camsim.core.pixel_limit.MAX_IMAGE_FILE_BYTES`: an 8 GiB sparse file is refused, not hashed)."""
+    from camsim.core.pixel_limit import MAX_IMAGE_FILE_BYTES
+
+    with open_input(path, "dataset input file", MAX_IMAGE_FILE_BYTES) as handle:
         try:
             return hashlib.file_digest(handle, "sha256").hexdigest()
         except OSError as exc:

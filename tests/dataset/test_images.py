@@ -167,6 +167,23 @@ def test_a_file_that_is_not_an_image_is_named(tmp_path):
         load_spec(path)
 
 
+def test_an_image_larger_than_any_camsim_decodes_is_refused_not_hashed(tmp_path):
+    """A valid PNG followed by 8 GiB of holes (a sparse file: nothing on disk): a dataset hashes its images whole,
+    so one larger than the largest image camsim may decode is refused from its size, not read for seconds."""
+    import time
+
+    from camsim.core.pixel_limit import MAX_IMAGE_FILE_BYTES
+
+    path = make_folder(tmp_path)
+    with open(tmp_path / "pictures" / "a.png", "r+b") as handle:
+        handle.truncate(8 * 2**30)
+    start = time.process_time()
+    with pytest.raises(CamsimError, match=r"a\.png is 8\.59 GB, over the limit of 3\.26 GB"):
+        load_spec(path)
+    assert time.process_time() - start < 2.0
+    assert MAX_IMAGE_FILE_BYTES == 3_264_000_000
+
+
 # --- the frames ----------------------------------------------------------------------------------------------
 
 
