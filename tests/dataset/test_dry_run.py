@@ -33,7 +33,8 @@ CASES = {
         "[fixed]\nexposure = \"auto\"\nexposure_target_e = 1e300\n", [], "exposure"),
     "a later frame's bits below its pedestal": (
         "[fixed]\npedestal_dn = 100\n[grid]\nbits = [12, 6]\n", [], "pedestal_dn"),
-    "an exposure longer than a DNG records": ("[grid]\nexposure_s = [1.0, 1e10]\n", [], "DNG"),
+    "an exposure longer than the schema's": ("[grid]\nexposure_s = [1.0, 1e10]\n", [],
+                                             "exposure_s must be a positive number ≤ 1e+06 s"),
     "an unknown EXR compression": ("", ["--exr-compression", "bogus"], "bogus"),
     "an EXR compression for a Zarr store": ("", ["--exr-compression", "zip", "--format", "zarr"], "--exr-compression"),
     "workers and a scheduler": ("", ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--scheduler"),

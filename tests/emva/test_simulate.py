@@ -153,7 +153,7 @@ def test_bayer_sensor_is_measured_on_its_green_sites():
     (["--preset", "sony-a7s2", "--iso", "10"], "outside preset sony-a7s2's range"),
     (["--seed", "-1"], "must be ≥ 0"),
     (["--dsnu-exposure-factor", "1"], "dsnu_exposure_factor (the DSNU's second exposure time over the first) must be"),
-    (["--sensor", "dsnu_dark_current_percent=100"], "must be < 100"),
+    (["--sensor", "dsnu_dark_current_percent=100"], "must be ≥ 0 and < 100 %"),
 ])
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, args, message):
     assert main(["emva", *args, "--out", str(tmp_path / "o"), "-q"]) == 2
