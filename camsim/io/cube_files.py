@@ -579,21 +579,15 @@ def cube_header(path, *, variable: str | None = None) -> CubeHeader:
 
 
 def cube_size(path, *, variable: str | None = None) -> tuple[int, int]:
-    """(W, H) of a cube file, from its header alone (no data read).
+    """(W, H) of a cube file, from its header alone (no data read: :func:`cube_header`).
 
     Raises
     ------
     CamsimError
         For a missing, unreadable or malformed file.
     """
-    path = Path(path)
-    reader = _reader(path)
-    if reader is read_mat:
-        height, width, _ = mat_cube_shape(path, variable=variable)
-    else:
-        check_input(path, "cube file")
-        height, width = reader(path, variable=variable).array.shape[:2]
-    return int(width), int(height)
+    header = cube_header(path, variable=variable)
+    return header.width, header.height
 
 
 def read_cube(path, grid: WavelengthGrid, *, wavelengths_nm=None, variable: str | None = None,
