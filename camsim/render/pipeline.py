@@ -342,6 +342,23 @@ def check_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, st
                           "136 years): shorten it (or set exposure_max_s)")
 
 
+def check_blurred_values(expected) -> None:
+    """Refuse a frame through a lens whose mean charge passes :data:`camsim.render.frame.FRAME_VALUE_MAX`, saturation
+    or not: the lens blurs the expectation as float32 planes (:mod:`camsim.render.optics`), where such a mean is
+    infinite and its neighbours NaN. (Without a lens a mean above the full well is drawn at the saturation cap.)
+
+    Raises
+    ------
+    CamsimError
+    """
+    from camsim.render.frame import FRAME_VALUE_MAX
+
+    top = float(np.max(expected.signal_e + expected.dark_e, initial=0.0))
+    if not top <= FRAME_VALUE_MAX:
+        raise CamsimError(f"a mean charge of {top:.3g} e⁻ per pixel is beyond {FRAME_VALUE_MAX:.0e}, the largest the "
+                          "lens's float32 blur holds: lower F, the exposure or the [camera.scale]")
+
+
 def check_frames(scene: Scene, camera: Camera | None = None) -> list[str]:
     """Refuse a scene with a frame that cannot be drawn, before anything is drawn or written; return its warnings.
 
@@ -379,6 +396,8 @@ def check_frames(scene: Scene, camera: Camera | None = None) -> list[str]:
             try:
                 sensor = frame_sensor(scene, lit, factor)
                 check_frame(lit, sensor, factor, scene.statistics)
+                if scene.optics is not None:
+                    check_blurred_values(lit.expected(sensor, factor, scene.statistics))
             except CamsimError as exc:
                 raise CamsimError(f"frame under {illuminant} at F = {factor:g}: {exc}") from None
             warned += [(illuminant, factor, sensor.exposure_s, line) for line in frame_warnings(sensor)]
