@@ -342,10 +342,11 @@ def check_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, st
                           "136 years): shorten it (or set exposure_max_s)")
 
 
-def check_blurred_values(expected) -> None:
-    """Refuse a frame through a lens whose mean charge passes :data:`camsim.render.frame.FRAME_VALUE_MAX`, saturation
-    or not: the lens blurs the expectation as float32 planes (:mod:`camsim.render.optics`), where such a mean is
-    infinite and its neighbours NaN. (Without a lens a mean above the full well is drawn at the saturation cap.)
+def check_per_pixel_values(expected) -> None:
+    """Refuse a frame through a lens or a motion whose mean charge passes :data:`camsim.render.frame.FRAME_VALUE_MAX`,
+    saturation or not: the lens blurs the expectation, a sequence warps it, as per-pixel float32 planes
+    (:mod:`camsim.render.optics`, :mod:`camsim.render.sequence`), where such a mean is infinite and its neighbours
+    NaN. (A static frame's mean above the full well is drawn at the saturation cap.)
 
     Raises
     ------
@@ -355,8 +356,9 @@ def check_blurred_values(expected) -> None:
 
     top = float(np.max(expected.signal_e + expected.dark_e, initial=0.0))
     if not top <= FRAME_VALUE_MAX:
-        raise CamsimError(f"a mean charge of {top:.3g} e⁻ per pixel is beyond {FRAME_VALUE_MAX:.0e}, the largest the "
-                          "lens's float32 blur holds: lower F, the exposure or the [camera.scale]")
+        raise CamsimError(f"a mean charge of {top:.3g} e⁻ per pixel is beyond {FRAME_VALUE_MAX:.0e}, the largest a "
+                          "frame's per-pixel float32 expectation (through a lens or a motion) holds: lower F, the "
+                          "exposure or the [camera.scale]")
 
 
 def check_frames(scene: Scene, camera: Camera | None = None) -> list[str]:
@@ -396,8 +398,8 @@ def check_frames(scene: Scene, camera: Camera | None = None) -> list[str]:
             try:
                 sensor = frame_sensor(scene, lit, factor)
                 check_frame(lit, sensor, factor, scene.statistics)
-                if scene.optics is not None:
-                    check_blurred_values(lit.expected(sensor, factor, scene.statistics))
+                if scene.optics is not None or scene.sequence is not None:
+                    check_per_pixel_values(lit.expected(sensor, factor, scene.statistics))
             except CamsimError as exc:
                 raise CamsimError(f"frame under {illuminant} at F = {factor:g}: {exc}") from None
             warned += [(illuminant, factor, sensor.exposure_s, line) for line in frame_warnings(sensor)]

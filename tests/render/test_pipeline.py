@@ -20,7 +20,21 @@ def test_a_mean_beyond_the_lens_float32_blur_is_refused_on_one_line(tmp_path, ca
     out = tmp_path / "out"
     assert main(["render", str(_lens_scene(tmp_path, 1e300)), "--out", str(out), "-q", "--workers", "1"]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "beyond 1e+36, the largest the lens's float32 blur holds" in err, err
+    assert err.count("\n") == 1 and "beyond 1e+36, the largest a frame's per-pixel float32 expectation" in err, err
+    assert not out.exists()
+
+
+def test_a_mean_beyond_a_sequences_float32_warp_is_refused_on_one_line(tmp_path, capsys):
+    """The same through a motion: a sequence warps the per-pixel expectation as float32 (dead leaves, shaking)."""
+    path = tmp_path / "seq.toml"
+    path.write_text('name = "seq"\n[target]\nkind = "dead-leaves"\n[light]\nilluminants = ["D65"]\n'
+                    'intensity_factors = [1.0]\n[frame]\nwidth = 24\nheight = 22\n[sensor]\nexposure_s = 0.01\n'
+                    '[sequence]\nframes = 3\nframe_interval_s = 0.05\nshake_px = 0.5\n'
+                    '[camera.scale]\nkind = "anchor"\nreference_electrons = 1e300\n')
+    out = tmp_path / "out"
+    assert main(["render", str(path), "--out", str(out), "-q", "--workers", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "per-pixel float32 expectation (through a lens or a motion)" in err, err
     assert not out.exists()
 
 
