@@ -61,8 +61,17 @@ class AnchorScale:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise CamsimError(f"scale parameter {name} must be a positive number, got {value!r}")
+        if self.reference_electrons > REFERENCE_ELECTRONS_MAX:
+            raise CamsimError(f"scale parameter reference_electrons must be at most {REFERENCE_ELECTRONS_MAX:g} e⁻, "
+                              f"got {self.reference_electrons!r}")
 
     kind = "anchor"
+
+
+#: The most charge the anchor may give the perfect white at F = 1: 10³⁰ e⁻, 10²² of the largest full well the schema
+#: allows (:data:`camsim.sensor.params.CHARGE_MAX_E`); beyond about 10²⁸⁰ the DNG's colour matrix overflows float64.
+#: Unit: e⁻.
+REFERENCE_ELECTRONS_MAX = 1e30
 
 
 @dataclass(frozen=True)

@@ -89,9 +89,11 @@ CASES = {
                                        "spec.toml": SPEC + "[fixed]\nconversion_gain_v_per_e = 1e308\n"},
                                       DRY_RUN, "give a gain of inf DN/e⁻, outside [1e-06, 1e+06] DN/e⁻"),
     "reflectance = 10^400": ({"scene.toml": edit(SCENE, "reflectance", "1" + "0" * 400)}, RENDER, "reflectance"),
-    "reference_electrons = 1e308 on a dark frame at F = 8": (
-        {"scene.toml": edit(edit(SCENE, "reflectance", "0.0"), "intensity_factors", "[8.0]")
-         + "[camera.scale]\nreference_electrons = 1e308\n"}, RENDER, "perfect white"),
+    "reference_electrons = 1e308": ({"scene.toml": SCENE + "[camera.scale]\nreference_electrons = 1e308\n"}, RENDER,
+                                    "reference_electrons must be at most 1e+30 e⁻"),
+    "the largest reference_electrons on a dark frame at F = 1e290": (
+        {"scene.toml": edit(edit(SCENE, "reflectance", "0.0"), "intensity_factors", "[1e290]")
+         + "[camera.scale]\nreference_electrons = 1e30\n"}, RENDER, "perfect white"),
     "exposure_s = 1e300": ({"scene.toml": edit(SCENE, "exposure_s", "1e300")}, RENDER,
                            "exposure_s must be a positive number ≤ 1e+06 s, got 1e+300"),
     "full_well_e = 1e400 in a preset file": ({"scene.toml": edit(SCENE, "preset", '"p.toml"'),

@@ -90,7 +90,8 @@ _CHART = 'name = "x"\n[chart]\n[light]\nilluminants = ["D65"]\nintensity_factors
     ("[sensor]\ndsnu_e = 1e30\n", 2, "dsnu_e must be ≥ 0 and ≤ 1e+08 e⁻"),
     ("[sensor]\nread_noise_e = 1e8\n", 0, None),  # the largest σ: σ² = 1e16, in the normal draws (kernels.py)
     ("[sensor]\ndsnu_e = 1e8\n", 0, None),  # a correlation near 1 in the black level's bivariate normal
-    ("[camera.scale]\nreference_electrons = 1e308\n", 0, None),  # the DNG colour matrix's responses (rawcolour.py)
+    ("[camera.scale]\nreference_electrons = 1e30\n", 0, None),  # the DNG colour matrix's responses (rawcolour.py)
+    ("[camera.scale]\nreference_electrons = 1e308\n", 2, "reference_electrons must be at most 1e+30 e⁻"),
     ('[camera.scale]\nkind = "physical"\npixel_pitch_um = 1e150\n', 0, None),
 ])
 def test_extreme_values_give_no_runtime_warning(tmp_path, capsys, extra, status, phrase):
