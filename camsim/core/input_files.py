@@ -7,8 +7,9 @@ device (``/dev/zero``, a terminal) blocks a reader forever or never ends; a sock
 not a file; a NUL byte makes the operating system's call raise ``ValueError``. All of these are refused here, on one
 line, before a byte is read.
 
-The file is opened with ``O_NONBLOCK`` and judged by ``fstat`` of the open descriptor: opening a FIFO that way does
-not wait for a writer, and what is judged is what would be read (no window between a ``stat`` and an ``open``).
+The path is judged by ``stat`` before it is opened (opening some devices acts on them), then opened with
+``O_NONBLOCK`` and judged again by ``fstat`` of the open descriptor: opening a FIFO that way does not wait for a
+writer, and what is judged is what would be read (a file swapped for a FIFO between the two is still refused).
 """
 
 from __future__ import annotations
@@ -65,6 +66,12 @@ def open_input(path, what: str, max_bytes: int | None = None):
         device or a socket, or a file over ``max_bytes``: one line, naming ``what`` and the path.
     """
     name = _checked_path(path, what)
+    try:  # judged before it is opened too: opening some devices acts on them (a terminal, a tape rewinds)
+        mode = os.stat(name).st_mode
+    except OSError:
+        mode = stat.S_IFREG  # missing or unreadable: the open below says which
+    if not stat.S_ISREG(mode):
+        raise CamsimError(f"cannot read {what} {name}: it is {_kind(mode)}, not a regular file")
     try:
         fd = os.open(name, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except FileNotFoundError:
