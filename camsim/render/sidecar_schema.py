@@ -31,9 +31,9 @@ _SHOWN = 60  # characters of a bad value shown in a message
 #: Largest magnitude of a sidecar's number, and smallest of one that must be positive: products and quotients of a
 #: few of them stay finite in float64 (far outside any physical value a frame records).
 MAX_MAGNITUDE, MIN_POSITIVE = 1e60, 1e-60
-#: The largest sidecar camsim parses (a file, or an EXR header's ``camsim:metadata``): a frame's own sidecar is a
-#: few kB, a 200-megapixel rolling-shutter frame's (a homography per row) about 0.5 GB of pixels' 0.02 %; 64 MB
-#: parses in about a second. Unit: bytes.
+#: The largest sidecar camsim parses (a file, or an EXR header's ``camsim:metadata``): a chart frame's sidecar is
+#: about 30 kB, a 36 000-row rolling-shutter frame's (a homography per row) about 7 MB; 64 MB parses in about a
+#: second. Unit: bytes.
 MAX_SIDECAR_BYTES = 64_000_000
 #: The most values (counted by their separating commas, before parsing) a sidecar may hold: 2 × 10⁶, six times a
 #: 36 000-row rolling-shutter frame's per-row homographies (9 numbers a row); a chart's sidecar holds about 2 000.
