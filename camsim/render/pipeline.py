@@ -315,7 +315,8 @@ def scene_frame(scene: Scene, illuminant: str, intensity_factor: float, *, seed:
     return frame, scene_frame_info(scene, lit, camera.name, intensity_factor, seed, device)
 
 
-def check_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, statistics: str) -> None:
+def check_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, statistics: str, *,
+                per_pixel: bool = False) -> None:
     """Refuse a frame that cannot be drawn or written, before it is: its expected signal must be finite
     (:func:`camsim.sensor.expected.expected_signal`), its values must fit the frame's float32 pixels
     (:func:`camsim.render.frame.check_frame_values`) — what drawing it checks first — and what is written after the
@@ -325,12 +326,18 @@ def check_frame(lit: LitScene, sensor: SensorParams, intensity_factor: float, st
     ``camsim render`` checks its frames so before any work (:func:`check_frames`), and a dataset's planning every
     frame (:mod:`camsim.dataset.spec`), so that ``camsim dataset --dry-run`` refuses what the run would.
 
+    ``per_pixel``: the frame's expectation is made per pixel in float32 (through a lens or a motion), whose bound it
+    must fit too (:func:`check_per_pixel_values`).
+
     Raises
     ------
     CamsimError
         The reason (an overflow names the largest F allowed).
     """
-    check_frame_values(lit.expected(sensor, intensity_factor, statistics), sensor)
+    expected = lit.expected(sensor, intensity_factor, statistics)
+    check_frame_values(expected, sensor)
+    if per_pixel:
+        check_per_pixel_values(expected)
     if lit.white_photon_rate is not None:  # the perfect white's signal, which the sidecar records
         with np.errstate(over="ignore", invalid="ignore"):
             white = lit.white_signal_e_per_s * intensity_factor * sensor.exposure_s
@@ -397,9 +404,8 @@ def check_frames(scene: Scene, camera: Camera | None = None) -> list[str]:
         for factor in factors:
             try:
                 sensor = frame_sensor(scene, lit, factor)
-                check_frame(lit, sensor, factor, scene.statistics)
-                if scene.optics is not None or scene.sequence is not None:
-                    check_per_pixel_values(lit.expected(sensor, factor, scene.statistics))
+                check_frame(lit, sensor, factor, scene.statistics,
+                            per_pixel=scene.optics is not None or scene.sequence is not None)
             except CamsimError as exc:
                 raise CamsimError(f"frame under {illuminant} at F = {factor:g}: {exc}") from None
             warned += [(illuminant, factor, sensor.exposure_s, line) for line in frame_warnings(sensor)]
