@@ -283,10 +283,7 @@ def _check_curves(meta: dict) -> None:
     wavelengths = meta["wavelengths_nm"]
     if not isinstance(wavelengths, list) or not 2 <= len(wavelengths) <= MAX_WAVELENGTHS:
         raise _Bad(f"a list of 2 to {MAX_WAVELENGTHS} wavelengths", "wavelengths_nm", wavelengths)
-    try:
-        values = _numbers(wavelengths, len(wavelengths), low=0)
-    except _Bad as exc:
-        raise _Bad(str(exc), "wavelengths_nm", wavelengths) from None
+    values = _checked_at(wavelengths, "wavelengths_nm", lambda v: _numbers(v, len(v), low=0))
     if any(b <= a for a, b in zip(values, values[1:])):
         raise _Bad("increasing", "wavelengths_nm", wavelengths)
     try:
@@ -305,16 +302,10 @@ def _check_patch(patch, index: int, width: int, height: int) -> None:
     for name, check in checks.items():
         if name not in patch:
             raise _Bad("present", f"{key}.{name}", None)
-        try:
-            check(patch[name])
-        except _Bad as exc:
-            raise _Bad(str(exc), f"{key}.{name}", patch[name]) from None
+        _checked_at(patch[name], f"{key}.{name}", check)
     for name, check in (("xyz_cd_m2", _optional(_rgb())), ("gaussian_ks", _ks_distances)):
         if name in patch:
-            try:
-                check(patch[name])
-            except _Bad as exc:
-                raise _Bad(str(exc), f"{key}.{name}", patch[name]) from None
+            _checked_at(patch[name], f"{key}.{name}", check)
     rect = patch.get("rect_xywh")
     if (not isinstance(rect, list) or len(rect) != 4 or any(isinstance(v, bool) or not isinstance(v, int)
                                                             for v in rect)):
@@ -366,7 +357,7 @@ def _check_sizes(meta: dict) -> None:
     from camsim.core.pixel_limit import MAX_PIXELS
 
     for key in ("width_px", "height_px"):
-        _bounded(meta[key], key, lambda v: _integer(v, low=1))
+        _checked_at(meta[key], key, lambda v: _integer(v, low=1))
     width, height = meta["width_px"], meta["height_px"]
     if width * height > MAX_PIXELS:
         raise _Bad(f"a frame of at most {MAX_PIXELS // 1_000_000} megapixels with height_px {height}",
@@ -393,9 +384,10 @@ class _Length(int):
         return f"a list of {int(self)}"
 
 
-def _bounded(value, key, check):
+def _checked_at(value, key, check):
+    """``check(value)``'s result; its :class:`_Bad` raised again naming ``key`` and ``value``."""
     try:
-        check(value)
+        return check(value)
     except _Bad as exc:
         raise _Bad(str(exc), key, value) from None
 
@@ -432,10 +424,7 @@ def check_sidecar(meta, where) -> dict:
         _check_sizes(meta)
         for key, check in FRAME_KEYS.items():
             if key in meta:
-                try:
-                    check(meta[key])
-                except _Bad as exc:
-                    raise _Bad(str(exc), key, meta[key]) from None
+                _checked_at(meta[key], key, check)
         for p in SENSOR_PARAMS:  # the sensor's own keys, by their declaration
             if p.stage or p.sidecar is not None and p.name not in ("bits",):
                 continue
@@ -457,10 +446,7 @@ def check_sidecar(meta, where) -> dict:
             if meta["cfa_pattern"] not in CFA_PATTERNS:
                 raise _Bad("null or one of " + ", ".join(CFA_PATTERNS), "cfa_pattern", meta["cfa_pattern"])
         if meta.get("tukey_lambda") is not None:
-            try:
-                _number(meta["tukey_lambda"], above=-0.5, below=1)
-            except _Bad as exc:
-                raise _Bad(str(exc), "tukey_lambda", meta["tukey_lambda"]) from None
+            _checked_at(meta["tukey_lambda"], "tukey_lambda", lambda v: _number(v, above=-0.5, below=1))
         if not raw or "wavelengths_nm" in meta or "qe_e_m2_sr_per_photon" in meta:
             _check_curves(meta)
         if not isinstance(meta["patches"], list):
