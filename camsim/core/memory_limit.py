@@ -111,14 +111,23 @@ class FreeMemory:
     address_space: int | None
 
 
-def _meminfo_available() -> int | None:
+def _proc_field_bytes(path: str, field: str) -> int | None:
+    """The ``FIELD:  N kB`` line of a /proc file (``/proc/meminfo``, ``/proc/self/status``) in bytes; None where the
+    file or the line is missing or malformed (not Linux)."""
     try:
-        with open("/proc/meminfo", encoding="ascii") as handle:
+        with open(path, encoding="ascii") as handle:
             for line in handle:
-                if line.startswith("MemAvailable:"):
+                if line.startswith(f"{field}:"):
                     return int(line.split()[1]) * 1024
     except (OSError, ValueError, IndexError):
         pass
+    return None
+
+
+def _meminfo_available() -> int | None:
+    available = _proc_field_bytes("/proc/meminfo", "MemAvailable")
+    if available is not None:
+        return available
     try:  # not Linux: the free pages
         return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     except (OSError, ValueError, AttributeError):
@@ -179,15 +188,8 @@ def _cgroup_room() -> int | None:
 
 
 def _own_address_space() -> int:
-    """The process's size now (``VmSize``). Unit: bytes."""
-    try:
-        with open("/proc/self/status", encoding="ascii") as handle:
-            for line in handle:
-                if line.startswith("VmSize:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return 0
+    """The process's size now (``VmSize``; 0 where unknown). Unit: bytes."""
+    return _proc_field_bytes("/proc/self/status", "VmSize") or 0
 
 
 def free_memory() -> FreeMemory:
